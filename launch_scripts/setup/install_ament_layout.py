@@ -14,7 +14,9 @@ import shutil
 import sys
 from pathlib import Path
 
-import setuptools  # noqa: F401  (installs the distutils shim that run_setup comes from)
+import setuptools  # noqa: F401  (must come first: it provides the distutils run_setup is from)
+
+# isort: split
 from distutils.core import run_setup
 
 WRAPPER = """#!{python}
@@ -51,6 +53,7 @@ def install(prefix: Path, repo: Path) -> None:
 
 
 def main() -> int:
+    """Command line: install the layout into --prefix (default: this interpreter's prefix)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--prefix', type=Path, default=Path(sys.prefix))
     args = parser.parse_args()
