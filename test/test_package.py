@@ -19,6 +19,7 @@ ROSDEP_KEYS = {
     'builtin_interfaces': 'builtin_interfaces',
     'fmm_interfaces': 'fmm_interfaces',
     'numpy': 'python3-numpy',
+    'rcl_interfaces': 'rcl_interfaces',
     'rclpy': 'rclpy',
     'scipy': 'python3-scipy',
     'std_msgs': 'std_msgs',
