@@ -62,6 +62,11 @@ MODE_SIZE = 10
 # mass is then held at rest for the rest of that interval.
 MAX_EVENTS_PER_INTERVAL = 64
 
+# Below STRIBECK_ZONE * vs the RK4 segments shrink to STRIBECK_STEP times the time the speed
+# takes to cross vs, over which the Stribeck excess exp(-(v/vs)^2) changes appreciably.
+STRIBECK_ZONE = 4.0
+STRIBECK_STEP = 0.2
+
 
 @njit(cache=True)
 def _spring(x, p):
@@ -265,11 +270,18 @@ def _interval(x, v, mode, f0, f1, t0, rest_time, p):
             if s >= h:
                 return x, v, mode, rest_time
             continue
-        end = min(h, s + segment)
-        length = end - s
         f_start = f0 + df_dt * s
-        x1, v1 = _slide(x, v, f_start, df_dt, length, mode, p)
         d0 = mode * _accel(x, v, f_start, mode, p)
+        end = min(h, s + segment)
+        if p[STATIC_EXCESS] != 0.0 and abs(v) < STRIBECK_ZONE * p[STRIBECK_V]:
+            # Near zero speed the Stribeck excess changes as fast as the speed crosses vs:
+            # at |a| (or, leaving rest with a = 0, at the jerk j: v = j t^2 / 2). Resolve it.
+            jerk = (df_dt - p[STIFFNESS] * v - p[DAMPING] * mode * d0) / p[MASS]
+            speed_rate = abs(d0) + math.sqrt(0.5 * p[STRIBECK_V] * abs(jerk))
+            if speed_rate > 0.0:
+                end = min(end, s + max(STRIBECK_STEP * p[STRIBECK_V] / speed_rate, h / 1024.0))
+        length = end - s
+        x1, v1 = _slide(x, v, f_start, df_dt, length, mode, p)
         d1 = mode * _accel(x1, v1, f0 + df_dt * end, mode, p)
         p1 = mode * v1
         tau = -1.0

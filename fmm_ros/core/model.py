@@ -445,6 +445,8 @@ class OscillatorStream:
             self._mode = np.zeros(kernels.MODE_SIZE)
             self._mode[kernels.MODE_PHI:] = _foh_step(*spec.second_mode.constants(), step_s)
         delay_samples = spec.delay_s * self.sample_rate_hz
+        if abs(delay_samples - round(delay_samples)) < 1e-9:
+            delay_samples = round(delay_samples)  # 3e-4 s at 10 kHz is 3 samples, not 2.999...
         self._delay_whole = int(math.floor(delay_samples))
         self._delay_fraction = delay_samples - self._delay_whole
         self._delay_line = (np.full(self._delay_whole + 1, float(v0_m_s))
