@@ -189,6 +189,7 @@ def impact_record(peak_force_n: float, rng: np.random.Generator | int, *, rig: R
     returned channels add independent Gaussian noise of the given standard deviations.
     """
     rng = np.random.default_rng(rng)
+    require_positive('sample_rate_hz', sample_rate_hz)
     require_non_negative('force_noise_std_n', force_noise_std_n)
     require_non_negative('velocity_noise_std_m_s', velocity_noise_std_m_s)
     require_non_negative('pretrigger_s', pretrigger_s)
