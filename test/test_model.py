@@ -24,7 +24,9 @@ from fmm_ros.core.model import (
 )
 
 RATE_HZ = 10_000.0
-ALL_TERMS = tuple(model_term(name) for name in MODEL_TERMS)
+# Every term at its default, but a delay of 2.37 samples: the delay line's fractional path.
+ALL_TERMS = tuple(model_term(name, delay_s=2.37e-4) if name == 'sensor_delay'
+                  else model_term(name) for name in MODEL_TERMS)
 
 
 def impact(rate_hz=RATE_HZ, duration_s=4.0, peak_n=1000.0, contact_s=2.2e-3, start_s=0.01):

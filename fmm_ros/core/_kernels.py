@@ -308,23 +308,29 @@ def _interval(x, v, mode, f0, f1, t0, rest_time, p):
 
 @njit(cache=True)
 def _start(force, x_out, v_out, state, p):
-    """Emit sample 0 (the initial condition) on the first call; return the first loop index."""
-    if state[STATE_INDEX] != 0.0 or force.shape[0] == 0:
-        return 0
-    x = state[STATE_X]
-    v = state[STATE_V]
-    if v > 0.0:
-        mode = 1
-    elif v < 0.0:
-        mode = -1
+    """Unpack the carried state; on the first call emit sample 0 (the initial condition).
+
+    Returns (first loop index, x, v, mode, rest_time, last force, samples done before).
+    """
+    if state[STATE_INDEX] == 0.0 and force.shape[0] > 0:
+        x = state[STATE_X]
+        v = state[STATE_V]
+        if v > 0.0:
+            mode = 1
+        elif v < 0.0:
+            mode = -1
+        else:
+            mode = _break_direction(force[0] - _spring(x, p), p)
+        state[STATE_MODE] = mode
+        state[STATE_REST_TIME] = 0.0 if mode == 0 else np.nan
+        state[STATE_FORCE] = force[0]
+        x_out[0] = x
+        v_out[0] = v
+        first = 1
     else:
-        mode = _break_direction(force[0] - _spring(x, p), p)
-    state[STATE_MODE] = mode
-    state[STATE_REST_TIME] = 0.0 if mode == 0 else np.nan
-    state[STATE_FORCE] = force[0]
-    x_out[0] = x
-    v_out[0] = v
-    return 1
+        first = 0
+    return (first, state[STATE_X], state[STATE_V], int(state[STATE_MODE]),
+            state[STATE_REST_TIME], state[STATE_FORCE], state[STATE_INDEX])
 
 
 @njit(cache=True)
@@ -333,13 +339,7 @@ def oscillator_exact(force, x_out, v_out, state, p):
 
     Writes the state at each sample into x_out, v_out and carries it over in `state`.
     """
-    first = _start(force, x_out, v_out, state, p)
-    x = state[STATE_X]
-    v = state[STATE_V]
-    mode = int(state[STATE_MODE])
-    rest_time = state[STATE_REST_TIME]
-    f0 = state[STATE_FORCE]
-    index0 = state[STATE_INDEX]
+    first, x, v, mode, rest_time, f0, index0 = _start(force, x_out, v_out, state, p)
     h = p[STEP]
     linear = p[NONLINEAR] == 0.0
     band_pos = p[FRICTION_POS] + p[STATIC_EXCESS]
@@ -389,13 +389,7 @@ def oscillator_euler(force, x_out, v_out, state, p):
     time-domain code of Schmitz & Smith's Mechanical Vibrations), force held at the step start.
     When the velocity reaches or crosses zero, the stick test decides rest or reversal.
     """
-    first = _start(force, x_out, v_out, state, p)
-    x = state[STATE_X]
-    v = state[STATE_V]
-    mode = int(state[STATE_MODE])
-    rest_time = state[STATE_REST_TIME]
-    f0 = state[STATE_FORCE]
-    index0 = state[STATE_INDEX]
+    first, x, v, mode, rest_time, f0, index0 = _start(force, x_out, v_out, state, p)
     h = p[STEP]
     for i in range(first, force.shape[0]):
         f1 = force[i]

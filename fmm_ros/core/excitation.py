@@ -171,7 +171,7 @@ class ImpactRecord:
     @property
     def time_s(self) -> np.ndarray:
         """Sample times from the first sample [s]."""
-        return np.arange(self.force_n.size) / self.sample_rate_hz
+        return self.simulation.time_s
 
 
 def impact_record(peak_force_n: float, rng: np.random.Generator | int, *, rig: Rig = FMM_RIG,
