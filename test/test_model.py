@@ -247,6 +247,8 @@ def test_viscous_damping_term_adds_to_the_rig_damping():
                                                              damping_n_s_per_m=1.5),))
     in_rig = simulate(force, RATE_HZ, rig=Rig(damping_n_s_per_m=FMM_RIG.damping_n_s_per_m + 1.5))
     np.testing.assert_array_equal(with_term.velocity_m_s, in_rig.velocity_m_s)
+    alone = simulate(force, RATE_HZ, effects=model_term('viscous_damping', damping_n_s_per_m=1.5))
+    np.testing.assert_array_equal(alone.velocity_m_s, in_rig.velocity_m_s)
 
 
 def test_second_mode_adds_an_exact_linear_response_to_the_output():

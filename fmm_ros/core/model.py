@@ -407,15 +407,13 @@ class OscillatorStream:
                  integrator: str = 'exact') -> None:
         if not isinstance(rig, Rig):
             raise ValueError(f'rig must be a Rig, got {rig!r}')
-        require_finite('sample_rate_hz', sample_rate_hz)
-        if sample_rate_hz <= 0.0:
-            raise ValueError(f'sample_rate_hz must be positive, got {sample_rate_hz}')
+        require_positive('sample_rate_hz', sample_rate_hz)
         if integrator not in INTEGRATORS:
             raise ValueError(
                 f'unknown integrator {integrator!r}; choose one of {", ".join(INTEGRATORS)}')
         require_finite('x0_m', x0_m)
         require_finite('v0_m_s', v0_m_s)
-        effects = tuple(effects)
+        effects = (effects,) if isinstance(effects, ModelTerm) else tuple(effects)
         spec = _model_spec(rig, mu, effects)
         needed_hz = MIN_SAMPLES_PER_PERIOD * rig.natural_frequency_hz
         if sample_rate_hz < needed_hz:
@@ -515,6 +513,7 @@ def simulate(force_n: np.ndarray, sample_rate_hz: float, *, rig: Rig = FMM_RIG,
              out: tuple[np.ndarray, np.ndarray] | None = None) -> Simulation:
     """Response of the model to a sampled force record [N] (linear between samples).
 
+    `effects` are model terms (`model_term(name, ...)`; one term alone is accepted too).
     `out` may pass two float64 arrays of the record's length to fill (no allocation: the
     fitter's hot loop). Raises ValueError on bad input (non-finite force, bad rig constants,
     negative mu, a sample rate too coarse for the natural frequency).
@@ -564,12 +563,8 @@ def coulomb_peak_mobility(impulse_n_s: float, *, rig: Rig = FMM_RIG,
 
 def record_length(duration_s: float, sample_rate_hz: float) -> int:
     """Samples in a record of duration_s at sample_rate_hz (33 s at 10 kHz: 330,000)."""
-    require_finite('duration_s', duration_s)
-    require_finite('sample_rate_hz', sample_rate_hz)
-    if duration_s <= 0.0:
-        raise ValueError(f'duration_s must be positive, got {duration_s}')
-    if sample_rate_hz <= 0.0:
-        raise ValueError(f'sample_rate_hz must be positive, got {sample_rate_hz}')
+    require_positive('duration_s', duration_s)
+    require_positive('sample_rate_hz', sample_rate_hz)
     return max(1, round(duration_s * sample_rate_hz))
 
 
