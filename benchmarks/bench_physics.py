@@ -91,7 +91,7 @@ def cold_compile_s():
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--repeats', type=int, default=21)
+    parser.add_argument('--repeats', type=int, default=51)
     repeats = parser.parse_args().repeats
 
     print('JIT warm-up (kept out of every timing below)')
