@@ -94,7 +94,7 @@ def test_exact_agrees_with_an_event_located_ode_solution(damping):
 
 def test_exact_agrees_with_the_paper_euler_method_at_a_tiny_step():
     # Euler holds the force over each step, which shifts the impact by half a step: at 1 MHz
-    # that costs (h/2) f_peak / m, 0.05 % of the peak velocity.
+    # that costs about (h/2) f_peak / m, 0.04 % of the peak velocity.
     rate = 1e6
     force = impact(rate_hz=rate, duration_s=3.5)
     exact = simulate(force, rate)
