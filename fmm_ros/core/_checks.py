@@ -25,3 +25,22 @@ def require_non_negative(name: str, value: float) -> None:
     require_finite(name, value)
     if value < 0.0:
         raise ValueError(f'{name} must not be negative, got {value}')
+
+
+def finite_samples(name: str, values: np.ndarray, overflow: str = 'sum') -> np.ndarray:
+    """The values as a contiguous one-dimensional float64 array of finite samples.
+
+    One pairwise sum is cheaper than an isfinite mask and is non-finite if any sample is; only
+    then are the bad samples located, and the first named. `overflow` says what a sum that
+    overflows on finite samples stops (in the message).
+    """
+    array = np.ascontiguousarray(values, dtype=np.float64)
+    if array.ndim != 1:
+        raise ValueError(f'{name} must be one-dimensional, got shape {array.shape}')
+    if not math.isfinite(float(np.add.reduce(array))):
+        bad = np.flatnonzero(~np.isfinite(array))
+        if bad.size:
+            raise ValueError(f'{name} is not finite at sample {int(bad[0])} '
+                             f'({array[bad[0]]}); {bad.size} bad sample(s)')
+        raise ValueError(f'{name} is too large to {overflow} (its sum overflows)')
+    return array
