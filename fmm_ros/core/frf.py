@@ -74,14 +74,15 @@ def contact_duration(force_n: np.ndarray, sample_rate_hz: float, threshold_n: fl
         return float('nan')
     start, stop = interval
     rise = float(start)
-    if start > 0:
-        before, at = force_n[start - 1], force_n[start]
-        rise = start - (at - threshold_n) / (at - before)
-    fall = float(stop - 1)
-    if stop < force_n.size:
-        last, after = force_n[stop - 1], force_n[stop]
-        fall = stop - 1 + (last - threshold_n) / (last - after)
-    return (fall - rise) / sample_rate_hz
+    with np.errstate(invalid='ignore'):       # NaN or infinite neighbours give NaN, quietly
+        if start > 0:
+            before, at = force_n[start - 1], force_n[start]
+            rise = start - (at - threshold_n) / (at - before)
+        fall = float(stop - 1)
+        if stop < force_n.size:
+            last, after = force_n[stop - 1], force_n[stop]
+            fall = stop - 1 + (last - threshold_n) / (last - after)
+    return float((fall - rise) / sample_rate_hz)
 
 
 def spectra(force_n: np.ndarray, velocity_m_s: np.ndarray,
@@ -99,7 +100,8 @@ def spectra(force_n: np.ndarray, velocity_m_s: np.ndarray,
 def mobility(force_spectrum: np.ndarray, velocity_spectrum: np.ndarray) -> np.ndarray:
     """Mobility V/F [m/(N*s)] bin by bin; NaN where the force spectrum is exactly zero."""
     out = np.full(np.broadcast(force_spectrum, velocity_spectrum).shape, np.nan, dtype=complex)
-    np.divide(velocity_spectrum, force_spectrum, out=out, where=force_spectrum != 0)
+    with np.errstate(invalid='ignore'):       # NaN spectra (records with gaps) stay NaN
+        np.divide(velocity_spectrum, force_spectrum, out=out, where=force_spectrum != 0)
     return out
 
 

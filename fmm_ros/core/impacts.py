@@ -110,8 +110,8 @@ class TriggerDetector:
     """The trigger rule as a state machine over force samples in index order.
 
     `scan` may be called with blocks of any size; the triggers found depend only on the
-    samples and their indices, not on how they were split. NaN samples (missing data) neither
-    trigger nor re-arm.
+    samples and their indices, not on how they were split. Non-finite samples (missing or
+    corrupt data) neither trigger nor re-arm.
     """
 
     def __init__(self, config: CaptureConfig, sample_rate_hz: float,
@@ -129,7 +129,7 @@ class TriggerDetector:
         pos = 0
         while pos < force_n.size:
             if not self._armed:
-                below = first_true(force_n[pos:] < self._rearm_n)
+                below = first_true(_below(force_n[pos:], self._rearm_n))
                 if below < 0:
                     break
                 pos += below + 1
@@ -137,7 +137,7 @@ class TriggerDetector:
                 continue
             if self._last is not None:
                 pos = max(pos, self._last + self._spacing - first_sample_index)
-            above = first_true(force_n[pos:] >= self._trigger_n)
+            above = first_true(_reaches(force_n[pos:], self._trigger_n))
             if above < 0:
                 break
             pos += above
@@ -192,11 +192,11 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = CaptureConfig())
     trigger = record.trigger_offset
     flags = set()
 
-    after_contact = first_true(force[trigger:] < config.rearm_level_n)
+    after_contact = first_true(_below(force[trigger:], config.rearm_level_n))
     if after_contact >= 0:
         contact_end = trigger + after_contact
         bounce = force[contact_end:trigger + samples.min_spacing]
-        if np.any(bounce >= config.trigger_level_n):
+        if np.any(_reaches(bounce, config.trigger_level_n)):
             flags.add('double_hit')
     if _beyond(force, record.force_full_scale_n) or _beyond(velocity,
                                                             record.velocity_full_scale_m_s):
@@ -225,8 +225,18 @@ def contact_start_index(force_n: np.ndarray, trigger_offset: int,
     """
     if trigger_offset <= 0:
         return 0
-    back = first_true(force_n[trigger_offset - 1::-1] < config.rearm_level_n)
+    back = first_true(_below(force_n[trigger_offset - 1::-1], config.rearm_level_n))
     return trigger_offset - back if back >= 0 else 0
+
+
+def _reaches(force_n: np.ndarray, level_n: float) -> np.ndarray:
+    """Finite samples at or above a level (the trigger test)."""
+    return (force_n >= level_n) & (force_n < np.inf)
+
+
+def _below(force_n: np.ndarray, level_n: float) -> np.ndarray:
+    """Finite samples below a level (the re-arm test)."""
+    return (force_n < level_n) & (force_n > -np.inf)
 
 
 def _beyond(samples: np.ndarray, full_scale: float) -> bool:
