@@ -83,7 +83,7 @@ pkg_key=$(inputs_hash "$ROOT/setup.py" "$ROOT/setup.cfg" "$ROOT/package.xml" "$S
 if ! is_current fmm_ros "$pkg_key"; then
   say "installing fmm_ros (editable) and its ament layout"
   quiet_pip install --quiet --no-deps --no-build-isolation --editable "$ROOT"
-  (cd "$ROOT" && "$VENV/bin/python" "$SETUP/install_ament_layout.py" --prefix "$VENV")
+  "$VENV/bin/python" "$SETUP/install_ament_layout.py" --prefix "$VENV"
   mark_current fmm_ros "$pkg_key"
 fi
 

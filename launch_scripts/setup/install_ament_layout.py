@@ -27,9 +27,19 @@ sys.exit({function}())
 """
 
 
+def read_setup(repo: Path):
+    """setup.py's Distribution (data_files, entry_points) without running any command."""
+    cwd = os.getcwd()
+    os.chdir(repo)  # setup.py globs paths relative to the repo
+    try:
+        return run_setup(str(repo / 'setup.py'), stop_after='init')
+    finally:
+        os.chdir(cwd)
+
+
 def install(prefix: Path, repo: Path) -> None:
     """Install data_files as symlinks and console scripts as wrappers under prefix."""
-    dist = run_setup(str(repo / 'setup.py'), stop_after='init')
+    dist = read_setup(repo)
     package = dist.get_name()
     shutil.rmtree(prefix / 'share' / package, ignore_errors=True)
     for destination, sources in dist.data_files:
@@ -57,7 +67,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--prefix', type=Path, default=Path(sys.prefix))
     args = parser.parse_args()
-    install(args.prefix.resolve(), Path(os.getcwd()).resolve())
+    install(args.prefix.resolve(), Path(__file__).resolve().parents[2])
     return 0
 
 

@@ -1,0 +1,104 @@
+"""The ament_python package is what `ros2 run`, colcon and rosdep expect (issue 2)."""
+
+import ast
+import importlib.util
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from catkin_pkg.package import parse_package
+
+REPO = Path(__file__).resolve().parents[1]
+
+# Top-level modules the code imports -> the package.xml key that provides them.
+# An import missing here fails the test below: add it to package.xml and to this map.
+ROSDEP_KEYS = {
+    'ament_index_python': 'ament_index_python',
+    'builtin_interfaces': 'builtin_interfaces',
+    'fmm_interfaces': 'fmm_interfaces',
+    'numpy': 'python3-numpy',
+    'rcl_interfaces': 'rcl_interfaces',
+    'rclpy': 'rclpy',
+    'scipy': 'python3-scipy',
+    'std_msgs': 'std_msgs',
+    'yaml': 'python3-yaml',
+}
+
+
+def _setup_distribution():
+    """setup.py read the way the venv setup reads it (launch_scripts/setup/)."""
+    path = REPO / 'launch_scripts' / 'setup' / 'install_ament_layout.py'
+    spec = importlib.util.spec_from_file_location('install_ament_layout', path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.read_setup(REPO)
+
+
+def _third_party_imports() -> dict[str, set[str]]:
+    """Top-level modules imported by fmm_ros/, each with the files importing it."""
+    found: dict[str, set[str]] = {}
+    for path in (REPO / 'fmm_ros').rglob('*.py'):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0:
+                names = [node.module]
+            else:
+                continue
+            for name in names:
+                top = name.split('.')[0]
+                if top not in sys.stdlib_module_names and top != 'fmm_ros':
+                    found.setdefault(top, set()).add(str(path.relative_to(REPO)))
+    return found
+
+
+def test_package_xml_parses_and_declares_every_runtime_import():
+    package = parse_package(str(REPO / 'package.xml'))
+    assert package.name == 'fmm_ros' and package.package_format == 3
+    assert package.get_build_type() == 'ament_python'
+    declared = {dep.name for dep in package.exec_depends}
+    for module, files in sorted(_third_party_imports().items()):
+        assert module in ROSDEP_KEYS, f'{module} (imported by {sorted(files)}) has no rosdep key'
+        assert ROSDEP_KEYS[module] in declared, (
+            f'{module} is imported by {sorted(files)} but package.xml lacks '
+            f'<exec_depend>{ROSDEP_KEYS[module]}</exec_depend>')
+
+
+def test_interface_package_xml_parses():
+    package = parse_package(str(REPO / 'fmm_interfaces' / 'package.xml'))
+    assert package.get_build_type() == 'ament_cmake'
+    assert 'rosidl_interface_packages' in {group.name for group in package.member_of_groups}
+
+
+def test_setup_cfg_puts_scripts_where_ros2_run_looks():
+    text = (REPO / 'setup.cfg').read_text()
+    assert 'script_dir=$base/lib/fmm_ros' in text
+    assert 'install_scripts=$base/lib/fmm_ros' in text
+
+
+def test_ros2_run_finds_every_console_script(monkeypatch):
+    from ament_index_python.packages import get_package_prefix, get_package_share_directory
+
+    if not os.environ.get('AMENT_PREFIX_PATH'):
+        monkeypatch.setenv('AMENT_PREFIX_PATH', sys.prefix)  # what sourcing the venv would set
+    prefix = Path(get_package_prefix('fmm_ros'))
+    assert (Path(get_package_share_directory('fmm_ros')) / 'package.xml').is_file()
+    scripts = _setup_distribution().entry_points['console_scripts']
+    names = [entry.split('=')[0].strip() for entry in scripts]
+    assert 'fmm' in names
+    for name in names:
+        executable = prefix / 'lib' / 'fmm_ros' / name
+        assert executable.is_file(), f'{executable} missing: ros2 run fmm_ros {name} would fail'
+        assert os.access(executable, os.X_OK), f'{executable} is not executable'
+
+
+@pytest.mark.parametrize('module', ['fmm_ros', 'fmm_ros.core'])
+def test_core_imports_without_ros(module):
+    """The core must stay ROS-free: importing it must not pull in rclpy."""
+    code = (f'import sys, {module}; '
+            "bad = [m for m in ('rclpy', 'fmm_interfaces') if m in sys.modules]; "
+            'sys.exit(f"imported {bad}" if bad else 0)')
+    result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
