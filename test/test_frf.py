@@ -156,6 +156,19 @@ def test_band_and_peak_search():
     assert all(np.isnan(frf.peak_magnitude(values, frequency, (4.0, 4.0))))
 
 
+def test_excitation_bandwidth_stops_before_the_first_null_of_a_long_pulse():
+    # A 20 ms half-sine: |F| falls 20 dB near 60 Hz and has its first null at 75 Hz.
+    pulse = half_sine(4000, 1000.0, 100, 450.0, 0.02)
+    force_spectrum = np.fft.rfft(pulse)
+    frequency = frf.frequency_axis(4000, 1000.0)
+    bandwidth = frf.excitation_bandwidth(force_spectrum, frequency, 20.0)
+    assert 55 < bandwidth < 70
+    assert frf.excitation_bandwidth(force_spectrum, frequency, 10.0) < bandwidth
+    # A 4 ms pulse excites all of 0..100 Hz within 20 dB.
+    short = np.fft.rfft(half_sine(4000, 1000.0, 100, 450.0, 0.004))
+    assert frf.excitation_bandwidth(short[:401], frequency[:401]) == 100.0
+
+
 def test_level_assignment_and_clustering():
     rng = np.random.default_rng(0)
     nominal = np.repeat([450.0, 1000.0, 1450.0], 10)
@@ -177,3 +190,5 @@ def test_linear_fit():
     two = frf.linear_fit(x[:2], x[:2])
     assert two.slope == pytest.approx(1.0) and np.isnan(two.r2)
     assert np.isnan(frf.linear_fit(x[:1], x[:1]).slope)
+    flat = frf.linear_fit(x, 5e-3 * (1 + np.array([0.0, 1e-15, -1e-15])))
+    assert abs(flat.slope) < 1e-15 and np.isnan(flat.r2)

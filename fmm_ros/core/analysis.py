@@ -52,8 +52,10 @@ class AnalysisConfig:
     band_limit_hz: float | None = 100.0
     # Where the peak |receptance| (and so the natural frequency) is searched [Hz]. Its lower
     # end keeps out the lowest bins, where the rest offset friction leaves in the displacement
-    # (x_final != 0) makes |mobility / (i omega)| large.
+    # (x_final != 0) makes |mobility / (i omega)| large. Its upper end is lowered further to
+    # where the force spectrum has dropped by excitation_drop_db (`frf.excitation_bandwidth`).
     peak_band_hz: tuple[float, float] = (1.0, 100.0)
+    excitation_drop_db: float = 20.0
     # Optional force window: keep the force this long after the trigger [s], then a
     # half-cosine taper [s]; the pre-contact mean is subtracted first. None: no window.
     force_window_s: float | None = None
@@ -200,8 +202,8 @@ def analyze_impact(record: ImpactRecord, capture: CaptureConfig = DEFAULT_CAPTUR
     frequency = frf.frequency_axis(n_fft, rate)[:bins]
     mobility = frf.mobility(force_spectrum, velocity_spectrum)
     receptance = frf.receptance_from_mobility(mobility, frequency)
-    peak_receptance, natural_frequency = frf.peak_magnitude(receptance, frequency,
-                                                            analysis.peak_band_hz)
+    peak_receptance, natural_frequency = frf.peak_magnitude(
+        receptance, frequency, _peak_band(force_spectrum, frequency, analysis))
     return ImpactResult(
         impact_id=impact_id, trigger_sample_index=record.trigger_sample_index,
         record_start_sample_index=record.record_start_sample_index, level='',
@@ -272,8 +274,10 @@ def _level_summary(name: str, nominal_peak_force_n: float, members: list[ImpactR
     average = frf.average_frf(np.stack([result.force_spectrum for result in members]),
                               np.stack([result.velocity_spectrum for result in members]))
     receptance = frf.receptance_from_mobility(average.mean_mobility, first.frequency_hz)
-    peak, natural_frequency = frf.peak_magnitude(receptance, first.frequency_hz,
-                                                 analysis.peak_band_hz)
+    peak, natural_frequency = frf.peak_magnitude(
+        receptance, first.frequency_hz,
+        _peak_band(np.stack([result.force_spectrum for result in members]), first.frequency_hz,
+                   analysis))
     impulses = np.array([result.impulse_n_s for result in members])
     return LevelSummary(
         level=name, nominal_peak_force_n=nominal_peak_force_n, count=len(members),
@@ -287,3 +291,11 @@ def _level_summary(name: str, nominal_peak_force_n: float, members: list[ImpactR
         h1_mobility=average.h1_mobility, h2_mobility=average.h2_mobility,
         coherence=average.coherence,
         exponential_window_decay_s=first.exponential_window_decay_s)
+
+
+def _peak_band(force_spectrum: np.ndarray, frequency_hz: np.ndarray,
+               analysis: AnalysisConfig) -> tuple[float, float]:
+    """The configured peak band, its top lowered to where the excitation has run out."""
+    low, high = analysis.peak_band_hz
+    usable = frf.excitation_bandwidth(force_spectrum, frequency_hz, analysis.excitation_drop_db)
+    return low, min(high, usable)

@@ -219,6 +219,21 @@ def peak_magnitude(values: np.ndarray, frequency_hz: np.ndarray,
     return float(np.abs(values[best])), float(frequency_hz[best])
 
 
+def excitation_bandwidth(force_spectrum: np.ndarray, frequency_hz: np.ndarray,
+                         drop_db: float = 20.0) -> float:
+    """Highest frequency [Hz] up to which the force spectrum stays within `drop_db` of its peak.
+
+    Above it a hammer pulse puts too little energy in (its spectrum rolls off, with nulls
+    where V/F is noise divided by almost nothing), so FRF peaks there are not to be trusted:
+    impact-testing practice limits the usable band by a 10-20 dB drop of the force spectrum.
+    `force_spectrum` may be 2-D (trials, bins): their summed power is used.
+    """
+    power = np.sum(np.abs(np.atleast_2d(force_spectrum)) ** 2, axis=0)
+    floor = np.nanmax(power) * 10 ** (-drop_db / 10)
+    below = first_true(~(power >= floor))
+    return float(frequency_hz[-1] if below < 0 else frequency_hz[max(below - 1, 0)])
+
+
 def assign_nominal_levels(peak_force_n: np.ndarray, nominal_peak_force_n: np.ndarray,
                           tolerance_n: np.ndarray | float) -> np.ndarray:
     """Index of the nearest nominal level within its tolerance for each peak force, else -1.
@@ -273,7 +288,8 @@ def linear_fit(x: np.ndarray, y: np.ndarray) -> LinearFit:
 
     Used for peak |receptance| against impulse (the paper's Fig. 17). NaN slope and intercept
     with fewer than 2 points; NaN R^2 with fewer than 3 (two points always fit exactly) or
-    when y does not vary.
+    when y does not vary beyond rounding (a linear structure's peak receptance: R^2 would
+    only measure floating-point noise).
     """
     x = np.asarray(x, dtype=float)
     y = np.asarray(y, dtype=float)
@@ -283,5 +299,6 @@ def linear_fit(x: np.ndarray, y: np.ndarray) -> LinearFit:
     slope, intercept = np.polyfit(x, y, 1)
     residual = np.sum((y - (slope * x + intercept)) ** 2)
     total = np.sum((y - y.mean()) ** 2)
-    r2 = 1 - residual / total if n >= 3 and total > 0 else float('nan')
+    varies = np.ptp(y) > 1e-12 * np.max(np.abs(y))
+    r2 = 1 - residual / total if n >= 3 and varies else float('nan')
     return LinearFit(float(slope), float(intercept), float(r2), n)
