@@ -167,6 +167,8 @@ def test_excitation_bandwidth_stops_before_the_first_null_of_a_long_pulse():
     # A 4 ms pulse excites all of 0..100 Hz within 20 dB.
     short = np.fft.rfft(half_sine(4000, 1000.0, 100, 450.0, 0.004))
     assert frf.excitation_bandwidth(short[:401], frequency[:401]) == 100.0
+    short[5] = np.nan
+    assert np.isnan(frf.excitation_bandwidth(short[:401], frequency[:401]))
 
 
 def test_level_assignment_and_clustering():

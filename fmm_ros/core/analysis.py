@@ -298,4 +298,4 @@ def _peak_band(force_spectrum: np.ndarray, frequency_hz: np.ndarray,
     """The configured peak band, its top lowered to where the excitation has run out."""
     low, high = analysis.peak_band_hz
     usable = frf.excitation_bandwidth(force_spectrum, frequency_hz, analysis.excitation_drop_db)
-    return low, min(high, usable)
+    return low, high if np.isnan(usable) else min(high, usable)

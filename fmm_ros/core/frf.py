@@ -226,10 +226,13 @@ def excitation_bandwidth(force_spectrum: np.ndarray, frequency_hz: np.ndarray,
     Above it a hammer pulse puts too little energy in (its spectrum rolls off, with nulls
     where V/F is noise divided by almost nothing), so FRF peaks there are not to be trusted:
     impact-testing practice limits the usable band by a 10-20 dB drop of the force spectrum.
-    `force_spectrum` may be 2-D (trials, bins): their summed power is used.
+    `force_spectrum` may be 2-D (trials, bins): their summed power is used. NaN when the
+    spectrum is undefined (a record with missing samples).
     """
     power = np.sum(np.abs(np.atleast_2d(force_spectrum)) ** 2, axis=0)
-    floor = np.nanmax(power) * 10 ** (-drop_db / 10)
+    if not np.isfinite(power).all():
+        return float('nan')
+    floor = np.max(power) * 10 ** (-drop_db / 10)
     below = first_true(~(power >= floor))
     return float(frequency_hz[-1] if below < 0 else frequency_hz[max(below - 1, 0)])
 
