@@ -49,3 +49,6 @@ def test_record_checks_its_arrays():
         ImpactRecord(np.zeros(10), np.zeros(10), 1000.0, window_samples=5)
     with pytest.raises(ValueError, match='positive'):
         ImpactRecord(np.zeros(10), np.zeros(10), 0.0)
+    with pytest.raises(ValueError, match='outside the record'):
+        ImpactRecord(np.zeros(10), np.zeros(10), 1000.0, record_start_sample_index=100,
+                     trigger_sample_index=110)

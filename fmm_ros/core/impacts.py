@@ -149,7 +149,7 @@ class TriggerDetector:
 
 
 def find_triggers(force_n: np.ndarray, sample_rate_hz: float,
-                  config: CaptureConfig = CaptureConfig(), first_sample_index: int = 0
+                  config: CaptureConfig = DEFAULT_CAPTURE, first_sample_index: int = 0
                   ) -> np.ndarray:
     """Sample indices of every impact trigger in a whole force record (the batch form)."""
     detector = TriggerDetector(config, sample_rate_hz)
@@ -157,7 +157,7 @@ def find_triggers(force_n: np.ndarray, sample_rate_hz: float,
                       dtype=np.int64)
 
 
-def with_trigger(record: ImpactRecord, config: CaptureConfig = CaptureConfig()) -> ImpactRecord:
+def with_trigger(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE) -> ImpactRecord:
     """The record with its trigger located by the capture's rule, if it had none.
 
     Raises ValueError when the force never reaches the trigger level: such a record holds no
@@ -174,7 +174,7 @@ def with_trigger(record: ImpactRecord, config: CaptureConfig = CaptureConfig()) 
         record, trigger_sample_index=record.record_start_sample_index + triggers[0])
 
 
-def quality_flags(record: ImpactRecord, config: CaptureConfig = CaptureConfig()) -> tuple[str, ...]:
+def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE) -> tuple[str, ...]:
     """The quality flags a record raises, in `FLAGS` order (see the module docstring for rules).
 
     - double_hit: after the force falls below the re-arm level, it reaches the trigger level
@@ -218,7 +218,7 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = CaptureConfig())
 
 
 def contact_start_index(force_n: np.ndarray, trigger_offset: int,
-                        config: CaptureConfig = CaptureConfig()) -> int:
+                        config: CaptureConfig = DEFAULT_CAPTURE) -> int:
     """Start of the pulse that fired the trigger (0 if the record starts in contact).
 
     That is just after the last sample below the re-arm level before the trigger.
@@ -322,9 +322,10 @@ class ImpactCapture:
     returns the records completed by it, in order of their end. `flush` ends the stream.
     Records are views of pooled buffers: pass a record to `recycle` when done with it to
     reuse its memory (it must not be used afterwards); records never recycled stay valid.
+    Not thread-safe: a node feeds it from one callback group that excludes itself.
     """
 
-    def __init__(self, config: CaptureConfig = CaptureConfig()) -> None:
+    def __init__(self, config: CaptureConfig = DEFAULT_CAPTURE) -> None:
         self.config = config
         self.sample_rate_hz: float | None = None
         self._samples: CaptureSamples | None = None
@@ -550,7 +551,7 @@ class ImpactCapture:
 
 
 def capture_impacts(force_n: np.ndarray, velocity_m_s: np.ndarray, sample_rate_hz: float,
-                    config: CaptureConfig = CaptureConfig(), first_sample_index: int = 0,
+                    config: CaptureConfig = DEFAULT_CAPTURE, first_sample_index: int = 0,
                     force_full_scale_n: float = 0.0,
                     velocity_full_scale_m_s: float = 0.0) -> list[ImpactRecord]:
     """Every impact in a whole continuous recording of both channels (then end of stream)."""

@@ -66,6 +66,10 @@ class ImpactRecord:
         if window < force.size:
             raise ValueError(f'window_samples ({window}) is shorter than the record '
                              f'({force.size} samples)')
+        offset = self.trigger_offset
+        if offset is not None and not 0 <= offset < force.size:
+            raise ValueError(f'trigger sample {self.trigger_sample_index} lies outside the record '
+                             f'({self.record_start_sample_index} + {force.size} samples)')
         object.__setattr__(self, 'force_n', force)
         object.__setattr__(self, 'velocity_m_s', velocity)
         object.__setattr__(self, 'window_samples', int(window))
