@@ -29,7 +29,7 @@ def test_columns_in_any_order_with_extras(tmp_path):
     ('', 'empty file'),
     ('time_s,force_n\n0,1\n0.001,2\n', 'missing column.*velocity_m_s'),
     ('time_s,force_n,velocity_m_s\n0,1,0\n0.001,2,0\n0.003,3,0\n0.004,4,0\n',
-     'non-uniform time step at data row 3'),
+     'non-uniform time step: 0.002 s between samples 1 and 2'),
     ('time_s,force_n,velocity_m_s\n0,1,0\n0.001,nan,0\n0.002,3,0\n', 'force_n is not finite'),
     ('time_s,force_n,velocity_m_s\n0,1,0\n0.001,oops,0\n', 'b.csv'),
     ('time_s,force_n,velocity_m_s\n0,1,0\n', 'at least 2 samples'),

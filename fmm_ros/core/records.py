@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from fmm_ros.core._checks import sample_rate_from_times
+
 CSV_COLUMNS: tuple[str, str, str] = ('time_s', 'force_n', 'velocity_m_s')
 
 # A CSV time column whose steps differ from the mean step by more than this fraction is not
@@ -112,27 +114,13 @@ def read_impact_csv(path: str | Path) -> ImpactRecord:
         if bad.size:
             raise ValueError(f'{path}: {name} is not finite ({data[bad[0], column]}) at data row '
                              f'{bad[0] + 1} and {bad.size - 1} more row(s)')
-    time_s = data[:, 0]
-    sample_rate_hz = _uniform_sample_rate(time_s, path)
+    try:
+        sample_rate_hz = sample_rate_from_times(data[:, 0], rtol=TIME_STEP_TOLERANCE)
+    except ValueError as error:
+        raise ValueError(f'{path}: {error} (a dropped or repeated sample?)') from None
     return ImpactRecord(force_n=np.ascontiguousarray(data[:, 1]),
                         velocity_m_s=np.ascontiguousarray(data[:, 2]),
                         sample_rate_hz=sample_rate_hz, source=str(path))
-
-
-def _uniform_sample_rate(time_s: np.ndarray, path: Path) -> float:
-    """Sample rate [Hz] of a time column [s], or ValueError where it is not uniform."""
-    span_s = time_s[-1] - time_s[0]
-    if span_s <= 0:
-        raise ValueError(f'{path}: time_s must increase, but it runs from {time_s[0]} s to '
-                         f'{time_s[-1]} s')
-    step_s = span_s / (time_s.size - 1)
-    deviation = np.abs(np.diff(time_s) - step_s)
-    worst = int(np.argmax(deviation))
-    if deviation[worst] > TIME_STEP_TOLERANCE * step_s:
-        raise ValueError(f'{path}: non-uniform time step at data row {worst + 2}: '
-                         f'{time_s[worst + 1] - time_s[worst]:.6g} s where the mean step is '
-                         f'{step_s:.6g} s (a dropped or repeated sample?)')
-    return 1.0 / step_s
 
 
 def write_impact_csv(path: str | Path, force_n: np.ndarray, velocity_m_s: np.ndarray,
