@@ -53,6 +53,7 @@ import scipy.stats
 
 from fmm_ros.core._checks import finite_samples, require_positive
 from fmm_ros.core._lsq import Infeasible, LsqSolution, levenberg_marquardt
+from fmm_ros.core.frf import band_bins, impulse, mobility, spectra
 from fmm_ros.core.model import (
     FMM_RIG,
     INTEGRATORS,
@@ -178,7 +179,7 @@ def condition_impact(force_n: np.ndarray, velocity_m_s: np.ndarray, sample_rate_
         force_n=conditioned, velocity_m_s=velocity, sample_rate_hz=float(sample_rate_hz),
         gate=gate, baseline_n=baseline, force_noise_std_n=noise_n,
         velocity_noise_std_m_s=velocity_noise,
-        impulse_n_s=float(np.trapezoid(conditioned, dx=1.0 / sample_rate_hz)),
+        impulse_n_s=impulse(conditioned, sample_rate_hz),
         peak_force_n=float(np.max(np.abs(conditioned))), peak_velocity_m_s=peak_velocity,
         source=source)
 
@@ -282,14 +283,14 @@ class _OutputError:
                 block = round(impact.sample_rate_hz / natural_frequency_hz)
             else:
                 n = impact.force_n.size
-                bins = min(n // 2 + 1, int(band_limit_hz * n / impact.sample_rate_hz) + 1)
-                force_spectrum = scipy.fft.rfft(impact.force_n)[:bins]
-                if np.any(force_spectrum == 0.0):
+                bins = band_bins(n, impact.sample_rate_hz, band_limit_hz)
+                force_spectrum, velocity_spectrum = spectra(impact.force_n, impact.velocity_m_s)
+                target = mobility(force_spectrum[:bins], velocity_spectrum[:bins])
+                if np.isnan(target).any():
                     raise ValueError(f'{_where(impact.source)}the force spectrum is zero inside '
                                      f'the {band_limit_hz:g} Hz band: no mobility there')
-                inverse = 1.0 / force_spectrum
-                self.inverse_force.append(inverse)
-                self.targets.append(scipy.fft.rfft(impact.velocity_m_s)[:bins] * inverse)
+                self.inverse_force.append(1.0 / force_spectrum[:bins])
+                self.targets.append(target)
                 length = 2 * bins
                 block = 2 * round(0.25 * natural_frequency_hz * n / impact.sample_rate_hz)
             self.segments.append(slice(start, start + length))
