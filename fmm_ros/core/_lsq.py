@@ -30,6 +30,9 @@ class LsqSolution:
     """Result of `levenberg_marquardt`."""
 
     x: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    """The search bounds."""
     residual: np.ndarray
     """Residuals at x."""
     jacobian: np.ndarray
@@ -67,6 +70,11 @@ def levenberg_marquardt(fun: ResidualFunction, x0: np.ndarray, lower: np.ndarray
     evaluations = 1
     cost = float(residual @ residual)
     damping = 1e-3
+
+    def finish(iterations: int, converged: bool, message: str) -> LsqSolution:
+        return LsqSolution(x, lower, upper, residual, jacobian, cost, evaluations, iterations,
+                           converged, message)
+
     for iteration in range(1, max_iterations + 1):
         evaluations += _forward_jacobian(fun, x, residual, lower, upper, typical, relative_step,
                                          jacobian)
@@ -77,8 +85,8 @@ def levenberg_marquardt(fun: ResidualFunction, x0: np.ndarray, lower: np.ndarray
             step = _damped_step(normal, gradient, x, lower, upper, damping)
             candidate = np.clip(x + step, lower, upper)
             if np.array_equal(candidate, x):
-                return LsqSolution(x, residual, jacobian, cost, evaluations, iteration, True,
-                                   'no step changes the parameters (at a bound or converged)')
+                return finish(iteration, True, 'no step moves the parameters (at a bound or '
+                              'converged)')
             try:
                 fun(candidate, trial)
                 new_cost = float(trial @ trial)
@@ -89,17 +97,14 @@ def levenberg_marquardt(fun: ResidualFunction, x0: np.ndarray, lower: np.ndarray
                 break
             damping *= 10.0
             if damping > 1e10:
-                return LsqSolution(x, residual, jacobian, cost, evaluations, iteration, True,
-                                   'no step lowers the cost')
+                return finish(iteration, True, 'no step lowers the cost')
         reduction = cost - new_cost
         x, cost = candidate, new_cost
         residual, trial = trial, residual
         damping = max(damping / 10.0, 1e-9)
         if reduction < chi2_tolerance * noise_variance:
-            return LsqSolution(x, residual, jacobian, cost, evaluations, iteration, True,
-                               'the cost stopped falling')
-    return LsqSolution(x, residual, jacobian, cost, evaluations, max_iterations, False,
-                       f'not converged after {max_iterations} iterations')
+            return finish(iteration, True, 'the cost stopped falling')
+    return finish(max_iterations, False, f'not converged after {max_iterations} iterations')
 
 
 def _forward_jacobian(fun: ResidualFunction, x: np.ndarray, residual: np.ndarray,

@@ -83,8 +83,10 @@ MOTION_THRESHOLD_SIGMA = 10.0
 MIN_EXPLAINED_FRACTION = 0.5
 """A fit must remove at least this fraction of each record's velocity sum of squares (the
 misfit of predicting no motion at all), or the model does not explain the record."""
-FIT_FAILURES = ('no_hit', 'no_motion', 'mu_at_bound', 'unexplained', 'no_convergence',
-                'too_few_cycles')
+FIT_FAILURES = ('no_hit', 'no_motion', 'mu_at_bound', 'at_bound', 'unexplained',
+                'no_convergence', 'too_few_cycles')
+MIN_DECAY_CROSSINGS = 6
+"""A free decay must cross zero this often above its noise (three cycles) to be fitted."""
 
 _MAD_TO_STD = 1.482602218505602  # 1 / Phi^-1(3/4): MAD of Gaussian noise -> its deviation
 _ROBUST_SUBSAMPLE_MIN = 5000
@@ -832,9 +834,8 @@ def fit_free_decay(velocity_m_s: np.ndarray, sample_rate_hz: float, *,
     solution = levenberg_marquardt(
         residual, np.array([frequency0, zeta0]), np.array([0.8 * frequency0, 0.0]),
         np.array([1.25 * frequency0, 0.5]), np.array([frequency0, 1e-3]), segment.size)
-    if not solution.converged:
-        raise FitError('no_convergence', f'the free-decay fit did not converge '
-                       f'({solution.message})', source)
+    _require_inside(solution, ('natural frequency', 'damping ratio'), 'a lightly damped free '
+                    'decay', source)
     uncertainty = _uncertainty(solution, [slice(0, segment.size)],
                                [max(1, round(sample_rate_hz / solution.x[0]))])
     _decay_basis(solution.x[0], solution.x[1], sample_rate_hz, basis)
@@ -880,7 +881,7 @@ def _decay_start_values(segment: np.ndarray, sample_rate_hz: float, noise_m_s: f
     state = np.where(segment > level, 1, np.where(segment < -level, -1, 0))
     signed = np.flatnonzero(state)
     changes = signed[1:][np.diff(state[signed]) != 0]
-    if changes.size < 5:
+    if changes.size < MIN_DECAY_CROSSINGS:
         raise FitError('too_few_cycles', f'the velocity crosses zero only {changes.size} '
                        'times above its noise: too few cycles to fit a free decay', source)
     # Each crossing's time: the midpoint of the samples on either side of the dead band.
@@ -982,6 +983,19 @@ def _rig_from_decays(decays: Sequence[FreeDecayFit], mass_kg: float) -> RigIdent
         sources=tuple(d.source for d in decays), free_decays=tuple(decays))
 
 
+def _require_inside(solution: LsqSolution, names: Sequence[str], what: str,
+                    source: str) -> None:
+    """FitError unless a rig fit converged away from its search bounds."""
+    if not solution.converged:
+        raise FitError('no_convergence', f'the fit did not converge ({solution.message})',
+                       source)
+    for name, value, low, high in zip(names, solution.x, solution.lower, solution.upper,
+                                      strict=True):
+        if value <= low or value >= high:
+            raise FitError('at_bound', f'the best-fit {name} {value:.4g} lies on its search '
+                           f'bound [{low:.4g}, {high:.4g}]: the record is not {what}', source)
+
+
 def _rig_constants(modal: np.ndarray, covariance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(m, k, c) and their standard errors from (m, f_n, zeta) and its covariance.
 
@@ -1027,9 +1041,8 @@ def _rig_from_impacts(impacts: Sequence[ConditionedImpact], decays: tuple[FreeDe
     upper = np.array([2.0 * mass0, 1.25 * frequency0, 0.5])
     typical = np.array([mass0, frequency0, max(start[2], 1e-4)])
     solution = levenberg_marquardt(problem, start, lower, upper, typical, problem.size)
-    if not solution.converged:
-        raise FitError('no_convergence', f'the rig fit did not converge ({solution.message})',
-                       _joined_sources(impacts))
+    _require_inside(solution, ('mass', 'natural frequency', 'damping ratio'),
+                    'the frictionless rig hit by its force', _joined_sources(impacts))
     uncertainty = _fit_uncertainty(solution, problem)
     values, errors = _rig_constants(solution.x, uncertainty.covariance)
     residuals = [solution.residual[segment] for segment in problem.segments]
