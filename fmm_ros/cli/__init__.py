@@ -14,6 +14,8 @@ from fmm_ros import __version__
 SUBCOMMANDS: tuple[str, ...] = (
     'simulate',
     'analyze',
+    'fit',
+    'identify_rig',
 )
 
 
