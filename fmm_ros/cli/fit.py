@@ -8,10 +8,9 @@ as JSON with --json), 2 bad input or flags.
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
-from fmm_ros.cli._rig import add_rig_arguments, rig_from_args
+from fmm_ros.cli._model import add_rig_arguments, report_refusal, rig_from_args
 from fmm_ros.core.export import json_number
 from fmm_ros.core.fit import (
     DEFAULT_BAND_LIMIT_HZ,
@@ -60,12 +59,7 @@ def run(args: argparse.Namespace) -> int:
                               mu_bounds=(args.mu_min, args.mu_max), misfit=args.misfit,
                               band_limit_hz=args.band_limit_hz)
     except FitError as failure:
-        if args.json:
-            print(json.dumps({'error': failure.reason, 'message': str(failure),
-                              'file': failure.source or None}))
-        else:
-            print(f'fmm fit: cannot fit ({failure.reason}): {failure}', file=sys.stderr)
-        return 1
+        return report_refusal('fit', failure, args.json)
     if args.json:
         print(json.dumps(report(result, args.inputs), indent=2, allow_nan=False))
     else:

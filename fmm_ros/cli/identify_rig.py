@@ -8,9 +8,9 @@ say): f_n and zeta are fitted, and k and c follow from --mass-kg. Exit status: 0
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
+from fmm_ros.cli._model import report_refusal
 from fmm_ros.core.export import json_number
 from fmm_ros.core.fit import FitError, RigIdentification, identify_rig
 from fmm_ros.core.model import FMM_RIG
@@ -40,13 +40,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         result = identify_rig(records, mass_kg=args.mass_kg)
     except FitError as failure:
-        if args.json:
-            print(json.dumps({'error': failure.reason, 'message': str(failure),
-                              'file': failure.source or None}))
-        else:
-            print(f'fmm identify-rig: cannot identify ({failure.reason}): {failure}',
-                  file=sys.stderr)
-        return 1
+        return report_refusal('identify-rig', failure, args.json)
     if args.json:
         print(json.dumps(report(result), indent=2, allow_nan=False))
     else:

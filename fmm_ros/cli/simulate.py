@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fmm_ros.cli._rig import add_rig_arguments, rig_from_args
+from fmm_ros.cli._model import add_rig_arguments, rig_from_args
 from fmm_ros.core.model import (
     PAPER_MU,
     record_length,
