@@ -17,6 +17,18 @@ from dataclasses import dataclass
 import numpy as np
 
 
+def inner(a: np.ndarray, b: np.ndarray) -> np.ndarray | float:
+    """Products over the last (sample) axis, a . b or a @ b.T, by einsum's own loop, not BLAS.
+
+    OpenBLAS splits long products across threads; on this shared two-core machine, loaded by
+    other jobs, a 330,000-sample dot product took 16 ms that way against 0.08 ms in einsum,
+    and a one-impact fit 150 ms against 40 ms. Vectors give a float, (p, n) rows an array.
+    """
+    if a.ndim == 1 and b.ndim == 1:
+        return float(np.einsum('i,i->', a, b))
+    return np.einsum('...j,kj->...k' if b.ndim == 2 else '...j,j->...', a, b)
+
+
 class Infeasible(Exception):
     """The model cannot be evaluated at these parameters (e.g. a friction coefficient < 0)."""
 
@@ -68,7 +80,7 @@ def levenberg_marquardt(fun: ResidualFunction, x0: np.ndarray, lower: np.ndarray
     except Infeasible as error:
         raise ValueError(f'the model cannot be evaluated at the start point {x}: {error}') from None
     evaluations = 1
-    cost = float(residual @ residual)
+    cost = inner(residual, residual)
     damping = 1e-3
 
     def finish(iterations: int, converged: bool, message: str) -> LsqSolution:
@@ -78,8 +90,8 @@ def levenberg_marquardt(fun: ResidualFunction, x0: np.ndarray, lower: np.ndarray
     for iteration in range(1, max_iterations + 1):
         evaluations += _forward_jacobian(fun, x, residual, lower, upper, typical, relative_step,
                                          jacobian)
-        normal = jacobian @ jacobian.T
-        gradient = jacobian @ residual
+        normal = inner(jacobian, jacobian)
+        gradient = inner(jacobian, residual)
         noise_variance = cost / max(n_residuals - p, 1)
         while True:
             step = _damped_step(normal, gradient, x, lower, upper, damping)
@@ -89,7 +101,7 @@ def levenberg_marquardt(fun: ResidualFunction, x0: np.ndarray, lower: np.ndarray
                               'converged)')
             try:
                 fun(candidate, trial)
-                new_cost = float(trial @ trial)
+                new_cost = inner(trial, trial)
             except Infeasible:
                 new_cost = np.inf
             evaluations += 1

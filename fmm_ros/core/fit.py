@@ -52,7 +52,7 @@ import scipy.fft
 import scipy.stats
 
 from fmm_ros.core._checks import finite_samples, require_positive
-from fmm_ros.core._lsq import Infeasible, LsqSolution, levenberg_marquardt
+from fmm_ros.core._lsq import Infeasible, LsqSolution, inner, levenberg_marquardt
 from fmm_ros.core.frf import band_bins, impulse, mobility, spectra
 from fmm_ros.core.model import (
     FMM_RIG,
@@ -387,7 +387,7 @@ def _uncertainty(solution: LsqSolution, segments: Sequence[slice], block_lengths
     """
     jacobian, residual = solution.jacobian, solution.residual
     p = jacobian.shape[0]
-    inverse = np.linalg.pinv(jacobian @ jacobian.T)
+    inverse = np.linalg.pinv(inner(jacobian, jacobian))
     white = solution.cost / max(residual.size - p, 1) * inverse
     score = np.zeros((p, p))
     for segment, block in zip(segments, block_lengths, strict=True):
@@ -401,7 +401,7 @@ def _uncertainty(solution: LsqSolution, segments: Sequence[slice], block_lengths
     velocity_part = sandwich * np.outer(raise_to_white, raise_to_white)
     force_part = np.zeros((p, p))
     for segment, impulse_jacobian, std in impulse_terms:
-        sensitivity = inverse @ (jacobian[:, segment] @ impulse_jacobian)
+        sensitivity = inverse @ inner(jacobian[:, segment], impulse_jacobian)
         force_part += std ** 2 * np.outer(sensitivity, sensitivity)
     covariance = velocity_part + force_part
     return _Uncertainty(covariance, np.sqrt(np.diag(covariance)), np.sqrt(np.diag(white)),
@@ -577,7 +577,7 @@ def energy_balance_mu(impacts: Sequence[ConditionedImpact], rig: Rig = FMM_RIG) 
         step_s = 1.0 / impact.sample_rate_hz
         sigma = impact.velocity_noise_std_m_s
         slid = (float(np.sum(np.abs(v))) - v.size * sigma * math.sqrt(2.0 / math.pi)) * step_s
-        viscous = rig.damping_n_s_per_m * (float(v @ v) - v.size * sigma ** 2) * step_s
+        viscous = rig.damping_n_s_per_m * (inner(v, v) - v.size * sigma ** 2) * step_s
         energy += impact.impulse_n_s ** 2 / (2.0 * rig.mass_kg) - viscous
         path += slid
     if rig.normal_force_n <= 0.0 or path <= 0.0 or energy <= 0.0:
@@ -632,13 +632,13 @@ def _model_fit(space: _Space, problem: _OutputError, solution: LsqSolution) -> M
         residuals = tuple(solution.residual[segment].copy() for segment in problem.segments)
     else:
         residuals = problem.time_residuals(solution.x)
-    squares = [float(r @ r) for r in residuals]
+    squares = [inner(r, r) for r in residuals]
     impacts = problem.impacts
     n_samples = sum(r.size for r in residuals)
     rms = [math.sqrt(s / r.size) for s, r in zip(squares, residuals, strict=True)]
     total_rms = math.sqrt(sum(squares) / n_samples)
     peaks = [impact.peak_velocity_m_s for impact in impacts]
-    explained = [1.0 - s / float(impact.velocity_m_s @ impact.velocity_m_s)
+    explained = [1.0 - s / inner(impact.velocity_m_s, impact.velocity_m_s)
                  for s, impact in zip(squares, impacts, strict=True)]
     noise = math.sqrt(sum(i.velocity_noise_std_m_s ** 2 * i.force_n.size for i in impacts)
                       / n_samples)
@@ -829,7 +829,7 @@ def fit_free_decay(velocity_m_s: np.ndarray, sample_rate_hz: float, *,
 
     def residual(theta: np.ndarray, out: np.ndarray) -> None:
         _decay_basis(theta[0], theta[1], sample_rate_hz, basis)
-        np.subtract(segment, _solve_linear(basis, segment) @ basis, out=out)
+        np.subtract(segment, inner(basis.T, _solve_linear(basis, segment)), out=out)
 
     solution = levenberg_marquardt(
         residual, np.array([frequency0, zeta0]), np.array([0.8 * frequency0, 0.0]),
@@ -871,7 +871,7 @@ def _decay_basis(frequency_hz: float, zeta: float, sample_rate_hz: float,
 
 def _solve_linear(basis: np.ndarray, values: np.ndarray) -> np.ndarray:
     """Least-squares coefficients of values on the rows of basis (normal equations)."""
-    return np.linalg.solve(basis @ basis.T, basis @ values)
+    return np.linalg.solve(inner(basis, basis), inner(basis, values))
 
 
 def _decay_start_values(segment: np.ndarray, sample_rate_hz: float, noise_m_s: float,
@@ -1047,7 +1047,7 @@ def _rig_from_impacts(impacts: Sequence[ConditionedImpact], decays: tuple[FreeDe
     values, errors = _rig_constants(solution.x, uncertainty.covariance)
     residuals = [solution.residual[segment] for segment in problem.segments]
     for impact, r in zip(impacts, residuals, strict=True):
-        explained = 1.0 - float(r @ r) / float(impact.velocity_m_s @ impact.velocity_m_s)
+        explained = 1.0 - inner(r, r) / inner(impact.velocity_m_s, impact.velocity_m_s)
         if explained < MIN_EXPLAINED_FRACTION:
             raise FitError('unexplained', _unexplained_message('linear oscillator', explained)
                            + ': not a response of the frictionless rig to its force',
@@ -1078,7 +1078,7 @@ def _impact_start_values(impact: ConditionedImpact) -> tuple[float, float, float
     _decay_basis(frequency, zeta, rate, basis)
     a, b, _ = _solve_linear(basis, segment)
     force = impact.force_n
-    centroid = float(np.arange(force.size) @ force / np.sum(force))
+    centroid = inner(np.arange(force.size, dtype=float), force) / float(np.sum(force))
     lag_s = (impact.hit_end_index - centroid) / rate
     amplitude = math.hypot(a, b) * math.exp(zeta * 2.0 * math.pi * frequency * lag_s)
     return abs(impact.impulse_n_s) / amplitude, frequency, zeta
