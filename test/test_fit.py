@@ -8,7 +8,7 @@ import pytest
 from fit_records import FORCE_NOISE_N, VELOCITY_NOISE_M_S, lab_impact, lab_levels
 
 from fmm_ros.core import fit
-from fmm_ros.core._lsq import Infeasible, levenberg_marquardt
+from fmm_ros.core._lsq import Infeasible, levenberg_marquardt, normal_inverse
 from fmm_ros.core.model import FMM_RIG, Rig, free_vibration, model_term
 
 
@@ -129,6 +129,16 @@ def test_fixed_effects_are_held_and_term_instances_set_start_values(paper_set):
                            fixed_effects=(offset,))
     assert result.effects[0] is offset
     assert result.value('asymmetric_friction.mu_difference') == pytest.approx(0.0, abs=2e-3)
+    assert result.mu == pytest.approx(0.113, rel=0.01)
+
+
+def test_a_term_far_smaller_in_its_units_still_gets_an_honest_error():
+    # dv/dk3 is ~1e-7 of dv/dmu: unscaled, the covariance lost k3's variance to rounding.
+    cubic = model_term('cubic_stiffness', cubic_stiffness_n_per_m3=3e4)
+    records = lab_levels(5, mu=0.113, effects=(cubic,), duration_s=10.0)
+    result = fit.fit_model(records, terms=('cubic_stiffness',))
+    value, error = result.value('cubic_stiffness.cubic_stiffness_n_per_m3'), result.stderr[1]
+    assert 1.0 < error < 1e3 and abs(value - 3e4) < 5.0 * error
     assert result.mu == pytest.approx(0.113, rel=0.01)
 
 
@@ -364,6 +374,13 @@ def test_a_friction_damped_record_is_not_a_linear_rig():
 
 
 # --- the optimiser ------------------------------------------------------------------------------
+
+def test_normal_inverse_survives_wide_scales_and_marks_dead_parameters():
+    normal = np.array([[4e8, 3e-2, 0.0], [3e-2, 1e-11, 0.0], [0.0, 0.0, 0.0]])
+    inverse = normal_inverse(normal)
+    np.testing.assert_allclose(inverse[:2, :2], np.linalg.inv(normal[:2, :2]), rtol=1e-9)
+    assert inverse[2, 2] == np.inf and not inverse[2, :2].any()
+
 
 def test_levenberg_marquardt_with_an_active_bound_and_an_infeasible_region():
     t = np.linspace(0.0, 1.0, 200)

@@ -149,16 +149,41 @@ def _forward_jacobian(fun: ResidualFunction, x: np.ndarray, residual: np.ndarray
 
 def _damped_step(normal: np.ndarray, gradient: np.ndarray, x: np.ndarray, lower: np.ndarray,
                  upper: np.ndarray, damping: float) -> np.ndarray:
-    """Marquardt step -(A + damping diag A)^-1 g over the parameters free to move."""
+    """Marquardt step -(A + damping diag A)^-1 g over the parameters free to move.
+
+    Solved in parameters scaled to unit diagonal, so that a term whose Jacobian is 1e7 times
+    smaller than mu's (a cubic stiffness in N/m^3) is not lost to rounding.
+    """
     free = ~(((x <= lower) & (gradient > 0.0)) | ((x >= upper) & (gradient < 0.0)))
     step = np.zeros_like(x)
     if not free.any():
         return step
-    diagonal = np.diag(normal)[free]
-    scale = np.where(diagonal > 0.0, diagonal, max(float(diagonal.max()), 1.0) * 1e-12)
-    system = normal[np.ix_(free, free)] + damping * np.diag(scale)
+    scale = _unit_diagonal_scale(normal[np.ix_(free, free)])
+    system = normal[np.ix_(free, free)] / np.outer(scale, scale)
+    system[np.diag_indices_from(system)] += damping
+    scaled_gradient = gradient[free] / scale
     try:
-        step[free] = -np.linalg.solve(system, gradient[free])
+        step[free] = -np.linalg.solve(system, scaled_gradient) / scale
     except np.linalg.LinAlgError:
-        step[free] = -np.linalg.lstsq(system, gradient[free], rcond=None)[0]
+        step[free] = -np.linalg.lstsq(system, scaled_gradient, rcond=None)[0] / scale
     return step
+
+
+def normal_inverse(normal: np.ndarray) -> np.ndarray:
+    """(J J^T)^-1 for a covariance, pseudo-inverted in unit-diagonal scaling.
+
+    A parameter the residuals do not depend on (zero row) gets infinite variance, not zero.
+    """
+    scale = _unit_diagonal_scale(normal)
+    inverse = np.linalg.pinv(normal / np.outer(scale, scale), hermitian=True)
+    inverse /= np.outer(scale, scale)
+    dead = np.diag(normal) <= 0.0
+    inverse[dead, :] = 0.0
+    inverse[:, dead] = 0.0
+    inverse[dead, dead] = np.inf
+    return inverse
+
+
+def _unit_diagonal_scale(normal: np.ndarray) -> np.ndarray:
+    diagonal = np.sqrt(np.clip(np.diag(normal), 0.0, None))
+    return np.where(diagonal > 0.0, diagonal, 1.0)

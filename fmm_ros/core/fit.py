@@ -52,7 +52,13 @@ import scipy.fft
 import scipy.stats
 
 from fmm_ros.core._checks import finite_samples, require_positive
-from fmm_ros.core._lsq import Infeasible, LsqSolution, inner, levenberg_marquardt
+from fmm_ros.core._lsq import (
+    Infeasible,
+    LsqSolution,
+    inner,
+    levenberg_marquardt,
+    normal_inverse,
+)
 from fmm_ros.core.frf import band_bins, impulse, mobility, spectra
 from fmm_ros.core.model import (
     FMM_RIG,
@@ -387,7 +393,7 @@ def _uncertainty(solution: LsqSolution, segments: Sequence[slice], block_lengths
     """
     jacobian, residual = solution.jacobian, solution.residual
     p = jacobian.shape[0]
-    inverse = np.linalg.pinv(inner(jacobian, jacobian))
+    inverse = normal_inverse(inner(jacobian, jacobian))
     white = solution.cost / max(residual.size - p, 1) * inverse
     score = np.zeros((p, p))
     for segment, block in zip(segments, block_lengths, strict=True):
