@@ -28,7 +28,7 @@ Uncertainty, two parts added:
   summed over blocks of the score J_i r_i (one natural period in time, a quarter of f_n in
   frequency), valid for residuals correlated within a block, and never below the white one.
 - Force: noise inside the gate is part of the input, so no residual shows it; it changes the
-  hit's impulse by sigma_F / f_s sqrt(gate samples), which moves the fit by
+  hit's impulse by sigma_F / f_s sqrt(gate samples from the onset), which moves the fit by
   -(J J^T)^-1 J dr/dI per N*s (dr/dI found by scaling the hit). At 0.2 N this part dominates
   the error of mu for one record (about 1e-4 of mu), and it is what makes per-impact mu's
   scatter.
@@ -122,6 +122,8 @@ class ConditionedImpact:
     sample_rate_hz: float
     gate: tuple[tuple[int, int], ...]
     """[start, stop) sample ranges where the measured force is kept."""
+    onset_index: int
+    """First sample of the hit above the threshold (the rig is at rest before it)."""
     baseline_n: float
     force_noise_std_n: float
     """Robust (MAD) deviation of the force about its baseline [N]."""
@@ -139,6 +141,18 @@ class ConditionedImpact:
     def hit_end_index(self) -> int:
         """First sample after the last gate: from here on no force acts."""
         return self.gate[-1][1]
+
+    @property
+    def impulse_std_n_s(self) -> float:
+        """Standard deviation the force noise gives the impulse that moves the rig [N*s].
+
+        sigma_F / f_s times the root of the gated samples from the onset on: the noise in the
+        gate's lead-in falls on a mass held by static friction (at 0.2 N it stays far below
+        mu N), so it moves nothing.
+        """
+        samples = sum(stop - start for start, stop in self.gate) - (
+            self.onset_index - self.gate[0][0])
+        return self.force_noise_std_n / self.sample_rate_hz * math.sqrt(samples)
 
     @property
     def duration_s(self) -> float:
@@ -169,7 +183,8 @@ def condition_impact(force_n: np.ndarray, velocity_m_s: np.ndarray, sample_rate_
                        f'largest departure {peak:.3g} N): there is no hit to drive the model',
                        source)
     threshold = max(HIT_THRESHOLD_SIGMA * noise_n, 1e-3 * peak)
-    gate = _gate((force >= center + threshold) | (force <= center - threshold), sample_rate_hz)
+    hit = (force >= center + threshold) | (force <= center - threshold)
+    gate = _gate(hit, sample_rate_hz)
     outside = np.ones(force.size, dtype=bool)
     for start, stop in gate:
         outside[start:stop] = False
@@ -185,7 +200,8 @@ def condition_impact(force_n: np.ndarray, velocity_m_s: np.ndarray, sample_rate_
                        'm/s): the rig did not move', source)
     return ConditionedImpact(
         force_n=conditioned, velocity_m_s=velocity, sample_rate_hz=float(sample_rate_hz),
-        gate=gate, baseline_n=baseline, force_noise_std_n=noise_n,
+        gate=gate, onset_index=int(np.argmax(hit)), baseline_n=baseline,
+        force_noise_std_n=noise_n,
         velocity_noise_std_m_s=velocity_noise,
         impulse_n_s=impulse(conditioned, sample_rate_hz),
         peak_force_n=float(np.max(np.abs(conditioned))), peak_velocity_m_s=peak_velocity,
@@ -416,9 +432,7 @@ def _uncertainty(solution: LsqSolution, segments: Sequence[slice], block_lengths
 
 def _fit_uncertainty(solution: LsqSolution, problem: _OutputError) -> _Uncertainty:
     """`_uncertainty` of an output-error fit, force noise included."""
-    stds = [impact.force_noise_std_n / impact.sample_rate_hz
-            * math.sqrt(sum(stop - start for start, stop in impact.gate))
-            for impact in problem.impacts]
+    stds = [impact.impulse_std_n_s for impact in problem.impacts]
     terms = zip(problem.segments, problem.impulse_jacobians(solution.x, solution.residual),
                 stds, strict=True)
     return _uncertainty(solution, problem.segments, problem.block_lengths, tuple(terms))
