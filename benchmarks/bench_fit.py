@@ -10,12 +10,11 @@ least_squares on the same residuals (what the fitter's own Levenberg-Marquardt r
 """
 
 import argparse
-import statistics
 import time
 
 import numpy as np
 import scipy.optimize
-from bench_physics import euler_in_python
+from bench_physics import RATE_HZ, euler_in_python, median_s
 
 from fmm_ros.core._lsq import levenberg_marquardt
 from fmm_ros.core.excitation import PAPER_LEVELS, impact_record
@@ -29,18 +28,8 @@ from fmm_ros.core.fit import (
 )
 from fmm_ros.core.model import FMM_RIG, PAPER_MU, simulate
 
-RATE_HZ = 10_000.0
 TARGET_ONE_MS = 100.0
 TARGET_JOINT_MS = 300.0
-
-
-def median_s(function, repeats):
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
 
 
 def lab_record(peak_force_n, seed, mu=PAPER_MU):

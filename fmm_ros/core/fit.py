@@ -1045,7 +1045,7 @@ def _rig_from_impacts(impacts: Sequence[ConditionedImpact], decays: tuple[FreeDe
 
     In these coordinates the phase (f_n), the decay (zeta) and the amplitude (I / m) are nearly
     independent, where m, c, k make a long curved valley along k / m = const that took the
-    optimiser fifty iterations to follow.
+    optimiser 49 iterations (246 model runs) to follow, against 3 (16) here.
     """
     starts = [_impact_start_values(impact) for impact in impacts]
     start = np.median(np.array(starts), axis=0)
