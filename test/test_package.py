@@ -20,6 +20,7 @@ ROSDEP_KEYS = {
     'fmm_interfaces': 'fmm_interfaces',
     'numpy': 'python3-numpy',
     'rclpy': 'rclpy',
+    'rosbags': 'python3-rosbags-pip',
     'scipy': 'python3-scipy',
     'std_msgs': 'std_msgs',
     'yaml': 'python3-yaml',
