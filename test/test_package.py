@@ -18,12 +18,14 @@ ROSDEP_KEYS = {
     'ament_index_python': 'ament_index_python',
     'builtin_interfaces': 'builtin_interfaces',
     'fmm_interfaces': 'fmm_interfaces',
+    'lz4': 'python3-lz4',
     'numpy': 'python3-numpy',
     'rclpy': 'rclpy',
     'rosbags': 'python3-rosbags-pip',
     'scipy': 'python3-scipy',
     'std_msgs': 'std_msgs',
     'yaml': 'python3-yaml',
+    'zstandard': 'python3-zstandard',
 }
 
 
