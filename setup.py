@@ -45,7 +45,7 @@ setup(
     ],
     python_requires='>=3.10',
     install_requires=['setuptools', 'numpy', 'scipy', 'pyyaml', 'rosbags', 'zstandard', 'lz4',
-                      'nptdms', 'h5py'],
+                      'nptdms', 'h5py', 'tqdm'],
     cmdclass={'build_py': BuildPyWithInterfaces},
     zip_safe=True,
     maintainer='fmm_ros maintainers',

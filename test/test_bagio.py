@@ -4,6 +4,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from bag_helpers import assert_same, random_message
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.rosbag2 import Reader
@@ -29,48 +30,6 @@ ORIGIN_NS = 1_700_000_000_123_456_789
 def signals(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     rng = np.random.default_rng(seed)
     return rng.normal(0.0, 50.0, n), rng.normal(0.0, 1e-3, n)
-
-
-def random_message(store, msgtype: str, rng: np.random.Generator):
-    """A message with every field set to a non-default random value."""
-    _, fields = store.fielddefs[msgtype]
-    values = {}
-    for name, (kind, detail) in fields:
-        if name == 'header':
-            values[name] = new_message(
-                store, 'std_msgs/msg/Header', frame_id=f'frame{rng.integers(9)}',
-                stamp=new_message(store, 'builtin_interfaces/msg/Time',
-                                  sec=int(rng.integers(1, 2**31 - 1)),
-                                  nanosec=int(rng.integers(0, 10**9))))
-            continue
-        base = detail[0] if kind == 1 else detail[0][1][0]
-        count = None if kind == 1 else int(rng.integers(1, 40))
-        if base == 'string':
-            value = [f's{rng.integers(1000)}' for _ in range(count or 1)]
-        elif base == 'bool':
-            value = [bool(rng.integers(2)) for _ in range(count or 1)]
-        elif base.startswith('float'):
-            value = rng.normal(size=count or 1)
-        else:
-            value = rng.integers(0, 2**31, size=count or 1).astype(np.dtype(base))
-        if count is None:
-            value = value[0].item() if isinstance(value, np.ndarray) else value[0]
-        values[name] = value
-    return new_message(store, msgtype, **values)
-
-
-def assert_same(decoded, expected, path: str = 'msg') -> None:
-    """Field-by-field equality of an mcap_ros2 or rosbags message with a rosbags message."""
-    for name in (n for n in dir(expected) if not n.startswith('_')):
-        want = getattr(expected, name)
-        got = getattr(decoded, name)
-        if hasattr(want, '__msgtype__'):
-            assert_same(got, want, f'{path}.{name}')
-        elif isinstance(want, np.ndarray):
-            np.testing.assert_array_equal(np.asarray(got), want, err_msg=f'{path}.{name}')
-        else:
-            assert list(got) == list(want) if isinstance(want, list) else got == want, (
-                f'{path}.{name}: {got!r} != {want!r}')
 
 
 def write_session(path: Path, n: int = 4_000, *, storage: str = 'mcap'):

@@ -12,6 +12,9 @@ from fmm_ros import __version__
 
 # Subcommand modules, in the order `fmm --help` lists them.
 SUBCOMMANDS: tuple[str, ...] = (
+    'import_lab',
+    'bag_info',
+    'export',
 )
 
 

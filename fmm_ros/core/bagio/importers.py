@@ -460,7 +460,11 @@ def _sample_rate(lab: LabFile, mapping: ImportMapping, length: int) -> tuple[flo
         if step <= 0 or np.max(np.abs(steps - step)) > UNIFORM_TIME_TOLERANCE * step:
             raise ValueError(f'{lab.path}: time {mapping.time.name!r} is not uniformly '
                              'increasing; the importer needs a constant sample rate')
-        from_time = 1.0 / step
+        # Over the whole span, so the rounding of each printed time stamp averages out;
+        # within a millionth of a whole number of Hz (what DAQs run at), that number.
+        from_time = (len(time_s) - 1) / float(time_s[-1] - time_s[0])
+        if abs(from_time - round(from_time)) < 1e-6 * from_time:
+            from_time = float(round(from_time))
         if rate is None:
             rate, how = from_time, f'time channel {mapping.time.name!r}'
         elif abs(from_time - rate) > UNIFORM_TIME_TOLERANCE * rate:
@@ -497,23 +501,30 @@ class ImportSummary:
         return self.samples / self.sample_rate_hz
 
 
-def import_to_bag(paths: Sequence[str | Path], bag: str | Path, mapping: ImportMapping, *,
-                  storage: str = 'mcap', batch_size: int = DEFAULT_BATCH_SIZE,
-                  start_time_ns: int | None = None,
-                  on_progress: Callable[[int], None] | None = None) -> ImportSummary:
-    """One session bag from lab files, concatenated in order on one sample index.
-
-    start_time_ns: acquisition time of the first sample; default the file's own (TDMS),
-    else the first file's modification time minus the recorded duration.
-    """
+def read_lab_files(paths: Sequence[str | Path], mapping: ImportMapping) -> list[LabRecording]:
+    """Every file read with one mapping; they must share one sample rate."""
     if not paths:
         raise ValueError('no input files')
     recordings = [read_lab_file(path, mapping) for path in paths]
     rate = recordings[0].sample_rate_hz
     for recording in recordings[1:]:
-        if recording.sample_rate_hz != rate:
+        if abs(recording.sample_rate_hz - rate) > 1e-9 * rate:
             raise ValueError(f'{recording.source} is sampled at {recording.sample_rate_hz:g} '
                              f'Hz, {recordings[0].source} at {rate:g} Hz: one bag, one rate')
+    return recordings
+
+
+def write_recordings(recordings: Sequence[LabRecording], bag: str | Path, *,
+                     storage: str = 'mcap', batch_size: int = DEFAULT_BATCH_SIZE,
+                     start_time_ns: int | None = None,
+                     on_progress: Callable[[int], None] | None = None) -> ImportSummary:
+    """One session bag of recordings, concatenated in order on one sample index.
+
+    start_time_ns: acquisition time of the first sample; default the file's own (TDMS),
+    else the first file's modification time minus the recorded duration. on_progress gets
+    the samples written per batch.
+    """
+    rate = recordings[0].sample_rate_hz
     total = sum(len(r.force_n) for r in recordings)
     report = [line for recording in recordings for line in recording.report]
     if start_time_ns is not None:
@@ -535,3 +546,9 @@ def import_to_bag(paths: Sequence[str | Path], bag: str | Path, mapping: ImportM
                 full_scale_velocity=recording.full_scale_velocity_m_per_s,
                 on_progress=on_progress)
     return ImportSummary(Path(bag), total, rate, report)
+
+
+def import_to_bag(paths: Sequence[str | Path], bag: str | Path, mapping: ImportMapping,
+                  **options) -> ImportSummary:
+    """Lab files into one session bag: read_lab_files, then write_recordings(**options)."""
+    return write_recordings(read_lab_files(paths, mapping), bag, **options)
