@@ -109,6 +109,10 @@ def test_rosbags_and_bag_reader_give_the_same_arrays(tmp_path, storage):
             assert_same(got, expected)
         for expected, got in zip(summaries, reader.frf_summaries(), strict=True):
             assert_same(got, expected)
+        # As a live subscriber received them: both channels, interleaved, in storage order.
+        arrived = [(b.topic, b.first_sample_index) for b in reader.sample_batches()]
+        assert arrived == [(topic, index) for index in range(0, 4000, 500)
+                           for topic in (FORCE_TOPIC, VELOCITY_TOPIC)]
 
 
 def test_batches_are_views_of_the_stored_bytes(tmp_path):

@@ -346,11 +346,22 @@ class BagReader:
 
     # -- sample batches -----------------------------------------------------------------------
 
+    def sample_batches(self, topics: Iterable[str] = (FORCE_TOPIC, VELOCITY_TOPIC)
+                       ) -> Iterator[ChannelBatch]:
+        """Every SampleBatch of the topics, interleaved in storage (arrival) order.
+
+        This is what a live subscriber saw, message by message: the form to feed a streaming
+        consumer that aligns channels by sample index itself, as the analyzer does.
+        """
+        topics = list(topics)
+        for topic in topics:
+            self.require(topic, SAMPLE_BATCH)
+        for message, batch in self._decode_each(self.messages(topics)):
+            yield channel_batch(message, batch)
+
     def channel(self, topic: str) -> Iterator[ChannelBatch]:
         """Every SampleBatch of one channel topic, in storage order."""
-        self.require(topic, SAMPLE_BATCH)
-        for message, batch in self._decode_each(self.messages([topic])):
-            yield channel_batch(message, batch)
+        return self.sample_batches([topic])
 
     def batches(self, force_topic: str = FORCE_TOPIC,
                 velocity_topic: str = VELOCITY_TOPIC) -> Iterator[AlignedBatch]:
@@ -360,13 +371,9 @@ class BagReader:
         are cut to their overlap. A sample present on one channel only is dropped and shows
         as gap_samples on the next batch.
         """
-        self.require(force_topic, SAMPLE_BATCH)
-        self.require(velocity_topic, SAMPLE_BATCH)
         aligner = BatchAligner(str(self.path))
-        messages = self.messages([force_topic, velocity_topic])
-        for message, batch in self._decode_each(messages):
-            yield from aligner.add(0 if message.topic == force_topic else 1,
-                                   channel_batch(message, batch))
+        for batch in self.sample_batches([force_topic, velocity_topic]):
+            yield from aligner.add(0 if batch.topic == force_topic else 1, batch)
 
 
 def channel_batch(message: BagMessage, batch) -> ChannelBatch:
