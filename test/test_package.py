@@ -22,6 +22,7 @@ ROSDEP_KEYS = {
     'lz4': 'python3-lz4',
     'nptdms': 'python3-nptdms-pip',
     'numpy': 'python3-numpy',
+    'rcl_interfaces': 'rcl_interfaces',
     'rclpy': 'rclpy',
     'rosbags': 'python3-rosbags-pip',
     'scipy': 'python3-scipy',
