@@ -87,7 +87,25 @@ def test_truncated_bag_names_the_problem_and_keeps_every_message_before_it(tmp_p
     assert error is None
     np.testing.assert_array_equal(lenient, force)
     assert any('truncated' in p for p in problems)
-    assert any('index cannot be used' in p for p in problems)
+    assert any('rosbags cannot open it' in p for p in problems)
+
+
+def test_a_truncated_sqlite3_bag_is_read_row_by_row_up_to_the_damage(tmp_path):
+    bag = tmp_path / 'db'
+    force, velocity = ramp(200 * BATCH)
+    with BagWriter(bag, storage='sqlite3', time_origin_ns=0) as writer:
+        writer.write_signals(force, velocity, FS)
+    database = bag / 'db.db3'
+    database.write_bytes(database.read_bytes()[:database.stat().st_size // 2])
+
+    read, _, error, _ = read_until_error(bag)
+    assert isinstance(error, BagDamagedError)
+    assert 'cannot be read past message row' in str(error)
+    assert len(read) > 50 * BATCH  # rosbags alone reads none of a truncated database
+    np.testing.assert_array_equal(read, np.arange(len(read)))
+    lenient, _, error, problems = read_until_error(bag, strict=False)
+    assert error is None and any('rosbags cannot open it' in p for p in problems)
+    np.testing.assert_array_equal(lenient, read)
 
 
 def test_a_corrupt_chunk_is_reported_and_reading_resumes_after_it(tmp_path):

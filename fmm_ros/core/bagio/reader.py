@@ -2,7 +2,8 @@
 
 An intact bag is read with rosbags. A bag that rosbags cannot open or read to the end (a
 crashed recording has no metadata.yaml and no MCAP footer; a corrupt chunk stops it) is
-read by scanning the MCAP file (mcapscan.py): every message before the damage is delivered,
+read by scanning its MCAP file record by record (mcapscan.py) or its sqlite3 database row
+by row (sqlitescan.py): every message before the damage is delivered,
 then, with strict=True (the default), a BagDamagedError names the problem; with
 strict=False reading goes on past damage where the file's framing allows and the problems
 are listed in `problems`.
@@ -37,6 +38,7 @@ from fmm_ros.core.bagio.errors import (
     MissingTopicError,
 )
 from fmm_ros.core.bagio.mcapscan import Damage, McapScan
+from fmm_ros.core.bagio.sqlitescan import SqliteScan
 from fmm_ros.core.bagio.writer import FORCE_TOPIC, FRF_TOPIC, IMPACTS_TOPIC, VELOCITY_TOPIC
 
 
@@ -116,7 +118,7 @@ class BagReader:
         self.recovered = False  # True when read by scanning instead of through the index
         self._reader: Reader | None = None
         self._storage_file: Path | None = None
-        self._scan: McapScan | None = None
+        self._scan: McapScan | SqliteScan | None = None
         self._topics: dict[str, TopicInfo] = {}
         self._messages_read = 0
         self.typestore = fmm_typestore()
@@ -140,9 +142,8 @@ class BagReader:
             self._reader.open()
         except ReaderError as error:
             self._reader = None
-            if self.storage != 'mcap':
-                raise BagDamagedError(self.path, [str(error)], 0) from None
-            self._note(f'its MCAP index cannot be used ({error}): read by scanning the file')
+            self._note(f'rosbags cannot open it ({error}): read by scanning the '
+                       f'{self.storage} file')
             self._start_scan()
         else:
             self._topics = {
@@ -179,10 +180,15 @@ class BagReader:
                              'crashed, was killed, or is still writing)')
         return files[0]
 
-    def _start_scan(self) -> None:
-        """Read the MCAP file sequentially: a first pass collects topics and counts."""
+    def _new_scan(self) -> McapScan | SqliteScan:
+        """A sequential, damage-tolerant reader of the storage file."""
         self.recovered = True
-        self._scan = McapScan(self._storage_file)
+        scan = McapScan if self.storage == 'mcap' else SqliteScan
+        return scan(self._storage_file)
+
+    def _start_scan(self) -> None:
+        """Read the storage file sequentially: a first pass collects topics and counts."""
+        self._scan = self._new_scan()
         counts: Counter = Counter()
         for item in self._scan.records():
             if isinstance(item, Damage):
@@ -246,8 +252,7 @@ class BagReader:
                                     f'{have}{damage}')
         if info.msgtype != msgtype:
             raise MessageTypeError(f'topic {topic} in bag {self.path} has type '
-                                          f'{info.msgtype or "(none recorded)"}, '
-                                          f'expected {msgtype}')
+                                   f'{info.msgtype or "(none recorded)"}, expected {msgtype}')
 
     # -- messages -------------------------------------------------------------------------------
 
@@ -266,12 +271,9 @@ class BagReader:
                     yield BagMessage(conn.topic, conn.msgtype, log_time, data)
                 return
             except ReaderError as error:
-                if self.storage != 'mcap':
-                    self._damage(str(error))
-                    return
-            # rosbags stopped at a damaged chunk: scan the file for what it could not read.
-            self._scan = McapScan(self._storage_file)
-            self.recovered = True
+                self._note(f'rosbags stopped reading it ({error}): read on by scanning')
+            # Scan the file for what rosbags could not read, past what it delivered.
+            self._scan = self._new_scan()
         yield from self._scanned(wanted, delivered)
 
     def _scanned(self, wanted: set[str], skip: Counter) -> Iterator[BagMessage]:
