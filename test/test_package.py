@@ -21,6 +21,7 @@ ROSDEP_KEYS = {
     'h5py': 'python3-h5py',
     'lz4': 'python3-lz4',
     'nptdms': 'python3-nptdms-pip',
+    'numba': 'python3-numba',
     'numpy': 'python3-numpy',
     'rcl_interfaces': 'rcl_interfaces',
     'rclpy': 'rclpy',

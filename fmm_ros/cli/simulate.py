@@ -1,0 +1,130 @@
+"""`fmm simulate`: run the friction oscillator from an initial condition or a force record.
+
+Examples (the paper's Fig. 2 oscillator; an FMM response to a recorded hit):
+    fmm simulate --x0-mm 3 --mu 0.1 --mass-kg 1 --stiffness-n-per-m 5000
+                 --damping-n-s-per-m 0 --normal-force-n 9.81 --duration-s 1 --json
+    fmm simulate --force-csv hit.csv --out response.csv
+"""
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from fmm_ros.core.model import (
+    FMM_RIG,
+    PAPER_MU,
+    Rig,
+    record_length,
+    sample_rate_from_times,
+    simulate,
+)
+
+DEFAULT_DURATION_S = 33.0
+DEFAULT_SAMPLE_RATE_HZ = 10_000.0
+FORCE_COLUMNS = ('time_s', 'force_n')
+OUT_COLUMNS = ('time_s', 'force_n', 'displacement_m', 'velocity_m_s')
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the `simulate` subcommand."""
+    parser = subparsers.add_parser(
+        'simulate', help='simulate the Coulomb-friction oscillator (paper Eqs. 1-3)',
+        description="Simulate m x'' + c x' + k x + mu N sgn(x') = f(t) with the stick rule, "
+                    'from an initial displacement/velocity and/or a measured force record '
+                    '(linear between samples). Rig flags default to the FMM.')
+    parser.add_argument('--x0-mm', type=float, default=0.0, help='initial displacement [mm]')
+    parser.add_argument('--v0-m-s', type=float, default=0.0, help='initial velocity [m/s]')
+    parser.add_argument('--force-csv', type=Path, metavar='FILE',
+                        help='force record with columns time_s,force_n (uniform time step); '
+                             'without it there is no applied force')
+    parser.add_argument('--mu', type=float, default=PAPER_MU,
+                        help=f'Coulomb friction coefficient (default {PAPER_MU})')
+    parser.add_argument('--mass-kg', type=float, default=FMM_RIG.mass_kg,
+                        help=f'moving mass m [kg] (default {FMM_RIG.mass_kg})')
+    parser.add_argument('--stiffness-n-per-m', type=float, default=FMM_RIG.stiffness_n_per_m,
+                        help=f'spring constant k [N/m] (default {FMM_RIG.stiffness_n_per_m:g})')
+    parser.add_argument('--damping-n-s-per-m', type=float, default=FMM_RIG.damping_n_s_per_m,
+                        help=f'viscous damping c [N*s/m] (default {FMM_RIG.damping_n_s_per_m})')
+    parser.add_argument('--normal-force-n', type=float, default=FMM_RIG.normal_force_n,
+                        help='normal force N [N] (default 0.680 kg x 9.81 m/s^2 = '
+                             f'{FMM_RIG.normal_force_n:.4f})')
+    parser.add_argument('--duration-s', type=float,
+                        help=f'record length [s] (default {DEFAULT_DURATION_S:g}, or the force '
+                             "record's; a longer one continues with zero force)")
+    parser.add_argument('--sample-rate-hz', type=float,
+                        help=f'sample rate [Hz] (default {DEFAULT_SAMPLE_RATE_HZ:g}, or the '
+                             "force record's, which it must then match)")
+    parser.add_argument('--integrator', choices=('euler', 'exact'), default='exact',
+                        help='exact (default): exact between located stick/slip events; '
+                             "euler: the paper's fixed-step reference")
+    parser.add_argument('--json', action='store_true', help='print the summary as JSON')
+    parser.add_argument('--out', type=Path, metavar='CSV',
+                        help='write time_s,force_n,displacement_m,velocity_m_s')
+    parser.set_defaults(func=run)
+
+
+def read_force_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """(time_s, force_n) from a CSV with header time_s,force_n; ValueError naming the problem."""
+    with open(path, encoding='utf-8') as stream:
+        header = [name.strip() for name in stream.readline().split(',')]
+        if tuple(header) != FORCE_COLUMNS:
+            raise ValueError(f'{path}: expected the header {",".join(FORCE_COLUMNS)}, '
+                             f'got {",".join(header)!r}')
+        try:
+            table = np.loadtxt(stream, delimiter=',', ndmin=2)
+        except ValueError as error:
+            raise ValueError(f'{path}: {error}') from None
+    if table.shape[1] != 2 or table.shape[0] < 2:
+        raise ValueError(f'{path}: need at least two rows of time_s,force_n')
+    return table[:, 0], table[:, 1]
+
+
+def run(args: argparse.Namespace) -> int:
+    """Simulate as the flags say, print the summary, optionally write the record."""
+    rig = Rig(mass_kg=args.mass_kg, stiffness_n_per_m=args.stiffness_n_per_m,
+              damping_n_s_per_m=args.damping_n_s_per_m, normal_force_n=args.normal_force_n)
+    start_s = 0.0
+    if args.force_csv is not None:
+        time_s, force = read_force_csv(args.force_csv)
+        rate = sample_rate_from_times(time_s)
+        if args.sample_rate_hz is not None and not math.isclose(args.sample_rate_hz, rate,
+                                                                rel_tol=1e-6):
+            raise ValueError(f'--sample-rate-hz {args.sample_rate_hz:g} does not match the '
+                             f"force record's {rate:.6g} Hz")
+        start_s = float(time_s[0])
+        if args.duration_s is not None:
+            n = record_length(args.duration_s, rate)
+            force = np.concatenate((force[:n], np.zeros(max(0, n - force.size))))
+    else:
+        rate = DEFAULT_SAMPLE_RATE_HZ if args.sample_rate_hz is None else args.sample_rate_hz
+        duration = DEFAULT_DURATION_S if args.duration_s is None else args.duration_s
+        force = np.zeros(record_length(duration, rate))
+    sim = simulate(force, rate, rig=rig, mu=args.mu, x0_m=args.x0_mm * 1e-3,
+                   v0_m_s=args.v0_m_s, integrator=args.integrator)
+    summary = {
+        'final_position_m': float(sim.displacement_m[-1]),
+        'rest_time_s': start_s + sim.rest_time_s if sim.at_rest else None,
+        'natural_frequency_hz': rig.natural_frequency_hz,
+        'damping_ratio': rig.damping_ratio,
+        'peak_velocity_m_s': float(np.max(np.abs(sim.velocity_m_s))),
+    }
+    if args.out is not None:
+        table = np.column_stack((start_s + sim.time_s, force, sim.displacement_m,
+                                 sim.velocity_m_s))
+        np.savetxt(args.out, table, delimiter=',', header=','.join(OUT_COLUMNS), comments='',
+                   fmt='%.10g')
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        rest = ('still sliding at the end' if summary['rest_time_s'] is None
+                else f'at rest from {summary["rest_time_s"]:.4f} s')
+        print(f'natural frequency {summary["natural_frequency_hz"]:.4f} Hz, '
+              f'damping ratio {100 * summary["damping_ratio"]:.4f} %')
+        print(f'final position    {1e3 * summary["final_position_m"]:.6f} mm ({rest})')
+        print(f'peak velocity     {summary["peak_velocity_m_s"]:.6g} m/s')
+        if args.out is not None:
+            print(f'wrote {force.size} samples to {args.out}')
+    return 0
