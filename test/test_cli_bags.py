@@ -22,6 +22,7 @@ from fmm_ros.core.bagio import (
     BagWriter,
     fmm_typestore,
 )
+from fmm_ros.core.bagio.export import table_columns
 
 FS = 10_000.0
 
@@ -92,12 +93,10 @@ def test_export_writes_impact_and_level_tables(tmp_path, capsys):
     rng = np.random.default_rng(5)
     impacts = [random_message(store, IMPACT_RESULT, rng) for _ in range(2)]
     for impact in impacts:  # an FRF: every array over the same frequency axis
-        for name in ('frequency_hz', 'mobility_real', 'mobility_imag', 'receptance_real',
-                     'receptance_imag'):
+        for name in table_columns(IMPACT_RESULT)[1]:
             setattr(impact, name, rng.normal(size=17))
     summary = random_message(store, FRF_SUMMARY, rng)
-    for name in ('frequency_hz', 'mobility_real', 'mobility_imag', 'receptance_real',
-                 'receptance_imag', 'h1_mobility_real', 'h1_mobility_imag', 'coherence'):
+    for name in table_columns(FRF_SUMMARY)[1]:
         setattr(summary, name, rng.normal(size=9))
     summary.level = 'high level'
     bag = tmp_path / 'bag'
