@@ -9,7 +9,7 @@ from fmm_ros.core.bagio.simulated import simulated_session, write_session_bag
 def test_a_session_is_one_continuous_record_of_hits_at_the_paper_levels(tmp_path):
     session = simulated_session(2, spacing_s=4.0, seed=1)
     assert session.hit_levels == ('low', 'low', 'medium', 'medium', 'high', 'high')
-    assert session.duration_s == 24.0
+    assert session.duration_s == 24.1
     slot = 40_000
     for k, (start, peak) in enumerate(zip(session.hit_start_indices, session.hit_peak_force_n,
                                           strict=True)):

@@ -47,13 +47,17 @@ def simulated_session(hits_per_level: int = 10, *, spacing_s: float = 33.0,
                       mu: float = PAPER_MU, pretrigger_s: float = 0.1,
                       sample_rate_hz: float = SAMPLE_RATE_HZ, force_noise_std_n: float = 0.05,
                       velocity_noise_std_m_s: float = 1e-5) -> SimulatedSession:
-    """hits_per_level hits of each level in turn, the first pretrigger_s into each slot."""
+    """hits_per_level hits of each level in turn, each pretrigger_s into its spacing_s slot.
+
+    The recording runs pretrigger_s past the last slot, so that a record as long as the
+    slot, started at its hit, is complete (the paper's 33 s records, hits 33 s apart).
+    """
     if hits_per_level < 1:
         raise ValueError(f'hits_per_level must be at least 1, got {hits_per_level}')
     rng = np.random.default_rng(seed)
     slot = int(round(spacing_s * sample_rate_hz))
     order = tuple(level for level in levels for _ in range(hits_per_level))
-    force = np.zeros(slot * len(order))
+    force = np.zeros(slot * len(order) + int(round(pretrigger_s * sample_rate_hz)))
     starts, peaks = [], []
     for k, level in enumerate(order):
         peak = level_peak_force_n(level, rng)
