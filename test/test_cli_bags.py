@@ -117,15 +117,26 @@ def test_export_writes_impact_and_level_tables(tmp_path, capsys):
     assert int(rows[0]['stamp_ns']) == stamp.sec * 10**9 + stamp.nanosec
     assert 'mobility_real' not in rows[0]  # arrays go to the per-impact FRF files
 
-    frf = np.genfromtxt(out_dir / f'impact_{impacts[0].impact_id}.csv', delimiter=',',
-                        names=True)
+    impact_id = impacts[0].impact_id
+    frf = np.genfromtxt(out_dir / f'impact_{impact_id}.csv', delimiter=',', names=True)
     np.testing.assert_array_equal(frf['frequency_hz'], impacts[0].frequency_hz)
-    np.testing.assert_array_equal(frf['receptance_imag'], impacts[0].receptance_imag)
+    np.testing.assert_array_equal(frf[f'impact_{impact_id}_receptance_imag'],
+                                  impacts[0].receptance_imag)
     level = np.genfromtxt(out_dir / 'level_high_level.csv', delimiter=',', names=True)
-    np.testing.assert_array_equal(level['coherence'], summary.coherence)
+    np.testing.assert_array_equal(level['high_level_coherence'], summary.coherence)
+    np.testing.assert_array_equal(level['high_level_h2_mobility_real'],
+                                  summary.h2_mobility_real)
     with (out_dir / 'levels.csv').open() as stream:
         (row,) = list(csv.DictReader(stream))
     assert row['impact_ids'] == '|'.join(str(i) for i in summary.impact_ids)
+
+    # The same FRFs as UFF 58, read back with pyuff (the signal core's exporter writes them).
+    import pyuff
+
+    assert main(['export', str(bag), '-o', str(tmp_path / 'uff'), '--frf-format', 'uff']) == 0
+    sets = pyuff.UFF(str(tmp_path / 'uff' / 'level_high_level.uff')).read_sets()
+    coherence = next(s for s in sets if s.get('id1') == 'high level coherence')
+    np.testing.assert_allclose(coherence['data'], summary.coherence, rtol=1e-10)  # 12 digits
 
 
 def test_export_of_a_bag_without_results_names_what_it_has(tmp_path, capsys):

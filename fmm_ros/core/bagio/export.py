@@ -1,9 +1,9 @@
-"""Impact results and averaged FRFs to CSV files a spreadsheet or MATLAB opens directly.
+"""Recorded impact results and level FRFs to CSV tables, and FRF files (CSV, UFF 58, JSON).
 
-The columns are the message fields, taken from the fmm_interfaces definitions (so a field
-added to ImpactResult.msg appears here without a code change): one table row per impact or
-level of its scalar fields, and one table per impact or level of its FRF arrays over
-frequency_hz. Any object with those attribute names can be exported, not only messages.
+The scalar tables' columns are the message fields, taken from the fmm_interfaces
+definitions (a field added to ImpactResult.msg appears without a code change): one row per
+impact or level. The FRFs of each impact and level are written by the signal core's
+exporters (`fmm_ros.core.export`), so a bag's FRFs and `fmm analyze --export` files match.
 """
 
 import csv
@@ -16,6 +16,7 @@ from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
 from fmm_ros.core.bagio.definitions import FRF_SUMMARY, IMPACT_RESULT, fmm_typestore
+from fmm_ros.core.export import FrfCurve, write_frfs
 
 FREQUENCY_FIELD = 'frequency_hz'
 
@@ -65,16 +66,33 @@ def write_rows(path: Path, columns: list[str], records: Iterable) -> Path:
     return path
 
 
-def write_frf(path: Path, columns: list[str], record) -> Path:
-    """The FRF arrays of one record as columns over frequency (full float64 precision)."""
-    arrays = [np.asarray(getattr(record, column), dtype=np.float64) for column in columns]
-    lengths = {len(array) for array in arrays}
-    if len(lengths) != 1:
-        raise ValueError(f'{path.name}: FRF arrays of unequal length '
-                         f'{dict(zip(columns, map(len, arrays), strict=True))}')
-    np.savetxt(path, np.column_stack(arrays) if arrays[0].size else np.zeros((0, len(arrays))),
-               delimiter=',', header=','.join(columns), comments='', fmt='%.17g')
-    return path
+# FRF fields of the messages (<field> or <field>_real/_imag), their curve label and quantity.
+IMPACT_CURVES = (('mobility', 'mobility', 'mobility'),
+                 ('receptance', 'receptance', 'receptance'))
+LEVEL_CURVES = (('mobility', 'mean mobility', 'mobility'),
+                ('receptance', 'mean receptance', 'receptance'),
+                ('h1_mobility', 'H1 mobility', 'mobility'),
+                ('h2_mobility', 'H2 mobility', 'mobility'),
+                ('coherence', 'coherence', 'coherence'))
+
+
+def message_curves(message, name: str, spec=IMPACT_CURVES) -> list[FrfCurve]:
+    """The FRFs of an ImpactResult (spec IMPACT_CURVES) or FrfSummary (LEVEL_CURVES) message.
+
+    Curves the message leaves empty (e.g. H2 of a bag recorded before it existed) are left
+    out.
+    """
+    frequency = np.asarray(message.frequency_hz, dtype=np.float64)
+    curves = []
+    for field, label, quantity in spec:
+        if hasattr(message, f'{field}_real'):
+            values = (np.asarray(getattr(message, f'{field}_real'))
+                      + 1j * np.asarray(getattr(message, f'{field}_imag')))
+        else:
+            values = np.asarray(getattr(message, field, ()), dtype=np.float64)
+        if values.size:
+            curves.append(FrfCurve(f'{name} {label}', quantity, frequency, values))
+    return curves
 
 
 def _safe(name: str) -> str:
@@ -82,25 +100,38 @@ def _safe(name: str) -> str:
     return re.sub(r'[^A-Za-z0-9_.-]+', '_', name) or 'unnamed'
 
 
-def export_results(impacts: Iterable, summaries: Iterable, out_dir: str | Path) -> list[Path]:
-    """CSV files of impacts and level FRFs in out_dir; returns the files written.
+FRF_FORMATS = ('csv', 'uff', 'json')
 
-    impacts.csv (one row per impact) and impact_<id>.csv (its FRF); levels.csv and
-    level_<name>.csv for the newest FrfSummary of each level.
+
+def export_results(impacts: Iterable, summaries: Iterable, out_dir: str | Path, *,
+                   frf_format: str = 'csv') -> list[Path]:
+    """Tables and FRF files of impacts and levels in out_dir; returns the files written.
+
+    impacts.csv (one row per impact) and impact_<id>.<frf_format> (its mobility and
+    receptance); levels.csv and level_<name>.<frf_format> (mean mobility and receptance,
+    H1, H2, coherence) for the newest FrfSummary of each level.
     """
+    if frf_format not in FRF_FORMATS:
+        raise ValueError(f'unknown FRF format {frf_format!r}; use one of {", ".join(FRF_FORMATS)}')
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written = []
     impacts = list(impacts)
-    scalars, frf = table_columns(IMPACT_RESULT)
-    if impacts:
-        written.append(write_rows(out / 'impacts.csv', scalars, impacts))
-        written += [write_frf(out / f'impact_{int(record.impact_id)}.csv', frf, record)
-                    for record in impacts]
     latest = {record.level: record for record in summaries}  # later ones replace earlier
-    scalars, frf = table_columns(FRF_SUMMARY)
-    if latest:
-        written.append(write_rows(out / 'levels.csv', scalars, latest.values()))
-        written += [write_frf(out / f'level_{_safe(level)}.csv', frf, record)
-                    for level, record in latest.items()]
+    for records, table, spec, name, stem in (
+            (impacts, IMPACT_RESULT, IMPACT_CURVES, lambda r: f'impact {int(r.impact_id)}',
+             lambda r: f'impact_{int(r.impact_id)}'),
+            (list(latest.values()), FRF_SUMMARY, LEVEL_CURVES, lambda r: r.level,
+             lambda r: f'level_{_safe(r.level)}')):
+        if not records:
+            continue
+        scalars, _ = table_columns(table)
+        written.append(write_rows(out / ('impacts.csv' if table == IMPACT_RESULT
+                                         else 'levels.csv'), scalars, records))
+        for record in records:
+            curves = message_curves(record, name(record), spec)
+            if curves:
+                path = out / f'{stem(record)}.{frf_format}'
+                write_frfs(path, curves)
+                written.append(path)
     return written
