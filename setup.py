@@ -10,6 +10,9 @@ PACKAGE = 'fmm_ros'
 
 # ROS node executables (`ros2 run fmm_ros <name>`); colcon installs them to lib/fmm_ros.
 NODES = {
+    'hammer_sim': 'fmm_ros.nodes.hammer_sim:main',
+    'rig_sim': 'fmm_ros.nodes.rig_sim:main',
+    'analyzer': 'fmm_ros.nodes.analyzer:main',
 }
 
 
