@@ -1,5 +1,6 @@
 """What every fmm_ros node shares: QoS profiles, topic names and the `ros2 run` entry point."""
 
+import importlib
 from collections.abc import Callable
 
 import rclpy
@@ -40,3 +41,9 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+
+
+def message_class(msgtype: str) -> type:
+    """The generated Python class of a ROS type name such as fmm_interfaces/msg/SampleBatch."""
+    package, kind, name = msgtype.split('/')
+    return getattr(importlib.import_module(f'{package}.{kind}'), name)
