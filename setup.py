@@ -15,6 +15,7 @@ NODES = {
     'analyzer': 'fmm_ros.nodes.analyzer:main',
     'recorder': 'fmm_ros.nodes.recorder:main',
     'player': 'fmm_ros.nodes.player:main',
+    'daq': 'fmm_ros.nodes.daq:main',
 }
 
 
