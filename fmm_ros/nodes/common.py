@@ -1,0 +1,81 @@
+"""What every fmm_ros node shares: QoS profiles, topic names and the `ros2 run` entry point."""
+
+import importlib
+import time
+from collections.abc import Callable
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+FORCE_TOPIC = '/fmm/force'
+VELOCITY_TOPIC = '/fmm/velocity'
+APPLIED_FORCE_TOPIC = '/fmm/sim/applied_force'
+IMPACTS_TOPIC = '/fmm/impacts'
+FRF_TOPIC = '/fmm/frf'
+FIT_SERVICE = '/fmm/fit_friction'
+DIAGNOSE_SERVICE = '/fmm/diagnose_model'
+
+# Sample batches: every one matters (a lost batch is a gap in an FRF record), and a subscriber
+# may lag a burst of them, so RELIABLE with a deep queue.
+SAMPLE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+                        reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.VOLATILE)
+
+# Results: a late subscriber (a plot, the fitter started later) still gets the latest ones.
+RESULT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
+                        reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) -> None:
+    """Init, spin until Ctrl-C or shutdown, destroy the node, shut down (for ros2 run)."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = node_factory()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def message_class(msgtype: str) -> type:
+    """The generated Python class of a ROS type name such as fmm_interfaces/msg/SampleBatch."""
+    package, kind, name = msgtype.split('/')
+    return getattr(importlib.import_module(f'{package}.{kind}'), name)
+
+
+class BatchPacer:
+    """Releases sample batches at a paced rate against the wall clock, a few per tick.
+
+    rclpy's executor takes one message per subscription per wait cycle, so a source that
+    publishes bursts overruns subscribers spun by the same executor. A tick releases at most
+    `max_per_tick` batches (two absorb timer jitter); further behind than that, the clock is
+    re-anchored: the source runs slower than asked (`fell_behind` says so) instead of flooding.
+    """
+
+    def __init__(self, batches_per_s: float, max_per_tick: int = 2) -> None:
+        self.max_per_tick = max_per_tick
+        self.restart(batches_per_s, 0)
+
+    def restart(self, batches_per_s: float, released: int) -> None:
+        """Pace from now at a new rate, `released` batches already out."""
+        self._anchor = (time.monotonic(), released, batches_per_s)
+        self.released = released
+
+    def due(self) -> int:
+        """How many batches to release now; the caller releases them and counts them here."""
+        wall0, released0, rate = self._anchor
+        now = time.monotonic()
+        behind = released0 + int((now - wall0) * rate) - self.released
+        self.fell_behind = behind > self.max_per_tick + 1
+        if self.fell_behind:
+            self._anchor = (now, self.released + self.max_per_tick, rate)
+        count = max(0, min(behind, self.max_per_tick))
+        self.released += count
+        return count
