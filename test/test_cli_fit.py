@@ -7,6 +7,7 @@ import pytest
 from fit_records import lab_impact, lab_levels
 
 from fmm_ros.cli import build_parser, main
+from fmm_ros.core.bagio.simulated import simulated_session, write_session_bag
 from fmm_ros.core.model import FMM_RIG, Rig, free_vibration
 from fmm_ros.core.records import write_impact_csv
 
@@ -71,6 +72,7 @@ def test_fit_json_has_the_issues_keys_and_one_mu(capsys, files):
         assert entry['mu'] == pytest.approx(0.113, rel=0.01)
         assert 0.8 < entry['impulse_n_s'] < 2.0
     assert result['mu_consistency_p_value'] > 1e-3 and result['misfit'] == 'time'
+    assert all(entry['initial_position_m'] == 0.0 for entry in result['per_file'])
 
 
 def test_fit_damping_and_the_frf_misfit(capsys, files):
@@ -81,6 +83,25 @@ def test_fit_damping_and_the_frf_misfit(capsys, files):
     assert result['mu'] == pytest.approx(0.113, rel=0.01)
     assert result['damping_n_s_per_m'] == pytest.approx(0.275, rel=0.10)
     assert result['damping_stderr_n_s_per_m'] > 0.0
+
+
+def test_initial_positions_are_fitted_on_request(capsys, files):
+    code, out, _ = run(capsys, 'fit', *files['levels'], '--json', '--fit-initial-position')
+    result = json.loads(out)
+    assert code == 0 and result['mu'] == pytest.approx(0.113, rel=0.01)
+    # These records start at rest at x = 0: the fitted starts are that, within microns.
+    assert all(abs(entry['initial_position_m']) < 5e-6 for entry in result['per_file'])
+
+
+def test_a_bag_gives_every_recorded_impact(capsys, tmp_path):
+    session = simulated_session(1, seed=74, force_noise_std_n=0.2, velocity_noise_std_m_s=1e-4)
+    bag = write_session_bag(tmp_path / 'session.mcap', session)
+    code, out, _ = run(capsys, 'fit', bag, '--json', '--fit-initial-position')
+    result = json.loads(out)
+    assert code == 0 and len(result['per_file']) == 3
+    assert all(entry['file'].startswith('session.mcap@') for entry in result['per_file'])
+    assert result['mu'] == pytest.approx(session.mu, rel=0.01)
+    assert result['residual_rms_m_s'] == pytest.approx(1e-4, rel=0.05)
 
 
 def test_rig_flags_set_the_model(capsys, files):

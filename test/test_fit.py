@@ -9,7 +9,9 @@ from fit_records import FORCE_NOISE_N, VELOCITY_NOISE_M_S, lab_impact, lab_level
 
 from fmm_ros.core import fit
 from fmm_ros.core._lsq import Infeasible, levenberg_marquardt, normal_inverse
-from fmm_ros.core.model import FMM_RIG, Rig, free_vibration, model_term
+from fmm_ros.core.bagio.simulated import simulated_session
+from fmm_ros.core.impacts import capture_impacts
+from fmm_ros.core.model import FMM_RIG, Rig, free_vibration, model_term, simulate
 
 
 @pytest.fixture(scope='module')
@@ -90,15 +92,44 @@ def test_model_fit_reports_residuals_noise_and_names(paper_set):
         result.value('c')
     assert result.noise_std_m_s == pytest.approx(VELOCITY_NOISE_M_S, rel=0.03)
     assert result.n_samples == sum(i.force_n.size for i in paper_set)
-    for impact, residual, rms in zip(paper_set, result.residuals_m_s,
-                                     result.impact_residual_rms_m_s, strict=True):
-        rebuilt = impact.velocity_m_s - result.simulate(impact).velocity_m_s
+    for index, (impact, residual, rms) in enumerate(zip(
+            paper_set, result.residuals_m_s, result.impact_residual_rms_m_s, strict=True)):
+        assert result.impacts[index] is impact
+        rebuilt = impact.velocity_m_s - result.simulate(index).velocity_m_s
         np.testing.assert_allclose(residual, rebuilt, atol=1e-15)
         assert rms == pytest.approx(np.sqrt(np.mean(residual ** 2)))
     peak = max(i.peak_velocity_m_s for i in paper_set)
     assert result.normalised_residual == pytest.approx(result.residual_rms_m_s / peak)
     assert all(fraction > 0.999 for fraction in result.explained_fraction)
     assert result.at_bounds == ()
+
+
+def test_hits_of_a_session_start_where_the_last_one_left_the_rig():
+    # One continuous recording: friction holds the rig off centre after each hit, so the next
+    # starts there. Fitting each impact's start brings the residual down to the noise.
+    session = simulated_session(1, seed=3, force_noise_std_n=FORCE_NOISE_N,
+                                velocity_noise_std_m_s=VELOCITY_NOISE_M_S)
+    records = capture_impacts(session.force_n, session.velocity_m_s, session.sample_rate_hz)
+    # Where the hits alone (the recorded force gated, as the noise must not drive it) left it.
+    hits = fit.condition_impact(session.force_n, session.velocity_m_s, session.sample_rate_hz)
+    truth = simulate(hits.force_n, session.sample_rate_hz, mu=session.mu).displacement_m
+    starts = [truth[record.record_start_sample_index] for record in records]
+    assert max(abs(x) for x in starts) > 0.1e-3
+    at_zero = fit.fit_friction(records)
+    result = fit.fit_friction(records, fit_initial_position=True)
+    assert at_zero.joint.residual_rms_m_s > 1.5 * VELOCITY_NOISE_M_S
+    assert result.joint.residual_rms_m_s == pytest.approx(VELOCITY_NOISE_M_S, rel=0.05)
+    assert result.mu == pytest.approx(session.mu, rel=0.01)
+    assert result.joint.names[1:] == tuple(f'initial_position_m[{i}]' for i in range(3))
+    np.testing.assert_allclose(result.joint.initial_positions_m, starts, atol=5e-6)
+    assert all(single.initial_positions_m[0] == pytest.approx(x, abs=5e-6)
+               for single, x in zip(result.per_impact, starts, strict=True))
+
+
+def test_fitting_the_start_costs_little_when_the_rig_starts_at_centre(paper_set):
+    result = fit.fit_model(paper_set, fit_initial_position=True)
+    assert result.mu == pytest.approx(0.113, rel=0.01)
+    assert np.all(np.abs(result.initial_positions_m) < 5 * result.stderr[1:])
 
 
 def test_one_mu_is_refused_statistically_when_the_levels_differ():

@@ -1,9 +1,11 @@
-"""`fmm fit`: the best-fit friction coefficient (and damping) of impacts, one CSV file each.
+"""`fmm fit`: the best-fit friction coefficient (and damping) of impacts from CSV files or bags.
 
-The paper's Sec. 5 step: Eq. 3 driven by each file's measured force, mu chosen so the simulated
-velocity matches the measured one, one mu for all files and each file's own mu beside it.
-Exit status: 0 fitted, 1 the records cannot be explained by friction (the reason is printed,
-as JSON with --json), 2 bad input or flags.
+The paper's Sec. 5 step: Eq. 3 driven by each impact's measured force, mu chosen so the
+simulated velocity matches the measured one, one mu for all impacts and each one's own mu
+beside it. Inputs are read as `fmm analyze` reads them (a CSV file is one impact, a bag gives
+every impact its recorded streams hold). Exit status: 0 fitted, 1 the records cannot be
+explained by friction (the reason is printed, as JSON with --json) or a bag was damaged (its
+problems are printed as warnings after the result), 2 bad input or flags.
 """
 
 import argparse
@@ -11,6 +13,8 @@ import json
 from pathlib import Path
 
 from fmm_ros.cli._model import add_rig_arguments, report_refusal, rig_from_args
+from fmm_ros.cli.analyze import read_records
+from fmm_ros.cli.progress import report_problems
 from fmm_ros.core.export import json_number
 from fmm_ros.core.fit import (
     DEFAULT_BAND_LIMIT_HZ,
@@ -20,22 +24,25 @@ from fmm_ros.core.fit import (
     FrictionFit,
     fit_friction,
 )
-from fmm_ros.core.records import read_impact_csv
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the `fit` subcommand."""
     parser = subparsers.add_parser(
-        'fit', help='best-fit friction coefficient (and damping) from impact CSV files',
+        'fit', help='best-fit friction coefficient (and damping) from impact CSV files or bags',
         description="Fit mu (and with --fit-damping c) of m x'' + c x' + k x + mu N sgn(x') = "
                     "f(t), driven by each file's measured force, to the measured velocity: "
-                    "one mu for all files, and each file's own mu. Files: one impact each, "
-                    'header time_s,force_n,velocity_m_s. Rig flags default to the FMM.')
-    parser.add_argument('inputs', nargs='+', type=Path, metavar='FILE',
-                        help='one CSV file per impact')
+                    "one mu for all impacts, and each impact's own mu. Inputs: CSV files of one "
+                    'impact each (header time_s,force_n,velocity_m_s) or bags (every impact '
+                    'recorded). Rig flags default to the FMM.')
+    parser.add_argument('inputs', nargs='+', type=Path, metavar='INPUT',
+                        help='one CSV file per impact, or a bag (directory, .mcap or .db3)')
     parser.add_argument('--json', action='store_true', help='print the result as JSON')
     parser.add_argument('--fit-damping', action='store_true',
                         help='fit the viscous damping c too (otherwise c is the rig constant)')
+    parser.add_argument('--fit-initial-position', action='store_true',
+                        help='fit where the rig rested before each hit (friction leaves it off '
+                             'centre after the previous one; otherwise each starts at x = 0)')
     add_rig_arguments(parser)
     parser.add_argument('--misfit', choices=MISFITS, default='time',
                         help='time: velocity residual (default); frf: mobility residual up to '
@@ -53,21 +60,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Read the files, fit, print the result (or why there is none)."""
     rig = rig_from_args(args)
-    records = [read_impact_csv(path) for path in args.inputs]
+    records, problems = read_records(args.inputs)
     try:
         result = fit_friction(records, rig=rig, fit_damping=args.fit_damping,
+                              fit_initial_position=args.fit_initial_position,
                               mu_bounds=(args.mu_min, args.mu_max), misfit=args.misfit,
                               band_limit_hz=args.band_limit_hz)
     except FitError as failure:
+        report_problems('fit', problems)
         return report_refusal('fit', failure, args.json)
     if args.json:
-        print(json.dumps(report(result, args.inputs), indent=2, allow_nan=False))
+        print(json.dumps(report(result), indent=2, allow_nan=False))
     else:
-        print(text_report(result, args.inputs))
-    return 0
+        print(text_report(result))
+    return report_problems('fit', problems)
 
 
-def report(result: FrictionFit, paths: list[Path]) -> dict:
+def report(result: FrictionFit) -> dict:
     """The JSON document: the issue's keys, then standard errors and the consistency test."""
     joint = result.joint
     return {
@@ -76,15 +85,16 @@ def report(result: FrictionFit, paths: list[Path]) -> dict:
         'damping_n_s_per_m': result.damping_n_s_per_m,
         'residual_rms_m_s': joint.residual_rms_m_s,
         'per_file': [{
-            'file': str(path),
+            'file': source,
             'mu': single.mu,
             'impulse_n_s': impulse,
             'residual_rms_m_s': rms,
             'mu_stderr': single.mu_stderr,
             'normalised_residual': normalised,
-        } for path, single, impulse, rms, normalised in zip(
-            paths, result.per_impact, result.impulses_n_s, joint.impact_residual_rms_m_s,
-            joint.impact_normalised_residual, strict=True)],
+            'initial_position_m': start,
+        } for source, single, impulse, rms, normalised, start in zip(
+            joint.sources, result.per_impact, result.impulses_n_s, joint.impact_residual_rms_m_s,
+            joint.impact_normalised_residual, joint.initial_positions_m, strict=True)],
         'damping_stderr_n_s_per_m': json_number(result.damping_stderr_n_s_per_m),
         'damping_fitted': 'damping_n_s_per_m' in joint.names,
         'normalised_residual': joint.normalised_residual,
@@ -95,10 +105,10 @@ def report(result: FrictionFit, paths: list[Path]) -> dict:
     }
 
 
-def text_report(result: FrictionFit, paths: list[Path]) -> str:
-    """A few lines for a person: the common mu, c, the residual, then one line per file."""
+def text_report(result: FrictionFit) -> str:
+    """A few lines for a person: the common mu, c, the residual, then one line per impact."""
     joint = result.joint
-    count = len(paths)
+    count = len(joint.sources)
     lines = [f'mu = {result.mu:.5f} +- {result.mu_stderr:.2g}  (one mu for {count} '
              f'impact{"s" if count > 1 else ""}, {joint.misfit} misfit)']
     if 'damping_n_s_per_m' in joint.names:
@@ -115,10 +125,11 @@ def text_report(result: FrictionFit, paths: list[Path]) -> str:
         lines.append(f'one mu {verdict}: chi^2 {result.consistency_chi2:.3g} over {count - 1} '
                      f'degree{"s" if count > 2 else ""} of freedom, p = '
                      f'{result.consistency_p_value:.3g}')
-    lines += ['', f'{"file":<28} {"impulse N*s":>11} {"mu alone":>9} {"+-":>8} '
+    lines += ['', f'{"impact":<28} {"impulse N*s":>11} {"mu alone":>9} {"+-":>8} '
                   f'{"residual m/s":>12}  (at the common mu)']
-    for path, single, impulse, rms in zip(paths, result.per_impact, result.impulses_n_s,
-                                          joint.impact_residual_rms_m_s, strict=True):
-        lines.append(f'{path.name:<28.28} {impulse:>11.4f} {single.mu:>9.5f} '
+    for source, single, impulse, rms in zip(joint.sources, result.per_impact,
+                                            result.impulses_n_s, joint.impact_residual_rms_m_s,
+                                            strict=True):
+        lines.append(f'{Path(source).name:<28.28} {impulse:>11.4f} {single.mu:>9.5f} '
                      f'{single.mu_stderr:>8.2g} {rms:>12.3e}')
     return '\n'.join(lines)

@@ -2,8 +2,9 @@
 
 Files with a hit are impacts: m, c and k are fitted to them together, the measured force
 driving m x'' + c x' + k x = f. Files without a hit are free decays (an electromagnet release,
-say): f_n and zeta are fitted, and k and c follow from --mass-kg. Exit status: 0 identified,
-1 the records are not the frictionless rig's (reason printed), 2 bad input or flags.
+say): f_n and zeta are fitted, and k and c follow from --mass-kg. Bags give their recorded
+impacts. Exit status: 0 identified, 1 the records are not the frictionless rig's (reason
+printed) or a bag was damaged (warnings), 2 bad input or flags.
 """
 
 import argparse
@@ -11,10 +12,11 @@ import json
 from pathlib import Path
 
 from fmm_ros.cli._model import report_refusal
+from fmm_ros.cli.analyze import read_records
+from fmm_ros.cli.progress import report_problems
 from fmm_ros.core.export import json_number
 from fmm_ros.core.fit import FitError, RigIdentification, identify_rig
 from fmm_ros.core.model import FMM_RIG
-from fmm_ros.core.records import read_impact_csv
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -22,11 +24,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         'identify-rig', help='mass, damping and stiffness of the rig from mu = 0 records',
         description='Identify m, c, k (and f_n, zeta) of the rig with the friction contact '
-                    'lifted: from impacts (CSV files time_s,force_n,velocity_m_s with a hit) '
-                    'by output error with the measured force driving the model, or from free '
-                    'decays (files without a hit) with the mass given.')
-    parser.add_argument('inputs', nargs='+', type=Path, metavar='FILE',
-                        help='one CSV file per record')
+                    'lifted: from impacts (CSV files time_s,force_n,velocity_m_s with a hit, '
+                    'or bags) by output error with the measured force driving the model, or '
+                    'from free decays (files without a hit) with the mass given.')
+    parser.add_argument('inputs', nargs='+', type=Path, metavar='INPUT',
+                        help='one CSV file per record, or a bag of impacts')
     parser.add_argument('--json', action='store_true', help='print the result as JSON')
     parser.add_argument('--mass-kg', type=float, default=FMM_RIG.mass_kg,
                         help='moving mass m [kg] for free decays, which cannot tell it '
@@ -36,16 +38,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Read the files, identify, print the constants (or why there are none)."""
-    records = [read_impact_csv(path) for path in args.inputs]
+    records, problems = read_records(args.inputs)
     try:
         result = identify_rig(records, mass_kg=args.mass_kg)
     except FitError as failure:
+        report_problems('identify-rig', problems)
         return report_refusal('identify-rig', failure, args.json)
     if args.json:
         print(json.dumps(report(result), indent=2, allow_nan=False))
     else:
         print(text_report(result))
-    return 0
+    return report_problems('identify-rig', problems)
 
 
 def report(result: RigIdentification) -> dict:

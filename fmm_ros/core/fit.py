@@ -276,8 +276,22 @@ def _where(source: str) -> str:
 
 # --- the output-error problem ---------------------------------------------------------------
 
-ModelBuilder = Callable[[np.ndarray], tuple[Rig, float, tuple[ModelTerm, ...]]]
-"""theta -> (rig, mu, effects): the model a parameter vector stands for."""
+@dataclass(frozen=True)
+class _Model:
+    """What a parameter vector stands for: the model, and each impact's initial position."""
+
+    rig: Rig
+    mu: float
+    effects: tuple[ModelTerm, ...]
+    initial_positions_m: tuple[float, ...] = ()
+    """Per impact [m]; empty: every impact starts at x = 0."""
+
+    def initial_position_m(self, index: int) -> float:
+        return self.initial_positions_m[index] if self.initial_positions_m else 0.0
+
+
+ModelBuilder = Callable[[np.ndarray], _Model]
+"""theta -> the model a parameter vector stands for."""
 
 
 class _OutputError:
@@ -322,7 +336,7 @@ class _OutputError:
             start += length
         self.size = start
 
-    def model(self, theta: np.ndarray) -> tuple[Rig, float, tuple[ModelTerm, ...]]:
+    def model(self, theta: np.ndarray) -> _Model:
         """The model at theta, or Infeasible where it cannot be built."""
         try:
             return self.build(theta)
@@ -334,8 +348,8 @@ class _OutputError:
         for index in range(len(self.impacts)):
             self.impact_residual(index, model, out[self.segments[index]])
 
-    def impact_residual(self, index: int, model: tuple[Rig, float, tuple[ModelTerm, ...]],
-                        out: np.ndarray, force_scale: float = 1.0) -> None:
+    def impact_residual(self, index: int, model: _Model, out: np.ndarray,
+                        force_scale: float = 1.0) -> None:
         """One impact's residual segment; force_scale multiplies its force (sensitivity)."""
         impact = self.impacts[index]
         force = impact.force_n if force_scale == 1.0 else impact.force_n * force_scale
@@ -350,15 +364,15 @@ class _OutputError:
         np.subtract(target, spectrum, out=residual)
         residual /= force_scale  # the measured mobility's denominator scales with the force
 
-    def simulate(self, index: int, model: tuple[Rig, float, tuple[ModelTerm, ...]],
+    def simulate(self, index: int, model: _Model,
                  force_n: np.ndarray | None = None) -> Simulation:
         """Run one impact (or force_n in its place) through the model into reused buffers."""
-        rig, mu, effects = model
         impact = self.impacts[index]
         buffer = self.buffers[index]
         try:
             return simulate(impact.force_n if force_n is None else force_n,
-                            impact.sample_rate_hz, rig=rig, mu=mu, effects=effects,
+                            impact.sample_rate_hz, rig=model.rig, mu=model.mu,
+                            effects=model.effects, x0_m=model.initial_position_m(index),
                             integrator=self.integrator, out=(buffer[0], buffer[1]))
         except ValueError as error:  # e.g. a term that makes one direction's friction < 0
             raise Infeasible(str(error)) from None
@@ -461,7 +475,11 @@ class ModelFit:
     mu: float
     effects: tuple[ModelTerm, ...]
     """Model terms of the fitted model: the fixed ones, then the fitted ones."""
+    initial_positions_m: tuple[float, ...]
+    """Where each impact's model started [m] (0 unless fit_initial_position)."""
     misfit: str
+    impacts: tuple[ConditionedImpact, ...]
+    """The conditioned impacts fitted (their force drives `simulate`)."""
     sources: tuple[str, ...]
     residuals_m_s: tuple[np.ndarray, ...]
     """Measured minus simulated velocity per impact at the fitted values [m/s]."""
@@ -504,10 +522,11 @@ class ModelFit:
         """Standard error of mu [-]."""
         return self.error('mu')
 
-    def simulate(self, impact: ConditionedImpact) -> Simulation:
-        """The fitted model driven by an impact's conditioned force."""
+    def simulate(self, index: int) -> Simulation:
+        """The fitted model's response to impact `index` (its conditioned force, its start)."""
+        impact = self.impacts[index]
         return simulate(impact.force_n, impact.sample_rate_hz, rig=self.rig, mu=self.mu,
-                        effects=self.effects)
+                        effects=self.effects, x0_m=self.initial_positions_m[index])
 
 
 @dataclass(frozen=True)
@@ -518,6 +537,8 @@ class _Space:
     fit_damping: bool
     terms: tuple[type[ModelTerm], ...]
     fixed_effects: tuple[ModelTerm, ...]
+    initial_positions: int
+    """Impacts whose initial position is fitted (the last entries of theta); 0: none."""
     names: tuple[str, ...]
     units: tuple[str, ...]
     start: np.ndarray
@@ -525,7 +546,7 @@ class _Space:
     upper: np.ndarray
     typical: np.ndarray
 
-    def build(self, theta: np.ndarray) -> tuple[Rig, float, tuple[ModelTerm, ...]]:
+    def build(self, theta: np.ndarray) -> _Model:
         rig = self.rig
         position = 1
         if self.fit_damping:
@@ -536,11 +557,13 @@ class _Space:
             count = len(term.parameters)
             effects.append(term.from_vector(theta[position:position + count]))
             position += count
-        return rig, float(theta[0]), tuple(effects)
+        positions = tuple(float(x) for x in theta[position:position + self.initial_positions])
+        return _Model(rig, float(theta[0]), tuple(effects), positions)
 
 
 def _space(rig: Rig, mu0: float, mu_bounds: tuple[float, float], fit_damping: bool,
-           terms: Sequence[str | ModelTerm], fixed_effects: Sequence[ModelTerm]) -> _Space:
+           terms: Sequence[str | ModelTerm], fixed_effects: Sequence[ModelTerm],
+           initial_positions: int) -> _Space:
     names, units = ['mu'], ['1']
     start, lower, upper = [mu0], [mu_bounds[0]], [mu_bounds[1]]
     typical = [max(mu0, 0.01)]
@@ -578,7 +601,17 @@ def _space(rig: Rig, mu0: float, mu_bounds: tuple[float, float], fit_damping: bo
     if fit_damping and MODEL_TERMS['viscous_damping'] in classes:
         raise ValueError('fit_damping and a fitted viscous_damping term are the same parameter; '
                          'choose one')
-    return _Space(rig, fit_damping, tuple(classes), fixed, tuple(names), tuple(units),
+    # Where the mass can rest before a hit: inside the friction band of the largest mu searched.
+    band_m = mu_bounds[1] * rig.normal_force_n / rig.stiffness_n_per_m
+    for index in range(initial_positions):
+        names.append(f'initial_position_m[{index}]')
+        units.append('m')
+        start.append(0.0)
+        lower.append(-band_m)
+        upper.append(band_m)
+        typical.append(mu0 * rig.normal_force_n / rig.stiffness_n_per_m)
+    return _Space(rig, fit_damping, tuple(classes), fixed, initial_positions, tuple(names),
+                  tuple(units),
                   np.array(start, dtype=float), np.array(lower, dtype=float),
                   np.array(upper, dtype=float), np.array(typical, dtype=float))
 
@@ -608,15 +641,20 @@ def energy_balance_mu(impacts: Sequence[ConditionedImpact], rig: Rig = FMM_RIG) 
 def fit_model(impacts: Sequence, *, rig: Rig = FMM_RIG, mu0: float | None = None,
               mu_bounds: tuple[float, float] = MU_BOUNDS, fit_damping: bool = False,
               terms: Sequence[str | ModelTerm] = (), fixed_effects: Sequence[ModelTerm] = (),
-              misfit: str = 'time', band_limit_hz: float = DEFAULT_BAND_LIMIT_HZ,
+              fit_initial_position: bool = False, misfit: str = 'time',
+              band_limit_hz: float = DEFAULT_BAND_LIMIT_HZ,
               integrator: str = 'exact') -> ModelFit:
     """Fit one mu (and c, and the parameters of `terms`) to every impact at once.
 
     impacts: ConditionedImpacts, or records with force_n, velocity_m_s, sample_rate_hz (they
     are conditioned here). terms: names of model terms to fit (started at their defaults) or
     term instances (started at their values); fixed_effects: terms held as given. mu0: start
-    value (default: the energy balance). Raises ValueError for bad arguments and FitError when
-    the fit does not converge, puts mu on a bound of mu_bounds, or leaves an impact unexplained.
+    value (default: the energy balance). fit_initial_position: also fit where each impact's
+    mass rested before the hit (a nuisance parameter per impact, `initial_position_m[i]`):
+    friction holds the FMM anywhere within +-mu N / k of centre after the previous hit, and
+    the velocity alone does not say where; without it every impact starts at x = 0, as in
+    the paper. Raises ValueError for bad arguments and FitError when the fit does not
+    converge, puts mu on a bound of mu_bounds, or leaves an impact unexplained.
     """
     conditioned = _conditioned_list(impacts)
     _check_options(rig, misfit, band_limit_hz, integrator)
@@ -630,7 +668,8 @@ def fit_model(impacts: Sequence, *, rig: Rig = FMM_RIG, mu0: float | None = None
         if not math.isfinite(mu0):
             mu0 = PAPER_MU
     mu0 = min(max(float(mu0), low + 0.01 * (high - low)), high - 0.01 * (high - low))
-    space = _space(rig, mu0, (low, high), fit_damping, terms, fixed_effects)
+    space = _space(rig, mu0, (low, high), fit_damping, terms, fixed_effects,
+                   len(conditioned) if fit_initial_position else 0)
     problem = _OutputError(conditioned, space.build, misfit, band_limit_hz, integrator,
                            rig.natural_frequency_hz)
     solution = levenberg_marquardt(problem, space.start, space.lower, space.upper,
@@ -647,7 +686,7 @@ def fit_model(impacts: Sequence, *, rig: Rig = FMM_RIG, mu0: float | None = None
 
 def _model_fit(space: _Space, problem: _OutputError, solution: LsqSolution) -> ModelFit:
     uncertainty = _fit_uncertainty(solution, problem)
-    rig, mu, effects = space.build(solution.x)
+    model = space.build(solution.x)
     if problem.misfit == 'time':
         residuals = tuple(solution.residual[segment].copy() for segment in problem.segments)
     else:
@@ -670,8 +709,10 @@ def _model_fit(space: _Space, problem: _OutputError, solution: LsqSolution) -> M
         names=space.names, units=space.units, values=solution.x.copy(),
         stderr=uncertainty.stderr, stderr_white=uncertainty.stderr_white,
         stderr_force=uncertainty.stderr_force,
-        covariance=uncertainty.covariance, rig=rig, mu=mu, effects=effects,
-        misfit=problem.misfit, sources=tuple(i.source for i in impacts),
+        covariance=uncertainty.covariance, rig=model.rig, mu=model.mu, effects=model.effects,
+        initial_positions_m=tuple(model.initial_position_m(index)
+                                  for index in range(len(impacts))),
+        misfit=problem.misfit, impacts=impacts, sources=tuple(i.source for i in impacts),
         residuals_m_s=residuals, residual_rms_m_s=total_rms,
         normalised_residual=total_rms / max(peaks),
         impact_residual_rms_m_s=tuple(rms),
@@ -771,17 +812,19 @@ class FrictionFit:
 
 
 def fit_friction(impacts: Sequence, *, rig: Rig = FMM_RIG, fit_damping: bool = False,
+                 fit_initial_position: bool = False,
                  mu_bounds: tuple[float, float] = MU_BOUNDS, misfit: str = 'time',
                  band_limit_hz: float = DEFAULT_BAND_LIMIT_HZ, integrator: str = 'exact'
                  ) -> FrictionFit:
     """The paper's fit: one mu (and optionally c) over all impacts, plus each impact's own mu.
 
+    fit_initial_position as in `fit_model` (each impact's own fit then refits its own start).
     Raises ValueError for bad input and FitError (naming the impact) for any impact, or the
     set, that friction cannot explain.
     """
     conditioned = _conditioned_list(impacts)
-    options = dict(mu_bounds=mu_bounds, misfit=misfit, band_limit_hz=band_limit_hz,
-                   integrator=integrator)
+    options = dict(mu_bounds=mu_bounds, fit_initial_position=fit_initial_position,
+                   misfit=misfit, band_limit_hz=band_limit_hz, integrator=integrator)
     joint = fit_model(conditioned, rig=rig, fit_damping=fit_damping, **options)
     if len(conditioned) == 1:
         per_impact = (joint,) if not fit_damping else (
@@ -1051,9 +1094,9 @@ def _rig_from_impacts(impacts: Sequence[ConditionedImpact], decays: tuple[FreeDe
     start = np.median(np.array(starts), axis=0)
     mass0, frequency0, _ = start
 
-    def build(theta: np.ndarray) -> tuple[Rig, float, tuple[ModelTerm, ...]]:
+    def build(theta: np.ndarray) -> _Model:
         mass, stiffness, damping = _rig_constants(theta, np.zeros((3, 3)))[0]
-        return Rig(mass, stiffness, damping, 0.0), 0.0, ()
+        return _Model(Rig(mass, stiffness, damping, 0.0), 0.0, ())
 
     problem = _OutputError(impacts, build, 'time', DEFAULT_BAND_LIMIT_HZ, integrator,
                            frequency0)
