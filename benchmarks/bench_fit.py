@@ -10,6 +10,8 @@ least_squares on the same residuals (what the fitter's own Levenberg-Marquardt r
 """
 
 import argparse
+import dataclasses
+import os
 import time
 
 import numpy as np
@@ -47,15 +49,19 @@ def python_euler_fit(impact):
                                np.array([MU_BOUNDS[1]]), start, impact.force_n.size)
 
 
-def scipy_least_squares_fit(impact):
-    """The same one-impact mu fit through scipy.optimize.least_squares (trf, bounds)."""
-    out = (np.empty(impact.force_n.size), np.empty(impact.force_n.size))
+def scipy_least_squares_fit(impacts, fit_damping=False):
+    """The same fit (mu, or mu and c) through scipy.optimize.least_squares (trf, bounds)."""
+    outs = [(np.empty(i.force_n.size), np.empty(i.force_n.size)) for i in impacts]
 
     def residual(theta):
-        velocity = simulate(impact.force_n, RATE_HZ, mu=float(theta[0]), out=out).velocity_m_s
-        return impact.velocity_m_s - velocity
-    start = energy_balance_mu([impact])
-    return scipy.optimize.least_squares(residual, [start], bounds=MU_BOUNDS, x_scale=[start],
+        rig = FMM_RIG if not fit_damping else dataclasses.replace(
+            FMM_RIG, damping_n_s_per_m=float(theta[1]))
+        return np.concatenate([i.velocity_m_s - simulate(
+            i.force_n, RATE_HZ, rig=rig, mu=float(theta[0]), out=out).velocity_m_s
+            for i, out in zip(impacts, outs, strict=True)])
+    start = [energy_balance_mu(impacts)] + ([FMM_RIG.damping_n_s_per_m] if fit_damping else [])
+    bounds = ([MU_BOUNDS[0], 0.0][:len(start)], [MU_BOUNDS[1], 50.0][:len(start)])
+    return scipy.optimize.least_squares(residual, start, bounds=bounds, x_scale=start,
                                         diff_step=1e-4)
 
 
@@ -105,13 +111,15 @@ def main() -> None:
         print(f'  {label:<40} {1e3 * exact_s:7.1f}ms {1e3 * euler_s:7.1f}ms '
               f'{euler_s / exact_s:5.2f}x   {exact_mu:.5f} / {euler_mu:.5f}'
               f'{f", {runs}" if runs else ""}')
+    starts_s = median_s(lambda: fit_model(impacts, fit_initial_position=True), repeats)
+    print(f'  mu and every impact start, three impacts                {1e3 * starts_s:7.1f} ms')
     frf_s = median_s(lambda: fit_model(impacts, misfit='frf'), repeats)
     print(f'  mu, three impacts, mobility (FRF) misfit                {1e3 * frf_s:7.1f} ms')
     end_to_end_s = median_s(lambda: fit_model(condition_impact(one.force_n, one.velocity_m_s,
                                                                RATE_HZ)), repeats)
     print(f'  mu, one impact, from the raw record (condition + fit)   {1e3 * end_to_end_s:7.1f} ms')
 
-    print('\nNaive baselines, one impact, mu alone (same run)')
+    print('\nBaselines in the same run')
     start = time.perf_counter()
     python = python_euler_fit(impact)
     python_s = time.perf_counter() - start
@@ -119,11 +127,18 @@ def main() -> None:
     print(f'  same fit on the paper Euler in plain Python             {python_s:7.2f} s '
           f'({python_s / exact_one_s:.0f}x; mu {python.x[0]:.5f}, {python.evaluations} runs, '
           f'one repeat)')
-    least_squares_s = median_s(lambda: scipy_least_squares_fit(impact), max(3, repeats // 3))
-    solution = scipy_least_squares_fit(impact)
-    print(f'  scipy least_squares on the exact model                  '
-          f'{1e3 * least_squares_s:7.1f} ms ({least_squares_s / exact_one_s:.1f}x; mu '
-          f'{solution.x[0]:.5f}, {solution.nfev} residual runs + Jacobians)')
+    for label, fit_impacts, damping, ours_s in (
+            ('mu, one impact', [impact], False, exact_one_s),
+            ('mu and c, three impacts', impacts, True, rows[('joint_c', 'exact')][0])):
+        least_squares_s = median_s(lambda f=fit_impacts, d=damping: scipy_least_squares_fit(
+            f, d), max(3, repeats // 3))
+        solution = scipy_least_squares_fit(fit_impacts, damping)
+        print(f'  scipy least_squares, {label:<24}           {1e3 * least_squares_s:7.1f} ms '
+              f'({least_squares_s / ours_s:.1f}x ours; mu {solution.x[0]:.5f}, '
+              f'{solution.nfev} evaluations + Jacobians, no standard errors)')
+    threads = os.environ.get('OPENBLAS_NUM_THREADS', 'default')
+    print(f'  (OPENBLAS_NUM_THREADS={threads}: scipy does its Jacobian products in BLAS, whose '
+          f'threads\n   slow it badly when the shared cores are busy; the fitter uses einsum)')
 
     print('\nRig identification (mu = 0)')
     rig_s = median_s(lambda: identify_rig(lifted), max(3, repeats // 3))

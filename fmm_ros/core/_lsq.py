@@ -1,10 +1,14 @@
 """Levenberg-Marquardt for the fitter's tall problems: a few parameters, up to ~10^6 residuals.
 
-Why not scipy.optimize.least_squares: its trust-region solvers work on the full
-(residuals x parameters) Jacobian at every step (SVDs, products, quadratic evaluations), which
-for one 33 s record costs ~0.3 s for a one-parameter fit whose ten model runs take 10 ms. Here
-the Jacobian is formed once per iteration by forward differences into a reused (p, n) block and
-only the p x p normal equations are solved, so a fit costs little more than its model runs.
+Why not scipy.optimize.least_squares: its trust-region solver works on the full (residuals x
+parameters) Jacobian at every step (SVDs, products, quadratic evaluations) through BLAS, whose
+threads stall when the shared cores are busy. Measured on three 33 s impacts, mu and c: 171 ms
+with one BLAS thread, 398 ms with the default threads, against 67 ms here; for mu alone on
+one impact it is as fast as this (14-17 ms against 20 ms with the standard errors). Here the
+Jacobian is formed once per iteration by forward differences into a reused (p, n) block, the
+long products run in einsum (`inner`), only the p x p normal equations are solved, the stop is
+statistical (a step worth < 1e-3 of the residual variance) and a model that cannot be built
+at a trial point is a rejected step rather than an error.
 
 Box bounds are kept by clipping each trial point and freezing, for that step, any parameter
 that sits on a bound with the gradient pushing it out (a minimal active set). A trial point at
