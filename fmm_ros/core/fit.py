@@ -1059,18 +1059,20 @@ def _require_inside(solution: LsqSolution, names: Sequence[str], what: str,
                            f'bound [{low:.4g}, {high:.4g}]: the record is not {what}', source)
 
 
-def _rig_constants(modal: np.ndarray, covariance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _rig_constants(modal: np.ndarray, covariance: np.ndarray
+                   ) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """(m, k, c) and their standard errors from (m, f_n, zeta) and its covariance.
 
     k = m w^2 and c = 2 zeta m w with w = 2 pi f_n; errors to first order.
     """
-    mass, frequency, zeta = modal
+    mass, frequency, zeta = (float(v) for v in modal)
     omega = 2.0 * math.pi * frequency
     values = np.array([mass, mass * omega ** 2, 2.0 * zeta * mass * omega])
     gradient = np.array([[1.0, 0.0, 0.0],
                          [omega ** 2, 4.0 * math.pi * mass * omega, 0.0],
                          [2.0 * zeta * omega, 4.0 * math.pi * zeta * mass, 2.0 * mass * omega]])
-    return values, np.sqrt(np.diag(gradient @ covariance @ gradient.T))
+    errors = np.sqrt(np.diag(gradient @ covariance @ gradient.T))
+    return (tuple(float(v) for v in values), tuple(float(e) for e in errors))
 
 
 def _weighted_mean(values: Sequence[float], errors: Sequence[float]) -> tuple[float, float]:
