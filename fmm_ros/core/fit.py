@@ -11,15 +11,16 @@ is given: a 0.2 N noise floor over 33 s would drive the stuck mass into creep an
 - Baseline: the mean of the force outside the hit, subtracted.
 - Gate: the hit is where the force departs from the baseline by more than
   `HIT_THRESHOLD_SIGMA` robust noise deviations (median absolute deviation); each such run
-  of samples is widened by half its length (at least `GATE_MIN_MARGIN_S`) on both sides to
+  of samples is widened by a quarter of its length (at least `GATE_MIN_MARGIN_S`) each side to
   take in the pulse's low-level edges, and the force is zeroed everywhere else. A bounce is a
   second run and is kept, as it drives the rig too.
 - The velocity is left as measured: an offset or a lag in it is a model term the diagnosis
   must be able to see, not something conditioning may hide.
 - No trigger index is used: the hit is found in the force itself, so a pre-trigger segment
   of any length and a trigger that fired some samples (or a fraction of one) after the hit
-  began need no parameter; the model starts at rest at the first sample. A lag of the
-  velocity channel behind the force channel is the `sensor_delay` term, fitted on request.
+  began need no parameter; the model starts at rest at the first sample (at x = 0, or where
+  `fit_initial_position` finds the previous hit left it). A lag of the velocity channel
+  behind the force channel is the `sensor_delay` term, fitted on request.
 
 Uncertainty, two parts added:
 - Velocity: the residuals of an output-error fit are not independent (a model error is smooth
@@ -84,6 +85,8 @@ HIT_THRESHOLD_SIGMA = 10.0
 noise reaches ~5 of them once in a 33 s record)."""
 GATE_MARGIN_FRACTION = 0.25
 GATE_MIN_MARGIN_S = 0.5e-3
+"""Each run above the hit threshold is widened by this fraction of its length, and at least
+this long, on both sides: the pulse's feet lie below the threshold."""
 MOTION_THRESHOLD_SIGMA = 10.0
 """The velocity must exceed this many noise deviations somewhere for a record to show motion."""
 MIN_EXPLAINED_FRACTION = 0.5
@@ -235,7 +238,7 @@ def _robust_center_and_std(values: np.ndarray) -> tuple[float, float]:
 def as_conditioned(impact) -> ConditionedImpact:
     """A ConditionedImpact as is, or any record with force_n, velocity_m_s, sample_rate_hz.
 
-    Records (`fmm_ros.core.records.ImpactRecord`, simulated `ImpactRecord`s) are conditioned
+    Records (`fmm_ros.core.records.ImpactRecord`, `excitation.SimulatedImpact`) are conditioned
     with `condition_impact`, their `source` (if any) naming them in errors.
     """
     if isinstance(impact, ConditionedImpact):
