@@ -1,13 +1,7 @@
-"""What the subcommands that run or fit the model share: rig flags, reporting a refused fit.
-
-Used by simulate, fit, identify-rig (and diagnose, which takes fit's flags).
-"""
+"""Rig-constant flags of the subcommands that run the model (simulate, fit, and diagnose)."""
 
 import argparse
-import json
-import sys
 
-from fmm_ros.core.fit import FitError
 from fmm_ros.core.model import FMM_RIG, Rig
 
 
@@ -29,16 +23,3 @@ def rig_from_args(args: argparse.Namespace) -> Rig:
     return Rig(mass_kg=args.mass_kg, stiffness_n_per_m=args.stiffness_n_per_m,
                damping_n_s_per_m=args.damping_n_s_per_m, normal_force_n=args.normal_force_n)
 
-
-def report_refusal(command: str, failure: FitError, as_json: bool) -> int:
-    """Print why the records could not be fitted (JSON on stdout, or a line on stderr); 1.
-
-    Exit status 1 is a verdict on the data (friction or the lifted rig does not explain it),
-    kept apart from bad input or flags (2).
-    """
-    if as_json:
-        print(json.dumps({'error': failure.reason, 'message': str(failure),
-                          'file': failure.source or None}))
-    else:
-        print(f'fmm {command}: cannot fit ({failure.reason}): {failure}', file=sys.stderr)
-    return 1

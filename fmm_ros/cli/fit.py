@@ -9,18 +9,15 @@ problems are printed as warnings after the result), 2 bad input or flags.
 """
 
 import argparse
-import json
 from pathlib import Path
 
-from fmm_ros.cli._model import add_rig_arguments, report_refusal, rig_from_args
-from fmm_ros.cli.analyze import read_records
-from fmm_ros.cli.progress import report_problems
+from fmm_ros.cli._fitting import fit_and_report
+from fmm_ros.cli._model import add_rig_arguments, rig_from_args
 from fmm_ros.core.export import json_number
 from fmm_ros.core.fit import (
     DEFAULT_BAND_LIMIT_HZ,
     MISFITS,
     MU_BOUNDS,
-    FitError,
     FrictionFit,
     fit_friction,
 )
@@ -58,22 +55,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Read the files, fit, print the result (or why there is none)."""
+    """Read the inputs, fit, print the result (or why there is none)."""
     rig = rig_from_args(args)
-    records, problems = read_records(args.inputs)
-    try:
-        result = fit_friction(records, rig=rig, fit_damping=args.fit_damping,
-                              fit_initial_position=args.fit_initial_position,
-                              mu_bounds=(args.mu_min, args.mu_max), misfit=args.misfit,
-                              band_limit_hz=args.band_limit_hz)
-    except FitError as failure:
-        report_problems('fit', problems)
-        return report_refusal('fit', failure, args.json)
-    if args.json:
-        print(json.dumps(report(result), indent=2, allow_nan=False))
-    else:
-        print(text_report(result))
-    return report_problems('fit', problems)
+    return fit_and_report('fit', args, lambda records: fit_friction(
+        records, rig=rig, fit_damping=args.fit_damping,
+        fit_initial_position=args.fit_initial_position, mu_bounds=(args.mu_min, args.mu_max),
+        misfit=args.misfit, band_limit_hz=args.band_limit_hz), report, text_report)
 
 
 def report(result: FrictionFit) -> dict:

@@ -8,14 +8,11 @@ printed) or a bag was damaged (warnings), 2 bad input or flags.
 """
 
 import argparse
-import json
 from pathlib import Path
 
-from fmm_ros.cli._model import report_refusal
-from fmm_ros.cli.analyze import read_records
-from fmm_ros.cli.progress import report_problems
+from fmm_ros.cli._fitting import fit_and_report
 from fmm_ros.core.export import json_number
-from fmm_ros.core.fit import FitError, RigIdentification, identify_rig
+from fmm_ros.core.fit import RigIdentification, identify_rig
 from fmm_ros.core.model import FMM_RIG
 
 
@@ -37,18 +34,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Read the files, identify, print the constants (or why there are none)."""
-    records, problems = read_records(args.inputs)
-    try:
-        result = identify_rig(records, mass_kg=args.mass_kg)
-    except FitError as failure:
-        report_problems('identify-rig', problems)
-        return report_refusal('identify-rig', failure, args.json)
-    if args.json:
-        print(json.dumps(report(result), indent=2, allow_nan=False))
-    else:
-        print(text_report(result))
-    return report_problems('identify-rig', problems)
+    """Read the inputs, identify, print the constants (or why there are none)."""
+    return fit_and_report('identify-rig', args, lambda records: identify_rig(
+        records, mass_kg=args.mass_kg), report, text_report)
 
 
 def report(result: RigIdentification) -> dict:
