@@ -5,7 +5,11 @@ import time
 from collections.abc import Callable
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import (
+    ExternalShutdownException,
+    MultiThreadedExecutor,
+    SingleThreadedExecutor,
+)
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -29,16 +33,25 @@ RESULT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
-def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) -> None:
-    """Init, spin until Ctrl-C or shutdown, destroy the node, shut down (for ros2 run)."""
+def run_node(node_factory: Callable[[], Node], args: list[str] | None = None, *,
+             threads: int = 1) -> None:
+    """Init, spin until Ctrl-C or shutdown, then tear down in order (for ros2 run).
+
+    threads > 1 spins a MultiThreadedExecutor, for nodes whose callback groups let a long
+    service call run beside their stream callbacks.
+    """
     rclpy.init(args=args)
     node = None
+    executor = (SingleThreadedExecutor() if threads == 1
+                else MultiThreadedExecutor(num_threads=threads))
     try:
         node = node_factory()
-        rclpy.spin(node)
+        executor.add_node(node)
+        executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        executor.shutdown()
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
