@@ -77,14 +77,20 @@ class BatchPacer:
         self.restart(batches_per_s, 0)
 
     def restart(self, batches_per_s: float, released: int) -> None:
-        """Pace from now at a new rate, `released` batches already out."""
-        self._anchor = (time.monotonic(), released, batches_per_s)
+        """Pace at a new rate from the next tick on, `released` batches already out."""
+        self._anchor = (None, released, batches_per_s)
         self.released = released
 
     def due(self) -> int:
-        """How many batches to release now; the caller releases them and counts them here."""
+        """How many batches to release now; the caller releases them and counts them here.
+
+        The first call after (re)starting anchors the pace, so the time a graph spends on
+        discovery before it spins is not counted as lag.
+        """
         wall0, released0, rate = self._anchor
         now = time.monotonic()
+        if wall0 is None:
+            self._anchor = (wall0 := now, released0, rate)
         behind = released0 + int((now - wall0) * rate) - self.released
         self.fell_behind = behind > self.max_per_tick + 1
         if self.fell_behind:
