@@ -12,9 +12,7 @@ from builtin_interfaces.msg import Time
 
 from fmm_interfaces.msg import FrfSummary, ImpactResult, SampleBatch
 from fmm_ros.core import analysis, frf
-
-FORCE = ('force', 'N')
-VELOCITY = ('velocity', 'm/s')
+from fmm_ros.core.topics import FORCE, VELOCITY  # noqa: F401 (msgs.FORCE in sample_batch calls)
 
 
 def float64_field(values: np.ndarray) -> array.array:

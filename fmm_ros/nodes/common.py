@@ -13,11 +13,14 @@ from rclpy.executors import (
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-FORCE_TOPIC = '/fmm/force'
-VELOCITY_TOPIC = '/fmm/velocity'
-APPLIED_FORCE_TOPIC = '/fmm/sim/applied_force'
-IMPACTS_TOPIC = '/fmm/impacts'
-FRF_TOPIC = '/fmm/frf'
+from fmm_ros.core.topics import (  # noqa: F401 (the nodes take the topic names from here)
+    APPLIED_FORCE_TOPIC,
+    FORCE_TOPIC,
+    FRF_TOPIC,
+    IMPACTS_TOPIC,
+    VELOCITY_TOPIC,
+)
+
 FIT_SERVICE = '/fmm/fit_friction'
 DIAGNOSE_SERVICE = '/fmm/diagnose_model'
 
