@@ -11,10 +11,12 @@ the motion (from the hit until 0.5 s after the rig comes to rest) has an RMS of 
 the velocity noise, with `ratio` drawn from `RATIO_RANGE` (comparable to, or a few times, the
 noise). The base model's adjustment is a linearised least-squares step in mu (two Gauss-Newton
 iterations, one common mu for all impacts), which is what a fit of mu alone converges to for
-effects this small. The effect's shape parameters (Stribeck velocity, the second mode's
-frequency and damping, signs) are drawn at random from plausible ranges.
+effects this small; the size is found by secant steps, within the plausible bounds the fitter
+searches. The effect's shape parameters (Stribeck velocity, the second mode's frequency and
+damping, signs) are drawn at random from plausible ranges.
 """
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -96,7 +98,7 @@ def hidden_effect_case(effect: str, rng: np.random.Generator | int, *, n_impacts
     target = float(rng.uniform(*RATIO_RANGE)) if ratio is None else float(ratio)
     shape = _draw_shape(effect, rng)
 
-    def record(term, force_noise, velocity_noise):
+    def record(term, *, force_noise, velocity_noise):
         return tuple(impact_record(peak, int(seed), rig=rig, mu=mu,
                                    effects=() if term is None else (term,),
                                    force_noise_std_n=force_noise,
@@ -106,20 +108,55 @@ def hidden_effect_case(effect: str, rng: np.random.Generator | int, *, n_impacts
 
     term, realised = None, 0.0
     if effect != NO_EFFECT:
-        name, size = _SIZE_PARAMETER[effect]
-        size *= shape.pop('sign', 1.0)
-        for _ in range(4):  # the discrepancy is close to linear in the size: converge quickly
-            term = model_term(effect, **shape, **{name: size})
-            realised = base_fit_discrepancy(record(term, 0.0, 0.0), mu, rig) / \
-                velocity_noise_std_m_s
-            if realised <= 0.0:
-                raise RuntimeError(f'{effect} left no discrepancy at {name} = {size:g}')
-            factor = target / realised
-            if abs(factor - 1.0) < 0.02:
-                break
-            size = size / factor if name == 'modal_mass_kg' else size * factor
+        clean = functools.partial(record, force_noise=0.0, velocity_noise=0.0)
+        term, realised = _sized_term(effect, shape, target * velocity_noise_std_m_s, clean, mu,
+                                     rig)
+        realised /= velocity_noise_std_m_s
     return HiddenEffectCase(effect=effect, term=term, mu=mu, rig=rig, ratio=realised,
-                            records=record(term, force_noise_std_n, velocity_noise_std_m_s))
+                            records=record(term, force_noise=force_noise_std_n,
+                                           velocity_noise=velocity_noise_std_m_s))
+
+
+def _sized_term(effect: str, shape: dict[str, float], target_m_s: float, clean_records,
+                mu: float, rig: Rig) -> tuple[ModelTerm, float]:
+    """The term whose base-fit discrepancy is target_m_s, its size within the term's bounds.
+
+    The discrepancy grows with the size (falls with a second mode's mass), close to linearly
+    for small sizes: secant steps in log(size), kept inside a bracket once one is found, and
+    clipped to the plausible bounds the fitter searches (so the truth is always reachable).
+    Returns the term and its realised discrepancy [m/s].
+    """
+    name, size = _SIZE_PARAMETER[effect]
+    sign = shape.pop('sign', 1.0)
+    index = [p.name for p in MODEL_TERMS[effect].parameters].index(name)
+    lower, upper = (float(bound[index]) for bound in MODEL_TERMS[effect].bounds())
+    limit_high = upper if sign > 0.0 else -lower  # the bound on the side of the drawn sign
+    limit_low = max(lower if sign > 0.0 else -upper, 1e-6 * limit_high)
+    inverse = name == 'modal_mass_kg'  # a heavier mode is a smaller effect
+
+    def realised(size):
+        term = model_term(effect, **shape, **{name: sign * size})
+        return term, base_fit_discrepancy(clean_records(term), mu, rig)
+
+    bracket = [limit_low, limit_high]
+    for _ in range(12):
+        size = min(max(size, limit_low), limit_high)
+        term, value = realised(size)
+        error = math.log(value / target_m_s) if value > 0.0 else -math.inf
+        if abs(error) < 0.02:
+            break
+        if (error > 0.0) != inverse:
+            bracket[1] = min(bracket[1], size)
+        else:
+            bracket[0] = max(bracket[0], size)
+        step = size * math.exp(-error if not inverse else error) if math.isfinite(error) \
+            else 10.0 * size
+        if not bracket[0] < step < bracket[1]:
+            step = math.sqrt(bracket[0] * bracket[1])
+        if step == size:
+            break
+        size = step
+    return term, value
 
 
 def base_fit_discrepancy(records: tuple[ImpactRecord, ...], mu: float, rig: Rig = FMM_RIG
@@ -162,8 +199,8 @@ def _draw_shape(effect: str, rng: np.random.Generator) -> dict[str, float]:
     if effect in _SIGNED:
         shape['sign'] = float(rng.choice((-1.0, 1.0)))
     if effect == 'stribeck':
-        shape['stribeck_velocity_m_s'] = float(math.exp(rng.uniform(math.log(1e-3),
-                                                                    math.log(5e-3))))
+        shape['stribeck_velocity_m_s'] = float(math.exp(rng.uniform(math.log(1.5e-3),
+                                                                    math.log(6e-3))))
     elif effect == 'second_mode':
         shape['frequency_hz'] = float(math.exp(rng.uniform(math.log(15.0), math.log(300.0))))
         shape['damping_ratio'] = float(math.exp(rng.uniform(math.log(3e-3), math.log(3e-2))))
