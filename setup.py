@@ -21,7 +21,7 @@ setup(
         (f'share/{PACKAGE}/launch_scripts', glob('launch_scripts/*.py')),
     ],
     python_requires='>=3.10',
-    install_requires=['setuptools', 'numpy', 'scipy', 'numba'],
+    install_requires=['setuptools', 'numpy', 'scipy', 'numba', 'matplotlib'],
     zip_safe=True,
     maintainer='fmm_ros maintainers',
     maintainer_email='fmm@example.org',
