@@ -8,6 +8,9 @@ PACKAGE = 'fmm_ros'
 
 # ROS node executables (`ros2 run fmm_ros <name>`); colcon installs them to lib/fmm_ros.
 NODES = {
+    'hammer_sim': 'fmm_ros.nodes.hammer_sim:main',
+    'rig_sim': 'fmm_ros.nodes.rig_sim:main',
+    'analyzer': 'fmm_ros.nodes.analyzer:main',
 }
 
 setup(
@@ -21,7 +24,7 @@ setup(
         (f'share/{PACKAGE}/launch_scripts', glob('launch_scripts/*.py')),
     ],
     python_requires='>=3.10',
-    install_requires=['setuptools', 'numpy', 'scipy', 'numba', 'matplotlib'],
+    install_requires=['setuptools', 'numpy', 'scipy', 'numba', 'pyuff', 'matplotlib'],
     zip_safe=True,
     maintainer='fmm_ros maintainers',
     maintainer_email='fmm@example.org',

@@ -21,6 +21,7 @@ ROSDEP_KEYS = {
     'matplotlib': 'python3-matplotlib',
     'numba': 'python3-numba',
     'numpy': 'python3-numpy',
+    'pyuff': 'python3-pyuff-pip',
     'rcl_interfaces': 'rcl_interfaces',
     'rclpy': 'rclpy',
     'scipy': 'python3-scipy',
@@ -66,6 +67,20 @@ def test_package_xml_parses_and_declares_every_runtime_import():
         assert ROSDEP_KEYS[module] in declared, (
             f'{module} is imported by {sorted(files)} but package.xml lacks '
             f'<exec_depend>{ROSDEP_KEYS[module]}</exec_depend>')
+
+
+def test_pip_only_keys_are_defined_for_rosdep_and_pinned():
+    """A -pip key is unknown to the ROS rosdep database: the repo must define it and pin it."""
+    import yaml
+
+    definitions = yaml.safe_load((REPO / 'rosdep' / 'fmm_ros.yaml').read_text())
+    requirements = (REPO / 'launch_scripts' / 'setup' / 'requirements.txt').read_text()
+    package = parse_package(str(REPO / 'package.xml'))
+    for key in (dep.name for dep in package.exec_depends if dep.name.endswith('-pip')):
+        assert key in definitions, f'{key} is not defined in rosdep/fmm_ros.yaml'
+        for platform in definitions[key].values():
+            for name in platform['pip']['packages']:
+                assert f'\n{name}==' in requirements, f'{name} is not pinned in requirements.txt'
 
 
 def test_interface_package_xml_parses():

@@ -25,3 +25,25 @@ def require_non_negative(name: str, value: float) -> None:
     require_finite(name, value)
     if value < 0.0:
         raise ValueError(f'{name} must not be negative, got {value}')
+
+
+def sample_rate_from_times(time_s: np.ndarray, rtol: float = 1e-3) -> float:
+    """Sample rate [Hz] of a uniformly sampled time column; ValueError if not uniform.
+
+    Shared by the physics core and the record reader (`fmm_ros.core.records`), which must not
+    pay for importing the compiled model just to read a CSV file.
+    """
+    time_s = np.asarray(time_s, dtype=float)
+    if time_s.ndim != 1 or time_s.size < 2:
+        raise ValueError('a time column needs at least two samples')
+    if not np.all(np.isfinite(time_s)):
+        raise ValueError(f'time_s is not finite at sample {int(np.argmin(np.isfinite(time_s)))}')
+    steps = np.diff(time_s)
+    step = (time_s[-1] - time_s[0]) / (time_s.size - 1)
+    if step <= 0.0:
+        raise ValueError('time_s must increase')
+    worst = int(np.argmax(np.abs(steps - step)))
+    if abs(steps[worst] - step) > rtol * step:
+        raise ValueError(f'non-uniform time step: {steps[worst]:.6g} s between samples {worst} '
+                         f'and {worst + 1}, against {step:.6g} s on average')
+    return 1.0 / step

@@ -151,7 +151,7 @@ def _pulse_window(contact_s: float, sample_rate_hz: float, duration_s: float,
 
 
 @dataclass(frozen=True)
-class ImpactRecord:
+class SimulatedImpact:
     """One simulated hammer test: what the DAQ records, and the truth behind it."""
 
     force_n: np.ndarray
@@ -180,7 +180,7 @@ def impact_record(peak_force_n: float, rng: np.random.Generator | int, *, rig: R
                   duration_s: float = RECORD_DURATION_S, pretrigger_s: float = 0.1,
                   contact_duration_s: float | None = None, rise_fraction: float = 0.45,
                   force_noise_std_n: float = 0.05, velocity_noise_std_m_s: float = 1e-5,
-                  integrator: str = 'exact') -> ImpactRecord:
+                  integrator: str = 'exact') -> SimulatedImpact:
     """A full simulated impact record: the model driven by a realistic hit, both channels noisy.
 
     The hit starts pretrigger_s into the record plus a random fraction of a sample (a hand
@@ -202,7 +202,7 @@ def impact_record(peak_force_n: float, rng: np.random.Generator | int, *, rig: R
                         integrator=integrator)
     force = clean + rng.normal(0.0, force_noise_std_n, clean.size)
     velocity = response.velocity_m_s + rng.normal(0.0, velocity_noise_std_m_s, clean.size)
-    return ImpactRecord(force_n=force, velocity_m_s=velocity, sample_rate_hz=sample_rate_hz,
+    return SimulatedImpact(force_n=force, velocity_m_s=velocity, sample_rate_hz=sample_rate_hz,
                         trigger_index=int(np.argmax(clean > 0.0)), peak_force_n=peak_force_n,
                         contact_duration_s=contact_duration_s,
                         impulse_n_s=float(np.trapezoid(clean) / sample_rate_hz),

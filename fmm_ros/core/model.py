@@ -37,6 +37,7 @@ import scipy.linalg
 
 from fmm_ros.core import _kernels as kernels
 from fmm_ros.core._checks import require_finite, require_non_negative, require_positive
+from fmm_ros.core._checks import sample_rate_from_times as sample_rate_from_times  # re-export
 
 STANDARD_GRAVITY_M_S2 = 9.81
 PAPER_MU = 0.113
@@ -309,6 +310,25 @@ def model_term(name: str, values: Sequence[float] | None = None, **parameters: f
     return cls(**parameters)
 
 
+def parse_model_term(text: str) -> ModelTerm:
+    """A term from its text form `name` or `name:param=value,param=value` (config files, CLI).
+
+    E.g. `stribeck:mu_static_excess=0.02,stribeck_velocity_m_s=0.002`; unnamed parameters
+    keep their defaults.
+    """
+    name, _, assignments = text.strip().partition(':')
+    parameters = {}
+    for assignment in filter(None, (part.strip() for part in assignments.split(','))):
+        key, equals, value = assignment.partition('=')
+        try:
+            parameters[key.strip()] = float(value)
+        except ValueError:
+            equals = ''
+        if not equals:
+            raise ValueError(f'model term {text!r}: {assignment!r} is not param=number')
+    return model_term(name.strip(), **parameters)
+
+
 def _model_spec(rig: Rig, mu: float, effects: Iterable[ModelTerm]) -> _ModelSpec:
     require_non_negative('mu', mu)
     spec = _ModelSpec(damping_n_s_per_m=rig.damping_n_s_per_m, mu_positive=mu, mu_negative=mu)
@@ -566,24 +586,6 @@ def record_length(duration_s: float, sample_rate_hz: float) -> int:
     require_positive('duration_s', duration_s)
     require_positive('sample_rate_hz', sample_rate_hz)
     return max(1, round(duration_s * sample_rate_hz))
-
-
-def sample_rate_from_times(time_s: np.ndarray, rtol: float = 1e-3) -> float:
-    """Sample rate [Hz] of a uniformly sampled time column; ValueError if not uniform."""
-    time_s = np.asarray(time_s, dtype=float)
-    if time_s.ndim != 1 or time_s.size < 2:
-        raise ValueError('a time column needs at least two samples')
-    if not np.all(np.isfinite(time_s)):
-        raise ValueError(f'time_s is not finite at sample {int(np.argmin(np.isfinite(time_s)))}')
-    steps = np.diff(time_s)
-    step = (time_s[-1] - time_s[0]) / (time_s.size - 1)
-    if step <= 0.0:
-        raise ValueError('time_s must increase')
-    worst = int(np.argmax(np.abs(steps - step)))
-    if abs(steps[worst] - step) > rtol * step:
-        raise ValueError(f'non-uniform time step: {steps[worst]:.6g} s between samples {worst} '
-                         f'and {worst + 1}, against {step:.6g} s on average')
-    return 1.0 / step
 
 
 def _output_block(n: int) -> np.ndarray:

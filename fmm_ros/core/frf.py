@@ -1,0 +1,330 @@
+"""Impulse, contact, FRFs, windows, averaging, force levels and the linear-in-impulse law.
+
+Plain functions in the style of scipy.signal: arrays in, arrays out, SI units (named where not
+obvious). The FRF method is the paper's (Kossack, Ziegert, Schmitz 2019, Sec. 5): the DFT of the
+whole force and velocity records, mobility = V/F, receptance = mobility / (i*omega). Friction
+brings the FMM to rest inside the record, so the record is its own period and no window is
+needed; the force and exponential windows are here for records that do not settle (a linear
+structure, a noisy force channel), as impact-testing users expect.
+
+Sign convention: numpy's DFT, X[k] = sum x[n] exp(-2*pi*i*k*n/N), so a harmonic x = X exp(i w t)
+has velocity i w X, and receptance = mobility / (i w), accelerance = i w * mobility.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.fft
+
+
+def frequency_axis(n_fft: int, sample_rate_hz: float) -> np.ndarray:
+    """Frequencies [Hz] of the one-sided DFT bins of an `n_fft`-sample record."""
+    return np.fft.rfftfreq(n_fft, d=1.0 / sample_rate_hz)
+
+
+def band_bins(n_fft: int, sample_rate_hz: float, band_limit_hz: float | None) -> int:
+    """Number of one-sided bins from DC up to and including `band_limit_hz` (None: all)."""
+    n_bins = n_fft // 2 + 1
+    if band_limit_hz is None:
+        return n_bins
+    return min(n_bins, int(np.floor(band_limit_hz * n_fft / sample_rate_hz + 1e-9)) + 1)
+
+
+def first_true(mask: np.ndarray) -> int:
+    """Index of the first True in a boolean array, or -1 (no index array is allocated)."""
+    if mask.size == 0:
+        return -1
+    index = int(np.argmax(mask))
+    return index if mask[index] else -1
+
+
+def impulse(force_n: np.ndarray, sample_rate_hz: float) -> float:
+    """Area under the force record [N*s] by the trapezoid rule, as in the paper (Sec. 5)."""
+    return float(np.trapezoid(force_n, dx=1.0 / sample_rate_hz))
+
+
+def pulse_impulse(force_n: np.ndarray, sample_rate_hz: float, threshold_n: float,
+                  start_index: int = 0) -> float:
+    """Area under the first force pulse [N*s], trapezoid rule, baseline removed (paper Sec. 5).
+
+    The pulse is the first run at or above `threshold_n` from `start_index`, widened on each
+    side to the sample where the force minus the baseline first comes back to zero, so the
+    pulse's feet count but the rest of the record does not: integrated over a 33 s record,
+    0.2 N of sensor noise alone would add +-0.012 N*s (1 % of a paper-level hit) and a 0.1 N
+    offset 3.3 N*s. Baseline: the mean force before the pulse (0 when the record starts in
+    it). NaN when the force never reaches the threshold.
+    """
+    interval = contact_interval(force_n, threshold_n, start_index)
+    if interval is None:
+        return float('nan')
+    start, stop = interval
+    baseline = float(np.mean(force_n[:start])) if start else 0.0
+    before = first_true(force_n[start - 1::-1] - baseline <= 0.0) if start else -1
+    low = start - 1 - before if before >= 0 else 0
+    after = first_true(force_n[stop:] - baseline <= 0.0)
+    high = stop + after + 1 if after >= 0 else force_n.size
+    return impulse(force_n[low:high] - baseline, sample_rate_hz)
+
+
+def contact_interval(force_n: np.ndarray, threshold_n: float,
+                     start_index: int = 0) -> tuple[int, int] | None:
+    """First run of samples at or above `threshold_n` from `start_index`, as [start, stop).
+
+    None when the force never reaches the threshold. A run still going at the end of the
+    record stops at its length.
+    """
+    above = first_true(force_n[start_index:] >= threshold_n)
+    if above < 0:
+        return None
+    start = start_index + above
+    below = first_true(~(force_n[start:] >= threshold_n))
+    stop = start + below if below >= 0 else force_n.size
+    return start, stop
+
+
+def contact_duration(force_n: np.ndarray, sample_rate_hz: float, threshold_n: float,
+                     start_index: int = 0) -> float:
+    """Time [s] the first force pulse stays at or above `threshold_n`.
+
+    The up- and down-crossings are interpolated linearly between samples, so the duration is
+    not quantised to the sample period (a 3 ms pulse is 30 samples at 10 kHz). NaN when the
+    force never reaches the threshold.
+    """
+    interval = contact_interval(force_n, threshold_n, start_index)
+    if interval is None:
+        return float('nan')
+    start, stop = interval
+    rise = float(start)
+    with np.errstate(invalid='ignore'):       # NaN or infinite neighbours give NaN, quietly
+        if start > 0:
+            before, at = force_n[start - 1], force_n[start]
+            rise = start - (at - threshold_n) / (at - before)
+        fall = float(stop - 1)
+        if stop < force_n.size:
+            last, after = force_n[stop - 1], force_n[stop]
+            fall = stop - 1 + (last - threshold_n) / (last - after)
+    return float((fall - rise) / sample_rate_hz)
+
+
+def spectra(force_n: np.ndarray, velocity_m_s: np.ndarray,
+            n_fft: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """One-sided DFTs (F, V) of force and velocity, zero-padded to `n_fft` samples.
+
+    The spectra are left unscaled: only their ratios and products enter the FRFs, where any
+    scale cancels. Zero padding appends rest (no force, no motion), which is what a record
+    that ended at rest would have contained.
+    """
+    n = force_n.size if n_fft is None else n_fft
+    return scipy.fft.rfft(force_n, n=n), scipy.fft.rfft(velocity_m_s, n=n)
+
+
+def mobility(force_spectrum: np.ndarray, velocity_spectrum: np.ndarray) -> np.ndarray:
+    """Mobility V/F [m/(N*s)] bin by bin; NaN where the force spectrum is exactly zero."""
+    out = np.full(np.broadcast(force_spectrum, velocity_spectrum).shape, np.nan, dtype=complex)
+    with np.errstate(invalid='ignore'):       # NaN spectra (records with gaps) stay NaN
+        np.divide(velocity_spectrum, force_spectrum, out=out, where=force_spectrum != 0)
+    return out
+
+
+def receptance_from_mobility(mobility_m_per_n_s: np.ndarray,
+                             frequency_hz: np.ndarray) -> np.ndarray:
+    """Receptance X/F [m/N] = mobility / (i*omega); 0 at DC, where it is undefined.
+
+    Velocity alone does not determine the mean displacement, so the DC bin carries no
+    receptance; 0 (not NaN) keeps averages and peak searches over the array well defined, and
+    peak searches start above DC anyway.
+    """
+    omega = 2 * np.pi * np.asarray(frequency_hz, dtype=float)
+    out = np.zeros(np.broadcast(mobility_m_per_n_s, omega).shape, dtype=complex)
+    np.divide(mobility_m_per_n_s, 1j * omega, out=out, where=omega != 0)
+    return out
+
+
+def accelerance_from_mobility(mobility_m_per_n_s: np.ndarray,
+                              frequency_hz: np.ndarray) -> np.ndarray:
+    """Accelerance A/F [m/(N*s^2)] = i*omega * mobility (0 at DC)."""
+    return 2j * np.pi * np.asarray(frequency_hz, dtype=float) * mobility_m_per_n_s
+
+
+def force_window(n_samples: int, sample_rate_hz: float, *, start_index: int, width_s: float,
+                 taper_s: float = 0.0) -> np.ndarray:
+    """Force window: 1 up to `width_s` after `start_index`, a half-cosine taper, then 0.
+
+    Applied to the force channel only, it zeroes the sensor noise after the hammer pulse (and
+    the pre-trigger offset is subtracted by the caller) so the force spectrum is the pulse's.
+    """
+    if width_s <= 0 or taper_s < 0:
+        raise ValueError(f'force window width must be > 0 and taper >= 0, got {width_s} s, '
+                         f'{taper_s} s')
+    window = np.zeros(n_samples)
+    flat_end = min(n_samples, start_index + int(round(width_s * sample_rate_hz)))
+    window[:flat_end] = 1.0
+    taper = int(round(taper_s * sample_rate_hz))
+    if taper > 0 and flat_end < n_samples:
+        ramp = 0.5 * (1 + np.cos(np.pi * np.arange(1, taper + 1) / (taper + 1)))
+        stop = min(n_samples, flat_end + taper)
+        window[flat_end:stop] = ramp[:stop - flat_end]
+    return window
+
+
+def exponential_window(n_samples: int, sample_rate_hz: float, *, decay_time_s: float,
+                       start_index: int) -> np.ndarray:
+    """Exponential window exp(-(t - t0) / decay_time_s), t0 at `start_index` (the trigger).
+
+    Applied to both channels it makes a lightly damped response die out inside the record.
+    Because exp(-(t - t0)/tau) = exp(-(t - s)/tau) * exp(-(s - t0)/tau), the windowed pair of a
+    linear system is exactly the input/output pair of the system whose impulse response is
+    h(t) exp(-t/tau): the measured FRF is H evaluated at s = i*omega + 1/tau, i.e. every
+    mode's decay rate is raised by 1/tau. `exponential_window_damping_ratio` gives the damping
+    ratio to subtract from a mode fitted to such an FRF (the usual correction).
+    """
+    if decay_time_s <= 0:
+        raise ValueError(f'exponential window decay time must be > 0, got {decay_time_s} s')
+    t_s = (np.arange(n_samples) - start_index) / sample_rate_hz
+    return np.exp(-t_s / decay_time_s)
+
+
+def exponential_window_damping_ratio(decay_time_s: float, natural_frequency_hz: float
+                                     ) -> float:
+    """Damping ratio [-] an exponential window adds to a mode at `natural_frequency_hz`.
+
+    zeta_true = zeta_measured - 1 / (decay_time_s * omega_n).
+    """
+    return 1.0 / (decay_time_s * 2 * np.pi * natural_frequency_hz)
+
+
+@dataclass(frozen=True, eq=False)
+class FrfAverage:
+    """Averages of one group of trials, bin by bin (mobility in m/(N*s), coherence 0..1)."""
+
+    # Plain frequency-domain mean of the trials' V/F: the paper's average (Sec. 5, Fig. 16).
+    mean_mobility: np.ndarray
+    # Cross-spectrum / force auto-spectrum: unbiased by noise on the velocity.
+    h1_mobility: np.ndarray
+    # Velocity auto-spectrum / cross-spectrum: unbiased by noise on the force.
+    h2_mobility: np.ndarray
+    # Ordinary coherence |G_fv|^2 / (G_ff G_vv) = H1/H2; exactly 1 for a single trial.
+    coherence: np.ndarray
+
+
+def average_frf(force_spectra: np.ndarray, velocity_spectra: np.ndarray) -> FrfAverage:
+    """Plain mean, H1, H2 and coherence over trials (axis 0) of force and velocity spectra."""
+    force = np.atleast_2d(force_spectra)
+    velocity = np.atleast_2d(velocity_spectra)
+    if force.shape != velocity.shape:
+        raise ValueError(f'force spectra {force.shape} and velocity spectra {velocity.shape} '
+                         'must have the same shape (trials, bins)')
+    g_ff = np.sum(np.abs(force) ** 2, axis=0)
+    g_vv = np.sum(np.abs(velocity) ** 2, axis=0)
+    g_fv = np.sum(np.conj(force) * velocity, axis=0)
+    with np.errstate(invalid='ignore', divide='ignore'):
+        h1 = g_fv / g_ff
+        h2 = g_vv / np.conj(g_fv)
+        coherence = np.abs(g_fv) ** 2 / (g_ff * g_vv)
+    return FrfAverage(mean_mobility=np.mean(mobility(force, velocity), axis=0),
+                      h1_mobility=h1, h2_mobility=h2, coherence=coherence)
+
+
+def peak_magnitude(values: np.ndarray, frequency_hz: np.ndarray,
+                   band_hz: tuple[float, float]) -> tuple[float, float]:
+    """Largest |values| inside `band_hz` (inclusive) and its frequency [Hz].
+
+    NaN bins are skipped; (NaN, NaN) when the band holds no finite bin.
+    """
+    inside = np.flatnonzero((frequency_hz >= band_hz[0]) & (frequency_hz <= band_hz[1]))
+    magnitude = np.abs(values[inside])
+    finite = np.isfinite(magnitude)
+    if not finite.any():
+        return float('nan'), float('nan')
+    best = inside[np.flatnonzero(finite)[np.argmax(magnitude[finite])]]
+    return float(np.abs(values[best])), float(frequency_hz[best])
+
+
+def excitation_bandwidth(force_spectrum: np.ndarray, frequency_hz: np.ndarray,
+                         drop_db: float = 20.0) -> float:
+    """Highest frequency [Hz] up to which the force spectrum stays within `drop_db` of its peak.
+
+    Above it a hammer pulse puts too little energy in (its spectrum rolls off, with nulls
+    where V/F is noise divided by almost nothing), so FRF peaks there are not to be trusted:
+    impact-testing practice limits the usable band by a 10-20 dB drop of the force spectrum.
+    `force_spectrum` may be 2-D (trials, bins): their summed power is used. NaN when the
+    spectrum is undefined (a record with missing samples).
+    """
+    power = np.sum(np.abs(np.atleast_2d(force_spectrum)) ** 2, axis=0)
+    if not np.isfinite(power).all():
+        return float('nan')
+    floor = np.max(power) * 10 ** (-drop_db / 10)
+    below = first_true(~(power >= floor))
+    return float(frequency_hz[-1] if below < 0 else frequency_hz[max(below - 1, 0)])
+
+
+def assign_nominal_levels(peak_force_n: np.ndarray, nominal_peak_force_n: np.ndarray,
+                          tolerance_n: np.ndarray | float) -> np.ndarray:
+    """Index of the nearest nominal level within its tolerance for each peak force, else -1.
+
+    The paper accepted impacts within +-50 N of the nominal 450/1000/1450 N (Sec. 4).
+    """
+    peaks = np.asarray(peak_force_n, dtype=float)[:, None]
+    nominal = np.asarray(nominal_peak_force_n, dtype=float)[None, :]
+    if nominal.size == 0:
+        return np.full(peaks.shape[0], -1)
+    distance = np.abs(peaks - nominal)
+    inside = distance <= np.broadcast_to(np.asarray(tolerance_n, dtype=float), nominal.shape)
+    distance = np.where(inside, distance, np.inf)
+    nearest = np.argmin(distance, axis=1)
+    return np.where(np.isfinite(distance[np.arange(peaks.shape[0]), nearest]), nearest, -1)
+
+
+def cluster_levels(peak_force_n: np.ndarray, relative_gap: float = 0.15) -> np.ndarray:
+    """Group peak forces into levels when no nominal levels are given: labels 0, 1, ... by force.
+
+    Sorted peak forces are split wherever two neighbours differ by more than `relative_gap`
+    times the larger one (single-linkage clustering in one dimension: deterministic, no level
+    count to guess). Hand-held hammer levels spread by a few percent and sit tens of percent
+    apart, so the default of 15 % separates 450/1000/1450 N while keeping each level whole.
+    Non-finite forces get -1.
+    """
+    peaks = np.asarray(peak_force_n, dtype=float)
+    labels = np.full(peaks.size, -1)
+    finite = np.flatnonzero(np.isfinite(peaks))
+    if finite.size == 0:
+        return labels
+    order = finite[np.argsort(peaks[finite], kind='stable')]
+    sorted_peaks = peaks[order]
+    upper = np.maximum(np.abs(sorted_peaks[1:]), np.abs(sorted_peaks[:-1]))
+    breaks = np.diff(sorted_peaks) > relative_gap * upper
+    labels[order] = np.concatenate(([0], np.cumsum(breaks)))
+    return labels
+
+
+@dataclass(frozen=True)
+class LinearFit:
+    """Least-squares line y = slope * x + intercept over `count` points, with its R^2."""
+
+    slope: float
+    intercept: float
+    r2: float
+    count: int
+
+
+def linear_fit(x: np.ndarray, y: np.ndarray) -> LinearFit:
+    """Least-squares line through (x, y) and its coefficient of determination.
+
+    Used for peak |receptance| against impulse (the paper's Fig. 17). NaN slope and intercept
+    with fewer than 2 points; NaN R^2 with fewer than 3 (two points always fit exactly) or
+    when y does not vary beyond rounding (a linear structure's peak receptance: R^2 would
+    only measure floating-point noise).
+    """
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    n = x.size
+    if n < 2 or np.ptp(x) == 0:
+        return LinearFit(float('nan'), float('nan'), float('nan'), n)
+    slope, intercept = np.polyfit(x, y, 1)
+    residual = np.sum((y - (slope * x + intercept)) ** 2)
+    total = np.sum((y - y.mean()) ** 2)
+    varies = np.ptp(y) > 1e-12 * np.max(np.abs(y))
+    r2 = 1 - residual / total if n >= 3 and varies else float('nan')
+    return LinearFit(float(slope), float(intercept), float(r2), n)
