@@ -25,7 +25,7 @@ import numpy as np
 from fmm_ros.core._checks import require_non_negative, require_positive
 from fmm_ros.core.excitation import (
     PAPER_LEVELS,
-    ImpactRecord,
+    SimulatedImpact,
     impact_record,
     level_peak_force_n,
 )
@@ -70,7 +70,7 @@ class HiddenEffectCase:
     rig: Rig
     ratio: float
     """Realised noise-free discrepancy after the base fit / velocity noise (0 for 'none')."""
-    records: tuple[ImpactRecord, ...]
+    records: tuple[SimulatedImpact, ...]
     """The impacts as measured: noisy force and velocity (and the truth in .simulation)."""
 
 
@@ -159,7 +159,7 @@ def _sized_term(effect: str, shape: dict[str, float], target_m_s: float, clean_r
     return term, value
 
 
-def base_fit_discrepancy(records: tuple[ImpactRecord, ...], mu: float, rig: Rig = FMM_RIG
+def base_fit_discrepancy(records: tuple[SimulatedImpact, ...], mu: float, rig: Rig = FMM_RIG
                          ) -> float:
     """RMS over the motion of (truth - base model with mu re-fitted), noise-free [m/s].
 
@@ -184,7 +184,7 @@ def base_fit_discrepancy(records: tuple[ImpactRecord, ...], mu: float, rig: Rig 
     return math.sqrt(float(np.mean((residual - change * slope) ** 2)))
 
 
-def motion_window(record: ImpactRecord) -> slice:
+def motion_window(record: SimulatedImpact) -> slice:
     """Samples from the hit until SETTLE_S after the noise-free response came to rest."""
     sim = record.simulation
     end = sim.velocity_m_s.size
