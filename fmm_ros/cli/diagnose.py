@@ -21,7 +21,6 @@ import numpy as np
 from fmm_ros.cli._rig import add_rig_arguments, rig_from_args
 from fmm_ros.core import frf
 from fmm_ros.core.diagnose import EFFECTS, NONE, Diagnosis, diagnose
-from fmm_ros.core.export import json_number
 from fmm_ros.core.fit import FitError
 from fmm_ros.core.model import Rig
 from fmm_ros.core.records import read_impact_csv
@@ -64,23 +63,12 @@ def run(args: argparse.Namespace) -> int:
         payload = result.to_dict()
         payload['files'] = [str(path) for path in args.inputs]
         payload['figures'] = [str(path) for path in figures]
-        print(json.dumps(_finite(payload), indent=2, allow_nan=False))
+        print(json.dumps(payload, indent=2, allow_nan=False))
     else:
         print(text_report(result, [str(path) for path in args.inputs]))
         for path in figures:
             print(f'wrote {path}')
     return 0
-
-
-def _finite(value):
-    """JSON has no NaN or infinity: null instead, all the way down."""
-    if isinstance(value, dict):
-        return {key: _finite(item) for key, item in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_finite(item) for item in value]
-    if isinstance(value, float):
-        return json_number(value)
-    return value
 
 
 def _value(value: float, error: float, unit: str) -> str:

@@ -132,8 +132,8 @@ class Diagnosis:
     """Measured minus named-model velocity per impact [m/s] (base again for 'none')."""
 
     def to_dict(self) -> dict:
-        """JSON-ready: the keys of `fmm diagnose --json`."""
-        return {
+        """JSON-ready (undefined numbers are None): the keys of `fmm diagnose --json`."""
+        return _json_safe({
             'missing_effect': self.missing_effect,
             'parameters': {p.name: p.value for p in self.parameters},
             'parameter_units': {p.name: p.unit for p in self.parameters},
@@ -157,7 +157,18 @@ class Diagnosis:
             'input_noise_allowance': self.input_noise_allowance,
             'required_score': self.required_score,
             'verdict': self.verdict,
-        }
+        })
+
+
+def _json_safe(value):
+    """Plain floats all the way down, NaN and infinities as None (JSON has neither)."""
+    if isinstance(value, dict):
+        return {key: _json_safe(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(item) for item in value]
+    if isinstance(value, (float, np.floating)):
+        return json_number(value)
+    return value
 
 
 def _where_dict(where: Where) -> dict:
@@ -170,15 +181,14 @@ def _where_dict(where: Where) -> dict:
         'non_harmonic_peaks_hz': [p.frequency_hz for p in where.peaks],
         'rest_velocity_m_s': where.rest_velocity_m_s,
         'rest_velocity_stderr_m_s': where.rest_velocity_stderr_m_s,
-        'phase_delay_s': json_number(where.phase_delay_s),
+        'phase_delay_s': where.phase_delay_s,
         'signatures': [{'measured': _signature_dict(m), 'model': _signature_dict(s)}
                        for m, s in zip(where.measured, where.model, strict=True)],
     }
 
 
 def _signature_dict(signature: discrepancy.DecaySignatures) -> dict:
-    return {name: (json_number(value) if isinstance(value, float) else value)
-            for name, value in vars(signature).items()}
+    return dict(vars(signature))
 
 
 # --- the workflow ------------------------------------------------------------------------------
