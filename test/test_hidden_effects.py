@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import scipy.optimize
 
-from fmm_ros.core import discrepancy
 from fmm_ros.core.excitation import PAPER_LEVELS
+from fmm_ros.core.fit import as_conditioned
 from fmm_ros.core.hidden_effects import (
     HIDDEN_EFFECTS,
     MU_RANGE,
@@ -64,8 +64,9 @@ def test_a_case_is_random_levels_with_the_issues_noise_and_reproducible():
     assert case.term == again.term and case.term != other.term
     for record in case.records:
         assert record.velocity_m_s.size == 330_000
-        assert discrepancy.noise_std(record.velocity_m_s) == pytest.approx(1e-4, rel=0.03)
-        assert discrepancy.noise_std(record.force_n) == pytest.approx(0.2, rel=0.03)
+        conditioned = as_conditioned(record)
+        assert conditioned.velocity_noise_std_m_s == pytest.approx(1e-4, rel=0.03)
+        assert conditioned.force_noise_std_n == pytest.approx(0.2, rel=0.03)
         nearest = min(PAPER_LEVELS.values(),
                       key=lambda level: abs(level.peak_force_n - record.peak_force_n))
         assert abs(nearest.peak_force_n - record.peak_force_n) < 150.0

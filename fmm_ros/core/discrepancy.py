@@ -1,10 +1,11 @@
 """Where a simulation and a measurement disagree, and the signatures that point at a cause.
 
-Plain functions on sample arrays (velocity in m/s, force in N, one impact at a time unless
-said otherwise), used by the diagnose workflow (`fmm_ros.core.diagnose`) on the base model's
-residual and by reports. Nothing here fits a model: every number is read off the records.
+Plain functions on sample arrays (velocity in m/s, one impact at a time unless said
+otherwise), used by the diagnose workflow (`fmm_ros.core.diagnose`) on the base model's
+residual and by reports. The noise level they take is the fitter's estimate from the data
+(`fmm_ros.core.fit.velocity_noise_std`). Nothing here fits a model: every number is read off
+the records.
 
-- `noise_std`: white-noise level of a channel from its second differences (robust to the hit).
 - `time_regions` / `frequency_bands`: the residual's energy beyond the noise, split by where
   it lies in the decay (early large amplitude, late small amplitude, near reversals, at rest)
   and by band (below f_n, at f_n, at its odd harmonics, elsewhere).
@@ -21,11 +22,6 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.signal
 
-# Normal consistency of the median absolute deviation, and the variance gain of a second
-# difference of white noise (1 + 4 + 1).
-_MAD_TO_STD = 1.482602218505602
-_SECOND_DIFFERENCE_GAIN = 6.0
-
 HARMONIC_HALF_WIDTH = 0.25
 """Bands around f_n and its odd harmonics are this fraction of f_n wide on each side."""
 HIGHEST_ODD_HARMONIC = 25
@@ -35,21 +31,6 @@ NEAR_REVERSAL = 0.25
 half-cycle peak."""
 LARGE_AMPLITUDE = 0.5
 """Half cycles whose peak speed is at least this fraction of the first one are 'early'."""
-
-
-def noise_std(samples: np.ndarray) -> float:
-    """Standard deviation of the white noise on a sampled channel [its unit].
-
-    From the median absolute deviation of the second difference, which a smooth signal hardly
-    moves (a hit or a reversal touches a few samples, which the median ignores). Assumes the
-    noise is white over the band; coloured noise is underestimated.
-    """
-    samples = np.asarray(samples, dtype=float)
-    if samples.size < 8:
-        raise ValueError(f'need at least 8 samples to estimate noise, got {samples.size}')
-    second = np.diff(samples, 2)
-    deviation = np.median(np.abs(second - np.median(second)))
-    return float(_MAD_TO_STD * deviation / math.sqrt(_SECOND_DIFFERENCE_GAIN))
 
 
 def excess_rms(residual: np.ndarray, noise_std_value: float) -> float:
