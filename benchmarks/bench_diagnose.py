@@ -34,14 +34,15 @@ SHORT = {'viscous_damping': 'visc', 'stribeck': 'strib', 'asymmetric_friction': 
 def sweep(cases: int, seed: int) -> None:
     names = list(HIDDEN_EFFECTS)
     confusion = np.zeros((len(names), len(names)), dtype=int)
-    reductions, ratios, misses, seconds = [], [], [], []
+    reductions, ratios, misses = [], [], []
+    seconds: dict[str, list[float]] = {name: [] for name in names}
     for row, effect in enumerate(names):
         for case in range(cases):
             rng = np.random.default_rng([seed, row, case])
             session = hidden_effect_case(effect, rng)
             start = time.perf_counter()
             result = diagnose(session.records)
-            seconds.append(time.perf_counter() - start)
+            seconds[effect].append(time.perf_counter() - start)
             confusion[row, names.index(result.missing_effect)] += 1
             if effect != 'none':
                 ratios.append(session.ratio)
@@ -62,8 +63,11 @@ def sweep(cases: int, seed: int) -> None:
           'after the base fit')
     print(f'median gap reduction where an effect was hidden: {100 * np.median(reductions):.1f} % '
           f'(smallest {100 * min(reductions):.1f} %)')
-    print(f'diagnosis time per session: median {statistics.median(seconds):.2f} s, '
-          f'longest {max(seconds):.2f} s')
+    every = [value for values in seconds.values() for value in values]
+    print(f'diagnosis time per session (three 33 s impacts): median '
+          f'{statistics.median(every):.2f} s, longest {max(every):.2f} s; by hidden effect: '
+          + ', '.join(f'{SHORT[name]} {statistics.median(values):.1f}/{max(values):.1f}'
+                      for name, values in seconds.items()) + ' s (median/longest)')
     print('misses:' if misses else 'misses: none')
     for miss in misses:
         print(miss)
