@@ -14,6 +14,10 @@ from fmm_ros import __version__
 SUBCOMMANDS: tuple[str, ...] = (
     'simulate',
     'analyze',
+    'replay',
+    'import_lab',
+    'bag_info',
+    'export',
     'diagnose',
 )
 
