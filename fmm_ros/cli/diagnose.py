@@ -1,8 +1,9 @@
 """`fmm diagnose`: name the effect the base model (Eq. 3) misses in measured impacts.
 
-Same inputs and rig flags as `fmm fit`. Exit status: 0 diagnosed (whatever was named, 'none'
-included), 1 the base model cannot be fitted at all (the reason is printed, as JSON with
---json), 2 bad input or flags.
+Same inputs and rig flags as `fmm fit` (CSV files of one impact each, or bags). Exit status:
+0 diagnosed (whatever was named, 'none' included), 1 the base model cannot be fitted at all
+(the reason is printed, as JSON with --json) or a bag was damaged (its problems are printed
+as warnings after the result), 2 bad input or flags.
 
 Examples:
     fmm diagnose low_*.csv medium_*.csv high_*.csv
@@ -13,17 +14,17 @@ Examples:
 import argparse
 import json
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
 
-from fmm_ros.cli._rig import add_rig_arguments, rig_from_args
+from fmm_ros.cli._model import add_rig_arguments, report_refusal, rig_from_args
+from fmm_ros.cli.analyze import read_records
+from fmm_ros.cli.progress import report_problems
 from fmm_ros.core import frf
 from fmm_ros.core.diagnose import EFFECTS, NONE, Diagnosis, diagnose
 from fmm_ros.core.fit import FitError
 from fmm_ros.core.model import Rig
-from fmm_ros.core.records import read_impact_csv
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -36,7 +37,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     + ', '.join(EFFECTS) + ') and name the one that is clearly better by the '
                     'Bayesian information criterion, or none.')
     parser.add_argument('inputs', nargs='+', type=Path, metavar='INPUT',
-                        help='one CSV per impact with columns time_s,force_n,velocity_m_s')
+                        help='CSV files of one impact each (time_s,force_n,velocity_m_s) or '
+                             'bags (every impact recorded)')
+    parser.add_argument('--fit-initial-position', action='store_true',
+                        help="fit each impact's start position in every model, base and "
+                             'candidates (a hit that found the rig held off centre by '
+                             'friction); otherwise each starts at x = 0')
     add_rig_arguments(parser)
     parser.add_argument('--json', action='store_true', help='print the result as JSON')
     parser.add_argument('--plot', type=Path, metavar='DIR',
@@ -47,28 +53,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Diagnose the input files; print a table or JSON; draw the figures if asked."""
     rig = rig_from_args(args)
-    records = [read_impact_csv(path) for path in args.inputs]
+    records, problems = read_records(args.inputs)
     try:
-        result = diagnose(records, rig=rig)
+        result = diagnose(records, rig=rig, fit_initial_position=args.fit_initial_position)
     except FitError as failure:
-        if args.json:
-            print(json.dumps({'error': failure.reason, 'message': str(failure),
-                              'file': failure.source or None}))
-        else:
-            print(f'fmm diagnose: cannot fit the base model ({failure.reason}): {failure}',
-                  file=sys.stderr)
-        return 1
+        report_problems('diagnose', problems)
+        return report_refusal('diagnose', failure, args.json)
     figures = plot_diagnosis(result, records, rig, args.plot) if args.plot is not None else []
     if args.json:
         payload = result.to_dict()
-        payload['files'] = [str(path) for path in args.inputs]
+        payload['files'] = [record.source for record in records]
         payload['figures'] = [str(path) for path in figures]
         print(json.dumps(payload, indent=2, allow_nan=False))
     else:
-        print(text_report(result, [str(path) for path in args.inputs]))
+        print(text_report(result, [record.source for record in records]))
         for path in figures:
             print(f'wrote {path}')
-    return 0
+    return report_problems('diagnose', problems)
 
 
 def _value(value: float, error: float, unit: str) -> str:

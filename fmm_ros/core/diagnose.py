@@ -193,14 +193,16 @@ def _signature_dict(signature: discrepancy.DecaySignatures) -> dict:
 
 # --- the workflow ------------------------------------------------------------------------------
 
-def diagnose(impacts: Sequence, *, rig: Rig = FMM_RIG,
-             candidates: Sequence[str] = EFFECTS) -> Diagnosis:
+def diagnose(impacts: Sequence, *, rig: Rig = FMM_RIG, candidates: Sequence[str] = EFFECTS,
+             fit_initial_position: bool = False) -> Diagnosis:
     """Find the effect the base model (Eq. 3, mu fitted) misses in these impacts, if any.
 
     impacts: records with force_n, velocity_m_s and sample_rate_hz (CSV or simulated impact
-    records) or ConditionedImpacts; every one is fitted at once. Raises ValueError for bad
-    input or a candidate outside EFFECTS, and FitError (a ValueError) when the base model
-    cannot be fitted at all.
+    records) or ConditionedImpacts; every one is fitted at once. fit_initial_position: every
+    model, base and candidates alike, also fits where each impact starts (a hit that found
+    the rig held off centre by friction), as `fmm fit --fit-initial-position` does. Raises
+    ValueError for bad input or a candidate outside EFFECTS, and FitError (a ValueError)
+    when the base model cannot be fitted at all.
     """
     unknown = [name for name in candidates if name not in EFFECTS]
     if unknown:
@@ -211,7 +213,7 @@ def diagnose(impacts: Sequence, *, rig: Rig = FMM_RIG,
     conditioned = [as_conditioned(impact) for impact in impacts]
     if not conditioned:
         raise ValueError('no impacts to diagnose')
-    base = fit_model(conditioned, rig=rig)
+    base = fit_model(conditioned, rig=rig, fit_initial_position=fit_initial_position)
     noise = base.noise_std_m_s
     models = [impact.velocity_m_s - residual
               for impact, residual in zip(conditioned, base.residuals_m_s, strict=True)]
@@ -232,7 +234,7 @@ def diagnose(impacts: Sequence, *, rig: Rig = FMM_RIG,
                                    base.n_samples)
     tried, fits = [], {}
     for effect in candidates:
-        refit, message = _refit(effect, conditioned, base, where, rig)
+        refit, message = _refit(effect, conditioned, base, where, rig, fit_initial_position)
         if refit is None:
             tried.append(Candidate(effect, math.inf, math.inf, math.nan, math.nan, (), message))
             continue
@@ -290,7 +292,7 @@ class _Screened:
 
 
 def _refit(effect: str, impacts: Sequence[ConditionedImpact], base: ModelFit, where: Where,
-           rig: Rig) -> tuple[ModelFit | _Screened | None, str]:
+           rig: Rig, fit_initial_position: bool) -> tuple[ModelFit | _Screened | None, str]:
     """(fit, note): the base model plus one effect, refitted from its start.
 
     The second mode is screened first by a score test: its best start (the strongest residual
@@ -319,7 +321,8 @@ def _refit(effect: str, impacts: Sequence[ConditionedImpact], base: ModelFit, wh
             start = screen.term
         else:
             start = start_term(effect, impacts, base, where, rig)
-        return fit_model(impacts, rig=rig, mu0=base.mu, terms=(start,)), ''
+        return fit_model(impacts, rig=rig, mu0=base.mu, terms=(start,),
+                         fit_initial_position=fit_initial_position), ''
     except FitError as error:
         return None, f'refit failed: {error}'
 
@@ -386,22 +389,20 @@ def input_noise_allowance(impacts: Sequence[ConditionedImpact], base: ModelFit,
                           noise_std_m_s: float) -> float:
     """chi^2 the force noise inside the hit puts into the base residual, expected [-].
 
-    Output-error fitting takes the measured force as exact, but its noise inside the gate
-    changes each impulse by about s_f sqrt(gate samples) / rate, and the model's response with
-    it; a candidate term can absorb part of that, which is no evidence of the term. The
-    response to a relative impulse change, d v / d scale, comes from one extra simulation per
-    impact; the allowance is sum_i |d v_i / d scale|^2 (s_I,i / I_i)^2 / s_v^2.
+    Output-error fitting takes the measured force as exact, but its noise changes each
+    impulse by `ConditionedImpact.impulse_std_n_s`, and the model's response with it; a
+    candidate term can absorb part of that, which is no evidence of the term. The response to
+    a relative impulse change, d v / d scale, comes from one extra simulation per impact; the
+    allowance is sum_i |d v_i / d scale|^2 (s_I,i / I_i)^2 / s_v^2.
     """
     total = 0.0
     step = 1e-3
-    for impact in impacts:
-        gate_samples = sum(stop - start for start, stop in impact.gate)
-        impulse_std = impact.force_noise_std_n * math.sqrt(gate_samples) / impact.sample_rate_hz
-        relative = impulse_std / abs(impact.impulse_n_s)
-        base_velocity = base.simulate(impact).velocity_m_s
+    for index, impact in enumerate(impacts):
+        relative = impact.impulse_std_n_s / abs(impact.impulse_n_s)
         scaled = simulate(impact.force_n * (1.0 + step), impact.sample_rate_hz, rig=base.rig,
-                          mu=base.mu, effects=base.effects).velocity_m_s
-        sensitivity = (scaled - base_velocity) / step
+                          mu=base.mu, effects=base.effects,
+                          x0_m=base.initial_positions_m[index]).velocity_m_s
+        sensitivity = (scaled - base.simulate(index).velocity_m_s) / step
         total += float(sensitivity @ sensitivity) * relative ** 2
     return total / noise_std_m_s ** 2
 
@@ -550,8 +551,9 @@ def _second_mode_start(impacts: Sequence[ConditionedImpact], base: ModelFit, rig
         unit = model_term('second_mode', frequency_hz=frequency, damping_ratio=zeta,
                           modal_mass_kg=1.0)
         shapes = [simulate(impact.force_n, rate, rig=base.rig, mu=base.mu,
-                           effects=(*base.effects, unit)).velocity_m_s - model
-                  for impact, model in zip(impacts, models, strict=True)]
+                           effects=(*base.effects, unit),
+                           x0_m=base.initial_positions_m[index]).velocity_m_s - model
+                  for index, (impact, model) in enumerate(zip(impacts, models, strict=True))]
         numerator = sum(float(s @ r) for s, r in zip(shapes, base.residuals_m_s, strict=True))
         denominator = sum(float(s @ s) for s in shapes)
         if numerator <= 0.0 or denominator == 0.0:
