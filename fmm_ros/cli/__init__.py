@@ -18,6 +18,8 @@ SUBCOMMANDS: tuple[str, ...] = (
     'import_lab',
     'bag_info',
     'export',
+    'fit',
+    'identify_rig',
     'diagnose',
 )
 
