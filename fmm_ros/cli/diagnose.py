@@ -12,18 +12,16 @@ Examples:
 """
 
 import argparse
-import json
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from fmm_ros.cli._model import add_rig_arguments, report_refusal, rig_from_args
-from fmm_ros.cli.analyze import read_records
-from fmm_ros.cli.progress import report_problems
+from fmm_ros.cli._fitting import fit_and_report
+from fmm_ros.cli._model import add_rig_arguments, rig_from_args
 from fmm_ros.core import frf
 from fmm_ros.core.diagnose import EFFECTS, NONE, Diagnosis, diagnose
-from fmm_ros.core.fit import FitError
 from fmm_ros.core.model import Rig
 
 
@@ -50,26 +48,31 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=run)
 
 
+@dataclass(frozen=True)
+class _Run:
+    """What one `fmm diagnose` produced: the diagnosis, its inputs' names, the figures."""
+
+    diagnosis: Diagnosis
+    files: list[str]
+    figures: list[Path]
+
+
 def run(args: argparse.Namespace) -> int:
-    """Diagnose the input files; print a table or JSON; draw the figures if asked."""
+    """Diagnose the inputs; print a table or JSON; draw the figures if asked."""
     rig = rig_from_args(args)
-    records, problems = read_records(args.inputs)
-    try:
+
+    def diagnose_records(records) -> _Run:
         result = diagnose(records, rig=rig, fit_initial_position=args.fit_initial_position)
-    except FitError as failure:
-        report_problems('diagnose', problems)
-        return report_refusal('diagnose', failure, args.json)
-    figures = plot_diagnosis(result, records, rig, args.plot) if args.plot is not None else []
-    if args.json:
-        payload = result.to_dict()
-        payload['files'] = [record.source for record in records]
-        payload['figures'] = [str(path) for path in figures]
-        print(json.dumps(payload, indent=2, allow_nan=False))
-    else:
-        print(text_report(result, [record.source for record in records]))
-        for path in figures:
-            print(f'wrote {path}')
-    return report_problems('diagnose', problems)
+        figures = plot_diagnosis(result, records, rig, args.plot) if args.plot else []
+        return _Run(result, [record.source for record in records], figures)
+
+    return fit_and_report('diagnose', args, diagnose_records, report, text_report)
+
+
+def report(run_result: _Run) -> dict:
+    """The JSON document: `Diagnosis.to_dict()`, the input names and the figures written."""
+    return {**run_result.diagnosis.to_dict(), 'files': run_result.files,
+            'figures': [str(path) for path in run_result.figures]}
 
 
 def _value(value: float, error: float, unit: str) -> str:
@@ -79,8 +82,9 @@ def _value(value: float, error: float, unit: str) -> str:
     return f'{value:.4g}{unit}'
 
 
-def text_report(result: Diagnosis, files: list[str]) -> str:
-    """The short table a person reads in ten seconds."""
+def text_report(run_result: _Run) -> str:
+    """The short table a person reads in ten seconds (and the figures written)."""
+    result, files = run_result.diagnosis, run_result.files
     lines = [f'{len(files)} impact(s); velocity noise {result.noise_std_m_s:.3g} m/s (from the '
              f'data); base fit mu = {_value(result.mu, result.mu_stderr, "1")}']
     if result.missing_effect == NONE:
@@ -102,6 +106,7 @@ def text_report(result: Diagnosis, files: list[str]) -> str:
         lines.append(f'{candidate.effect:<22}{score:>14}{candidate.gap_after:>12.3g}{mark}')
     lines.append(f'(named when dBIC <= {result.required_score:.0f} and the gap at least halves)')
     lines.append(result.verdict)
+    lines += [f'wrote {path}' for path in run_result.figures]
     return '\n'.join(lines)
 
 
