@@ -22,6 +22,7 @@ ROSDEP_KEYS = {
     'ament_index_python': 'ament_index_python',
     'builtin_interfaces': 'builtin_interfaces',
     'fmm_interfaces': 'fmm_interfaces',
+    'matplotlib': 'python3-matplotlib',
     'h5py': 'python3-h5py',
     'lz4': 'python3-lz4',
     'nptdms': 'python3-nptdms-pip',

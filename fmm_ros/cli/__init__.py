@@ -21,6 +21,7 @@ SUBCOMMANDS: tuple[str, ...] = (
     'export',
     'fit',
     'identify_rig',
+    'diagnose',
 )
 
 
