@@ -88,7 +88,10 @@ class SessionResult:
     diagnosis: str
     bag: str
     wall_s: float
+    """Wall time from the graph's start to the last impact reported [s]."""
     signal_s: float
+    fit_s: float
+    diagnose_s: float
     impacts: list[dict] = field(default_factory=list)
 
     def as_json(self) -> dict:
@@ -155,13 +158,15 @@ def run_session(config: SessionConfig, progress: Callable[[str], None] = lambda 
         start = time.monotonic()
         graph.start()
         _wait(lambda: len(results.impacts) >= total, lambda: hammer.next_index)
+        wall_s = time.monotonic() - start
         progress('session complete; fitting mu over the accepted impacts')
         fit = graph.call(results.fit, FitFriction.Request(), timeout_s=600.0)
+        fit_s = time.monotonic() - start - wall_s
         chosen = _one_accepted_per_level(results.impacts)
         progress(f'diagnosing the model on impacts {chosen} (one a level)')
         diagnosis = graph.call(results.diagnose, DiagnoseModel.Request(impact_ids=chosen),
                                timeout_s=600.0)
-        wall_s = time.monotonic() - start
+        diagnose_s = time.monotonic() - start - wall_s - fit_s
         signal_s = hammer.next_index / hammer.config['sample_rate_hz']
         impacts, levels, latest = list(results.impacts), dict(results.levels), results.latest
         hits_sent = hammer.hits_sent
@@ -180,7 +185,7 @@ def run_session(config: SessionConfig, progress: Callable[[str], None] = lambda 
         per_impact_mu=msgs.field_array(fit.per_impact_mu).tolist(),
         missing_effect=diagnosis.missing_effect if diagnosis.success else '',
         diagnosis=diagnosis.verdict if diagnosis.success else diagnosis.message, bag=str(bag),
-        wall_s=wall_s, signal_s=signal_s,
+        wall_s=wall_s, signal_s=signal_s, fit_s=fit_s, diagnose_s=diagnose_s,
         impacts=[{'impact_id': m.impact_id, 'level': m.level, 'accepted': m.accepted,
                   'flags': list(m.flags), 'peak_force_n': m.peak_force_n,
                   'impulse_n_s': m.impulse_n_s,

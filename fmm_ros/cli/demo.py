@@ -82,6 +82,7 @@ def _text(result, out: Path) -> str:
          else f'mu: not fitted ({result.fit_message})'),
         f'model diagnosis: {result.missing_effect or "-"} ({result.diagnosis})',
         f'{result.signal_s:.0f} s of signal in {result.wall_s:.1f} s '
-        f'(x{result.signal_s / result.wall_s:.0f} real time)',
+        f'(x{result.signal_s / result.wall_s:.0f} real time); fit {result.fit_s:.1f} s, '
+        f'diagnosis {result.diagnose_s:.1f} s',
         f'bag: {result.bag}', f'summary: {out / "summary.json"}']
     return '\n'.join(lines)
