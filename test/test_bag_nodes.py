@@ -91,3 +91,38 @@ def test_recorder_refuses_an_unknown_storage(ros_graph, tmp_path):
     with pytest.raises(Exception, match='not one of mcap, sqlite3'):
         ros_graph.add(Recorder, parameter_overrides=[
             Parameter('bag_path', value=str(tmp_path / 'b')), Parameter('storage', value='zip')])
+
+
+def test_fmm_record_records_live_topics_until_interrupted(tmp_path):
+    """`fmm record` in its own process beside a simulated rig; SIGINT closes the bag."""
+    import os
+    import random
+    import signal
+    import subprocess
+    import sys
+
+    from fmm_ros.launch import parse_overrides, start_processes, stop_processes
+
+    env = dict(os.environ, ROS_DOMAIN_ID=str(random.randrange(1, 101)),
+               ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    os.environ.update({k: env[k] for k in ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE')})
+    bag = tmp_path / 'live'
+    fmm = os.path.join(os.path.dirname(sys.executable), 'fmm')
+    recorder = subprocess.Popen([fmm, 'record', str(bag), '--topics', '/fmm/force'], env=env)
+    rig = start_processes(['hammer_sim', 'rig_sim'], None, parse_overrides(
+        ['hammer_sim.rate_factor=10', 'hammer_sim.wait_for_subscribers=1'],
+        ['hammer_sim', 'rig_sim']))
+    try:
+        assert wait_for(lambda: (bag / 'metadata.yaml').exists() or _mcap_size(bag) > 200_000,
+                        timeout_s=60.0)
+    finally:
+        stop_processes(rig)
+        recorder.send_signal(signal.SIGINT)
+        assert recorder.wait(30) in (0, -signal.SIGINT)
+    with BagReader(bag) as reader:
+        assert list(reader.topics) == ['/fmm/force'] and reader.topics['/fmm/force'].count > 0
+        assert not reader.recovered
+
+
+def _mcap_size(bag):
+    return sum(path.stat().st_size for path in bag.glob('*.mcap')) if bag.exists() else 0

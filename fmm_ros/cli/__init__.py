@@ -16,6 +16,7 @@ SUBCOMMANDS: tuple[str, ...] = (
     'simulate',
     'analyze',
     'replay',
+    'record',
     'import_lab',
     'bag_info',
     'export',
