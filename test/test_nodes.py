@@ -63,17 +63,26 @@ def test_rig_sim_rejects_unknown_model_terms_naming_them(ros_graph):
         ros_graph.add(RigSim, parameter_overrides=params(effects=['wobble']))
 
 
-def test_clean_start_and_shutdown_leaves_no_threads():
+def test_clean_start_and_shutdown_leaves_no_threads_and_no_errors(capfd, tmp_path):
+    from fmm_ros.nodes.fitter import Fitter
+    from fmm_ros.nodes.recorder import Recorder
+
     before = set(threading.enumerate())
     with InProcessGraph() as graph:
         graph.add(HammerSim, parameter_overrides=params(**FAST_HAMMER))
         graph.add(RigSim)
         graph.add(Analyzer, parameter_overrides=params(**FAST_ANALYZER))
+        graph.add(Fitter)
+        graph.add(Recorder, parameter_overrides=params(bag_path=str(tmp_path / 'bag')))
         graph.start()
         time.sleep(0.5)
     leaked = [t for t in threading.enumerate() if t not in before and t.is_alive()]
     assert not leaked, f'threads left running: {leaked}'
     assert not graph.context.ok()
+    output = capfd.readouterr()
+    text = output.out + output.err
+    for marker in ('Traceback', '[ERROR]', 'Exception', 'RCLError'):
+        assert marker not in text, text
 
 
 def test_no_node_shadows_an_attribute_rclpy_node_keeps(ros_graph):
