@@ -21,7 +21,7 @@ setup(
         (f'share/{PACKAGE}/launch_scripts', glob('launch_scripts/*.py')),
     ],
     python_requires='>=3.10',
-    install_requires=['setuptools', 'numpy', 'scipy', 'numba', 'pyuff'],
+    install_requires=['setuptools', 'numpy', 'scipy', 'numba', 'pyuff', 'matplotlib'],
     zip_safe=True,
     maintainer='fmm_ros maintainers',
     maintainer_email='fmm@example.org',

@@ -18,6 +18,7 @@ ROSDEP_KEYS = {
     'ament_index_python': 'ament_index_python',
     'builtin_interfaces': 'builtin_interfaces',
     'fmm_interfaces': 'fmm_interfaces',
+    'matplotlib': 'python3-matplotlib',
     'numba': 'python3-numba',
     'numpy': 'python3-numpy',
     'pyuff': 'python3-pyuff-pip',
