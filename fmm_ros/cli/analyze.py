@@ -32,7 +32,6 @@ RATE_TOLERANCE = 1e-6
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the `analyze` subcommand."""
-    defaults, analysis = CaptureConfig(), AnalysisConfig()
     parser = subparsers.add_parser(
         'analyze', help='impulse, FRFs, force levels and linearity from impact CSV files',
         description='Analyse impacts, one CSV file each (header time_s,force_n,velocity_m_s): '
@@ -42,6 +41,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('inputs', nargs='+', type=Path, metavar='INPUT',
                         help='one CSV file per impact')
     parser.add_argument('--json', action='store_true', help='print the results as JSON')
+    add_analysis_options(parser)
+    parser.add_argument('--export', action='append', default=[], type=Path, metavar='PATH',
+                        help='write the level FRFs to PATH: .uff/.unv (UFF 58), .csv or .json '
+                             '(repeatable)')
+    parser.set_defaults(func=run)
+
+
+def add_analysis_options(parser: argparse.ArgumentParser) -> None:
+    """The capture, level and FRF options every command that analyses impacts shares."""
+    defaults, analysis = CaptureConfig(), AnalysisConfig()
     levels = parser.add_mutually_exclusive_group()
     levels.add_argument('--level', action='append', default=[], metavar='NAME=FORCE_N',
                         type=_nominal_level,
@@ -73,14 +82,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--reject', type=_flag_list, default=FLAGS, metavar='FLAG,...',
                         help=f'flags that reject an impact, or "none" (default: all of '
                              f'{",".join(FLAGS)})')
-    parser.add_argument('--export', action='append', default=[], type=Path, metavar='PATH',
-                        help='write the level FRFs to PATH: .uff/.unv (UFF 58), .csv or .json '
-                             '(repeatable)')
-    parser.set_defaults(func=run)
 
 
-def run(args: argparse.Namespace) -> int:
-    """Analyse the files, print the report, write any exports."""
+def analysis_options(args: argparse.Namespace) -> tuple[CaptureConfig, AnalysisConfig]:
+    """The capture and analysis configuration the options of `add_analysis_options` ask for."""
     capture = CaptureConfig(trigger_level_n=args.trigger_n, rearm_level_n=args.rearm_n,
                             rest_velocity_m_s=args.rest_velocity_m_s)
     levels = tuple(dataclasses.replace(level, tolerance_n=args.tolerance_n)
@@ -89,6 +94,12 @@ def run(args: argparse.Namespace) -> int:
                               force_window_s=args.force_window_s,
                               exponential_decay_s=args.exponential_decay_s,
                               levels=levels, reject_flags=args.reject)
+    return capture, analysis
+
+
+def run(args: argparse.Namespace) -> int:
+    """Analyse the files, print the report, write any exports."""
+    capture, analysis = analysis_options(args)
     records = read_records(args.inputs, args.force_full_scale_n, args.velocity_full_scale_m_s)
     results = [analyze_impact(record, capture, analysis, impact_id=number)
                for number, record in enumerate(records)]
