@@ -111,7 +111,8 @@ def test_ros2_run_finds_every_console_script(monkeypatch):
         assert os.access(executable, os.X_OK), f'{executable} is not executable'
 
 
-@pytest.mark.parametrize('module', ['fmm_ros', 'fmm_ros.core'])
+@pytest.mark.parametrize('module', ['fmm_ros', 'fmm_ros.core', 'fmm_ros.report',
+                                    'fmm_ros.cli.report'])
 def test_core_imports_without_ros(module):
     """The core must stay ROS-free: importing it must not pull in rclpy."""
     code = (f'import sys, {module}; '

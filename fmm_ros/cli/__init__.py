@@ -14,6 +14,7 @@ from fmm_ros import __version__
 SUBCOMMANDS: tuple[str, ...] = (
     'simulate',
     'analyze',
+    'report',
 )
 
 

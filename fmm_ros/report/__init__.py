@@ -1,0 +1,10 @@
+"""Reports: the figures and the HTML page a lab wants after a session (issue 9).
+
+ROS-free like the core (numpy, scipy, matplotlib without pyplot). `build_report` writes a
+session's page from its impact records; `build_paper_report` reproduces the paper's
+simulation figures (Figs. 2-10) from the physics core.
+"""
+
+from fmm_ros.report.session import FLAG_MEANINGS, ModelOverlay, build_report
+
+__all__ = ['FLAG_MEANINGS', 'ModelOverlay', 'build_report']
