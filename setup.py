@@ -1,14 +1,40 @@
 """ament_python setup for fmm_ros: the `fmm` CLI and one console script per ROS node."""
 
 from glob import glob
+from pathlib import Path
 
 from setuptools import find_packages, setup
+from setuptools.command.build_py import build_py
 
 PACKAGE = 'fmm_ros'
 
 # ROS node executables (`ros2 run fmm_ros <name>`); colcon installs them to lib/fmm_ros.
 NODES = {
+    'hammer_sim': 'fmm_ros.nodes.hammer_sim:main',
+    'rig_sim': 'fmm_ros.nodes.rig_sim:main',
+    'analyzer': 'fmm_ros.nodes.analyzer:main',
 }
+
+
+
+class BuildPyWithInterfaces(build_py):
+    """Also copy fmm_interfaces/msg/*.msg into the built package (not into the source tree).
+
+    Bag I/O builds its message types from these files; a plain `pip install` on a laptop
+    without ROS has no ament index to find them in, so they travel as package data,
+    generated from the one copy in fmm_interfaces/. Editable installs read them in place.
+    """
+
+    def run(self) -> None:
+        """Build the package as usual, then add the .msg files to it."""
+        super().run()
+        if self.editable_mode:
+            return
+        target = Path(self.build_lib) / PACKAGE / 'interface_definitions' / 'msg'
+        self.mkpath(str(target))
+        for msg in sorted(Path('fmm_interfaces', 'msg').glob('*.msg')):
+            self.copy_file(str(msg), str(target / msg.name))
+
 
 setup(
     name=PACKAGE,
@@ -21,7 +47,9 @@ setup(
         (f'share/{PACKAGE}/launch_scripts', glob('launch_scripts/*.py')),
     ],
     python_requires='>=3.10',
-    install_requires=['setuptools', 'numpy', 'scipy', 'numba', 'pyuff', 'matplotlib'],
+    install_requires=['setuptools', 'numpy', 'scipy', 'numba', 'pyuff', 'pyyaml', 'rosbags',
+                      'zstandard', 'lz4', 'nptdms', 'h5py', 'tqdm', 'matplotlib'],
+    cmdclass={'build_py': BuildPyWithInterfaces},
     zip_safe=True,
     maintainer='fmm_ros maintainers',
     maintainer_email='fmm@example.org',

@@ -10,7 +10,8 @@ import array
 import numpy as np
 from builtin_interfaces.msg import Time
 
-from fmm_interfaces.msg import SampleBatch
+from fmm_interfaces.msg import FrfSummary, ImpactResult, SampleBatch
+from fmm_ros.core import analysis, frf
 
 FORCE = ('force', 'N')
 VELOCITY = ('velocity', 'm/s')
@@ -41,3 +42,66 @@ def sample_batch(samples: np.ndarray, *, quantity: tuple[str, str], sample_rate_
     msg.full_scale = float(full_scale)
     msg.samples = float64_field(samples)
     return msg
+
+
+def batch_samples(msg: SampleBatch) -> np.ndarray:
+    """The samples of a SampleBatch as a read-only float64 view (no copy)."""
+    return field_array(msg.samples)
+
+
+def _set_complex(msg: object, name: str, values: np.ndarray) -> None:
+    """Set the `<name>_real` / `<name>_imag` float64[] pair of msg from a complex array."""
+    setattr(msg, f'{name}_real', float64_field(values.real))
+    setattr(msg, f'{name}_imag', float64_field(values.imag))
+
+
+def impact_result_msg(result: analysis.ImpactResult, *, stamp: Time,
+                      frame_id: str = 'fmm') -> ImpactResult:
+    """An ImpactResult message from the signal core's result (same field names)."""
+    msg = ImpactResult()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    msg.impact_id = int(result.impact_id)
+    msg.trigger_sample_index = int(result.trigger_sample_index)
+    msg.record_start_sample_index = int(result.record_start_sample_index)
+    msg.level = result.level
+    msg.accepted = bool(result.accepted)
+    msg.flags = list(result.flags)
+    for name in ('impulse_n_s', 'peak_force_n', 'contact_duration_s', 'record_duration_s',
+                 'sample_rate_hz', 'natural_frequency_hz', 'peak_receptance_m_per_n',
+                 'frequency_step_hz', 'force_window_s', 'exponential_window_decay_s'):
+        setattr(msg, name, float(getattr(result, name)))
+    msg.frequency_hz = float64_field(result.frequency_hz)
+    _set_complex(msg, 'mobility', result.mobility)
+    _set_complex(msg, 'receptance', result.receptance)
+    return msg
+
+
+def frf_summary_msg(level: analysis.LevelSummary, linearity: frf.LinearFit, *, stamp: Time,
+                    frame_id: str = 'fmm') -> FrfSummary:
+    """A FrfSummary message: one level's averages plus the linearity fit over all levels."""
+    msg = FrfSummary()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    msg.level = level.level
+    msg.count = int(level.count)
+    msg.impact_ids = [int(i) for i in level.impact_ids]
+    for name in ('nominal_peak_force_n', 'mean_impulse_n_s', 'std_impulse_n_s',
+                 'mean_peak_force_n', 'peak_receptance_m_per_n', 'natural_frequency_hz',
+                 'frequency_step_hz', 'exponential_window_decay_s'):
+        setattr(msg, name, float(getattr(level, name)))
+    msg.frequency_hz = float64_field(level.frequency_hz)
+    for name in ('mobility', 'receptance', 'h1_mobility', 'h2_mobility'):
+        _set_complex(msg, name, getattr(level, name))
+    msg.coherence = float64_field(level.coherence)
+    msg.linearity_slope_m_per_n2_s = float(linearity.slope)
+    msg.linearity_intercept_m_per_n = float(linearity.intercept)
+    msg.linearity_r2 = float(linearity.r2)
+    msg.linearity_levels = int(linearity.count)
+    return msg
+
+
+def complex_field(msg: object, name: str) -> np.ndarray:
+    """The complex array stored in msg's `<name>_real` / `<name>_imag` pair."""
+    real = field_array(getattr(msg, f'{name}_real'))
+    return real + 1j * field_array(getattr(msg, f'{name}_imag'))

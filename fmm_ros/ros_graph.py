@@ -9,6 +9,7 @@ executor down, destroy the nodes, shut the context down.
 import os
 import random
 import threading
+import time
 from collections.abc import Callable
 from typing import TypeVar
 
@@ -63,11 +64,33 @@ class InProcessGraph:
         self._executor.add_node(node)
         return node
 
-    def start(self) -> None:
-        """Spin the executor in a background thread until close()."""
+    def start(self, discovery_timeout_s: float = 10.0) -> None:
+        """Wait until the graph's publishers see its subscribers, then spin until close().
+
+        Sample batches are VOLATILE: one published before its subscriber is matched is lost,
+        and an accelerated session publishes its first hit within milliseconds.
+        """
+        self.wait_for_discovery(discovery_timeout_s)
         if self._thread is None:
             self._thread = threading.Thread(target=self._spin, name='fmm-graph', daemon=True)
             self._thread.start()
+
+    def wait_for_discovery(self, timeout_s: float) -> None:
+        """Block until every publisher has matched each subscription to its topic in the graph."""
+        wanted = {}
+        for node in self._nodes:
+            for subscription in node.subscriptions:
+                wanted[subscription.topic_name] = wanted.get(subscription.topic_name, 0) + 1
+        publishers = [publisher for node in self._nodes for publisher in node.publishers
+                      if publisher.topic_name in wanted]
+        deadline = time.monotonic() + timeout_s
+        for publisher in publishers:
+            while publisher.get_subscription_count() < wanted[publisher.topic_name]:
+                if time.monotonic() > deadline:
+                    raise TimeoutError(
+                        f'{publisher.topic_name}: {publisher.get_subscription_count()} of '
+                        f'{wanted[publisher.topic_name]} subscribers matched after {timeout_s} s')
+                time.sleep(0.005)
 
     def _spin(self) -> None:
         while not self._stop.is_set() and self.context.ok():

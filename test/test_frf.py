@@ -49,6 +49,18 @@ def test_impulse_is_the_trapezoid_area():
     assert frf.impulse(pulse, RATE_HZ) == pytest.approx(450.0 * 0.004 * 2 / np.pi, rel=1e-3)
 
 
+def test_pulse_impulse_is_the_pulse_area_above_the_baseline_only():
+    pulse = half_sine(N_SAMPLES, RATE_HZ, 100, 450.0, 0.004)
+    area = 450.0 * 0.004 * 2 / np.pi
+    assert frf.pulse_impulse(pulse, RATE_HZ, 5.0) == pytest.approx(area, rel=1e-3)
+    # Offset and noise over the rest of a long record: a whole-record trapezoid drifts by
+    # offset x duration; the pulse's area does not.
+    dirty = pulse + 0.5 + np.random.default_rng(3).normal(0.0, 0.2, pulse.size)
+    assert abs(frf.impulse(dirty, RATE_HZ) - area) > 0.5 * N_SAMPLES / RATE_HZ * 0.9
+    assert frf.pulse_impulse(dirty, RATE_HZ, 5.0) == pytest.approx(area, rel=2e-3)
+    assert np.isnan(frf.pulse_impulse(np.zeros(100), RATE_HZ, 5.0))
+
+
 def test_contact_duration_interpolates_crossings():
     force = np.zeros(50)
     force[10:21] = [0, 10, 20, 30, 40, 50, 40, 30, 20, 10, 0]   # 10 N per sample ramps

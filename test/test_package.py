@@ -18,15 +18,21 @@ ROSDEP_KEYS = {
     'ament_index_python': 'ament_index_python',
     'builtin_interfaces': 'builtin_interfaces',
     'fmm_interfaces': 'fmm_interfaces',
+    'h5py': 'python3-h5py',
+    'lz4': 'python3-lz4',
     'matplotlib': 'python3-matplotlib',
+    'nptdms': 'python3-nptdms-pip',
     'numba': 'python3-numba',
     'numpy': 'python3-numpy',
     'pyuff': 'python3-pyuff-pip',
     'rcl_interfaces': 'rcl_interfaces',
     'rclpy': 'rclpy',
+    'rosbags': 'python3-rosbags-pip',
     'scipy': 'python3-scipy',
     'std_msgs': 'std_msgs',
+    'tqdm': 'python3-tqdm',
     'yaml': 'python3-yaml',
+    'zstandard': 'python3-zstandard',
 }
 
 
@@ -111,8 +117,9 @@ def test_ros2_run_finds_every_console_script(monkeypatch):
         assert os.access(executable, os.X_OK), f'{executable} is not executable'
 
 
-@pytest.mark.parametrize('module', ['fmm_ros', 'fmm_ros.core', 'fmm_ros.report',
-                                    'fmm_ros.cli.report'])
+@pytest.mark.parametrize('module', ['fmm_ros', 'fmm_ros.core', 'fmm_ros.core.bagio',
+                                    'fmm_ros.cli.bag_info', 'fmm_ros.cli.import_lab',
+                                    'fmm_ros.report', 'fmm_ros.cli.report'])
 def test_core_imports_without_ros(module):
     """The core must stay ROS-free: importing it must not pull in rclpy."""
     code = (f'import sys, {module}; '

@@ -13,6 +13,8 @@ from PIL import Image
 
 from fmm_ros.cli import main
 from fmm_ros.core.analysis import AnalysisConfig
+from fmm_ros.core.bagio import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC, BagWriter
+from fmm_ros.core.bagio.simulated import simulated_session
 from fmm_ros.core.excitation import hammer_pulse, impact_record
 from fmm_ros.core.model import simulate
 from fmm_ros.core.records import ImpactRecord, write_impact_csv
@@ -173,6 +175,39 @@ def test_model_driven_by_the_measured_force_matches_the_session(csv_session):
         if row['source'] != '06_double.csv':
             # Velocity noise 0.01 mm/s plus the measured force's noise driving the model.
             assert float(row[column]) < 0.1, row
+
+
+def test_report_from_a_recorded_session_bag_shows_the_hit_over_a_lost_batch(tmp_path):
+    """A bag of one hit per level, one force batch lost inside the last hit."""
+    session = simulated_session(1, spacing_s=5.0, seed=4)
+    bag = tmp_path / 'session'
+    lost = (int(session.hit_start_indices[2]) // 500 + 4) * 500
+    with BagWriter(bag) as writer:
+        for start in range(0, session.force_n.size, 500):
+            if start != lost:
+                writer.write_sample_batch(FORCE_TOPIC, session.force_n[start:start + 500],
+                                          quantity=FORCE, sample_rate_hz=session.sample_rate_hz,
+                                          first_sample_index=start)
+            writer.write_sample_batch(VELOCITY_TOPIC, session.velocity_m_s[start:start + 500],
+                                      quantity=VELOCITY, sample_rate_hz=session.sample_rate_hz,
+                                      first_sample_index=start)
+    out = tmp_path / 'report'
+    with clipping_checked() as clipped:
+        assert main(['report', str(bag), '--out', str(out), '--paper-levels', '--window-s', '4.5',
+                     '--mu', '0.113', '--dpi', str(TEST_DPI)]) == 0
+    page = (out / 'index.html').read_text(encoding='utf-8')
+    header, rows = hit_rows(page)
+    assert [row['source'].split('@')[0] for _, row in rows] == ['session'] * 3
+    assert [(css, row['level'], row['flags']) for css, row in rows[:2]] == [
+        ('', 'low', '-'), ('', 'medium', '-')]
+    assert rows[2][0] == 'rejected' and 'gap' in rows[2][1]['flags'].split(', ')
+    # A record with missing samples cannot drive the model, and says so.
+    assert rows[2][1]['rms(measured − model) [mm/s]'] == '-'
+    check_figures(out, page, {
+        'impulses', 'linearity', 'levels_receptance', 'harmonics',
+        *(f'{kind}_{level}' for kind in ('trials', 'mobility', 'receptance', 'model_mobility')
+          for level in ('low', 'medium')), 'hit_000', 'hit_001', 'hit_002'})
+    assert clipped == []
 
 
 def test_all_rejected_session_still_reports(tmp_path):

@@ -15,6 +15,10 @@ SUBCOMMANDS: tuple[str, ...] = (
     'simulate',
     'analyze',
     'report',
+    'replay',
+    'import_lab',
+    'bag_info',
+    'export',
 )
 
 

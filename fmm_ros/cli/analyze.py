@@ -1,8 +1,10 @@
-"""`fmm analyze`: impulses, FRFs, levels and the linear-in-impulse law from per-impact CSV files.
+"""`fmm analyze`: impulses, FRFs, levels and the linear-in-impulse law from CSV files or bags.
 
-Each INPUT is one impact (`time_s,force_n,velocity_m_s`, as `fmm_ros.core.records` reads it).
-The files go through the same trigger rule, quality flags and FRF code as the analyzer node,
-so a file and a live capture of the same samples get the same verdict.
+Each CSV INPUT is one impact (`time_s,force_n,velocity_m_s`, as `fmm_ros.core.records` reads
+it); a bag INPUT gives every impact in its recorded streams, found by feeding its batches to
+the analyzer's capture (`fmm_ros.core.bagio.replay`). Both go through the same trigger rule,
+quality flags and FRF code as the analyzer node, so a file, a bag and a live capture of the
+same samples get the same verdict.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fmm_ros.cli.progress import report_problems
 from fmm_ros.core.analysis import (
     PAPER_LEVELS,
     AnalysisConfig,
@@ -22,8 +25,9 @@ from fmm_ros.core.analysis import (
     analyze_impact,
     summarize,
 )
+from fmm_ros.core.bagio.replay import bag_impact_records, is_bag
 from fmm_ros.core.export import json_number, level_curves, write_frfs
-from fmm_ros.core.impacts import FLAGS, CaptureConfig
+from fmm_ros.core.impacts import DEFAULT_CAPTURE, FLAGS, CaptureConfig
 from fmm_ros.core.records import ImpactRecord, read_impact_csv
 
 # Relative difference in sample rate beyond which two files are not one measurement series.
@@ -33,13 +37,14 @@ RATE_TOLERANCE = 1e-6
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the `analyze` subcommand."""
     parser = subparsers.add_parser(
-        'analyze', help='impulse, FRFs, force levels and linearity from impact CSV files',
-        description='Analyse impacts, one CSV file each (header time_s,force_n,velocity_m_s): '
-                    'quality flags, impulse (trapezoid), peak force, mobility/receptance from '
-                    'the DFT of the whole record, per-level averages (plain mean, H1, H2, '
-                    'coherence) and the peak |receptance| vs impulse regression.')
+        'analyze', help='impulse, FRFs, force levels and linearity from impact CSV files or bags',
+        description='Analyse impacts, one CSV file each (header time_s,force_n,velocity_m_s) '
+                    'or every impact recorded in a bag: quality flags, impulse (trapezoid), '
+                    'peak force, mobility/receptance from the DFT of the whole record, '
+                    'per-level averages (plain mean, H1, H2, coherence) and the peak '
+                    '|receptance| vs impulse regression.')
     parser.add_argument('inputs', nargs='+', type=Path, metavar='INPUT',
-                        help='one CSV file per impact')
+                        help='one CSV file per impact, or a bag (directory, .mcap or .db3)')
     parser.add_argument('--json', action='store_true', help='print the results as JSON')
     add_analysis_options(parser)
     parser.add_argument('--export', action='append', default=[], type=Path, metavar='PATH',
@@ -49,7 +54,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def add_analysis_options(parser: argparse.ArgumentParser) -> None:
-    """The capture, level and FRF options every command that analyses impacts shares."""
+    """The capture and analysis options `fmm analyze` and `fmm replay` share."""
     defaults, analysis = CaptureConfig(), AnalysisConfig()
     levels = parser.add_mutually_exclusive_group()
     levels.add_argument('--level', action='append', default=[], metavar='NAME=FORCE_N',
@@ -65,6 +70,9 @@ def add_analysis_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--rearm-n', type=float, default=defaults.rearm_level_n,
                         help='re-arm / contact threshold [N] '
                              f'(default {defaults.rearm_level_n:g})')
+    parser.add_argument('--window-s', type=float, default=defaults.window_s,
+                        help='record length the capture cuts from a bag [s] '
+                             f'(default {defaults.window_s:g}, as in the paper)')
     parser.add_argument('--rest-velocity-m-s', type=float, default=defaults.rest_velocity_m_s,
                         help='|velocity| counted as rest [m/s] '
                              f'(default {defaults.rest_velocity_m_s:g})')
@@ -84,10 +92,10 @@ def add_analysis_options(parser: argparse.ArgumentParser) -> None:
                              f'{",".join(FLAGS)})')
 
 
-def analysis_options(args: argparse.Namespace) -> tuple[CaptureConfig, AnalysisConfig]:
-    """The capture and analysis configuration the options of `add_analysis_options` ask for."""
+def analysis_configs(args: argparse.Namespace) -> tuple[CaptureConfig, AnalysisConfig]:
+    """The capture and analysis configuration of the options add_analysis_options added."""
     capture = CaptureConfig(trigger_level_n=args.trigger_n, rearm_level_n=args.rearm_n,
-                            rest_velocity_m_s=args.rest_velocity_m_s)
+                            rest_velocity_m_s=args.rest_velocity_m_s, window_s=args.window_s)
     levels = tuple(dataclasses.replace(level, tolerance_n=args.tolerance_n)
                    for level in (PAPER_LEVELS if args.paper_levels else args.level))
     analysis = AnalysisConfig(band_limit_hz=args.band_limit_hz,
@@ -98,9 +106,10 @@ def analysis_options(args: argparse.Namespace) -> tuple[CaptureConfig, AnalysisC
 
 
 def run(args: argparse.Namespace) -> int:
-    """Analyse the files, print the report, write any exports."""
-    capture, analysis = analysis_options(args)
-    records = read_records(args.inputs, args.force_full_scale_n, args.velocity_full_scale_m_s)
+    """Analyse the files and bags, print the report, write any exports."""
+    capture, analysis = analysis_configs(args)
+    records, problems = read_records(args.inputs, args.force_full_scale_n,
+                                     args.velocity_full_scale_m_s, capture)
     results = [analyze_impact(record, capture, analysis, impact_id=number)
                for number, record in enumerate(records)]
     summary = summarize(results, analysis)
@@ -110,28 +119,44 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(report(summary), indent=2, allow_nan=False))
     else:
         print(text_report(summary))
-    return 0
+    return report_problems('analyze', problems)
 
 
 def read_records(paths: list[Path], force_full_scale_n: float = 0.0,
-                 velocity_full_scale_m_s: float = 0.0) -> list[ImpactRecord]:
-    """The files as records on one frequency grid (shorter ones zero-padded to the longest).
+                 velocity_full_scale_m_s: float = 0.0,
+                 capture: CaptureConfig = DEFAULT_CAPTURE
+                 ) -> tuple[list[ImpactRecord], list[str]]:
+    """The inputs as records on one frequency grid, and the problems of damaged bags.
 
-    Raises ValueError when the files do not share one sample rate: their FRFs could not be
-    averaged, and a mixed-up file is the likely cause.
+    A CSV file is one record; a bag gives every record the capture finds in it (each as long
+    as the capture window). Shorter records are zero-padded to the longest window. A full
+    scale given here replaces a recorded one. Raises ValueError when the inputs do not share
+    one sample rate: their FRFs could not be averaged, and a mixed-up file is the likely cause.
     """
-    records = [read_impact_csv(path) for path in paths]
+    records: list[ImpactRecord] = []
+    problems: list[str] = []
+    for path in paths:
+        if is_bag(path):
+            found, damage = bag_impact_records(path, capture)
+            if not found:
+                raise ValueError(f'{path}: no impact in the recorded streams (the force never '
+                                 f'reaches the trigger level {capture.trigger_level_n:g} N)')
+            records += found
+            problems += [f'{path}: {problem}' for problem in damage]
+        else:
+            records.append(read_impact_csv(path))
     rate = records[0].sample_rate_hz
     odd = [record for record in records
            if abs(record.sample_rate_hz - rate) > RATE_TOLERANCE * rate]
     if odd:
         raise ValueError(f'mismatched sample rates: {records[0].source} is sampled at {rate:.6g} '
                          f'Hz but {odd[0].source} at {odd[0].sample_rate_hz:.6g} Hz')
-    window = max(record.force_n.size for record in records)
-    return [dataclasses.replace(record, window_samples=window,
-                                force_full_scale_n=force_full_scale_n,
-                                velocity_full_scale_m_s=velocity_full_scale_m_s)
-            for record in records]
+    window = max(record.window_samples for record in records)
+    return [dataclasses.replace(
+        record, window_samples=window,
+        force_full_scale_n=force_full_scale_n or record.force_full_scale_n,
+        velocity_full_scale_m_s=velocity_full_scale_m_s or record.velocity_full_scale_m_s)
+        for record in records], problems
 
 
 def report(summary: Summary) -> dict:

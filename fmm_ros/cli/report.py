@@ -10,7 +10,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from fmm_ros.cli.analyze import add_analysis_options, analysis_options, read_records
+from fmm_ros.cli.analyze import add_analysis_options, analysis_configs, read_records
+from fmm_ros.cli.progress import report_problems
 from fmm_ros.core.model import FMM_RIG, Rig
 from fmm_ros.report import ModelOverlay, build_report
 from fmm_ros.report.paper import build_paper_report
@@ -29,7 +30,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "measured force is drawn over the measurement. --paper draws the paper's "
                     'Figs. 2-10 from the physics core instead.')
     parser.add_argument('inputs', nargs='*', type=Path, metavar='INPUT',
-                        help='one CSV file per impact (time_s,force_n,velocity_m_s)')
+                        help='one CSV file per impact (time_s,force_n,velocity_m_s), or a bag '
+                             '(directory, .mcap or .db3) whose every impact is reported')
     parser.add_argument('--out', type=Path, required=True, metavar='DIR',
                         help='directory for index.html and the PNG files (created)')
     parser.add_argument('--paper', action='store_true',
@@ -54,19 +56,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Write the page and print where it is."""
+    """Write the page and print where it is; exit status 1 if a bag was damaged."""
     if args.dpi <= 0:
         raise ValueError(f'--dpi must be positive, got {args.dpi:g}')
+    problems: list[str] = []
     if args.paper:
         if args.inputs:
             raise ValueError('--paper draws the simulations of the paper and takes no INPUT')
         page = build_paper_report(args.out, dpi=args.dpi)
+    elif not args.inputs:
+        raise ValueError('give the impact files or bags to report on, or --paper')
     else:
-        if not args.inputs:
-            raise ValueError('give the impact files to report on, or --paper')
-        capture, analysis = analysis_options(args)
-        records = read_records(args.inputs, args.force_full_scale_n,
-                               args.velocity_full_scale_m_s)
+        capture, analysis = analysis_configs(args)
+        records, problems = read_records(args.inputs, args.force_full_scale_n,
+                                         args.velocity_full_scale_m_s, capture)
         model = None
         if args.mu is not None:
             model = ModelOverlay(args.mu, 'given', Rig(
@@ -74,6 +77,7 @@ def run(args: argparse.Namespace) -> int:
                 args.normal_force_n))
         page = build_report(records, args.out, capture=capture, analysis=analysis,
                             model=model, title=args.title,
-                            inputs=[str(path) for path in args.inputs], dpi=args.dpi)
+                            inputs=[str(path) for path in args.inputs], problems=problems,
+                            dpi=args.dpi)
     print(f'wrote {page} (figures embedded, and as PNG files beside it)')
-    return 0
+    return report_problems('report', problems)

@@ -168,9 +168,9 @@ def analyze_impact(record: ImpactRecord, capture: CaptureConfig = DEFAULT_CAPTUR
     """Flags, impulse, peak force, contact duration and FRFs of one impact record.
 
     The DFT runs over the whole record zero-padded to `record.window_samples` (the paper's
-    method). The impulse is the trapezoid of the force the FRF uses (after the force window,
-    before the exponential one, which is a weighting rather than a physical change). The level
-    is assigned later by `summarize`.
+    method). The impulse is the trapezoid over the pulse that fired the trigger, baseline
+    removed (`frf.pulse_impulse`): the physical impulse, whatever the windows or the noise of
+    the rest of the record. The level is assigned later by `summarize`.
     """
     record = with_trigger(record, capture)
     flags = quality_flags(record, capture)
@@ -181,13 +181,13 @@ def analyze_impact(record: ImpactRecord, capture: CaptureConfig = DEFAULT_CAPTUR
     interval = frf.contact_interval(raw_force, capture.rearm_level_n, contact_start)
     peak_force = float(np.max(raw_force[interval[0]:interval[1]])) if interval else float('nan')
 
+    impulse = frf.pulse_impulse(raw_force, rate, capture.rearm_level_n, contact_start)
     force, velocity = raw_force, record.velocity_m_s
     if analysis.force_window_s is not None:
         offset = float(np.mean(force[:contact_start])) if contact_start else 0.0
         force = (force - offset) * frf.force_window(
             force.size, rate, start_index=trigger, width_s=analysis.force_window_s,
             taper_s=analysis.force_window_taper_s)
-    impulse = frf.impulse(force, rate)
     if analysis.exponential_decay_s is not None:
         weight = frf.exponential_window(force.size, rate, decay_time_s=analysis.exponential_decay_s,
                                         start_index=trigger)

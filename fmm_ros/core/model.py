@@ -310,6 +310,25 @@ def model_term(name: str, values: Sequence[float] | None = None, **parameters: f
     return cls(**parameters)
 
 
+def parse_model_term(text: str) -> ModelTerm:
+    """A term from its text form `name` or `name:param=value,param=value` (config files, CLI).
+
+    E.g. `stribeck:mu_static_excess=0.02,stribeck_velocity_m_s=0.002`; unnamed parameters
+    keep their defaults.
+    """
+    name, _, assignments = text.strip().partition(':')
+    parameters = {}
+    for assignment in filter(None, (part.strip() for part in assignments.split(','))):
+        key, equals, value = assignment.partition('=')
+        try:
+            parameters[key.strip()] = float(value)
+        except ValueError:
+            equals = ''
+        if not equals:
+            raise ValueError(f'model term {text!r}: {assignment!r} is not param=number')
+    return model_term(name.strip(), **parameters)
+
+
 def _model_spec(rig: Rig, mu: float, effects: Iterable[ModelTerm]) -> _ModelSpec:
     require_non_negative('mu', mu)
     spec = _ModelSpec(damping_n_s_per_m=rig.damping_n_s_per_m, mu_positive=mu, mu_negative=mu)

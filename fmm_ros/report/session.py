@@ -78,13 +78,14 @@ def build_report(records: Sequence[ImpactRecord], out_dir: str | Path, *,
                  analysis: AnalysisConfig = DEFAULT_ANALYSIS,
                  model: ModelOverlay | None = None,
                  title: str = 'Impact session report', inputs: Sequence[str] = (),
-                 dpi: float = DEFAULT_DPI) -> Path:
+                 problems: Sequence[str] = (), dpi: float = DEFAULT_DPI) -> Path:
     """Write the session report into out_dir (index.html and one PNG per figure); its path.
 
     records: the session's impact records, record i being impact i. summary: their analysis
     (`summarize` of `analyze_impact` results with impact_id = position), made here with
     capture and analysis when not given. model: drawn over each hit and each level's FRF.
-    inputs: where the records came from (files, bag), listed on the page.
+    inputs: where the records came from (files, bag), listed on the page. problems: what
+    went wrong reading them (a damaged bag), shown at the top so no one misses it.
     """
     records = list(records)
     if not records:
@@ -97,7 +98,7 @@ def build_report(records: Sequence[ImpactRecord], out_dir: str | Path, *,
     colours = {level.level: level_colour(index) for index, level in enumerate(summary.levels)}
     model_hits = _model_hits(by_id, summary, model, capture, analysis)
 
-    _session_section(page, summary, records, analysis, model, inputs)
+    _session_section(page, summary, records, analysis, model, inputs, problems)
     _hit_table(page, summary, model_hits)
     _level_section(page, summary, analysis)
     _model_section(page, summary, model, model_hits)
@@ -123,7 +124,8 @@ class _ModelHit:
     # Analysed by the same pipeline (windows, band, trigger) as the measurement, so the FRFs
     # compare bin for bin.
     result: ImpactResult
-    # RMS of measured minus model velocity from the trigger until both are at rest [m/s].
+    # RMS of measured minus model velocity from the trigger until both are at rest, over
+    # the samples that arrived [m/s].
     residual_rms_m_s: float
 
 
@@ -147,17 +149,21 @@ def _model_hits(by_id: dict[int, ImpactRecord], summary: Summary, model: ModelOv
                                                 capture.rest_velocity_m_s)
                             * record.sample_rate_hz) + 1
         residual = record.velocity_m_s[trigger:end] - velocity[trigger:end]
+        received = residual[np.isfinite(residual)]  # velocity samples lost in a gap are NaN
         hits[impact.impact_id] = _ModelHit(
             analyze_impact(simulated, capture, analysis, impact_id=impact.impact_id),
-            float(np.sqrt(np.mean(residual ** 2))))
+            float(np.sqrt(np.mean(received ** 2))) if received.size else float('nan'))
     return hits
 
 
 def _session_section(page: Page, summary: Summary, records: list[ImpactRecord],
                      analysis: AnalysisConfig, model: ModelOverlay | None,
-                     inputs: Sequence[str]) -> None:
+                     inputs: Sequence[str], problems: Sequence[str]) -> None:
     accepted = sum(impact.accepted for impact in summary.impacts)
     page.section('Session', 'session')
+    if problems:
+        page.text('Problems reading the inputs (what was readable is reported):')
+        page.items(problems)
     rate = records[0].sample_rate_hz
     lines = [f'{len(summary.impacts)} hit(s): {accepted} accepted, '
              f'{len(summary.impacts) - accepted} rejected',
@@ -203,7 +209,7 @@ def _hit_table(page: Page, summary: Summary, model_hits: dict[int, _ModelHit]) -
                _number(impact.peak_receptance_m_per_n * MM_PER_M, '.4g')]
         if model_hits:
             hit = model_hits.get(impact.impact_id)
-            row.append('-' if hit is None else f'{hit.residual_rms_m_s * MM_PER_M:.3g}')
+            row.append('-' if hit is None else _number(hit.residual_rms_m_s * MM_PER_M, '.3g'))
         rows.append(row)
         classes.append('' if impact.accepted else 'rejected')
     page.table(headers, rows, text_columns=(1, 2, 3, 4), row_classes=classes,

@@ -1,0 +1,62 @@
+"""`fmm replay BAG`: a recorded session through the analyzer's core, as fast as it goes, no ROS.
+
+Each recorded batch is fed to the same capture, in the recorded order, and each completed
+record to the same analysis as the live analyzer node, so what is printed is what the node
+would have published on /fmm/impacts and /fmm/frf for that session.
+"""
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+from fmm_ros.cli.analyze import add_analysis_options, analysis_configs, report, text_report
+from fmm_ros.cli.progress import add_quiet_flag, progress_bar, report_problems
+from fmm_ros.core.bagio import FORCE_TOPIC, VELOCITY_TOPIC, BagReader
+from fmm_ros.core.bagio.replay import replay_bag
+from fmm_ros.core.export import level_curves, write_frfs
+
+
+def register(subparsers) -> None:
+    """Add the replay subcommand."""
+    parser = subparsers.add_parser(
+        'replay', help='feed a bag through the analyzer core as fast as possible (no ROS)',
+        description='Replay a session bag through the impact capture and analysis the live '
+                    'analyzer runs, batch by batch in recorded order, and print what it would '
+                    'publish: every impact (level, verdict, flags, impulse, peak force, peak '
+                    'receptance), the level averages and the linearity fit, and how much '
+                    'faster than real time it ran. Exit status 1 when the bag is damaged.')
+    parser.add_argument('bag', type=Path, help='bag directory, or a .mcap / .db3 file')
+    parser.add_argument('--json', action='store_true', help='print one JSON object')
+    add_analysis_options(parser)
+    parser.add_argument('--export', action='append', default=[], type=Path, metavar='PATH',
+                        help='write the level FRFs to PATH: .uff/.unv (UFF 58), .csv or .json '
+                             '(repeatable)')
+    add_quiet_flag(parser)
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Replay, then print the analyzer's output and the replay speed."""
+    capture, analysis = analysis_configs(args)
+    with BagReader(args.bag, strict=False) as reader:  # the batch count, for the progress bar
+        topics = reader.topics
+    total = sum(topics[t].count for t in (FORCE_TOPIC, VELOCITY_TOPIC) if t in topics)
+    start = time.perf_counter()
+    with progress_bar(total, desc='replaying', unit='batch', quiet=args.quiet) as bar:
+        replay = replay_bag(args.bag, capture, analysis, on_batch=lambda _: bar.update())
+    wall_s = time.perf_counter() - start
+    for path in args.export:
+        write_frfs(path, level_curves(replay.summary))
+    speed = replay.signal_s / wall_s if wall_s > 0 else float('inf')
+    if args.json:
+        document = report(replay.summary)
+        document['replay'] = {'bag': str(args.bag), 'signal_s': replay.signal_s,
+                              'batches': replay.batches, 'wall_s': wall_s,
+                              'times_real_time': speed, 'problems': replay.problems}
+        print(json.dumps(document, indent=2, allow_nan=False))
+    else:
+        print(text_report(replay.summary))
+        print(f'\nreplayed {replay.signal_s:.1f} s of signal ({replay.batches} batches) in '
+              f'{wall_s:.2f} s: {speed:.0f}x real time')
+    return report_problems('replay', replay.problems)

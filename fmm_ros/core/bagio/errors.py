@@ -1,0 +1,29 @@
+"""Errors of bag I/O: each names the bag and what is wrong with it, in words a user can act on.
+
+All are ValueErrors, so the `fmm` command reports them as a one-line error.
+"""
+
+from pathlib import Path
+
+
+class BagError(ValueError):
+    """A bag that cannot be read or written as asked."""
+
+
+class BagDamagedError(BagError):
+    """A bag is truncated or corrupt; every message before the damage was delivered first."""
+
+    def __init__(self, path: Path, problems: list[str], messages_read: int) -> None:
+        self.path = Path(path)
+        self.problems = list(problems)
+        self.messages_read = messages_read
+        super().__init__(f'bag {self.path} is damaged: {"; ".join(self.problems)} '
+                         f'({messages_read} messages before the damage were read)')
+
+
+class MissingTopicError(BagError):
+    """The bag lacks a topic the caller needs."""
+
+
+class MessageTypeError(BagError):
+    """A message type neither the bag nor fmm_ros defines, or not the type a topic needs."""

@@ -1,0 +1,128 @@
+"""Bag I/O (issue 7): what the core writes, an independent MCAP decoder reads identically."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from bag_helpers import assert_same, random_message
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+from rosbags.rosbag2 import Reader
+
+from fmm_ros.core.bagio import (
+    FORCE_TOPIC,
+    FRF_SUMMARY,
+    FRF_TOPIC,
+    IMPACT_RESULT,
+    IMPACTS_TOPIC,
+    SAMPLE_BATCH,
+    VELOCITY_TOPIC,
+    BagReader,
+    BagWriter,
+    fmm_typestore,
+    new_message,
+)
+
+FS = 10_000.0
+ORIGIN_NS = 1_700_000_000_123_456_789
+
+
+def signals(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    return rng.normal(0.0, 50.0, n), rng.normal(0.0, 1e-3, n)
+
+
+def write_session(path: Path, n: int = 4_000, *, storage: str = 'mcap'):
+    """A small bag of every recorded type: batches from arrays and from raw CDR, results."""
+    force, velocity = signals(n)
+    rng = np.random.default_rng(7)
+    store = fmm_typestore()
+    results = [random_message(store, IMPACT_RESULT, rng) for _ in range(3)]
+    summaries = [random_message(store, FRF_SUMMARY, rng) for _ in range(2)]
+    with BagWriter(path, storage=storage, time_origin_ns=ORIGIN_NS) as writer:
+        writer.write_signals(force[:n // 2], velocity[:n // 2], FS)
+        # The second half arrives as raw CDR, as a raw subscription hands it to the recorder.
+        for start in range(n // 2, n, 500):
+            for topic, data, quantity in ((FORCE_TOPIC, force, ('force', 'N')),
+                                          (VELOCITY_TOPIC, velocity, ('velocity', 'm/s'))):
+                message = new_message(
+                    store, SAMPLE_BATCH, quantity=quantity[0], unit=quantity[1],
+                    sample_rate_hz=FS, first_sample_index=start, samples=data[start:start + 500])
+                raw = bytes(store.serialize_cdr(message, SAMPLE_BATCH))
+                writer.write_raw(topic, SAMPLE_BATCH, raw, ORIGIN_NS + start * 100_000)
+        for i, result in enumerate(results):
+            writer.write_message(IMPACTS_TOPIC, result, ORIGIN_NS + i)
+        for i, summary in enumerate(summaries):
+            writer.write_message(FRF_TOPIC, summary, ORIGIN_NS + 10 + i)
+    return force, velocity, results, summaries
+
+
+def test_round_trip_mcap_decoder_reads_every_field_identically(tmp_path):
+    bag = tmp_path / 'session'
+    force, velocity, results, summaries = write_session(bag)
+    decoded: dict[str, list] = {}
+    with (bag / 'session.mcap').open('rb') as stream:
+        reader = make_reader(stream, validate_crcs=True, decoder_factories=[DecoderFactory()])
+        for schema, channel, message, value in reader.iter_decoded_messages():
+            assert schema.encoding == 'ros2msg' and channel.message_encoding == 'cdr'
+            decoded.setdefault(channel.topic, []).append((message.log_time, value))
+    for topic, expected in ((FORCE_TOPIC, force), (VELOCITY_TOPIC, velocity)):
+        batches = [value for _, value in decoded[topic]]
+        assert [b.first_sample_index for b in batches] == list(range(0, len(force), 500))
+        np.testing.assert_array_equal(np.concatenate([b.samples for b in batches]), expected)
+        assert {b.sample_rate_hz for b in batches} == {FS}
+    first = decoded[FORCE_TOPIC][1][1]
+    stamp_ns = ORIGIN_NS + 500 * 100_000
+    assert (first.header.stamp.sec, first.header.stamp.nanosec) == divmod(stamp_ns, 10**9)
+    assert (first.quantity, first.unit, first.header.frame_id) == ('force', 'N', 'hammer')
+    for expected, (_, got) in zip(results, decoded[IMPACTS_TOPIC], strict=True):
+        assert_same(got, expected)
+    for expected, (_, got) in zip(summaries, decoded[FRF_TOPIC], strict=True):
+        assert_same(got, expected)
+
+
+@pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
+def test_rosbags_and_bag_reader_give_the_same_arrays(tmp_path, storage):
+    bag = tmp_path / 'session'
+    force, velocity, results, summaries = write_session(bag, storage=storage)
+    store = fmm_typestore()
+    with Reader(bag) as plain:
+        assert plain.message_count == 16 + 5
+        rosbags_samples = {FORCE_TOPIC: [], VELOCITY_TOPIC: []}
+        for conn, _, data in plain.messages():
+            if conn.topic in rosbags_samples:
+                rosbags_samples[conn.topic].append(
+                    store.deserialize_cdr(data, conn.msgtype).samples)
+    with BagReader(bag) as reader:
+        assert reader.storage == storage and not reader.recovered and not reader.problems
+        assert {t.topic: t.count for t in reader.topics.values()} == {
+            FORCE_TOPIC: 8, VELOCITY_TOPIC: 8, IMPACTS_TOPIC: 3, FRF_TOPIC: 2}
+        batches = list(reader.batches())
+        assert [b.first_sample_index for b in batches] == list(range(0, 4000, 500))
+        assert all(b.gap_samples == 0 and b.sample_rate_hz == FS for b in batches)
+        for name, expected in (('force', force), ('velocity', velocity)):
+            ours = np.concatenate([getattr(b, name) for b in batches])
+            np.testing.assert_array_equal(ours, expected)
+            topic = FORCE_TOPIC if name == 'force' else VELOCITY_TOPIC
+            np.testing.assert_array_equal(np.concatenate(rosbags_samples[topic]), expected)
+        for expected, got in zip(results, reader.impacts(), strict=True):
+            assert_same(got, expected)
+        for expected, got in zip(summaries, reader.frf_summaries(), strict=True):
+            assert_same(got, expected)
+        # As a live subscriber received them: both channels, interleaved, in storage order.
+        arrived = [(b.topic, b.first_sample_index) for b in reader.sample_batches()]
+        assert arrived == [(topic, index) for index in range(0, 4000, 500)
+                           for topic in (FORCE_TOPIC, VELOCITY_TOPIC)]
+
+
+def test_batches_are_views_of_the_stored_bytes(tmp_path):
+    write_session(tmp_path / 'bag')
+    with BagReader(tmp_path / 'bag') as reader:
+        batch = next(reader.batches())
+    assert batch.force.base is not None and not batch.force.flags.owndata
+    assert not batch.force.flags.writeable
+
+
+def test_new_message_names_an_unknown_field():
+    with pytest.raises(ValueError, match='has no field impulse_ns'):
+        new_message(fmm_typestore(), IMPACT_RESULT, impulse_ns=1.0)

@@ -1,0 +1,54 @@
+"""The fitter's sample history: records cut by index equal the streamed samples."""
+
+import numpy as np
+import pytest
+
+from fmm_ros.core.history import SampleHistory
+
+RATE_HZ = 10_000.0
+
+
+def fed(history, force, velocity, batch, skip=()):
+    for first in range(0, force.size, batch):
+        history.feed('force', first, force[first:first + batch], RATE_HZ, 2000.0)
+        if first not in skip:
+            history.feed('velocity', first, velocity[first:first + batch], RATE_HZ)
+    return history
+
+
+def test_records_cut_from_the_rings_equal_the_streams_across_wrap_around():
+    rng = np.random.default_rng(0)
+    force, velocity = rng.normal(size=(2, 25_000))
+    history = fed(SampleHistory(7_000), force, velocity, 500)
+    record = history.record(19_000, 6_000, trigger_sample_index=19_100, source='x')
+    assert record.force_n.tobytes() == force[19_000:25_000].tobytes()
+    assert record.velocity_m_s.tobytes() == velocity[19_000:25_000].tobytes()
+    assert (record.record_start_sample_index, record.trigger_sample_index) == (19_000, 19_100)
+    assert (record.window_samples, record.force_full_scale_n) == (6_000, 2000.0)
+    assert record.force_gaps == record.velocity_gaps == ()
+
+
+def test_missing_batches_are_nan_gaps_and_unavailable_spans_are_refused():
+    force, velocity = np.ones((2, 10_000))
+    history = fed(SampleHistory(20_000), force, velocity, 500, skip={3_000})
+    record = history.record(2_000, 4_000)
+    assert record.velocity_gaps == ((1_000, 1_500),) and record.force_gaps == ()
+    assert np.isnan(record.velocity_m_s[1_000:1_500]).all()
+    with pytest.raises(ValueError, match='not all arrived'):
+        history.record(8_000, 4_000)
+    small = fed(SampleHistory(3_000), force, velocity, 500)
+    with pytest.raises(ValueError, match='no longer held'):
+        small.record(1_000, 2_000)
+    assert small.holds(7_000) and not small.holds(6_999)
+
+
+def test_bad_batches_are_refused_and_change_nothing():
+    history = fed(SampleHistory(5_000), np.zeros(1_000), np.zeros(1_000), 500)
+    with pytest.raises(ValueError, match='repeats samples'):
+        history.feed('force', 500, np.ones(10), RATE_HZ)
+    with pytest.raises(ValueError, match='one rate for both'):
+        history.feed('velocity', 1_000, np.ones(10), 5_000.0)
+    with pytest.raises(ValueError, match="'force' or 'velocity'"):
+        history.feed('torque', 1_000, np.ones(10), RATE_HZ)
+    assert history.next_index('force') == 1_000
+    assert not np.isnan(history.record(0, 1_000).force_n).any()

@@ -1,0 +1,120 @@
+"""Replay and offline analysis of bags (issue 7): the live capture's impacts, from the batches."""
+
+import json
+
+import numpy as np
+import pytest
+
+from fmm_ros.cli import main
+from fmm_ros.core.analysis import PAPER_LEVELS, AnalysisConfig, analyze_impact
+from fmm_ros.core.bagio import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC, BagWriter
+from fmm_ros.core.bagio.replay import bag_impact_records, replay_bag
+from fmm_ros.core.bagio.simulated import simulated_session, write_session_bag
+from fmm_ros.core.impacts import CaptureConfig, capture_impacts
+from fmm_ros.core.records import write_impact_csv
+
+# Short slots keep the tests quick: 6 s apart, 5 s records.
+CAPTURE = CaptureConfig(window_s=5.0)
+ANALYSIS = AnalysisConfig(levels=PAPER_LEVELS)
+
+
+@pytest.fixture(scope='module')
+def session():
+    return simulated_session(2, spacing_s=6.0, seed=11)
+
+
+@pytest.fixture(scope='module')
+def session_bag(session, tmp_path_factory):
+    return write_session_bag(tmp_path_factory.mktemp('replay') / 'session', session)
+
+
+def test_replay_finds_what_the_capture_finds_in_the_whole_recording(session, session_bag):
+    """Batch by batch from the bag, or the original arrays in one block: the same impacts."""
+    direct = capture_impacts(session.force_n, session.velocity_m_s, session.sample_rate_hz,
+                             CAPTURE)
+    records, problems = bag_impact_records(session_bag, CAPTURE)
+    assert problems == []
+    assert len(records) == len(direct) == 6
+    assert [r.trigger_sample_index for r in records] == [r.trigger_sample_index for r in direct]
+    # Each trigger is within a sample of the simulated hit's start.
+    assert np.all(np.abs(np.array([r.trigger_sample_index for r in records])
+                         - session.hit_start_indices) <= 2)
+    for ours, theirs in zip(records, direct, strict=True):
+        np.testing.assert_array_equal(ours.force_n, theirs.force_n)
+        np.testing.assert_array_equal(ours.velocity_m_s, theirs.velocity_m_s)
+        assert ours.source == f'session@{ours.trigger_sample_index}'
+
+    replay = replay_bag(session_bag, CAPTURE, ANALYSIS)
+    assert replay.problems == [] and replay.batches == 2 * -(-len(session.force_n) // 500)
+    assert replay.signal_s == pytest.approx(session.duration_s)
+    for result, record in zip(replay.results, direct, strict=True):
+        expected = analyze_impact(record, CAPTURE, ANALYSIS, impact_id=result.impact_id)
+        assert result.impulse_n_s == expected.impulse_n_s
+        assert result.flags == expected.flags
+        np.testing.assert_array_equal(result.mobility, expected.mobility)
+    levels = {level.level: level.count for level in replay.summary.levels}
+    assert sum(levels.values()) == sum(r.accepted for r in replay.summary.impacts)
+    assert replay.summary.linearity.r2 > 0.99
+
+
+def test_a_dropped_batch_flags_the_impact_over_it_and_no_other(session, tmp_path):
+    bag = tmp_path / 'dropped'
+    hit = int(session.hit_start_indices[2])
+    dropped = (hit // 500 + 10) * 500  # one velocity batch, 1 s into the third impact
+    with BagWriter(bag, time_origin_ns=0) as writer:
+        for start in range(0, len(session.force_n), 500):
+            writer.write_sample_batch(FORCE_TOPIC, session.force_n[start:start + 500],
+                                      quantity=FORCE, sample_rate_hz=session.sample_rate_hz,
+                                      first_sample_index=start)
+            if start != dropped:
+                writer.write_sample_batch(VELOCITY_TOPIC, session.velocity_m_s[start:start + 500],
+                                          quantity=VELOCITY,
+                                          sample_rate_hz=session.sample_rate_hz,
+                                          first_sample_index=start)
+    replay = replay_bag(bag, CAPTURE, ANALYSIS)
+    flags = [result.flags for result in replay.summary.impacts]
+    assert len(flags) == 6
+    assert 'gap' in flags[2] and not replay.summary.impacts[2].accepted
+    assert all('gap' not in f for k, f in enumerate(flags) if k != 2)
+
+
+def test_fmm_analyze_takes_bags_and_csv_files_together(session, session_bag, tmp_path, capsys):
+    record = capture_impacts(session.force_n, session.velocity_m_s, session.sample_rate_hz,
+                             CAPTURE)[0]
+    csv_path = tmp_path / 'one.csv'
+    write_impact_csv(csv_path, record.force_n, record.velocity_m_s, record.sample_rate_hz)
+    code = main(['analyze', str(session_bag), str(csv_path), '--paper-levels', '--json',
+                 '--window-s', '5'])
+    assert code == 0
+    impacts = json.loads(capsys.readouterr().out)['impacts']
+    assert len(impacts) == 7
+    assert impacts[0]['file'] == f'session@{record.trigger_sample_index}'
+    # The CSV copy of the first impact gets the bag's verdict and numbers.
+    assert impacts[-1]['impulse_n_s'] == impacts[0]['impulse_n_s']
+    assert impacts[-1]['flags'] == impacts[0]['flags']
+
+
+def test_fmm_replay_prints_what_the_analyzer_would_publish(session_bag, capsys):
+    assert main(['replay', str(session_bag), '--paper-levels', '--window-s', '5', '--json']) == 0
+    document = json.loads(capsys.readouterr().out)
+    assert len(document['impacts']) == 6
+    assert document['replay']['signal_s'] == pytest.approx(36.1)
+    assert document['replay']['times_real_time'] > 1
+    assert main(['replay', str(session_bag), '--paper-levels', '--window-s', '5']) == 0
+    out = capsys.readouterr().out
+    assert 'linearity:' in out and 'x real time' in out
+
+
+def test_replay_of_a_crashed_recording_analyses_what_was_flushed(session, tmp_path, capsys):
+    bag = tmp_path / 'crashed'
+    writer = BagWriter(bag, time_origin_ns=0)
+    writer.open()
+    half = len(session.force_n) // 2 // 500 * 500
+    writer.write_signals(session.force_n[:half], session.velocity_m_s[:half],
+                         session.sample_rate_hz)
+    writer.flush()  # then the recorder is killed
+    assert main(['replay', str(bag), '--window-s', '5', '--json']) == 1
+    out, err = capsys.readouterr()
+    assert len(json.loads(out)['impacts']) == 3
+    assert 'fmm replay: warning: the recording was not closed' in err
+    writer.close()
