@@ -6,74 +6,19 @@ import time
 import pytest
 from rclpy.exceptions import InvalidParameterValueException
 from rclpy.node import Node
-from rclpy.parameter import Parameter
+from rig_graph import FAST_ANALYZER, FAST_HAMMER, Listener, LossyLink, params, wait_for
 
-from fmm_interfaces.msg import FrfSummary, ImpactResult, SampleBatch
 from fmm_ros.nodes.analyzer import Analyzer
-from fmm_ros.nodes.common import (
-    FRF_TOPIC,
-    IMPACTS_TOPIC,
-    RESULT_QOS,
-    SAMPLE_QOS,
-    VELOCITY_TOPIC,
-)
 from fmm_ros.nodes.hammer_sim import HammerSim
 from fmm_ros.nodes.rig_sim import RigSim
 from fmm_ros.ros_graph import InProcessGraph
-
-
-def params(**values):
-    return [Parameter(name, value=value) for name, value in values.items()]
-
-
-# A short, fast session: 1 hit a level, 6 s records 8 s apart, 100x real time.
-FAST_HAMMER = dict(rate_factor=100.0, batch_size=1000, hits_per_level=1, hit_spacing_s=8.0,
-                   first_hit_s=1.0)
-FAST_ANALYZER = dict(window_s=6.0)
-
-
-class _Listener(Node):
-    """Collects what the analyzer publishes."""
-
-    def __init__(self, **kwargs):
-        super().__init__('listener', **kwargs)
-        self.impacts: list[ImpactResult] = []
-        self.summaries: list[FrfSummary] = []
-        self.create_subscription(ImpactResult, IMPACTS_TOPIC, self.impacts.append, RESULT_QOS)
-        self.create_subscription(FrfSummary, FRF_TOPIC, self.summaries.append, RESULT_QOS)
-
-
-class _LossyLink(Node):
-    """Forwards velocity batches like a network that loses the ones listed."""
-
-    def __init__(self, drop_first_indices, **kwargs):
-        super().__init__('lossy_link', **kwargs)
-        self.drop = set(drop_first_indices)
-        self.dropped = 0
-        self._out = self.create_publisher(SampleBatch, VELOCITY_TOPIC, SAMPLE_QOS)
-        self.create_subscription(SampleBatch, '/test/velocity', self._forward, SAMPLE_QOS)
-
-    def _forward(self, msg):
-        if msg.first_sample_index in self.drop:
-            self.dropped += 1
-        else:
-            self._out.publish(msg)
-
-
-def wait_for(condition, timeout_s=60.0):
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.05)
-    return True
 
 
 def test_every_hit_of_a_session_is_reported_and_judged(ros_graph):
     hammer = ros_graph.add(HammerSim, parameter_overrides=params(**FAST_HAMMER))
     ros_graph.add(RigSim)
     analyzer = ros_graph.add(Analyzer, parameter_overrides=params(**FAST_ANALYZER))
-    listener = ros_graph.add(_Listener)
+    listener = ros_graph.add(Listener)
     ros_graph.start()
     assert wait_for(lambda: len(listener.impacts) == 3), f'{len(listener.impacts)} of 3 reported'
     assert hammer.hits_sent == 3 == analyzer.impacts_reported
@@ -90,9 +35,9 @@ def test_every_hit_of_a_session_is_reported_and_judged(ros_graph):
 def test_a_dropped_batch_flags_the_impact_as_gap_instead_of_a_wrong_frf(ros_graph):
     ros_graph.add(HammerSim, parameter_overrides=params(**FAST_HAMMER | dict(hits_per_level=1)))
     ros_graph.add(RigSim, parameter_overrides=params(output_topic='/test/velocity'))
-    link = ros_graph.add(_LossyLink, drop_first_indices=[30_000])   # 3.0 s: inside hit 1
+    link = ros_graph.add(LossyLink, drop_first_indices=[30_000])   # 3.0 s: inside hit 1
     ros_graph.add(Analyzer, parameter_overrides=params(**FAST_ANALYZER))
-    listener = ros_graph.add(_Listener)
+    listener = ros_graph.add(Listener)
     ros_graph.start()
     assert wait_for(lambda: len(listener.impacts) == 3)
     assert link.dropped == 1
@@ -129,3 +74,17 @@ def test_clean_start_and_shutdown_leaves_no_threads():
     leaked = [t for t in threading.enumerate() if t not in before and t.is_alive()]
     assert not leaked, f'threads left running: {leaked}'
     assert not graph.context.ok()
+
+
+def test_no_node_shadows_an_attribute_rclpy_node_keeps(ros_graph):
+    """Overwriting e.g. Node._publishers breaks rclpy's teardown: a static check over nodes/."""
+    import re
+    from pathlib import Path
+
+    import fmm_ros.nodes
+
+    base = set(vars(ros_graph.add(Node, node_name='bare')))
+    for path in Path(fmm_ros.nodes.__file__).parent.glob('*.py'):
+        assigned = set(re.findall(r'self\.(\w+)\s*(?::[^=\n]+)?=[^=]', path.read_text()))
+        clash = assigned & base
+        assert not clash, f'{path.name} overwrites rclpy Node attributes {clash}'

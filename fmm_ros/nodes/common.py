@@ -1,5 +1,7 @@
 """What every fmm_ros node shares: QoS profiles, topic names and the `ros2 run` entry point."""
 
+import importlib
+import time
 from collections.abc import Callable
 
 import rclpy
@@ -40,3 +42,40 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+
+
+def message_class(msgtype: str) -> type:
+    """The generated Python class of a ROS type name such as fmm_interfaces/msg/SampleBatch."""
+    package, kind, name = msgtype.split('/')
+    return getattr(importlib.import_module(f'{package}.{kind}'), name)
+
+
+class BatchPacer:
+    """Releases sample batches at a paced rate against the wall clock, a few per tick.
+
+    rclpy's executor takes one message per subscription per wait cycle, so a source that
+    publishes bursts overruns subscribers spun by the same executor. A tick releases at most
+    `max_per_tick` batches (two absorb timer jitter); further behind than that, the clock is
+    re-anchored: the source runs slower than asked (`fell_behind` says so) instead of flooding.
+    """
+
+    def __init__(self, batches_per_s: float, max_per_tick: int = 2) -> None:
+        self.max_per_tick = max_per_tick
+        self.restart(batches_per_s, 0)
+
+    def restart(self, batches_per_s: float, released: int) -> None:
+        """Pace from now at a new rate, `released` batches already out."""
+        self._anchor = (time.monotonic(), released, batches_per_s)
+        self.released = released
+
+    def due(self) -> int:
+        """How many batches to release now; the caller releases them and counts them here."""
+        wall0, released0, rate = self._anchor
+        now = time.monotonic()
+        behind = released0 + int((now - wall0) * rate) - self.released
+        self.fell_behind = behind > self.max_per_tick + 1
+        if self.fell_behind:
+            self._anchor = (now, self.released + self.max_per_tick, rate)
+        count = max(0, min(behind, self.max_per_tick))
+        self.released += count
+        return count

@@ -6,8 +6,6 @@ driven by the applied force, as the real rig is, so sensor noise never moves the
 Paced to the wall clock; `rate_factor` runs it faster (it can be changed live).
 """
 
-import time
-
 import numpy as np
 from rclpy.duration import Duration
 from rclpy.node import Node
@@ -16,14 +14,14 @@ from rclpy.parameter import Parameter
 from fmm_interfaces.msg import SampleBatch
 from fmm_ros import msgs
 from fmm_ros.core.schedule import HammerStream, session_schedule
-from fmm_ros.nodes.common import APPLIED_FORCE_TOPIC, FORCE_TOPIC, SAMPLE_QOS, run_node
+from fmm_ros.nodes.common import (
+    APPLIED_FORCE_TOPIC,
+    FORCE_TOPIC,
+    SAMPLE_QOS,
+    BatchPacer,
+    run_node,
+)
 from fmm_ros.nodes.params import Param, declare_parameters
-
-# rclpy's executor takes one message per subscription per wait cycle, so a node publishing
-# bursts overruns any subscriber spun by the same executor. A tick publishes one batch, or
-# two to absorb timer jitter; further behind than that, the clock is re-anchored (the session
-# runs slower than asked, and says so) rather than flooding the graph.
-MAX_BATCHES_PER_TICK = 2
 
 PARAMS = (
     Param('sample_rate_hz', 10_000.0, 'Sampling rate of the force channel [Hz]',
@@ -79,6 +77,7 @@ class HammerSim(Node):
         self._measured = np.empty(batch)
         self._start_stamp = self.get_clock().now()
         self._timer = None
+        self._pacer = BatchPacer(1.0)
         self._pace(self.config['rate_factor'])
         self.add_post_set_parameters_callback(self._on_parameters)
         self.get_logger().info(
@@ -97,12 +96,12 @@ class HammerSim(Node):
         return self.next_index >= self.stream.end_index
 
     def _pace(self, rate_factor: float) -> None:
-        """(Re)start the timer at one batch of sample time per tick, anchored to now."""
-        rate, batch = self.config['sample_rate_hz'], self.config['batch_size']
-        self._anchor = (time.monotonic(), self.next_index, rate * rate_factor)
+        """(Re)start the timer at one batch of sample time per tick, paced from now."""
+        rate = self.config['sample_rate_hz'] * rate_factor
+        self._pacer.restart(rate / self._batch, self.next_index // self._batch)
         if self._timer is not None:
             self.destroy_timer(self._timer)
-        self._timer = self.create_timer(batch / (rate * rate_factor), self._on_tick)
+        self._timer = self.create_timer(self._batch / rate, self._on_tick)
 
     def _on_parameters(self, parameters: list[Parameter]) -> None:
         for parameter in parameters:
@@ -110,17 +109,12 @@ class HammerSim(Node):
                 self._pace(parameter.value)
 
     def _on_tick(self) -> None:
-        """Publish the batches whose last sample is due by the paced sample clock."""
-        wall0, index0, samples_per_s = self._anchor
-        now = time.monotonic()
-        behind = (index0 + int((now - wall0) * samples_per_s) - self.next_index) // self._batch
-        for _ in range(min(behind, MAX_BATCHES_PER_TICK)):
+        for _ in range(self._pacer.due()):
             self._publish_batch()
-        if behind > MAX_BATCHES_PER_TICK + 1:
-            self._anchor = (now, self.next_index, samples_per_s)
+        if self._pacer.fell_behind:
             self.get_logger().warning(
-                f'cannot keep x{self.config["rate_factor"]:g} real time '
-                f'({behind} batches behind): running slower', throttle_duration_sec=10.0)
+                f'cannot keep x{self.config["rate_factor"]:g} real time: running slower',
+                throttle_duration_sec=10.0)
 
     def _publish_batch(self) -> None:
         first = self.next_index

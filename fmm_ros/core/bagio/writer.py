@@ -50,8 +50,14 @@ def offered_qos(msgtype: str) -> Qos:
     transient-local, depth 10, so a player republishes them for late subscribers too.
     """
     batches = msgtype == SAMPLE_BATCH
-    return Qos(QosHistory.KEEP_LAST, 50 if batches else 10, QosReliability.RELIABLE,
-               QosDurability.VOLATILE if batches else QosDurability.TRANSIENT_LOCAL,
+    return bag_qos(depth=50 if batches else 10, reliable=True, transient_local=not batches)
+
+
+def bag_qos(*, depth: int, reliable: bool, transient_local: bool) -> Qos:
+    """A keep-last QoS profile as rosbag2 metadata stores it (the player restores it)."""
+    return Qos(QosHistory.KEEP_LAST, depth,
+               QosReliability.RELIABLE if reliable else QosReliability.BEST_EFFORT,
+               QosDurability.TRANSIENT_LOCAL if transient_local else QosDurability.VOLATILE,
                _NO_TIME, _NO_TIME, QosLiveliness.AUTOMATIC, _NO_TIME, False)
 
 

@@ -1,0 +1,93 @@
+"""recorder and player nodes: a live session recorded, analysed offline and played back."""
+
+import time
+
+import numpy as np
+import pytest
+from rclpy.parameter import Parameter
+from rig_graph import FAST_ANALYZER, FAST_HAMMER, Listener, params, wait_for
+
+from fmm_ros import msgs
+from fmm_ros.core.bagio.reader import BagReader
+from fmm_ros.core.bagio.replay import replay_bag
+from fmm_ros.nodes.analyzer import Analyzer, configs_from_parameters
+from fmm_ros.nodes.hammer_sim import HammerSim
+from fmm_ros.nodes.player import Player
+from fmm_ros.nodes.recorder import Recorder
+from fmm_ros.nodes.rig_sim import RigSim
+from fmm_ros.ros_graph import InProcessGraph
+
+
+@pytest.fixture(scope='module')
+def recorded_session(tmp_path_factory):
+    """A fast 3-hit session through the live graph, recorded; with what the analyzer published."""
+    bag = tmp_path_factory.mktemp('session') / 'bag'
+    with InProcessGraph() as graph:
+        graph.add(HammerSim, parameter_overrides=params(**FAST_HAMMER))
+        graph.add(RigSim)
+        analyzer = graph.add(Analyzer, parameter_overrides=params(**FAST_ANALYZER))
+        listener = graph.add(Listener)
+        recorder = graph.add(Recorder, parameter_overrides=params(bag_path=str(bag)))
+        graph.start()
+        assert wait_for(lambda: len(listener.impacts) == 3)
+        time.sleep(0.3)  # the results' last messages reach the recorder too
+        live = list(listener.impacts)
+        config = analyzer.config
+    assert recorder.messages_recorded > 0
+    return bag, live, config
+
+
+def test_the_recorded_bag_holds_every_topic_and_is_closed(recorded_session):
+    bag, live, _ = recorded_session
+    assert (bag / 'metadata.yaml').is_file()
+    with BagReader(bag) as reader:
+        assert set(reader.topics) == {'/fmm/force', '/fmm/velocity', '/fmm/impacts', '/fmm/frf'}
+        assert reader.topics['/fmm/impacts'].count == len(live) == 3
+        assert not reader.problems
+        indices = [batch.first_sample_index for batch in reader.channel('/fmm/force')]
+        assert indices == list(range(0, 1000 * len(indices), 1000))
+
+
+def test_offline_analysis_of_the_bag_equals_the_live_run(recorded_session):
+    bag, live, config = recorded_session
+    capture, analysis = configs_from_parameters(config)
+    offline = replay_bag(bag, capture, analysis)
+    judged = offline.summary.impacts
+    assert len(judged) == len(live)
+    for off, on in zip(judged, live, strict=True):
+        assert (off.level, off.accepted, list(off.flags)) == (on.level, on.accepted,
+                                                              list(on.flags))
+        assert (off.trigger_sample_index, off.impulse_n_s, off.peak_receptance_m_per_n) == (
+            on.trigger_sample_index, on.impulse_n_s, on.peak_receptance_m_per_n)
+        assert off.mobility.tobytes() == msgs.complex_field(on, 'mobility').tobytes()
+
+
+def test_the_player_replays_the_session_into_a_live_analyzer(recorded_session):
+    bag, live, _ = recorded_session
+    with InProcessGraph() as graph:
+        player = graph.add(Player, parameter_overrides=params(
+            bag_path=str(bag), rate_factor=100.0, topics=['/fmm/force', '/fmm/velocity']))
+        graph.add(Analyzer, parameter_overrides=params(**FAST_ANALYZER))
+        listener = graph.add(Listener)
+        graph.start()
+        assert wait_for(lambda: len(listener.impacts) == 3)
+        assert player.finished or wait_for(lambda: player.finished)
+    for again, on in zip(listener.impacts, live, strict=True):
+        assert again.impulse_n_s == on.impulse_n_s
+        assert np.array_equal(msgs.complex_field(again, 'receptance'),
+                              msgs.complex_field(on, 'receptance'))
+
+
+def test_player_names_what_a_bag_lacks(recorded_session, ros_graph):
+    bag, _, _ = recorded_session
+    with pytest.raises(ValueError, match='has no topic /fmm/torque; it has /fmm/force'):
+        ros_graph.add(Player, parameter_overrides=params(bag_path=str(bag),
+                                                         topics=['/fmm/torque']))
+    with pytest.raises(ValueError, match='set the bag_path parameter'):
+        ros_graph.add(Player)
+
+
+def test_recorder_refuses_an_unknown_storage(ros_graph, tmp_path):
+    with pytest.raises(Exception, match='not one of mcap, sqlite3'):
+        ros_graph.add(Recorder, parameter_overrides=[
+            Parameter('bag_path', value=str(tmp_path / 'b')), Parameter('storage', value='zip')])
