@@ -189,7 +189,7 @@ class FileBackend:
         self.finished = False
         batches_per_s = self.sample_rate_hz * cfg['rate_factor'] / self._batch
         self._pacer = BatchPacer(batches_per_s)
-        self._logger = node.get_logger()
+        self._log = node.get_logger()
         self._timer = node.create_timer(1.0 / batches_per_s, self._on_tick)
 
     def describe(self) -> str:
@@ -203,7 +203,7 @@ class FileBackend:
             if position >= self.force_n.size:
                 if not self.finished:
                     self.finished = True
-                    self._logger.info(f'{self._path} streamed to its end')
+                    self._log.info(f'{self._path} streamed to its end')
                 return
             stop = min(position + self._batch, self.force_n.size)
             self._publish(self.next_index, self.force_n[position:stop],
