@@ -200,8 +200,9 @@ def _hit_table(page: Page, summary: Summary, model_hits: dict[int, _ModelHit]) -
         headers.append('rms(measured − model) [mm/s]')
     rows, classes = [], []
     for impact in summary.impacts:
-        row = [link(f'#fig-{_hit_name(impact)}', impact.impact_id), _short(impact.source),
-               impact.level or '-', 'accepted' if impact.accepted else 'rejected',
+        row = [link(f'#fig-{_hit_name(impact)}', impact.impact_id),
+               figures.source_name(impact.source) or '-', impact.level or '-',
+               'accepted' if impact.accepted else 'rejected',
                ', '.join(impact.flags) or '-', _number(impact.peak_force_n, '.5g'),
                _number(impact.impulse_n_s, '.4g'),
                _number(impact.contact_duration_s * MS_PER_S, '.3g'),
@@ -339,10 +340,6 @@ def _hit_name(impact: ImpactResult) -> str:
 def _safe(name: str) -> str:
     """A level name as a file-name part."""
     return re.sub(r'[^A-Za-z0-9_.-]', '_', name) or 'unnamed'
-
-
-def _short(source: str) -> str:
-    return source.replace('\\', '/').rsplit('/', 1)[-1] if source else '-'
 
 
 def _number(value: float, spec: str) -> str:

@@ -61,7 +61,7 @@ def hit_figure(record: ImpactRecord, result: ImpactResult, *,
     when given. Bottom (with a model): measured minus model, where they disagree.
     """
     verdict = 'accepted' if result.accepted else 'rejected: ' + ', '.join(result.flags)
-    title = (f'hit {result.impact_id}  {_name(result.source)}  level {result.level or "none"}'
+    title = (f'hit {result.impact_id}  {source_name(result.source)}  level {result.level or "none"}'
              f'  ({verdict})')
     rows = 3 if model_velocity_m_s is not None else 2
     figure, axes = new_figure(rows, 1, title=title)
@@ -368,6 +368,6 @@ def _frf_unit(quantity: str) -> str:
     raise ValueError(f"unknown FRF quantity {quantity!r}; use 'mobility' or 'receptance'")
 
 
-def _name(source: str) -> str:
-    """The last path component of a record's source, for titles."""
+def source_name(source: str) -> str:
+    """The last path component of a record's source, for titles and tables."""
     return source.replace('\\', '/').rsplit('/', 1)[-1] if source else ''
