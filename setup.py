@@ -13,6 +13,7 @@ NODES = {
     'hammer_sim': 'fmm_ros.nodes.hammer_sim:main',
     'rig_sim': 'fmm_ros.nodes.rig_sim:main',
     'analyzer': 'fmm_ros.nodes.analyzer:main',
+    'fitter': 'fmm_ros.nodes.fitter:main',
     'recorder': 'fmm_ros.nodes.recorder:main',
     'player': 'fmm_ros.nodes.player:main',
     'daq': 'fmm_ros.nodes.daq:main',

@@ -78,7 +78,7 @@ fi
 
 # 4. fmm_ros itself: editable install, then the ament layout (index marker, share/,
 #    node executables in lib/fmm_ros) that colcon would make.
-mapfile -t data_files < <(find "$ROOT/config" "$ROOT/launch_scripts" -maxdepth 1 -type f | LC_ALL=C sort)
+mapfile -t data_files < <(find "$ROOT/config" "$ROOT/launch_scripts" -maxdepth 1 -type f 2>/dev/null | LC_ALL=C sort)
 pkg_key=$(inputs_hash "$ROOT/setup.py" "$ROOT/setup.cfg" "$ROOT/package.xml" "$SETUP/install_ament_layout.py" "${data_files[@]}")
 if ! is_current fmm_ros "$pkg_key"; then
   say "installing fmm_ros (editable) and its ament layout"

@@ -12,6 +12,7 @@ from fmm_ros import __version__
 
 # Subcommand modules, in the order `fmm --help` lists them.
 SUBCOMMANDS: tuple[str, ...] = (
+    'demo',
     'simulate',
     'analyze',
     'report',
@@ -19,6 +20,8 @@ SUBCOMMANDS: tuple[str, ...] = (
     'import_lab',
     'bag_info',
     'export',
+    'fit',
+    'identify_rig',
 )
 
 

@@ -13,10 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
+from fmm_ros.cli._model import add_rig_arguments, rig_from_args
 from fmm_ros.core.model import (
-    FMM_RIG,
     PAPER_MU,
-    Rig,
     record_length,
     sample_rate_from_times,
     simulate,
@@ -42,15 +41,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                              'without it there is no applied force')
     parser.add_argument('--mu', type=float, default=PAPER_MU,
                         help=f'Coulomb friction coefficient (default {PAPER_MU})')
-    parser.add_argument('--mass-kg', type=float, default=FMM_RIG.mass_kg,
-                        help=f'moving mass m [kg] (default {FMM_RIG.mass_kg})')
-    parser.add_argument('--stiffness-n-per-m', type=float, default=FMM_RIG.stiffness_n_per_m,
-                        help=f'spring constant k [N/m] (default {FMM_RIG.stiffness_n_per_m:g})')
-    parser.add_argument('--damping-n-s-per-m', type=float, default=FMM_RIG.damping_n_s_per_m,
-                        help=f'viscous damping c [N*s/m] (default {FMM_RIG.damping_n_s_per_m})')
-    parser.add_argument('--normal-force-n', type=float, default=FMM_RIG.normal_force_n,
-                        help='normal force N [N] (default 0.680 kg x 9.81 m/s^2 = '
-                             f'{FMM_RIG.normal_force_n:.4f})')
+    add_rig_arguments(parser)
     parser.add_argument('--duration-s', type=float,
                         help=f'record length [s] (default {DEFAULT_DURATION_S:g}, or the force '
                              "record's; a longer one continues with zero force)")
@@ -84,8 +75,7 @@ def read_force_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
 
 def run(args: argparse.Namespace) -> int:
     """Simulate as the flags say, print the summary, optionally write the record."""
-    rig = Rig(mass_kg=args.mass_kg, stiffness_n_per_m=args.stiffness_n_per_m,
-              damping_n_s_per_m=args.damping_n_s_per_m, normal_force_n=args.normal_force_n)
+    rig = rig_from_args(args)
     start_s = 0.0
     if args.force_csv is not None:
         time_s, force = read_force_csv(args.force_csv)

@@ -47,3 +47,22 @@ def sample_rate_from_times(time_s: np.ndarray, rtol: float = 1e-3) -> float:
         raise ValueError(f'non-uniform time step: {steps[worst]:.6g} s between samples {worst} '
                          f'and {worst + 1}, against {step:.6g} s on average')
     return 1.0 / step
+
+
+def finite_samples(name: str, values: np.ndarray, overflow: str = 'sum') -> np.ndarray:
+    """The values as a contiguous one-dimensional float64 array of finite samples.
+
+    One pairwise sum is cheaper than an isfinite mask and is non-finite if any sample is; only
+    then are the bad samples located, and the first named. `overflow` says what a sum that
+    overflows on finite samples stops (in the message).
+    """
+    array = np.ascontiguousarray(values, dtype=np.float64)
+    if array.ndim != 1:
+        raise ValueError(f'{name} must be one-dimensional, got shape {array.shape}')
+    if not math.isfinite(float(np.add.reduce(array))):
+        bad = np.flatnonzero(~np.isfinite(array))
+        if bad.size:
+            raise ValueError(f'{name} is not finite at sample {int(bad[0])} '
+                             f'({array[bad[0]]}); {bad.size} bad sample(s)')
+        raise ValueError(f'{name} is too large to {overflow} (its sum overflows)')
+    return array

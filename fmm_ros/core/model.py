@@ -36,7 +36,12 @@ import numpy as np
 import scipy.linalg
 
 from fmm_ros.core import _kernels as kernels
-from fmm_ros.core._checks import require_finite, require_non_negative, require_positive
+from fmm_ros.core._checks import (
+    finite_samples,
+    require_finite,
+    require_non_negative,
+    require_positive,
+)
 from fmm_ros.core._checks import sample_rate_from_times as sample_rate_from_times  # re-export
 
 STANDARD_GRAVITY_M_S2 = 9.81
@@ -599,14 +604,4 @@ def _output_block(n: int) -> np.ndarray:
 
 
 def _checked_force(force_n: np.ndarray) -> np.ndarray:
-    force = np.ascontiguousarray(force_n, dtype=np.float64)
-    if force.ndim != 1:
-        raise ValueError(f'force_n must be one-dimensional, got shape {force.shape}')
-    # One pairwise sum is cheaper than an isfinite mask and is non-finite if any sample is.
-    if not math.isfinite(float(np.add.reduce(force))):
-        bad = np.flatnonzero(~np.isfinite(force))
-        if bad.size:
-            raise ValueError(f'force_n is not finite at sample {int(bad[0])} '
-                             f'({force[bad[0]]}); {bad.size} bad sample(s)')
-        raise ValueError('force_n is too large to integrate (its sum overflows)')
-    return force
+    return finite_samples('force_n', force_n, overflow='integrate')

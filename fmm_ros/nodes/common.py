@@ -5,7 +5,11 @@ import time
 from collections.abc import Callable
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import (
+    ExternalShutdownException,
+    MultiThreadedExecutor,
+    SingleThreadedExecutor,
+)
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -29,16 +33,25 @@ RESULT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
-def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) -> None:
-    """Init, spin until Ctrl-C or shutdown, destroy the node, shut down (for ros2 run)."""
+def run_node(node_factory: Callable[[], Node], args: list[str] | None = None, *,
+             threads: int = 1) -> None:
+    """Init, spin until Ctrl-C or shutdown, then tear down in order (for ros2 run).
+
+    threads > 1 spins a MultiThreadedExecutor, for nodes whose callback groups let a long
+    service call run beside their stream callbacks.
+    """
     rclpy.init(args=args)
     node = None
+    executor = (SingleThreadedExecutor() if threads == 1
+                else MultiThreadedExecutor(num_threads=threads))
     try:
         node = node_factory()
-        rclpy.spin(node)
+        executor.add_node(node)
+        executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        executor.shutdown()
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
@@ -64,14 +77,20 @@ class BatchPacer:
         self.restart(batches_per_s, 0)
 
     def restart(self, batches_per_s: float, released: int) -> None:
-        """Pace from now at a new rate, `released` batches already out."""
-        self._anchor = (time.monotonic(), released, batches_per_s)
+        """Pace at a new rate from the next tick on, `released` batches already out."""
+        self._anchor = (None, released, batches_per_s)
         self.released = released
 
     def due(self) -> int:
-        """How many batches to release now; the caller releases them and counts them here."""
+        """How many batches to release now; the caller releases them and counts them here.
+
+        The first call after (re)starting anchors the pace, so the time a graph spends on
+        discovery before it spins is not counted as lag.
+        """
         wall0, released0, rate = self._anchor
         now = time.monotonic()
+        if wall0 is None:
+            self._anchor = (wall0 := now, released0, rate)
         behind = released0 + int((now - wall0) * rate) - self.released
         self.fell_behind = behind > self.max_per_tick + 1
         if self.fell_behind:

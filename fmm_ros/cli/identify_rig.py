@@ -1,0 +1,86 @@
+"""`fmm identify-rig`: m, c, k of the flexure with the friction contact lifted (paper Sec. 4).
+
+Files with a hit are impacts: m, c and k are fitted to them together, the measured force
+driving m x'' + c x' + k x = f. Files without a hit are free decays (an electromagnet release,
+say): f_n and zeta are fitted, and k and c follow from --mass-kg. Bags give their recorded
+impacts. Exit status: 0 identified, 1 the records are not the frictionless rig's (reason
+printed) or a bag was damaged (warnings), 2 bad input or flags.
+"""
+
+import argparse
+from pathlib import Path
+
+from fmm_ros.cli._fitting import fit_and_report
+from fmm_ros.core.export import json_number
+from fmm_ros.core.fit import RigIdentification, identify_rig
+from fmm_ros.core.model import FMM_RIG
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the `identify-rig` subcommand."""
+    parser = subparsers.add_parser(
+        'identify-rig', help='mass, damping and stiffness of the rig from mu = 0 records',
+        description='Identify m, c, k (and f_n, zeta) of the rig with the friction contact '
+                    'lifted: from impacts (CSV files time_s,force_n,velocity_m_s with a hit, '
+                    'or bags) by output error with the measured force driving the model, or '
+                    'from free decays (files without a hit) with the mass given.')
+    parser.add_argument('inputs', nargs='+', type=Path, metavar='INPUT',
+                        help='one CSV file per record, or a bag of impacts')
+    parser.add_argument('--json', action='store_true', help='print the result as JSON')
+    parser.add_argument('--mass-kg', type=float, default=FMM_RIG.mass_kg,
+                        help='moving mass m [kg] for free decays, which cannot tell it '
+                             f'(default {FMM_RIG.mass_kg}); impacts measure it')
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Read the inputs, identify, print the constants (or why there are none)."""
+    return fit_and_report('identify-rig', args, lambda records: identify_rig(
+        records, mass_kg=args.mass_kg), report, text_report)
+
+
+def report(result: RigIdentification) -> dict:
+    """The JSON document: the issue's keys, then standard errors and how they were found."""
+    return {
+        'mass_kg': result.mass_kg,
+        'stiffness_n_per_m': result.stiffness_n_per_m,
+        'damping_n_s_per_m': result.damping_n_s_per_m,
+        'natural_frequency_hz': result.natural_frequency_hz,
+        'damping_ratio': result.damping_ratio,
+        'mass_stderr_kg': json_number(result.mass_stderr_kg),
+        'stiffness_stderr_n_per_m': json_number(result.stiffness_stderr_n_per_m),
+        'damping_stderr_n_s_per_m': json_number(result.damping_stderr_n_s_per_m),
+        'natural_frequency_stderr_hz': json_number(result.natural_frequency_stderr_hz),
+        'damping_ratio_stderr': json_number(result.damping_ratio_stderr),
+        'method': result.method,
+        'residual_rms_m_s': result.residual_rms_m_s,
+        'normalised_residual': result.normalised_residual,
+        'files': list(result.sources),
+        'free_decays': [{'file': decay.source,
+                         'natural_frequency_hz': decay.natural_frequency_hz,
+                         'damping_ratio': decay.damping_ratio}
+                        for decay in result.free_decays],
+    }
+
+
+def text_report(result: RigIdentification) -> str:
+    """The constants with their errors, how they were found, and any free-decay check."""
+    given = result.method == 'free_decay'
+    mass = ('(given: a free decay cannot tell the mass)' if given
+            else f'+- {result.mass_stderr_kg:.4g} kg')
+    lines = [
+        f'm   = {result.mass_kg:.5g} kg {mass}',
+        f'k   = {result.stiffness_n_per_m:.6g} +- {result.stiffness_stderr_n_per_m:.3g} N/m',
+        f'c   = {result.damping_n_s_per_m:.4g} +- {result.damping_stderr_n_s_per_m:.2g} N*s/m',
+        f'f_n = {result.natural_frequency_hz:.6g} +- {result.natural_frequency_stderr_hz:.2g} Hz,'
+        f' zeta = {100 * result.damping_ratio:.4f} +- {100 * result.damping_ratio_stderr:.2g} %',
+        f'from {len(result.sources)} '
+        f'{"free decay" if given else "impact"}{"s" if len(result.sources) > 1 else ""}; '
+        f'residual {result.residual_rms_m_s:.3e} m/s RMS = '
+        f'{100 * result.normalised_residual:.3f} % of the peak velocity',
+    ]
+    if not given and result.free_decays:
+        lines.append('free decays (check):')
+        lines += [f'  {Path(decay.source).name}: f_n = {decay.natural_frequency_hz:.6g} Hz, '
+                  f'zeta = {100 * decay.damping_ratio:.4f} %' for decay in result.free_decays]
+    return '\n'.join(lines)

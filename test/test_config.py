@@ -1,0 +1,35 @@
+"""config/fmm_rig.yaml stays in step with the nodes' parameter tables and loads into them."""
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from fmm_ros.nodes import analyzer, daq, fitter, hammer_sim, player, recorder, rig_sim
+
+CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'fmm_rig.yaml'
+NODES = {module.__name__.rsplit('.', 1)[1]: module
+         for module in (hammer_sim, rig_sim, analyzer, fitter, recorder, player, daq)}
+
+
+def test_every_node_and_every_parameter_is_in_the_config_and_valid():
+    config = yaml.safe_load(CONFIG.read_text())
+    assert set(config) == set(NODES)
+    for name, module in NODES.items():
+        values = config[name]['ros__parameters']
+        params = {param.name: param for param in module.PARAMS}
+        assert set(values) == set(params), f'{name}: config and PARAMS differ'
+        for key, value in values.items():
+            param = params[key]
+            assert type(value) is type(param.default), f'{name}.{key}: {value!r} has another type'
+            assert param.problem(value) is None, f'{name}.{key}: {param.problem(value)}'
+            if param.limits and not isinstance(value, list):
+                assert param.limits[0] <= value <= param.limits[1], f'{name}.{key} out of range'
+
+
+@pytest.mark.parametrize(('node', 'cls'), [
+    ('hammer_sim', hammer_sim.HammerSim), ('rig_sim', rig_sim.RigSim),
+    ('analyzer', analyzer.Analyzer), ('fitter', fitter.Fitter)])
+def test_nodes_start_from_the_params_file(ros_graph, node, cls):
+    started = ros_graph.add(cls, cli_args=['--ros-args', '--params-file', str(CONFIG)])
+    assert started.config == yaml.safe_load(CONFIG.read_text())[node]['ros__parameters']

@@ -1,0 +1,32 @@
+"""`fmm demo`: the main job runs a session through the graph and reports it (issue 6)."""
+
+import json
+
+import pytest
+
+from fmm_ros.cli import main
+from fmm_ros.core.bagio.reader import BagReader
+
+
+def test_demo_json_reports_the_session_and_fits_the_plant_mu(tmp_path, capsys):
+    out = tmp_path / 'demo'
+    code = main(['demo', '--hits-per-level', '1', '--rate-factor', '100', '--json',
+                 '--out', str(out)])
+    summary = json.loads(capsys.readouterr().out)
+    assert code == 0
+    assert summary['hits_sent'] == summary['hits_reported'] == summary['hits_accepted'] == 3
+    assert summary['mu'] == pytest.approx(summary['plant_mu'], rel=0.02)
+    assert [level['name'] for level in summary['levels']] == ['low', 'medium', 'high']
+    for level in summary['levels']:
+        assert level['count'] == 1
+        assert level['mean_impulse_n_s'] > 0.8 and level['peak_receptance_m_per_n'] > 3e-3
+    assert summary['r2'] > 0.99
+    assert json.loads((out / 'summary.json').read_text()) == summary
+    with BagReader(summary['bag']) as reader:
+        assert reader.topics['/fmm/impacts'].count == 3
+
+
+def test_demo_refuses_to_overwrite_a_bag(tmp_path, capsys):
+    (tmp_path / 'bag').mkdir()
+    assert main(['demo', '--out', str(tmp_path)]) == 2
+    assert 'exists: choose another --out' in capsys.readouterr().err
