@@ -12,13 +12,12 @@ import pytest
 from PIL import Image
 
 from fmm_ros.cli import main
-from fmm_ros.core.analysis import AnalysisConfig
 from fmm_ros.core.bagio import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC, BagWriter
 from fmm_ros.core.bagio.simulated import simulated_session
 from fmm_ros.core.excitation import hammer_pulse, impact_record
 from fmm_ros.core.model import simulate
 from fmm_ros.core.records import ImpactRecord, write_impact_csv
-from fmm_ros.report import ModelOverlay, build_report
+from fmm_ros.report import FrictionSummary, ModelOverlay, build_report
 from fmm_ros.report import html as report_html
 from fmm_ros.report.paper import build_paper_report
 from fmm_ros.report.plotting import envelope, odd_harmonics
@@ -68,7 +67,7 @@ def write_double_hit(path, seed):
 
 @pytest.fixture(scope='module')
 def csv_session(tmp_path_factory):
-    """A session written as per-impact CSV files, reported by `fmm report` with the true mu."""
+    """A session written as per-impact CSV files, reported by `fmm report` (mu fitted)."""
     folder = tmp_path_factory.mktemp('session')
     for seed, (name, peak) in enumerate(PEAKS_N.items()):
         hit = impact_record(peak, rng=seed, duration_s=DURATION_S)
@@ -77,7 +76,7 @@ def csv_session(tmp_path_factory):
     out = folder / 'report'
     inputs = sorted(str(path) for path in folder.glob('*.csv'))
     with clipping_checked() as clipped:
-        code = main(['report', *inputs, '--out', str(out), '--paper-levels', '--mu', '0.113',
+        code = main(['report', *inputs, '--out', str(out), '--paper-levels',
                      '--force-full-scale-n', str(FULL_SCALE_N), '--dpi', str(TEST_DPI)])
     return {'code': code, 'out': out, 'inputs': inputs, 'clipped': clipped,
             'page': (out / 'index.html').read_text(encoding='utf-8')}
@@ -141,7 +140,7 @@ def check_figures(out, page, expected):
 def test_report_from_csv_session_has_every_figure(csv_session):
     assert csv_session['code'] == 0
     levels = ('low', 'medium', 'high')
-    expected = {'impulses', 'linearity', 'levels_receptance', 'harmonics',
+    expected = {'impulses', 'linearity', 'levels_receptance', 'harmonics', 'friction',
                 *(f'{kind}_{level}' for kind in ('trials', 'mobility', 'receptance',
                                                  'model_mobility') for level in levels),
                 *(f'hit_{number:03d}' for number in range(len(csv_session['inputs'])))}
@@ -166,9 +165,19 @@ def test_rejected_hits_are_in_the_table_with_their_flags(csv_session):
     assert 'double_hit</b>: ' in csv_session['page'] and 'clipped</b>: ' in csv_session['page']
 
 
-def test_model_driven_by_the_measured_force_matches_the_session(csv_session):
-    """With the mu the session was simulated with, only noise is left between model and data."""
-    header, rows = hit_rows(csv_session['page'])
+def test_mu_is_fitted_over_the_accepted_hits_and_its_model_leaves_only_noise(csv_session):
+    """The session was simulated with mu = 0.113: the fit finds it, and the fitted model driven
+    by each measured force leaves only the sensor noise."""
+    page = csv_session['page']
+    fitted = re.search(r'μ = ([0-9.]+) ± ([0-9.]+) fitted to (\d+) impacts at once', page)
+    assert fitted is not None
+    mu, stderr, count = float(fitted[1]), float(fitted[2]), int(fitted[3])
+    assert count == len(PEAKS_N) - 1  # every hit but the overload; the double hit is rejected
+    assert abs(mu - 0.113) < max(5 * stderr, 2e-4)
+    per_impact = re.findall(r'<td>[0-9.]+</td><td>(0\.1[0-9]+) ± [0-9.]+</td>', page)
+    assert len(per_impact) == count
+    assert all(abs(float(value) - 0.113) < 1e-3 for value in per_impact)
+    header, rows = hit_rows(page)
     column = 'rms(measured − model) [mm/s]'
     assert column in header
     for _, row in rows:
@@ -194,34 +203,80 @@ def test_report_from_a_recorded_session_bag_shows_the_hit_over_a_lost_batch(tmp_
     out = tmp_path / 'report'
     with clipping_checked() as clipped:
         assert main(['report', str(bag), '--out', str(out), '--paper-levels', '--window-s', '4.5',
-                     '--mu', '0.113', '--dpi', str(TEST_DPI)]) == 0
+                     '--fit-initial-position', '--dpi', str(TEST_DPI)]) == 0
     page = (out / 'index.html').read_text(encoding='utf-8')
     header, rows = hit_rows(page)
     assert [row['source'].split('@')[0] for _, row in rows] == ['session'] * 3
     assert [(css, row['level'], row['flags']) for css, row in rows[:2]] == [
         ('', 'low', '-'), ('', 'medium', '-')]
     assert rows[2][0] == 'rejected' and 'gap' in rows[2][1]['flags'].split(', ')
-    # A record with missing samples cannot drive the model, and says so.
-    assert rows[2][1]['rms(measured − model) [mm/s]'] == '-'
+    # In one continuous recording the second hit finds the rig where friction stopped the
+    # first; with that start fitted the model leaves only noise (0.01 mm/s) there too. A
+    # record with missing samples cannot drive the model, and says so.
+    residuals = [row['rms(measured − model) [mm/s]'] for _, row in rows]
+    assert float(residuals[0]) < 0.05 and float(residuals[1]) < 0.05 and residuals[2] == '-'
+    starts = re.findall(r'± [0-9.]+</td><td>(-?[0-9.]+)</td></tr>', page)
+    assert len(starts) == 2 and abs(float(starts[0])) < 0.005 and 0.01 < abs(float(starts[1])) < 0.4
     check_figures(out, page, {
         'impulses', 'linearity', 'levels_receptance', 'harmonics',
         *(f'{kind}_{level}' for kind in ('trials', 'mobility', 'receptance', 'model_mobility')
-          for level in ('low', 'medium')), 'hit_000', 'hit_001', 'hit_002'})
+          for level in ('low', 'medium')), 'hit_000', 'hit_001', 'hit_002', 'friction'})
     assert clipped == []
 
 
-def test_all_rejected_session_still_reports(tmp_path):
+def test_all_rejected_session_still_reports_and_says_why_mu_is_not_fitted(tmp_path, capsys):
     hit = impact_record(1000.0, rng=3, duration_s=DURATION_S)
-    clipped = ImpactRecord(hit.force_n, hit.velocity_m_s, RATE_HZ, force_full_scale_n=900.0,
-                           source='clipped.csv')
+    write_impact_csv(tmp_path / 'clipped.csv', hit.force_n, hit.velocity_m_s, RATE_HZ)
+    out = tmp_path / 'report'
     with clipping_checked() as clipped_figures:
-        page = build_report([clipped], tmp_path, analysis=AnalysisConfig(), dpi=TEST_DPI)
-    text = page.read_text(encoding='utf-8')
+        code = main(['report', str(tmp_path / 'clipped.csv'), '--out', str(out),
+                     '--force-full-scale-n', '900', '--dpi', str(TEST_DPI)])
+    assert code == 1  # the page is written, but mu could not be fitted
+    assert 'cannot fit mu: no accepted impact to fit' in capsys.readouterr().err
+    text = (out / 'index.html').read_text(encoding='utf-8')
     _, rows = hit_rows(text)
     assert [(css, row['flags']) for css, row in rows] == [('rejected', 'clipped')]
     assert 'No level has an accepted hit' in text
-    check_figures(tmp_path, text, {'hit_000'})
+    assert 'No friction fit: no accepted impact to fit' in text
+    check_figures(out, text, {'hit_000'})
     assert clipped_figures == []
+
+
+def test_build_report_analyses_records_itself_and_draws_a_given_model(tmp_path):
+    """The entry point fmm demo calls: records only (no summary), a given mu."""
+    hit = impact_record(1000.0, rng=3, duration_s=DURATION_S)
+    record = ImpactRecord(hit.force_n, hit.velocity_m_s, RATE_HZ, force_full_scale_n=900.0,
+                          source='clipped.csv')
+    page = build_report([record], tmp_path, model=ModelOverlay(0.113, 'given'), dpi=TEST_DPI)
+    text = page.read_text(encoding='utf-8')
+    header, rows = hit_rows(text)
+    assert [(css, row['flags']) for css, row in rows] == [('rejected', 'clipped')]
+    assert float(rows[0][1]['rms(measured − model) [mm/s]']) < 0.05
+    assert 'The model of Eq. 3 with given μ = 0.113' in text
+    check_figures(tmp_path, text, {'hit_000'})
+
+
+def test_model_overlay_is_the_noise_free_plant_driven_by_the_conditioned_force():
+    hit = impact_record(1000.0, rng=5, duration_s=DURATION_S)
+    record = ImpactRecord(hit.force_n, hit.velocity_m_s, RATE_HZ)
+    truth = hit.simulation.velocity_m_s
+    given = ModelOverlay(0.113, 'given')
+    assert given.label == 'model, given μ = 0.113'
+    # Only the force noise inside the hit (0.05 N over ~20 samples) separates them.
+    assert np.max(np.abs(given.velocity_m_s(record, 0) - truth)) < 1e-3 * np.max(np.abs(truth))
+    # A fitted start position moves the model; other impacts still start at 0.
+    summary = FrictionSummary(0.113, 1e-5, given.rig, (0, 1), (0.113, 0.113), (1e-5, 1e-5),
+                              initial_positions_m=(2e-4, 0.0))
+    moved = summary.overlay()
+    assert moved.source == 'fitted'
+    assert np.max(np.abs(moved.velocity_m_s(record, 0) - truth)) > 1e-3
+    np.testing.assert_array_equal(moved.velocity_m_s(record, 1), given.velocity_m_s(record, 0))
+    # Gaps cannot drive it.
+    gapped = ImpactRecord(np.where(np.arange(record.force_n.size) == 9000, np.nan,
+                                   record.force_n), record.velocity_m_s, RATE_HZ)
+    assert given.velocity_m_s(gapped, 0) is None
+    with pytest.raises(ValueError, match='one value per impact'):
+        FrictionSummary(0.113, 1e-5, given.rig, (0, 1), (0.113,), (1e-5,))
 
 
 def test_paper_report_reproduces_figs_2_to_10(tmp_path):

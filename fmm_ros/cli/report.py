@@ -1,19 +1,22 @@
 """`fmm report`: the HTML page and PNG figures of a session, or of the paper's simulations.
 
 `fmm report INPUT... --out DIR` analyses the impacts exactly as `fmm analyze` does (same
-options) and writes DIR/index.html with every figure embedded plus DIR/<figure>.png.
+options), fits mu over the accepted ones as `fmm fit` does, and writes DIR/index.html with
+every figure embedded plus DIR/<figure>.png.
 `fmm report --paper --out DIR` reproduces the paper's Figs. 2-10 from the physics core.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
+from fmm_ros.cli._model import add_fit_freedom_arguments, add_rig_arguments, rig_from_args
 from fmm_ros.cli.analyze import add_analysis_options, analysis_configs, read_records
 from fmm_ros.cli.progress import report_problems
-from fmm_ros.core.model import FMM_RIG, Rig
-from fmm_ros.report import ModelOverlay, build_report
+from fmm_ros.core.analysis import analyze_impact, summarize
+from fmm_ros.report import ModelOverlay, build_report, fit_accepted_impacts
 from fmm_ros.report.paper import build_paper_report
 from fmm_ros.report.plotting import DEFAULT_DPI
 
@@ -26,9 +29,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     'quality flags) and each figure as DIR/<name>.png: force pulses and '
                     'velocity decays, mobility and receptance per level with trials and mean, '
                     'levels compared, odd harmonics of f_n, impulses, and the linearity of '
-                    'peak receptance in impulse. With --mu the model (Eq. 3) driven by each '
-                    "measured force is drawn over the measurement. --paper draws the paper's "
-                    'Figs. 2-10 from the physics core instead.')
+                    'peak receptance in impulse. mu is fitted over the accepted hits (as fmm '
+                    'fit does) and the fitted model (Eq. 3) driven by each measured force is '
+                    "drawn over the measurement. --paper draws the paper's Figs. 2-10 from the "
+                    'physics core instead.')
     parser.add_argument('inputs', nargs='*', type=Path, metavar='INPUT',
                         help='one CSV file per impact (time_s,force_n,velocity_m_s), or a bag '
                              '(directory, .mcap or .db3) whose every impact is reported')
@@ -36,18 +40,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help='directory for index.html and the PNG files (created)')
     parser.add_argument('--paper', action='store_true',
                         help="reproduce the paper's simulation figures (Figs. 2-10); no INPUT")
-    parser.add_argument('--mu', type=float, default=None,
-                        help='friction coefficient of the model drawn over the measurement '
-                             '(default: no model overlay)')
-    rig = FMM_RIG
-    parser.add_argument('--mass-kg', type=float, default=rig.mass_kg,
-                        help=f'model mass [kg] (default {rig.mass_kg:g}, the FMM)')
-    parser.add_argument('--stiffness-n-per-m', type=float, default=rig.stiffness_n_per_m,
-                        help=f'model stiffness [N/m] (default {rig.stiffness_n_per_m:g})')
-    parser.add_argument('--damping-n-s-per-m', type=float, default=rig.damping_n_s_per_m,
-                        help=f'model viscous damping [N*s/m] (default {rig.damping_n_s_per_m:g})')
-    parser.add_argument('--normal-force-n', type=float, default=rig.normal_force_n,
-                        help=f'model normal force [N] (default {rig.normal_force_n:.4g})')
+    model = parser.add_mutually_exclusive_group()
+    model.add_argument('--mu', type=float, default=None,
+                       help='draw the model with this friction coefficient instead of fitting')
+    model.add_argument('--no-fit', action='store_true',
+                       help='neither fit mu nor draw a model')
+    add_fit_freedom_arguments(parser)
+    add_rig_arguments(parser)
     parser.add_argument('--title', default='Impact session report', help='page title')
     parser.add_argument('--dpi', type=float, default=DEFAULT_DPI,
                         help=f'PNG resolution [dots per inch] (default {DEFAULT_DPI:g})')
@@ -56,28 +55,37 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Write the page and print where it is; exit status 1 if a bag was damaged."""
+    """Write the page and print where it is; exit status 1 if a bag was damaged or mu unfit."""
     if args.dpi <= 0:
         raise ValueError(f'--dpi must be positive, got {args.dpi:g}')
-    problems: list[str] = []
     if args.paper:
         if args.inputs:
             raise ValueError('--paper draws the simulations of the paper and takes no INPUT')
-        page = build_paper_report(args.out, dpi=args.dpi)
-    elif not args.inputs:
+        print(f'wrote {build_paper_report(args.out, dpi=args.dpi)} (figures embedded, and as '
+              'PNG files beside it)')
+        return 0
+    if not args.inputs:
         raise ValueError('give the impact files or bags to report on, or --paper')
-    else:
-        capture, analysis = analysis_configs(args)
-        records, problems = read_records(args.inputs, args.force_full_scale_n,
-                                         args.velocity_full_scale_m_s, capture)
-        model = None
-        if args.mu is not None:
-            model = ModelOverlay(args.mu, 'given', Rig(
-                args.mass_kg, args.stiffness_n_per_m, args.damping_n_s_per_m,
-                args.normal_force_n))
-        page = build_report(records, args.out, capture=capture, analysis=analysis,
-                            model=model, title=args.title,
-                            inputs=[str(path) for path in args.inputs], problems=problems,
-                            dpi=args.dpi)
+    capture, analysis = analysis_configs(args)
+    records, problems = read_records(args.inputs, args.force_full_scale_n,
+                                     args.velocity_full_scale_m_s, capture)
+    summary = summarize([analyze_impact(record, capture, analysis, impact_id=number)
+                         for number, record in enumerate(records)], analysis)
+    rig = rig_from_args(args)
+    friction, failure, model = None, '', None
+    if args.mu is not None:
+        model = ModelOverlay(args.mu, 'given', rig)
+    elif not args.no_fit:
+        try:
+            friction = fit_accepted_impacts(records, summary, rig=rig,
+                                            fit_damping=args.fit_damping,
+                                            fit_initial_position=args.fit_initial_position)
+        except ValueError as error:  # FitError included: the page says why there is no fit
+            failure = str(error)
+            print(f'fmm report: cannot fit mu: {failure}', file=sys.stderr)
+    page = build_report(records, args.out, summary=summary, capture=capture, analysis=analysis,
+                        friction=friction, fit_failure=failure, model=model, title=args.title,
+                        inputs=[str(path) for path in args.inputs], problems=problems,
+                        dpi=args.dpi)
     print(f'wrote {page} (figures embedded, and as PNG files beside it)')
-    return report_problems('report', problems)
+    return max(report_problems('report', problems), 1 if failure else 0)

@@ -5,6 +5,8 @@ session's page from its impact records; `build_paper_report` reproduces the pape
 simulation figures (Figs. 2-10) from the physics core.
 """
 
-from fmm_ros.report.session import FLAG_MEANINGS, ModelOverlay, build_report
+from fmm_ros.report.model import FrictionSummary, ModelOverlay, fit_accepted_impacts
+from fmm_ros.report.session import FLAG_MEANINGS, build_report
 
-__all__ = ['FLAG_MEANINGS', 'ModelOverlay', 'build_report']
+__all__ = ['FLAG_MEANINGS', 'FrictionSummary', 'ModelOverlay', 'build_report',
+           'fit_accepted_impacts']

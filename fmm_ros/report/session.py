@@ -3,9 +3,9 @@
 `build_report(records, out_dir)` is what `fmm report`, the demo and anything else that holds a
 session's impact records call: it analyses them with the signal core (or takes a `Summary`
 already made from them), draws the figures of `session_figures`, and writes one HTML page with
-the figures embedded plus each figure as a PNG. With a `ModelOverlay` the model (Eq. 3 at a
-given or fitted mu) is driven by each hit's measured force, as in the paper's Sec. 5, and drawn
-over the measured velocity and mobility.
+the figures embedded plus each figure as a PNG. With a friction fit (`FrictionSummary`) or a
+given `ModelOverlay`, the model (Eq. 3 at that mu) is driven by each hit's measured force, as
+in the paper's Sec. 5, and drawn over the measured velocity and mobility.
 """
 
 from __future__ import annotations
@@ -18,14 +18,20 @@ from pathlib import Path
 
 import numpy as np
 
-from fmm_ros.core._checks import require_non_negative
 from fmm_ros.core.analysis import AnalysisConfig, ImpactResult, Summary, analyze_impact, summarize
 from fmm_ros.core.impacts import DEFAULT_CAPTURE, CaptureConfig
-from fmm_ros.core.model import FMM_RIG, ModelTerm, Rig, simulate
 from fmm_ros.core.records import ImpactRecord
 from fmm_ros.report import session_figures as figures
 from fmm_ros.report.html import Markup, Page, escape, link
-from fmm_ros.report.plotting import DEFAULT_DPI, MM_PER_M, MS_PER_S, REJECTED_COLOUR, level_colour
+from fmm_ros.report.model import FrictionSummary, ModelOverlay
+from fmm_ros.report.plotting import (
+    DEFAULT_DPI,
+    MM_PER_M,
+    MS_PER_S,
+    REJECTED_COLOUR,
+    level_colour,
+    value_with_error,
+)
 
 DEFAULT_ANALYSIS = AnalysisConfig()
 
@@ -43,39 +49,11 @@ FLAG_MEANINGS: dict[str, str] = {
 }
 
 
-@dataclass(frozen=True)
-class ModelOverlay:
-    """The model drawn over the measurement: Eq. 3 with this mu, rig and any extra terms.
-
-    `source` says where mu came from ('fitted', 'given', ...) and appears in every legend.
-    """
-
-    mu: float
-    source: str
-    rig: Rig = FMM_RIG
-    effects: tuple[ModelTerm, ...] = ()
-
-    def __post_init__(self) -> None:
-        require_non_negative('mu', self.mu)
-
-    @property
-    def label(self) -> str:
-        """Legend text: 'model, fitted μ = 0.1131'."""
-        terms = ''.join(f' + {term.name}' for term in self.effects)
-        return f'model, {self.source} μ = {self.mu:.4g}{terms}'
-
-    def velocity_m_s(self, record: ImpactRecord) -> np.ndarray | None:
-        """The model's velocity driven by the record's measured force; None if it has gaps."""
-        if not np.isfinite(record.force_n).all():
-            return None
-        return simulate(record.force_n, record.sample_rate_hz, rig=self.rig, mu=self.mu,
-                        effects=self.effects).velocity_m_s
-
-
 def build_report(records: Sequence[ImpactRecord], out_dir: str | Path, *,
                  summary: Summary | None = None,
                  capture: CaptureConfig = DEFAULT_CAPTURE,
                  analysis: AnalysisConfig = DEFAULT_ANALYSIS,
+                 friction: FrictionSummary | None = None, fit_failure: str = '',
                  model: ModelOverlay | None = None,
                  title: str = 'Impact session report', inputs: Sequence[str] = (),
                  problems: Sequence[str] = (), dpi: float = DEFAULT_DPI) -> Path:
@@ -83,9 +61,11 @@ def build_report(records: Sequence[ImpactRecord], out_dir: str | Path, *,
 
     records: the session's impact records, record i being impact i. summary: their analysis
     (`summarize` of `analyze_impact` results with impact_id = position), made here with
-    capture and analysis when not given. model: drawn over each hit and each level's FRF.
-    inputs: where the records came from (files, bag), listed on the page. problems: what
-    went wrong reading them (a damaged bag), shown at the top so no one misses it.
+    capture and analysis when not given. friction: a fit of mu over (some of) the impacts,
+    shown per impact and overall; its model is drawn over each hit and each level's FRF unless
+    another model is given. fit_failure: why there is no fit, if one was tried. inputs: where
+    the records came from (files, bag), listed on the page. problems: what went wrong reading
+    them (a damaged bag), shown at the top so no one misses it.
     """
     records = list(records)
     if not records:
@@ -94,6 +74,12 @@ def build_report(records: Sequence[ImpactRecord], out_dir: str | Path, *,
         summary = summarize([analyze_impact(record, capture, analysis, impact_id=number)
                              for number, record in enumerate(records)], analysis)
     by_id = _records_by_id(records, summary)
+    if friction is not None:
+        unknown = sorted(set(friction.impact_ids) - set(by_id))
+        if unknown:
+            raise ValueError(f'the friction fit names impact(s) {unknown} the session lacks')
+        if model is None:
+            model = friction.overlay()
     page = Page(out_dir, title, dpi=dpi)
     colours = {level.level: level_colour(index) for index, level in enumerate(summary.levels)}
     model_hits = _model_hits(by_id, summary, model, capture, analysis)
@@ -101,7 +87,7 @@ def build_report(records: Sequence[ImpactRecord], out_dir: str | Path, *,
     _session_section(page, summary, records, analysis, model, inputs, problems)
     _hit_table(page, summary, model_hits)
     _level_section(page, summary, analysis)
-    _model_section(page, summary, model, model_hits)
+    _model_section(page, summary, model, model_hits, friction, fit_failure)
     _time_section(page, summary, by_id, colours, model, capture)
     _frf_section(page, summary, colours, model, model_hits)
     return page.write()
@@ -137,7 +123,7 @@ def _model_hits(by_id: dict[int, ImpactRecord], summary: Summary, model: ModelOv
     hits = {}
     for impact in summary.impacts:
         record = by_id[impact.impact_id]
-        velocity = model.velocity_m_s(record)
+        velocity = model.velocity_m_s(record, impact.impact_id)
         if velocity is None:
             continue
         simulated = dataclasses.replace(record, velocity_m_s=velocity,
@@ -254,16 +240,50 @@ def _level_section(page: Page, summary: Summary, analysis: AnalysisConfig) -> No
 
 
 def _model_section(page: Page, summary: Summary, model: ModelOverlay | None,
-                   model_hits: dict[int, _ModelHit]) -> None:
+                   model_hits: dict[int, _ModelHit], friction: FrictionSummary | None,
+                   fit_failure: str) -> None:
     page.section('Friction coefficient and model', 'model')
+    if friction is not None:
+        _friction(page, summary, friction)
+    elif fit_failure:
+        page.text(f'No friction fit: {fit_failure}', note=True)
     if model is None:
-        page.text('No model overlay: no friction coefficient was given or fitted for this '
-                  'session.', note=True)
+        page.text('No model overlay: no friction coefficient was given or fitted.', note=True)
         return
     page.text(f'The model of Eq. 3 with {model.source} μ = {model.mu:.4g} is driven by each '
-              "hit's measured force (as in the paper's Sec. 5) and drawn over the measured "
-              f'velocity and mobility. {len(model_hits)} of {len(summary.impacts)} hits '
-              'could drive it (a force record with gaps cannot).')
+              "hit's measured force (baseline removed, zero outside the hit, as the fitter "
+              "drives it; the paper's Sec. 5) and drawn over the measured velocity and "
+              f'mobility. {len(model_hits)} of {len(summary.impacts)} hits could drive it (a '
+              'record with gaps cannot).')
+
+
+def _friction(page: Page, summary: Summary, friction: FrictionSummary) -> None:
+    """The fitted mu overall and per impact: text, table and figure."""
+    rig = friction.rig
+    damping = (f'c = {rig.damping_n_s_per_m:.4g} ± {friction.damping_stderr_n_s_per_m:.2g} '
+               'N·s/m fitted' if np.isfinite(friction.damping_stderr_n_s_per_m)
+               else f'c = {rig.damping_n_s_per_m:.4g} N·s/m held')
+    consistency = (f'; one μ serves every impact with p = {friction.consistency_p_value:.3g} '
+                   '(χ² test of the per-impact values)'
+                   if np.isfinite(friction.consistency_p_value) else '')
+    page.text(f'μ = {value_with_error(friction.mu, friction.mu_stderr)} fitted to '
+              f'{len(friction.impact_ids)} impacts at once ({damping}){consistency}.')
+    impacts = {impact.impact_id: impact for impact in summary.impacts}
+    starts = friction.initial_positions_m or (0.0,) * len(friction.impact_ids)
+    page.table(['hit', 'level', 'impulse [N·s]', 'μ alone ± 1σ', 'start [mm]'],
+               [[link(f'#fig-{_hit_name(impacts[i])}', i), impacts[i].level or '-',
+                 _number(impacts[i].impulse_n_s, '.4g'), value_with_error(mu, error),
+                 f'{start * MM_PER_M:.3f}']
+                for i, mu, error, start in zip(friction.impact_ids, friction.per_impact_mu,
+                                               friction.per_impact_mu_stderr, starts,
+                                               strict=True)], text_columns=(1,))
+    page.figure('friction', figures.friction_figure(
+        [impacts[i].impulse_n_s for i in friction.impact_ids], friction.per_impact_mu,
+        friction.per_impact_mu_stderr, [impacts[i].level for i in friction.impact_ids],
+        friction.mu, friction.mu_stderr,
+        level_order=[level.level for level in summary.levels]),
+        "Each impact's own μ (± 1σ) against its impulse, and the one μ fitted to all of "
+        'them (line, ± 1σ shaded): the paper found one μ for all three levels.')
 
 
 def _time_section(page: Page, summary: Summary, by_id: dict[int, ImpactRecord],
@@ -281,7 +301,8 @@ def _time_section(page: Page, summary: Summary, by_id: dict[int, ImpactRecord],
     page.subsection('Every hit')
     for impact in summary.impacts:
         record = by_id[impact.impact_id]
-        velocity = model.velocity_m_s(record) if model is not None else None
+        velocity = (model.velocity_m_s(record, impact.impact_id) if model is not None
+                    else None)
         page.figure(_hit_name(impact), figures.hit_figure(
             record, impact, capture=capture, model_velocity_m_s=velocity,
             model_label=model.label if model is not None else '',

@@ -30,6 +30,7 @@ from fmm_ros.report.plotting import (
     level_colour,
     new_figure,
     odd_harmonics,
+    value_with_error,
 )
 
 # The decay plot runs this much past the last sample above the rest velocity (fraction of
@@ -304,6 +305,39 @@ def frf_overlay_figure(level: LevelSummary, model_mobility: np.ndarray, *,
     axes[0].legend(loc='upper right', fontsize='small')
     axes[1].set_xlabel(FREQUENCY_LABEL)
     axes[1].set_xlim(0, top_hz)
+    return figure
+
+
+def friction_figure(impulses_n_s: Sequence[float], mus: Sequence[float],
+                    stderrs: Sequence[float], levels: Sequence[str], joint_mu: float,
+                    joint_stderr: float, *, level_order: Sequence[str] = ()) -> Figure:
+    """Each impact's own mu +-1 sigma against its impulse, and the one mu fitted to all.
+
+    The paper's claim (Sec. 5) is that one mu serves every level: the per-impact values then
+    scatter about the joint one within their errors, whatever the impulse.
+    """
+    figure, axes = new_figure(1, 1, height_in=3.6,
+                              title='friction coefficient per impact and for all impacts')
+    ax = axes[0]
+    impulses, values, errors = (np.asarray(a, dtype=float) for a in (impulses_n_s, mus, stderrs))
+    span = np.array([np.nanmin(impulses), np.nanmax(impulses)])
+    span = span + np.array([-0.05, 0.05]) * max(np.ptp(span), 0.1)
+    ax.fill_between(span, joint_mu - joint_stderr, joint_mu + joint_stderr, color='0.85',
+                    zorder=0)
+    ax.plot(span, [joint_mu, joint_mu], color=MEAN_COLOUR, linewidth=1,
+            label=f'all impacts: μ = {value_with_error(joint_mu, joint_stderr)}')
+    names = list(level_order) + sorted(set(levels) - set(level_order))
+    for name in names:
+        mine = np.array([level == name for level in levels], dtype=bool)
+        colour = level_colour(level_order.index(name)) if name in level_order else REJECTED_COLOUR
+        ax.errorbar(impulses[mine], values[mine], yerr=errors[mine], fmt='o', markersize=4,
+                    capsize=3, color=colour, label=name or 'no level')
+    ax.set_xlim(*span)
+    ax.set_xlabel('impulse [N·s]')
+    ax.set_ylabel('μ [-], ± 1σ')
+    ax.ticklabel_format(axis='y', style='plain', useOffset=False)
+    # Under the axes: the error bars fill them.
+    figure.legend(fontsize='small', loc='outside lower center', ncols=len(names) + 1)
     return figure
 
 
