@@ -15,8 +15,7 @@ from pathlib import Path
 from fmm_ros.cli._model import add_fit_freedom_arguments, add_rig_arguments, rig_from_args
 from fmm_ros.cli.analyze import add_analysis_options, analysis_configs, read_records
 from fmm_ros.cli.progress import report_problems
-from fmm_ros.core.analysis import analyze_impact, summarize
-from fmm_ros.report import ModelOverlay, build_report, fit_accepted_impacts
+from fmm_ros.report import report_session
 from fmm_ros.report.paper import build_paper_report
 from fmm_ros.report.plotting import DEFAULT_DPI
 
@@ -69,23 +68,12 @@ def run(args: argparse.Namespace) -> int:
     capture, analysis = analysis_configs(args)
     records, problems = read_records(args.inputs, args.force_full_scale_n,
                                      args.velocity_full_scale_m_s, capture)
-    summary = summarize([analyze_impact(record, capture, analysis, impact_id=number)
-                         for number, record in enumerate(records)], analysis)
-    rig = rig_from_args(args)
-    friction, failure, model = None, '', None
-    if args.mu is not None:
-        model = ModelOverlay(args.mu, 'given', rig)
-    elif not args.no_fit:
-        try:
-            friction = fit_accepted_impacts(records, summary, rig=rig,
-                                            fit_damping=args.fit_damping,
-                                            fit_initial_position=args.fit_initial_position)
-        except ValueError as error:  # FitError included: the page says why there is no fit
-            failure = str(error)
-            print(f'fmm report: cannot fit mu: {failure}', file=sys.stderr)
-    page = build_report(records, args.out, summary=summary, capture=capture, analysis=analysis,
-                        friction=friction, fit_failure=failure, model=model, title=args.title,
-                        inputs=[str(path) for path in args.inputs], problems=problems,
-                        dpi=args.dpi)
-    print(f'wrote {page} (figures embedded, and as PNG files beside it)')
-    return max(report_problems('report', problems), 1 if failure else 0)
+    result = report_session(
+        records, args.out, capture=capture, analysis=analysis, rig=rig_from_args(args),
+        mu=args.mu, fit=not args.no_fit, fit_damping=args.fit_damping,
+        fit_initial_position=args.fit_initial_position, title=args.title,
+        inputs=[str(path) for path in args.inputs], problems=problems, dpi=args.dpi)
+    if result.fit_failure:
+        print(f'fmm report: cannot fit mu: {result.fit_failure}', file=sys.stderr)
+    print(f'wrote {result.page} (figures embedded, and as PNG files beside it)')
+    return max(report_problems('report', problems), 1 if result.fit_failure else 0)

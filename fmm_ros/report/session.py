@@ -20,10 +20,11 @@ import numpy as np
 
 from fmm_ros.core.analysis import AnalysisConfig, ImpactResult, Summary, analyze_impact, summarize
 from fmm_ros.core.impacts import DEFAULT_CAPTURE, CaptureConfig
+from fmm_ros.core.model import FMM_RIG, Rig
 from fmm_ros.core.records import ImpactRecord
 from fmm_ros.report import session_figures as figures
 from fmm_ros.report.html import Markup, Page, escape, link
-from fmm_ros.report.model import FrictionSummary, ModelOverlay
+from fmm_ros.report.model import FrictionSummary, ModelOverlay, fit_accepted_impacts
 from fmm_ros.report.plotting import (
     DEFAULT_DPI,
     MM_PER_M,
@@ -91,6 +92,45 @@ def build_report(records: Sequence[ImpactRecord], out_dir: str | Path, *,
     _time_section(page, summary, by_id, colours, model, capture)
     _frf_section(page, summary, colours, model, model_hits)
     return page.write()
+
+
+@dataclass(frozen=True)
+class SessionReport:
+    """What `report_session` wrote, and the fit it made (or why it could not)."""
+
+    page: Path
+    friction: FrictionSummary | None
+    fit_failure: str
+
+
+def report_session(records: Sequence[ImpactRecord], out_dir: str | Path, *,
+                   capture: CaptureConfig = DEFAULT_CAPTURE,
+                   analysis: AnalysisConfig = DEFAULT_ANALYSIS, rig: Rig = FMM_RIG,
+                   mu: float | None = None, fit: bool = True, fit_damping: bool = False,
+                   fit_initial_position: bool = False, title: str = 'Impact session report',
+                   inputs: Sequence[str] = (), problems: Sequence[str] = (),
+                   dpi: float = DEFAULT_DPI) -> SessionReport:
+    """Analyse a session's records, fit mu over the accepted ones, and write the report.
+
+    What `fmm report` does with its inputs, for callers holding records (the demo, from its
+    bag): mu given draws that model instead of fitting; fit=False draws none. A fit the data
+    refuse does not stop the report: the page and the result say why.
+    """
+    records = list(records)
+    summary = summarize([analyze_impact(record, capture, analysis, impact_id=number)
+                         for number, record in enumerate(records)], analysis)
+    friction, failure = None, ''
+    model = ModelOverlay(mu, 'given', rig) if mu is not None else None
+    if mu is None and fit:
+        try:
+            friction = fit_accepted_impacts(records, summary, rig=rig, fit_damping=fit_damping,
+                                            fit_initial_position=fit_initial_position)
+        except ValueError as error:  # FitError is one: the page says why there is no fit
+            failure = str(error)
+    page = build_report(records, out_dir, summary=summary, capture=capture, analysis=analysis,
+                        friction=friction, fit_failure=failure, model=model, title=title,
+                        inputs=inputs, problems=problems, dpi=dpi)
+    return SessionReport(page, friction, failure)
 
 
 def _records_by_id(records: list[ImpactRecord], summary: Summary) -> dict[int, ImpactRecord]:
