@@ -51,3 +51,11 @@ def test_bad_live_values_are_refused_and_the_old_value_kept(ros_graph):
     assert 'read-only' in results[2].reason
     assert node.get_parameter('storage').value == 'mcap'
     assert node.set_parameters([Parameter('rate_factor', value=50.0)])[0].successful
+
+
+def test_an_integer_for_a_float_parameter_is_taken_as_a_float(ros_graph):
+    node = ros_graph.add(_Configured, parameter_overrides=[Parameter('rate_factor', value=20)])
+    assert node.values['rate_factor'] == 20.0 and isinstance(node.values['rate_factor'], float)
+    with pytest.raises(InvalidParameterValueException, match="'fast' is not a number"):
+        ros_graph.add(_Configured, parameter_overrides=[Parameter('rate_factor', value='fast')])
+    assert not node.set_parameters([Parameter('rate_factor', value=True)])[0].successful

@@ -48,6 +48,10 @@ PARAMS = (
     Param('seed', 0, 'Seed of the session draw and the noise [-]', limits=(0, 2**31 - 1),
           read_only=True),
     Param('frame_id', 'hammer', 'Sensor name in the message header', read_only=True),
+    Param('wait_for_subscribers', 0,
+          'Hold the session until /fmm/force has this many subscribers and the applied force '
+          'one (nodes in other processes are discovered later; a hit sent before is lost)',
+          limits=(0, 1000), read_only=True),
 )
 
 
@@ -77,6 +81,7 @@ class HammerSim(Node):
         self._measured = np.empty(batch)
         self._start_stamp = self.get_clock().now()
         self._timer = None
+        self._started = False
         self._pacer = BatchPacer(1.0)
         self._pace(self.config['rate_factor'])
         self.add_post_set_parameters_callback(self._on_parameters)
@@ -109,6 +114,14 @@ class HammerSim(Node):
                 self._pace(parameter.value)
 
     def _on_tick(self) -> None:
+        if not self._started:
+            wanted = self.config['wait_for_subscribers']
+            self._started = (self._measured_pub.get_subscription_count() >= wanted
+                             and self._applied_pub.get_subscription_count() >= min(wanted, 1))
+            if not self._started:
+                self.get_logger().info(f'waiting for {wanted} subscribers on {FORCE_TOPIC}',
+                                       throttle_duration_sec=5.0)
+                return
         for _ in range(self._pacer.due()):
             self._publish_batch()
         if self._pacer.fell_behind:

@@ -34,8 +34,14 @@ class Param:
     read_only: bool = False
 
     def descriptor(self) -> ParameterDescriptor:
-        """The ROS descriptor: what `ros2 param describe` shows."""
-        descriptor = ParameterDescriptor(description=self.description, read_only=self.read_only)
+        """The ROS descriptor: what `ros2 param describe` shows.
+
+        Float parameters are dynamically typed, so `rate_factor: 20` in a params file or
+        `-p rate_factor:=20` is taken as 20.0 instead of refused for being an INTEGER; their
+        type and range are then checked by `problem`.
+        """
+        descriptor = ParameterDescriptor(description=self.description, read_only=self.read_only,
+                                         dynamic_typing=self._is_float)
         if self.limits is not None and isinstance(self.default, list):
             low, high = self.limits
             descriptor.additional_constraints = f'every element in [{low}, {high}]'
@@ -49,8 +55,18 @@ class Param:
             descriptor.additional_constraints = f'one of {", ".join(self.choices)}'
         return descriptor
 
+    @property
+    def _is_float(self) -> bool:
+        return isinstance(self.default, float)
+
     def problem(self, value: ParamValue) -> str | None:
         """Why value is not acceptable (checks ROS descriptors cannot express), or None."""
+        if self._is_float:
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                return f'{self.name} = {value!r} is not a number'
+            if self.limits is not None and not self.limits[0] <= value <= self.limits[1]:
+                return (f'{self.name} = {value} out of range [{self.limits[0]}, '
+                        f'{self.limits[1]}]')
         if self.choices and value not in self.choices:
             return f'{self.name} = {value!r} is not one of {", ".join(self.choices)}'
         if self.limits is not None and isinstance(value, list | tuple):
@@ -59,6 +75,10 @@ class Param:
             if bad:
                 return f'{self.name} has {bad} outside [{low}, {high}]'
         return None
+
+    def value(self, parameter: Parameter) -> ParamValue:
+        """The parameter's value in the default's type (an integer given for a float: float)."""
+        return float(parameter.value) if self._is_float else parameter.value
 
 
 def declare_parameters(node: Node, params: Sequence[Param]) -> dict[str, ParamValue]:
@@ -76,4 +96,4 @@ def declare_parameters(node: Node, params: Sequence[Param]) -> dict[str, ParamVa
     node.add_on_set_parameters_callback(check)
     for param in params:
         node.declare_parameter(param.name, param.default, param.descriptor())
-    return {param.name: node.get_parameter(param.name).value for param in params}
+    return {param.name: param.value(node.get_parameter(param.name)) for param in params}

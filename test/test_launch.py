@@ -1,0 +1,53 @@
+"""Launch scripts: the simulated rig as separate `ros2 run`-style processes, and overrides."""
+
+import random
+import signal
+
+import pytest
+from rig_graph import Listener, wait_for
+
+from fmm_ros.core.bagio.reader import BagReader
+from fmm_ros.launch import (
+    SIMULATED_RIG,
+    default_params_file,
+    node_command,
+    parse_overrides,
+    start_processes,
+    stop_processes,
+)
+from fmm_ros.ros_graph import InProcessGraph
+
+
+def test_the_simulated_rig_runs_as_separate_processes(tmp_path, monkeypatch):
+    domain = random.randrange(101, 200)
+    monkeypatch.setenv('ROS_DOMAIN_ID', str(domain))
+    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    overrides = parse_overrides([
+        'hammer_sim.rate_factor=50', 'hammer_sim.hits_per_level=1', 'hammer_sim.batch_size=2000',
+        'hammer_sim.hit_spacing_s=8.0', 'hammer_sim.first_hit_s=1.0',
+        'hammer_sim.wait_for_subscribers=3', 'analyzer.window_s=6.0',
+        f'recorder.bag_path={tmp_path / "bag"}'], SIMULATED_RIG)
+    assert node_command('analyzer')[0].endswith('lib/fmm_ros/analyzer')
+    with InProcessGraph(domain_id=domain) as graph:
+        listener = graph.add(Listener)
+        graph.start()
+        processes = start_processes(SIMULATED_RIG, default_params_file(), overrides)
+        try:
+            assert wait_for(lambda: len(listener.impacts) == 3, timeout_s=90.0), (
+                f'{len(listener.impacts)} of 3 impacts from the processes')
+        finally:
+            codes = stop_processes(processes)
+    assert [m.level for m in listener.impacts] == ['low', 'medium', 'high']
+    assert all(code in (0, -signal.SIGINT) for code in codes), codes
+    with BagReader(tmp_path / 'bag') as reader:   # closed cleanly on SIGINT
+        assert reader.topics['/fmm/impacts'].count == 3 and not reader.recovered
+
+
+def test_overrides_name_what_is_wrong():
+    with pytest.raises(ValueError, match='not node.param=value'):
+        parse_overrides(['rate_factor=2'], SIMULATED_RIG)
+    with pytest.raises(ValueError, match="no node 'daq' in this rig"):
+        parse_overrides(['daq.backend=file'], SIMULATED_RIG)
+    (parameter,) = parse_overrides(['rig_sim.effects=[stribeck]'], SIMULATED_RIG)['rig_sim']
+    assert (parameter.name, parameter.value) == ('effects', ['stribeck'])
+    assert default_params_file().name == 'fmm_rig.yaml' and default_params_file().is_file()
