@@ -72,8 +72,7 @@ def build_report(records: Sequence[ImpactRecord], out_dir: str | Path, *,
     if not records:
         raise ValueError('a report needs at least one impact record')
     if summary is None:
-        summary = summarize([analyze_impact(record, capture, analysis, impact_id=number)
-                             for number, record in enumerate(records)], analysis)
+        summary = _analysed(records, capture, analysis)
     by_id = _records_by_id(records, summary)
     if friction is not None:
         unknown = sorted(set(friction.impact_ids) - set(by_id))
@@ -117,8 +116,7 @@ def report_session(records: Sequence[ImpactRecord], out_dir: str | Path, *,
     refuse does not stop the report: the page and the result say why.
     """
     records = list(records)
-    summary = summarize([analyze_impact(record, capture, analysis, impact_id=number)
-                         for number, record in enumerate(records)], analysis)
+    summary = _analysed(records, capture, analysis)
     friction, failure = None, ''
     model = ModelOverlay(mu, 'given', rig) if mu is not None else None
     if mu is None and fit:
@@ -131,6 +129,13 @@ def report_session(records: Sequence[ImpactRecord], out_dir: str | Path, *,
                         friction=friction, fit_failure=failure, model=model, title=title,
                         inputs=inputs, problems=problems, dpi=dpi)
     return SessionReport(page, friction, failure)
+
+
+def _analysed(records: list[ImpactRecord], capture: CaptureConfig,
+              analysis: AnalysisConfig) -> Summary:
+    """The signal core's verdict on every record, impact i being record i."""
+    return summarize([analyze_impact(record, capture, analysis, impact_id=number)
+                      for number, record in enumerate(records)], analysis)
 
 
 def _records_by_id(records: list[ImpactRecord], summary: Summary) -> dict[int, ImpactRecord]:
