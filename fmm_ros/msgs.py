@@ -11,10 +11,8 @@ import numpy as np
 from builtin_interfaces.msg import Time
 
 from fmm_interfaces.msg import FrfSummary, ImpactResult, SampleBatch
-from fmm_ros.core import analysis, frf
-
-FORCE = ('force', 'N')
-VELOCITY = ('velocity', 'm/s')
+from fmm_ros.core import analysis, diagnose, frf
+from fmm_ros.core.topics import FORCE, VELOCITY  # noqa: F401 (msgs.FORCE in sample_batch calls)
 
 
 def float64_field(values: np.ndarray) -> array.array:
@@ -105,3 +103,31 @@ def complex_field(msg: object, name: str) -> np.ndarray:
     """The complex array stored in msg's `<name>_real` / `<name>_imag` pair."""
     real = field_array(getattr(msg, f'{name}_real'))
     return real + 1j * field_array(getattr(msg, f'{name}_imag'))
+
+
+def fill_diagnose_response(response: object, result: diagnose.Diagnosis) -> object:
+    """Copy a Diagnosis into a DiagnoseModel response (success = True); returns it."""
+    response.success = True
+    response.message = result.verdict
+    response.missing_effect = result.missing_effect
+    response.parameter_names = [p.name for p in result.parameters]
+    response.parameter_values = float64_field([p.value for p in result.parameters])
+    response.parameter_units = [p.unit for p in result.parameters]
+    response.parameter_stderr = float64_field([p.stderr for p in result.parameters])
+    response.mu, response.mu_stderr = result.mu, result.mu_stderr
+    response.gap_before, response.gap_after = result.gap_before, result.gap_after
+    response.frf_gap_before, response.frf_gap_after = (result.frf_gap_before,
+                                                       result.frf_gap_after)
+    response.where = result.where.summary
+    response.candidate_effects = [c.effect for c in result.candidates]
+    response.candidate_scores = float64_field([c.score for c in result.candidates])
+    response.candidate_gap_after = float64_field([c.gap_after for c in result.candidates])
+    response.candidate_parameter_counts = [len(c.parameters) for c in result.candidates]
+    response.candidate_parameter_names = [p.name for c in result.candidates
+                                          for p in c.parameters]
+    response.candidate_parameter_values = float64_field(
+        [p.value for c in result.candidates for p in c.parameters])
+    response.noise_std_m_s = result.noise_std_m_s
+    response.required_score = result.required_score
+    response.verdict = result.verdict
+    return response

@@ -22,6 +22,7 @@ SUBCOMMANDS: tuple[str, ...] = (
     'export',
     'fit',
     'identify_rig',
+    'diagnose',
 )
 
 

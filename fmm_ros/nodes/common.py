@@ -13,11 +13,14 @@ from rclpy.executors import (
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-FORCE_TOPIC = '/fmm/force'
-VELOCITY_TOPIC = '/fmm/velocity'
-APPLIED_FORCE_TOPIC = '/fmm/sim/applied_force'
-IMPACTS_TOPIC = '/fmm/impacts'
-FRF_TOPIC = '/fmm/frf'
+from fmm_ros.core.topics import (  # noqa: F401 (the nodes take the topic names from here)
+    APPLIED_FORCE_TOPIC,
+    FORCE_TOPIC,
+    FRF_TOPIC,
+    IMPACTS_TOPIC,
+    VELOCITY_TOPIC,
+)
+
 FIT_SERVICE = '/fmm/fit_friction'
 DIAGNOSE_SERVICE = '/fmm/diagnose_model'
 
@@ -67,12 +70,14 @@ class BatchPacer:
     """Releases sample batches at a paced rate against the wall clock, a few per tick.
 
     rclpy's executor takes one message per subscription per wait cycle, so a source that
-    publishes bursts overruns subscribers spun by the same executor. A tick releases at most
-    `max_per_tick` batches (two absorb timer jitter); further behind than that, the clock is
-    re-anchored: the source runs slower than asked (`fell_behind` says so) instead of flooding.
+    publishes more than one batch a tick overruns subscribers spun by the same executor once
+    its timer is ready on every cycle (a speed-up the graph cannot keep): seen as queues
+    overflowing into gaps at x1000 with two a tick. So one batch a tick; further behind than
+    that, the clock is re-anchored: the source runs slower than asked (`fell_behind` says
+    so) instead of flooding.
     """
 
-    def __init__(self, batches_per_s: float, max_per_tick: int = 2) -> None:
+    def __init__(self, batches_per_s: float, max_per_tick: int = 1) -> None:
         self.max_per_tick = max_per_tick
         self.restart(batches_per_s, 0)
 

@@ -1,4 +1,4 @@
-"""fitter: the /fmm/fit_friction service over the analyzer's impacts.
+"""fitter: the /fmm/fit_friction and /fmm/diagnose_model services over the analyzer's impacts.
 
 The fitter keeps the recent force and velocity streams itself (`SampleHistory`) and cuts each
 impact the analyzer reports on /fmm/impacts out of them by sample index, keeping the last
@@ -19,13 +19,15 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
 
 from fmm_interfaces.msg import ImpactResult, SampleBatch
-from fmm_interfaces.srv import FitFriction
+from fmm_interfaces.srv import DiagnoseModel, FitFriction
 from fmm_ros import msgs
+from fmm_ros.core.diagnose import diagnose
 from fmm_ros.core.fit import MU_BOUNDS, FitError, fit_friction
 from fmm_ros.core.history import SampleHistory
 from fmm_ros.core.model import Rig
 from fmm_ros.core.records import ImpactRecord
 from fmm_ros.nodes.common import (
+    DIAGNOSE_SERVICE,
     FIT_SERVICE,
     FORCE_TOPIC,
     IMPACTS_TOPIC,
@@ -94,8 +96,10 @@ class Fitter(Node):
                                  callback_group=streams)
         services = MutuallyExclusiveCallbackGroup()
         self.create_service(FitFriction, FIT_SERVICE, self._on_fit, callback_group=services)
-        self.get_logger().info(f'{FIT_SERVICE} ready on m={self.rig.mass_kg} kg, '
-                               f'k={self.rig.stiffness_n_per_m} N/m, '
+        self.create_service(DiagnoseModel, DIAGNOSE_SERVICE, self._on_diagnose,
+                            callback_group=services)
+        self.get_logger().info(f'{FIT_SERVICE} and {DIAGNOSE_SERVICE} ready on '
+                               f'm={self.rig.mass_kg} kg, k={self.rig.stiffness_n_per_m} N/m, '
                                f'N={self.rig.normal_force_n:.3f} N')
 
     # -- streams ----------------------------------------------------------------------------
@@ -185,6 +189,21 @@ class Fitter(Node):
                             f'impacts; one mu serves all: p = {fit.consistency_p_value:.3g}')
         self.get_logger().info(response.message)
         return response
+
+
+    def _on_diagnose(self, request: DiagnoseModel.Request, response: DiagnoseModel.Response
+                     ) -> DiagnoseModel.Response:
+        """Name the effect the base model misses in the requested impacts (issue 8)."""
+        try:
+            impacts = self.selected(list(request.impact_ids))
+            result = diagnose([impact.record for impact in impacts], rig=self.rig,
+                              fit_initial_position=self.config['fit_initial_position'])
+        except FitError as error:
+            return _refused(response, f'{error.reason}: {error}')
+        except ValueError as error:
+            return _refused(response, str(error))
+        self.get_logger().info(f'diagnosis of {len(impacts)} impacts: {result.verdict}')
+        return msgs.fill_diagnose_response(response, result)
 
 
 def _refused(response: object, reason: str) -> object:

@@ -25,15 +25,14 @@ from rosbags.typesys.store import Typestore
 
 from fmm_ros.core.bagio.definitions import SAMPLE_BATCH, fmm_typestore
 from fmm_ros.core.bagio.errors import BagError, MessageTypeError
-
-FORCE_TOPIC = '/fmm/force'
-VELOCITY_TOPIC = '/fmm/velocity'
-IMPACTS_TOPIC = '/fmm/impacts'
-FRF_TOPIC = '/fmm/frf'
-
-# Quantity and SI unit strings of the two sample channels (SampleBatch.quantity / .unit).
-FORCE = ('force', 'N')
-VELOCITY = ('velocity', 'm/s')
+from fmm_ros.core.topics import (  # noqa: F401 (re-exported)
+    FORCE,
+    FORCE_TOPIC,
+    FRF_TOPIC,
+    IMPACTS_TOPIC,
+    VELOCITY,
+    VELOCITY_TOPIC,
+)
 
 DEFAULT_BATCH_SIZE = 500
 ROSBAG2_VERSION = 9  # the metadata version rosbag2 on Jazzy writes

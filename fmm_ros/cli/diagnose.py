@@ -1,0 +1,189 @@
+"""`fmm diagnose`: name the effect the base model (Eq. 3) misses in measured impacts.
+
+Same inputs and rig flags as `fmm fit` (CSV files of one impact each, or bags). Exit status:
+0 diagnosed (whatever was named, 'none' included), 1 the base model cannot be fitted at all
+(the reason is printed, as JSON with --json) or a bag was damaged (its problems are printed
+as warnings after the result), 2 bad input or flags.
+
+Examples:
+    fmm diagnose low_*.csv medium_*.csv high_*.csv
+    fmm diagnose hit1.csv hit2.csv hit3.csv --json
+    fmm diagnose hit*.csv --plot figures/
+"""
+
+import argparse
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from fmm_ros.cli._fitting import fit_and_report
+from fmm_ros.cli._model import add_rig_arguments, rig_from_args
+from fmm_ros.core import frf
+from fmm_ros.core.diagnose import EFFECTS, NONE, Diagnosis, diagnose
+from fmm_ros.core.model import Rig
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the `diagnose` subcommand."""
+    parser = subparsers.add_parser(
+        'diagnose', help='find where the model and the measurement disagree and name the '
+                         'missing effect',
+        description='Fit the base model (Eq. 3, mu fitted) to every impact at once, locate its '
+                    'misfit in time and frequency, refit it with each candidate effect ('
+                    + ', '.join(EFFECTS) + ') and name the one that is clearly better by the '
+                    'Bayesian information criterion, or none.')
+    parser.add_argument('inputs', nargs='+', type=Path, metavar='INPUT',
+                        help='CSV files of one impact each (time_s,force_n,velocity_m_s) or '
+                             'bags (every impact recorded)')
+    parser.add_argument('--fit-initial-position', action='store_true',
+                        help="fit each impact's start position in every model, base and "
+                             'candidates (a hit that found the rig held off centre by '
+                             'friction); otherwise each starts at x = 0')
+    add_rig_arguments(parser)
+    parser.add_argument('--json', action='store_true', help='print the result as JSON')
+    parser.add_argument('--plot', type=Path, metavar='DIR',
+                        help='write residual_before_after.png and frf_overlay.png here')
+    parser.set_defaults(func=run)
+
+
+@dataclass(frozen=True)
+class _Run:
+    """What one `fmm diagnose` produced: the diagnosis, its inputs' names, the figures."""
+
+    diagnosis: Diagnosis
+    files: list[str]
+    figures: list[Path]
+
+
+def run(args: argparse.Namespace) -> int:
+    """Diagnose the inputs; print a table or JSON; draw the figures if asked."""
+    rig = rig_from_args(args)
+
+    def diagnose_records(records) -> _Run:
+        result = diagnose(records, rig=rig, fit_initial_position=args.fit_initial_position)
+        figures = plot_diagnosis(result, records, rig, args.plot) if args.plot else []
+        return _Run(result, [record.source for record in records], figures)
+
+    return fit_and_report('diagnose', args, diagnose_records, report, text_report)
+
+
+def report(run_result: _Run) -> dict:
+    """The JSON document: `Diagnosis.to_dict()`, the input names and the figures written."""
+    return {**run_result.diagnosis.to_dict(), 'files': run_result.files,
+            'figures': [str(path) for path in run_result.figures]}
+
+
+def _value(value: float, error: float, unit: str) -> str:
+    unit = '' if unit == '1' else f' {unit}'
+    if math.isfinite(error) and error > 0.0:
+        return f'{value:.4g} +- {error:.2g}{unit}'
+    return f'{value:.4g}{unit}'
+
+
+def text_report(run_result: _Run) -> str:
+    """The short table a person reads in ten seconds (and the figures written)."""
+    result, files = run_result.diagnosis, run_result.files
+    lines = [f'{len(files)} impact(s); velocity noise {result.noise_std_m_s:.3g} m/s (from the '
+             f'data); base fit mu = {_value(result.mu, result.mu_stderr, "1")}']
+    if result.missing_effect == NONE:
+        lines.append(f'missing effect: none   gap {result.gap_before:.3g} '
+                     f'(FRF {result.frf_gap_before:.3g})')
+    else:
+        lines.append(f'missing effect: {result.missing_effect}   gap {result.gap_before:.3g} -> '
+                     f'{result.gap_after:.3g}   FRF gap {result.frf_gap_before:.3g} -> '
+                     f'{result.frf_gap_after:.3g}')
+        for parameter in result.parameters:
+            lines.append(f'  {parameter.name:<40} '
+                         f'{_value(parameter.value, parameter.stderr, parameter.unit)}')
+    lines.append(f'where: {result.where.summary}')
+    lines.append('')
+    lines.append(f'{"candidate":<22}{"score (dBIC)":>14}{"gap after":>12}')
+    for candidate in result.candidates:
+        mark = '  <- named' if candidate.effect == result.missing_effect else ''
+        score = f'{candidate.score:.0f}' if math.isfinite(candidate.score) else 'failed'
+        lines.append(f'{candidate.effect:<22}{score:>14}{candidate.gap_after:>12.3g}{mark}')
+    lines.append(f'(named when dBIC <= {result.required_score:.0f} and the gap at least halves)')
+    lines.append(result.verdict)
+    lines += [f'wrote {path}' for path in run_result.figures]
+    return '\n'.join(lines)
+
+
+def plot_diagnosis(result: Diagnosis, records: list, rig: Rig, directory: Path) -> list[Path]:
+    """Write residual_before_after.png and frf_overlay.png into directory; return the paths.
+
+    One row per impact. Residuals: measured minus model velocity over the motion, base model
+    and named model. FRF: |mobility| to 20 Hz of the measurement, the base model and the
+    named model, and beside it the magnitude of their difference (where the gap shows), with
+    f_n and its odd harmonics marked.
+    """
+    import matplotlib
+    matplotlib.use('Agg')  # files only, no display
+    import matplotlib.pyplot as plt
+
+    directory.mkdir(parents=True, exist_ok=True)
+    named = 'base model' if result.missing_effect == NONE else f'with {result.missing_effect}'
+    rows = len(records)
+    paths = [directory / 'residual_before_after.png', directory / 'frf_overlay.png']
+    figure, axes = plt.subplots(rows, 1, figsize=(9, 2.4 * rows + 0.6), squeeze=False,
+                                sharex=True)
+    for axis, record, before, after in zip(axes[:, 0], records, result.base_residuals_m_s,
+                                           result.named_residuals_m_s, strict=True):
+        time_s = np.arange(before.size) / record.sample_rate_hz
+        end = _motion_end(record.velocity_m_s - before, record.sample_rate_hz)
+        axis.plot(time_s[:end], 1e3 * before[:end], color='0.6', lw=0.6, label='base model')
+        if result.missing_effect != NONE:
+            axis.plot(time_s[:end], 1e3 * after[:end], color='C0', lw=0.6, label=named)
+        axis.set_ylabel('residual [mm/s]')
+        axis.set_title(Path(record.source).name if record.source else 'impact', fontsize=9)
+        axis.legend(loc='upper right', fontsize=8)
+    axes[-1, 0].set_xlabel('time [s]')
+    figure.suptitle(f'measured minus simulated velocity: gap {result.gap_before:.3g} -> '
+                    f'{result.gap_after:.3g} ({result.missing_effect})', fontsize=10)
+    figure.tight_layout()
+    figure.savefig(paths[0], dpi=120)
+    plt.close(figure)
+
+    figure, axes = plt.subplots(rows, 2, figsize=(12, 2.6 * rows + 0.6), squeeze=False,
+                                sharex=True)
+    f_n = rig.natural_frequency_hz
+    for (overlay, error), record, before, after in zip(axes, records, result.base_residuals_m_s,
+                                                       result.named_residuals_m_s, strict=True):
+        frequency = frf.frequency_axis(before.size, record.sample_rate_hz)
+        band = (frequency > 0.0) & (frequency <= 20.0)
+        measured = frf.mobility(*frf.spectra(record.force_n, record.velocity_m_s))[band]
+        curves = [('base model', before, dict(color='0.55', lw=0.8))]
+        if result.missing_effect != NONE:
+            curves.append((named, after, dict(color='C0', lw=0.8)))
+        overlay.semilogy(frequency[band], np.abs(measured), color='k', lw=0.8, ls=':',
+                         label='measured')
+        for label, residual, style in curves:
+            model = frf.mobility(*frf.spectra(record.force_n, record.velocity_m_s - residual))
+            overlay.semilogy(frequency[band], np.abs(model[band]), label=label, **style)
+            error.semilogy(frequency[band], np.abs(measured - model[band]), label=label,
+                           **style)
+        for axis in (overlay, error):
+            for harmonic in range(1, 10, 2):
+                axis.axvline(harmonic * f_n, color='C3', lw=0.5, alpha=0.4)
+            axis.legend(loc='upper right', fontsize=8)
+        title = Path(record.source).name if record.source else 'impact'
+        overlay.set_title(f'{title}: |mobility|', fontsize=9)
+        error.set_title(f'{title}: |measured - model| mobility', fontsize=9)
+        overlay.set_ylabel('[m/(N s)]')
+        error.set_ylabel('[m/(N s)]')
+    for axis in axes[-1]:
+        axis.set_xlabel('frequency [Hz] (red: f_n and its odd harmonics)')
+    figure.suptitle(f'mobility FRF: misfit {result.frf_gap_before:.3g} -> '
+                    f'{result.frf_gap_after:.3g} ({result.missing_effect})', fontsize=10)
+    figure.tight_layout()
+    figure.savefig(paths[1], dpi=120)
+    plt.close(figure)
+    return paths
+
+
+def _motion_end(model_m_s: np.ndarray, sample_rate_hz: float) -> int:
+    """Sample 1 s past the model's last motion (the residual plot's right edge)."""
+    moving = np.flatnonzero(np.abs(model_m_s) > 0.0)
+    last = int(moving[-1]) if moving.size else model_m_s.size
+    return min(model_m_s.size, last + int(sample_rate_hz))

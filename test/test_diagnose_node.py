@@ -1,0 +1,52 @@
+"""/fmm/diagnose_model: the fitter node names an effect hidden in the live simulated rig."""
+
+import pytest
+from rclpy.node import Node
+from rig_graph import FAST_ANALYZER, FAST_HAMMER, params, wait_for
+
+from fmm_interfaces.srv import DiagnoseModel
+from fmm_ros import msgs
+from fmm_ros.core.diagnose import EFFECTS
+from fmm_ros.nodes.analyzer import Analyzer
+from fmm_ros.nodes.common import DIAGNOSE_SERVICE
+from fmm_ros.nodes.fitter import Fitter
+from fmm_ros.nodes.hammer_sim import HammerSim
+from fmm_ros.nodes.rig_sim import RigSim
+
+OFFSET_M_S = 3e-4  # three times the vibrometer noise
+
+
+def test_an_offset_in_the_rig_is_named_over_the_service(ros_graph):
+    ros_graph.add(HammerSim, parameter_overrides=params(**FAST_HAMMER))
+    ros_graph.add(RigSim, parameter_overrides=params(
+        effects=[f'velocity_offset:offset_m_s={OFFSET_M_S}']))
+    ros_graph.add(Analyzer, parameter_overrides=params(**FAST_ANALYZER))
+    fitter = ros_graph.add(Fitter)
+    client = ros_graph.add(Node, node_name='caller').create_client(DiagnoseModel,
+                                                                    DIAGNOSE_SERVICE)
+    ros_graph.start()
+    assert wait_for(lambda: len(fitter.impacts) == 3)
+    response = ros_graph.call(client, DiagnoseModel.Request(), timeout_s=120.0)
+    assert response.success, response.message
+    assert response.missing_effect == 'velocity_offset'
+    names = list(response.parameter_names)
+    values = dict(zip(names, msgs.field_array(response.parameter_values), strict=True))
+    assert values['velocity_offset.offset_m_s'] == pytest.approx(OFFSET_M_S, rel=0.05)
+    assert dict(zip(names, response.parameter_units, strict=True))['mu'] == '1'
+    assert response.gap_after <= 0.5 * response.gap_before
+    assert set(response.candidate_effects) == set(EFFECTS)
+    counts = list(response.candidate_parameter_counts)
+    assert sum(counts) == len(response.candidate_parameter_names) == len(
+        response.candidate_parameter_values)
+    assert response.verdict == response.message and response.where
+
+
+def test_a_diagnosis_without_impacts_is_refused_with_the_reason(ros_graph):
+    ros_graph.add(Fitter)
+    client = ros_graph.add(Node, node_name='caller').create_client(DiagnoseModel,
+                                                                    DIAGNOSE_SERVICE)
+    ros_graph.start()
+    response = ros_graph.call(client, DiagnoseModel.Request())
+    assert not response.success and 'no accepted impact held yet' in response.message
+    response = ros_graph.call(client, DiagnoseModel.Request(impact_ids=[2]))
+    assert not response.success and 'impacts [2] are not held' in response.message
