@@ -15,6 +15,7 @@ from fmm_ros.cli import main
 from fmm_ros.core.bagio import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC, BagWriter
 from fmm_ros.core.bagio.simulated import simulated_session
 from fmm_ros.core.excitation import hammer_pulse, impact_record
+from fmm_ros.core.hidden_effects import hidden_effect_case
 from fmm_ros.core.model import simulate
 from fmm_ros.core.records import ImpactRecord, write_impact_csv
 from fmm_ros.report import FrictionSummary, ModelOverlay, build_report
@@ -222,6 +223,35 @@ def test_report_from_a_recorded_session_bag_shows_the_hit_over_a_lost_batch(tmp_
         *(f'{kind}_{level}' for kind in ('trials', 'mobility', 'receptance', 'model_mobility')
           for level in ('low', 'medium')), 'hit_000', 'hit_001', 'hit_002', 'friction'})
     assert clipped == []
+
+
+def test_diagnosis_names_the_hidden_effect_and_shows_the_gap_shrink(tmp_path):
+    """Three hits with a Stribeck effect hidden at 2.5 times the velocity noise (the diagnose
+    workflow's proof data), reported with --diagnose."""
+    case = hidden_effect_case('stribeck', np.random.default_rng([8, 1]), ratio=2.5,
+                              duration_s=6.0)
+    inputs = []
+    for index, record in enumerate(case.records):
+        inputs.append(str(tmp_path / f'hit{index}.csv'))
+        write_impact_csv(inputs[-1], record.force_n, record.velocity_m_s, record.sample_rate_hz)
+    out = tmp_path / 'report'
+    # The proof data's velocity noise (0.1 mm/s) is the default rest threshold: widen it, or
+    # every record would be flagged unsettled.
+    with clipping_checked() as clipped:
+        assert main(['report', *inputs, '--out', str(out), '--no-fit', '--diagnose',
+                     '--rest-velocity-m-s', '1e-3', '--dpi', str(TEST_DPI)]) == 0
+    page = (out / 'index.html').read_text(encoding='utf-8')
+    assert clipped == []
+    named = re.search(r'Missing effect: (\w+)\. Gap .*? ([0-9.e-]+) → ([0-9.e-]+);', page)
+    assert named is not None and named[1] == 'stribeck'
+    assert float(named[3]) <= 0.5 * float(named[2])
+    table = page[page.index('<th class="text">candidate effect</th>'):]
+    candidates = re.findall(r'<tr><td class="text">(\w+)</td>', table[:table.index('</table>')])
+    assert len(candidates) == 7 and candidates[0] == 'stribeck'
+    assert 'stribeck.mu_static_excess' in page
+    for name in ('diagnosis_residuals', 'diagnosis_mobility'):
+        assert (out / f'{name}.png').read_bytes().startswith(PNG_SIGNATURE)
+        assert f'href="{name}.png"' in page
 
 
 def test_all_rejected_session_still_reports_and_says_why_mu_is_not_fitted(tmp_path, capsys):

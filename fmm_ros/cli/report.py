@@ -45,6 +45,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     model.add_argument('--no-fit', action='store_true',
                        help='neither fit mu nor draw a model')
     add_fit_freedom_arguments(parser)
+    parser.add_argument('--diagnose', action='store_true',
+                        help='also run the discrepancy workflow (fmm diagnose) over the '
+                             'accepted hits: the missing effect, the gap before and after')
     add_rig_arguments(parser)
     parser.add_argument('--title', default='Impact session report', help='page title')
     parser.add_argument('--dpi', type=float, default=DEFAULT_DPI,
@@ -54,7 +57,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Write the page and print where it is; exit status 1 if a bag was damaged or mu unfit."""
+    """Write the page and print where it is; 1 if a bag was damaged or a fit was refused."""
     if args.dpi <= 0:
         raise ValueError(f'--dpi must be positive, got {args.dpi:g}')
     if args.paper:
@@ -71,9 +74,11 @@ def run(args: argparse.Namespace) -> int:
     result = report_session(
         records, args.out, capture=capture, analysis=analysis, rig=rig_from_args(args),
         mu=args.mu, fit=not args.no_fit, fit_damping=args.fit_damping,
-        fit_initial_position=args.fit_initial_position, title=args.title,
+        fit_initial_position=args.fit_initial_position, diagnose=args.diagnose, title=args.title,
         inputs=[str(path) for path in args.inputs], problems=problems, dpi=args.dpi)
-    if result.fit_failure:
-        print(f'fmm report: cannot fit mu: {result.fit_failure}', file=sys.stderr)
+    failures = [f'cannot {what}: {why}' for what, why in (
+        ('fit mu', result.fit_failure), ('diagnose', result.diagnosis_failure)) if why]
+    for failure in failures:
+        print(f'fmm report: {failure}', file=sys.stderr)
     print(f'wrote {result.page} (figures embedded, and as PNG files beside it)')
-    return max(report_problems('report', problems), 1 if result.fit_failure else 0)
+    return max(report_problems('report', problems), 1 if failures else 0)

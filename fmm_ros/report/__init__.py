@@ -6,8 +6,15 @@ session's impact records, fits mu and writes its page (what `fmm report` and the
 (in `paper`) reproduces the paper's simulation figures (Figs. 2-10) from the physics core.
 """
 
-from fmm_ros.report.model import FrictionSummary, ModelOverlay, fit_accepted_impacts
+from fmm_ros.report.model import (
+    FrictionSummary,
+    ModelOverlay,
+    SessionDiagnosis,
+    diagnose_accepted_impacts,
+    fit_accepted_impacts,
+)
 from fmm_ros.report.session import FLAG_MEANINGS, SessionReport, build_report, report_session
 
-__all__ = ['FLAG_MEANINGS', 'FrictionSummary', 'ModelOverlay', 'SessionReport', 'build_report',
-           'fit_accepted_impacts', 'report_session']
+__all__ = ['FLAG_MEANINGS', 'FrictionSummary', 'ModelOverlay', 'SessionDiagnosis',
+           'SessionReport', 'build_report', 'diagnose_accepted_impacts', 'fit_accepted_impacts',
+           'report_session']

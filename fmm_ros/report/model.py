@@ -1,4 +1,4 @@
-"""The model a report draws over a session, and a friction fit as the report shows it.
+"""The model a report draws over a session, and the fit and diagnosis it shows.
 
 `ModelOverlay` is Eq. 3 (and any extra terms) with a given or fitted mu, driven by each hit's
 measured force conditioned exactly as the fitter conditions it (baseline removed, force
@@ -6,6 +6,8 @@ outside the hit zeroed: `fmm_ros.core.fit.condition_impact`), so the overlay is 
 the fit was judged on. `FrictionSummary` holds the fields of the FitFriction service's
 response plus the model it implies, so the report takes a fit made here
 (`fit_accepted_impacts`, `FrictionSummary.from_fit`) or one a fitter node returned.
+`SessionDiagnosis` is a `Diagnosis` of some of the session's impacts, with their ids
+(`diagnose_accepted_impacts`).
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import numpy as np
 
 from fmm_ros.core._checks import require_non_negative
 from fmm_ros.core.analysis import Summary
+from fmm_ros.core.diagnose import Diagnosis, diagnose
 from fmm_ros.core.fit import MU_BOUNDS, FitError, FrictionFit, condition_impact, fit_friction
 from fmm_ros.core.model import FMM_RIG, ModelTerm, Rig, simulate
 from fmm_ros.core.records import ImpactRecord
@@ -126,10 +129,44 @@ def fit_accepted_impacts(records: Sequence[ImpactRecord], summary: Summary, *,
     records[i] is impact i of the summary. Raises ValueError when no impact is accepted and
     FitError when friction cannot explain them.
     """
-    ids = [impact.impact_id for impact in summary.impacts if impact.accepted]
-    if not ids:
-        raise ValueError('no accepted impact to fit')
+    ids = _accepted_ids(summary)
     fit = fit_friction([records[i] for i in ids], rig=rig, fit_damping=fit_damping,
                        fit_initial_position=fit_initial_position, mu_bounds=mu_bounds)
     return FrictionSummary.from_fit(fit, ids)
 
+
+
+@dataclass(frozen=True)
+class SessionDiagnosis:
+    """A diagnosis (`fmm_ros.core.diagnose`) of these impacts of the session, in this order."""
+
+    diagnosis: Diagnosis
+    impact_ids: tuple[int, ...]
+    rig: Rig = FMM_RIG
+    """The rig constants the diagnosis ran with."""
+
+    def __post_init__(self) -> None:
+        if len(self.diagnosis.base_residuals_m_s) != len(self.impact_ids):
+            raise ValueError(f'the diagnosis covers {len(self.diagnosis.base_residuals_m_s)} '
+                             f'impacts but {len(self.impact_ids)} impact ids were given')
+
+
+def diagnose_accepted_impacts(records: Sequence[ImpactRecord], summary: Summary, *,
+                              rig: Rig = FMM_RIG, fit_initial_position: bool = False
+                              ) -> SessionDiagnosis:
+    """The diagnose workflow over the accepted impacts, as the fitter node runs it.
+
+    Raises ValueError when no impact is accepted and FitError when the base model cannot be
+    fitted at all.
+    """
+    ids = _accepted_ids(summary)
+    return SessionDiagnosis(diagnose([records[i] for i in ids], rig=rig,
+                                     fit_initial_position=fit_initial_position), tuple(ids), rig)
+
+
+def _accepted_ids(summary: Summary) -> list[int]:
+    """Ids of the accepted impacts; ValueError when there is none (nothing to fit)."""
+    ids = [impact.impact_id for impact in summary.impacts if impact.accepted]
+    if not ids:
+        raise ValueError('no accepted impact to fit')
+    return ids

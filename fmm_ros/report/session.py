@@ -22,9 +22,16 @@ from fmm_ros.core.analysis import AnalysisConfig, ImpactResult, Summary, analyze
 from fmm_ros.core.impacts import DEFAULT_CAPTURE, CaptureConfig
 from fmm_ros.core.model import FMM_RIG, Rig
 from fmm_ros.core.records import ImpactRecord
+from fmm_ros.report import diagnosis_figures
 from fmm_ros.report import session_figures as figures
 from fmm_ros.report.html import Markup, Page, escape, link
-from fmm_ros.report.model import FrictionSummary, ModelOverlay, fit_accepted_impacts
+from fmm_ros.report.model import (
+    FrictionSummary,
+    ModelOverlay,
+    SessionDiagnosis,
+    diagnose_accepted_impacts,
+    fit_accepted_impacts,
+)
 from fmm_ros.report.plotting import (
     DEFAULT_DPI,
     MM_PER_M,
@@ -55,6 +62,7 @@ def build_report(records: Sequence[ImpactRecord], out_dir: str | Path, *,
                  capture: CaptureConfig = DEFAULT_CAPTURE,
                  analysis: AnalysisConfig = DEFAULT_ANALYSIS,
                  friction: FrictionSummary | None = None, fit_failure: str = '',
+                 diagnosis: SessionDiagnosis | None = None, diagnosis_failure: str = '',
                  model: ModelOverlay | None = None,
                  title: str = 'Impact session report', inputs: Sequence[str] = (),
                  problems: Sequence[str] = (), dpi: float = DEFAULT_DPI) -> Path:
@@ -64,7 +72,9 @@ def build_report(records: Sequence[ImpactRecord], out_dir: str | Path, *,
     (`summarize` of `analyze_impact` results with impact_id = position), made here with
     capture and analysis when not given. friction: a fit of mu over (some of) the impacts,
     shown per impact and overall; its model is drawn over each hit and each level's FRF unless
-    another model is given. fit_failure: why there is no fit, if one was tried. inputs: where
+    another model is given. fit_failure: why there is no fit, if one was tried. diagnosis: the
+    diagnose workflow's verdict on (some of) the impacts, with the residual and mobility gap
+    before and after; diagnosis_failure: why there is none, if it was tried. inputs: where
     the records came from (files, bag), listed on the page. problems: what went wrong reading
     them (a damaged bag), shown at the top so no one misses it.
     """
@@ -74,12 +84,12 @@ def build_report(records: Sequence[ImpactRecord], out_dir: str | Path, *,
     if summary is None:
         summary = _analysed(records, capture, analysis)
     by_id = _records_by_id(records, summary)
-    if friction is not None:
-        unknown = sorted(set(friction.impact_ids) - set(by_id))
+    for name, result in (('friction fit', friction), ('diagnosis', diagnosis)):
+        unknown = sorted(set(result.impact_ids) - set(by_id)) if result is not None else []
         if unknown:
-            raise ValueError(f'the friction fit names impact(s) {unknown} the session lacks')
-        if model is None:
-            model = friction.overlay()
+            raise ValueError(f'the {name} names impact(s) {unknown} the session lacks')
+    if friction is not None and model is None:
+        model = friction.overlay()
     page = Page(out_dir, title, dpi=dpi)
     colours = {level.level: level_colour(index) for index, level in enumerate(summary.levels)}
     model_hits = _model_hits(by_id, summary, model, capture, analysis)
@@ -90,6 +100,8 @@ def build_report(records: Sequence[ImpactRecord], out_dir: str | Path, *,
     _model_section(page, summary, model, model_hits, friction, fit_failure)
     _time_section(page, summary, by_id, colours, model, capture)
     _frf_section(page, summary, colours, model, model_hits)
+    if diagnosis is not None or diagnosis_failure:
+        _diagnosis_section(page, summary, by_id, diagnosis, diagnosis_failure)
     return page.write()
 
 
@@ -100,19 +112,22 @@ class SessionReport:
     page: Path
     friction: FrictionSummary | None
     fit_failure: str
+    diagnosis: SessionDiagnosis | None = None
+    diagnosis_failure: str = ''
 
 
 def report_session(records: Sequence[ImpactRecord], out_dir: str | Path, *,
                    capture: CaptureConfig = DEFAULT_CAPTURE,
                    analysis: AnalysisConfig = DEFAULT_ANALYSIS, rig: Rig = FMM_RIG,
                    mu: float | None = None, fit: bool = True, fit_damping: bool = False,
-                   fit_initial_position: bool = False, title: str = 'Impact session report',
-                   inputs: Sequence[str] = (), problems: Sequence[str] = (),
-                   dpi: float = DEFAULT_DPI) -> SessionReport:
+                   fit_initial_position: bool = False, diagnose: bool = False,
+                   title: str = 'Impact session report', inputs: Sequence[str] = (),
+                   problems: Sequence[str] = (), dpi: float = DEFAULT_DPI) -> SessionReport:
     """Analyse a session's records, fit mu over the accepted ones, and write the report.
 
     What `fmm report` does with its inputs, for callers holding records (the demo, from its
-    bag): mu given draws that model instead of fitting; fit=False draws none. A fit the data
+    bag): mu given draws that model instead of fitting; fit=False draws none; diagnose runs
+    the discrepancy workflow over the accepted impacts too. A fit or diagnosis the data
     refuse does not stop the report: the page and the result say why.
     """
     records = list(records)
@@ -125,10 +140,18 @@ def report_session(records: Sequence[ImpactRecord], out_dir: str | Path, *,
                                             fit_initial_position=fit_initial_position)
         except ValueError as error:  # FitError is one: the page says why there is no fit
             failure = str(error)
+    diagnosis, diagnosis_failure = None, ''
+    if diagnose:
+        try:
+            diagnosis = diagnose_accepted_impacts(records, summary, rig=rig,
+                                                  fit_initial_position=fit_initial_position)
+        except ValueError as error:
+            diagnosis_failure = str(error)
     page = build_report(records, out_dir, summary=summary, capture=capture, analysis=analysis,
-                        friction=friction, fit_failure=failure, model=model, title=title,
+                        friction=friction, fit_failure=failure, diagnosis=diagnosis,
+                        diagnosis_failure=diagnosis_failure, model=model, title=title,
                         inputs=inputs, problems=problems, dpi=dpi)
-    return SessionReport(page, friction, failure)
+    return SessionReport(page, friction, failure, diagnosis, diagnosis_failure)
 
 
 def _analysed(records: list[ImpactRecord], capture: CaptureConfig,
@@ -386,6 +409,57 @@ def _frf_section(page: Page, summary: Summary, colours: dict[str, str],
         summary.levels, model_mobility, model_label=model.label if model else 'model'),
         'Fig. 24: mean mobility magnitude to 20 Hz, odd multiples of the natural frequency '
         'marked: the sliding contact, not a second mode, puts response there.')
+
+
+def _diagnosis_section(page: Page, summary: Summary, by_id: dict[int, ImpactRecord],
+                       found: SessionDiagnosis | None, failure: str) -> None:
+    """The named effect, the gap before and after, every candidate, and the two figures."""
+    page.section('Model diagnosis', 'diagnosis')
+    if found is None:
+        page.text(f'No diagnosis: {failure}', note=True)
+        return
+    result = found.diagnosis
+    page.text(f'Missing effect: {result.missing_effect}. Gap (RMS velocity residual beyond the '
+              f'noise over the motion, over the peak speed) {result.gap_before:.3g} → '
+              f'{result.gap_after:.3g}; mobility misfit {result.frf_gap_before:.3g} → '
+              f'{result.frf_gap_after:.3g}, over {len(found.impact_ids)} accepted hits '
+              f'(velocity noise {result.noise_std_m_s * MM_PER_M:.3g} mm/s from the data).')
+    page.text(f'Verdict: {result.verdict}')
+    page.text(f'Where the base model misses: {result.where.summary}.')
+    page.table(['parameter of the named model', 'value ± 1σ', 'unit'],
+               [[p.name, value_with_error(p.value, p.stderr), '-' if p.unit == '1' else p.unit]
+                for p in result.parameters], text_columns=(0, 2))
+    page.table(['candidate effect', 'score ΔBIC', 'gap after', 'mobility misfit after', 'note'],
+               [[c.effect, _number(c.score, '.0f'), _number(c.gap_after, '.3g'),
+                 _number(c.frf_gap_after, '.3g'),
+                 'named' if c.effect == result.missing_effect else c.message or '-']
+                for c in result.candidates], text_columns=(0, 4))
+    page.text(f'A candidate is named when its score is at most {result.required_score:.0f} '
+              '(BIC lower than the base model by 10 plus three times what the force noise '
+              'alone explains) and it at least halves the gap.')
+    records = [by_id[i] for i in found.impact_ids]
+    rows = _one_per_level(summary, found.impact_ids)
+    shown = ', '.join(str(found.impact_ids[row]) for row in rows)
+    if len(rows) < len(found.impact_ids):
+        shown += ' (the first of each level)'
+    page.figure('diagnosis_residuals', diagnosis_figures.residual_figure(result, records, rows),
+                f'Measured minus model velocity for hits {shown}: the base '
+                'model (Eq. 3, μ fitted) and the model with the named effect.')
+    page.figure('diagnosis_mobility', diagnosis_figures.mobility_gap_figure(
+        result, records, found.rig.natural_frequency_hz, rows),
+        f'|mobility| of measurement and models to 20 Hz for hits {shown}, and beside it '
+        '|measured − model|: where the gap is, and whether the named effect closes it.')
+
+
+def _one_per_level(summary: Summary, impact_ids: Sequence[int]) -> list[int]:
+    """Positions in impact_ids of the first impact of each level (all of them if few)."""
+    if len(impact_ids) <= 3:
+        return list(range(len(impact_ids)))
+    level = {impact.impact_id: impact.level for impact in summary.impacts}
+    first: dict[str, int] = {}
+    for position, impact_id in enumerate(impact_ids):
+        first.setdefault(level[impact_id], position)
+    return sorted(first.values())
 
 
 def _model_level_mobility(summary: Summary, model_hits: dict[int, _ModelHit]

@@ -62,8 +62,9 @@ def hit_figure(record: ImpactRecord, result: ImpactResult, *,
     when given. Bottom (with a model): measured minus model, where they disagree.
     """
     verdict = 'accepted' if result.accepted else 'rejected: ' + ', '.join(result.flags)
-    title = (f'hit {result.impact_id}  {source_name(result.source)}  level {result.level or "none"}'
-             f'  ({verdict})')
+    title = ' · '.join(part for part in (
+        f'hit {result.impact_id}', source_name(result.source),
+        f'level: {result.level}' if result.level else 'no level', verdict) if part)
     rows = 3 if model_velocity_m_s is not None else 2
     figure, axes = new_figure(rows, 1, title=title)
     trigger = trigger_offset(result)
