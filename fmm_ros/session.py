@@ -18,10 +18,16 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from fmm_interfaces.msg import FrfSummary, ImpactResult
-from fmm_interfaces.srv import FitFriction
+from fmm_interfaces.srv import DiagnoseModel, FitFriction
 from fmm_ros import msgs
 from fmm_ros.nodes.analyzer import Analyzer
-from fmm_ros.nodes.common import FIT_SERVICE, FRF_TOPIC, IMPACTS_TOPIC, RESULT_QOS
+from fmm_ros.nodes.common import (
+    DIAGNOSE_SERVICE,
+    FIT_SERVICE,
+    FRF_TOPIC,
+    IMPACTS_TOPIC,
+    RESULT_QOS,
+)
 from fmm_ros.nodes.fitter import Fitter
 from fmm_ros.nodes.hammer_sim import HammerSim
 from fmm_ros.nodes.recorder import Recorder
@@ -78,9 +84,14 @@ class SessionResult:
     fit_success: bool
     fit_message: str
     per_impact_mu: list[float]
+    missing_effect: str
+    diagnosis: str
     bag: str
     wall_s: float
+    """Wall time from the graph's start to the last impact reported [s]."""
     signal_s: float
+    fit_s: float
+    diagnose_s: float
     impacts: list[dict] = field(default_factory=list)
 
     def as_json(self) -> dict:
@@ -100,6 +111,7 @@ class _Results(Node):
         self.create_subscription(ImpactResult, IMPACTS_TOPIC, self._impact, RESULT_QOS)
         self.create_subscription(FrfSummary, FRF_TOPIC, self._level, RESULT_QOS)
         self.fit = self.create_client(FitFriction, FIT_SERVICE)
+        self.diagnose = self.create_client(DiagnoseModel, DIAGNOSE_SERVICE)
 
     def _impact(self, msg: ImpactResult) -> None:
         self.impacts.append(msg)
@@ -146,9 +158,15 @@ def run_session(config: SessionConfig, progress: Callable[[str], None] = lambda 
         start = time.monotonic()
         graph.start()
         _wait(lambda: len(results.impacts) >= total, lambda: hammer.next_index)
+        wall_s = time.monotonic() - start
         progress('session complete; fitting mu over the accepted impacts')
         fit = graph.call(results.fit, FitFriction.Request(), timeout_s=600.0)
-        wall_s = time.monotonic() - start
+        fit_s = time.monotonic() - start - wall_s
+        chosen = _one_accepted_per_level(results.impacts)
+        progress(f'diagnosing the model on impacts {chosen} (one a level)')
+        diagnosis = graph.call(results.diagnose, DiagnoseModel.Request(impact_ids=chosen),
+                               timeout_s=600.0)
+        diagnose_s = time.monotonic() - start - wall_s - fit_s
         signal_s = hammer.next_index / hammer.config['sample_rate_hz']
         impacts, levels, latest = list(results.impacts), dict(results.levels), results.latest
         hits_sent = hammer.hits_sent
@@ -164,13 +182,21 @@ def run_session(config: SessionConfig, progress: Callable[[str], None] = lambda 
         mu=fit.mu if fit.success else math.nan,
         mu_stderr=fit.mu_stderr if fit.success else math.nan,
         fit_success=fit.success, fit_message=fit.message,
-        per_impact_mu=msgs.field_array(fit.per_impact_mu).tolist(), bag=str(bag),
-        wall_s=wall_s, signal_s=signal_s,
+        per_impact_mu=msgs.field_array(fit.per_impact_mu).tolist(),
+        missing_effect=diagnosis.missing_effect if diagnosis.success else '',
+        diagnosis=diagnosis.verdict if diagnosis.success else diagnosis.message, bag=str(bag),
+        wall_s=wall_s, signal_s=signal_s, fit_s=fit_s, diagnose_s=diagnose_s,
         impacts=[{'impact_id': m.impact_id, 'level': m.level, 'accepted': m.accepted,
                   'flags': list(m.flags), 'peak_force_n': m.peak_force_n,
                   'impulse_n_s': m.impulse_n_s,
                   'peak_receptance_m_per_n': m.peak_receptance_m_per_n,
                   'natural_frequency_hz': m.natural_frequency_hz} for m in impacts])
+
+
+def _one_accepted_per_level(impacts: list[ImpactResult]) -> list[int]:
+    """The last accepted impact of each level: a diagnosis sample spanning the levels."""
+    chosen = {msg.level: msg.impact_id for msg in impacts if msg.accepted}
+    return sorted(chosen.values())
 
 
 def _wait(done: Callable[[], bool], samples_out: Callable[[], int]) -> None:

@@ -21,6 +21,7 @@ def test_demo_json_reports_the_session_and_fits_the_plant_mu(tmp_path, capsys):
         assert level['count'] == 1
         assert level['mean_impulse_n_s'] > 0.8 and level['peak_receptance_m_per_n'] > 3e-3
     assert summary['r2'] > 0.99
+    assert summary['missing_effect'] == 'none', summary['diagnosis']
     assert json.loads((out / 'summary.json').read_text()) == summary
     with BagReader(summary['bag']) as reader:
         assert reader.topics['/fmm/impacts'].count == 3

@@ -431,3 +431,25 @@ def test_levenberg_marquardt_with_an_active_bound_and_an_infeasible_region():
     with pytest.raises(ValueError, match='cannot be evaluated at the start point'):
         levenberg_marquardt(residual, np.array([1.0, 15.0]), np.array([0.0, 0.0]),
                             np.array([5.0, 20.0]), np.array([1.0, 1.0]), t.size)
+
+
+def test_a_parameter_the_residuals_ignore_gets_infinite_variance_and_spoils_no_other():
+    import dataclasses
+    import warnings
+
+    from fmm_ros.core._lsq import LsqSolution
+    from fmm_ros.core.fit import _uncertainty
+
+    rng = np.random.default_rng(0)
+    jacobian = np.vstack([rng.normal(size=(2, 4000)), np.zeros(4000)])
+    residual = rng.normal(0.0, 0.01, 4000)
+    fields = {f.name for f in dataclasses.fields(LsqSolution)}
+    values = dict(x=np.zeros(3), lower=-np.ones(3), upper=np.ones(3), residual=residual,
+                  jacobian=jacobian, cost=float(residual @ residual))
+    solution = LsqSolution(**values, **{name: 0 for name in fields - set(values)})
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        result = _uncertainty(solution, [slice(0, 4000)], [400])
+    assert np.isinf(result.stderr[2])
+    assert np.all(np.isfinite(result.stderr[:2])) and np.all(result.stderr[:2] > 0)
+    assert np.all(np.isfinite(result.covariance[:2, :2]))

@@ -80,7 +80,9 @@ def _text(result, out: Path) -> str:
         (f'mu: {result.mu:.4f} +- {result.mu_stderr:.4f} fitted, {result.plant_mu:.4f} in the '
          f'plant ({error:+.2f} %)' if not math.isnan(result.mu)
          else f'mu: not fitted ({result.fit_message})'),
+        f'model diagnosis: {result.missing_effect or "-"} ({result.diagnosis})',
         f'{result.signal_s:.0f} s of signal in {result.wall_s:.1f} s '
-        f'(x{result.signal_s / result.wall_s:.0f} real time)',
+        f'(x{result.signal_s / result.wall_s:.0f} real time); fit {result.fit_s:.1f} s, '
+        f'diagnosis {result.diagnose_s:.1f} s',
         f'bag: {result.bag}', f'summary: {out / "summary.json"}']
     return '\n'.join(lines)

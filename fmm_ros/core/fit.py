@@ -428,6 +428,11 @@ def _uncertainty(solution: LsqSolution, segments: Sequence[slice], block_lengths
     p = jacobian.shape[0]
     inverse = normal_inverse(inner(jacobian, jacobian))
     white = solution.cost / max(residual.size - p, 1) * inverse
+    # A parameter the residuals do not depend on has infinite variance (normal_inverse); the
+    # products below run on the finite part (inf x 0 would make its row and column NaN) and
+    # the infinity is put back on the diagonal at the end.
+    dead = ~np.isfinite(np.diag(inverse))
+    inverse = np.where(np.isfinite(inverse), inverse, 0.0)
     score = np.zeros((p, p))
     for segment, block in zip(segments, block_lengths, strict=True):
         contributions = jacobian[:, segment] * residual[segment]
@@ -443,6 +448,7 @@ def _uncertainty(solution: LsqSolution, segments: Sequence[slice], block_lengths
         sensitivity = inverse @ inner(jacobian[:, segment], impulse_jacobian)
         force_part += std ** 2 * np.outer(sensitivity, sensitivity)
     covariance = velocity_part + force_part
+    covariance[dead, dead] = np.inf
     return _Uncertainty(covariance, np.sqrt(np.diag(covariance)), np.sqrt(np.diag(white)),
                         np.sqrt(np.diag(force_part)))
 

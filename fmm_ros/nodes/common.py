@@ -13,6 +13,7 @@ from rclpy.executors import (
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from fmm_ros.core.model import Rig
 from fmm_ros.core.topics import (  # noqa: F401 (the nodes take the topic names from here)
     APPLIED_FORCE_TOPIC,
     FORCE_TOPIC,
@@ -20,9 +21,32 @@ from fmm_ros.core.topics import (  # noqa: F401 (the nodes take the topic names 
     IMPACTS_TOPIC,
     VELOCITY_TOPIC,
 )
+from fmm_ros.nodes.params import Param
 
 FIT_SERVICE = '/fmm/fit_friction'
 DIAGNOSE_SERVICE = '/fmm/diagnose_model'
+
+_RIG = Rig()
+
+# The rig constants of Eq. 3, as parameters (rig_sim simulates with them, the fitter fits
+# with them); defaults are the paper's FMM.
+RIG_PARAMS = (
+    Param('mass_kg', _RIG.mass_kg, 'Moving mass m [kg]', limits=(1e-3, 1e4), read_only=True),
+    Param('stiffness_n_per_m', _RIG.stiffness_n_per_m, 'Flexure stiffness k [N/m]',
+          limits=(1e-3, 1e9), read_only=True),
+    Param('damping_n_s_per_m', _RIG.damping_n_s_per_m,
+          'Viscous damping c [N*s/m] (the fitter starts from it when fitting c)',
+          limits=(0.0, 1e6), read_only=True),
+    Param('normal_force_n', _RIG.normal_force_n,
+          'Normal force on the pin N [N] (0.680 kg x 9.81 m/s^2)', limits=(0.0, 1e5),
+          read_only=True),
+)
+
+
+def rig_from_parameters(config: dict) -> Rig:
+    """The Rig the RIG_PARAMS values of a node's config describe."""
+    return Rig(**{param.name: config[param.name] for param in RIG_PARAMS})
+
 
 # Sample batches: every one matters (a lost batch is a gap in an FRF record), and a subscriber
 # may lag a burst of them, so RELIABLE with a deep queue.

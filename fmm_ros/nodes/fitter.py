@@ -24,7 +24,6 @@ from fmm_ros import msgs
 from fmm_ros.core.diagnose import diagnose
 from fmm_ros.core.fit import MU_BOUNDS, FitError, fit_friction
 from fmm_ros.core.history import SampleHistory
-from fmm_ros.core.model import Rig
 from fmm_ros.core.records import ImpactRecord
 from fmm_ros.nodes.common import (
     DIAGNOSE_SERVICE,
@@ -32,23 +31,16 @@ from fmm_ros.nodes.common import (
     FORCE_TOPIC,
     IMPACTS_TOPIC,
     RESULT_QOS,
+    RIG_PARAMS,
     SAMPLE_QOS,
     VELOCITY_TOPIC,
+    rig_from_parameters,
     run_node,
 )
 from fmm_ros.nodes.params import Param, declare_parameters
 
-_RIG = Rig()
-
 PARAMS = (
-    Param('mass_kg', _RIG.mass_kg, 'Moving mass m [kg]', limits=(1e-3, 1e4), read_only=True),
-    Param('stiffness_n_per_m', _RIG.stiffness_n_per_m, 'Flexure stiffness k [N/m]',
-          limits=(1e-3, 1e9), read_only=True),
-    Param('damping_n_s_per_m', _RIG.damping_n_s_per_m,
-          'Viscous damping c [N*s/m] (the start value when it is fitted)', limits=(0.0, 1e6),
-          read_only=True),
-    Param('normal_force_n', _RIG.normal_force_n, 'Normal force on the pin N [N]',
-          limits=(0.0, 1e5), read_only=True),
+    *RIG_PARAMS,
     Param('fit_initial_position', True,
           'Fit where each record starts: in a continuous session a hit finds the rig where '
           'friction stopped the last one (up to mu N / k off centre), which is not measured',
@@ -81,9 +73,7 @@ class Fitter(Node):
         super().__init__('fitter', **kwargs)
         self.config = declare_parameters(self, PARAMS)
         cfg = self.config
-        self.rig = Rig(mass_kg=cfg['mass_kg'], stiffness_n_per_m=cfg['stiffness_n_per_m'],
-                       damping_n_s_per_m=cfg['damping_n_s_per_m'],
-                       normal_force_n=cfg['normal_force_n'])
+        self.rig = rig_from_parameters(cfg)
         self.history = SampleHistory(int(cfg['history_s'] * cfg['sample_rate_hz']))
         self.impacts: OrderedDict[int, HeldImpact] = OrderedDict()
         self._waiting: list[ImpactResult] = []

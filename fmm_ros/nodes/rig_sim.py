@@ -12,25 +12,24 @@ from rclpy.node import Node
 
 from fmm_interfaces.msg import SampleBatch
 from fmm_ros import msgs
-from fmm_ros.core.model import INTEGRATORS, PAPER_MU, OscillatorStream, Rig, parse_model_term
+from fmm_ros.core.model import INTEGRATORS, PAPER_MU, OscillatorStream, parse_model_term
 from fmm_ros.core.schedule import add_indexed_noise
-from fmm_ros.nodes.common import APPLIED_FORCE_TOPIC, SAMPLE_QOS, VELOCITY_TOPIC, run_node
+from fmm_ros.nodes.common import (
+    APPLIED_FORCE_TOPIC,
+    RIG_PARAMS,
+    SAMPLE_QOS,
+    VELOCITY_TOPIC,
+    rig_from_parameters,
+    run_node,
+)
 from fmm_ros.nodes.params import Param, declare_parameters
-
-_RIG = Rig()
 
 PARAMS = (
     Param('input_topic', APPLIED_FORCE_TOPIC, 'Force that drives the plant (SampleBatch) [N]',
           read_only=True),
     Param('output_topic', VELOCITY_TOPIC, 'Where the vibrometer velocity goes [m/s]',
           read_only=True),
-    Param('mass_kg', _RIG.mass_kg, 'Moving mass m [kg]', limits=(1e-3, 1e4), read_only=True),
-    Param('stiffness_n_per_m', _RIG.stiffness_n_per_m, 'Flexure stiffness k [N/m]',
-          limits=(1e-3, 1e9), read_only=True),
-    Param('damping_n_s_per_m', _RIG.damping_n_s_per_m, 'Viscous damping c [N*s/m]',
-          limits=(0.0, 1e6), read_only=True),
-    Param('normal_force_n', _RIG.normal_force_n, 'Normal force on the pin N [N]',
-          limits=(0.0, 1e5), read_only=True),
+    *RIG_PARAMS,
     Param('mu', PAPER_MU, 'Coulomb friction coefficient of the plant [-]', limits=(0.0, 2.0),
           read_only=True),
     Param('effects', [''], 'Extra model terms, each "name" or "name:param=value,..." '
@@ -52,9 +51,7 @@ class RigSim(Node):
         super().__init__('rig_sim', **kwargs)
         self.config = declare_parameters(self, PARAMS)
         cfg = self.config
-        self.rig = Rig(mass_kg=cfg['mass_kg'], stiffness_n_per_m=cfg['stiffness_n_per_m'],
-                       damping_n_s_per_m=cfg['damping_n_s_per_m'],
-                       normal_force_n=cfg['normal_force_n'])
+        self.rig = rig_from_parameters(cfg)
         self.effects = tuple(parse_model_term(text) for text in cfg['effects'] if text.strip())
         self._stream: OscillatorStream | None = None
         self._sample_rate_hz = 0.0
