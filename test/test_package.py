@@ -22,9 +22,9 @@ ROSDEP_KEYS = {
     'ament_index_python': 'ament_index_python',
     'builtin_interfaces': 'builtin_interfaces',
     'fmm_interfaces': 'fmm_interfaces',
-    'matplotlib': 'python3-matplotlib',
     'h5py': 'python3-h5py',
     'lz4': 'python3-lz4',
+    'matplotlib': 'python3-matplotlib',
     'nptdms': 'python3-nptdms-pip',
     'numba': 'python3-numba',
     'numpy': 'python3-numpy',
@@ -125,7 +125,8 @@ def test_ros2_run_finds_every_console_script(monkeypatch):
 
 
 @pytest.mark.parametrize('module', ['fmm_ros', 'fmm_ros.core', 'fmm_ros.core.bagio',
-                                    'fmm_ros.cli.bag_info', 'fmm_ros.cli.import_lab'])
+                                    'fmm_ros.cli.bag_info', 'fmm_ros.cli.import_lab',
+                                    'fmm_ros.report', 'fmm_ros.cli.report'])
 def test_core_imports_without_ros(module):
     """The core must stay ROS-free: importing it must not pull in rclpy."""
     code = (f'import sys, {module}; '

@@ -15,6 +15,7 @@ SUBCOMMANDS: tuple[str, ...] = (
     'demo',
     'simulate',
     'analyze',
+    'report',
     'replay',
     'record',
     'import_lab',

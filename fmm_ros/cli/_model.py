@@ -1,4 +1,4 @@
-"""Rig-constant flags of the subcommands that run the model (simulate, fit, and diagnose)."""
+"""Model flags of the subcommands that run the model (simulate, fit, report, diagnose)."""
 
 import argparse
 
@@ -16,6 +16,15 @@ def add_rig_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--normal-force-n', type=float, default=FMM_RIG.normal_force_n,
                         help='normal force N [N] (default 0.680 kg x 9.81 m/s^2 = '
                              f'{FMM_RIG.normal_force_n:.4f})')
+
+
+def add_fit_freedom_arguments(parser: argparse.ArgumentParser) -> None:
+    """--fit-damping and --fit-initial-position: what a friction fit frees besides mu."""
+    parser.add_argument('--fit-damping', action='store_true',
+                        help='fit the viscous damping c too (otherwise c is the rig constant)')
+    parser.add_argument('--fit-initial-position', action='store_true',
+                        help='fit where the rig rested before each hit (friction leaves it off '
+                             'centre after the previous one; otherwise each starts at x = 0)')
 
 
 def rig_from_args(args: argparse.Namespace) -> Rig:

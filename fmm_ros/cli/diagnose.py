@@ -16,13 +16,13 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from fmm_ros.cli._fitting import fit_and_report
 from fmm_ros.cli._model import add_rig_arguments, rig_from_args
-from fmm_ros.core import frf
 from fmm_ros.core.diagnose import EFFECTS, NONE, Diagnosis, diagnose
 from fmm_ros.core.model import Rig
+
+# Resolution of the --plot figures [dots per inch].
+PLOT_DPI = 120
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -113,77 +113,17 @@ def text_report(run_result: _Run) -> str:
 def plot_diagnosis(result: Diagnosis, records: list, rig: Rig, directory: Path) -> list[Path]:
     """Write residual_before_after.png and frf_overlay.png into directory; return the paths.
 
-    One row per impact. Residuals: measured minus model velocity over the motion, base model
-    and named model. FRF: |mobility| to 20 Hz of the measurement, the base model and the
-    named model, and beside it the magnitude of their difference (where the gap shows), with
-    f_n and its odd harmonics marked.
+    The figures of the report's diagnosis section (`fmm_ros.report.diagnosis_figures`), one
+    row per impact: residuals of the base and the named model over the motion, and
+    |mobility| of measurement and models to 20 Hz beside |measured - model|.
     """
-    import matplotlib
-    matplotlib.use('Agg')  # files only, no display
-    import matplotlib.pyplot as plt
+    from fmm_ros.report import diagnosis_figures  # matplotlib: only when figures are asked for
+    from fmm_ros.report.plotting import png_bytes
 
     directory.mkdir(parents=True, exist_ok=True)
-    named = 'base model' if result.missing_effect == NONE else f'with {result.missing_effect}'
-    rows = len(records)
     paths = [directory / 'residual_before_after.png', directory / 'frf_overlay.png']
-    figure, axes = plt.subplots(rows, 1, figsize=(9, 2.4 * rows + 0.6), squeeze=False,
-                                sharex=True)
-    for axis, record, before, after in zip(axes[:, 0], records, result.base_residuals_m_s,
-                                           result.named_residuals_m_s, strict=True):
-        time_s = np.arange(before.size) / record.sample_rate_hz
-        end = _motion_end(record.velocity_m_s - before, record.sample_rate_hz)
-        axis.plot(time_s[:end], 1e3 * before[:end], color='0.6', lw=0.6, label='base model')
-        if result.missing_effect != NONE:
-            axis.plot(time_s[:end], 1e3 * after[:end], color='C0', lw=0.6, label=named)
-        axis.set_ylabel('residual [mm/s]')
-        axis.set_title(Path(record.source).name if record.source else 'impact', fontsize=9)
-        axis.legend(loc='upper right', fontsize=8)
-    axes[-1, 0].set_xlabel('time [s]')
-    figure.suptitle(f'measured minus simulated velocity: gap {result.gap_before:.3g} -> '
-                    f'{result.gap_after:.3g} ({result.missing_effect})', fontsize=10)
-    figure.tight_layout()
-    figure.savefig(paths[0], dpi=120)
-    plt.close(figure)
-
-    figure, axes = plt.subplots(rows, 2, figsize=(12, 2.6 * rows + 0.6), squeeze=False,
-                                sharex=True)
-    f_n = rig.natural_frequency_hz
-    for (overlay, error), record, before, after in zip(axes, records, result.base_residuals_m_s,
-                                                       result.named_residuals_m_s, strict=True):
-        frequency = frf.frequency_axis(before.size, record.sample_rate_hz)
-        band = (frequency > 0.0) & (frequency <= 20.0)
-        measured = frf.mobility(*frf.spectra(record.force_n, record.velocity_m_s))[band]
-        curves = [('base model', before, dict(color='0.55', lw=0.8))]
-        if result.missing_effect != NONE:
-            curves.append((named, after, dict(color='C0', lw=0.8)))
-        overlay.semilogy(frequency[band], np.abs(measured), color='k', lw=0.8, ls=':',
-                         label='measured')
-        for label, residual, style in curves:
-            model = frf.mobility(*frf.spectra(record.force_n, record.velocity_m_s - residual))
-            overlay.semilogy(frequency[band], np.abs(model[band]), label=label, **style)
-            error.semilogy(frequency[band], np.abs(measured - model[band]), label=label,
-                           **style)
-        for axis in (overlay, error):
-            for harmonic in range(1, 10, 2):
-                axis.axvline(harmonic * f_n, color='C3', lw=0.5, alpha=0.4)
-            axis.legend(loc='upper right', fontsize=8)
-        title = Path(record.source).name if record.source else 'impact'
-        overlay.set_title(f'{title}: |mobility|', fontsize=9)
-        error.set_title(f'{title}: |measured - model| mobility', fontsize=9)
-        overlay.set_ylabel('[m/(N s)]')
-        error.set_ylabel('[m/(N s)]')
-    for axis in axes[-1]:
-        axis.set_xlabel('frequency [Hz] (red: f_n and its odd harmonics)')
-    figure.suptitle(f'mobility FRF: misfit {result.frf_gap_before:.3g} -> '
-                    f'{result.frf_gap_after:.3g} ({result.missing_effect})', fontsize=10)
-    figure.tight_layout()
-    figure.savefig(paths[1], dpi=120)
-    plt.close(figure)
+    figures = (diagnosis_figures.residual_figure(result, records),
+               diagnosis_figures.mobility_gap_figure(result, records, rig.natural_frequency_hz))
+    for path, figure in zip(paths, figures, strict=True):
+        path.write_bytes(png_bytes(figure, PLOT_DPI))
     return paths
-
-
-def _motion_end(model_m_s: np.ndarray, sample_rate_hz: float) -> int:
-    """Sample 1 s past the model's last motion (the residual plot's right edge)."""
-    moving = np.flatnonzero(np.abs(model_m_s) > 0.0)
-    last = int(moving[-1]) if moving.size else model_m_s.size
-    return min(model_m_s.size, last + int(sample_rate_hz))

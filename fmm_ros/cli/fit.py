@@ -12,7 +12,7 @@ import argparse
 from pathlib import Path
 
 from fmm_ros.cli._fitting import fit_and_report
-from fmm_ros.cli._model import add_rig_arguments, rig_from_args
+from fmm_ros.cli._model import add_fit_freedom_arguments, add_rig_arguments, rig_from_args
 from fmm_ros.core.export import json_number
 from fmm_ros.core.fit import (
     DEFAULT_BAND_LIMIT_HZ,
@@ -35,11 +35,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('inputs', nargs='+', type=Path, metavar='INPUT',
                         help='one CSV file per impact, or a bag (directory, .mcap or .db3)')
     parser.add_argument('--json', action='store_true', help='print the result as JSON')
-    parser.add_argument('--fit-damping', action='store_true',
-                        help='fit the viscous damping c too (otherwise c is the rig constant)')
-    parser.add_argument('--fit-initial-position', action='store_true',
-                        help='fit where the rig rested before each hit (friction leaves it off '
-                             'centre after the previous one; otherwise each starts at x = 0)')
+    add_fit_freedom_arguments(parser)
     add_rig_arguments(parser)
     parser.add_argument('--misfit', choices=MISFITS, default='time',
                         help='time: velocity residual (default); frf: mobility residual up to '

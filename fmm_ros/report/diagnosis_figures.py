@@ -1,0 +1,120 @@
+"""Figures of a model diagnosis (`fmm_ros.core.diagnose`): the gap before and after.
+
+One row per impact. The residual figure shows measured minus model velocity over the motion
+for the base model (Eq. 3) and for the model with the named effect; the mobility figure
+shows |mobility| of the measurement and both models to 20 Hz, and beside it |measured -
+model|, where the gap shows, with f_n and its odd harmonics marked. Used by the report's
+diagnosis section and by `fmm diagnose --plot`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from fmm_ros.core import frf
+from fmm_ros.core.diagnose import NONE, Diagnosis
+from fmm_ros.report.plotting import (
+    FREQUENCY_LABEL,
+    MM_PER_M,
+    MOBILITY_UNIT,
+    MODEL_COLOUR,
+    envelope,
+    new_figure,
+)
+from fmm_ros.report.session_figures import HARMONICS_TOP_HZ, source_name
+
+BASE_COLOUR = '0.55'
+# The residual plot runs this long past the base model's last motion [s].
+SETTLE_S = 1.0
+
+
+def named_label(diagnosis: Diagnosis) -> str:
+    """Legend text of the named model."""
+    return 'base model' if diagnosis.missing_effect == NONE else f'with {diagnosis.missing_effect}'
+
+
+def residual_figure(diagnosis: Diagnosis, records: Sequence,
+                    rows: Sequence[int] | None = None) -> Figure:
+    """Measured minus model velocity over the motion, base and named model, per impact.
+
+    records are the impacts diagnosed (anything with force_n, velocity_m_s and sample_rate_hz,
+    as `diagnose` takes), in the diagnosis' order; rows picks which to draw (default all).
+    """
+    rows = range(len(records)) if rows is None else rows
+    figure, axes = new_figure(len(rows), 1, sharex=True, title=(
+        f'measured minus model velocity: gap {diagnosis.gap_before:.3g} → '
+        f'{diagnosis.gap_after:.3g} ({diagnosis.missing_effect})'))
+    for ax, row in zip(axes, rows, strict=True):
+        record = records[row]
+        before = diagnosis.base_residuals_m_s[row]
+        after = diagnosis.named_residuals_m_s[row]
+        time_s = np.arange(before.size) / record.sample_rate_hz
+        end = _motion_end(record.velocity_m_s - before, record.sample_rate_hz)
+        ax.plot(*envelope(time_s[:end], before[:end] * MM_PER_M), color=BASE_COLOUR,
+                linewidth=0.6, label='base model')
+        if diagnosis.missing_effect != NONE:
+            ax.plot(*envelope(time_s[:end], after[:end] * MM_PER_M), color=MODEL_COLOUR,
+                    linewidth=0.6, label=named_label(diagnosis))
+        ax.set_ylabel('residual [mm/s]')
+        ax.set_title(_name(record, row), fontsize='small')
+        ax.legend(loc='upper right', fontsize='x-small')
+    axes[-1].set_xlabel('time from record start [s]')
+    return figure
+
+
+def mobility_gap_figure(diagnosis: Diagnosis, records: Sequence,
+                        natural_frequency_hz: float, rows: Sequence[int] | None = None,
+                        top_hz: float = HARMONICS_TOP_HZ) -> Figure:
+    """|mobility| of measurement and models, and |measured - model|, per impact, to 20 Hz."""
+    rows = range(len(records)) if rows is None else rows
+    figure, axes = new_figure(len(rows), 2, sharex=True, title=(
+        f'mobility: misfit {diagnosis.frf_gap_before:.3g} → {diagnosis.frf_gap_after:.3g} '
+        f'({diagnosis.missing_effect}); dotted: f_n and its odd harmonics'))
+    axes = axes.reshape(len(rows), 2)
+    for (overlay, error), row in zip(axes, rows, strict=True):
+        record = records[row]
+        before = diagnosis.base_residuals_m_s[row]
+        frequency = frf.frequency_axis(before.size, record.sample_rate_hz)
+        band = (frequency > 0.0) & (frequency <= top_hz)
+        measured = frf.mobility(*frf.spectra(record.force_n, record.velocity_m_s))[band]
+        curves = [('base model', before, BASE_COLOUR)]
+        if diagnosis.missing_effect != NONE:
+            curves.append((named_label(diagnosis), diagnosis.named_residuals_m_s[row],
+                           MODEL_COLOUR))
+        overlay.semilogy(frequency[band], np.abs(measured) * MM_PER_M, color='black',
+                         linewidth=0.8, linestyle=':', label='measured', zorder=3)
+        for label, residual, colour in curves:
+            model = frf.mobility(*frf.spectra(record.force_n,
+                                              record.velocity_m_s - residual))[band]
+            overlay.semilogy(frequency[band], np.abs(model) * MM_PER_M, color=colour,
+                             linewidth=0.8, label=label)
+            error.semilogy(frequency[band], np.abs(measured - model) * MM_PER_M, color=colour,
+                           linewidth=0.8, label=label)
+        for ax in (overlay, error):
+            for harmonic in range(1, int(top_hz / natural_frequency_hz) + 1, 2):
+                ax.axvline(harmonic * natural_frequency_hz, color='0.4', linewidth=0.5,
+                           linestyle=':')
+            ax.legend(loc='upper right', fontsize='x-small')
+        name = _name(record, row)
+        overlay.set_title(f'{name}: |mobility|', fontsize='small')
+        error.set_title(f'{name}: |measured − model|', fontsize='small')
+        overlay.set_ylabel(f'[{MOBILITY_UNIT}]')
+    for ax in axes[-1]:
+        ax.set_xlabel(FREQUENCY_LABEL)
+        ax.set_xlim(0, top_hz)
+    return figure
+
+
+def _name(record, row: int) -> str:
+    """A record's file name (CSV records and bag records have a source), else its row."""
+    return source_name(getattr(record, 'source', '')) or f'impact {row}'
+
+
+def _motion_end(model_m_s: np.ndarray, sample_rate_hz: float) -> int:
+    """Sample SETTLE_S past the model's last motion (the model is exactly 0 at rest)."""
+    moving = np.flatnonzero(model_m_s != 0.0)
+    last = int(moving[-1]) if moving.size else model_m_s.size
+    return min(model_m_s.size, last + int(SETTLE_S * sample_rate_hz))

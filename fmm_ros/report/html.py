@@ -1,0 +1,139 @@
+"""One self-contained HTML page: sections, text, tables and figures, plus each figure as a PNG.
+
+The page embeds every figure as a base64 PNG, so it can be mailed or archived alone; the same
+bytes are written next to it as `<name>.png` (linked from the caption) for slides and papers.
+Everything put on the page is HTML-escaped unless handed over as `Markup`.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import re
+from collections.abc import Sequence
+from datetime import datetime, timezone
+from pathlib import Path
+
+from matplotlib.figure import Figure
+
+from fmm_ros.report.plotting import DEFAULT_DPI, png_bytes
+
+_STYLE = """
+body { font-family: system-ui, sans-serif; max-width: 60rem; margin: 1rem auto; padding: 0 1rem;
+       color: #222; line-height: 1.4; }
+h1 { font-size: 1.5rem; } h2 { font-size: 1.25rem; border-bottom: 1px solid #ccc;
+       margin-top: 2rem; } h3 { font-size: 1.05rem; }
+table { border-collapse: collapse; font-size: 0.85rem; margin: 0.5rem 0; }
+th, td { border: 1px solid #ccc; padding: 0.15rem 0.45rem; text-align: right; }
+th { background: #f0f0f0; } td.text, th.text { text-align: left; }
+tr.rejected td { background: #fde8e8; }
+figure { margin: 1rem 0; } figure img { max-width: 100%; border: 1px solid #eee; }
+figcaption { font-size: 0.85rem; color: #444; }
+.note { color: #555; font-style: italic; }
+nav ul { columns: 2; font-size: 0.9rem; }
+"""
+
+_NAME = re.compile(r'^[A-Za-z0-9_.-]+$')
+
+
+class Markup(str):
+    """Text that is already HTML (built by this module or escaped by the caller)."""
+
+
+def escape(value: object) -> str:
+    """Text as HTML, unless it is `Markup` already."""
+    return value if isinstance(value, Markup) else html.escape(str(value))
+
+
+def link(href: str, text: object) -> Markup:
+    """An <a> element with escaped target and text."""
+    return Markup(f'<a href="{html.escape(href, quote=True)}">{escape(text)}</a>')
+
+
+class Page:
+    """An HTML report being assembled in `out_dir`; `write()` saves index.html.
+
+    Figures are rendered and saved as PNG as soon as they are added, then closed, so a long
+    report never holds more than one matplotlib figure.
+    """
+
+    def __init__(self, out_dir: str | Path, title: str, *, dpi: float = DEFAULT_DPI) -> None:
+        self.out_dir = Path(out_dir)
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        self.title = title
+        self.dpi = dpi
+        self.figures: list[Path] = []
+        self._body: list[str] = []
+        self._sections: list[tuple[str, str]] = []
+
+    def section(self, title: str, anchor: str) -> None:
+        """Start a top-level section (listed in the page's contents)."""
+        self._sections.append((anchor, title))
+        self._body.append(f'<h2 id="{html.escape(anchor, quote=True)}">{escape(title)}</h2>')
+
+    def subsection(self, title: str) -> None:
+        """A heading inside the current section."""
+        self._body.append(f'<h3>{escape(title)}</h3>')
+
+    def text(self, content: object, *, note: bool = False) -> None:
+        """A paragraph (note: set in the muted style, for what is absent and why)."""
+        css = ' class="note"' if note else ''
+        self._body.append(f'<p{css}>{escape(content)}</p>')
+
+    def items(self, entries: Sequence[object]) -> None:
+        """A bulleted list."""
+        self._body.append('<ul>' + ''.join(f'<li>{escape(entry)}</li>' for entry in entries)
+                          + '</ul>')
+
+    def table(self, headers: Sequence[str], rows: Sequence[Sequence[object]], *,
+              text_columns: Sequence[int] = (), row_classes: Sequence[str] | None = None,
+              table_id: str = '') -> None:
+        """A table; text_columns are left-aligned (numbers align right)."""
+        def cell(tag: str, column: int, value: object) -> str:
+            css = ' class="text"' if column in text_columns else ''
+            return f'<{tag}{css}>{escape(value)}</{tag}>'
+
+        ident = f' id="{html.escape(table_id, quote=True)}"' if table_id else ''
+        lines = [f'<table{ident}><thead><tr>'
+                 + ''.join(cell('th', i, h) for i, h in enumerate(headers)) + '</tr></thead>',
+                 '<tbody>']
+        for number, row in enumerate(rows):
+            css = row_classes[number] if row_classes else ''
+            css = f' class="{html.escape(css, quote=True)}"' if css else ''
+            lines.append(f'<tr{css}>' + ''.join(cell('td', i, v) for i, v in enumerate(row))
+                         + '</tr>')
+        lines.append('</tbody></table>')
+        self._body.append('\n'.join(lines))
+
+    def figure(self, name: str, figure: Figure, caption: object) -> Path:
+        """Render the figure to `<name>.png` next to the page and embed the same PNG."""
+        if not _NAME.match(name):
+            raise ValueError(f'figure name {name!r} must be letters, digits, _ . - only')
+        path = self.out_dir / f'{name}.png'
+        if path in self.figures:
+            raise ValueError(f'figure {name!r} is already on the page')
+        data = png_bytes(figure, self.dpi)
+        figure.clear()
+        path.write_bytes(data)
+        self.figures.append(path)
+        encoded = base64.b64encode(data).decode('ascii')
+        self._body.append(
+            f'<figure id="fig-{name}"><img src="data:image/png;base64,{encoded}" '
+            f'alt="{html.escape(name, quote=True)}.png"><figcaption>{escape(caption)} '
+            f'{link(path.name, f"[{path.name}]")}</figcaption></figure>')
+        return path
+
+    def write(self, filename: str = 'index.html') -> Path:
+        """Write the page (contents list first) and return its path."""
+        generated = datetime.now(timezone.utc).strftime('%Y-%m-%d %H:%M UTC')
+        contents = ''.join(f'<li><a href="#{html.escape(anchor, quote=True)}">{escape(title)}'
+                           '</a></li>' for anchor, title in self._sections)
+        page = '\n'.join([
+            '<!DOCTYPE html>', '<html lang="en"><head><meta charset="utf-8">',
+            f'<title>{escape(self.title)}</title>', f'<style>{_STYLE}</style></head><body>',
+            f'<h1>{escape(self.title)}</h1>',
+            f'<p class="note">generated {generated} by fmm_ros</p>',
+            f'<nav><ul>{contents}</ul></nav>', *self._body, '</body></html>'])
+        path = self.out_dir / filename
+        path.write_text(page, encoding='utf-8')
+        return path

@@ -1,0 +1,408 @@
+"""Figures of one impact session, in the style of the paper's Figs. 12-24.
+
+Each function takes analysed data (records, `ImpactResult`s, `LevelSummary`s) and returns a
+`matplotlib.figure.Figure`; nothing is computed here that the signal core already computes.
+Time is counted from each hit's trigger, so trials overlay; frequency axes stop where the
+figure's subject does (a few f_n for the resonance, 20 Hz for the odd harmonics).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from fmm_ros.core import frf
+from fmm_ros.core.analysis import ImpactResult, LevelSummary, NominalLevel, Summary
+from fmm_ros.core.impacts import DEFAULT_CAPTURE, CaptureConfig
+from fmm_ros.core.records import ImpactRecord
+from fmm_ros.report.plotting import (
+    FREQUENCY_LABEL,
+    MEAN_COLOUR,
+    MM_PER_M,
+    MOBILITY_UNIT,
+    MODEL_COLOUR,
+    MS_PER_S,
+    RECEPTANCE_UNIT,
+    REJECTED_COLOUR,
+    envelope,
+    level_colour,
+    new_figure,
+    odd_harmonics,
+    value_with_error,
+)
+
+# The decay plot runs this much past the last sample above the rest velocity (fraction of
+# the motion), and at least MIN_DECAY_S after the trigger.
+DECAY_MARGIN = 0.15
+MIN_DECAY_S = 0.5
+# The force zoom shows this long before the contact and after the last pulse [s].
+FORCE_MARGIN_S = 1e-3
+# How far past f_n the resonance figures (Figs. 14-16, 19/21/23) run.
+RESONANCE_SPAN = 2.5
+# The paper's Fig. 24 runs to 20 Hz.
+HARMONICS_TOP_HZ = 20.0
+VELOCITY_LABEL = 'velocity [mm/s]'
+
+
+def trigger_offset(result: ImpactResult) -> int:
+    """The trigger's position inside its record [samples]."""
+    return result.trigger_sample_index - result.record_start_sample_index
+
+
+def hit_figure(record: ImpactRecord, result: ImpactResult, *,
+               capture: CaptureConfig = DEFAULT_CAPTURE,
+               model_velocity_m_s: np.ndarray | None = None, model_label: str = '',
+               colour: str = 'tab:blue') -> Figure:
+    """One hit (Figs. 18/20/22): force pulse zoomed, the whole decay, model and residual.
+
+    Top: the force around the contact (widened to show a second pulse of a double hit).
+    Middle: measured velocity until the rig is at rest, with the model's velocity over it
+    when given. Bottom (with a model): measured minus model, where they disagree.
+    """
+    verdict = 'accepted' if result.accepted else 'rejected: ' + ', '.join(result.flags)
+    title = ' · '.join(part for part in (
+        f'hit {result.impact_id}', source_name(result.source),
+        f'level: {result.level}' if result.level else 'no level', verdict) if part)
+    rows = 3 if model_velocity_m_s is not None else 2
+    figure, axes = new_figure(rows, 1, title=title)
+    trigger = trigger_offset(result)
+    rate = record.sample_rate_hz
+    _force_zoom(axes[0], [record], [trigger], [colour], capture)
+    axes[0].set_title(f'peak {result.peak_force_n:.4g} N, impulse {result.impulse_n_s:.4g} N·s, '
+                      f'contact {result.contact_duration_s * MS_PER_S:.3g} ms',
+                      fontsize='small')
+    velocities = [record.velocity_m_s] + ([] if model_velocity_m_s is None
+                                          else [model_velocity_m_s])
+    end_s = decay_end_s(velocities, trigger, rate, capture.rest_velocity_m_s)
+    time_s = (np.arange(record.velocity_m_s.size) - trigger) / rate
+    shown = time_s <= end_s
+    axes[1].plot(*envelope(time_s[shown], record.velocity_m_s[shown] * MM_PER_M), color=colour,
+                 linewidth=0.8, label='measured')
+    if model_velocity_m_s is not None:
+        axes[1].plot(*envelope(time_s[shown], model_velocity_m_s[shown] * MM_PER_M),
+                     color=MODEL_COLOUR, linewidth=0.8, linestyle='--',
+                     label=model_label or 'model')
+        residual = (record.velocity_m_s - model_velocity_m_s)[shown] * MM_PER_M
+        axes[2].plot(*envelope(time_s[shown], residual), color='tab:purple', linewidth=0.6)
+        axes[2].set_ylabel('measured − model\n[mm/s]')
+        axes[1].legend(loc='upper right', fontsize='small')
+    for ax in axes[1:]:
+        ax.set_xlim(time_s[0], end_s)
+    axes[1].set_ylabel(VELOCITY_LABEL)
+    axes[-1].set_xlabel('time from trigger [s]')
+    return figure
+
+
+def level_trials_figure(level: str, records: Sequence[ImpactRecord],
+                        results: Sequence[ImpactResult], *, colour: str = 'tab:blue',
+                        capture: CaptureConfig = DEFAULT_CAPTURE) -> Figure:
+    """Every trial of one level overlaid (Fig. 12): force pulses, then velocity decays."""
+    figure, axes = new_figure(2, 1, title=f'level {level}: {len(records)} trial(s), '
+                                          'aligned at the trigger')
+    triggers = [trigger_offset(result) for result in results]
+    _force_zoom(axes[0], records, triggers, [colour] * len(records), capture)
+    rate = records[0].sample_rate_hz
+    end_s = decay_end_s([record.velocity_m_s for record in records], triggers, rate,
+                        capture.rest_velocity_m_s)
+    for record, trigger in zip(records, triggers, strict=True):
+        time_s = (np.arange(record.velocity_m_s.size) - trigger) / record.sample_rate_hz
+        shown = time_s <= end_s
+        axes[1].plot(*envelope(time_s[shown], record.velocity_m_s[shown] * MM_PER_M),
+                     color=colour, linewidth=0.6, alpha=0.7)
+    axes[1].set_xlim(right=end_s)
+    axes[1].set_ylabel(VELOCITY_LABEL)
+    axes[1].set_xlabel('time from trigger [s]')
+    return figure
+
+
+def frf_trials_figure(level: LevelSummary, trials: Sequence[ImpactResult], quantity: str, *,
+                      colour: str = 'tab:blue', top_hz: float | None = None) -> Figure:
+    """Real and imaginary parts of one level's trials and their mean (Figs. 14, 15).
+
+    quantity: 'mobility' or 'receptance'; the mean is the level's plain frequency-domain
+    average (the paper's).
+    """
+    unit = _frf_unit(quantity)
+    top_hz = top_hz or resonance_top_hz(level.natural_frequency_hz)
+    figure, axes = new_figure(2, 1, sharex=True,
+                              title=f'{quantity}, level {level.level}: {len(trials)} trial(s) '
+                                    'and their mean')
+    band = level.frequency_hz <= top_hz
+    frequency = level.frequency_hz[band]
+    for ax, part in zip(axes, (np.real, np.imag), strict=True):
+        for number, trial in enumerate(trials):
+            ax.plot(frequency, part(getattr(trial, quantity)[band]) * MM_PER_M, color=colour,
+                    linewidth=0.6, alpha=0.6, label='trials' if number == 0 else None)
+        ax.plot(frequency, part(getattr(level, quantity)[band]) * MM_PER_M, color=MEAN_COLOUR,
+                linewidth=1.4, label='mean')
+    axes[0].set_ylabel(f'real [{unit}]')
+    axes[1].set_ylabel(f'imaginary [{unit}]')
+    axes[0].legend(loc='upper right', fontsize='small')
+    axes[1].set_xlabel(FREQUENCY_LABEL)
+    axes[1].set_xlim(0, top_hz)
+    return figure
+
+
+def level_magnitude_figure(levels: Sequence[LevelSummary], *, top_hz: float | None = None
+                           ) -> Figure:
+    """Mean |receptance| of every level on one axis (Fig. 16): it grows with the force."""
+    top_hz = top_hz or resonance_top_hz(np.nanmax([lv.natural_frequency_hz for lv in levels]))
+    figure, axes = new_figure(1, 1, height_in=3.2,
+                              title='mean receptance magnitude per force level')
+    for index, level in enumerate(levels):
+        band = level.frequency_hz <= top_hz
+        axes[0].plot(level.frequency_hz[band], np.abs(level.receptance[band]) * MM_PER_M,
+                     color=level_colour(index), linewidth=1.2,
+                     label=f'{level.level} ({level.count} trials, '
+                           f'{level.mean_impulse_n_s:.3g} N·s)')
+    axes[0].set_xlim(0, top_hz)
+    axes[0].set_xlabel(FREQUENCY_LABEL)
+    axes[0].set_ylabel(f'|receptance| [{RECEPTANCE_UNIT}]')
+    axes[0].legend(loc='upper right', fontsize='small')
+    return figure
+
+
+def impulse_figure(impacts: Sequence[ImpactResult], levels: Sequence[LevelSummary],
+                   nominal: Sequence[NominalLevel] = ()) -> Figure:
+    """Peak force of every hit by level, and each level's mean impulse +-1 sigma (Fig. 13)."""
+    figure, axes = new_figure(1, 2, height_in=3.2, title='impact force levels and impulses')
+    colours = {level.level: level_colour(index) for index, level in enumerate(levels)}
+    for level in nominal:
+        axes[0].axhspan(level.peak_force_n - level.tolerance_n,
+                        level.peak_force_n + level.tolerance_n, color='0.85', zorder=0)
+    numbers = np.arange(len(impacts))
+    peaks = np.array([impact.peak_force_n for impact in impacts])
+    accepted = np.array([impact.accepted for impact in impacts], dtype=bool)
+    for name, colour in colours.items():
+        mine = accepted & np.array([impact.level == name for impact in impacts], dtype=bool)
+        axes[0].plot(numbers[mine], peaks[mine], 'o', color=colour, markersize=4, label=name)
+    if (~accepted).any():
+        axes[0].plot(numbers[~accepted], peaks[~accepted], 'x', color=REJECTED_COLOUR,
+                     markersize=6, label='rejected')
+    axes[0].set_xlabel('hit number')
+    axes[0].set_ylabel('peak force [N]')
+    axes[0].legend(fontsize='small', loc='best')
+    x = np.arange(len(levels))
+    means = [level.mean_impulse_n_s for level in levels]
+    sigmas = [0.0 if np.isnan(level.std_impulse_n_s) else level.std_impulse_n_s
+              for level in levels]
+    for index in range(len(levels)):
+        axes[1].errorbar(x[index], means[index], yerr=sigmas[index], fmt='o', capsize=5,
+                         color=level_colour(index))
+        axes[1].annotate(f'{means[index]:.3g} ± {sigmas[index]:.2g}', (x[index], means[index]),
+                         textcoords='offset points', xytext=(8, -3), fontsize='small')
+    axes[1].set_xticks(x, [f'{level.level}\n(n = {level.count})' for level in levels])
+    axes[1].set_xlim(-0.5, len(levels) - 0.5 + 0.6)
+    axes[1].set_ylabel('impulse [N·s], mean ± 1σ')
+    return figure
+
+
+def linearity_figure(summary: Summary) -> Figure:
+    """Peak |receptance| against impulse, hits and level means, with the line and R² (Fig. 17)."""
+    figure, axes = new_figure(1, 1, height_in=3.4,
+                              title='impulse versus peak receptance magnitude')
+    ax = axes[0]
+    for index, level in enumerate(summary.levels):
+        colour = level_colour(index)
+        hits = [impact for impact in summary.impacts
+                if impact.accepted and impact.level == level.level]
+        ax.plot([hit.impulse_n_s for hit in hits],
+                [hit.peak_receptance_m_per_n * MM_PER_M for hit in hits], '.', color=colour,
+                alpha=0.5, markersize=5)
+        ax.plot(level.mean_impulse_n_s, level.peak_receptance_m_per_n * MM_PER_M, '+',
+                color=colour, markersize=14, markeredgewidth=2, label=f'{level.level} mean')
+    fit = summary.linearity
+    if np.isfinite(fit.slope):
+        impulses = [level.mean_impulse_n_s for level in summary.levels]
+        span = np.array([min(impulses), max(impulses)])
+        span = span + np.array([-0.1, 0.1]) * max(np.ptp(span), 0.05 * span.mean())
+        r2 = f', R² = {fit.r2:.4f}' if np.isfinite(fit.r2) else ''
+        ax.plot(span, (fit.slope * span + fit.intercept) * MM_PER_M, color=MEAN_COLOUR,
+                linewidth=1,
+                label=f'{fit.slope * MM_PER_M:.3g} mm/(N²·s) × I + '
+                      f'{fit.intercept * MM_PER_M:.3g} mm/N{r2}')
+    ax.set_xlabel('impulse I [N·s]')
+    ax.set_ylabel(f'peak |receptance| [{RECEPTANCE_UNIT}]')
+    ax.legend(fontsize='small', loc='upper left')
+    return figure
+
+
+def harmonics_figure(levels: Sequence[LevelSummary],
+                     model_mobility: Mapping[str, np.ndarray] | None = None, *,
+                     model_label: str = 'model', top_hz: float = HARMONICS_TOP_HZ) -> Figure:
+    """Log |mobility| to 20 Hz per level, odd multiples of f_n marked (Fig. 24).
+
+    The friction contact puts response at 3, 5, 7, ... f_n; a second structural mode would
+    sit elsewhere. f_n here is the mobility peak (the oscillation frequency between
+    reversals), which the harmonics are multiples of. With a model, its mobility is drawn
+    over the measured one.
+    """
+    model_mobility = model_mobility or {}
+    figure, axes = new_figure(len(levels), 1, sharex=True,
+                              title='mobility magnitude with the odd harmonics of f_n')
+    for index, (ax, level) in enumerate(zip(axes, levels, strict=True)):
+        band = (level.frequency_hz > 0) & (level.frequency_hz <= top_hz)
+        frequency = level.frequency_hz[band]
+        ax.semilogy(frequency, np.abs(level.mobility[band]) * MM_PER_M,
+                    color=level_colour(index), linewidth=2.0, alpha=0.7,
+                    label=f'{level.level} measured')
+        if level.level in model_mobility:
+            ax.semilogy(frequency, np.abs(model_mobility[level.level][band]) * MM_PER_M,
+                        color=MODEL_COLOUR, linewidth=0.8, linestyle='--', label=model_label)
+        natural_hz = mobility_peak_hz(level)
+        for n, harmonic_hz in odd_harmonics(natural_hz, top_hz):
+            ax.axvline(harmonic_hz, color='0.4', linewidth=0.6, linestyle=':')
+            left = harmonic_hz > 0.9 * top_hz
+            ax.annotate(f'{n}$f_n$', (harmonic_hz, 1.0), xycoords=('data', 'axes fraction'),
+                        xytext=(-2 if left else 2, -10), textcoords='offset points',
+                        ha='right' if left else 'left', fontsize='x-small', color='0.3')
+        ax.set_ylabel(f'|mobility|\n[{MOBILITY_UNIT}]')
+        ax.legend(loc='lower left', fontsize='x-small')
+        ax.set_title(f'mobility peak f_n = {natural_hz:.3f} Hz', fontsize='small', loc='right')
+    axes[-1].set_xlim(0, top_hz)
+    axes[-1].set_xlabel(FREQUENCY_LABEL)
+    return figure
+
+
+def mobility_peak_hz(level: LevelSummary) -> float:
+    """Frequency of the mean |mobility| peak near the level's receptance peak [Hz].
+
+    Friction shifts the receptance peak below f_n (it divides by omega); the mobility peaks
+    at the frequency the rig oscillates at between reversals. A parabola through the peak bin
+    and its neighbours places it between bins (the 1/33 Hz grid would put 9 f_n up to
+    0.14 Hz off).
+    """
+    guess = level.natural_frequency_hz
+    if not np.isfinite(guess):
+        return float('nan')
+    frequency = level.frequency_hz
+    peak_hz = frf.peak_magnitude(level.mobility, frequency, (0.5 * guess, 1.5 * guess))[1]
+    k = int(np.searchsorted(frequency, peak_hz))
+    if not 0 < k < frequency.size - 1:
+        return peak_hz
+    a, b, c = np.abs(level.mobility[k - 1:k + 2])
+    curvature = a - 2 * b + c
+    shift = 0.5 * (a - c) / curvature if curvature < 0 else 0.0
+    return float(peak_hz + shift * (frequency[1] - frequency[0]))
+
+
+def frf_overlay_figure(level: LevelSummary, model_mobility: np.ndarray, *,
+                       model_label: str = 'model', colour: str = 'tab:blue',
+                       top_hz: float | None = None) -> Figure:
+    """Real and imaginary mobility, measured mean against the model (Figs. 19, 21, 23)."""
+    top_hz = top_hz or resonance_top_hz(level.natural_frequency_hz)
+    figure, axes = new_figure(2, 1, sharex=True,
+                              title=f'mobility, level {level.level}: measured and model')
+    band = level.frequency_hz <= top_hz
+    frequency = level.frequency_hz[band]
+    for ax, part, name in zip(axes, (np.real, np.imag), ('real', 'imaginary'), strict=True):
+        ax.plot(frequency, part(level.mobility[band]) * MM_PER_M, color=colour, linewidth=2.0,
+                alpha=0.7, label=f'measured mean ({level.count} trials)')
+        ax.plot(frequency, part(model_mobility[band]) * MM_PER_M, color=MODEL_COLOUR,
+                linewidth=1.0, linestyle='--', label=model_label)
+        ax.set_ylabel(f'{name} [{MOBILITY_UNIT}]')
+    axes[0].legend(loc='upper right', fontsize='small')
+    axes[1].set_xlabel(FREQUENCY_LABEL)
+    axes[1].set_xlim(0, top_hz)
+    return figure
+
+
+def friction_figure(impulses_n_s: Sequence[float], mus: Sequence[float],
+                    stderrs: Sequence[float], levels: Sequence[str], joint_mu: float,
+                    joint_stderr: float, *, level_order: Sequence[str] = ()) -> Figure:
+    """Each impact's own mu +-1 sigma against its impulse, and the one mu fitted to all.
+
+    The paper's claim (Sec. 5) is that one mu serves every level: the per-impact values then
+    scatter about the joint one within their errors, whatever the impulse.
+    """
+    figure, axes = new_figure(1, 1, height_in=3.6,
+                              title='friction coefficient per impact and for all impacts')
+    ax = axes[0]
+    impulses, values, errors = (np.asarray(a, dtype=float) for a in (impulses_n_s, mus, stderrs))
+    span = np.array([np.nanmin(impulses), np.nanmax(impulses)])
+    span = span + np.array([-0.05, 0.05]) * max(np.ptp(span), 0.1)
+    ax.fill_between(span, joint_mu - joint_stderr, joint_mu + joint_stderr, color='0.85',
+                    zorder=0)
+    ax.plot(span, [joint_mu, joint_mu], color=MEAN_COLOUR, linewidth=1,
+            label=f'all impacts: μ = {value_with_error(joint_mu, joint_stderr)}')
+    names = list(level_order) + sorted(set(levels) - set(level_order))
+    for name in names:
+        mine = np.array([level == name for level in levels], dtype=bool)
+        colour = level_colour(level_order.index(name)) if name in level_order else REJECTED_COLOUR
+        ax.errorbar(impulses[mine], values[mine], yerr=errors[mine], fmt='o', markersize=4,
+                    capsize=3, color=colour, label=name or 'no level')
+    ax.set_xlim(*span)
+    ax.set_xlabel('impulse [N·s]')
+    ax.set_ylabel('μ [-], ± 1σ')
+    ax.ticklabel_format(axis='y', style='plain', useOffset=False)
+    # Under the axes: the error bars fill them.
+    figure.legend(fontsize='small', loc='outside lower center', ncols=len(names) + 1)
+    return figure
+
+
+def resonance_top_hz(natural_frequency_hz: float) -> float:
+    """Upper frequency of the resonance figures: RESONANCE_SPAN x f_n (5 Hz without f_n)."""
+    if not np.isfinite(natural_frequency_hz) or natural_frequency_hz <= 0:
+        return 5.0
+    return RESONANCE_SPAN * natural_frequency_hz
+
+
+def decay_end_s(velocities: Sequence[np.ndarray], triggers: Sequence[int] | int,
+                sample_rate_hz: float, rest_velocity_m_s: float) -> float:
+    """Where a decay plot ends [s after the trigger]: past the last motion of any trace.
+
+    The last sample above the rest velocity, plus DECAY_MARGIN of the motion, at least
+    MIN_DECAY_S, at most the end of the longest record.
+    """
+    if isinstance(triggers, int):
+        triggers = [triggers] * len(velocities)
+    last_s, record_end_s = MIN_DECAY_S, 0.0
+    for velocity, trigger in zip(velocities, triggers, strict=True):
+        moving = np.flatnonzero(np.abs(velocity[trigger:]) > rest_velocity_m_s)
+        if moving.size:
+            last_s = max(last_s, moving[-1] / sample_rate_hz * (1 + DECAY_MARGIN))
+        record_end_s = max(record_end_s, (velocity.size - 1 - trigger) / sample_rate_hz)
+    return min(last_s, record_end_s)
+
+
+def _force_zoom(ax, records: Sequence[ImpactRecord], triggers: Sequence[int],
+                colours: Sequence[str], capture: CaptureConfig) -> None:
+    """Force around the contact [ms from trigger], wide enough for every pulse in min_spacing."""
+    start_s, end_s = 0.0, 0.0
+    for record, trigger in zip(records, triggers, strict=True):
+        rate = record.sample_rate_hz
+        force = record.force_n
+        near = slice(max(trigger - int(capture.pretrigger_s * rate), 0),
+                     trigger + int(capture.min_spacing_s * rate))
+        touching = np.flatnonzero(force[near] >= capture.rearm_level_n) + near.start
+        if touching.size:
+            start_s = min(start_s, (touching[0] - trigger) / rate)
+            end_s = max(end_s, (touching[-1] - trigger) / rate)
+    start_s -= FORCE_MARGIN_S
+    end_s += FORCE_MARGIN_S + 0.5 * (end_s - start_s)
+    for record, trigger, colour in zip(records, triggers, colours, strict=True):
+        rate = record.sample_rate_hz
+        first = max(trigger + int(np.floor(start_s * rate)), 0)
+        last = min(trigger + int(np.ceil(end_s * rate)) + 1, record.force_n.size)
+        time_ms = (np.arange(first, last) - trigger) / rate * MS_PER_S
+        ax.plot(*envelope(time_ms, record.force_n[first:last]), color=colour, linewidth=0.8,
+                alpha=0.8 if len(records) > 1 else 1.0)
+    ax.set_xlim(start_s * MS_PER_S, end_s * MS_PER_S)
+    ax.set_xlabel('time from trigger [ms]')
+    ax.set_ylabel('force [N]')
+
+
+def _frf_unit(quantity: str) -> str:
+    """Display unit of an FRF quantity (both are shown in mm per N, per N*s)."""
+    if quantity == 'mobility':
+        return MOBILITY_UNIT
+    if quantity == 'receptance':
+        return RECEPTANCE_UNIT
+    raise ValueError(f"unknown FRF quantity {quantity!r}; use 'mobility' or 'receptance'")
+
+
+def source_name(source: str) -> str:
+    """The last path component of a record's source, for titles and tables."""
+    return source.replace('\\', '/').rsplit('/', 1)[-1] if source else ''
