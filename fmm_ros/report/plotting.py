@@ -1,9 +1,9 @@
-"""What every report figure shares: an off-screen Figure, display units, colours, decimation.
+"""What every report figure shares: an off-screen Figure, its layout, units, colours, decimation.
 
 Figures are `matplotlib.figure.Figure` objects made without pyplot: no global figure registry,
 no backend switch, nothing shown, so the report can run inside a ROS node or a test process
 without a display and without changing matplotlib's state for anyone else in the process.
-`png_bytes` renders one with the Agg renderer (what `savefig` picks for PNG by itself).
+`png_bytes` lays one out (`place_axes`) and renders it with the Agg renderer.
 
 Axes show convenient multiples of SI units (mm/N rather than m/N) so tick labels stay short;
 the unit is always in the axis label.
@@ -14,13 +14,19 @@ from __future__ import annotations
 import io
 
 import numpy as np
+from matplotlib.backend_bases import RendererBase
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
-from matplotlib.ticker import FixedLocator
+from matplotlib.ticker import FixedLocator, Locator
 
 # Inches: wide enough for two decades of ticks, narrow enough to sit in a page column.
 FIGURE_WIDTH_IN = 7.5
 PANEL_HEIGHT_IN = 2.4
 DEFAULT_DPI = 110
+# Space between the decorations of neighbouring axes, and around them at the canvas edge.
+LAYOUT_PAD_PT = 4.0
+# A grid cell smaller than this after the margins means the labels cannot fit [inches].
+MIN_AXES_IN = 0.5
 
 # Display scale factors from SI values: receptance and mobility in mm per N (per N*s).
 MM_PER_M = 1e3
@@ -47,34 +53,135 @@ def level_colour(index: int) -> str:
 
 def new_figure(rows: int = 1, columns: int = 1, *, height_in: float | None = None,
                sharex: bool | str = False, title: str = '') -> tuple[Figure, np.ndarray]:
-    """A constrained-layout Figure (labels never clipped) and its axes as a flat array."""
-    figure = Figure(figsize=(FIGURE_WIDTH_IN, height_in or PANEL_HEIGHT_IN * rows + 0.4),
-                    layout='constrained')
+    """A Figure with a grid of axes (a flat array), laid out when `png_bytes` renders it."""
+    figure = Figure(figsize=(FIGURE_WIDTH_IN, height_in or PANEL_HEIGHT_IN * rows + 0.4))
+    FigureCanvasAgg(figure)
     axes = figure.subplots(rows, columns, sharex=sharex, squeeze=False).ravel()
     for ax in axes:
         ax.grid(True, linewidth=0.4, alpha=0.5)
     if title:
-        figure.suptitle(title, fontsize='medium')
+        figure_title(figure, title)
     return figure, axes
 
 
-def png_bytes(figure: Figure, dpi: float = DEFAULT_DPI) -> bytes:
-    """The figure rendered as a PNG (Agg renderer, white background, no timestamp).
+def figure_title(figure: Figure, title: str) -> None:
+    """Set the figure's title, its top one pad below the canvas edge (not 2 % of the height)."""
+    figure.suptitle(title, fontsize='medium', y=1 - LAYOUT_PAD_PT / 72 / figure.get_figheight())
 
-    Tick positions are fixed after a first layout pass: the constrained layout sizes the
-    margins for the tick labels it sees, and shrinking the axes can make the locator pick
-    other, wider labels (-12.5 instead of -10), which then overrun the figure edge. With the
-    ticks frozen the second pass converges and nothing is clipped.
+
+def png_bytes(figure: Figure, dpi: float = DEFAULT_DPI) -> bytes:
+    """The figure laid out and rendered as a PNG (Agg, white background, no timestamp).
+
+    Layout is measured twice: once to size the axes, then, with the tick positions frozen
+    at that size, again to fit the tick labels that will be drawn. Left free, the locator
+    picks other, wider labels for the resized axes (-12.5 instead of -10), which would
+    overrun the canvas. The ticks stay frozen afterwards (`thaw_ticks` frees them), so the
+    figure keeps exactly the layout the PNG shows. One draw makes the PNG: matplotlib's
+    constrained layout, measuring every axes four times and drawing three times, cost
+    three times as much.
     """
     figure.set_dpi(dpi)
-    figure.draw_without_rendering()
-    for ax in figure.axes:
-        for axis in (ax.xaxis, ax.yaxis):
-            axis.set_major_locator(FixedLocator(axis.get_majorticklocs()))
+    canvas = figure.canvas
+    if not isinstance(canvas, FigureCanvasAgg):
+        canvas = FigureCanvasAgg(figure)
+    renderer = canvas.get_renderer()
+    place_axes(figure, renderer)
+    freeze_ticks(figure)
+    place_axes(figure, renderer)
     buffer = io.BytesIO()
     figure.savefig(buffer, format='png', dpi=dpi, facecolor='white',
                    metadata={'Software': None})
     return buffer.getvalue()
+
+
+def place_axes(figure: Figure, renderer: RendererBase) -> None:
+    """Size the figure's grid of axes so everything drawn lies inside the canvas.
+
+    An axes' decorations (tick labels, axis labels, title, legend, annotations) overhang its
+    frame by the same amount whatever the frame's size, so one measurement of each gives
+    the margins: the widest overhang of the outer rows and columns, the overhangs of both
+    neighbours between them, and LAYOUT_PAD_PT between everything. The figure's own texts
+    and legends stay where they are anchored (the suptitle at the top, a figure legend at
+    the bottom) and the grid fits between them. Columns share one width and rows one
+    height, as `Figure.subplots` made them; axes not in a grid are left alone.
+    """
+    grid = [(ax, ax.get_subplotspec()) for ax in figure.axes]
+    grid = [(ax, spec) for ax, spec in grid if spec is not None]
+    if not grid:
+        return
+    rows, columns = grid[0][1].get_gridspec().get_geometry()
+    width, height = figure.bbox.width, figure.bbox.height
+    pad = LAYOUT_PAD_PT * figure.dpi / 72
+    left, right = np.zeros(columns), np.zeros(columns)
+    above, below = np.zeros(rows), np.zeros(rows)
+    for ax, spec in grid:
+        frame, box = ax.bbox, ax.get_tightbbox(renderer)
+        first_column, last_column = spec.colspan.start, spec.colspan.stop - 1
+        first_row, last_row = spec.rowspan.start, spec.rowspan.stop - 1
+        left[first_column] = max(left[first_column], frame.x0 - box.x0)
+        right[last_column] = max(right[last_column], box.x1 - frame.x1)
+        above[first_row] = max(above[first_row], box.y1 - frame.y1)
+        below[last_row] = max(below[last_row], frame.y0 - box.y0)
+    top, bottom = height, 0.0
+    for artist in (*figure.texts, *figure.legends):
+        if not (artist.get_visible() and artist.get_in_layout()):
+            continue
+        box = artist.get_window_extent(renderer)
+        if box.height <= 0:
+            continue  # an empty text
+        if box.y0 + box.y1 > height:
+            top = min(top, box.y0)
+        else:
+            bottom = max(bottom, box.y1)
+    x0, x1 = pad + left[0], width - pad - right[-1]
+    y0, y1 = bottom + pad + below[-1], top - pad - above[0]
+    column_gap = pad + max(right[:-1] + left[1:], default=0.0)
+    row_gap = pad + max(below[:-1] + above[1:], default=0.0)
+    cell_width = (x1 - x0 - (columns - 1) * column_gap) / columns
+    cell_height = (y1 - y0 - (rows - 1) * row_gap) / rows
+    if min(cell_width, cell_height) < MIN_AXES_IN * figure.dpi:
+        raise ValueError(f'a {width / figure.dpi:.3g} x {height / figure.dpi:.3g} in figure of '
+                         f'{rows} x {columns} axes leaves {cell_width / figure.dpi:.2g} x '
+                         f'{cell_height / figure.dpi:.2g} in an axes inside its labels: make '
+                         'it larger or its labels shorter')
+    for ax, spec in grid:
+        span_width = len(spec.colspan) * (cell_width + column_gap) - column_gap
+        span_height = len(spec.rowspan) * (cell_height + row_gap) - row_gap
+        ax_left = x0 + spec.colspan.start * (cell_width + column_gap)
+        ax_top = y1 - spec.rowspan.start * (cell_height + row_gap)
+        ax.set_position([ax_left / width, (ax_top - span_height) / height,
+                         span_width / width, span_height / height])
+        ax.set_in_layout(True)  # set_position takes an axes out of any layout
+
+
+class _FrozenLocator(FixedLocator):
+    """The ticks a locator gave at one size, fixed; `original` is that locator."""
+
+    def __init__(self, locations: np.ndarray, original: Locator) -> None:
+        super().__init__(locations)
+        self.original = original
+
+
+def freeze_ticks(figure: Figure) -> None:
+    """Fix every axis' major and minor tick positions where its locators now put them."""
+    for ax in figure.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            major, minor = axis.get_major_locator(), axis.get_minor_locator()
+            if not isinstance(major, _FrozenLocator):  # a shared axis is frozen already
+                axis.set_major_locator(_FrozenLocator(axis.get_majorticklocs(), major))
+            if not isinstance(minor, _FrozenLocator):
+                axis.set_minor_locator(_FrozenLocator(axis.get_minorticklocs(), minor))
+
+
+def thaw_ticks(figure: Figure) -> None:
+    """Give every axis its own locators back (before drawing new data into the figure)."""
+    for ax in figure.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            major, minor = axis.get_major_locator(), axis.get_minor_locator()
+            if isinstance(major, _FrozenLocator):
+                axis.set_major_locator(major.original)
+            if isinstance(minor, _FrozenLocator):
+                axis.set_minor_locator(minor.original)
 
 
 def envelope(x: np.ndarray, y: np.ndarray, max_points: int = MAX_PLOT_POINTS

@@ -337,8 +337,8 @@ def friction_figure(impulses_n_s: Sequence[float], mus: Sequence[float],
     ax.set_xlabel('impulse [N·s]')
     ax.set_ylabel('μ [-], ± 1σ')
     ax.ticklabel_format(axis='y', style='plain', useOffset=False)
-    # Under the axes: the error bars fill them.
-    figure.legend(fontsize='small', loc='outside lower center', ncols=len(names) + 1)
+    # Under the axes (the error bars fill them): the layout keeps the axes above it.
+    figure.legend(fontsize='small', loc='lower center', ncols=len(names) + 1)
     return figure
 
 
