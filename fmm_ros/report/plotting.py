@@ -14,9 +14,11 @@ from __future__ import annotations
 import io
 
 import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.backend_bases import RendererBase
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 from matplotlib.ticker import FixedLocator, Locator
 
 # Inches: wide enough for two decades of ticks, narrow enough to sit in a page column.
@@ -42,7 +44,7 @@ MEAN_COLOUR = 'black'
 MODEL_COLOUR = 'tab:red'
 REJECTED_COLOUR = 'tab:gray'
 
-# Time series longer than this are drawn as a per-bin min/max envelope (see `envelope`).
+# A `TraceLine` holds a min/max envelope of this many points until it is drawn.
 MAX_PLOT_POINTS = 4000
 
 
@@ -184,29 +186,85 @@ def thaw_ticks(figure: Figure) -> None:
                 axis.set_minor_locator(minor.original)
 
 
+class TraceLine(Line2D):
+    """A long time series (x increasing) drawn as the min and max of each pixel column.
+
+    Drawn so, it covers the pixels the full series would (noise band, peaks and gaps
+    included) at two points a column: a 4 s decay at 10 kHz is 40,000 points, some 50 for
+    each column of a report's axes, and Agg's time grows with the points (the zigzag of a
+    noise band defeats its path simplification). The columns are those of the axes when
+    drawn, at whatever size and dpi. Until then the line holds the `envelope` of the
+    series (same extremes, so autoscaling and layout see the full series' limits).
+    """
+
+    def __init__(self, x: np.ndarray, y: np.ndarray, **kwargs) -> None:
+        super().__init__([], [], **kwargs)
+        self.set_trace(x, y)
+
+    def set_trace(self, x: np.ndarray, y: np.ndarray) -> None:
+        """Replace the series."""
+        self._trace = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+        self.set_data(*envelope(*self._trace))
+
+    def draw(self, renderer: RendererBase) -> None:
+        """Draw the series reduced to the pixel columns the axes now have."""
+        if self.axes is not None and self.axes.get_xscale() == 'linear':
+            self.set_data(*pixel_envelope(*self._trace, self.axes.get_xlim(),
+                                          self.axes.bbox.width))
+        super().draw(renderer)
+
+
+def plot_trace(ax: Axes, x: np.ndarray, y: np.ndarray, **kwargs) -> TraceLine:
+    """Add a `TraceLine` of y against x (Line2D keywords) to ax, autoscaled like `plot`."""
+    line = TraceLine(x, y, **kwargs)
+    ax.add_line(line)
+    ax.autoscale_view()
+    return line
+
+
+def pixel_envelope(x: np.ndarray, y: np.ndarray, view: tuple[float, float],
+                   width_px: float) -> tuple[np.ndarray, np.ndarray]:
+    """The min and max of y in each pixel column of an axes width_px wide showing view of x.
+
+    x increasing. Samples outside the view are dropped but for one each side, which carries
+    the line to the edge. A series no longer than two points a column comes back whole.
+    """
+    first, last = view
+    low_x, high_x = min(first, last), max(first, last)
+    start = max(int(np.searchsorted(x, low_x, side='right')) - 1, 0)
+    stop = min(int(np.searchsorted(x, high_x, side='left')) + 1, x.size)
+    x, y = x[start:stop], y[start:stop]
+    if x.size <= 2 * width_px + 4 or first == last:
+        return x, y
+    column = np.floor((x - first) * (width_px / (last - first)))
+    return _extremes(x, y, np.flatnonzero(np.diff(column, prepend=np.nan)))
+
+
 def envelope(x: np.ndarray, y: np.ndarray, max_points: int = MAX_PLOT_POINTS
              ) -> tuple[np.ndarray, np.ndarray]:
     """A long series reduced to the min and max of each of max_points / 2 bins, in x order.
 
-    Drawn as a line it covers exactly the pixels the full series would (noise band and peaks
-    included) at a small fraction of the cost: a 33 s record at 10 kHz is 330,000 points,
-    a page of such plots would take seconds each to render. A bin of NaN samples (a gap in
-    the record) stays NaN, so the gap shows as a break in the line.
+    Drawn as a line it covers the pixels the full series would (noise band and peaks
+    included) when the bins are no wider than a pixel, at a small fraction of the cost: a
+    33 s record at 10 kHz is 330,000 points. A bin of NaN samples (a gap in the record)
+    stays NaN, so the gap shows as a break in the line.
     """
-    n = y.size
-    if n <= max_points:
+    if y.size <= max_points:
         return x, y
-    bins = max_points // 2
-    edges = np.linspace(0, n, bins + 1).astype(np.int64)
-    starts = edges[:-1]
+    return _extremes(x, y, np.linspace(0, y.size, max_points // 2 + 1).astype(np.int64)[:-1])
+
+
+def _extremes(x: np.ndarray, y: np.ndarray, starts: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """Min at the first x and max at the last x of each bin (bins begin at starts)."""
     with np.errstate(invalid='ignore'):
         low = np.fmin.reduceat(y, starts)
         high = np.fmax.reduceat(y, starts)
     # Alternating min and max at the bin's first and last x keeps the trace monotone in x.
-    xs = np.empty(2 * bins)
-    ys = np.empty(2 * bins)
+    xs = np.empty(2 * starts.size)
+    ys = np.empty(2 * starts.size)
     xs[0::2] = x[starts]
-    xs[1::2] = x[edges[1:] - 1]
+    xs[1::2] = x[np.append(starts[1:], x.size) - 1]
     ys[0::2] = low
     ys[1::2] = high
     return xs, ys
