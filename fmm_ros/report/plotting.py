@@ -11,6 +11,7 @@ the unit is always in the axis label.
 
 from __future__ import annotations
 
+import contextlib
 import io
 
 import numpy as np
@@ -18,17 +19,32 @@ from matplotlib.axes import Axes
 from matplotlib.backend_bases import RendererBase
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.gridspec import SubplotSpec
 from matplotlib.lines import Line2D
 from matplotlib.ticker import FixedLocator, Locator
+from PIL import Image
 
 # Inches: wide enough for two decades of ticks, narrow enough to sit in a page column.
 FIGURE_WIDTH_IN = 7.5
 PANEL_HEIGHT_IN = 2.4
 DEFAULT_DPI = 110
+# zlib level of the PNGs: 6 (the default) makes them 6 % smaller than 3 for 40 % more time.
+PNG_COMPRESS_LEVEL = 3
 # Space between the decorations of neighbouring axes, and around them at the canvas edge.
 LAYOUT_PAD_PT = 4.0
 # A grid cell smaller than this after the margins means the labels cannot fit [inches].
 MIN_AXES_IN = 0.5
+# Where `new_figure` puts the axes before `place_axes` measures them [inches]: margins for
+# tick labels and an axis label, room for a suptitle, gaps for a row's x labels and the
+# next row's title (less where the rows share x and inner ones have no x labels).
+GUESS_LEFT_IN = 0.75
+GUESS_RIGHT_IN = 0.15
+GUESS_BOTTOM_IN = 0.5
+GUESS_TOP_IN = 0.1
+GUESS_TITLE_IN = 0.3
+GUESS_COLUMN_GAP_IN = 0.9
+GUESS_ROW_GAP_IN = 0.65
+GUESS_SHARED_ROW_GAP_IN = 0.3
 
 # Display scale factors from SI values: receptance and mobility in mm per N (per N*s).
 MM_PER_M = 1e3
@@ -56,13 +72,20 @@ def level_colour(index: int) -> str:
 def new_figure(rows: int = 1, columns: int = 1, *, height_in: float | None = None,
                sharex: bool | str = False, title: str = '') -> tuple[Figure, np.ndarray]:
     """A Figure with a grid of axes (a flat array), laid out when `png_bytes` renders it."""
-    figure = Figure(figsize=(FIGURE_WIDTH_IN, height_in or PANEL_HEIGHT_IN * rows + 0.4))
+    figure = Figure(figsize=(FIGURE_WIDTH_IN, height_in or PANEL_HEIGHT_IN * rows + 0.4),
+                    facecolor='white')
     FigureCanvasAgg(figure)
     axes = figure.subplots(rows, columns, sharex=sharex, squeeze=False).ravel()
     for ax in axes:
         ax.grid(True, linewidth=0.4, alpha=0.5)
     if title:
         figure_title(figure, title)
+    # Typical margins, so the ticks `png_bytes` freezes are chosen near the final size.
+    row_gap_in = GUESS_SHARED_ROW_GAP_IN if sharex in (True, 'all', 'col') else GUESS_ROW_GAP_IN
+    with contextlib.suppress(ValueError):  # too small for typical labels: png_bytes says so
+        _arrange(figure, GUESS_LEFT_IN, GUESS_RIGHT_IN, GUESS_BOTTOM_IN,
+                 GUESS_TOP_IN + (GUESS_TITLE_IN if title else 0.0), GUESS_COLUMN_GAP_IN,
+                 row_gap_in)
     return figure, axes
 
 
@@ -72,27 +95,28 @@ def figure_title(figure: Figure, title: str) -> None:
 
 
 def png_bytes(figure: Figure, dpi: float = DEFAULT_DPI) -> bytes:
-    """The figure laid out and rendered as a PNG (Agg, white background, no timestamp).
+    """The figure laid out and rendered as an RGB PNG (Agg, no metadata, so no timestamp).
 
-    Layout is measured twice: once to size the axes, then, with the tick positions frozen
-    at that size, again to fit the tick labels that will be drawn. Left free, the locator
-    picks other, wider labels for the resized axes (-12.5 instead of -10), which would
-    overrun the canvas. The ticks stay frozen afterwards (`thaw_ticks` frees them), so the
-    figure keeps exactly the layout the PNG shows. One draw makes the PNG: matplotlib's
-    constrained layout, measuring every axes four times and drawing three times, cost
-    three times as much.
+    The tick positions are frozen where the locators put them for the axes' present size
+    (`new_figure` starts them at typical margins), then the layout measures the labels of
+    exactly those ticks: left free, a locator picks other, wider labels for the resized
+    axes (-12.5 instead of -10), which would overrun the canvas. They stay frozen
+    (`thaw_ticks` frees them), so the figure keeps exactly the layout the PNG shows. One
+    measurement and one draw make the PNG; matplotlib's constrained layout measured every
+    axes four times and drew three times.
     """
     figure.set_dpi(dpi)
     canvas = figure.canvas
     if not isinstance(canvas, FigureCanvasAgg):
         canvas = FigureCanvasAgg(figure)
-    renderer = canvas.get_renderer()
-    place_axes(figure, renderer)
     freeze_ticks(figure)
-    place_axes(figure, renderer)
+    place_axes(figure, canvas.get_renderer())
+    canvas.draw()
+    # RGB: the canvas is opaque, and an alpha channel costs a fifth more to compress.
+    image = Image.frombuffer('RGBA', canvas.get_width_height(physical=True),
+                             canvas.buffer_rgba(), 'raw', 'RGBA', 0, 1).convert('RGB')
     buffer = io.BytesIO()
-    figure.savefig(buffer, format='png', dpi=dpi, facecolor='white',
-                   metadata={'Software': None})
+    image.save(buffer, format='png', compress_level=PNG_COMPRESS_LEVEL)
     return buffer.getvalue()
 
 
@@ -107,12 +131,11 @@ def place_axes(figure: Figure, renderer: RendererBase) -> None:
     the bottom) and the grid fits between them. Columns share one width and rows one
     height, as `Figure.subplots` made them; axes not in a grid are left alone.
     """
-    grid = [(ax, ax.get_subplotspec()) for ax in figure.axes]
-    grid = [(ax, spec) for ax, spec in grid if spec is not None]
+    grid = _grid(figure)
     if not grid:
         return
     rows, columns = grid[0][1].get_gridspec().get_geometry()
-    width, height = figure.bbox.width, figure.bbox.height
+    height = figure.bbox.height
     pad = LAYOUT_PAD_PT * figure.dpi / 72
     left, right = np.zeros(columns), np.zeros(columns)
     above, below = np.zeros(rows), np.zeros(rows)
@@ -135,25 +158,41 @@ def place_axes(figure: Figure, renderer: RendererBase) -> None:
             top = min(top, box.y0)
         else:
             bottom = max(bottom, box.y1)
-    x0, x1 = pad + left[0], width - pad - right[-1]
-    y0, y1 = bottom + pad + below[-1], top - pad - above[0]
-    column_gap = pad + max(right[:-1] + left[1:], default=0.0)
-    row_gap = pad + max(below[:-1] + above[1:], default=0.0)
-    cell_width = (x1 - x0 - (columns - 1) * column_gap) / columns
-    cell_height = (y1 - y0 - (rows - 1) * row_gap) / rows
-    if min(cell_width, cell_height) < MIN_AXES_IN * figure.dpi:
-        raise ValueError(f'a {width / figure.dpi:.3g} x {height / figure.dpi:.3g} in figure of '
-                         f'{rows} x {columns} axes leaves {cell_width / figure.dpi:.2g} x '
-                         f'{cell_height / figure.dpi:.2g} in an axes inside its labels: make '
-                         'it larger or its labels shorter')
+    inch = figure.dpi
+    _arrange(figure, (pad + left[0]) / inch, (pad + right[-1]) / inch,
+             (bottom + pad + below[-1]) / inch, (height - top + pad + above[0]) / inch,
+             (pad + max(right[:-1] + left[1:], default=0.0)) / inch,
+             (pad + max(below[:-1] + above[1:], default=0.0)) / inch)
+
+
+def _arrange(figure: Figure, left_in: float, right_in: float, bottom_in: float, top_in: float,
+             column_gap_in: float, row_gap_in: float) -> None:
+    """Place the figure's grid of axes with these margins and gaps [inches]."""
+    grid = _grid(figure)
+    if not grid:
+        return
+    rows, columns = grid[0][1].get_gridspec().get_geometry()
+    width, height = figure.get_size_inches()
+    cell_width = (width - left_in - right_in - (columns - 1) * column_gap_in) / columns
+    cell_height = (height - bottom_in - top_in - (rows - 1) * row_gap_in) / rows
+    if min(cell_width, cell_height) < MIN_AXES_IN:
+        raise ValueError(f'a {width:.3g} x {height:.3g} in figure of {rows} x {columns} axes '
+                         f'leaves {cell_width:.2g} x {cell_height:.2g} in an axes inside its '
+                         'labels: make it larger or its labels shorter')
     for ax, spec in grid:
-        span_width = len(spec.colspan) * (cell_width + column_gap) - column_gap
-        span_height = len(spec.rowspan) * (cell_height + row_gap) - row_gap
-        ax_left = x0 + spec.colspan.start * (cell_width + column_gap)
-        ax_top = y1 - spec.rowspan.start * (cell_height + row_gap)
+        span_width = len(spec.colspan) * (cell_width + column_gap_in) - column_gap_in
+        span_height = len(spec.rowspan) * (cell_height + row_gap_in) - row_gap_in
+        ax_left = left_in + spec.colspan.start * (cell_width + column_gap_in)
+        ax_top = height - top_in - spec.rowspan.start * (cell_height + row_gap_in)
         ax.set_position([ax_left / width, (ax_top - span_height) / height,
                          span_width / width, span_height / height])
         ax.set_in_layout(True)  # set_position takes an axes out of any layout
+
+
+def _grid(figure: Figure) -> list[tuple[Axes, SubplotSpec]]:
+    """The figure's axes that sit in a grid (`Figure.subplots`), with their cells."""
+    cells = [(ax, ax.get_subplotspec()) for ax in figure.axes]
+    return [(ax, spec) for ax, spec in cells if spec is not None]
 
 
 class _FrozenLocator(FixedLocator):

@@ -92,6 +92,8 @@ class HitFigures:
         panels = self._panels[with_model]
         figure, axes = panels.figure, panels.axes
         thaw_ticks(figure)
+        for ax, start in zip(axes, panels.start, strict=True):
+            ax.set_position(start)  # so its ticks are chosen as in a fresh figure
         verdict = 'accepted' if result.accepted else 'rejected: ' + ', '.join(result.flags)
         figure_title(figure, ' · '.join(part for part in (
             f'hit {result.impact_id}', source_name(result.source),
@@ -140,6 +142,7 @@ class _HitPanels:
             self.axes[2].set_ylabel('measured − model\n[mm/s]')
         self.axes[1].set_ylabel(VELOCITY_LABEL)
         self.axes[-1].set_xlabel('time from trigger [s]')
+        self.start = [ax.get_position() for ax in self.axes]
 
 
 def level_trials_figure(level: str, records: Sequence[ImpactRecord],
