@@ -130,7 +130,8 @@ class _HitPanels:
     """One layout of the hit figure: its Figure, axes and the lines `HitFigures` refills."""
 
     def __init__(self, with_model: bool) -> None:
-        self.figure, self.axes = new_figure(3 if with_model else 2, 1)
+        # A title, so the starting margins leave room for one (each draw sets its own).
+        self.figure, self.axes = new_figure(3 if with_model else 2, 1, title='hit')
         self.force = plot_trace(self.axes[0], [], [], linewidth=0.8)
         _force_labels(self.axes[0])
         self.measured = plot_trace(self.axes[1], [], [], linewidth=0.8, label='measured')
