@@ -59,6 +59,8 @@ class SessionConfig:
     # channel per second of wall time at the chosen rate_factor.
     batch_size: int | None = None
     params_file: Path | None = None
+    # Write the session report (fmm_ros.report) from the recorded bag afterwards.
+    report: bool = True
 
     def batch(self, sample_rate_hz: float = 10_000.0) -> int:
         """The batch size: given, or whole 500s for ~MESSAGES_PER_S per channel, <= MAX_BATCH_S."""
@@ -87,6 +89,8 @@ class SessionResult:
     missing_effect: str
     diagnosis: str
     bag: str
+    report: str
+    """The report page (index.html) written from the bag, or '' when none was asked for."""
     wall_s: float
     """Wall time from the graph's start to the last impact reported [s]."""
     signal_s: float
@@ -170,6 +174,11 @@ def run_session(config: SessionConfig, progress: Callable[[str], None] = lambda 
         signal_s = hammer.next_index / hammer.config['sample_rate_hz']
         impacts, levels, latest = list(results.impacts), dict(results.levels), results.latest
         hits_sent = hammer.hits_sent
+        capture, analysis = analyzer.capture_config, analyzer.analysis_config
+    page = ''
+    if config.report:  # after the graph: the recorder has closed the bag
+        progress(f'writing the session report to {config.out_dir / "report"}')
+        page = str(_report(bag, config.out_dir / 'report', capture, analysis, config))
     ordered = sorted(levels.values(), key=lambda summary: summary.mean_impulse_n_s)
     return SessionResult(
         plant_mu=config.plant_mu, hits_sent=hits_sent, hits_reported=len(impacts),
@@ -185,12 +194,25 @@ def run_session(config: SessionConfig, progress: Callable[[str], None] = lambda 
         per_impact_mu=msgs.field_array(fit.per_impact_mu).tolist(),
         missing_effect=diagnosis.missing_effect if diagnosis.success else '',
         diagnosis=diagnosis.verdict if diagnosis.success else diagnosis.message, bag=str(bag),
+        report=page,
         wall_s=wall_s, signal_s=signal_s, fit_s=fit_s, diagnose_s=diagnose_s,
         impacts=[{'impact_id': m.impact_id, 'level': m.level, 'accepted': m.accepted,
                   'flags': list(m.flags), 'peak_force_n': m.peak_force_n,
                   'impulse_n_s': m.impulse_n_s,
                   'peak_receptance_m_per_n': m.peak_receptance_m_per_n,
                   'natural_frequency_hz': m.natural_frequency_hz} for m in impacts])
+
+
+def _report(bag: Path, out_dir: Path, capture, analysis, config: SessionConfig) -> Path:
+    """The session report from the bag, analysed and fitted as the graph did (offline)."""
+    from fmm_ros.core.bagio.replay import bag_impact_records
+    from fmm_ros.report.session import report_session
+
+    records, problems = bag_impact_records(bag, capture)
+    return report_session(records, out_dir, capture=capture, analysis=analysis,
+                          fit_initial_position=True, inputs=[str(bag)], problems=problems,
+                          title=f'fmm demo: {config.hits_per_level} hits a level, plant mu '
+                                f'{config.plant_mu}').page
 
 
 def _one_accepted_per_level(impacts: list[ImpactResult]) -> list[int]:

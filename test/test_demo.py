@@ -25,6 +25,9 @@ def test_demo_json_reports_the_session_and_fits_the_plant_mu(tmp_path, capsys):
     assert json.loads((out / 'summary.json').read_text()) == summary
     with BagReader(summary['bag']) as reader:
         assert reader.topics['/fmm/impacts'].count == 3
+    page = out / 'report' / 'index.html'
+    assert summary['report'] == str(page) and page.is_file()
+    assert page.read_text().count('<img') >= 10
 
 
 def test_demo_refuses_to_overwrite_a_bag(tmp_path, capsys):

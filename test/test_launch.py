@@ -35,6 +35,9 @@ def test_the_simulated_rig_runs_as_separate_processes(tmp_path, monkeypatch):
         try:
             assert wait_for(lambda: len(listener.impacts) == 3, timeout_s=90.0), (
                 f'{len(listener.impacts)} of 3 impacts from the processes')
+            # The recorder is another process: it may still be writing them (the open bag
+            # is read as after a crash, up to the last flushed chunk).
+            assert wait_for(lambda: _impacts_in(tmp_path / 'bag') == 3, timeout_s=30.0)
         finally:
             codes = stop_processes(processes)
     assert [m.level for m in listener.impacts] == ['low', 'medium', 'high']
@@ -51,3 +54,11 @@ def test_overrides_name_what_is_wrong():
     (parameter,) = parse_overrides(['rig_sim.effects=[stribeck]'], SIMULATED_RIG)['rig_sim']
     assert (parameter.name, parameter.value) == ('effects', ['stribeck'])
     assert default_params_file().name == 'fmm_rig.yaml' and default_params_file().is_file()
+
+
+def _impacts_in(bag):
+    try:
+        with BagReader(bag, strict=False) as reader:
+            return sum(1 for _ in reader.messages(['/fmm/impacts']))
+    except (ValueError, OSError):   # not created or not flushed yet
+        return 0

@@ -31,6 +31,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help='hide a model term in the plant, e.g. '
                              'stribeck:mu_static_excess=0.02 (repeatable)')
     parser.add_argument('--seed', type=int, default=0, help='seed of the session draw')
+    parser.add_argument('--no-report', action='store_true',
+                        help='skip the HTML report written from the bag afterwards')
     parser.add_argument('--params-file', type=Path, default=None,
                         help='ROS parameter YAML for the nodes (default: their defaults)')
     parser.set_defaults(func=run)
@@ -50,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     config = SessionConfig(out_dir=out, hits_per_level=args.hits_per_level,
                            rate_factor=args.rate_factor, plant_mu=args.plant_mu,
                            plant_effects=tuple(args.plant_effect), seed=args.seed,
-                           params_file=args.params_file)
+                           params_file=args.params_file, report=not args.no_report)
     log = (lambda _: None) if args.json else (lambda line: print(line, file=sys.stderr))
     result = run_session(config, progress=log)
     summary = result.as_json()
@@ -85,4 +87,6 @@ def _text(result, out: Path) -> str:
         f'(x{result.signal_s / result.wall_s:.0f} real time); fit {result.fit_s:.1f} s, '
         f'diagnosis {result.diagnose_s:.1f} s',
         f'bag: {result.bag}', f'summary: {out / "summary.json"}']
+    if result.report:
+        lines.append(f'report: {result.report}')
     return '\n'.join(lines)

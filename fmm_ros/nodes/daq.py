@@ -179,10 +179,10 @@ class FileBackend:
                    if cfg['file_mapping'] else default_mapping(path))
         recording = read_lab_file(path, mapping)
         self.force_n = recording.force_n
-        self.velocity_m_s = recording.velocity_m_per_s
+        self.velocity_m_s = recording.velocity_m_s
         self.sample_rate_hz = recording.sample_rate_hz
         self.force_full_scale = recording.full_scale_force_n
-        self.velocity_full_scale = recording.full_scale_velocity_m_per_s
+        self.velocity_full_scale = recording.full_scale_velocity_m_s
         self._path, self._loop, self._publish = path, cfg['loop'], publish
         self._batch = cfg['batch_size']
         self.next_index = 0

@@ -404,10 +404,10 @@ class LabRecording:
     """Force [N] and velocity [m/s] of one lab file on one sample clock, and how it was mapped."""
 
     force_n: np.ndarray
-    velocity_m_per_s: np.ndarray
+    velocity_m_s: np.ndarray
     sample_rate_hz: float
     full_scale_force_n: float
-    full_scale_velocity_m_per_s: float
+    full_scale_velocity_m_s: float
     start_time_ns: int | None
     source: Path
     report: list[str] = field(default_factory=list)
@@ -541,9 +541,9 @@ def write_recordings(recordings: Sequence[LabRecording], bag: str | Path, *,
     with BagWriter(bag, storage=storage, time_origin_ns=start_time_ns) as writer:
         for recording in recordings:
             index = writer.write_signals(
-                recording.force_n, recording.velocity_m_per_s, rate, first_sample_index=index,
+                recording.force_n, recording.velocity_m_s, rate, first_sample_index=index,
                 batch_size=batch_size, full_scale_force=recording.full_scale_force_n,
-                full_scale_velocity=recording.full_scale_velocity_m_per_s,
+                full_scale_velocity=recording.full_scale_velocity_m_s,
                 on_progress=on_progress)
     return ImportSummary(Path(bag), total, rate, report)
 
