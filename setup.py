@@ -52,7 +52,7 @@ setup(
     ],
     python_requires='>=3.10',
     install_requires=['setuptools', 'numpy', 'scipy', 'numba', 'pyuff', 'pyyaml', 'rosbags',
-                      'zstandard', 'lz4', 'nptdms', 'h5py', 'tqdm', 'matplotlib'],
+                      'zstandard', 'lz4', 'nptdms', 'h5py', 'tqdm', 'matplotlib', 'pillow'],
     cmdclass={'build_py': BuildPyWithInterfaces},
     zip_safe=True,
     maintainer='fmm_ros maintainers',

@@ -27,6 +27,7 @@ ROSDEP_KEYS = {
     'nptdms': 'python3-nptdms-pip',
     'numba': 'python3-numba',
     'numpy': 'python3-numpy',
+    'PIL': 'python3-pil',
     'pyuff': 'python3-pyuff-pip',
     'rcl_interfaces': 'rcl_interfaces',
     'rclpy': 'rclpy',

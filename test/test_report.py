@@ -1,9 +1,12 @@
 """Reports (issue 9): the page builds from a session, every figure is a valid PNG it references,
-rejected hits are in the table, nothing in a figure is clipped, and the paper figures build."""
+rejected hits are in the table, nothing in a figure is clipped, and the paper figures build.
+The fast path (own layout, reused hit figure, traces drawn per pixel column) draws what the
+plain one would."""
 
 import base64
 import contextlib
 import html.parser
+import io
 import re
 
 import matplotlib.image
@@ -12,6 +15,7 @@ import pytest
 from PIL import Image
 
 from fmm_ros.cli import main
+from fmm_ros.core.analysis import analyze_impact
 from fmm_ros.core.bagio import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC, BagWriter
 from fmm_ros.core.bagio.simulated import simulated_session
 from fmm_ros.core.excitation import hammer_pulse, impact_record
@@ -21,7 +25,15 @@ from fmm_ros.core.records import ImpactRecord, write_impact_csv
 from fmm_ros.report import FrictionSummary, ModelOverlay, build_report
 from fmm_ros.report import html as report_html
 from fmm_ros.report.paper import build_paper_report
-from fmm_ros.report.plotting import envelope, odd_harmonics
+from fmm_ros.report.plotting import (
+    envelope,
+    new_figure,
+    odd_harmonics,
+    pixel_envelope,
+    plot_trace,
+    png_bytes,
+)
+from fmm_ros.report.session_figures import HitFigures
 
 PNG_SIGNATURE = b'\x89PNG\r\n\x1a\n'
 RATE_HZ = 10_000.0
@@ -356,3 +368,125 @@ def test_odd_harmonics_are_the_odd_multiples_from_three():
     assert [n for n, _ in odd_harmonics(2.2, 19.0)] == [3, 5, 7]
     assert odd_harmonics(2.2, 20.0)[0][1] == pytest.approx(6.6)
     assert odd_harmonics(float('nan'), 20.0) == []
+
+
+def test_pixel_envelope_keeps_each_pixel_columns_extremes():
+    """Against a brute-force min and max over the samples of each pixel column."""
+    rng = np.random.default_rng(2)
+    x = np.cumsum(rng.uniform(0.5, 1.5, 50_000)) * 1e-4
+    y = rng.normal(size=x.size)
+    y[20_000:20_900] = np.nan  # a gap wider than a column stays a gap
+    view, width_px = (0.5, 4.0), 300.0
+    xs, ys = pixel_envelope(x, y, view, width_px)
+    inside = np.flatnonzero((x >= view[0]) & (x <= view[1]))
+    kept = slice(inside[0] - 1, inside[-1] + 2)  # one sample beyond each edge
+    column = np.floor((x[kept] - view[0]) * width_px / (view[1] - view[0]))
+    columns = np.unique(column)
+    assert xs.size == ys.size == 2 * columns.size and np.all(np.diff(xs) >= 0)
+    assert xs[0] == x[kept][0] and xs[-1] == x[kept][-1]
+    with np.errstate(invalid='ignore'), contextlib.suppress(RuntimeWarning):
+        for k, value in enumerate(columns):
+            samples = y[kept][column == value]
+            if np.isnan(samples).all():
+                assert np.isnan(ys[2 * k]) and np.isnan(ys[2 * k + 1])
+            else:
+                assert (ys[2 * k], ys[2 * k + 1]) == (np.nanmin(samples), np.nanmax(samples))
+    assert np.isnan(ys).any()
+    short = pixel_envelope(x[:400], y[:400], (x[0], x[399]), width_px)
+    assert np.array_equal(short[1], y[:400])
+
+
+def test_a_trace_line_is_drawn_at_the_pixel_columns_of_its_axes():
+    """Two points a column at whatever dpi, the one-sample spike drawn to its full height."""
+    rng = np.random.default_rng(1)
+    x = np.arange(200_000) * 1e-4
+    y = np.sin(2 * np.pi * 0.5 * x) + rng.normal(0.0, 0.05, x.size)
+    y[123_457] = 3.0
+    counts = []
+    for dpi in (50, 100):
+        figure, (ax,) = new_figure()
+        line = plot_trace(ax, x, y, color='black', linewidth=0.8)
+        pixels = matplotlib.image.imread(io.BytesIO(png_bytes(figure, dpi)))[..., :3].mean(axis=2)
+        drawn_x, drawn_y = line.get_data()
+        counts.append(drawn_x.size)
+        assert drawn_x.size <= 2 * (ax.bbox.width + 2)
+        assert drawn_y.max() == 3.0 and drawn_y.min() == y.min()
+        # Inside the frame, the spike's column is inked up to the pixel row of y = 3.
+        spike_x, spike_y = ax.transData.transform((x[123_457], 3.0))
+        frame_top = int(np.ceil(pixels.shape[0] - ax.bbox.y1)) + 2
+        column = pixels[frame_top:, int(spike_x) - 1:int(spike_x) + 2].min(axis=1)
+        inked = np.flatnonzero(column < 0.5) + frame_top
+        assert abs(inked.min() - (pixels.shape[0] - spike_y)) <= 2
+    assert 1.8 < counts[1] / counts[0] < 2.2
+
+
+def test_a_reused_hit_figure_draws_what_a_fresh_one_draws():
+    """Nothing of one hit (data, colour, limits, ticks, legend, rows) leaks into the next."""
+    model = ModelOverlay(0.113, 'given')
+    hits = []
+    for number, peak in enumerate((1450.0, 440.0)):
+        hit = impact_record(peak, rng=number, duration_s=DURATION_S)
+        record = ImpactRecord(hit.force_n, hit.velocity_m_s, RATE_HZ, source=f'{number}.csv')
+        hits.append((record, analyze_impact(record, impact_id=number),
+                     model.velocity_m_s(record, number)))
+
+    def drawn(figures, number, with_model, colour):
+        record, result, velocity = hits[number]
+        figure = figures.draw(record, result, model_velocity_m_s=velocity if with_model else None,
+                              model_label=model.label, colour=colour)
+        return figure, matplotlib.image.imread(io.BytesIO(png_bytes(figure, TEST_DPI)))
+
+    reused = HitFigures()
+    drawn(reused, 0, True, 'tab:green')
+    drawn(reused, 0, False, 'tab:gray')
+    for with_model in (True, False):
+        (figure, again), (_, fresh) = (drawn(figures, 1, with_model, 'tab:orange')
+                                       for figures in (reused, HitFigures()))
+        assert again.shape == fresh.shape
+        # Sub-pixel shifts of the layout change a few edge pixels by a few levels; a leaked
+        # colour or artist changes a percent of the image by far more.
+        assert (np.abs(again - fresh).max(axis=2) > 0.02).mean() < 1e-3
+        # And what both draw is this hit: every axes' y range hugs its lines (5 % margins).
+        for ax in figure.axes:
+            ys = np.concatenate([line.get_ydata() for line in ax.lines])
+            low, high = ax.get_ylim()
+            span = np.nanmax(ys) - np.nanmin(ys)
+            assert low <= np.nanmin(ys) and high >= np.nanmax(ys) and high - low < 1.2 * span
+        legend = figure.axes[1].get_legend()
+        if with_model:
+            measured = legend.get_lines()[0]
+            assert measured.get_color() == figure.axes[1].lines[0].get_color() == 'tab:orange'
+        else:
+            assert legend is None
+
+
+def test_layout_keeps_long_labels_apart_and_inside_with_a_figure_legend():
+    figure, axes = new_figure(2, 2, title='a title')
+    for number, ax in enumerate(axes):
+        ax.plot([0, 1], [0, 123456789 * (number + 1)], label=f'line {number}')
+        ax.ticklabel_format(axis='y', style='plain', useOffset=False)
+        ax.set_ylabel('a long label\nin two lines [unit]')
+        ax.set_xlabel('x [unit]')
+        ax.set_title(f'axes {number}')
+    figure.legend(loc='lower center', ncols=4)
+    png_bytes(figure, TEST_DPI)
+    renderer = figure.canvas.get_renderer()
+    width, height = figure.bbox.width, figure.bbox.height
+    boxes = [ax.get_tightbbox(renderer) for ax in axes]
+    for box in [*boxes, figure.legends[0].get_window_extent(renderer)]:
+        assert box.x0 >= 0 and box.y0 >= 0 and box.x1 <= width and box.y1 <= height
+    for first, box in enumerate(boxes):
+        for other in boxes[first + 1:]:
+            assert not box.overlaps(other)
+    legend_top = figure.legends[0].get_window_extent(renderer).y1
+    assert all(box.y0 > legend_top for box in boxes)
+    title = figure.texts[0].get_window_extent(renderer)
+    assert all(box.y1 < title.y0 for box in boxes)
+
+
+def test_layout_refuses_a_figure_too_small_for_its_labels():
+    figure, axes = new_figure(4, 1, height_in=1.5)
+    for ax in axes:
+        ax.set_xlabel('x [unit]')
+    with pytest.raises(ValueError, match='too small|labels'):
+        png_bytes(figure, TEST_DPI)

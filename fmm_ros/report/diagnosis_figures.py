@@ -21,8 +21,8 @@ from fmm_ros.report.plotting import (
     MM_PER_M,
     MOBILITY_UNIT,
     MODEL_COLOUR,
-    envelope,
     new_figure,
+    plot_trace,
 )
 from fmm_ros.report.session_figures import HARMONICS_TOP_HZ, source_name
 
@@ -53,11 +53,11 @@ def residual_figure(diagnosis: Diagnosis, records: Sequence,
         after = diagnosis.named_residuals_m_s[row]
         time_s = np.arange(before.size) / record.sample_rate_hz
         end = _motion_end(record.velocity_m_s - before, record.sample_rate_hz)
-        ax.plot(*envelope(time_s[:end], before[:end] * MM_PER_M), color=BASE_COLOUR,
-                linewidth=0.6, label='base model')
+        plot_trace(ax, time_s[:end], before[:end] * MM_PER_M, color=BASE_COLOUR,
+                   linewidth=0.6, label='base model')
         if diagnosis.missing_effect != NONE:
-            ax.plot(*envelope(time_s[:end], after[:end] * MM_PER_M), color=MODEL_COLOUR,
-                    linewidth=0.6, label=named_label(diagnosis))
+            plot_trace(ax, time_s[:end], after[:end] * MM_PER_M, color=MODEL_COLOUR,
+                       linewidth=0.6, label=named_label(diagnosis))
         ax.set_ylabel('residual [mm/s]')
         ax.set_title(_name(record, row), fontsize='small')
         ax.legend(loc='upper right', fontsize='x-small')

@@ -53,8 +53,8 @@ def link(href: str, text: object) -> Markup:
 class Page:
     """An HTML report being assembled in `out_dir`; `write()` saves index.html.
 
-    Figures are rendered and saved as PNG as soon as they are added, then closed, so a long
-    report never holds more than one matplotlib figure.
+    Figures are rendered and saved as PNG as soon as they are added, then cleared, so a long
+    report holds no more figures than it reuses.
     """
 
     def __init__(self, out_dir: str | Path, title: str, *, dpi: float = DEFAULT_DPI) -> None:
@@ -105,15 +105,20 @@ class Page:
         lines.append('</tbody></table>')
         self._body.append('\n'.join(lines))
 
-    def figure(self, name: str, figure: Figure, caption: object) -> Path:
-        """Render the figure to `<name>.png` next to the page and embed the same PNG."""
+    def figure(self, name: str, figure: Figure, caption: object, *, keep: bool = False
+               ) -> Path:
+        """Render the figure to `<name>.png` next to the page and embed the same PNG.
+
+        The figure is cleared afterwards unless keep (the caller draws into it again).
+        """
         if not _NAME.match(name):
             raise ValueError(f'figure name {name!r} must be letters, digits, _ . - only')
         path = self.out_dir / f'{name}.png'
         if path in self.figures:
             raise ValueError(f'figure {name!r} is already on the page')
         data = png_bytes(figure, self.dpi)
-        figure.clear()
+        if not keep:
+            figure.clear()
         path.write_bytes(data)
         self.figures.append(path)
         encoded = base64.b64encode(data).decode('ascii')

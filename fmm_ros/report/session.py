@@ -367,11 +367,12 @@ def _time_section(page: Page, summary: Summary, by_id: dict[int, ImpactRecord],
             f'Fig. 12: force pulses (top, ms) and velocity decays (bottom, s) of the '
             f'{level.count} accepted hits of level {level.level}.')
     page.subsection('Every hit')
+    hit_figures = figures.HitFigures()
     for impact in summary.impacts:
         record = by_id[impact.impact_id]
         velocity = (model.velocity_m_s(record, impact.impact_id) if model is not None
                     else None)
-        page.figure(_hit_name(impact), figures.hit_figure(
+        page.figure(_hit_name(impact), hit_figures.draw(
             record, impact, capture=capture, model_velocity_m_s=velocity,
             model_label=model.label if model is not None else '',
             colour=colours.get(impact.level, REJECTED_COLOUR) if impact.accepted
@@ -379,7 +380,7 @@ def _time_section(page: Page, summary: Summary, by_id: dict[int, ImpactRecord],
             f'Figs. 18/20/22: hit {impact.impact_id} '
             + ('' if impact.accepted else f'(rejected: {", ".join(impact.flags)}) ')
             + ('with the model driven by its measured force.' if velocity is not None
-               else 'as measured.'))
+               else 'as measured.'), keep=True)
 
 
 def _frf_section(page: Page, summary: Summary, colours: dict[str, str],

@@ -26,10 +26,12 @@ from fmm_ros.report.plotting import (
     MS_PER_S,
     RECEPTANCE_UNIT,
     REJECTED_COLOUR,
-    envelope,
+    figure_title,
     level_colour,
     new_figure,
     odd_harmonics,
+    plot_trace,
+    thaw_ticks,
     value_with_error,
 )
 
@@ -55,44 +57,93 @@ def hit_figure(record: ImpactRecord, result: ImpactResult, *,
                capture: CaptureConfig = DEFAULT_CAPTURE,
                model_velocity_m_s: np.ndarray | None = None, model_label: str = '',
                colour: str = 'tab:blue') -> Figure:
-    """One hit (Figs. 18/20/22): force pulse zoomed, the whole decay, model and residual.
+    """One hit (Figs. 18/20/22) in a Figure of its own; see `HitFigures.draw`."""
+    return HitFigures().draw(record, result, capture=capture,
+                             model_velocity_m_s=model_velocity_m_s, model_label=model_label,
+                             colour=colour)
 
-    Top: the force around the contact (widened to show a second pulse of a double hit).
-    Middle: measured velocity until the rig is at rest, with the model's velocity over it
-    when given. Bottom (with a model): measured minus model, where they disagree.
+
+class HitFigures:
+    """The figure of each hit (Figs. 18/20/22), drawn hit after hit into one reused Figure.
+
+    A report has one such figure per hit. Making a Figure, its axes and their ticks anew
+    for each costs more than drawing it (and the text measured for one figure's renderer
+    is measured again for the next), so the report keeps one Figure per layout (with and
+    without the model's residual row) and replaces data, limits and titles. A figure
+    `draw` returns is valid until the next `draw` of the same layout.
     """
-    verdict = 'accepted' if result.accepted else 'rejected: ' + ', '.join(result.flags)
-    title = ' · '.join(part for part in (
-        f'hit {result.impact_id}', source_name(result.source),
-        f'level: {result.level}' if result.level else 'no level', verdict) if part)
-    rows = 3 if model_velocity_m_s is not None else 2
-    figure, axes = new_figure(rows, 1, title=title)
-    trigger = trigger_offset(result)
-    rate = record.sample_rate_hz
-    _force_zoom(axes[0], [record], [trigger], [colour], capture)
-    axes[0].set_title(f'peak {result.peak_force_n:.4g} N, impulse {result.impulse_n_s:.4g} N·s, '
-                      f'contact {result.contact_duration_s * MS_PER_S:.3g} ms',
-                      fontsize='small')
-    velocities = [record.velocity_m_s] + ([] if model_velocity_m_s is None
-                                          else [model_velocity_m_s])
-    end_s = decay_end_s(velocities, trigger, rate, capture.rest_velocity_m_s)
-    time_s = (np.arange(record.velocity_m_s.size) - trigger) / rate
-    shown = time_s <= end_s
-    axes[1].plot(*envelope(time_s[shown], record.velocity_m_s[shown] * MM_PER_M), color=colour,
-                 linewidth=0.8, label='measured')
-    if model_velocity_m_s is not None:
-        axes[1].plot(*envelope(time_s[shown], model_velocity_m_s[shown] * MM_PER_M),
-                     color=MODEL_COLOUR, linewidth=0.8, linestyle='--',
-                     label=model_label or 'model')
-        residual = (record.velocity_m_s - model_velocity_m_s)[shown] * MM_PER_M
-        axes[2].plot(*envelope(time_s[shown], residual), color='tab:purple', linewidth=0.6)
-        axes[2].set_ylabel('measured − model\n[mm/s]')
-        axes[1].legend(loc='upper right', fontsize='small')
-    for ax in axes[1:]:
-        ax.set_xlim(time_s[0], end_s)
-    axes[1].set_ylabel(VELOCITY_LABEL)
-    axes[-1].set_xlabel('time from trigger [s]')
-    return figure
+
+    def __init__(self) -> None:
+        self._panels: dict[bool, _HitPanels] = {}
+
+    def draw(self, record: ImpactRecord, result: ImpactResult, *,
+             capture: CaptureConfig = DEFAULT_CAPTURE,
+             model_velocity_m_s: np.ndarray | None = None, model_label: str = '',
+             colour: str = 'tab:blue') -> Figure:
+        """One hit: force pulse zoomed, the whole decay, model and residual.
+
+        Top: the force around the contact (widened to show a second pulse of a double hit).
+        Middle: measured velocity until the rig is at rest, with the model's velocity over
+        it when given. Bottom (with a model): measured minus model, where they disagree.
+        """
+        with_model = model_velocity_m_s is not None
+        if with_model not in self._panels:
+            self._panels[with_model] = _HitPanels(with_model)
+        panels = self._panels[with_model]
+        figure, axes = panels.figure, panels.axes
+        thaw_ticks(figure)
+        for ax, start in zip(axes, panels.start, strict=True):
+            ax.set_position(start)  # so its ticks are chosen as in a fresh figure
+        verdict = 'accepted' if result.accepted else 'rejected: ' + ', '.join(result.flags)
+        figure_title(figure, ' · '.join(part for part in (
+            f'hit {result.impact_id}', source_name(result.source),
+            f'level: {result.level}' if result.level else 'no level', verdict) if part))
+        trigger = trigger_offset(result)
+        rate = record.sample_rate_hz
+        start_s, end_s = _force_window([record], [trigger], capture)
+        panels.force.set_trace(*_force_trace(record, trigger, start_s, end_s))
+        panels.force.set_color(colour)
+        axes[0].set_xlim(start_s * MS_PER_S, end_s * MS_PER_S)
+        axes[0].set_title(f'peak {result.peak_force_n:.4g} N, impulse '
+                          f'{result.impulse_n_s:.4g} N·s, contact '
+                          f'{result.contact_duration_s * MS_PER_S:.3g} ms', fontsize='small')
+        velocities = [record.velocity_m_s] + ([model_velocity_m_s] if with_model else [])
+        end_s = decay_end_s(velocities, trigger, rate, capture.rest_velocity_m_s)
+        time_s, shown = _decay_span(record, trigger, end_s)
+        panels.measured.set_trace(time_s, record.velocity_m_s[shown] * MM_PER_M)
+        panels.measured.set_color(colour)
+        if with_model:
+            model = model_velocity_m_s[shown] * MM_PER_M
+            panels.model.set_trace(time_s, model)
+            panels.model.set_label(model_label or 'model')
+            panels.residual.set_trace(time_s, record.velocity_m_s[shown] * MM_PER_M - model)
+            axes[1].legend(loc='upper right', fontsize='small')
+        for ax in axes[1:]:
+            ax.set_xlim(time_s[0], end_s)
+        for ax in axes:
+            ax.relim()
+            ax.autoscale_view(scalex=False)
+        return figure
+
+
+class _HitPanels:
+    """One layout of the hit figure: its Figure, axes and the lines `HitFigures` refills."""
+
+    def __init__(self, with_model: bool) -> None:
+        # A title, so the starting margins leave room for one (each draw sets its own).
+        self.figure, self.axes = new_figure(3 if with_model else 2, 1, title='hit')
+        self.force = plot_trace(self.axes[0], [], [], linewidth=0.8)
+        _force_labels(self.axes[0])
+        self.measured = plot_trace(self.axes[1], [], [], linewidth=0.8, label='measured')
+        if with_model:
+            self.model = plot_trace(self.axes[1], [], [], color=MODEL_COLOUR, linewidth=0.8,
+                                    linestyle='--')
+            self.residual = plot_trace(self.axes[2], [], [], color='tab:purple',
+                                       linewidth=0.6)
+            self.axes[2].set_ylabel('measured − model\n[mm/s]')
+        self.axes[1].set_ylabel(VELOCITY_LABEL)
+        self.axes[-1].set_xlabel('time from trigger [s]')
+        self.start = [ax.get_position() for ax in self.axes]
 
 
 def level_trials_figure(level: str, records: Sequence[ImpactRecord],
@@ -107,10 +158,9 @@ def level_trials_figure(level: str, records: Sequence[ImpactRecord],
     end_s = decay_end_s([record.velocity_m_s for record in records], triggers, rate,
                         capture.rest_velocity_m_s)
     for record, trigger in zip(records, triggers, strict=True):
-        time_s = (np.arange(record.velocity_m_s.size) - trigger) / record.sample_rate_hz
-        shown = time_s <= end_s
-        axes[1].plot(*envelope(time_s[shown], record.velocity_m_s[shown] * MM_PER_M),
-                     color=colour, linewidth=0.6, alpha=0.7)
+        time_s, shown = _decay_span(record, trigger, end_s)
+        plot_trace(axes[1], time_s, record.velocity_m_s[shown] * MM_PER_M, color=colour,
+                   linewidth=0.6, alpha=0.7)
     axes[1].set_xlim(right=end_s)
     axes[1].set_ylabel(VELOCITY_LABEL)
     axes[1].set_xlabel('time from trigger [s]')
@@ -337,8 +387,8 @@ def friction_figure(impulses_n_s: Sequence[float], mus: Sequence[float],
     ax.set_xlabel('impulse [N·s]')
     ax.set_ylabel('μ [-], ± 1σ')
     ax.ticklabel_format(axis='y', style='plain', useOffset=False)
-    # Under the axes: the error bars fill them.
-    figure.legend(fontsize='small', loc='outside lower center', ncols=len(names) + 1)
+    # Under the axes (the error bars fill them): the layout keeps the axes above it.
+    figure.legend(fontsize='small', loc='lower center', ncols=len(names) + 1)
     return figure
 
 
@@ -369,7 +419,18 @@ def decay_end_s(velocities: Sequence[np.ndarray], triggers: Sequence[int] | int,
 
 def _force_zoom(ax, records: Sequence[ImpactRecord], triggers: Sequence[int],
                 colours: Sequence[str], capture: CaptureConfig) -> None:
-    """Force around the contact [ms from trigger], wide enough for every pulse in min_spacing."""
+    """Force around the contact [ms from trigger] of every record, on one axes."""
+    start_s, end_s = _force_window(records, triggers, capture)
+    for record, trigger, colour in zip(records, triggers, colours, strict=True):
+        plot_trace(ax, *_force_trace(record, trigger, start_s, end_s), color=colour,
+                   linewidth=0.8, alpha=0.8 if len(records) > 1 else 1.0)
+    ax.set_xlim(start_s * MS_PER_S, end_s * MS_PER_S)
+    _force_labels(ax)
+
+
+def _force_window(records: Sequence[ImpactRecord], triggers: Sequence[int],
+                  capture: CaptureConfig) -> tuple[float, float]:
+    """Start and end of the force zoom [s from trigger]: every pulse within min_spacing."""
     start_s, end_s = 0.0, 0.0
     for record, trigger in zip(records, triggers, strict=True):
         rate = record.sample_rate_hz
@@ -382,14 +443,26 @@ def _force_zoom(ax, records: Sequence[ImpactRecord], triggers: Sequence[int],
             end_s = max(end_s, (touching[-1] - trigger) / rate)
     start_s -= FORCE_MARGIN_S
     end_s += FORCE_MARGIN_S + 0.5 * (end_s - start_s)
-    for record, trigger, colour in zip(records, triggers, colours, strict=True):
-        rate = record.sample_rate_hz
-        first = max(trigger + int(np.floor(start_s * rate)), 0)
-        last = min(trigger + int(np.ceil(end_s * rate)) + 1, record.force_n.size)
-        time_ms = (np.arange(first, last) - trigger) / rate * MS_PER_S
-        ax.plot(*envelope(time_ms, record.force_n[first:last]), color=colour, linewidth=0.8,
-                alpha=0.8 if len(records) > 1 else 1.0)
-    ax.set_xlim(start_s * MS_PER_S, end_s * MS_PER_S)
+    return start_s, end_s
+
+
+def _force_trace(record: ImpactRecord, trigger: int, start_s: float, end_s: float
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Time [ms from trigger] and force [N] of the record from start_s to end_s."""
+    rate = record.sample_rate_hz
+    first = max(trigger + int(np.floor(start_s * rate)), 0)
+    last = min(trigger + int(np.ceil(end_s * rate)) + 1, record.force_n.size)
+    return (np.arange(first, last) - trigger) / rate * MS_PER_S, record.force_n[first:last]
+
+
+def _decay_span(record: ImpactRecord, trigger: int, end_s: float) -> tuple[np.ndarray, slice]:
+    """Time [s from trigger] of the record's samples up to end_s, and their slice."""
+    rate = record.sample_rate_hz
+    shown = slice(0, min(record.velocity_m_s.size, trigger + int(np.floor(end_s * rate)) + 1))
+    return (np.arange(shown.stop) - trigger) / rate, shown
+
+
+def _force_labels(ax) -> None:
     ax.set_xlabel('time from trigger [ms]')
     ax.set_ylabel('force [N]')
 
