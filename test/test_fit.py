@@ -437,11 +437,12 @@ def test_a_parameter_the_residuals_ignore_gets_infinite_variance_and_spoils_no_o
     import dataclasses
     import warnings
 
-    from fmm_ros.core._lsq import LsqSolution
+    from fmm_ros.core._lsq import BlockJacobian, Blocks, LsqSolution
     from fmm_ros.core.fit import _uncertainty
 
     rng = np.random.default_rng(0)
-    jacobian = np.vstack([rng.normal(size=(2, 4000)), np.zeros(4000)])
+    rows = np.vstack([rng.normal(size=(2, 4000)), np.zeros(4000)])
+    jacobian = BlockJacobian(Blocks.shared((slice(0, 4000),), 3), (rows,))
     residual = rng.normal(0.0, 0.01, 4000)
     fields = {f.name for f in dataclasses.fields(LsqSolution)}
     values = dict(x=np.zeros(3), lower=-np.ones(3), upper=np.ones(3), residual=residual,
@@ -449,7 +450,7 @@ def test_a_parameter_the_residuals_ignore_gets_infinite_variance_and_spoils_no_o
     solution = LsqSolution(**values, **{name: 0 for name in fields - set(values)})
     with warnings.catch_warnings():
         warnings.simplefilter('error')
-        result = _uncertainty(solution, [slice(0, 4000)], [400])
+        result = _uncertainty(solution, [400])
     assert np.isinf(result.stderr[2])
     assert np.all(np.isfinite(result.stderr[:2])) and np.all(result.stderr[:2] > 0)
     assert np.all(np.isfinite(result.covariance[:2, :2]))
