@@ -308,7 +308,8 @@ class _OutputError:
     Time misfit: measured minus simulated velocity, every sample. FRF misfit: measured minus
     simulated mobility, (V_meas - V_model) / F, on the bins from DC to band_limit_hz, real and
     imaginary parts interleaved. Each impact is a block of residuals (`_lsq.Blocks`): a call
-    runs one simulation for each impact asked for, into buffers allocated once.
+    runs one simulation for each impact asked for, into one buffer allocated once and shared
+    (each run is consumed before the next).
     """
 
     def __init__(self, impacts: Sequence[ConditionedImpact], build: ModelBuilder, misfit: str,
@@ -317,7 +318,7 @@ class _OutputError:
         self.build = build
         self.misfit = misfit
         self.integrator = integrator
-        self.buffers = [np.empty((2, impact.force_n.size)) for impact in self.impacts]
+        self.buffer = np.empty((2, max(impact.force_n.size for impact in self.impacts)))
         self.targets: list[np.ndarray] = []
         self.inverse_force: list[np.ndarray] = []
         self.segments: list[slice] = []
@@ -376,14 +377,15 @@ class _OutputError:
 
     def simulate(self, index: int, model: _Model,
                  force_n: np.ndarray | None = None) -> Simulation:
-        """Run one impact (or force_n in its place) through the model into reused buffers."""
+        """Run one impact (or force_n in its place) through the model into the shared buffer."""
         impact = self.impacts[index]
-        buffer = self.buffers[index]
+        n = impact.force_n.size
         try:
             return simulate(impact.force_n if force_n is None else force_n,
                             impact.sample_rate_hz, rig=model.rig, mu=model.mu,
                             effects=model.effects, x0_m=model.initial_position_m(index),
-                            integrator=self.integrator, out=(buffer[0], buffer[1]))
+                            integrator=self.integrator,
+                            out=(self.buffer[0, :n], self.buffer[1, :n]))
         except ValueError as error:  # e.g. a term that makes one direction's friction < 0
             raise Infeasible(str(error)) from None
 
@@ -399,12 +401,14 @@ class _OutputError:
 
         The hit is short against the rig's period, so what force noise inside the gate does
         to the response is what a change of impulse does: the force is scaled to find it.
-        `residual` is the stacked residual at theta.
+        `residual` is the stacked residual at theta. One array is reused: each is valid until
+        the next is asked for.
         """
         model = self.model(theta)
+        scratch = np.empty(max(segment.stop - segment.start for segment in self.segments))
         for index, impact in enumerate(self.impacts):
             segment = self.segments[index]
-            shifted = np.empty(segment.stop - segment.start)
+            shifted = scratch[:segment.stop - segment.start]
             self.impact_residual(index, model, shifted, 1.0 + relative_step)
             shifted -= residual[segment]
             shifted /= relative_step * impact.impulse_n_s
