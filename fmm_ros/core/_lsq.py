@@ -25,7 +25,7 @@ matrix and gradient are summed block by block. On 30 impacts of 330,000 samples 
 the plain dense Jacobian, cut into blocks.
 """
 
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -128,24 +128,11 @@ class BlockJacobian:
 
     def gradient(self, residual: np.ndarray) -> np.ndarray:
         """J r (p), summed block by block."""
-        return self.scatter(inner(rows, residual[segment]) for segment, rows in zip(
-            self.blocks.segments, self.rows, strict=True))
-
-    def scatter(self, block_vectors: Iterable[np.ndarray]) -> np.ndarray:
-        """Sum of per-block parameter vectors (each over parameters[k]) into one of length p."""
-        total = np.zeros(self.blocks.n_parameters)
-        for indices, vector in zip(self.blocks.parameters, block_vectors, strict=True):
-            total[indices] += vector
-        return total
-
-    def dense(self) -> np.ndarray:
-        """The full (p, n) Jacobian (for checks on small problems: it is what blocks avoid)."""
-        n = max((segment.stop for segment in self.blocks.segments), default=0)
-        full = np.zeros((self.blocks.n_parameters, n))
+        gradient = np.zeros(self.blocks.n_parameters)
         for segment, indices, rows in zip(self.blocks.segments, self.blocks.parameters,
                                           self.rows, strict=True):
-            full[indices, segment] = rows
-        return full
+            gradient[indices] += inner(rows, residual[segment])
+        return gradient
 
 
 @dataclass(frozen=True)

@@ -525,6 +525,7 @@ class ModelFit:
     at_bounds: tuple[str, ...]
     """Fitted parameters that ended on a search bound."""
     evaluations: int
+    """Model runs the optimiser made, one an impact simulated (standard errors not counted)."""
     iterations: int
 
     def index(self, name: str) -> int:
@@ -793,7 +794,7 @@ def _conditioned_list(impacts: Sequence) -> list[ConditionedImpact]:
 
 
 def _check_options(rig: Rig, misfit: str, band_limit_hz: float, integrator: str,
-                   jacobian: str = 'blocks') -> None:
+                   jacobian: str) -> None:
     if not isinstance(rig, Rig):
         raise ValueError(f'rig must be a Rig, got {rig!r}')
     if misfit not in MISFITS:
@@ -861,9 +862,8 @@ def fit_friction(impacts: Sequence, *, rig: Rig = FMM_RIG, fit_damping: bool = F
     """The paper's fit: one mu (and optionally c) over all impacts, plus each impact's own mu.
 
     fit_initial_position and jacobian as in `fit_model` (each impact's own fit then refits its
-    own start).
-    Raises ValueError for bad input and FitError (naming the impact) for any impact, or the
-    set, that friction cannot explain.
+    own start). Raises ValueError for bad input and FitError (naming the impact) for any
+    impact, or the set, that friction cannot explain.
     """
     conditioned = _conditioned_list(impacts)
     options = dict(mu_bounds=mu_bounds, fit_initial_position=fit_initial_position,
