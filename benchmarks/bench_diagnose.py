@@ -1,6 +1,7 @@
 """Diagnose workflow: a randomised hidden-effect sweep, and the time of one diagnosis.
 
 Run: .venv/bin/python benchmarks/bench_diagnose.py [--cases N] [--seed S] [--repeats R]
+     [--session-hits H]
 
 The sweep draws N sessions (three impacts of 33 s at random hammer levels, 0.2 N / 1e-4 m/s
 noise, a random friction coefficient) per hidden effect and for 'none', each with the effect
@@ -9,18 +10,25 @@ them, and prints the confusion matrix (rows: hidden, columns: named), the accura
 gap reduction where an effect was hidden, and every miss. Then the time of one diagnosis of
 three impacts (all candidates) against the same diagnosis with every candidate refitted from
 its default parameters, no start from the signatures and no screening (the naive way).
+Last, a diagnosis of a continuous session (H hits a level, 33 s apart) with each impact's start
+fitted, as the fitter's /fmm/diagnose_model does by default, with every refit's Jacobian by
+blocks (a start position runs its own impact) against dense (every column, every impact).
 Issue 8's targets: accuracy >= 95 %, one diagnosis of three 33 s impacts <= 10 s.
 """
 
 import argparse
+import functools
 import statistics
 import time
 
 import numpy as np
 
 import fmm_ros.core.diagnose as diagnose_module
+from fmm_ros.core.bagio.simulated import simulated_session
 from fmm_ros.core.diagnose import diagnose
+from fmm_ros.core.fit import as_conditioned, fit_model
 from fmm_ros.core.hidden_effects import HIDDEN_EFFECTS, hidden_effect_case
+from fmm_ros.core.impacts import capture_impacts
 from fmm_ros.core.model import MODEL_TERMS
 
 TARGET_ACCURACY = 0.95
@@ -103,15 +111,39 @@ def timing(repeats: int, seed: int) -> None:
           f'slower; named {naive_result.missing_effect}')
 
 
+def session_timing(hits_per_level: int) -> None:
+    session = simulated_session(hits_per_level, seed=3, force_noise_std_n=0.2,
+                                velocity_noise_std_m_s=1e-4)
+    impacts = [as_conditioned(record) for record in capture_impacts(
+        session.force_n, session.velocity_m_s, session.sample_rate_hz)]
+    seconds = {}
+    for jacobian in ('blocks', 'dense'):
+        diagnose_module.fit_model = functools.partial(fit_model, jacobian=jacobian)
+        try:
+            start = time.perf_counter()
+            result = diagnose(impacts, fit_initial_position=True)
+            seconds[jacobian] = time.perf_counter() - start
+        finally:
+            diagnose_module.fit_model = fit_model
+        print(f'diagnosis of a {len(impacts)}-hit session, each start fitted, Jacobians '
+              f'{jacobian}: {seconds[jacobian]:.1f} s (one run; named {result.missing_effect}, '
+              f'mu {result.mu:.5f})')
+    print(f'  blocks {seconds["dense"] / seconds["blocks"]:.1f}x faster')
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--cases', type=int, default=10, help='sessions per hidden effect')
     parser.add_argument('--seed', type=int, default=2019)
     parser.add_argument('--repeats', type=int, default=5, help='timing repeats')
+    parser.add_argument('--session-hits', type=int, default=3,
+                        help='hits per level of the session diagnosed with starts (0: skip)')
     args = parser.parse_args()
     print(f'sweep: {args.cases} sessions per hidden effect and none, three impacts each')
     sweep(args.cases, args.seed)
     timing(args.repeats, args.seed)
+    if args.session_hits:
+        session_timing(args.session_hits)
 
 
 if __name__ == '__main__':

@@ -140,6 +140,98 @@ def test_one_mu_is_refused_statistically_when_the_levels_differ():
     assert result.per_impact[2].mu == pytest.approx(0.125, rel=0.01)
 
 
+# --- the Jacobian's block structure -------------------------------------------------------------
+
+@pytest.fixture(scope='module')
+def session_set():
+    """Three hits of one continuous session: each starts where friction left the last one."""
+    session = simulated_session(1, seed=3, force_noise_std_n=FORCE_NOISE_N,
+                                velocity_noise_std_m_s=VELOCITY_NOISE_M_S)
+    records = capture_impacts(session.force_n, session.velocity_m_s, session.sample_rate_hz)
+    return [fit.as_conditioned(record) for record in records]
+
+
+@pytest.mark.parametrize('options', [
+    dict(),
+    dict(fit_damping=True, terms=('velocity_offset',)),
+    dict(misfit='frf'),
+], ids=['mu', 'damping_and_a_term', 'frf'])
+def test_blockwise_jacobian_gives_the_dense_fit(session_set, options):
+    blocks = fit.fit_model(session_set, fit_initial_position=True, **options)
+    dense = fit.fit_model(session_set, fit_initial_position=True, jacobian='dense', **options)
+    assert blocks.names == dense.names
+    assert max(abs(x) for x in blocks.initial_positions_m) > 0.1e-3
+    np.testing.assert_allclose(blocks.values, dense.values, rtol=1e-9, atol=1e-15)
+    for part in ('stderr', 'stderr_white', 'stderr_force'):
+        np.testing.assert_allclose(getattr(blocks, part), getattr(dense, part), rtol=1e-6)
+    np.testing.assert_allclose(blocks.covariance, dense.covariance, rtol=1e-6,
+                               atol=1e-9 * np.max(np.abs(dense.covariance)))
+    # Where start positions are fitted, the sandwich and force parts have off-diagonal
+    # blocks between impacts only through the global parameters: check one is not zero.
+    assert dense.covariance[-1, -2] != 0.0
+
+
+def _count_jacobian_runs(monkeypatch) -> list[tuple[int, int]]:
+    """Per Jacobian of every later fit: (model runs, floats stored)."""
+    from fmm_ros.core import _lsq
+
+    runs = [0]
+    counted = []
+    simulate_for_real, jacobian_for_real = fit.simulate, _lsq._forward_jacobian
+
+    def counting_simulate(*args, **kwargs):
+        runs[0] += 1
+        return simulate_for_real(*args, **kwargs)
+
+    def counting_jacobian(*args):
+        before = runs[0]
+        evaluations = jacobian_for_real(*args)
+        stored = sum(rows.size for rows in args[-1].rows)
+        assert evaluations == runs[0] - before
+        counted.append((runs[0] - before, stored))
+        return evaluations
+
+    monkeypatch.setattr(fit, 'simulate', counting_simulate)
+    monkeypatch.setattr(_lsq, '_forward_jacobian', counting_jacobian)
+    return counted
+
+
+@pytest.mark.parametrize('n_impacts', [2, 3])
+def test_a_start_position_runs_and_stores_only_its_own_impact(session_set, monkeypatch,
+                                                               n_impacts):
+    impacts = session_set[:n_impacts]
+    samples = sum(impact.force_n.size for impact in impacts)
+    n_global = 2    # mu and c
+    counted = _count_jacobian_runs(monkeypatch)
+    fit.fit_model(impacts, fit_damping=True, fit_initial_position=True)
+    assert counted and all(counts == (n_global * n_impacts + n_impacts,
+                                      (n_global + 1) * samples) for counts in counted)
+    counted.clear()
+    fit.fit_model(impacts, fit_damping=True, fit_initial_position=True, jacobian='dense')
+    assert counted and all(counts == ((n_global + n_impacts) * n_impacts,
+                                      (n_global + n_impacts) * samples) for counts in counted)
+
+
+def test_block_jacobian_is_the_dense_one_without_its_zeros():
+    from fmm_ros.core._lsq import Blocks
+
+    segments = (slice(0, 3), slice(3, 5))
+    blocks = Blocks.global_and_local(segments, 1, [[1], [2]])
+    assert blocks.n_parameters == 3
+    assert blocks.touched_by(0) == ((0, 0), (1, 0))
+    assert blocks.touched_by(2) == ((1, 1),)
+    jacobian = blocks.empty_jacobian()
+    jacobian.rows[0][:] = [[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]
+    jacobian.rows[1][:] = [[7.0, 8.0], [9.0, 10.0]]
+    dense = np.array([[1.0, 2.0, 3.0, 7.0, 8.0], [4.0, 5.0, 6.0, 0.0, 0.0],
+                      [0.0, 0.0, 0.0, 9.0, 10.0]])
+    residual = np.array([1.0, -1.0, 2.0, 0.5, 3.0])
+    np.testing.assert_allclose(jacobian.normal(), dense @ dense.T)
+    np.testing.assert_allclose(jacobian.gradient(residual), dense @ residual)
+    with pytest.raises(ValueError, match='not ascending indices below 3'):
+        Blocks(segments, (np.array([0, 3]), np.array([1])), 3)
+
+
 # --- model terms, as the discrepancy workflow uses them ------------------------------------------
 
 def test_fits_the_parameters_of_a_model_term_with_mu():
@@ -184,6 +276,7 @@ def test_a_term_far_smaller_in_its_units_still_gets_an_honest_error():
     (dict(mu_bounds=(0.3, 0.1)), 'mu_bounds must be'),
     (dict(rig=Rig(normal_force_n=0.0)), 'normal_force_n'),
     (dict(band_limit_hz=-1.0), 'band_limit_hz must be positive'),
+    (dict(jacobian='sparse'), "unknown jacobian 'sparse'"),
 ])
 def test_bad_options_are_refused_by_name(paper_set, options, message):
     with pytest.raises(ValueError, match=message):
@@ -437,11 +530,12 @@ def test_a_parameter_the_residuals_ignore_gets_infinite_variance_and_spoils_no_o
     import dataclasses
     import warnings
 
-    from fmm_ros.core._lsq import LsqSolution
+    from fmm_ros.core._lsq import BlockJacobian, Blocks, LsqSolution
     from fmm_ros.core.fit import _uncertainty
 
     rng = np.random.default_rng(0)
-    jacobian = np.vstack([rng.normal(size=(2, 4000)), np.zeros(4000)])
+    rows = np.vstack([rng.normal(size=(2, 4000)), np.zeros(4000)])
+    jacobian = BlockJacobian(Blocks.shared((slice(0, 4000),), 3), (rows,))
     residual = rng.normal(0.0, 0.01, 4000)
     fields = {f.name for f in dataclasses.fields(LsqSolution)}
     values = dict(x=np.zeros(3), lower=-np.ones(3), upper=np.ones(3), residual=residual,
@@ -449,7 +543,7 @@ def test_a_parameter_the_residuals_ignore_gets_infinite_variance_and_spoils_no_o
     solution = LsqSolution(**values, **{name: 0 for name in fields - set(values)})
     with warnings.catch_warnings():
         warnings.simplefilter('error')
-        result = _uncertainty(solution, [slice(0, 4000)], [400])
+        result = _uncertainty(solution, [400])
     assert np.isinf(result.stderr[2])
     assert np.all(np.isfinite(result.stderr[:2])) and np.all(result.stderr[:2] > 0)
     assert np.all(np.isfinite(result.covariance[:2, :2]))

@@ -45,7 +45,7 @@ a free decay (no force) by variable projection.
 """
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -54,6 +54,7 @@ import scipy.stats
 
 from fmm_ros.core._checks import finite_samples, require_positive
 from fmm_ros.core._lsq import (
+    Blocks,
     Infeasible,
     LsqSolution,
     inner,
@@ -77,6 +78,10 @@ MU_BOUNDS = (1e-3, 1.0)
 DAMPING_BOUNDS_N_S_PER_M = (0.0, 50.0)
 """Search range of the viscous damping c when it is fitted [N*s/m]."""
 MISFITS = ('time', 'frf')
+JACOBIANS = ('blocks', 'dense')
+"""How fit_model builds its Jacobian: 'blocks' runs and stores an impact's own parameters
+(its start position) on that impact alone; 'dense' runs every column over every impact (the
+plain way, kept as the reference the blocks are checked and benchmarked against)."""
 DEFAULT_BAND_LIMIT_HZ = 20.0
 """Upper end of the mobility misfit band: f_n and its odd harmonics to the 9th (paper Fig. 24)."""
 
@@ -302,8 +307,9 @@ class _OutputError:
 
     Time misfit: measured minus simulated velocity, every sample. FRF misfit: measured minus
     simulated mobility, (V_meas - V_model) / F, on the bins from DC to band_limit_hz, real and
-    imaginary parts interleaved. Buffers are allocated once; each call runs one simulation per
-    impact into them.
+    imaginary parts interleaved. Each impact is a block of residuals (`_lsq.Blocks`): a call
+    runs one simulation for each impact asked for, into one buffer allocated once and shared
+    (each run is consumed before the next).
     """
 
     def __init__(self, impacts: Sequence[ConditionedImpact], build: ModelBuilder, misfit: str,
@@ -312,7 +318,7 @@ class _OutputError:
         self.build = build
         self.misfit = misfit
         self.integrator = integrator
-        self.buffers = [np.empty((2, impact.force_n.size)) for impact in self.impacts]
+        self.buffer = np.empty((2, max(impact.force_n.size for impact in self.impacts)))
         self.targets: list[np.ndarray] = []
         self.inverse_force: list[np.ndarray] = []
         self.segments: list[slice] = []
@@ -346,10 +352,12 @@ class _OutputError:
         except ValueError as error:
             raise Infeasible(str(error)) from None
 
-    def __call__(self, theta: np.ndarray, out: np.ndarray) -> None:
+    def __call__(self, theta: np.ndarray, blocks: Sequence[int],
+                 outs: Sequence[np.ndarray]) -> None:
+        """The residuals of the impacts `blocks` at theta, into outs (a BlockResidualFunction)."""
         model = self.model(theta)
-        for index in range(len(self.impacts)):
-            self.impact_residual(index, model, out[self.segments[index]])
+        for index, out in zip(blocks, outs, strict=True):
+            self.impact_residual(index, model, out)
 
     def impact_residual(self, index: int, model: _Model, out: np.ndarray,
                         force_scale: float = 1.0) -> None:
@@ -369,14 +377,15 @@ class _OutputError:
 
     def simulate(self, index: int, model: _Model,
                  force_n: np.ndarray | None = None) -> Simulation:
-        """Run one impact (or force_n in its place) through the model into reused buffers."""
+        """Run one impact (or force_n in its place) through the model into the shared buffer."""
         impact = self.impacts[index]
-        buffer = self.buffers[index]
+        n = impact.force_n.size
         try:
             return simulate(impact.force_n if force_n is None else force_n,
                             impact.sample_rate_hz, rig=model.rig, mu=model.mu,
                             effects=model.effects, x0_m=model.initial_position_m(index),
-                            integrator=self.integrator, out=(buffer[0], buffer[1]))
+                            integrator=self.integrator,
+                            out=(self.buffer[0, :n], self.buffer[1, :n]))
         except ValueError as error:  # e.g. a term that makes one direction's friction < 0
             raise Infeasible(str(error)) from None
 
@@ -387,23 +396,23 @@ class _OutputError:
                      for index, impact in enumerate(self.impacts))
 
     def impulse_jacobians(self, theta: np.ndarray, residual: np.ndarray,
-                          relative_step: float = 1e-4) -> list[np.ndarray]:
-        """Per impact, d residual / d impulse [residual units per N*s] on its segment.
+                          relative_step: float = 1e-4) -> Iterator[np.ndarray]:
+        """Impact by impact, d residual / d impulse [residual units per N*s] on its segment.
 
         The hit is short against the rig's period, so what force noise inside the gate does
         to the response is what a change of impulse does: the force is scaled to find it.
-        `residual` is the stacked residual at theta.
+        `residual` is the stacked residual at theta. One array is reused: each is valid until
+        the next is asked for.
         """
         model = self.model(theta)
-        jacobians = []
+        scratch = np.empty(max(segment.stop - segment.start for segment in self.segments))
         for index, impact in enumerate(self.impacts):
             segment = self.segments[index]
-            shifted = np.empty(segment.stop - segment.start)
+            shifted = scratch[:segment.stop - segment.start]
             self.impact_residual(index, model, shifted, 1.0 + relative_step)
             shifted -= residual[segment]
             shifted /= relative_step * impact.impulse_n_s
-            jacobians.append(shifted)
-        return jacobians
+            yield shifted
 
 
 @dataclass(frozen=True)
@@ -414,19 +423,22 @@ class _Uncertainty:
     stderr_force: np.ndarray
 
 
-def _uncertainty(solution: LsqSolution, segments: Sequence[slice], block_lengths: Sequence[int],
-                 impulse_terms: Sequence[tuple[slice, np.ndarray, float]] = ()
+def _uncertainty(solution: LsqSolution, block_lengths: Sequence[int],
+                 impulse_terms: Iterable[tuple[int, np.ndarray, float]] = ()
                  ) -> _Uncertainty:
     """Covariance of a fit: velocity residuals (block sandwich) plus force noise (module doc).
 
     The sandwich is scaled up where it falls below the white-noise covariance (its block sums
     are few, so it is noisy, and it cannot be more precise than white noise allows). The force
     part propagates each impact's impulse uncertainty through the fit: d theta / d I =
-    -(J J^T)^-1 J (d r / d I).
+    -(J J^T)^-1 J (d r / d I). block_lengths: per block of the Jacobian (`_lsq.Blocks`), the
+    score's summing length; impulse_terms: (block, d r / d I on it, impulse std). Both pieces
+    are summed block by block over the parameters each block depends on.
     """
     jacobian, residual = solution.jacobian, solution.residual
-    p = jacobian.shape[0]
-    inverse = normal_inverse(inner(jacobian, jacobian))
+    blocks = jacobian.blocks
+    p = blocks.n_parameters
+    inverse = normal_inverse(jacobian.normal())
     white = solution.cost / max(residual.size - p, 1) * inverse
     # A parameter the residuals do not depend on has infinite variance (normal_inverse); the
     # products below run on the finite part (inf x 0 would make its row and column NaN) and
@@ -434,18 +446,21 @@ def _uncertainty(solution: LsqSolution, segments: Sequence[slice], block_lengths
     dead = ~np.isfinite(np.diag(inverse))
     inverse = np.where(np.isfinite(inverse), inverse, 0.0)
     score = np.zeros((p, p))
-    for segment, block in zip(segments, block_lengths, strict=True):
-        contributions = jacobian[:, segment] * residual[segment]
+    for segment, indices, rows, block in zip(blocks.segments, blocks.parameters, jacobian.rows,
+                                             block_lengths, strict=True):
+        contributions = rows * residual[segment]
         sums = np.add.reduceat(contributions, np.arange(0, contributions.shape[1], block), axis=1)
-        score += sums @ sums.T
+        score[np.ix_(indices, indices)] += sums @ sums.T
     sandwich = inverse @ score @ inverse
     with np.errstate(divide='ignore', invalid='ignore'):
         raise_to_white = np.sqrt(np.maximum(1.0, np.diag(white) / np.diag(sandwich)))
     raise_to_white = np.where(np.isfinite(raise_to_white), raise_to_white, 1.0)
     velocity_part = sandwich * np.outer(raise_to_white, raise_to_white)
     force_part = np.zeros((p, p))
-    for segment, impulse_jacobian, std in impulse_terms:
-        sensitivity = inverse @ inner(jacobian[:, segment], impulse_jacobian)
+    for block, impulse_jacobian, std in impulse_terms:
+        along = np.zeros(p)
+        along[blocks.parameters[block]] = inner(jacobian.rows[block], impulse_jacobian)
+        sensitivity = inverse @ along
         force_part += std ** 2 * np.outer(sensitivity, sensitivity)
     covariance = velocity_part + force_part
     covariance[dead, dead] = np.inf
@@ -456,9 +471,9 @@ def _uncertainty(solution: LsqSolution, segments: Sequence[slice], block_lengths
 def _fit_uncertainty(solution: LsqSolution, problem: _OutputError) -> _Uncertainty:
     """`_uncertainty` of an output-error fit, force noise included."""
     stds = [impact.impulse_std_n_s for impact in problem.impacts]
-    terms = zip(problem.segments, problem.impulse_jacobians(solution.x, solution.residual),
+    terms = zip(range(len(stds)), problem.impulse_jacobians(solution.x, solution.residual),
                 stds, strict=True)
-    return _uncertainty(solution, problem.segments, problem.block_lengths, tuple(terms))
+    return _uncertainty(solution, problem.block_lengths, terms)
 
 
 # --- fitting mu, c and model terms ---------------------------------------------------------------
@@ -510,6 +525,7 @@ class ModelFit:
     at_bounds: tuple[str, ...]
     """Fitted parameters that ended on a search bound."""
     evaluations: int
+    """Model runs the optimiser made, one an impact simulated (standard errors not counted)."""
     iterations: int
 
     def index(self, name: str) -> int:
@@ -568,6 +584,18 @@ class _Space:
             position += count
         positions = tuple(float(x) for x in theta[position:position + self.initial_positions])
         return _Model(rig, float(theta[0]), tuple(effects), positions)
+
+    def blocks(self, segments: Sequence[slice], jacobian: str = 'blocks') -> Blocks:
+        """Which parameters move which impact's residual segment (`_lsq.Blocks`).
+
+        mu, c and the terms move every impact, initial_position_m[k] only impact k; with
+        jacobian='dense' every parameter is taken to move every impact.
+        """
+        if jacobian == 'dense':
+            return Blocks.shared(segments, self.start.size)
+        n_global = self.start.size - self.initial_positions
+        local = [[n_global + k] for k in range(self.initial_positions)] or [()] * len(segments)
+        return Blocks.global_and_local(segments, n_global, local)
 
 
 def _space(rig: Rig, mu0: float, mu_bounds: tuple[float, float], fit_damping: bool,
@@ -652,7 +680,7 @@ def fit_model(impacts: Sequence, *, rig: Rig = FMM_RIG, mu0: float | None = None
               terms: Sequence[str | ModelTerm] = (), fixed_effects: Sequence[ModelTerm] = (),
               fit_initial_position: bool = False, misfit: str = 'time',
               band_limit_hz: float = DEFAULT_BAND_LIMIT_HZ,
-              integrator: str = 'exact') -> ModelFit:
+              integrator: str = 'exact', jacobian: str = 'blocks') -> ModelFit:
     """Fit one mu (and c, and the parameters of `terms`) to every impact at once.
 
     impacts: ConditionedImpacts, or records with force_n, velocity_m_s, sample_rate_hz (they
@@ -662,11 +690,13 @@ def fit_model(impacts: Sequence, *, rig: Rig = FMM_RIG, mu0: float | None = None
     mass rested before the hit (a nuisance parameter per impact, `initial_position_m[i]`):
     friction holds the FMM anywhere within +-mu N / k of centre after the previous hit, and
     the velocity alone does not say where; without it every impact starts at x = 0, as in
-    the paper. Raises ValueError for bad arguments and FitError when the fit does not
-    converge, puts mu on a bound of mu_bounds, or leaves an impact unexplained.
+    the paper. jacobian: 'blocks' (default) runs each start position's Jacobian column on its
+    own impact only; 'dense' runs every column on every impact (same result, the reference).
+    Raises ValueError for bad arguments and FitError when the fit does not converge, puts mu
+    on a bound of mu_bounds, or leaves an impact unexplained.
     """
     conditioned = _conditioned_list(impacts)
-    _check_options(rig, misfit, band_limit_hz, integrator)
+    _check_options(rig, misfit, band_limit_hz, integrator, jacobian)
     low, high = (float(bound) for bound in mu_bounds)
     if not 0.0 <= low < high or not math.isfinite(high):
         raise ValueError(f'mu_bounds must be 0 <= lower < upper, finite; got {mu_bounds}')
@@ -682,7 +712,8 @@ def fit_model(impacts: Sequence, *, rig: Rig = FMM_RIG, mu0: float | None = None
     problem = _OutputError(conditioned, space.build, misfit, band_limit_hz, integrator,
                            rig.natural_frequency_hz)
     solution = levenberg_marquardt(problem, space.start, space.lower, space.upper,
-                                   space.typical, problem.size)
+                                   space.typical, problem.size,
+                                   blocks=space.blocks(problem.segments, jacobian))
     fit = _model_fit(space, problem, solution)
     _require_explained(fit, solution, conditioned)
     if 'mu' in fit.at_bounds:
@@ -762,7 +793,8 @@ def _conditioned_list(impacts: Sequence) -> list[ConditionedImpact]:
     return conditioned
 
 
-def _check_options(rig: Rig, misfit: str, band_limit_hz: float, integrator: str) -> None:
+def _check_options(rig: Rig, misfit: str, band_limit_hz: float, integrator: str,
+                   jacobian: str) -> None:
     if not isinstance(rig, Rig):
         raise ValueError(f'rig must be a Rig, got {rig!r}')
     if misfit not in MISFITS:
@@ -771,6 +803,8 @@ def _check_options(rig: Rig, misfit: str, band_limit_hz: float, integrator: str)
     if integrator not in INTEGRATORS:
         raise ValueError(f'unknown integrator {integrator!r}; choose one of '
                          f'{", ".join(INTEGRATORS)}')
+    if jacobian not in JACOBIANS:
+        raise ValueError(f'unknown jacobian {jacobian!r}; choose one of {", ".join(JACOBIANS)}')
 
 
 def _check_durations(impacts: Sequence[ConditionedImpact], rig: Rig) -> None:
@@ -823,17 +857,18 @@ class FrictionFit:
 def fit_friction(impacts: Sequence, *, rig: Rig = FMM_RIG, fit_damping: bool = False,
                  fit_initial_position: bool = False,
                  mu_bounds: tuple[float, float] = MU_BOUNDS, misfit: str = 'time',
-                 band_limit_hz: float = DEFAULT_BAND_LIMIT_HZ, integrator: str = 'exact'
-                 ) -> FrictionFit:
+                 band_limit_hz: float = DEFAULT_BAND_LIMIT_HZ, integrator: str = 'exact',
+                 jacobian: str = 'blocks') -> FrictionFit:
     """The paper's fit: one mu (and optionally c) over all impacts, plus each impact's own mu.
 
-    fit_initial_position as in `fit_model` (each impact's own fit then refits its own start).
-    Raises ValueError for bad input and FitError (naming the impact) for any impact, or the
-    set, that friction cannot explain.
+    fit_initial_position and jacobian as in `fit_model` (each impact's own fit then refits its
+    own start). Raises ValueError for bad input and FitError (naming the impact) for any
+    impact, or the set, that friction cannot explain.
     """
     conditioned = _conditioned_list(impacts)
     options = dict(mu_bounds=mu_bounds, fit_initial_position=fit_initial_position,
-                   misfit=misfit, band_limit_hz=band_limit_hz, integrator=integrator)
+                   misfit=misfit, band_limit_hz=band_limit_hz, integrator=integrator,
+                   jacobian=jacobian)
     joint = fit_model(conditioned, rig=rig, fit_damping=fit_damping, **options)
     if len(conditioned) == 1:
         per_impact = (joint,) if not fit_damping else (
@@ -908,8 +943,7 @@ def fit_free_decay(velocity_m_s: np.ndarray, sample_rate_hz: float, *,
         np.array([1.25 * frequency0, 0.5]), np.array([frequency0, 1e-3]), segment.size)
     _require_inside(solution, ('natural frequency', 'damping ratio'), 'a lightly damped free '
                     'decay', source)
-    uncertainty = _uncertainty(solution, [slice(0, segment.size)],
-                               [max(1, round(sample_rate_hz / solution.x[0]))])
+    uncertainty = _uncertainty(solution, [max(1, round(sample_rate_hz / solution.x[0]))])
     _decay_basis(solution.x[0], solution.x[1], sample_rate_hz, basis)
     a, b, offset = _solve_linear(basis, segment)
     rms = math.sqrt(solution.cost / segment.size)
@@ -1114,7 +1148,8 @@ def _rig_from_impacts(impacts: Sequence[ConditionedImpact], decays: tuple[FreeDe
     lower = np.array([0.5 * mass0, 0.8 * frequency0, 0.0])
     upper = np.array([2.0 * mass0, 1.25 * frequency0, 0.5])
     typical = np.array([mass0, frequency0, max(start[2], 1e-4)])
-    solution = levenberg_marquardt(problem, start, lower, upper, typical, problem.size)
+    solution = levenberg_marquardt(problem, start, lower, upper, typical, problem.size,
+                                   blocks=Blocks.shared(problem.segments, start.size))
     _require_inside(solution, ('mass', 'natural frequency', 'damping ratio'),
                     'the frictionless rig hit by its force', _joined_sources(impacts))
     uncertainty = _fit_uncertainty(solution, problem)
