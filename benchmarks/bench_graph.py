@@ -23,7 +23,7 @@ from fmm_ros.nodes.fitter import Fitter
 from fmm_ros.nodes.hammer_sim import HammerSim
 from fmm_ros.nodes.recorder import Recorder
 from fmm_ros.nodes.rig_sim import RigSim
-from fmm_ros.ros_graph import InProcessGraph
+from fmm_ros.ros_graph import PRIVATE_DOMAIN_IDS, InProcessGraph
 from fmm_ros.session import SessionConfig
 
 CLOCK_TICKS = os.sysconf('SC_CLK_TCK')
@@ -68,7 +68,7 @@ def cpu_seconds(pid: int) -> float:
 
 def analyzer_share(batch_size: int, seconds: float = 20.0) -> float:
     """Analyzer CPU seconds per signal second, fed at real time from another process."""
-    os.environ['ROS_DOMAIN_ID'] = str(random.randrange(101, 200))
+    os.environ['ROS_DOMAIN_ID'] = str(random.choice(PRIVATE_DOMAIN_IDS))
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     overrides = {
         'hammer_sim': [Parameter('batch_size', value=batch_size),

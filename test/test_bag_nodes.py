@@ -15,7 +15,7 @@ from fmm_ros.nodes.hammer_sim import HammerSim
 from fmm_ros.nodes.player import Player
 from fmm_ros.nodes.recorder import Recorder
 from fmm_ros.nodes.rig_sim import RigSim
-from fmm_ros.ros_graph import InProcessGraph
+from fmm_ros.ros_graph import PRIVATE_DOMAIN_IDS, InProcessGraph
 
 
 @pytest.fixture(scope='module')
@@ -103,7 +103,7 @@ def test_fmm_record_records_live_topics_until_interrupted(tmp_path):
 
     from fmm_ros.launch import parse_overrides, start_processes, stop_processes
 
-    env = dict(os.environ, ROS_DOMAIN_ID=str(random.randrange(1, 101)),
+    env = dict(os.environ, ROS_DOMAIN_ID=str(random.choice(PRIVATE_DOMAIN_IDS)),
                ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
     os.environ.update({k: env[k] for k in ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE')})
     bag = tmp_path / 'live'

@@ -15,11 +15,11 @@ from fmm_ros.launch import (
     start_processes,
     stop_processes,
 )
-from fmm_ros.ros_graph import InProcessGraph
+from fmm_ros.ros_graph import PRIVATE_DOMAIN_IDS, InProcessGraph
 
 
 def test_the_simulated_rig_runs_as_separate_processes(tmp_path, monkeypatch):
-    domain = random.randrange(101, 200)
+    domain = random.choice(PRIVATE_DOMAIN_IDS)
     monkeypatch.setenv('ROS_DOMAIN_ID', str(domain))
     monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     overrides = parse_overrides([
