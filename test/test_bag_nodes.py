@@ -93,8 +93,10 @@ def test_recorder_refuses_an_unknown_storage(ros_graph, tmp_path):
             Parameter('bag_path', value=str(tmp_path / 'b')), Parameter('storage', value='zip')])
 
 
-def test_fmm_record_records_live_topics_until_interrupted(tmp_path):
-    """`fmm record` in its own process beside a simulated rig; SIGINT closes the bag."""
+@pytest.mark.parametrize('signum', ['SIGINT', 'SIGTERM'])
+def test_fmm_record_records_live_topics_until_interrupted(tmp_path, signum):
+    """`fmm record` in its own process beside a simulated rig; Ctrl-C or SIGTERM (what a
+    process manager sends) closes the bag and exits 0."""
     import os
     import random
     import signal
@@ -117,8 +119,8 @@ def test_fmm_record_records_live_topics_until_interrupted(tmp_path):
                         timeout_s=60.0)
     finally:
         stop_processes(rig)
-        recorder.send_signal(signal.SIGINT)
-        assert recorder.wait(30) in (0, -signal.SIGINT)
+        recorder.send_signal(getattr(signal, signum))
+        assert recorder.wait(30) == 0
     with BagReader(bag) as reader:
         assert list(reader.topics) == ['/fmm/force'] and reader.topics['/fmm/force'].count > 0
         assert not reader.recovered

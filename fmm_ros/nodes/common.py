@@ -1,6 +1,8 @@
 """What every fmm_ros node shares: QoS profiles, topic names and the `ros2 run` entry point."""
 
 import importlib
+import signal
+import threading
 import time
 from collections.abc import Callable
 
@@ -12,6 +14,7 @@ from rclpy.executors import (
 )
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
 
 from fmm_ros.core.model import Rig
 from fmm_ros.core.topics import (  # noqa: F401 (the nodes take the topic names from here)
@@ -61,23 +64,34 @@ RESULT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
 
 
 def run_node(node_factory: Callable[[], Node], args: list[str] | None = None, *,
-             threads: int = 1) -> None:
-    """Init, spin until Ctrl-C or shutdown, then tear down in order (for ros2 run).
+             threads: int = 1, stop_poll_s: float = 0.1) -> None:
+    """Init, spin until Ctrl-C or SIGTERM, then tear down in order (for ros2 run).
 
-    threads > 1 spins a MultiThreadedExecutor, for nodes whose callback groups let a long
-    service call run beside their stream callbacks.
+    rclpy's own signal handler shuts the context down the moment SIGINT arrives, while the
+    node's subscriptions still exist and the middleware still delivers to them; the recorder,
+    closing its bag in that window, crashed in a middleware thread about one run in ten. Here
+    a signal only asks the spin loop to stop (checked every `stop_poll_s` when idle; a
+    callback under way finishes), and the node goes before the context. threads > 1 spins a
+    MultiThreadedExecutor, for nodes whose callback groups let a long service call run
+    beside their stream callbacks.
     """
-    rclpy.init(args=args)
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop_requested = threading.Event()
+    handlers = {signum: signal.signal(signum, lambda *_: stop_requested.set())
+                for signum in (signal.SIGINT, signal.SIGTERM)}
     node = None
     executor = (SingleThreadedExecutor() if threads == 1
                 else MultiThreadedExecutor(num_threads=threads))
     try:
         node = node_factory()
         executor.add_node(node)
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
+        while not stop_requested.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=stop_poll_s)
+    except ExternalShutdownException:
         pass
     finally:
+        for signum, handler in handlers.items():  # a second Ctrl-C interrupts the teardown
+            signal.signal(signum, handler)
         executor.shutdown()
         if node is not None:
             node.destroy_node()
