@@ -79,7 +79,7 @@ def _text(result, out: Path) -> str:
         f'R^2 of peak |X/F| against impulse: {result.r2:.4f}',
         f'hits: {result.hits_sent} sent, {result.hits_reported} reported, '
         f'{result.hits_accepted} accepted',
-        (f'mu: {result.mu:.4f} +- {result.mu_stderr:.4f} fitted, {result.plant_mu:.4f} in the '
+        (f'mu: {result.mu:.4f} +- {result.mu_stderr:.2g} fitted, {result.plant_mu:.4f} in the '
          f'plant ({error:+.2f} %)' if not math.isnan(result.mu)
          else f'mu: not fitted ({result.fit_message})'),
         f'model diagnosis: {result.missing_effect or "-"} ({result.diagnosis})',

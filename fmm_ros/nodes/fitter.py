@@ -175,7 +175,7 @@ class Fitter(Node):
         response.per_impact_mu_stderr = msgs.float64_field([f.mu_stderr for f in fit.per_impact])
         response.per_impact_impulse_n_s = msgs.float64_field(fit.impulses_n_s)
         response.per_impact_residual_rms_m_s = msgs.float64_field(joint.impact_residual_rms_m_s)
-        response.message = (f'mu = {fit.mu:.5f} +- {fit.mu_stderr:.5f} over {len(impacts)} '
+        response.message = (f'mu = {fit.mu:.5f} +- {fit.mu_stderr:.2g} over {len(impacts)} '
                             f'impacts; one mu serves all: p = {fit.consistency_p_value:.3g}')
         self.get_logger().info(response.message)
         return response
