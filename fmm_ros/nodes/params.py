@@ -7,9 +7,10 @@ before declaration, so a bad value from a params file is refused at start-up wit
 the same way without touching the running node.
 """
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
+import yaml
 from rcl_interfaces.msg import (
     FloatingPointRange,
     IntegerRange,
@@ -76,9 +77,84 @@ class Param:
                 return f'{self.name} has {bad} outside [{low}, {high}]'
         return None
 
+    def yaml_line(self, value: ParamValue | None = None) -> str:
+        """`name: value  # description; range or choices`: a params file line (value: default)."""
+        notes = []
+        if self.limits is not None:
+            low, high = (_number(limit, self.default) for limit in self.limits)
+            notes.append(f'{"each " if isinstance(self.default, list) else ""}{low} to {high}')
+        if self.choices:
+            notes.append(f'one of {", ".join(self.choices)}')
+        if not self.read_only:
+            notes.append('settable live')
+        if value is not None and value != self.default:
+            notes.append(f'node default {_yaml_value(self.default)}')
+        shown = self.default if value is None else value
+        return (f'{self.name}: {_yaml_value(shown)}  # {self.description}'
+                + ''.join(f'; {note}' for note in notes))
+
     def value(self, parameter: Parameter) -> ParamValue:
         """The parameter's value in the default's type (an integer given for a float: float)."""
         return float(parameter.value) if self._is_float else parameter.value
+
+
+def _yaml_value(value: ParamValue) -> str:
+    """A value as YAML both rcl and PyYAML read back with its type.
+
+    Strings in lists are always quoted, so `['no']` stays a string.
+    """
+    if isinstance(value, list):
+        return '[' + ', '.join("'" + item.replace("'", "''") + "'" if isinstance(item, str)
+                               else _yaml_value(item) for item in value) + ']'
+    if isinstance(value, float):
+        value = float(f'{value:.12g}')   # 0.680 * 9.81 shown as 6.6708, not 6.670800000000001
+    return yaml.safe_dump(value, default_flow_style=True).removesuffix('...\n').strip()
+
+
+def _number(limit: float, default: ParamValue) -> str:
+    """A range limit as people write it: an integer for integer parameters, 1e6 not 1e+06."""
+    sample = default[0] if isinstance(default, list) and default else default
+    if isinstance(sample, int) and not isinstance(sample, bool):
+        return str(int(limit))
+    return f'{limit:g}'.replace('e+0', 'e').replace('e+', 'e').replace('e-0', 'e-')
+
+
+PARAMS_FILE_HEADER = """\
+# fmm_ros parameters, in the standard `node_name: ros__parameters:` form.
+# ros2 run fmm_ros <node> --ros-args --params-file config/fmm_rig.yaml
+# Every value is the node's default (or names the default it replaces), with its description,
+# unit [in brackets], range or choices, and whether it can be set on a running node (the
+# others are read at start-up).
+# Made from the PARAMS tables in fmm_ros/nodes/<node>.py by
+#   .venv/bin/python -m fmm_ros.nodes.params > config/fmm_rig.yaml
+"""
+
+
+# Where the package's params file departs from a node's default: run as separate processes,
+# hammer_sim must hold its first hit until the analyzer (in another process) is subscribed.
+PARAMS_FILE_VALUES = {'hammer_sim': {'wait_for_subscribers': 1}}
+
+
+def params_file_text(
+        tables: Mapping[str, Sequence[Param]],
+        values: Mapping[str, Mapping[str, ParamValue]] = PARAMS_FILE_VALUES) -> str:
+    """A ROS params file of every node's parameters (config/fmm_rig.yaml is this text).
+
+    Each holds its default except where values gives another.
+    """
+    blocks = [f'{node}:\n  ros__parameters:\n'
+              + ''.join(f'    {param.yaml_line(values.get(node, {}).get(param.name))}\n'
+                        for param in params)
+              for node, params in tables.items()]
+    return PARAMS_FILE_HEADER + '\n' + '\n'.join(blocks)
+
+
+def node_param_tables() -> dict[str, Sequence[Param]]:
+    """Every fmm_ros node's PARAMS table, by node name, in the order of the params file."""
+    import importlib
+
+    names = ('hammer_sim', 'rig_sim', 'analyzer', 'fitter', 'recorder', 'player', 'daq')
+    return {name: importlib.import_module(f'fmm_ros.nodes.{name}').PARAMS for name in names}
 
 
 def declare_parameters(node: Node, params: Sequence[Param]) -> dict[str, ParamValue]:
@@ -97,3 +173,7 @@ def declare_parameters(node: Node, params: Sequence[Param]) -> dict[str, ParamVa
     for param in params:
         node.declare_parameter(param.name, param.default, param.descriptor())
     return {param.name: param.value(node.get_parameter(param.name)) for param in params}
+
+
+if __name__ == '__main__':
+    print(params_file_text(node_param_tables()), end='')
