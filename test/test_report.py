@@ -344,6 +344,25 @@ def test_cli_refuses_paper_with_inputs_and_nothing_to_report(tmp_path, capsys):
     assert 'takes no INPUT' in errors and 'or --paper' in errors
 
 
+def test_a_report_written_again_in_its_folder_leaves_no_stale_figure(tmp_path):
+    """A second, smaller report in the same folder removes its predecessor's extra figures
+    and nothing the user put there."""
+    from matplotlib.figure import Figure
+
+    from fmm_ros.report.html import Page
+
+    (tmp_path / 'notes.png').write_bytes(b'not ours')
+    first = Page(tmp_path, 'first')
+    for name in ('hit_001', 'hit_002'):
+        first.figure(name, Figure(figsize=(2, 2)), name)
+    first.write()
+    second = Page(tmp_path, 'second')
+    second.figure('hit_001', Figure(figsize=(2, 2)), 'hit_001')
+    second.write()
+    assert sorted(path.name for path in tmp_path.glob('*.png')) == ['hit_001.png', 'notes.png']
+    assert 'hit_002' not in (tmp_path / 'index.html').read_text()
+
+
 def test_model_overlay_refuses_negative_mu():
     with pytest.raises(ValueError, match='mu must not be negative'):
         ModelOverlay(-0.1, 'given')

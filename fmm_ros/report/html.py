@@ -35,6 +35,10 @@ nav ul { columns: 2; font-size: 0.9rem; }
 
 _NAME = re.compile(r'^[A-Za-z0-9_.-]+$')
 
+# The figure files the last page written in a folder saved: a new page in the same folder
+# removes the ones it does not write again (and nothing else), so no stale hit is left.
+FIGURE_LIST = '.fmm_report_figures'
+
 
 class Markup(str):
     """Text that is already HTML (built by this module or escaped by the caller)."""
@@ -141,4 +145,15 @@ class Page:
             f'<nav><ul>{contents}</ul></nav>', *self._body, '</body></html>'])
         path = self.out_dir / filename
         path.write_text(page, encoding='utf-8')
+        self._remove_stale_figures()
         return path
+
+    def _remove_stale_figures(self) -> None:
+        """Delete figures an earlier page here wrote and this one did not; list this page's."""
+        listing = self.out_dir / FIGURE_LIST
+        current = {path.name for path in self.figures}
+        if listing.is_file():
+            for name in listing.read_text(encoding='utf-8').split():
+                if name not in current and name.endswith('.png') and _NAME.match(name):
+                    (self.out_dir / name).unlink(missing_ok=True)
+        listing.write_text(''.join(f'{name}\n' for name in sorted(current)), encoding='utf-8')
