@@ -150,11 +150,13 @@ def params_file_text(
 
 
 def node_param_tables() -> dict[str, Sequence[Param]]:
-    """Every fmm_ros node's PARAMS table, by node name, in the order of the params file."""
+    """Every fmm_ros node's PARAMS table, by node name (the launcher's list of nodes)."""
     import importlib
 
-    names = ('hammer_sim', 'rig_sim', 'analyzer', 'fitter', 'recorder', 'player', 'daq')
-    return {name: importlib.import_module(f'fmm_ros.nodes.{name}').PARAMS for name in names}
+    from fmm_ros.launch import NODE_CLASSES
+
+    return {name: importlib.import_module(node_class.__module__).PARAMS
+            for name, node_class in NODE_CLASSES.items()}
 
 
 def declare_parameters(node: Node, params: Sequence[Param]) -> dict[str, ParamValue]:
