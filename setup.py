@@ -20,7 +20,6 @@ NODES = {
 }
 
 
-
 class BuildPyWithInterfaces(build_py):
     """Also copy fmm_interfaces/msg/*.msg into the built package (not into the source tree).
 
@@ -51,8 +50,22 @@ setup(
         (f'share/{PACKAGE}/launch_scripts', glob('launch_scripts/*.py')),
     ],
     python_requires='>=3.10',
-    install_requires=['setuptools', 'numpy', 'scipy', 'numba', 'pyuff', 'pyyaml', 'rosbags',
-                      'zstandard', 'lz4', 'nptdms', 'h5py', 'tqdm', 'matplotlib', 'pillow'],
+    install_requires=[
+        'setuptools',
+        'numpy',
+        'scipy',
+        'numba',
+        'pyuff',
+        'pyyaml',
+        'rosbags',
+        'zstandard',
+        'lz4',
+        'nptdms',
+        'h5py',
+        'tqdm',
+        'matplotlib',
+        'pillow',
+    ],
     cmdclass={'build_py': BuildPyWithInterfaces},
     zip_safe=True,
     maintainer='fmm_ros maintainers',

@@ -47,11 +47,19 @@ def raw_batches(force: np.ndarray, velocity: np.ndarray) -> list[tuple[str, int,
     store = fmm_typestore()
     messages = []
     for start in range(0, len(force), BATCH):
-        for topic, data, (quantity, unit) in ((FORCE_TOPIC, force, ('force', 'N')),
-                                              (VELOCITY_TOPIC, velocity, ('velocity', 'm/s'))):
-            message = new_message(store, SAMPLE_BATCH, quantity=quantity, unit=unit,
-                                  sample_rate_hz=FS, first_sample_index=start,
-                                  samples=data[start:start + BATCH])
+        for topic, data, (quantity, unit) in (
+            (FORCE_TOPIC, force, ('force', 'N')),
+            (VELOCITY_TOPIC, velocity, ('velocity', 'm/s')),
+        ):
+            message = new_message(
+                store,
+                SAMPLE_BATCH,
+                quantity=quantity,
+                unit=unit,
+                sample_rate_hz=FS,
+                first_sample_index=start,
+                samples=data[start : start + BATCH],
+            )
             messages.append((topic, start, bytes(store.serialize_cdr(message, SAMPLE_BATCH))))
     return messages
 
@@ -74,11 +82,16 @@ def write_naive(path: Path, _force, _velocity, raw) -> None:
         for topic, start, data in raw:
             message = store.deserialize_cdr(data, SAMPLE_BATCH)
             samples = [float(value) for value in message.samples]
-            copy = new_message(store, SAMPLE_BATCH, header=message.header,
-                               quantity=message.quantity, unit=message.unit,
-                               sample_rate_hz=message.sample_rate_hz,
-                               first_sample_index=message.first_sample_index,
-                               samples=np.array(samples))
+            copy = new_message(
+                store,
+                SAMPLE_BATCH,
+                header=message.header,
+                quantity=message.quantity,
+                unit=message.unit,
+                sample_rate_hz=message.sample_rate_hz,
+                first_sample_index=message.first_sample_index,
+                samples=np.array(samples),
+            )
             writer.write_message(topic, copy, start * 100_000)
 
 
@@ -121,8 +134,9 @@ def median_time(repeats: int, run) -> float:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--seconds', type=float, default=120.0,
-                        help='signal length per run [s] (default 120)')
+    parser.add_argument(
+        '--seconds', type=float, default=120.0, help='signal length per run [s] (default 120)'
+    )
     parser.add_argument('--repeats', type=int, default=5)
     args = parser.parse_args()
 
@@ -130,15 +144,19 @@ def main() -> int:
     raw = raw_batches(force, velocity)
     samples = 2 * len(force)
     signal_s = len(force) / FS
-    print(f'{signal_s:.0f} s of two {FS / 1e3:g} kHz channels = {samples:,} samples, '
-          f'{len(raw)} messages of {BATCH} samples; median of {args.repeats} runs\n')
+    print(
+        f'{signal_s:.0f} s of two {FS / 1e3:g} kHz channels = {samples:,} samples, '
+        f'{len(raw)} messages of {BATCH} samples; median of {args.repeats} runs\n'
+    )
     work = Path(tempfile.mkdtemp(prefix='bench_bags_'))
     try:
         print(f'{"write":34s} {"s":>8s} {"Msamples/s":>11s} {"MB/s":>7s} {"x real time":>12s}')
         write_times = {}
-        for name, writer in (('core writer, numpy batches', write_numpy),
-                             ('core writer, raw CDR (recorder)', write_raw),
-                             ('naive: re-serialize via lists', write_naive)):
+        for name, writer in (
+            ('core writer, numpy batches', write_numpy),
+            ('core writer, raw CDR (recorder)', write_raw),
+            ('naive: re-serialize via lists', write_naive),
+        ):
             counter = iter(range(10**6))
 
             def run(writer=writer, counter=counter):
@@ -147,8 +165,10 @@ def main() -> int:
             seconds = median_time(args.repeats, run)
             size = (work / 'w0' / 'w0.mcap').stat().st_size
             write_times[name] = seconds
-            print(f'{name:34s} {seconds:8.3f} {samples / seconds / 1e6:11.2f} '
-                  f'{size / seconds / 1e6:7.1f} {signal_s / seconds:12.0f}')
+            print(
+                f'{name:34s} {seconds:8.3f} {samples / seconds / 1e6:11.2f} '
+                f'{size / seconds / 1e6:7.1f} {signal_s / seconds:12.0f}'
+            )
             for leftover in work.iterdir():
                 shutil.rmtree(leftover)
         naive = write_times['naive: re-serialize via lists']
@@ -159,21 +179,24 @@ def main() -> int:
         write_numpy(bag, force, velocity, raw)
         unclosed = work / 'unclosed'
         crashing = BagWriter(unclosed, time_origin_ns=0)  # flushed but never closed,
-        crashing.open()                                     # as a killed recorder leaves it
+        crashing.open()  # as a killed recorder leaves it
         crashing.write_signals(force, velocity, FS)
         crashing.flush()
         size = (bag / 'bag.mcap').stat().st_size
         print(f'\n{"read":34s} {"s":>8s} {"Msamples/s":>11s} {"MB/s":>7s} {"x real time":>12s}')
         read_times = {}
-        for name, reader, path in (('BagReader.batches (views)', read_batches, bag),
-                                   ('recovery scan of unclosed bag', read_recovering,
-                                    unclosed),
-                                   ('naive: samples into lists', read_naive, bag)):
+        for name, reader, path in (
+            ('BagReader.batches (views)', read_batches, bag),
+            ('recovery scan of unclosed bag', read_recovering, unclosed),
+            ('naive: samples into lists', read_naive, bag),
+        ):
             assert reader(path) == samples
             seconds = median_time(args.repeats, lambda reader=reader, path=path: reader(path))
             read_times[name] = seconds
-            print(f'{name:34s} {seconds:8.3f} {samples / seconds / 1e6:11.2f} '
-                  f'{size / seconds / 1e6:7.1f} {signal_s / seconds:12.0f}')
+            print(
+                f'{name:34s} {seconds:8.3f} {samples / seconds / 1e6:11.2f} '
+                f'{size / seconds / 1e6:7.1f} {signal_s / seconds:12.0f}'
+            )
         naive = read_times['naive: samples into lists']
         for name in ('BagReader.batches (views)', 'recovery scan of unclosed bag'):
             print(f'  {name}: {naive / read_times[name]:.1f}x the naive reader')

@@ -34,9 +34,16 @@ from fmm_ros.core.model import MODEL_TERMS
 TARGET_ACCURACY = 0.95
 TARGET_SECONDS = 10.0
 
-SHORT = {'viscous_damping': 'visc', 'stribeck': 'strib', 'asymmetric_friction': 'asym',
-         'cubic_stiffness': 'cubic', 'velocity_offset': 'offs', 'sensor_delay': 'delay',
-         'second_mode': 'mode2', 'none': 'none'}
+SHORT = {
+    'viscous_damping': 'visc',
+    'stribeck': 'strib',
+    'asymmetric_friction': 'asym',
+    'cubic_stiffness': 'cubic',
+    'velocity_offset': 'offs',
+    'sensor_delay': 'delay',
+    'second_mode': 'mode2',
+    'none': 'none',
+}
 
 
 def sweep(cases: int, seed: int) -> None:
@@ -56,8 +63,10 @@ def sweep(cases: int, seed: int) -> None:
                 ratios.append(session.ratio)
                 reductions.append(1.0 - result.gap_after / result.gap_before)
             if result.missing_effect != effect:
-                misses.append(f'  {effect} (ratio {session.ratio:.2f}, case {case}) named '
-                              f'{result.missing_effect}: {result.verdict}')
+                misses.append(
+                    f'  {effect} (ratio {session.ratio:.2f}, case {case}) named '
+                    f'{result.missing_effect}: {result.verdict}'
+                )
         print(f'  {effect}: done', flush=True)
     width = max(len(s) for s in SHORT.values()) + 1
     print('\nconfusion matrix (rows: hidden effect, columns: named effect)')
@@ -65,17 +74,28 @@ def sweep(cases: int, seed: int) -> None:
     for row, name in enumerate(names):
         print(f'{SHORT[name]:>8}' + ''.join(f'{count:>{width}}' for count in confusion[row]))
     accuracy = np.trace(confusion) / confusion.sum()
-    print(f'\naccuracy {100 * accuracy:.1f} % of {confusion.sum()} sessions '
-          f'(target >= {100 * TARGET_ACCURACY:.0f} %)')
-    print(f'hidden effects sized {min(ratios):.2f}-{max(ratios):.2f}x the velocity noise '
-          'after the base fit')
-    print(f'median gap reduction where an effect was hidden: {100 * np.median(reductions):.1f} % '
-          f'(smallest {100 * min(reductions):.1f} %)')
+    print(
+        f'\naccuracy {100 * accuracy:.1f} % of {confusion.sum()} sessions '
+        f'(target >= {100 * TARGET_ACCURACY:.0f} %)'
+    )
+    print(
+        f'hidden effects sized {min(ratios):.2f}-{max(ratios):.2f}x the velocity noise '
+        'after the base fit'
+    )
+    print(
+        f'median gap reduction where an effect was hidden: {100 * np.median(reductions):.1f} % '
+        f'(smallest {100 * min(reductions):.1f} %)'
+    )
     every = [value for values in seconds.values() for value in values]
-    print(f'diagnosis time per session (three 33 s impacts): median '
-          f'{statistics.median(every):.2f} s, longest {max(every):.2f} s; by hidden effect: '
-          + ', '.join(f'{SHORT[name]} {statistics.median(values):.1f}/{max(values):.1f}'
-                      for name, values in seconds.items()) + ' s (median/longest)')
+    print(
+        f'diagnosis time per session (three 33 s impacts): median '
+        f'{statistics.median(every):.2f} s, longest {max(every):.2f} s; by hidden effect: '
+        + ', '.join(
+            f'{SHORT[name]} {statistics.median(values):.1f}/{max(values):.1f}'
+            for name, values in seconds.items()
+        )
+        + ' s (median/longest)'
+    )
     print('misses:' if misses else 'misses: none')
     for miss in misses:
         print(miss)
@@ -101,21 +121,30 @@ def timing(repeats: int, seed: int) -> None:
         naive_result = diagnose(session.records)
         naive = time.perf_counter() - start
     finally:
-        diagnose_module.start_term, diagnose_module.SCREEN_SECOND_MODE = (original_start,
-                                                                          original_screen)
+        diagnose_module.start_term, diagnose_module.SCREEN_SECOND_MODE = (
+            original_start,
+            original_screen,
+        )
     guided_s = statistics.median(guided)
-    print(f'\none diagnosis of three 33 s impacts, all {len(MODEL_TERMS)} candidates '
-          f'(hidden stribeck): median {guided_s:.2f} s of {repeats} '
-          f'(target <= {TARGET_SECONDS:.0f} s)')
-    print(f'naive (default starts, no screening): {naive:.2f} s, {naive / guided_s:.1f}x '
-          f'slower; named {naive_result.missing_effect}')
+    print(
+        f'\none diagnosis of three 33 s impacts, all {len(MODEL_TERMS)} candidates '
+        f'(hidden stribeck): median {guided_s:.2f} s of {repeats} '
+        f'(target <= {TARGET_SECONDS:.0f} s)'
+    )
+    print(
+        f'naive (default starts, no screening): {naive:.2f} s, {naive / guided_s:.1f}x '
+        f'slower; named {naive_result.missing_effect}'
+    )
 
 
 def session_timing(hits_per_level: int) -> None:
-    session = simulated_session(hits_per_level, seed=3, force_noise_std_n=0.2,
-                                velocity_noise_std_m_s=1e-4)
-    impacts = [as_conditioned(record) for record in capture_impacts(
-        session.force_n, session.velocity_m_s, session.sample_rate_hz)]
+    session = simulated_session(
+        hits_per_level, seed=3, force_noise_std_n=0.2, velocity_noise_std_m_s=1e-4
+    )
+    impacts = [
+        as_conditioned(record)
+        for record in capture_impacts(session.force_n, session.velocity_m_s, session.sample_rate_hz)
+    ]
     seconds = {}
     for jacobian in ('blocks', 'dense'):
         diagnose_module.fit_model = functools.partial(fit_model, jacobian=jacobian)
@@ -125,9 +154,11 @@ def session_timing(hits_per_level: int) -> None:
             seconds[jacobian] = time.perf_counter() - start
         finally:
             diagnose_module.fit_model = fit_model
-        print(f'diagnosis of a {len(impacts)}-hit session, each start fitted, Jacobians '
-              f'{jacobian}: {seconds[jacobian]:.1f} s (one run; named {result.missing_effect}, '
-              f'mu {result.mu:.5f})')
+        print(
+            f'diagnosis of a {len(impacts)}-hit session, each start fitted, Jacobians '
+            f'{jacobian}: {seconds[jacobian]:.1f} s (one run; named {result.missing_effect}, '
+            f'mu {result.mu:.5f})'
+        )
     print(f'  blocks {seconds["dense"] / seconds["blocks"]:.1f}x faster')
 
 
@@ -136,8 +167,12 @@ def main() -> None:
     parser.add_argument('--cases', type=int, default=10, help='sessions per hidden effect')
     parser.add_argument('--seed', type=int, default=2019)
     parser.add_argument('--repeats', type=int, default=5, help='timing repeats')
-    parser.add_argument('--session-hits', type=int, default=3,
-                        help='hits per level of the session diagnosed with starts (0: skip)')
+    parser.add_argument(
+        '--session-hits',
+        type=int,
+        default=3,
+        help='hits per level of the session diagnosed with starts (0: skip)',
+    )
     args = parser.parse_args()
     print(f'sweep: {args.cases} sessions per hidden effect and none, three impacts each')
     sweep(args.cases, args.seed)

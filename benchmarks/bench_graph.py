@@ -36,12 +36,15 @@ def whole_graph(batch_size: int, tmp: str) -> tuple[float, int]:
     33 s after the last hit: queues may hold many batches, so the source finishing early
     says nothing about the graph.
     """
+
     def p(**values):
         return [Parameter(k, value=v) for k, v in values.items()]
 
     with InProcessGraph() as graph:
-        hammer = graph.add(HammerSim, parameter_overrides=p(
-            rate_factor=1000.0, batch_size=batch_size, hits_per_level=2))
+        hammer = graph.add(
+            HammerSim,
+            parameter_overrides=p(rate_factor=1000.0, batch_size=batch_size, hits_per_level=2),
+        )
         graph.add(RigSim)
         analyzer = graph.add(Analyzer)
         graph.add(Fitter)
@@ -55,8 +58,7 @@ def whole_graph(batch_size: int, tmp: str) -> tuple[float, int]:
             time.sleep(0.005)
         wall = time.monotonic() - start
         last = analyzer.results[-1]
-        signal_s = (last.record_start_sample_index / last.sample_rate_hz
-                    + last.record_duration_s)
+        signal_s = last.record_start_sample_index / last.sample_rate_hz + last.record_duration_s
         return signal_s / wall, analyzer.impacts_accepted
 
 
@@ -71,10 +73,15 @@ def analyzer_share(batch_size: int, seconds: float = 20.0) -> float:
     os.environ['ROS_DOMAIN_ID'] = str(random.choice(PRIVATE_DOMAIN_IDS))
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     overrides = {
-        'hammer_sim': [Parameter('batch_size', value=batch_size),
-                       Parameter('first_hit_s', value=1.0), Parameter('hit_spacing_s', value=8.0),
-                       Parameter('wait_for_subscribers', value=1)],
-        'rig_sim': [], 'analyzer': []}
+        'hammer_sim': [
+            Parameter('batch_size', value=batch_size),
+            Parameter('first_hit_s', value=1.0),
+            Parameter('hit_spacing_s', value=8.0),
+            Parameter('wait_for_subscribers', value=1),
+        ],
+        'rig_sim': [],
+        'analyzer': [],
+    }
     processes = start_processes(['analyzer'], None, overrides)
     time.sleep(3.0)  # analyzer up and idle before the source starts
     sources = start_processes(['hammer_sim', 'rig_sim'], None, overrides)
@@ -92,23 +99,33 @@ def main() -> None:
     import tempfile
 
     demo_batch = SessionConfig(out_dir='.', rate_factor=1000.0).batch()
-    print('Whole simulated graph in one process (6 hits 40 s apart, two 10 kHz channels, '
-          '5 nodes, recording); clock stopped at the last impact reported')
+    print(
+        'Whole simulated graph in one process (6 hits 40 s apart, two 10 kHz channels, '
+        '5 nodes, recording); clock stopped at the last impact reported'
+    )
     with tempfile.TemporaryDirectory() as tmp:
         naive, naive_ok = whole_graph(500, tmp)
         sized, sized_ok = whole_graph(demo_batch, tmp)
     print(f'  naive 500-sample batches          x{naive:7.1f} real time  ({naive_ok}/6 accepted)')
-    print(f'  {demo_batch}-sample batches (fmm demo) x{sized:7.1f} real time  ({sized_ok}/6 '
-          f'accepted; {sized / naive:.1f}x the naive)   target >= x20: '
-          f'{"met" if sized >= 20 else "MISSED"}')
-    print(f'\nAnalyzer alone at real-time pace ({node_command("analyzer")[0]}), CPU of its '
-          'process per second of signal')
+    print(
+        f'  {demo_batch}-sample batches (fmm demo) x{sized:7.1f} real time  ({sized_ok}/6 '
+        f'accepted; {sized / naive:.1f}x the naive)   target >= x20: '
+        f'{"met" if sized >= 20 else "MISSED"}'
+    )
+    print(
+        f'\nAnalyzer alone at real-time pace ({node_command("analyzer")[0]}), CPU of its '
+        'process per second of signal'
+    )
     default = analyzer_share(500)
     small = analyzer_share(50)
-    print(f'  500-sample batches (default)      {default * 100:6.2f} % of one core   '
-          f'target < 5 %: {"met" if default < 0.05 else "MISSED"}')
-    print(f'  50-sample batches (naive)         {small * 100:6.2f} % of one core   '
-          f'({small / default:.1f}x the default)')
+    print(
+        f'  500-sample batches (default)      {default * 100:6.2f} % of one core   '
+        f'target < 5 %: {"met" if default < 0.05 else "MISSED"}'
+    )
+    print(
+        f'  50-sample batches (naive)         {small * 100:6.2f} % of one core   '
+        f'({small / default:.1f}x the default)'
+    )
 
 
 if __name__ == '__main__':

@@ -77,15 +77,18 @@ def euler_in_python(force, rate_hz, rig, mu):
 
 def cold_compile_s():
     """First call in a fresh process with an empty numba cache: the JIT compile itself."""
-    code = ('import time; t = time.perf_counter(); import numpy as np; '
-            'from fmm_ros.core.model import simulate, model_term; '
-            'f = np.zeros(1000); simulate(f, 1e4); simulate(f, 1e4, integrator="euler"); '
-            'simulate(f, 1e4, effects=(model_term("second_mode"), model_term("sensor_delay"),'
-            ' model_term("stribeck"))); print(time.perf_counter() - t)')
+    code = (
+        'import time; t = time.perf_counter(); import numpy as np; '
+        'from fmm_ros.core.model import simulate, model_term; '
+        'f = np.zeros(1000); simulate(f, 1e4); simulate(f, 1e4, integrator="euler"); '
+        'simulate(f, 1e4, effects=(model_term("second_mode"), model_term("sensor_delay"),'
+        ' model_term("stribeck"))); print(time.perf_counter() - t)'
+    )
     with tempfile.TemporaryDirectory() as cache:
         env = dict(os.environ, NUMBA_CACHE_DIR=cache)
-        done = subprocess.run([sys.executable, '-c', code], env=env, capture_output=True,
-                              text=True, check=True)
+        done = subprocess.run(
+            [sys.executable, '-c', code], env=env, capture_output=True, text=True, check=True
+        )
     return float(done.stdout.strip())
 
 
@@ -99,8 +102,12 @@ def main() -> None:
     start = time.perf_counter()
     warm = np.zeros(1000)
     for integrator in ('exact', 'euler'):
-        simulate(warm, RATE_HZ, integrator=integrator,
-                 effects=(model_term('second_mode'), model_term('sensor_delay')))
+        simulate(
+            warm,
+            RATE_HZ,
+            integrator=integrator,
+            effects=(model_term('second_mode'), model_term('sensor_delay')),
+        )
     simulate(warm, RATE_HZ, effects=(model_term('stribeck'),))
     print(f'  first calls here (numba cache load):         {time.perf_counter() - start:8.2f} s')
 
@@ -108,98 +115,137 @@ def main() -> None:
     force = record.force_n
     n = force.size
     out = (np.empty(n), np.empty(n))
-    print(f'\nOne FMM impact record: {n} samples ({n / RATE_HZ:g} s at {RATE_HZ:g} Hz), '
-          f'noisy 1000 N hit, medians of {repeats}')
+    print(
+        f'\nOne FMM impact record: {n} samples ({n / RATE_HZ:g} s at {RATE_HZ:g} Hz), '
+        f'noisy 1000 N hit, medians of {repeats}'
+    )
 
     def fill():
         out[0].fill(0.0)
         out[1].fill(0.0)
+
     floor_s = median_s(fill, repeats)
+
     def fill_fresh_apart():
         pair = (np.empty(n), np.empty(n))  # both alive at once, as a caller holds them
         for array in pair:
             array.fill(0.0)
+
     fresh_apart_s = median_s(fill_fresh_apart, repeats)
     fresh_block_s = median_s(lambda: np.empty((2, n)).fill(0.0), repeats)
     print(f'  memory floor: fill two warm output arrays    {1e3 * floor_s:8.3f} ms')
-    print(f'  (fill two fresh arrays: {1e3 * fresh_apart_s:.3f} ms apart, page faults included; '
-          f'{1e3 * fresh_block_s:.3f} ms as one huge-page block, as simulate allocates them)')
+    print(
+        f'  (fill two fresh arrays: {1e3 * fresh_apart_s:.3f} ms apart, page faults included; '
+        f'{1e3 * fresh_block_s:.3f} ms as one huge-page block, as simulate allocates them)'
+    )
 
     models = {
         'Coulomb + viscous (Eq. 3)': (),
         '+ asymmetric friction': (model_term('asymmetric_friction'),),
         '+ second mode': (model_term('second_mode'),),
         '+ offset and delay': (model_term('velocity_offset'), model_term('sensor_delay')),
-        'all piecewise-linear terms': (model_term('viscous_damping'),
-                                       model_term('asymmetric_friction'),
-                                       model_term('second_mode'), model_term('velocity_offset'),
-                                       model_term('sensor_delay')),
+        'all piecewise-linear terms': (
+            model_term('viscous_damping'),
+            model_term('asymmetric_friction'),
+            model_term('second_mode'),
+            model_term('velocity_offset'),
+            model_term('sensor_delay'),
+        ),
     }
     print('  exact integrator, output buffers reused (out=) | fresh output arrays')
     exact_s = {}
     for name, effects in models.items():
-        exact_s[name] = median_s(lambda e=effects: simulate(force, RATE_HZ, effects=e, out=out),
-                                 repeats)
+        exact_s[name] = median_s(
+            lambda e=effects: simulate(force, RATE_HZ, effects=e, out=out), repeats
+        )
         fresh = median_s(lambda e=effects: simulate(force, RATE_HZ, effects=e), repeats)
-        print(f'    {name:<30} {1e3 * exact_s[name]:8.3f} ms '
-              f'({exact_s[name] / floor_s:5.1f}x floor) | {1e3 * fresh:8.3f} ms')
+        print(
+            f'    {name:<30} {1e3 * exact_s[name]:8.3f} ms '
+            f'({exact_s[name] / floor_s:5.1f}x floor) | {1e3 * fresh:8.3f} ms'
+        )
     euler_s = median_s(lambda: simulate(force, RATE_HZ, integrator='euler', out=out), repeats)
     print(f'  Euler, compiled (integrator="euler")         {1e3 * euler_s:8.3f} ms')
 
     def stream_batches():
         stream = OscillatorStream(RATE_HZ)
         for start in range(0, n, 500):
-            stream.step(force[start:start + 500])
+            stream.step(force[start : start + 500])
+
     stream_s = median_s(stream_batches, max(3, repeats // 3))
-    print(f'  streamed in 500-sample batches (rig_sim)     {1e3 * stream_s:8.3f} ms '
-          f'({1e6 * stream_s / (n / 500):.1f} us a batch)')
+    print(
+        f'  streamed in 500-sample batches (rig_sim)     {1e3 * stream_s:8.3f} ms '
+        f'({1e6 * stream_s / (n / 500):.1f} us a batch)'
+    )
 
     python_repeats = 3
-    python_s = median_s(lambda: euler_in_python(force, RATE_HZ, FMM_RIG, PAPER_MU),
-                        python_repeats)
+    python_s = median_s(lambda: euler_in_python(force, RATE_HZ, FMM_RIG, PAPER_MU), python_repeats)
     x_py, v_py = euler_in_python(force, RATE_HZ, FMM_RIG, PAPER_MU)
     compiled = simulate(force, RATE_HZ, integrator='euler')
-    print(f'  paper Euler, plain Python over numpy         {1e3 * python_s:8.1f} ms '
-          f'(median of {python_repeats}; same numbers as the compiled Euler to '
-          f'{np.max(np.abs(v_py - compiled.velocity_m_s)):.1e} m/s)')
+    print(
+        f'  paper Euler, plain Python over numpy         {1e3 * python_s:8.1f} ms '
+        f'(median of {python_repeats}; same numbers as the compiled Euler to '
+        f'{np.max(np.abs(v_py - compiled.velocity_m_s)):.1e} m/s)'
+    )
     base = exact_s['Coulomb + viscous (Eq. 3)']
     worst = max(exact_s.values())
     ratio = python_s / base
     met = worst <= 1e-3 * TARGET_RECORD_MS
-    print(f'  => exact {1e3 * base:.3f} ms (worst piecewise-linear model {1e3 * worst:.3f} ms; '
-          f'target <= {TARGET_RECORD_MS:g} ms: {"met" if met else "MISSED"})')
-    print(f'  => {ratio:.0f}x faster than the plain-Python Euler '
-          f'(target >= {TARGET_RATIO:g}x: {"met" if ratio >= TARGET_RATIO else "MISSED"})')
+    print(
+        f'  => exact {1e3 * base:.3f} ms (worst piecewise-linear model {1e3 * worst:.3f} ms; '
+        f'target <= {TARGET_RECORD_MS:g} ms: {"met" if met else "MISSED"})'
+    )
+    print(
+        f'  => {ratio:.0f}x faster than the plain-Python Euler '
+        f'(target >= {TARGET_RATIO:g}x: {"met" if ratio >= TARGET_RATIO else "MISSED"})'
+    )
 
-    example = Rig(mass_kg=1.0, stiffness_n_per_m=5000.0, damping_n_s_per_m=0.0,
-                  normal_force_n=STANDARD_GRAVITY_M_S2)
+    example = Rig(
+        mass_kg=1.0,
+        stiffness_n_per_m=5000.0,
+        damping_n_s_per_m=0.0,
+        normal_force_n=STANDARD_GRAVITY_M_S2,
+    )
     initial = np.arange(1001) * 0.005e-3
 
     def sweep():
-        return [free_vibration(x0, 1.0, RATE_HZ, rig=example, mu=0.1).rest_position_m
-                for x0 in initial]
+        return [
+            free_vibration(x0, 1.0, RATE_HZ, rig=example, mu=0.1).rest_position_m for x0 in initial
+        ]
+
     sweep_s = median_s(sweep, 5)
     print(f'\nFig. 4 sweep: 1001 free-vibration runs of 1 s at {RATE_HZ:g} Hz (median of 5)')
-    print(f'  {1e3 * sweep_s:8.1f} ms ({1e6 * sweep_s / initial.size:.0f} us a run; '
-          f'target <= {TARGET_SWEEP_S:g} s: {"met" if sweep_s <= TARGET_SWEEP_S else "MISSED"})')
+    print(
+        f'  {1e3 * sweep_s:8.1f} ms ({1e6 * sweep_s / initial.size:.0f} us a run; '
+        f'target <= {TARGET_SWEEP_S:g} s: {"met" if sweep_s <= TARGET_SWEEP_S else "MISSED"})'
+    )
 
     print(f'\nNonlinear terms (event-located RK4), one record, medians of {repeats}')
     nonlinear = {
         'stribeck': (model_term('stribeck'),),
         'cubic_stiffness': (model_term('cubic_stiffness'),),
-        'stribeck + cubic + all others': tuple(model_term(name) for name in (
-            'viscous_damping', 'stribeck', 'asymmetric_friction', 'cubic_stiffness',
-            'second_mode', 'velocity_offset', 'sensor_delay')),
+        'stribeck + cubic + all others': tuple(
+            model_term(name)
+            for name in (
+                'viscous_damping',
+                'stribeck',
+                'asymmetric_friction',
+                'cubic_stiffness',
+                'second_mode',
+                'velocity_offset',
+                'sensor_delay',
+            )
+        ),
     }
     worst_nonlinear = 0.0
     for name, effects in nonlinear.items():
-        seconds = median_s(lambda e=effects: simulate(force, RATE_HZ, effects=e, out=out),
-                           repeats)
+        seconds = median_s(lambda e=effects: simulate(force, RATE_HZ, effects=e, out=out), repeats)
         worst_nonlinear = max(worst_nonlinear, seconds)
         print(f'    {name:<30} {1e3 * seconds:8.3f} ms')
     met = worst_nonlinear <= 1e-3 * TARGET_NONLINEAR_MS
-    print(f'  => worst {1e3 * worst_nonlinear:.2f} ms (target <= {TARGET_NONLINEAR_MS:g} ms: '
-          f'{"met" if met else "MISSED"})')
+    print(
+        f'  => worst {1e3 * worst_nonlinear:.2f} ms (target <= {TARGET_NONLINEAR_MS:g} ms: '
+        f'{"met" if met else "MISSED"})'
+    )
 
 
 if __name__ == '__main__':

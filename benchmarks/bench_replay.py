@@ -54,10 +54,13 @@ def naive(bag: Path) -> int:
             rate = message.sample_rate_hz
             for value in message.samples:
                 samples[connection.topic].append(float(value))
-    records = capture_impacts(np.array(samples[FORCE_TOPIC]), np.array(samples[VELOCITY_TOPIC]),
-                              rate, DEFAULT_CAPTURE)
-    results = [analyze_impact(record, DEFAULT_CAPTURE, ANALYSIS, impact_id=k)
-               for k, record in enumerate(records)]
+    records = capture_impacts(
+        np.array(samples[FORCE_TOPIC]), np.array(samples[VELOCITY_TOPIC]), rate, DEFAULT_CAPTURE
+    )
+    results = [
+        analyze_impact(record, DEFAULT_CAPTURE, ANALYSIS, impact_id=k)
+        for k, record in enumerate(records)
+    ]
     summarize(results, ANALYSIS)
     return len(results)
 
@@ -81,16 +84,20 @@ def main() -> int:
     try:
         bag = write_session_bag(work / 'session', session)
         size_mb = sum(f.stat().st_size for f in bag.iterdir()) / 1e6
-        print(f'session: {len(session.hit_levels)} hits, {session.duration_s:.1f} s '
-              f'({session.duration_s / 60:.1f} min) of two {session.sample_rate_hz / 1e3:g} kHz '
-              f'channels, bag {size_mb:.0f} MB; median of {args.repeats} runs\n')
+        print(
+            f'session: {len(session.hit_levels)} hits, {session.duration_s:.1f} s '
+            f'({session.duration_s / 60:.1f} min) of two {session.sample_rate_hz / 1e3:g} kHz '
+            f'channels, bag {size_mb:.0f} MB; median of {args.repeats} runs\n'
+        )
         replay(bag)  # warm up: first calls compile and fault in what later runs reuse
         print(f'{"":44s} {"s":>7s} {"x real time":>12s}')
         rows = {}
-        for name, run in (('replay (fmm replay: read, capture, analyse)', replay),
-                          ('  of which: read batches only', read_only),
-                          ('  of which: read and capture only', read_and_capture),
-                          ('naive: samples via Python lists, then same', naive)):
+        for name, run in (
+            ('replay (fmm replay: read, capture, analyse)', replay),
+            ('  of which: read batches only', read_only),
+            ('  of which: read and capture only', read_and_capture),
+            ('naive: samples via Python lists, then same', naive),
+        ):
             seconds, value = median_time(args.repeats, run, bag)
             rows[name] = seconds
             print(f'{name:44s} {seconds:7.2f} {session.duration_s / seconds:12.0f}')
@@ -99,9 +106,11 @@ def main() -> int:
         ours = rows['replay (fmm replay: read, capture, analyse)']
         speed = session.duration_s / ours
         ratio = rows['naive: samples via Python lists, then same'] / ours
-        print(f'\nreplay: {speed:.0f}x real time (target >= {TARGET:.0f}x: '
-              f'{"met" if speed >= TARGET else "NOT met"}); {ratio:.1f}x faster than the '
-              'naive reader')
+        print(
+            f'\nreplay: {speed:.0f}x real time (target >= {TARGET:.0f}x: '
+            f'{"met" if speed >= TARGET else "NOT met"}); {ratio:.1f}x faster than the '
+            'naive reader'
+        )
     finally:
         shutil.rmtree(work)
     return 0

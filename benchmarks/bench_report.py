@@ -33,9 +33,16 @@ from fmm_ros.report.plotting import DEFAULT_DPI, freeze_ticks
 TARGET_S = 6.0
 HIT_FIGURES = session_figures.HitFigures
 ANALYSIS = AnalysisConfig(levels=PAPER_LEVELS)
-FIGURE_TYPES = ('impulse_figure', 'linearity_figure', 'level_magnitude_figure',
-                'level_trials_figure', 'frf_trials_figure', 'frf_overlay_figure',
-                'harmonics_figure', 'friction_figure')
+FIGURE_TYPES = (
+    'impulse_figure',
+    'linearity_figure',
+    'level_magnitude_figure',
+    'level_trials_figure',
+    'frf_trials_figure',
+    'frf_overlay_figure',
+    'harmonics_figure',
+    'friction_figure',
+)
 
 
 def constrained_png(figure, dpi):
@@ -45,8 +52,7 @@ def constrained_png(figure, dpi):
     figure.draw_without_rendering()
     freeze_ticks(figure)
     buffer = io.BytesIO()
-    figure.savefig(buffer, format='png', dpi=dpi, facecolor='white',
-                   metadata={'Software': None})
+    figure.savefig(buffer, format='png', dpi=dpi, facecolor='white', metadata={'Software': None})
     return buffer.getvalue()
 
 
@@ -72,6 +78,7 @@ def instrumented(naive: bool):
             cost[name][1] += time.perf_counter() - start
             last[0] = name
             return figure
+
         return run
 
     render = constrained_png if naive else report_html.png_bytes
@@ -132,25 +139,35 @@ def main() -> int:
     out = args.out or work / 'report'
     try:
         run(records[:3], model, work / 'warm', args.dpi, naive=False)  # imports, font cache
-        runs = {naive: [run(records, model, out if not naive else work / 'naive', args.dpi,
-                            naive) for _ in range(args.repeats)]
-                for naive in (False, True)}
+        runs = {
+            naive: [
+                run(records, model, out if not naive else work / 'naive', args.dpi, naive)
+                for _ in range(args.repeats)
+            ]
+            for naive in (False, True)
+        }
     finally:
         shutil.rmtree(work)
     figures = sum(count for count, _, _ in runs[False][0][1].values())
-    print(f'session: {len(records)} hits ({len(session.hit_levels) // 3} a level), '
-          f'{records[0].window_samples / records[0].sample_rate_hz:g} s records at '
-          f'{records[0].sample_rate_hz / 1e3:g} kHz, given mu = {PAPER_MU}; {figures} figures '
-          f'at {args.dpi:g} dpi; median of {args.repeats} runs\n')
+    print(
+        f'session: {len(records)} hits ({len(session.hit_levels) // 3} a level), '
+        f'{records[0].window_samples / records[0].sample_rate_hz:g} s records at '
+        f'{records[0].sample_rate_hz / 1e3:g} kHz, given mu = {PAPER_MU}; {figures} figures '
+        f'at {args.dpi:g} dpi; median of {args.repeats} runs\n'
+    )
     ours = statistics.median(seconds for seconds, _ in runs[False])
     naive = statistics.median(seconds for seconds, _ in runs[True])
     print(f'{"build_report":58s} {ours:6.2f} s')
-    print(f'{"naive: constrained layout per figure, a Figure per hit":58s} {naive:6.2f} s '
-          f'(x{naive / ours:.1f})')
+    print(
+        f'{"naive: constrained layout per figure, a Figure per hit":58s} {naive:6.2f} s '
+        f'(x{naive / ours:.1f})'
+    )
     print(f'target build_report <= {TARGET_S:g} s: {"met" if ours <= TARGET_S else "NOT met"}\n')
 
-    print(f'{"figure type":24s} {"count":>5s} {"ms a figure":>12s} {"naive":>7s} {"ratio":>6s}'
-          f'   (build + render)')
+    print(
+        f'{"figure type":24s} {"count":>5s} {"ms a figure":>12s} {"naive":>7s} {"ratio":>6s}'
+        f'   (build + render)'
+    )
     figure_s = {}
     for naive_run in (False, True):
         totals = collections.defaultdict(float)
@@ -158,15 +175,24 @@ def main() -> int:
             for name, (_count, build_s, render_s) in cost.items():
                 totals[name] += (build_s + render_s) / len(runs[naive_run])
         figure_s[naive_run] = totals
-    for name, (count, _, _) in sorted(runs[False][0][1].items(),
-                                      key=lambda item: -figure_s[False][item[0]]):
+    for name, (count, _, _) in sorted(
+        runs[False][0][1].items(), key=lambda item: -figure_s[False][item[0]]
+    ):
         mine, theirs = (1e3 * figure_s[flag][name] / count for flag in (False, True))
-        print(f'{name.removesuffix("_figure"):24s} {count:5d} {mine:12.0f} {theirs:7.0f} '
-              f'{theirs / mine:6.1f}')
-    outside = [statistics.median(seconds - sum(b + r for _, b, r in cost.values())
-                                 for seconds, cost in runs[flag]) for flag in (False, True)]
-    print(f'{"outside the figures (analysis, model, page)":44s} {outside[0]:6.2f} s '
-          f'(naive run {outside[1]:.2f} s)')
+        print(
+            f'{name.removesuffix("_figure"):24s} {count:5d} {mine:12.0f} {theirs:7.0f} '
+            f'{theirs / mine:6.1f}'
+        )
+    outside = [
+        statistics.median(
+            seconds - sum(b + r for _, b, r in cost.values()) for seconds, cost in runs[flag]
+        )
+        for flag in (False, True)
+    ]
+    print(
+        f'{"outside the figures (analysis, model, page)":44s} {outside[0]:6.2f} s '
+        f'(naive run {outside[1]:.2f} s)'
+    )
     return 0
 
 

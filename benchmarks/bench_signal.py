@@ -30,9 +30,10 @@ def stream(seconds: float, hits_s: list[float], seed: int = 0) -> tuple[np.ndarr
     pulse = 1000.0 * np.sin(np.pi * np.arange(41) / 40)
     for at in hits_s:
         start = int(at * RATE_HZ)
-        force[start:start + pulse.size] += pulse
+        force[start : start + pulse.size] += pulse
     num, den, _ = scipy.signal.cont2discrete(
-        ([1.0, 0.0], [MASS_KG, DAMPING_N_S_PER_M, STIFFNESS_N_PER_M]), 1 / RATE_HZ, method='foh')
+        ([1.0, 0.0], [MASS_KG, DAMPING_N_S_PER_M, STIFFNESS_N_PER_M]), 1 / RATE_HZ, method='foh'
+    )
     velocity = scipy.signal.lfilter(num.ravel(), den, force)
     rng = np.random.default_rng(seed)
     return force + rng.normal(0, 0.2, n), velocity + rng.normal(0, 1e-6, n)
@@ -63,25 +64,35 @@ def median_ms(function, repeats: int) -> float:
 def bench_analysis(repeats: int) -> None:
     force, velocity = stream(34.0, [1.0])
     start = int(1.0 * RATE_HZ) - 100
-    record = ImpactRecord(force[start:start + 330_000], velocity[start:start + 330_000], RATE_HZ,
-                          record_start_sample_index=start, trigger_sample_index=start + 100)
-    analyze_impact(record)                      # warm-up: FFT plans, imports
+    record = ImpactRecord(
+        force[start : start + 330_000],
+        velocity[start : start + 330_000],
+        RATE_HZ,
+        record_start_sample_index=start,
+        trigger_sample_index=start + 100,
+    )
+    analyze_impact(record)  # warm-up: FFT plans, imports
     ours = median_ms(lambda: analyze_impact(record), repeats)
     as_lists = (record.force_n.tolist(), record.velocity_m_s.tolist())
     naive = median_ms(lambda: naive_analysis(*as_lists), repeats)
-    print(f'one 33 s impact (2 x {record.force_n.size:,} samples) analysed: {ours:6.1f} ms '
-          f'(target <= 50 ms; flags, impulse, contact, rfft FRFs, peak)')
-    print(f'  naive (fresh arrays, full np.fft.fft, FRF on all bins):     {naive:6.1f} ms '
-          f'-> {naive / ours:4.1f}x slower')
+    print(
+        f'one 33 s impact (2 x {record.force_n.size:,} samples) analysed: {ours:6.1f} ms '
+        f'(target <= 50 ms; flags, impulse, contact, rfft FRFs, peak)'
+    )
+    print(
+        f'  naive (fresh arrays, full np.fft.fft, FRF on all bins):     {naive:6.1f} ms '
+        f'-> {naive / ours:4.1f}x slower'
+    )
 
 
-def feed_batches(capture: ImpactCapture, force: np.ndarray, velocity: np.ndarray,
-                 analyse: bool) -> int:
+def feed_batches(
+    capture: ImpactCapture, force: np.ndarray, velocity: np.ndarray, analyse: bool
+) -> int:
     """Feed both channels in 500-sample batches as the analyzer node does; count impacts."""
     impacts = 0
     for first in range(0, force.size, BATCH):
-        done = capture.feed('force', first, force[first:first + BATCH], RATE_HZ)
-        done += capture.feed('velocity', first, velocity[first:first + BATCH], RATE_HZ)
+        done = capture.feed('force', first, force[first : first + BATCH], RATE_HZ)
+        done += capture.feed('velocity', first, velocity[first : first + BATCH], RATE_HZ)
         for record in done:
             if analyse:
                 analyze_impact(record)
@@ -94,18 +105,18 @@ def naive_stream(force: np.ndarray, velocity: np.ndarray, config: CaptureConfig)
     """Python lists grown per batch, triggers searched per batch, records as fresh arrays."""
     kept_f, kept_v, pending, impacts = [], [], [], 0
     window, pre = int(config.window_s * RATE_HZ), int(config.pretrigger_s * RATE_HZ)
-    last = -10**9
+    last = -(10**9)
     for first in range(0, force.size, BATCH):
-        batch_f = force[first:first + BATCH]
+        batch_f = force[first : first + BATCH]
         kept_f.extend(batch_f.tolist())
-        kept_v.extend(velocity[first:first + BATCH].tolist())
+        kept_v.extend(velocity[first : first + BATCH].tolist())
         for offset in np.flatnonzero(batch_f >= config.trigger_level_n):
             index = first + int(offset)
             if index - last >= config.min_spacing_s * RATE_HZ:
                 pending.append(index - pre)
                 last = index
         for start in [s for s in pending if s + window <= len(kept_f)]:
-            np.array(kept_f[start:start + window]), np.array(kept_v[start:start + window])
+            np.array(kept_f[start : start + window]), np.array(kept_v[start : start + window])
             pending.remove(start)
             impacts += 1
     return impacts
@@ -127,23 +138,31 @@ def bench_streaming(repeats: int) -> None:
         runs = []
         for _ in range(repeats):
             capture = ImpactCapture(config)
-            runs.append(cpu_seconds(lambda c=capture, a=analyse: feed_batches(
-                c, force, velocity, a)))
+            runs.append(
+                cpu_seconds(lambda c=capture, a=analyse: feed_batches(c, force, velocity, a))
+            )
         results[label] = statistics.median(runs)
-    naive = statistics.median(cpu_seconds(lambda: naive_stream(force, velocity, config))
-                              for _ in range(repeats))
+    naive = statistics.median(
+        cpu_seconds(lambda: naive_stream(force, velocity, config)) for _ in range(repeats)
+    )
     capture = ImpactCapture(config)
     assert feed_batches(capture, force, velocity, False) == expected == 3
     batches = 2 * force.size // BATCH
     ours = results['capture only']
-    print(f'streaming 2 x 10 kHz in {BATCH}-sample batches, {seconds:.0f} s with {expected} '
-          f'impacts ({batches:,} batches):')
-    print(f'  capture only:        {100 * ours / seconds:6.3f} % of one core '
-          f'({1e6 * ours / batches:5.1f} us per batch; target < 2 %)')
+    print(
+        f'streaming 2 x 10 kHz in {BATCH}-sample batches, {seconds:.0f} s with {expected} '
+        f'impacts ({batches:,} batches):'
+    )
+    print(
+        f'  capture only:        {100 * ours / seconds:6.3f} % of one core '
+        f'({1e6 * ours / batches:5.1f} us per batch; target < 2 %)'
+    )
     both = results['capture + analysis']
     print(f'  capture + analysis:  {100 * both / seconds:6.3f} % of one core')
-    print(f'  naive (lists per batch, fresh record arrays): {100 * naive / seconds:6.3f} % '
-          f'-> {naive / ours:4.1f}x the CPU, and its memory grows without bound')
+    print(
+        f'  naive (lists per batch, fresh record arrays): {100 * naive / seconds:6.3f} % '
+        f'-> {naive / ours:4.1f}x the CPU, and its memory grows without bound'
+    )
 
 
 def main() -> None:

@@ -29,8 +29,14 @@ from fmm_ros.nodes.rig_sim import RigSim
 from fmm_ros.ros_graph import InProcessGraph
 
 NODE_CLASSES: dict[str, Callable[..., Node]] = {
-    'hammer_sim': HammerSim, 'rig_sim': RigSim, 'daq': Daq, 'analyzer': Analyzer,
-    'fitter': Fitter, 'recorder': Recorder, 'player': Player}
+    'hammer_sim': HammerSim,
+    'rig_sim': RigSim,
+    'daq': Daq,
+    'analyzer': Analyzer,
+    'fitter': Fitter,
+    'recorder': Recorder,
+    'player': Player,
+}
 SIMULATED_RIG = ('hammer_sim', 'rig_sim', 'analyzer', 'fitter', 'recorder')
 REAL_RIG = ('daq', 'analyzer', 'fitter', 'recorder')
 
@@ -44,23 +50,28 @@ def parse_overrides(items: Sequence[str], nodes: Sequence[str]) -> dict[str, lis
         if not (equals and dot and name):
             raise ValueError(f'override {item!r} is not node.param=value')
         if node not in overrides:
-            raise ValueError(f'override {item!r}: no node {node!r} in this rig '
-                             f'({", ".join(nodes)})')
+            raise ValueError(
+                f'override {item!r}: no node {node!r} in this rig ({", ".join(nodes)})'
+            )
         overrides[node].append(Parameter(name, value=yaml.safe_load(text)))
     return overrides
 
 
-def run_in_process(nodes: Sequence[str], params_file: Path | None,
-                   overrides: dict[str, list[Parameter]],
-                   stop: Callable[[], bool] = lambda: False) -> None:
+def run_in_process(
+    nodes: Sequence[str],
+    params_file: Path | None,
+    overrides: dict[str, list[Parameter]],
+    stop: Callable[[], bool] = lambda: False,
+) -> None:
     """All nodes on one executor in this process, on ROS_DOMAIN_ID, until Ctrl-C or stop()."""
     cli_args = ['--ros-args', '--params-file', str(params_file)] if params_file else None
     domain_id = int(os.environ.get('ROS_DOMAIN_ID', '0'))
     localhost = os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE', '') == 'LOCALHOST'
     with InProcessGraph(domain_id=domain_id, localhost_only=localhost) as graph:
         for name in nodes:
-            graph.add(NODE_CLASSES[name], cli_args=cli_args,
-                      parameter_overrides=overrides.get(name, []))
+            graph.add(
+                NODE_CLASSES[name], cli_args=cli_args, parameter_overrides=overrides.get(name, [])
+            )
         graph.start()
         try:
             while not stop():
@@ -83,8 +94,9 @@ def node_command(name: str) -> list[str]:
     return [sys.executable, '-m', f'fmm_ros.nodes.{name}']
 
 
-def start_processes(nodes: Sequence[str], params_file: Path | None,
-                    overrides: dict[str, list[Parameter]]) -> list[subprocess.Popen]:
+def start_processes(
+    nodes: Sequence[str], params_file: Path | None, overrides: dict[str, list[Parameter]]
+) -> list[subprocess.Popen]:
     """One process per node, each given the params file and its overrides."""
     processes = []
     for name in nodes:
@@ -92,8 +104,10 @@ def start_processes(nodes: Sequence[str], params_file: Path | None,
         if params_file:
             ros_args += ['--params-file', str(params_file)]
         for parameter in overrides.get(name, []):
-            ros_args += ['-p', f'{parameter.name}:={yaml.safe_dump(parameter.value).strip()}'
-                         .replace('\n...', '')]
+            ros_args += [
+                '-p',
+                f'{parameter.name}:={yaml.safe_dump(parameter.value).strip()}'.replace('\n...', ''),
+            ]
         processes.append(subprocess.Popen(node_command(name) + ros_args))
     return processes
 
@@ -113,8 +127,9 @@ def stop_processes(processes: Sequence[subprocess.Popen], timeout_s: float = 10.
     return [process.returncode for process in processes]
 
 
-def run_processes(nodes: Sequence[str], params_file: Path | None,
-                  overrides: dict[str, list[Parameter]]) -> int:
+def run_processes(
+    nodes: Sequence[str], params_file: Path | None, overrides: dict[str, list[Parameter]]
+) -> int:
     """Separate processes until Ctrl-C or until one of them exits; 0 if all ended cleanly."""
     processes = start_processes(nodes, params_file, overrides)
     try:
@@ -133,27 +148,38 @@ def default_params_file() -> Path | None:
     os.environ.setdefault('AMENT_PREFIX_PATH', sys.prefix)
     candidates = [Path(__file__).resolve().parents[1] / 'config' / 'fmm_rig.yaml']
     try:
-        candidates.insert(0, Path(get_package_share_directory('fmm_ros')) / 'config'
-                          / 'fmm_rig.yaml')
+        candidates.insert(
+            0, Path(get_package_share_directory('fmm_ros')) / 'config' / 'fmm_rig.yaml'
+        )
     except PackageNotFoundError:
         pass
     return next((path for path in candidates if path.is_file()), None)
 
 
-def launch_main(nodes: Sequence[str], description: str, argv: Sequence[str] | None = None
-                ) -> int:
+def launch_main(nodes: Sequence[str], description: str, argv: Sequence[str] | None = None) -> int:
     """Command line of the launch scripts: params file, overrides, one process or many."""
     import argparse
 
     parser = argparse.ArgumentParser(description=description)
-    parser.add_argument('--params-file', type=Path, default=default_params_file(),
-                        help="ROS parameter YAML (default: the package's config/fmm_rig.yaml)")
-    parser.add_argument('--set', action='append', default=[], metavar='NODE.PARAM=VALUE',
-                        help='override one parameter, e.g. hammer_sim.rate_factor=20 '
-                             '(repeatable; VALUE in YAML)')
-    parser.add_argument('--processes', action='store_true',
-                        help='one process per node (as ros2 run would start them) instead of '
-                             'all nodes on one executor in this process')
+    parser.add_argument(
+        '--params-file',
+        type=Path,
+        default=default_params_file(),
+        help="ROS parameter YAML (default: the package's config/fmm_rig.yaml)",
+    )
+    parser.add_argument(
+        '--set',
+        action='append',
+        default=[],
+        metavar='NODE.PARAM=VALUE',
+        help='override one parameter, e.g. hammer_sim.rate_factor=20 (repeatable; VALUE in YAML)',
+    )
+    parser.add_argument(
+        '--processes',
+        action='store_true',
+        help='one process per node (as ros2 run would start them) instead of '
+        'all nodes on one executor in this process',
+    )
     args = parser.parse_args(argv)
     if args.params_file is not None and not args.params_file.is_file():
         parser.error(f'--params-file {args.params_file} does not exist')
@@ -161,9 +187,12 @@ def launch_main(nodes: Sequence[str], description: str, argv: Sequence[str] | No
         overrides = parse_overrides(args.set, nodes)
     except ValueError as error:
         parser.error(str(error))
-    print(f'starting {", ".join(nodes)} ' + ('as separate processes' if args.processes
-                                              else 'in one process')
-          + f' with {args.params_file or "node defaults"}; Ctrl-C stops', file=sys.stderr)
+    print(
+        f'starting {", ".join(nodes)} '
+        + ('as separate processes' if args.processes else 'in one process')
+        + f' with {args.params_file or "node defaults"}; Ctrl-C stops',
+        file=sys.stderr,
+    )
     if args.processes:
         return run_processes(nodes, args.params_file, overrides)
     run_in_process(nodes, args.params_file, overrides)

@@ -27,9 +27,16 @@ def field_array(field: array.array) -> np.ndarray:
     return view
 
 
-def sample_batch(samples: np.ndarray, *, quantity: tuple[str, str], sample_rate_hz: float,
-                 first_sample_index: int, stamp: Time, frame_id: str,
-                 full_scale: float = 0.0) -> SampleBatch:
+def sample_batch(
+    samples: np.ndarray,
+    *,
+    quantity: tuple[str, str],
+    sample_rate_hz: float,
+    first_sample_index: int,
+    stamp: Time,
+    frame_id: str,
+    full_scale: float = 0.0,
+) -> SampleBatch:
     """A SampleBatch message; quantity is FORCE or VELOCITY (name and SI unit)."""
     msg = SampleBatch()
     msg.header.stamp = stamp
@@ -53,8 +60,9 @@ def _set_complex(msg: object, name: str, values: np.ndarray) -> None:
     setattr(msg, f'{name}_imag', float64_field(values.imag))
 
 
-def impact_result_msg(result: analysis.ImpactResult, *, stamp: Time,
-                      frame_id: str = 'fmm') -> ImpactResult:
+def impact_result_msg(
+    result: analysis.ImpactResult, *, stamp: Time, frame_id: str = 'fmm'
+) -> ImpactResult:
     """An ImpactResult message from the signal core's result (same field names)."""
     msg = ImpactResult()
     msg.header.stamp = stamp
@@ -65,9 +73,18 @@ def impact_result_msg(result: analysis.ImpactResult, *, stamp: Time,
     msg.level = result.level
     msg.accepted = bool(result.accepted)
     msg.flags = list(result.flags)
-    for name in ('impulse_n_s', 'peak_force_n', 'contact_duration_s', 'record_duration_s',
-                 'sample_rate_hz', 'natural_frequency_hz', 'peak_receptance_m_per_n',
-                 'frequency_step_hz', 'force_window_s', 'exponential_window_decay_s'):
+    for name in (
+        'impulse_n_s',
+        'peak_force_n',
+        'contact_duration_s',
+        'record_duration_s',
+        'sample_rate_hz',
+        'natural_frequency_hz',
+        'peak_receptance_m_per_n',
+        'frequency_step_hz',
+        'force_window_s',
+        'exponential_window_decay_s',
+    ):
         setattr(msg, name, float(getattr(result, name)))
     msg.frequency_hz = float64_field(result.frequency_hz)
     _set_complex(msg, 'mobility', result.mobility)
@@ -75,8 +92,9 @@ def impact_result_msg(result: analysis.ImpactResult, *, stamp: Time,
     return msg
 
 
-def frf_summary_msg(level: analysis.LevelSummary, linearity: frf.LinearFit, *, stamp: Time,
-                    frame_id: str = 'fmm') -> FrfSummary:
+def frf_summary_msg(
+    level: analysis.LevelSummary, linearity: frf.LinearFit, *, stamp: Time, frame_id: str = 'fmm'
+) -> FrfSummary:
     """A FrfSummary message: one level's averages plus the linearity fit over all levels."""
     msg = FrfSummary()
     msg.header.stamp = stamp
@@ -84,9 +102,16 @@ def frf_summary_msg(level: analysis.LevelSummary, linearity: frf.LinearFit, *, s
     msg.level = level.level
     msg.count = int(level.count)
     msg.impact_ids = [int(i) for i in level.impact_ids]
-    for name in ('nominal_peak_force_n', 'mean_impulse_n_s', 'std_impulse_n_s',
-                 'mean_peak_force_n', 'peak_receptance_m_per_n', 'natural_frequency_hz',
-                 'frequency_step_hz', 'exponential_window_decay_s'):
+    for name in (
+        'nominal_peak_force_n',
+        'mean_impulse_n_s',
+        'std_impulse_n_s',
+        'mean_peak_force_n',
+        'peak_receptance_m_per_n',
+        'natural_frequency_hz',
+        'frequency_step_hz',
+        'exponential_window_decay_s',
+    ):
         setattr(msg, name, float(getattr(level, name)))
     msg.frequency_hz = float64_field(level.frequency_hz)
     for name in ('mobility', 'receptance', 'h1_mobility', 'h2_mobility'):
@@ -116,17 +141,16 @@ def fill_diagnose_response(response: object, result: diagnose.Diagnosis) -> obje
     response.parameter_stderr = float64_field([p.stderr for p in result.parameters])
     response.mu, response.mu_stderr = result.mu, result.mu_stderr
     response.gap_before, response.gap_after = result.gap_before, result.gap_after
-    response.frf_gap_before, response.frf_gap_after = (result.frf_gap_before,
-                                                       result.frf_gap_after)
+    response.frf_gap_before, response.frf_gap_after = (result.frf_gap_before, result.frf_gap_after)
     response.where = result.where.summary
     response.candidate_effects = [c.effect for c in result.candidates]
     response.candidate_scores = float64_field([c.score for c in result.candidates])
     response.candidate_gap_after = float64_field([c.gap_after for c in result.candidates])
     response.candidate_parameter_counts = [len(c.parameters) for c in result.candidates]
-    response.candidate_parameter_names = [p.name for c in result.candidates
-                                          for p in c.parameters]
+    response.candidate_parameter_names = [p.name for c in result.candidates for p in c.parameters]
     response.candidate_parameter_values = float64_field(
-        [p.value for c in result.candidates for p in c.parameters])
+        [p.value for c in result.candidates for p in c.parameters]
+    )
     response.noise_std_m_s = result.noise_std_m_s
     response.required_score = result.required_score
     response.verdict = result.verdict

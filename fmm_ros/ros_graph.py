@@ -36,8 +36,13 @@ class InProcessGraph:
             ...
     """
 
-    def __init__(self, *, domain_id: int | None = None, localhost_only: bool = True,
-                 spin_period_s: float = 0.05) -> None:
+    def __init__(
+        self,
+        *,
+        domain_id: int | None = None,
+        localhost_only: bool = True,
+        spin_period_s: float = 0.05,
+    ) -> None:
         if localhost_only:
             # Read by the middleware at context init: discovery stays on this host.
             os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
@@ -81,15 +86,20 @@ class InProcessGraph:
         for node in self._nodes:
             for subscription in node.subscriptions:
                 wanted[subscription.topic_name] = wanted.get(subscription.topic_name, 0) + 1
-        publishers = [publisher for node in self._nodes for publisher in node.publishers
-                      if publisher.topic_name in wanted]
+        publishers = [
+            publisher
+            for node in self._nodes
+            for publisher in node.publishers
+            if publisher.topic_name in wanted
+        ]
         deadline = time.monotonic() + timeout_s
         for publisher in publishers:
             while publisher.get_subscription_count() < wanted[publisher.topic_name]:
                 if time.monotonic() > deadline:
                     raise TimeoutError(
                         f'{publisher.topic_name}: {publisher.get_subscription_count()} of '
-                        f'{wanted[publisher.topic_name]} subscribers matched after {timeout_s} s')
+                        f'{wanted[publisher.topic_name]} subscribers matched after {timeout_s} s'
+                    )
                 time.sleep(0.005)
 
     def _spin(self) -> None:

@@ -126,39 +126,58 @@ class _Results(Node):
         self.latest = msg
 
 
-def run_session(config: SessionConfig, progress: Callable[[str], None] = lambda _: None
-                ) -> SessionResult:
+def run_session(
+    config: SessionConfig, progress: Callable[[str], None] = lambda _: None
+) -> SessionResult:
     """Run the session to its last impact, fit mu over it, close the bag; return the results."""
     config.out_dir.mkdir(parents=True, exist_ok=True)
     bag = config.out_dir / 'bag'
     batch = config.batch()
-    cli_args = (['--ros-args', '--params-file', str(config.params_file)]
-                if config.params_file else None)
+    cli_args = (
+        ['--ros-args', '--params-file', str(config.params_file)] if config.params_file else None
+    )
 
     def overrides(**values: object) -> list[Parameter]:
         return [Parameter(name, value=value) for name, value in values.items()]
 
     with InProcessGraph() as graph:
-        hammer = graph.add(HammerSim, cli_args=cli_args, parameter_overrides=overrides(
-            hits_per_level=config.hits_per_level, rate_factor=config.rate_factor,
-            batch_size=batch, seed=config.seed))
-        graph.add(RigSim, cli_args=cli_args, parameter_overrides=overrides(
-            mu=config.plant_mu, effects=list(config.plant_effects) or [''],
-            seed=config.seed + 1))
+        hammer = graph.add(
+            HammerSim,
+            cli_args=cli_args,
+            parameter_overrides=overrides(
+                hits_per_level=config.hits_per_level,
+                rate_factor=config.rate_factor,
+                batch_size=batch,
+                seed=config.seed,
+            ),
+        )
+        graph.add(
+            RigSim,
+            cli_args=cli_args,
+            parameter_overrides=overrides(
+                mu=config.plant_mu, effects=list(config.plant_effects) or [''], seed=config.seed + 1
+            ),
+        )
         analyzer = graph.add(Analyzer, cli_args=cli_args)
         graph.add(Fitter, cli_args=cli_args)
         graph.add(Recorder, cli_args=cli_args, parameter_overrides=overrides(bag_path=str(bag)))
         total = len(hammer.schedule)
-        results = graph.add(_Results, on_impact=lambda msg: progress(
-            f'impact {msg.impact_id + 1}/{total}: {msg.level or "no level"} '
-            f'{msg.peak_force_n:.0f} N, {msg.impulse_n_s:.3f} N*s, '
-            f'|X/F| {msg.peak_receptance_m_per_n * 1e3:.3f} mm/N at '
-            f'{msg.natural_frequency_hz:.2f} Hz, '
-            + ('accepted' if msg.accepted else f'rejected ({", ".join(msg.flags)})')))
+        results = graph.add(
+            _Results,
+            on_impact=lambda msg: progress(
+                f'impact {msg.impact_id + 1}/{total}: {msg.level or "no level"} '
+                f'{msg.peak_force_n:.0f} N, {msg.impulse_n_s:.3f} N*s, '
+                f'|X/F| {msg.peak_receptance_m_per_n * 1e3:.3f} mm/N at '
+                f'{msg.natural_frequency_hz:.2f} Hz, '
+                + ('accepted' if msg.accepted else f'rejected ({", ".join(msg.flags)})')
+            ),
+        )
         for node in (hammer, analyzer):
             node.get_logger().set_level(LoggingSeverity.WARN)
-        progress(f'{total} hits ({config.hits_per_level} a level) at x{config.rate_factor:g} '
-                 f'real time, {batch}-sample batches; recording to {bag}')
+        progress(
+            f'{total} hits ({config.hits_per_level} a level) at x{config.rate_factor:g} '
+            f'real time, {batch}-sample batches; recording to {bag}'
+        )
         start = time.monotonic()
         graph.start()
         _wait(lambda: len(results.impacts) >= total, lambda: hammer.next_index)
@@ -168,8 +187,9 @@ def run_session(config: SessionConfig, progress: Callable[[str], None] = lambda 
         fit_s = time.monotonic() - start - wall_s
         chosen = _one_accepted_per_level(results.impacts)
         progress(f'diagnosing the model on impacts {chosen} (one a level)')
-        diagnosis = graph.call(results.diagnose, DiagnoseModel.Request(impact_ids=chosen),
-                               timeout_s=600.0)
+        diagnosis = graph.call(
+            results.diagnose, DiagnoseModel.Request(impact_ids=chosen), timeout_s=600.0
+        )
         diagnose_s = time.monotonic() - start - wall_s - fit_s
         signal_s = hammer.next_index / hammer.config['sample_rate_hz']
         impacts, levels, latest = list(results.impacts), dict(results.levels), results.latest
@@ -181,26 +201,49 @@ def run_session(config: SessionConfig, progress: Callable[[str], None] = lambda 
         page = str(_report(bag, config.out_dir / 'report', capture, analysis, config))
     ordered = sorted(levels.values(), key=lambda summary: summary.mean_impulse_n_s)
     return SessionResult(
-        plant_mu=config.plant_mu, hits_sent=hits_sent, hits_reported=len(impacts),
+        plant_mu=config.plant_mu,
+        hits_sent=hits_sent,
+        hits_reported=len(impacts),
         hits_accepted=sum(msg.accepted for msg in impacts),
-        levels=[{'name': s.level, 'count': s.count, 'mean_impulse_n_s': s.mean_impulse_n_s,
-                 'std_impulse_n_s': s.std_impulse_n_s,
-                 'peak_receptance_m_per_n': s.peak_receptance_m_per_n,
-                 'natural_frequency_hz': s.natural_frequency_hz} for s in ordered],
+        levels=[
+            {
+                'name': s.level,
+                'count': s.count,
+                'mean_impulse_n_s': s.mean_impulse_n_s,
+                'std_impulse_n_s': s.std_impulse_n_s,
+                'peak_receptance_m_per_n': s.peak_receptance_m_per_n,
+                'natural_frequency_hz': s.natural_frequency_hz,
+            }
+            for s in ordered
+        ],
         r2=latest.linearity_r2 if latest else math.nan,
         mu=fit.mu if fit.success else math.nan,
         mu_stderr=fit.mu_stderr if fit.success else math.nan,
-        fit_success=fit.success, fit_message=fit.message,
+        fit_success=fit.success,
+        fit_message=fit.message,
         per_impact_mu=msgs.field_array(fit.per_impact_mu).tolist(),
         missing_effect=diagnosis.missing_effect if diagnosis.success else '',
-        diagnosis=diagnosis.verdict if diagnosis.success else diagnosis.message, bag=str(bag),
+        diagnosis=diagnosis.verdict if diagnosis.success else diagnosis.message,
+        bag=str(bag),
         report=page,
-        wall_s=wall_s, signal_s=signal_s, fit_s=fit_s, diagnose_s=diagnose_s,
-        impacts=[{'impact_id': m.impact_id, 'level': m.level, 'accepted': m.accepted,
-                  'flags': list(m.flags), 'peak_force_n': m.peak_force_n,
-                  'impulse_n_s': m.impulse_n_s,
-                  'peak_receptance_m_per_n': m.peak_receptance_m_per_n,
-                  'natural_frequency_hz': m.natural_frequency_hz} for m in impacts])
+        wall_s=wall_s,
+        signal_s=signal_s,
+        fit_s=fit_s,
+        diagnose_s=diagnose_s,
+        impacts=[
+            {
+                'impact_id': m.impact_id,
+                'level': m.level,
+                'accepted': m.accepted,
+                'flags': list(m.flags),
+                'peak_force_n': m.peak_force_n,
+                'impulse_n_s': m.impulse_n_s,
+                'peak_receptance_m_per_n': m.peak_receptance_m_per_n,
+                'natural_frequency_hz': m.natural_frequency_hz,
+            }
+            for m in impacts
+        ],
+    )
 
 
 def _report(bag: Path, out_dir: Path, capture, analysis, config: SessionConfig) -> Path:
@@ -209,10 +252,16 @@ def _report(bag: Path, out_dir: Path, capture, analysis, config: SessionConfig) 
     from fmm_ros.report.session import report_session
 
     records, problems = bag_impact_records(bag, capture)
-    return report_session(records, out_dir, capture=capture, analysis=analysis,
-                          fit_initial_position=True, inputs=[str(bag)], problems=problems,
-                          title=f'fmm demo: {config.hits_per_level} hits a level, plant mu '
-                                f'{config.plant_mu}').page
+    return report_session(
+        records,
+        out_dir,
+        capture=capture,
+        analysis=analysis,
+        fit_initial_position=True,
+        inputs=[str(bag)],
+        problems=problems,
+        title=f'fmm demo: {config.hits_per_level} hits a level, plant mu {config.plant_mu}',
+    ).page
 
 
 def _one_accepted_per_level(impacts: list[ImpactResult]) -> list[int]:
@@ -229,5 +278,6 @@ def _wait(done: Callable[[], bool], samples_out: Callable[[], int]) -> None:
         if samples_out() != last:
             last, moved = samples_out(), time.monotonic()
         elif time.monotonic() - moved > STALL_TIMEOUT_S:
-            raise TimeoutError(f'the session stalled: no samples published for '
-                               f'{STALL_TIMEOUT_S:g} s')
+            raise TimeoutError(
+                f'the session stalled: no samples published for {STALL_TIMEOUT_S:g} s'
+            )

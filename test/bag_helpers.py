@@ -12,10 +12,16 @@ def random_message(store, msgtype: str, rng: np.random.Generator):
     for name, (kind, detail) in fields:
         if name == 'header':
             values[name] = new_message(
-                store, 'std_msgs/msg/Header', frame_id=f'frame{rng.integers(9)}',
-                stamp=new_message(store, 'builtin_interfaces/msg/Time',
-                                  sec=int(rng.integers(1, 2**31 - 1)),
-                                  nanosec=int(rng.integers(0, 10**9))))
+                store,
+                'std_msgs/msg/Header',
+                frame_id=f'frame{rng.integers(9)}',
+                stamp=new_message(
+                    store,
+                    'builtin_interfaces/msg/Time',
+                    sec=int(rng.integers(1, 2**31 - 1)),
+                    nanosec=int(rng.integers(0, 10**9)),
+                ),
+            )
             continue
         base = detail[0] if kind == 1 else detail[0][1][0]
         count = None if kind == 1 else int(rng.integers(1, 40))
@@ -44,4 +50,5 @@ def assert_same(decoded, expected, path: str = 'msg') -> None:
             np.testing.assert_array_equal(np.asarray(got), want, err_msg=f'{path}.{name}')
         else:
             assert list(got) == list(want) if isinstance(want, list) else got == want, (
-                f'{path}.{name}: {got!r} != {want!r}')
+                f'{path}.{name}: {got!r} != {want!r}'
+            )

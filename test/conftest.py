@@ -9,8 +9,9 @@ from pathlib import Path
 
 import pytest
 
-os.environ.setdefault('MPLCONFIGDIR',
-                      str(Path(__file__).resolve().parents[1] / '.pytest_cache' / 'matplotlib'))
+os.environ.setdefault(
+    'MPLCONFIGDIR', str(Path(__file__).resolve().parents[1] / '.pytest_cache' / 'matplotlib')
+)
 
 
 @pytest.fixture

@@ -21,22 +21,40 @@ VELOCITY_NOISE_M_S = 1e-4
 LEVELS = tuple(PAPER_LEVELS)
 
 
-def lab_impact(peak_force_n, seed, *, mu, rig=FMM_RIG, effects=(), duration_s=33.0,
-               force_noise_std_n=FORCE_NOISE_N, velocity_noise_std_m_s=VELOCITY_NOISE_M_S):
+def lab_impact(
+    peak_force_n,
+    seed,
+    *,
+    mu,
+    rig=FMM_RIG,
+    effects=(),
+    duration_s=33.0,
+    force_noise_std_n=FORCE_NOISE_N,
+    velocity_noise_std_m_s=VELOCITY_NOISE_M_S,
+):
     """One simulated impact with a random hit shape and an unknown hit position."""
     rng = np.random.default_rng(seed)
     pretrigger_s = rng.uniform(0.01, 0.5)
     trigger_delay_s = rng.integers(0, 41) / 10_000.0
     return impact_record(
-        peak_force_n, rng, mu=mu, rig=rig, effects=effects, duration_s=duration_s,
+        peak_force_n,
+        rng,
+        mu=mu,
+        rig=rig,
+        effects=effects,
+        duration_s=duration_s,
         pretrigger_s=pretrigger_s + trigger_delay_s,
         contact_duration_s=tip_contact_duration_s(peak_force_n) * rng.uniform(0.7, 1.4),
-        rise_fraction=rng.uniform(0.3, 0.6), force_noise_std_n=force_noise_std_n,
-        velocity_noise_std_m_s=velocity_noise_std_m_s)
+        rise_fraction=rng.uniform(0.3, 0.6),
+        force_noise_std_n=force_noise_std_n,
+        velocity_noise_std_m_s=velocity_noise_std_m_s,
+    )
 
 
 def lab_levels(seed, *, mu, levels=LEVELS, **options):
     """One lab impact at each paper level (peaks scattered as a hand swing scatters them)."""
     rng = np.random.default_rng(seed)
-    return [lab_impact(level_peak_force_n(level, rng), int(rng.integers(2**31)), mu=mu,
-                       **options) for level in levels]
+    return [
+        lab_impact(level_peak_force_n(level, rng), int(rng.integers(2**31)), mu=mu, **options)
+        for level in levels
+    ]

@@ -27,11 +27,11 @@ class Oscillator:
     stribeck_velocity: float = 1.0
 
     def spring(self, x):
-        return self.stiffness * x + self.cubic * x ** 3
+        return self.stiffness * x + self.cubic * x**3
 
     def friction(self, sigma, v):
         mu = self.mu_pos if sigma > 0 else self.mu_neg
-        excess = self.static_excess * np.exp(-(v / self.stribeck_velocity) ** 2)
+        excess = self.static_excess * np.exp(-((v / self.stribeck_velocity) ** 2))
         return self.normal_force * (mu + excess)
 
     def static_limit(self, sigma):
@@ -48,12 +48,22 @@ def solve(osc: Oscillator, force, rate_hz, x0=0.0, v0=0.0):
 
     def rhs(sigma):
         def f(t, z):
-            return [z[1], (applied(t) - osc.damping * z[1] - osc.spring(z[0])
-                           - sigma * osc.friction(sigma, z[1])) / osc.mass]
+            return [
+                z[1],
+                (
+                    applied(t)
+                    - osc.damping * z[1]
+                    - osc.spring(z[0])
+                    - sigma * osc.friction(sigma, z[1])
+                )
+                / osc.mass,
+            ]
+
         return f
 
     def stop(t, z):
         return z[1]
+
     stop.terminal = True
 
     pieces = []  # (start, end, None for rest at x / dense solution)
@@ -80,9 +90,18 @@ def solve(osc: Oscillator, force, rate_hz, x0=0.0, v0=0.0):
             else:
                 sigma = np.sign(net)
         stop.direction = -sigma
-        sol = solve_ivp(rhs(sigma), (t, end), [x, v], method='DOP853', rtol=1e-12, atol=1e-15,
-                        events=stop, dense_output=True, max_step=2.0 / rate_hz,
-                        first_step=1e-9)
+        sol = solve_ivp(
+            rhs(sigma),
+            (t, end),
+            [x, v],
+            method='DOP853',
+            rtol=1e-12,
+            atol=1e-15,
+            events=stop,
+            dense_output=True,
+            max_step=2.0 / rate_hz,
+            first_step=1e-9,
+        )
         pieces.append((t, sol.t[-1], sol.sol))
         if sol.status != 1:
             break

@@ -20,8 +20,9 @@ def params(**values):
 
 
 # A short, fast session: 1 hit a level, 6 s records 8 s apart, 100x real time.
-FAST_HAMMER = dict(rate_factor=100.0, batch_size=1000, hits_per_level=1, hit_spacing_s=8.0,
-                   first_hit_s=1.0)
+FAST_HAMMER = dict(
+    rate_factor=100.0, batch_size=1000, hits_per_level=1, hit_spacing_s=8.0, first_hit_s=1.0
+)
 FAST_ANALYZER = dict(window_s=6.0)
 
 

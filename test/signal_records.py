@@ -29,20 +29,28 @@ def damping_for_ratio(zeta, mass_kg=MASS_KG, stiffness_n_per_m=STIFFNESS_N_PER_M
     return 2 * zeta * np.sqrt(stiffness_n_per_m * mass_kg)
 
 
-def linear_velocity(force_n, sample_rate_hz, damping_n_s_per_m, mass_kg=MASS_KG,
-                    stiffness_n_per_m=STIFFNESS_N_PER_M):
+def linear_velocity(
+    force_n, sample_rate_hz, damping_n_s_per_m, mass_kg=MASS_KG, stiffness_n_per_m=STIFFNESS_N_PER_M
+):
     """Velocity [m/s] of the linear oscillator driven by `force_n`, starting at rest."""
     num, den, _ = scipy.signal.cont2discrete(
-        ([1.0, 0.0], [mass_kg, damping_n_s_per_m, stiffness_n_per_m]), 1.0 / sample_rate_hz,
-        method='foh')
+        ([1.0, 0.0], [mass_kg, damping_n_s_per_m, stiffness_n_per_m]),
+        1.0 / sample_rate_hz,
+        method='foh',
+    )
     return scipy.signal.lfilter(num.ravel(), den, force_n)
 
 
-def analytic_mobility(frequency_hz, damping_n_s_per_m, mass_kg=MASS_KG,
-                      stiffness_n_per_m=STIFFNESS_N_PER_M, extra_decay_per_s=0.0):
+def analytic_mobility(
+    frequency_hz,
+    damping_n_s_per_m,
+    mass_kg=MASS_KG,
+    stiffness_n_per_m=STIFFNESS_N_PER_M,
+    extra_decay_per_s=0.0,
+):
     """V/F of the linear oscillator at s = i*omega + extra_decay_per_s [m/(N*s)]."""
     s = 2j * np.pi * np.asarray(frequency_hz) + extra_decay_per_s
-    return s / (mass_kg * s ** 2 + damping_n_s_per_m * s + stiffness_n_per_m)
+    return s / (mass_kg * s**2 + damping_n_s_per_m * s + stiffness_n_per_m)
 
 
 def hits(n_samples, sample_rate_hz, hits_at, zeta=0.05, duration_s=0.004):

@@ -40,14 +40,18 @@ def write_chunked(path, batches: int = 12, per_chunk: int = 3) -> list:
     force, velocity = ramp(batches * BATCH)
     with BagWriter(path, time_origin_ns=0, flush_interval_s=None) as writer:
         for k in range(batches):
-            writer.write_signals(force[k * BATCH:(k + 1) * BATCH],
-                                 velocity[k * BATCH:(k + 1) * BATCH], FS,
-                                 first_sample_index=k * BATCH)
+            writer.write_signals(
+                force[k * BATCH : (k + 1) * BATCH],
+                velocity[k * BATCH : (k + 1) * BATCH],
+                FS,
+                first_sample_index=k * BATCH,
+            )
             if k % per_chunk == per_chunk - 1:
                 writer.flush()
     with (path / f'{path.name}.mcap').open('rb') as stream:
-        return sorted(make_reader(stream).get_summary().chunk_indexes,
-                      key=lambda c: c.chunk_start_offset)
+        return sorted(
+            make_reader(stream).get_summary().chunk_indexes, key=lambda c: c.chunk_start_offset
+        )
 
 
 def read_until_error(path, strict: bool = True):
@@ -96,7 +100,7 @@ def test_a_truncated_sqlite3_bag_is_read_row_by_row_up_to_the_damage(tmp_path):
     with BagWriter(bag, storage='sqlite3', time_origin_ns=0) as writer:
         writer.write_signals(force, velocity, FS)
     database = bag / 'db.db3'
-    database.write_bytes(database.read_bytes()[:database.stat().st_size // 2])
+    database.write_bytes(database.read_bytes()[: database.stat().st_size // 2])
 
     read, _, error, _ = read_until_error(bag)
     assert isinstance(error, BagDamagedError)
@@ -134,7 +138,7 @@ def test_garbage_over_a_record_header_stops_reading_with_its_offset(tmp_path):
     mcap = bag / 'garbage.mcap'
     data = bytearray(mcap.read_bytes())
     start = chunks[2].chunk_start_offset
-    data[start:start + 64] = b'\xff' * 64
+    data[start : start + 64] = b'\xff' * 64
     mcap.write_bytes(bytes(data))
     force, _, error, _ = read_until_error(bag)
     assert isinstance(error, BagDamagedError) and f'byte {start}' in str(error)
@@ -181,8 +185,9 @@ def test_unknown_message_types_are_named(tmp_path):
     # A bag (written by some other tool) with a type it does not define.
     bag = tmp_path / 'foreign'
     with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as foreign:
-        conn = foreign.add_connection('/lab/thing', 'lab_msgs/msg/Mystery', msgdef='',
-                                      rihs01='RIHS01_' + '0' * 64)
+        conn = foreign.add_connection(
+            '/lab/thing', 'lab_msgs/msg/Mystery', msgdef='', rihs01='RIHS01_' + '0' * 64
+        )
         foreign.write(conn, 5, b'\x00\x01\x00\x00\x07\x00\x00\x00')
     with BagReader(bag) as reader:
         assert reader.topics['/lab/thing'].msgtype == 'lab_msgs/msg/Mystery'
@@ -209,8 +214,9 @@ WRITER_SCRIPT = textwrap.dedent("""
 @pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
 def test_a_killed_recording_is_read_up_to_its_last_flush(tmp_path, storage):
     bag = tmp_path / 'crashed'
-    child = subprocess.Popen([sys.executable, '-c', WRITER_SCRIPT, str(bag), storage],
-                             stdout=subprocess.PIPE, text=True)
+    child = subprocess.Popen(
+        [sys.executable, '-c', WRITER_SCRIPT, str(bag), storage], stdout=subprocess.PIPE, text=True
+    )
     flushed = 0
     try:
         while flushed < 40 * BATCH:

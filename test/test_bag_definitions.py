@@ -54,23 +54,43 @@ def test_a_plain_pip_install_carries_the_definitions_as_package_data(tmp_path):
         shutil.copytree(REPO / name, source / name, ignore=ignore)
     for name in ('setup.py', 'setup.cfg', 'package.xml', 'MANIFEST.in'):
         shutil.copy(REPO / name, source / name)
-    subprocess.run([sys.executable, '-m', 'pip', 'wheel', '--no-deps', '--no-build-isolation',
-                    '--quiet', '-w', str(tmp_path / 'dist'), str(source)],
-                   check=True, capture_output=True, env={**os.environ, 'PIP_NO_CACHE_DIR': '1'})
+    subprocess.run(
+        [
+            sys.executable,
+            '-m',
+            'pip',
+            'wheel',
+            '--no-deps',
+            '--no-build-isolation',
+            '--quiet',
+            '-w',
+            str(tmp_path / 'dist'),
+            str(source),
+        ],
+        check=True,
+        capture_output=True,
+        env={**os.environ, 'PIP_NO_CACHE_DIR': '1'},
+    )
     (wheel,) = (tmp_path / 'dist').glob('fmm_ros-*.whl')
     target = tmp_path / 'site'
     with zipfile.ZipFile(wheel) as archive:
         archive.extractall(target)
     shutil.rmtree(source)  # no checkout left to find the .msg files in
     # -S: no .pth files, so the editable install of this checkout stays out of the way.
-    code = ('import sys; sys.path[:0] = sys.argv[1:]; import fmm_ros; '
-            'from fmm_ros.core.bagio.definitions import find_definitions, fmm_typestore; '
-            'found = find_definitions(); fmm_typestore(); '
-            'print(fmm_ros.__file__); print(found.origin); print(len(found.texts))')
+    code = (
+        'import sys; sys.path[:0] = sys.argv[1:]; import fmm_ros; '
+        'from fmm_ros.core.bagio.definitions import find_definitions, fmm_typestore; '
+        'found = find_definitions(); fmm_typestore(); '
+        'print(fmm_ros.__file__); print(found.origin); print(len(found.texts))'
+    )
     env = {k: v for k, v in os.environ.items() if k != 'AMENT_PREFIX_PATH'}
-    result = subprocess.run([sys.executable, '-S', '-c', code, str(target),
-                             *site.getsitepackages()],
-                            capture_output=True, text=True, env=env, cwd=tmp_path)
+    result = subprocess.run(
+        [sys.executable, '-S', '-c', code, str(target), *site.getsitepackages()],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=tmp_path,
+    )
     assert result.returncode == 0, result.stderr
     module, origin, count = result.stdout.split('\n')[:3]
     assert module.startswith(str(target))

@@ -55,18 +55,24 @@ def test_offline_analysis_of_the_bag_equals_the_live_run(recorded_session):
     judged = offline.summary.impacts
     assert len(judged) == len(live)
     for off, on in zip(judged, live, strict=True):
-        assert (off.level, off.accepted, list(off.flags)) == (on.level, on.accepted,
-                                                              list(on.flags))
+        assert (off.level, off.accepted, list(off.flags)) == (on.level, on.accepted, list(on.flags))
         assert (off.trigger_sample_index, off.impulse_n_s, off.peak_receptance_m_per_n) == (
-            on.trigger_sample_index, on.impulse_n_s, on.peak_receptance_m_per_n)
+            on.trigger_sample_index,
+            on.impulse_n_s,
+            on.peak_receptance_m_per_n,
+        )
         assert off.mobility.tobytes() == msgs.complex_field(on, 'mobility').tobytes()
 
 
 def test_the_player_replays_the_session_into_a_live_analyzer(recorded_session):
     bag, live, _ = recorded_session
     with InProcessGraph() as graph:
-        player = graph.add(Player, parameter_overrides=params(
-            bag_path=str(bag), rate_factor=100.0, topics=['/fmm/force', '/fmm/velocity']))
+        player = graph.add(
+            Player,
+            parameter_overrides=params(
+                bag_path=str(bag), rate_factor=100.0, topics=['/fmm/force', '/fmm/velocity']
+            ),
+        )
         graph.add(Analyzer, parameter_overrides=params(**FAST_ANALYZER))
         listener = graph.add(Listener)
         graph.start()
@@ -74,23 +80,28 @@ def test_the_player_replays_the_session_into_a_live_analyzer(recorded_session):
         assert player.finished or wait_for(lambda: player.finished)
     for again, on in zip(listener.impacts, live, strict=True):
         assert again.impulse_n_s == on.impulse_n_s
-        assert np.array_equal(msgs.complex_field(again, 'receptance'),
-                              msgs.complex_field(on, 'receptance'))
+        assert np.array_equal(
+            msgs.complex_field(again, 'receptance'), msgs.complex_field(on, 'receptance')
+        )
 
 
 def test_player_names_what_a_bag_lacks(recorded_session, ros_graph):
     bag, _, _ = recorded_session
     with pytest.raises(ValueError, match='has no topic /fmm/torque; it has /fmm/force'):
-        ros_graph.add(Player, parameter_overrides=params(bag_path=str(bag),
-                                                         topics=['/fmm/torque']))
+        ros_graph.add(Player, parameter_overrides=params(bag_path=str(bag), topics=['/fmm/torque']))
     with pytest.raises(ValueError, match='set the bag_path parameter'):
         ros_graph.add(Player)
 
 
 def test_recorder_refuses_an_unknown_storage(ros_graph, tmp_path):
     with pytest.raises(Exception, match='not one of mcap, sqlite3'):
-        ros_graph.add(Recorder, parameter_overrides=[
-            Parameter('bag_path', value=str(tmp_path / 'b')), Parameter('storage', value='zip')])
+        ros_graph.add(
+            Recorder,
+            parameter_overrides=[
+                Parameter('bag_path', value=str(tmp_path / 'b')),
+                Parameter('storage', value='zip'),
+            ],
+        )
 
 
 @pytest.mark.parametrize('signum', ['SIGINT', 'SIGTERM'])
@@ -105,18 +116,27 @@ def test_fmm_record_records_live_topics_until_interrupted(tmp_path, signum):
 
     from fmm_ros.launch import parse_overrides, start_processes, stop_processes
 
-    env = dict(os.environ, ROS_DOMAIN_ID=str(random.choice(PRIVATE_DOMAIN_IDS)),
-               ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    env = dict(
+        os.environ,
+        ROS_DOMAIN_ID=str(random.choice(PRIVATE_DOMAIN_IDS)),
+        ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
+    )
     os.environ.update({k: env[k] for k in ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE')})
     bag = tmp_path / 'live'
     fmm = os.path.join(os.path.dirname(sys.executable), 'fmm')
     recorder = subprocess.Popen([fmm, 'record', str(bag), '--topics', '/fmm/force'], env=env)
-    rig = start_processes(['hammer_sim', 'rig_sim'], None, parse_overrides(
-        ['hammer_sim.rate_factor=10', 'hammer_sim.wait_for_subscribers=1'],
-        ['hammer_sim', 'rig_sim']))
+    rig = start_processes(
+        ['hammer_sim', 'rig_sim'],
+        None,
+        parse_overrides(
+            ['hammer_sim.rate_factor=10', 'hammer_sim.wait_for_subscribers=1'],
+            ['hammer_sim', 'rig_sim'],
+        ),
+    )
     try:
-        assert wait_for(lambda: (bag / 'metadata.yaml').exists() or _mcap_size(bag) > 200_000,
-                        timeout_s=60.0)
+        assert wait_for(
+            lambda: (bag / 'metadata.yaml').exists() or _mcap_size(bag) > 200_000, timeout_s=60.0
+        )
     finally:
         stop_processes(rig)
         recorder.send_signal(getattr(signal, signum))

@@ -40,14 +40,22 @@ def write_session(path: Path, n: int = 4_000, *, storage: str = 'mcap'):
     results = [random_message(store, IMPACT_RESULT, rng) for _ in range(3)]
     summaries = [random_message(store, FRF_SUMMARY, rng) for _ in range(2)]
     with BagWriter(path, storage=storage, time_origin_ns=ORIGIN_NS) as writer:
-        writer.write_signals(force[:n // 2], velocity[:n // 2], FS)
+        writer.write_signals(force[: n // 2], velocity[: n // 2], FS)
         # The second half arrives as raw CDR, as a raw subscription hands it to the recorder.
         for start in range(n // 2, n, 500):
-            for topic, data, quantity in ((FORCE_TOPIC, force, ('force', 'N')),
-                                          (VELOCITY_TOPIC, velocity, ('velocity', 'm/s'))):
+            for topic, data, quantity in (
+                (FORCE_TOPIC, force, ('force', 'N')),
+                (VELOCITY_TOPIC, velocity, ('velocity', 'm/s')),
+            ):
                 message = new_message(
-                    store, SAMPLE_BATCH, quantity=quantity[0], unit=quantity[1],
-                    sample_rate_hz=FS, first_sample_index=start, samples=data[start:start + 500])
+                    store,
+                    SAMPLE_BATCH,
+                    quantity=quantity[0],
+                    unit=quantity[1],
+                    sample_rate_hz=FS,
+                    first_sample_index=start,
+                    samples=data[start : start + 500],
+                )
                 raw = bytes(store.serialize_cdr(message, SAMPLE_BATCH))
                 writer.write_raw(topic, SAMPLE_BATCH, raw, ORIGIN_NS + start * 100_000)
         for i, result in enumerate(results):
@@ -92,11 +100,16 @@ def test_rosbags_and_bag_reader_give_the_same_arrays(tmp_path, storage):
         for conn, _, data in plain.messages():
             if conn.topic in rosbags_samples:
                 rosbags_samples[conn.topic].append(
-                    store.deserialize_cdr(data, conn.msgtype).samples)
+                    store.deserialize_cdr(data, conn.msgtype).samples
+                )
     with BagReader(bag) as reader:
         assert reader.storage == storage and not reader.recovered and not reader.problems
         assert {t.topic: t.count for t in reader.topics.values()} == {
-            FORCE_TOPIC: 8, VELOCITY_TOPIC: 8, IMPACTS_TOPIC: 3, FRF_TOPIC: 2}
+            FORCE_TOPIC: 8,
+            VELOCITY_TOPIC: 8,
+            IMPACTS_TOPIC: 3,
+            FRF_TOPIC: 2,
+        }
         batches = list(reader.batches())
         assert [b.first_sample_index for b in batches] == list(range(0, 4000, 500))
         assert all(b.gap_samples == 0 and b.sample_rate_hz == FS for b in batches)
@@ -111,8 +124,11 @@ def test_rosbags_and_bag_reader_give_the_same_arrays(tmp_path, storage):
             assert_same(got, expected)
         # As a live subscriber received them: both channels, interleaved, in storage order.
         arrived = [(b.topic, b.first_sample_index) for b in reader.sample_batches()]
-        assert arrived == [(topic, index) for index in range(0, 4000, 500)
-                           for topic in (FORCE_TOPIC, VELOCITY_TOPIC)]
+        assert arrived == [
+            (topic, index)
+            for index in range(0, 4000, 500)
+            for topic in (FORCE_TOPIC, VELOCITY_TOPIC)
+        ]
 
 
 def test_batches_are_views_of_the_stored_bytes(tmp_path):

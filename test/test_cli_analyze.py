@@ -21,8 +21,7 @@ SECONDS = 4.0
 def impact_file(path, peak_n, rate_hz=RATE_HZ, zeta=0.3, at_s=0.5, seconds=SECONDS):
     n = int(seconds * rate_hz)
     # A 20 ms pulse: 20 samples at 1 kHz, enough for the trapezoid to be within 0.2 %.
-    force, velocity = hits(n, rate_hz, [(int(at_s * rate_hz), peak_n)], zeta=zeta,
-                           duration_s=0.02)
+    force, velocity = hits(n, rate_hz, [(int(at_s * rate_hz), peak_n)], zeta=zeta, duration_s=0.02)
     write_impact_csv(path, force, velocity, rate_hz)
     return path
 
@@ -44,23 +43,36 @@ def test_json_report_has_exactly_the_documented_keys(series, capsys):
     assert code == 0
     report = json.loads(out)
     assert list(report) == ['impacts', 'levels', 'linearity']
-    assert list(report['impacts'][0]) == ['file', 'accepted', 'flags', 'impulse_n_s',
-                                          'peak_force_n', 'peak_receptance_m_per_n',
-                                          'natural_frequency_hz']
-    assert list(report['levels'][0]) == ['name', 'count', 'mean_impulse_n_s',
-                                         'peak_receptance_m_per_n']
+    assert list(report['impacts'][0]) == [
+        'file',
+        'accepted',
+        'flags',
+        'impulse_n_s',
+        'peak_force_n',
+        'peak_receptance_m_per_n',
+        'natural_frequency_hz',
+    ]
+    assert list(report['levels'][0]) == [
+        'name',
+        'count',
+        'mean_impulse_n_s',
+        'peak_receptance_m_per_n',
+    ]
     assert list(report['linearity']) == ['slope', 'intercept', 'r2']
     assert [i['file'] for i in report['impacts']] == [str(p) for p in series]
-    assert [(i['accepted'], i['flags']) for i in report['impacts']] == [
-        (True, [])] * 5 + [(False, ['out_of_tolerance'])]
+    assert [(i['accepted'], i['flags']) for i in report['impacts']] == [(True, [])] * 5 + [
+        (False, ['out_of_tolerance'])
+    ]
     assert [(lv['name'], lv['count']) for lv in report['levels']] == [
-        ('low', 2), ('medium', 2), ('high', 1)]
+        ('low', 2),
+        ('medium', 2),
+        ('high', 1),
+    ]
     first = report['impacts'][0]
     assert first['peak_force_n'] == pytest.approx(450, rel=1e-3)
     assert first['impulse_n_s'] == pytest.approx(450 * 0.02 * 2 / np.pi, rel=5e-3)
     # Receptance of a 30 %-damped mode peaks at f_n sqrt(1 - 2 zeta^2), on a 0.25 Hz grid.
-    assert first['natural_frequency_hz'] == pytest.approx(2.2 * np.sqrt(1 - 2 * 0.3 ** 2),
-                                                          abs=0.13)
+    assert first['natural_frequency_hz'] == pytest.approx(2.2 * np.sqrt(1 - 2 * 0.3**2), abs=0.13)
     # A linear oscillator's peak receptance does not depend on the impulse: R^2 is undefined.
     assert report['linearity']['r2'] is None
 
@@ -69,9 +81,9 @@ def test_clustering_text_report_and_exports(series, capsys, tmp_path):
     uff, csv = tmp_path / 'levels.uff', tmp_path / 'levels.csv'
     code, out, _ = run_cli(capsys, *series, '--export', uff, '--export', csv)
     assert code == 0
-    assert 'hit_5.csv' in out and 'level_4' in out         # 1900 N is a level of its own
+    assert 'hit_5.csv' in out and 'level_4' in out  # 1900 N is a level of its own
     assert 'linearity:' in out
-    assert uff.read_text().count('\n    58') == 4 * 5          # 4 levels x 5 curves
+    assert uff.read_text().count('\n    58') == 4 * 5  # 4 levels x 5 curves
     header = csv.read_text().splitlines()[0]
     assert header.startswith('frequency_hz,level_1_mean_mobility_real')
 
@@ -93,19 +105,24 @@ def test_a_file_and_a_live_capture_of_the_same_samples_agree(tmp_path):
     live = analyze_impact(record)
     from_file = analyze_impact(read_impact_csv(tmp_path / 'one.csv'))
     offset = live.trigger_sample_index - live.record_start_sample_index
-    assert from_file.trigger_sample_index == offset    # the file starts at the record start
+    assert from_file.trigger_sample_index == offset  # the file starts at the record start
     assert from_file.flags == live.flags == ()
     assert from_file.impulse_n_s == pytest.approx(live.impulse_n_s, rel=1e-12)
     np.testing.assert_allclose(from_file.mobility, live.mobility, rtol=1e-9)
 
 
-@pytest.mark.parametrize('content, problem', [
-    ('time_s,force_n\n0,0\n0.001,1\n', 'missing column(s) velocity_m_s'),
-    ('time_s,force_n,velocity_m_s\n0,0,0\n0.001,30,0\n0.003,0,0\n0.004,0,0\n',
-     'non-uniform time step'),
-    ('time_s,force_n,velocity_m_s\n0,0,0\n0.001,nan,0\n0.002,0,0\n', 'force_n is not finite'),
-    ('time_s,force_n,velocity_m_s\n0,0,0\n0.001,1,0\n0.002,0,0\n', 'never reaches the trigger'),
-])
+@pytest.mark.parametrize(
+    'content, problem',
+    [
+        ('time_s,force_n\n0,0\n0.001,1\n', 'missing column(s) velocity_m_s'),
+        (
+            'time_s,force_n,velocity_m_s\n0,0,0\n0.001,30,0\n0.003,0,0\n0.004,0,0\n',
+            'non-uniform time step',
+        ),
+        ('time_s,force_n,velocity_m_s\n0,0,0\n0.001,nan,0\n0.002,0,0\n', 'force_n is not finite'),
+        ('time_s,force_n,velocity_m_s\n0,0,0\n0.001,1,0\n0.002,0,0\n', 'never reaches the trigger'),
+    ],
+)
 def test_bad_input_is_one_line_naming_the_problem(tmp_path, capsys, series, content, problem):
     bad = tmp_path / 'bad.csv'
     bad.write_text(content)
@@ -137,7 +154,8 @@ def test_bad_options_are_refused_by_the_parser(series, capsys):
 
 def test_installed_command_runs(series):
     fmm = Path(sys.executable).with_name('fmm')
-    result = subprocess.run([str(fmm), 'analyze', str(series[0]), '--json'],
-                            capture_output=True, text=True)
+    result = subprocess.run(
+        [str(fmm), 'analyze', str(series[0]), '--json'], capture_output=True, text=True
+    )
     assert result.returncode == 0, result.stderr
     assert json.loads(result.stdout)['impacts'][0]['accepted'] is True

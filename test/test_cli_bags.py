@@ -33,24 +33,35 @@ def lab_csv(tmp_path):
     force_lbf = np.sin(2 * np.pi * time_s)
     velocity_mm_s = np.cos(2 * np.pi * time_s)
     path = tmp_path / 'trial.csv'
-    np.savetxt(path, np.column_stack([time_s, force_lbf, velocity_mm_s]), delimiter=',',
-               header='Time,Hammer,Vibrometer', comments='', fmt='%.6f')
+    np.savetxt(
+        path,
+        np.column_stack([time_s, force_lbf, velocity_mm_s]),
+        delimiter=',',
+        header='Time,Hammer,Vibrometer',
+        comments='',
+        fmt='%.6f',
+    )
     return path
 
 
-def test_import_lists_channels_then_writes_a_bag_that_bag_info_describes(
-        tmp_path, lab_csv, capsys):
+def test_import_lists_channels_then_writes_a_bag_that_bag_info_describes(tmp_path, lab_csv, capsys):
     assert main(['import', str(lab_csv), '--list']) == 0
     assert capsys.readouterr().out.split('\n')[1:4] == ['  Time', '  Hammer', '  Vibrometer']
 
     mapping = tmp_path / 'map.yaml'
-    mapping.write_text('force: {name: Hammer, unit: lbf}\n'
-                       'velocity: {name: Vibrometer, unit: m/s}\n'
-                       'time: {name: Time, unit: s}\n')
+    mapping.write_text(
+        'force: {name: Hammer, unit: lbf}\n'
+        'velocity: {name: Vibrometer, unit: m/s}\n'
+        'time: {name: Time, unit: s}\n'
+    )
     bag = tmp_path / 'bag'
     # The flag overrides the file's velocity unit.
-    assert main(['import', str(lab_csv), '-o', str(bag), '-m', str(mapping),
-                 '--velocity-unit', 'mm/s']) == 0
+    assert (
+        main(
+            ['import', str(lab_csv), '-o', str(bag), '-m', str(mapping), '--velocity-unit', 'mm/s']
+        )
+        == 0
+    )
     out, err = capsys.readouterr()
     assert "velocity: 'Vibrometer' [mm/s] × 0.001 -> m/s" in out
     assert 'sample rate: 10000 Hz (time channel' in out
@@ -74,10 +85,17 @@ def test_bag_info_reports_gaps_clipping_and_a_crashed_recording(tmp_path, capsys
     writer.open()
     samples = np.linspace(-1, 1, 500)
     for index in (0, 500, 1500, 2000):  # the batch at 1000 was dropped on both channels
-        writer.write_sample_batch(FORCE_TOPIC, samples * 600, quantity=FORCE,
-                                  sample_rate_hz=FS, first_sample_index=index, full_scale=500)
-        writer.write_sample_batch(VELOCITY_TOPIC, samples, quantity=VELOCITY,
-                                  sample_rate_hz=FS, first_sample_index=index)
+        writer.write_sample_batch(
+            FORCE_TOPIC,
+            samples * 600,
+            quantity=FORCE,
+            sample_rate_hz=FS,
+            first_sample_index=index,
+            full_scale=500,
+        )
+        writer.write_sample_batch(
+            VELOCITY_TOPIC, samples, quantity=VELOCITY, sample_rate_hz=FS, first_sample_index=index
+        )
     writer.flush()  # and the process dies here: no close, no metadata.yaml
     assert main(['bag-info', str(bag)]) == 1
     out, err = capsys.readouterr()
@@ -120,12 +138,12 @@ def test_export_writes_impact_and_level_tables(tmp_path, capsys):
     impact_id = impacts[0].impact_id
     frf = np.genfromtxt(out_dir / f'impact_{impact_id}.csv', delimiter=',', names=True)
     np.testing.assert_array_equal(frf['frequency_hz'], impacts[0].frequency_hz)
-    np.testing.assert_array_equal(frf[f'impact_{impact_id}_receptance_imag'],
-                                  impacts[0].receptance_imag)
+    np.testing.assert_array_equal(
+        frf[f'impact_{impact_id}_receptance_imag'], impacts[0].receptance_imag
+    )
     level = np.genfromtxt(out_dir / 'level_high_level.csv', delimiter=',', names=True)
     np.testing.assert_array_equal(level['high_level_coherence'], summary.coherence)
-    np.testing.assert_array_equal(level['high_level_h2_mobility_real'],
-                                  summary.h2_mobility_real)
+    np.testing.assert_array_equal(level['high_level_h2_mobility_real'], summary.h2_mobility_real)
     with (out_dir / 'levels.csv').open() as stream:
         (row,) = list(csv.DictReader(stream))
     assert row['impact_ids'] == '|'.join(str(i) for i in summary.impact_ids)
@@ -156,8 +174,11 @@ class Terminal(io.StringIO):
 
 
 def test_progress_bar_only_on_a_terminal_and_never_when_quiet():
-    for stream, quiet, shown in ((Terminal(), False, True), (Terminal(), True, False),
-                                 (io.StringIO(), False, False)):
+    for stream, quiet, shown in (
+        (Terminal(), False, True),
+        (Terminal(), True, False),
+        (io.StringIO(), False, False),
+    ):
         with progress_bar(1000, desc='reading', unit='msg', quiet=quiet, stream=stream) as bar:
             bar.update(1000)
         assert ('reading' in stream.getvalue()) == shown, (quiet, type(stream))

@@ -16,8 +16,9 @@ PNG_MAGIC = b'\x89PNG\r\n\x1a\n'
 def offset_files(tmp_path_factory):
     """Three 8 s impacts with a hidden vibrometer offset, one CSV each."""
     directory = tmp_path_factory.mktemp('offset')
-    case = hidden_effect_case('velocity_offset', np.random.default_rng([8, 1]), ratio=2.0,
-                              duration_s=8.0)
+    case = hidden_effect_case(
+        'velocity_offset', np.random.default_rng([8, 1]), ratio=2.0, duration_s=8.0
+    )
     paths = []
     for index, record in enumerate(case.records):
         path = directory / f'hit{index}.csv'
@@ -30,12 +31,20 @@ def test_json_names_the_effect_with_the_issues_keys(offset_files, capsys, tmp_pa
     case, paths = offset_files
     assert main(['diagnose', *paths, '--json', '--plot', str(tmp_path)]) == 0
     payload = json.loads(capsys.readouterr().out)
-    for key in ('missing_effect', 'parameters', 'gap_before', 'gap_after', 'where',
-                'candidates', 'mu'):
+    for key in (
+        'missing_effect',
+        'parameters',
+        'gap_before',
+        'gap_after',
+        'where',
+        'candidates',
+        'mu',
+    ):
         assert key in payload
     assert payload['missing_effect'] == 'velocity_offset'
     assert payload['parameters']['velocity_offset.offset_m_s'] == pytest.approx(
-        case.term.offset_m_s, rel=0.05)
+        case.term.offset_m_s, rel=0.05
+    )
     assert payload['gap_after'] <= 0.5 * payload['gap_before']
     assert payload['files'] == paths
     assert len(payload['candidates']) == 7
@@ -83,9 +92,11 @@ def test_initial_positions_are_fitted_in_every_model_on_request(offset_files, ca
     payload = json.loads(capsys.readouterr().out)
     assert payload['missing_effect'] == 'velocity_offset'
     # the hits started at rest at x = 0: the fitted starts are well inside the friction band
-    starts = [value for name, value in payload['parameters'].items()
-              if name.startswith('initial_position_m')]
+    starts = [
+        value
+        for name, value in payload['parameters'].items()
+        if name.startswith('initial_position_m')
+    ]
     assert len(starts) == 3 and all(abs(x) < 1e-4 for x in starts)
     for candidate in payload['candidates']:
-        assert sum(name.startswith('initial_position_m')
-                   for name in candidate['parameters']) == 3
+        assert sum(name.startswith('initial_position_m') for name in candidate['parameters']) == 3

@@ -11,15 +11,27 @@ from fmm_ros.core.bagio.simulated import simulated_session, write_session_bag
 from fmm_ros.core.model import FMM_RIG, Rig, free_vibration
 from fmm_ros.core.records import write_impact_csv
 
-SECONDS = 8.0   # at mu = 0.113 the FMM is at rest within 4 s of the hit
+SECONDS = 8.0  # at mu = 0.113 the FMM is at rest within 4 s of the hit
 FIT_KEYS = {'mu', 'mu_stderr', 'damping_n_s_per_m', 'residual_rms_m_s', 'per_file'}
 PER_FILE_KEYS = {'file', 'mu', 'impulse_n_s', 'residual_rms_m_s'}
-RIG_KEYS = {'mass_kg', 'stiffness_n_per_m', 'damping_n_s_per_m', 'natural_frequency_hz',
-            'damping_ratio'}
-OTHER_RIG = Rig(mass_kg=6.0, stiffness_n_per_m=1500.0, damping_n_s_per_m=0.4,
-                normal_force_n=4.0)
-OTHER_RIG_FLAGS = ['--mass-kg', '6', '--stiffness-n-per-m', '1500', '--damping-n-s-per-m', '0.4',
-                   '--normal-force-n', '4']
+RIG_KEYS = {
+    'mass_kg',
+    'stiffness_n_per_m',
+    'damping_n_s_per_m',
+    'natural_frequency_hz',
+    'damping_ratio',
+}
+OTHER_RIG = Rig(mass_kg=6.0, stiffness_n_per_m=1500.0, damping_n_s_per_m=0.4, normal_force_n=4.0)
+OTHER_RIG_FLAGS = [
+    '--mass-kg',
+    '6',
+    '--stiffness-n-per-m',
+    '1500',
+    '--damping-n-s-per-m',
+    '0.4',
+    '--normal-force-n',
+    '4',
+]
 
 
 def write(path, record):
@@ -31,21 +43,33 @@ def write(path, record):
 def files(tmp_path_factory):
     """Three paper-level impacts at mu = 0.113, a lifted-pin impact, a free decay, noise."""
     folder = tmp_path_factory.mktemp('fit_cli')
-    made = {'levels': [write(folder / f'{level}.csv', record) for level, record in zip(
-        ('low', 'medium', 'high'), lab_levels(70, mu=0.113, duration_s=SECONDS), strict=True)]}
-    made['lifted'] = write(folder / 'lifted.csv', lab_impact(1000.0, 71, mu=0.0,
-                                                            duration_s=SECONDS))
-    made['other_rig'] = write(folder / 'other.csv', lab_impact(800.0, 72, mu=0.15, rig=OTHER_RIG,
-                                                              duration_s=SECONDS))
+    made = {
+        'levels': [
+            write(folder / f'{level}.csv', record)
+            for level, record in zip(
+                ('low', 'medium', 'high'), lab_levels(70, mu=0.113, duration_s=SECONDS), strict=True
+            )
+        ]
+    }
+    made['lifted'] = write(
+        folder / 'lifted.csv', lab_impact(1000.0, 71, mu=0.0, duration_s=SECONDS)
+    )
+    made['other_rig'] = write(
+        folder / 'other.csv', lab_impact(800.0, 72, mu=0.15, rig=OTHER_RIG, duration_s=SECONDS)
+    )
     rng = np.random.default_rng(73)
-    decay = np.concatenate((np.zeros(1000), free_vibration(2e-3, SECONDS - 0.1, 1e4,
-                                                           mu=0.0).velocity_m_s))
-    write_impact_csv(folder / 'decay.csv', rng.normal(0.0, 0.2, decay.size),
-                     decay + rng.normal(0.0, 1e-4, decay.size), 1e4)
+    decay = np.concatenate(
+        (np.zeros(1000), free_vibration(2e-3, SECONDS - 0.1, 1e4, mu=0.0).velocity_m_s)
+    )
+    write_impact_csv(
+        folder / 'decay.csv',
+        rng.normal(0.0, 0.2, decay.size),
+        decay + rng.normal(0.0, 1e-4, decay.size),
+        1e4,
+    )
     made['decay'] = folder / 'decay.csv'
     n = round(SECONDS * 1e4)
-    write_impact_csv(folder / 'noise.csv', rng.normal(0.0, 0.2, n), rng.normal(0.0, 1e-4, n),
-                     1e4)
+    write_impact_csv(folder / 'noise.csv', rng.normal(0.0, 0.2, n), rng.normal(0.0, 1e-4, n), 1e4)
     made['noise'] = folder / 'noise.csv'
     return made
 
@@ -76,8 +100,9 @@ def test_fit_json_has_the_issues_keys_and_one_mu(capsys, files):
 
 
 def test_fit_damping_and_the_frf_misfit(capsys, files):
-    code, out, _ = run(capsys, 'fit', *files['levels'], '--json', '--fit-damping',
-                       '--misfit', 'frf')
+    code, out, _ = run(
+        capsys, 'fit', *files['levels'], '--json', '--fit-damping', '--misfit', 'frf'
+    )
     result = json.loads(out)
     assert code == 0 and result['damping_fitted'] is True and result['misfit'] == 'frf'
     assert result['mu'] == pytest.approx(0.113, rel=0.01)
@@ -133,10 +158,13 @@ def test_records_friction_cannot_explain_exit_1_with_the_reason(capsys, files):
     assert err.startswith('fmm fit: cannot fit (mu_at_bound): ')
 
 
-@pytest.mark.parametrize('content, message', [
-    ('time_s,force_n\n0,1\n0.1,2\n', 'missing column(s) velocity_m_s'),
-    ('time_s,force_n,velocity_m_s\n0,1,0\n0.1,nan,0\n0.2,0,0\n', 'force_n is not finite'),
-])
+@pytest.mark.parametrize(
+    'content, message',
+    [
+        ('time_s,force_n\n0,1\n0.1,2\n', 'missing column(s) velocity_m_s'),
+        ('time_s,force_n,velocity_m_s\n0,1,0\n0.1,nan,0\n0.2,0,0\n', 'force_n is not finite'),
+    ],
+)
 def test_bad_files_exit_2_naming_the_problem(capsys, tmp_path, content, message):
     path = tmp_path / 'bad.csv'
     path.write_text(content)
@@ -185,8 +213,7 @@ def test_identify_rig_from_a_free_decay_takes_the_mass(capsys, files):
 
 def test_identify_rig_refuses_a_friction_damped_record(capsys, files):
     code, out, _ = run(capsys, 'identify-rig', files['levels'][1], '--json')
-    assert code == 1 and json.loads(out)['error'] in ('unexplained', 'at_bound',
-                                                      'too_few_cycles')
+    assert code == 1 and json.loads(out)['error'] in ('unexplained', 'at_bound', 'too_few_cycles')
 
 
 def test_both_subcommands_are_listed():

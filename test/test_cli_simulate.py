@@ -9,8 +9,18 @@ from fmm_ros.cli import main
 from fmm_ros.core.excitation import half_sine_pulse
 from fmm_ros.core.model import FMM_RIG, Rig, simulate
 
-FIG2 = ['--mu', '0.1', '--mass-kg', '1', '--stiffness-n-per-m', '5000',
-        '--damping-n-s-per-m', '0', '--normal-force-n', '9.81']
+FIG2 = [
+    '--mu',
+    '0.1',
+    '--mass-kg',
+    '1',
+    '--stiffness-n-per-m',
+    '5000',
+    '--damping-n-s-per-m',
+    '0',
+    '--normal-force-n',
+    '9.81',
+]
 
 
 def run_json(capsys, *args):
@@ -19,30 +29,55 @@ def run_json(capsys, *args):
 
 
 def write_force_csv(path, time_s, force_n):
-    np.savetxt(path, np.column_stack((time_s, force_n)), delimiter=',', header='time_s,force_n',
-               comments='', fmt='%.10g')
+    np.savetxt(
+        path,
+        np.column_stack((time_s, force_n)),
+        delimiter=',',
+        header='time_s,force_n',
+        comments='',
+        fmt='%.10g',
+    )
 
 
 def test_json_summary_of_the_paper_free_vibration(capsys):
     summary = run_json(capsys, '--x0-mm', '3', *FIG2, '--duration-s', '1')
-    assert set(summary) == {'final_position_m', 'rest_time_s', 'natural_frequency_hz',
-                            'damping_ratio', 'peak_velocity_m_s'}
+    assert set(summary) == {
+        'final_position_m',
+        'rest_time_s',
+        'natural_frequency_hz',
+        'damping_ratio',
+        'peak_velocity_m_s',
+    }
     assert summary['final_position_m'] == pytest.approx(-0.1392e-3, abs=1e-12)
     assert summary['natural_frequency_hz'] == pytest.approx(11.254, abs=1e-3)
     assert summary['damping_ratio'] == 0.0
     assert summary['rest_time_s'] == pytest.approx(4 / 11.253953951963826, rel=1e-12)
     omega = 2 * np.pi * 11.253953951963826
     assert summary['peak_velocity_m_s'] == pytest.approx(omega * (3e-3 - 0.1962e-3), rel=1e-4)
-    euler = run_json(capsys, '--x0-mm', '3', *FIG2, '--duration-s', '1', '--integrator',
-                     'euler', '--sample-rate-hz', '112540')
+    euler = run_json(
+        capsys,
+        '--x0-mm',
+        '3',
+        *FIG2,
+        '--duration-s',
+        '1',
+        '--integrator',
+        'euler',
+        '--sample-rate-hz',
+        '112540',
+    )
     assert euler['final_position_m'] == pytest.approx(-0.1392e-3, abs=1e-9)
 
 
 def test_defaults_are_the_fmm_at_rest(capsys):
     summary = run_json(capsys, '--duration-s', '0.5')
-    assert summary == {'final_position_m': 0.0, 'rest_time_s': 0.0,
-                       'natural_frequency_hz': FMM_RIG.natural_frequency_hz,
-                       'damping_ratio': FMM_RIG.damping_ratio, 'peak_velocity_m_s': 0.0}
+    assert summary == {
+        'final_position_m': 0.0,
+        'rest_time_s': 0.0,
+        'natural_frequency_hz': FMM_RIG.natural_frequency_hz,
+        'damping_ratio': FMM_RIG.damping_ratio,
+        'peak_velocity_m_s': 0.0,
+    }
 
 
 def test_text_summary_says_when_the_mass_is_still_sliding(capsys):
@@ -58,8 +93,9 @@ def test_force_record_in_response_record_out(tmp_path, capsys):
     force = half_sine_pulse(1000.0, 2.2e-3, rate, 2.0, start_s=0.1)
     write_force_csv(tmp_path / 'hit.csv', time_s, force)
     out = tmp_path / 'response.csv'
-    summary = run_json(capsys, '--force-csv', str(tmp_path / 'hit.csv'), '--out', str(out),
-                       '--duration-s', '5')
+    summary = run_json(
+        capsys, '--force-csv', str(tmp_path / 'hit.csv'), '--out', str(out), '--duration-s', '5'
+    )
     with open(out, encoding='utf-8') as stream:
         assert stream.readline().strip() == 'time_s,force_n,displacement_m,velocity_m_s'
     table = np.loadtxt(out, delimiter=',', skiprows=1)
@@ -74,9 +110,24 @@ def test_force_record_in_response_record_out(tmp_path, capsys):
 
 
 def test_rig_flags_reach_the_model(tmp_path, capsys):
-    args = ['--v0-m-s', '0.05', '--mass-kg', '5', '--stiffness-n-per-m', '3000',
-            '--damping-n-s-per-m', '1', '--normal-force-n', '4', '--mu', '0.2',
-            '--duration-s', '3', '--sample-rate-hz', '2000']
+    args = [
+        '--v0-m-s',
+        '0.05',
+        '--mass-kg',
+        '5',
+        '--stiffness-n-per-m',
+        '3000',
+        '--damping-n-s-per-m',
+        '1',
+        '--normal-force-n',
+        '4',
+        '--mu',
+        '0.2',
+        '--duration-s',
+        '3',
+        '--sample-rate-hz',
+        '2000',
+    ]
     summary = run_json(capsys, *args)
     rig = Rig(5.0, 3000.0, 1.0, 4.0)
     expected = simulate(np.zeros(6000), 2000.0, rig=rig, mu=0.2, v0_m_s=0.05)
@@ -84,14 +135,20 @@ def test_rig_flags_reach_the_model(tmp_path, capsys):
     assert summary['damping_ratio'] == pytest.approx(rig.damping_ratio)
 
 
-@pytest.mark.parametrize(('rows', 'extra', 'message'), [
-    ('time_s,force_n\n0,0\n0.0001,1\n0.0003,2\n', [], 'non-uniform time step'),
-    ('time_s,force_n\n0,0\n0.0001,nan\n0.0002,0\n', [], 'force_n is not finite at sample 1'),
-    ('t,f\n0,0\n0.0001,1\n', [], 'expected the header time_s,force_n'),
-    ('time_s,force_n\n0,0\n0.0001,x\n', [], 'hit.csv'),
-    ('time_s,force_n\n0,0\n0.0001,1\n0.0002,0\n', ['--sample-rate-hz', '5000'],
-     'does not match the force record'),
-])
+@pytest.mark.parametrize(
+    ('rows', 'extra', 'message'),
+    [
+        ('time_s,force_n\n0,0\n0.0001,1\n0.0003,2\n', [], 'non-uniform time step'),
+        ('time_s,force_n\n0,0\n0.0001,nan\n0.0002,0\n', [], 'force_n is not finite at sample 1'),
+        ('t,f\n0,0\n0.0001,1\n', [], 'expected the header time_s,force_n'),
+        ('time_s,force_n\n0,0\n0.0001,x\n', [], 'hit.csv'),
+        (
+            'time_s,force_n\n0,0\n0.0001,1\n0.0002,0\n',
+            ['--sample-rate-hz', '5000'],
+            'does not match the force record',
+        ),
+    ],
+)
 def test_bad_force_records_exit_2_with_a_one_line_error(tmp_path, capsys, rows, extra, message):
     (tmp_path / 'hit.csv').write_text(rows, encoding='utf-8')
     assert main(['simulate', '--force-csv', str(tmp_path / 'hit.csv'), *extra]) == 2
@@ -100,15 +157,18 @@ def test_bad_force_records_exit_2_with_a_one_line_error(tmp_path, capsys, rows, 
     assert err.count('\n') == 1
 
 
-@pytest.mark.parametrize(('args', 'message'), [
-    (['--mass-kg', '0'], 'mass_kg must be positive'),
-    (['--stiffness-n-per-m', '-3'], 'stiffness_n_per_m must be positive'),
-    (['--mu', '-0.1'], 'mu must not be negative'),
-    (['--sample-rate-hz', '20'], 'time step too coarse'),
-    (['--duration-s', '0'], 'duration_s must be positive'),
-    (['--x0-mm', 'inf'], 'x0_m must be finite'),
-    (['--force-csv', '/nonexistent/hit.csv'], 'No such file'),
-])
+@pytest.mark.parametrize(
+    ('args', 'message'),
+    [
+        (['--mass-kg', '0'], 'mass_kg must be positive'),
+        (['--stiffness-n-per-m', '-3'], 'stiffness_n_per_m must be positive'),
+        (['--mu', '-0.1'], 'mu must not be negative'),
+        (['--sample-rate-hz', '20'], 'time step too coarse'),
+        (['--duration-s', '0'], 'duration_s must be positive'),
+        (['--x0-mm', 'inf'], 'x0_m must be finite'),
+        (['--force-csv', '/nonexistent/hit.csv'], 'No such file'),
+    ],
+)
 def test_bad_arguments_exit_2_with_a_one_line_error(capsys, args, message):
     assert main(['simulate', *args]) == 2
     err = capsys.readouterr().err

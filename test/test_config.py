@@ -9,8 +9,10 @@ from fmm_ros.nodes import analyzer, daq, fitter, hammer_sim, player, recorder, r
 from fmm_ros.nodes.params import node_param_tables, params_file_text
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'fmm_rig.yaml'
-NODES = {module.__name__.rsplit('.', 1)[1]: module
-         for module in (hammer_sim, rig_sim, analyzer, fitter, recorder, player, daq)}
+NODES = {
+    module.__name__.rsplit('.', 1)[1]: module
+    for module in (hammer_sim, rig_sim, analyzer, fitter, recorder, player, daq)
+}
 
 
 def test_every_node_and_every_parameter_is_in_the_config_and_valid():
@@ -32,22 +34,31 @@ def test_the_config_is_the_text_made_from_the_parameter_tables():
     """Descriptions, units, ranges and defaults cannot drift from the code."""
     assert CONFIG.read_text() == params_file_text(node_param_tables()), (
         'config/fmm_rig.yaml is stale: .venv/bin/python -m fmm_ros.nodes.params > '
-        'config/fmm_rig.yaml')
+        'config/fmm_rig.yaml'
+    )
 
 
 def test_the_params_file_shows_ranges_choices_and_replaced_defaults():
     text = params_file_text(node_param_tables())
-    assert '    batch_size: 500  # Samples per published message [-] (>= 500 keeps rclpy ' \
-           'cheap); 1 to 1000000\n' in text
+    assert (
+        '    batch_size: 500  # Samples per published message [-] (>= 500 keeps rclpy '
+        'cheap); 1 to 1000000\n' in text
+    )
     assert '# Physics integrator; one of exact, rk4, euler\n' in text
     assert 'wait_for_subscribers: 1  #' in text and text.count('node default 0') == 1
     assert 'settable live' in text.split('rate_factor: 1.0', 1)[1].split('\n', 1)[0]
     assert yaml.safe_load(text)['recorder']['ros__parameters']['topics'][0] == '/fmm/force'
 
 
-@pytest.mark.parametrize(('node', 'cls'), [
-    ('hammer_sim', hammer_sim.HammerSim), ('rig_sim', rig_sim.RigSim),
-    ('analyzer', analyzer.Analyzer), ('fitter', fitter.Fitter)])
+@pytest.mark.parametrize(
+    ('node', 'cls'),
+    [
+        ('hammer_sim', hammer_sim.HammerSim),
+        ('rig_sim', rig_sim.RigSim),
+        ('analyzer', analyzer.Analyzer),
+        ('fitter', fitter.Fitter),
+    ],
+)
 def test_nodes_start_from_the_params_file(ros_graph, node, cls):
     started = ros_graph.add(cls, cli_args=['--ros-args', '--params-file', str(CONFIG)])
     assert started.config == yaml.safe_load(CONFIG.read_text())[node]['ros__parameters']

@@ -16,16 +16,25 @@ RATE_HZ = 10_000.0
 
 @pytest.mark.parametrize('suffix', ['.csv', '.npz'])
 def test_file_backend_streams_a_recording_into_the_analyzer(ros_graph, tmp_path, suffix):
-    hit = impact_record(1000.0, rng=3, duration_s=8.0, pretrigger_s=1.0,
-                        force_noise_std_n=0.2, velocity_noise_std_m_s=1e-4)
+    hit = impact_record(
+        1000.0,
+        rng=3,
+        duration_s=8.0,
+        pretrigger_s=1.0,
+        force_noise_std_n=0.2,
+        velocity_noise_std_m_s=1e-4,
+    )
     path = tmp_path / f'hit{suffix}'
     if suffix == '.csv':
         write_impact_csv(path, hit.force_n, hit.velocity_m_s, RATE_HZ)
     else:
-        np.savez(path, force_n=hit.force_n, velocity_m_s=hit.velocity_m_s,
-                 sample_rate_hz=RATE_HZ)
-    daq = ros_graph.add(Daq, parameter_overrides=params(backend='file', file_path=str(path),
-                                                        rate_factor=100.0, batch_size=1000))
+        np.savez(path, force_n=hit.force_n, velocity_m_s=hit.velocity_m_s, sample_rate_hz=RATE_HZ)
+    daq = ros_graph.add(
+        Daq,
+        parameter_overrides=params(
+            backend='file', file_path=str(path), rate_factor=100.0, batch_size=1000
+        ),
+    )
     ros_graph.add(Analyzer, parameter_overrides=params(**FAST_ANALYZER))
     listener = ros_graph.add(Listener)
     ros_graph.start()
@@ -43,6 +52,6 @@ def test_file_backend_without_a_file_says_so(ros_graph):
 
 
 def test_nidaqmx_backend_without_the_driver_says_what_to_install(ros_graph, monkeypatch):
-    monkeypatch.setitem(sys.modules, 'nidaqmx', None)   # as on a machine without nidaqmx
+    monkeypatch.setitem(sys.modules, 'nidaqmx', None)  # as on a machine without nidaqmx
     with pytest.raises(RuntimeError, match='pip install nidaqmx'):
         ros_graph.add(Daq)

@@ -25,10 +25,15 @@ from fmm_ros.core.hidden_effects import HIDDEN_EFFECTS, hidden_effect_case
 SEED = 2019
 
 # The parameter that sets each effect's size, and how close the refit must bring it.
-SIZE = {'viscous_damping': 'damping_n_s_per_m', 'stribeck': 'mu_static_excess',
-        'asymmetric_friction': 'mu_difference', 'cubic_stiffness': 'cubic_stiffness_n_per_m3',
-        'velocity_offset': 'offset_m_s', 'sensor_delay': 'delay_s',
-        'second_mode': 'frequency_hz'}
+SIZE = {
+    'viscous_damping': 'damping_n_s_per_m',
+    'stribeck': 'mu_static_excess',
+    'asymmetric_friction': 'mu_difference',
+    'cubic_stiffness': 'cubic_stiffness_n_per_m3',
+    'velocity_offset': 'offset_m_s',
+    'sensor_delay': 'delay_s',
+    'second_mode': 'frequency_hz',
+}
 
 
 @pytest.fixture(scope='module')
@@ -42,9 +47,16 @@ def diagnoses():
 
 
 def test_the_vocabulary_is_the_issues():
-    assert VOCABULARY == ('viscous_damping', 'stribeck', 'asymmetric_friction',
-                          'cubic_stiffness', 'second_mode', 'velocity_offset', 'sensor_delay',
-                          'none')
+    assert VOCABULARY == (
+        'viscous_damping',
+        'stribeck',
+        'asymmetric_friction',
+        'cubic_stiffness',
+        'second_mode',
+        'velocity_offset',
+        'sensor_delay',
+        'none',
+    )
 
 
 @pytest.mark.parametrize('effect', HIDDEN_EFFECTS)
@@ -86,30 +98,42 @@ def test_clean_data_names_none_and_every_candidate_falls_short(diagnoses):
 def test_where_points_at_the_signature_of_the_effect(diagnoses):
     offset = diagnoses['velocity_offset'][1].where
     assert offset.rest_velocity_m_s == pytest.approx(
-        diagnoses['velocity_offset'][0].term.offset_m_s, abs=5 * offset.rest_velocity_stderr_m_s)
+        diagnoses['velocity_offset'][0].term.offset_m_s, abs=5 * offset.rest_velocity_stderr_m_s
+    )
     assert max(offset.frequency, key=lambda b: b.share).name == 'below f_n'
     delay = diagnoses['sensor_delay']
     assert delay[1].where.phase_delay_s == pytest.approx(delay[0].term.delay_s, rel=0.2)
     mode_case, mode = diagnoses['second_mode']
-    assert mode.where.peaks[0].frequency_hz == pytest.approx(mode_case.term.frequency_hz,
-                                                             abs=0.5)
+    assert mode.where.peaks[0].frequency_hz == pytest.approx(mode_case.term.frequency_hz, abs=0.5)
     assert 'non-harmonic peak' in mode.where.summary
     viscous = diagnoses['viscous_damping'][1].where
     # extra viscous damping bends the peak map below the base model's
-    assert all(m.peak_map_slope < s.peak_map_slope for m, s in zip(viscous.measured,
-                                                                   viscous.model, strict=True))
+    assert all(
+        m.peak_map_slope < s.peak_map_slope
+        for m, s in zip(viscous.measured, viscous.model, strict=True)
+    )
     regions = {r.name: r for r in diagnoses['stribeck'][1].where.time}
     assert sum(r.share for r in regions.values()) == pytest.approx(1.0)
 
 
 def test_to_dict_has_the_issues_keys_and_is_json(diagnoses):
     payload = diagnoses['stribeck'][1].to_dict()
-    for key in ('missing_effect', 'parameters', 'gap_before', 'gap_after', 'where',
-                'candidates', 'mu'):
+    for key in (
+        'missing_effect',
+        'parameters',
+        'gap_before',
+        'gap_after',
+        'where',
+        'candidates',
+        'mu',
+    ):
         assert key in payload
     assert payload['missing_effect'] == 'stribeck'
-    assert set(payload['parameters']) == {'mu', 'stribeck.mu_static_excess',
-                                          'stribeck.stribeck_velocity_m_s'}
+    assert set(payload['parameters']) == {
+        'mu',
+        'stribeck.mu_static_excess',
+        'stribeck.stribeck_velocity_m_s',
+    }
     assert {c['effect'] for c in payload['candidates']} == set(EFFECTS)
     for candidate in payload['candidates']:
         assert set(candidate) >= {'effect', 'score', 'gap_after', 'parameters'}
@@ -136,22 +160,32 @@ def test_start_values_come_from_the_signatures(diagnoses):
         impacts = [as_conditioned(r) for r in case.records]
         base = fit_model(impacts)
         start = start_term(effect, impacts, base, result.where, case.rig)
-        assert getattr(start, attribute) == pytest.approx(getattr(case.term, attribute),
-                                                          rel=0.25)
+        assert getattr(start, attribute) == pytest.approx(getattr(case.term, attribute), rel=0.25)
 
 
 def test_a_record_without_a_hit_is_a_clear_failure():
     record = impact_record(1000.0, 1, duration_s=5.0)
     quiet = np.random.default_rng(1).normal(0.0, 0.2, record.force_n.size)
     with pytest.raises(FitError, match='no hit'):
-        diagnose([type('R', (), dict(force_n=quiet, velocity_m_s=record.velocity_m_s,
-                                     sample_rate_hz=1e4))()])
+        diagnose(
+            [
+                type(
+                    'R',
+                    (),
+                    dict(force_n=quiet, velocity_m_s=record.velocity_m_s, sample_rate_hz=1e4),
+                )()
+            ]
+        )
     with pytest.raises(ValueError, match='no impacts'):
         diagnose([])
 
 
 def test_gaps_are_finite_and_non_negative(diagnoses):
     for _, result in diagnoses.values():
-        for value in (result.gap_before, result.gap_after, result.frf_gap_before,
-                      result.frf_gap_after):
+        for value in (
+            result.gap_before,
+            result.gap_after,
+            result.frf_gap_before,
+            result.frf_gap_after,
+        ):
             assert math.isfinite(value) and value >= 0.0

@@ -18,12 +18,12 @@ OFFSET_M_S = 3e-4  # three times the vibrometer noise
 
 def test_an_offset_in_the_rig_is_named_over_the_service(ros_graph):
     ros_graph.add(HammerSim, parameter_overrides=params(**FAST_HAMMER))
-    ros_graph.add(RigSim, parameter_overrides=params(
-        effects=[f'velocity_offset:offset_m_s={OFFSET_M_S}']))
+    ros_graph.add(
+        RigSim, parameter_overrides=params(effects=[f'velocity_offset:offset_m_s={OFFSET_M_S}'])
+    )
     ros_graph.add(Analyzer, parameter_overrides=params(**FAST_ANALYZER))
     fitter = ros_graph.add(Fitter)
-    client = ros_graph.add(Node, node_name='caller').create_client(DiagnoseModel,
-                                                                    DIAGNOSE_SERVICE)
+    client = ros_graph.add(Node, node_name='caller').create_client(DiagnoseModel, DIAGNOSE_SERVICE)
     ros_graph.start()
     assert wait_for(lambda: len(fitter.impacts) == 3)
     response = ros_graph.call(client, DiagnoseModel.Request(), timeout_s=120.0)
@@ -36,15 +36,17 @@ def test_an_offset_in_the_rig_is_named_over_the_service(ros_graph):
     assert response.gap_after <= 0.5 * response.gap_before
     assert set(response.candidate_effects) == set(EFFECTS)
     counts = list(response.candidate_parameter_counts)
-    assert sum(counts) == len(response.candidate_parameter_names) == len(
-        response.candidate_parameter_values)
+    assert (
+        sum(counts)
+        == len(response.candidate_parameter_names)
+        == len(response.candidate_parameter_values)
+    )
     assert response.verdict == response.message and response.where
 
 
 def test_a_diagnosis_without_impacts_is_refused_with_the_reason(ros_graph):
     ros_graph.add(Fitter)
-    client = ros_graph.add(Node, node_name='caller').create_client(DiagnoseModel,
-                                                                    DIAGNOSE_SERVICE)
+    client = ros_graph.add(Node, node_name='caller').create_client(DiagnoseModel, DIAGNOSE_SERVICE)
     ros_graph.start()
     response = ros_graph.call(client, DiagnoseModel.Request())
     assert not response.success and 'no accepted impact held yet' in response.message

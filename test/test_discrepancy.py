@@ -33,8 +33,8 @@ def test_region_labels_follow_the_decay():
     force, velocity = coulomb_decay()
     labels = d.region_labels(velocity, 1000)
     names = [d.REGIONS[i] for i in labels]
-    assert set(names[:1000]) == {'at rest'}                      # before the hit
-    assert names[-1] == 'at rest'                                # after the final stop
+    assert set(names[:1000]) == {'at rest'}  # before the hit
+    assert names[-1] == 'at rest'  # after the final stop
     moving = velocity != 0.0
     assert not np.any(labels[moving] == d.REGIONS.index('at rest'))
     early = np.flatnonzero(labels == d.REGIONS.index('early, large amplitude'))
@@ -42,8 +42,10 @@ def test_region_labels_follow_the_decay():
     assert early.size and late.size and early.max() < late.min()
     reversal = labels == d.REGIONS.index('near reversals')
     assert np.all(np.abs(velocity[reversal]) < 0.25 * np.abs(velocity).max())
-    assert np.all(np.abs(velocity[labels == d.REGIONS.index('early, large amplitude')])
-                  >= 0.25 * 0.5 * np.abs(velocity).max())
+    assert np.all(
+        np.abs(velocity[labels == d.REGIONS.index('early, large amplitude')])
+        >= 0.25 * 0.5 * np.abs(velocity).max()
+    )
 
 
 def test_time_regions_put_an_offset_at_rest_and_normalise_shares():
@@ -60,9 +62,10 @@ def test_time_regions_put_an_offset_at_rest_and_normalise_shares():
         assert region.excess_rms_m_s == pytest.approx(3e-4, rel=0.1)
 
 
-@pytest.mark.parametrize(('frequency_hz', 'band'), [
-    (3 * F_N, 'odd harmonics'), (F_N, 'at f_n'), (3.4 * F_N, 'elsewhere'),
-    (0.0, 'below f_n')])
+@pytest.mark.parametrize(
+    ('frequency_hz', 'band'),
+    [(3 * F_N, 'odd harmonics'), (F_N, 'at f_n'), (3.4 * F_N, 'elsewhere'), (0.0, 'below f_n')],
+)
 def test_frequency_bands_find_the_band_of_a_residual_tone(frequency_hz, band):
     rng = np.random.default_rng(4)
     t = np.arange(330_000) / RATE_HZ
@@ -100,18 +103,27 @@ def test_viscous_decay_is_exponential_with_the_damping_ratio_in_the_peak_map():
     velocity = np.concatenate((np.zeros(100), sim.velocity_m_s))
     signature = d.decay_signatures(velocity, RATE_HZ, 100, F_N)
     assert signature.envelope_shape == 'exponential'
-    assert signature.peak_map_slope == pytest.approx(math.exp(-math.pi * rig.damping_ratio),
-                                                     abs=2e-3)
+    assert signature.peak_map_slope == pytest.approx(
+        math.exp(-math.pi * rig.damping_ratio), abs=2e-3
+    )
     assert abs(signature.peak_map_intercept_m) < 2e-5
 
 
 def test_stiffening_shortens_the_large_swings():
     base = free_vibration(15e-3, 6.0, RATE_HZ, mu=0.05)
-    stiff = free_vibration(15e-3, 6.0, RATE_HZ, mu=0.05,
-                           effects=model_term('cubic_stiffness', cubic_stiffness_n_per_m3=2e6))
-    slopes = [d.decay_signatures(np.concatenate((np.zeros(100), s.velocity_m_s)), RATE_HZ, 100,
-                                 F_N).half_period_amplitude_slope_s_per_m2
-              for s in (base, stiff)]
+    stiff = free_vibration(
+        15e-3,
+        6.0,
+        RATE_HZ,
+        mu=0.05,
+        effects=model_term('cubic_stiffness', cubic_stiffness_n_per_m3=2e6),
+    )
+    slopes = [
+        d.decay_signatures(
+            np.concatenate((np.zeros(100), s.velocity_m_s)), RATE_HZ, 100, F_N
+        ).half_period_amplitude_slope_s_per_m2
+        for s in (base, stiff)
+    ]
     # Duffing: dT/d(A^2) = -3 k3 T0 / (8 k), about -85 s/m^2 here.
     assert slopes[1] - slopes[0] == pytest.approx(-3 * 2e6 * (0.5 / F_N) / (8 * 1982), rel=0.2)
 
@@ -125,7 +137,8 @@ def test_phase_delay_reads_a_lag_of_the_velocity_channel():
     force, velocity = coulomb_decay()
     delayed = simulate(force, RATE_HZ, effects=model_term('sensor_delay', delay_s=2.5e-4))
     assert d.phase_delay_s(delayed.velocity_m_s, velocity, RATE_HZ, F_N) == pytest.approx(
-        2.5e-4, rel=0.05)
+        2.5e-4, rel=0.05
+    )
     assert abs(d.phase_delay_s(velocity, velocity, RATE_HZ, F_N)) < 1e-9
 
 

@@ -32,7 +32,8 @@ def test_paper_levels_and_their_half_sine_contact_durations():
     for level in PAPER_LEVELS.values():
         # the tip law fitted through the three levels reproduces each within 2 %
         assert tip_contact_duration_s(level.peak_force_n) == pytest.approx(
-            level.contact_duration_s, rel=0.02)
+            level.contact_duration_s, rel=0.02
+        )
     # a harder hit is a shorter one (the rubber tip stiffens)
     assert tip_contact_duration_s(2000.0) < tip_contact_duration_s(1000.0)
 
@@ -57,7 +58,8 @@ def test_hammer_pulse_is_skewed_but_keeps_the_half_sine_impulse():
     assert trapezoid_impulse(skewed, rate) == pytest.approx(2 * peak * contact / math.pi, rel=1e-6)
     np.testing.assert_array_equal(
         hammer_pulse(peak, contact, rate, 0.01, start_s=1e-3, rise_fraction=0.5),
-        half_sine_pulse(peak, contact, rate, 0.01, start_s=1e-3))
+        half_sine_pulse(peak, contact, rate, 0.01, start_s=1e-3),
+    )
 
 
 @pytest.mark.parametrize(('force_n', 'width_s'), [(100.0, 2.5e-3), (25.0, 10e-3)])
@@ -95,8 +97,9 @@ def test_impact_record_is_reproducible_from_a_seed_or_generator():
 
 
 def test_impact_record_velocity_is_the_model_response_to_the_clean_pulse():
-    record = impact_record(1450.0, rng=5, duration_s=4.0, force_noise_std_n=0.0,
-                           velocity_noise_std_m_s=0.0)
+    record = impact_record(
+        1450.0, rng=5, duration_s=4.0, force_noise_std_n=0.0, velocity_noise_std_m_s=0.0
+    )
     again = simulate(record.force_n, RATE_HZ)
     np.testing.assert_array_equal(record.velocity_m_s, again.velocity_m_s)
     assert record.peak_force_n == 1450.0
@@ -110,19 +113,26 @@ def test_level_peak_force_scatters_about_the_nominal_level():
     assert level_peak_force_n('low', rng=1) == level_peak_force_n('low', rng=1)
 
 
-@pytest.mark.parametrize(('call', 'message'), [
-    (lambda: half_sine_pulse(-5.0, 1e-3, RATE_HZ, 1.0), 'peak_force_n must be positive'),
-    (lambda: half_sine_pulse(100.0, 0.0, RATE_HZ, 1.0), 'contact_duration_s must be positive'),
-    (lambda: half_sine_pulse(100.0, 1e-3, RATE_HZ, 1.0, start_s=1.0), 'does not fit'),
-    (lambda: hammer_pulse(100.0, 1e-3, RATE_HZ, 1.0, rise_fraction=1.0), 'rise_fraction'),
-    (lambda: rectangular_pulse(100.0, 1e-5, RATE_HZ, 1.0), 'shorter than one sample'),
-    (lambda: rectangular_pulse(math.nan, 1e-3, RATE_HZ, 1.0), 'force_n must be finite'),
-    (lambda: impact_record(1000.0, rng=1, force_noise_std_n=-1.0),
-     'force_noise_std_n must not be negative'),
-    (lambda: impact_record(1000.0, rng=1, sample_rate_hz=0.0),
-     'sample_rate_hz must be positive'),
-    (lambda: level_peak_force_n('extreme', rng=1), "unknown hammer level 'extreme'"),
-])
+@pytest.mark.parametrize(
+    ('call', 'message'),
+    [
+        (lambda: half_sine_pulse(-5.0, 1e-3, RATE_HZ, 1.0), 'peak_force_n must be positive'),
+        (lambda: half_sine_pulse(100.0, 0.0, RATE_HZ, 1.0), 'contact_duration_s must be positive'),
+        (lambda: half_sine_pulse(100.0, 1e-3, RATE_HZ, 1.0, start_s=1.0), 'does not fit'),
+        (lambda: hammer_pulse(100.0, 1e-3, RATE_HZ, 1.0, rise_fraction=1.0), 'rise_fraction'),
+        (lambda: rectangular_pulse(100.0, 1e-5, RATE_HZ, 1.0), 'shorter than one sample'),
+        (lambda: rectangular_pulse(math.nan, 1e-3, RATE_HZ, 1.0), 'force_n must be finite'),
+        (
+            lambda: impact_record(1000.0, rng=1, force_noise_std_n=-1.0),
+            'force_noise_std_n must not be negative',
+        ),
+        (
+            lambda: impact_record(1000.0, rng=1, sample_rate_hz=0.0),
+            'sample_rate_hz must be positive',
+        ),
+        (lambda: level_peak_force_n('extreme', rng=1), "unknown hammer level 'extreme'"),
+    ],
+)
 def test_bad_input_raises_a_value_error_naming_the_problem(call, message):
     with pytest.raises(ValueError, match=message):
         call()

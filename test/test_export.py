@@ -18,12 +18,14 @@ from fmm_ros.core.export import (
 )
 from fmm_ros.core.records import ImpactRecord
 
-AXIS = np.arange(3301) / 33.0          # 0 .. 100 Hz by 1/33 Hz, the paper's grid
+AXIS = np.arange(3301) / 33.0  # 0 .. 100 Hz by 1/33 Hz, the paper's grid
 MOBILITY = (1 + AXIS) * np.exp(1j * AXIS)
 COHERENCE = np.cos(AXIS) ** 2
-CURVES = [FrfCurve('medium mean mobility', 'mobility', AXIS, MOBILITY),
-          FrfCurve('medium mean receptance', 'receptance', AXIS, MOBILITY / 3),
-          FrfCurve('medium coherence', 'coherence', AXIS, COHERENCE)]
+CURVES = [
+    FrfCurve('medium mean mobility', 'mobility', AXIS, MOBILITY),
+    FrfCurve('medium mean receptance', 'receptance', AXIS, MOBILITY / 3),
+    FrfCurve('medium coherence', 'coherence', AXIS, COHERENCE),
+]
 
 
 def test_uff58_round_trip_through_pyuff(tmp_path):
@@ -34,8 +36,11 @@ def test_uff58_round_trip_through_pyuff(tmp_path):
     units, mobility, receptance, coherence = uff.read_sets()
     assert units['units_code'] == 1
     assert mobility['id1'].strip() == 'medium mean mobility'
-    assert (mobility['func_type'], mobility['ordinate_spec_data_type'],
-            mobility['orddenom_spec_data_type']) == (4, 11, 13)
+    assert (
+        mobility['func_type'],
+        mobility['ordinate_spec_data_type'],
+        mobility['orddenom_spec_data_type'],
+    ) == (4, 11, 13)
     assert receptance['ordinate_spec_data_type'] == 8
     assert coherence['func_type'] == 6 and not np.iscomplexobj(coherence['data'])
     np.testing.assert_allclose(mobility['data'], MOBILITY, rtol=1e-10)
@@ -48,9 +53,14 @@ def test_csv_round_trip(tmp_path):
     path = tmp_path / 'frf.csv'
     write_frf_csv(path, CURVES)
     header = path.read_text().splitlines()[0].split(',')
-    assert header == ['frequency_hz', 'medium_mean_mobility_real', 'medium_mean_mobility_imag',
-                      'medium_mean_receptance_real', 'medium_mean_receptance_imag',
-                      'medium_coherence']
+    assert header == [
+        'frequency_hz',
+        'medium_mean_mobility_real',
+        'medium_mean_mobility_imag',
+        'medium_mean_receptance_real',
+        'medium_mean_receptance_imag',
+        'medium_coherence',
+    ]
     data = np.loadtxt(path, delimiter=',', skiprows=1)
     np.testing.assert_array_equal(data[:, 0], AXIS)
     np.testing.assert_array_equal(data[:, 1] + 1j * data[:, 2], MOBILITY)
@@ -65,8 +75,9 @@ def test_json_round_trip_with_nan_as_null(tmp_path):
     (curve,) = json.loads(path.read_text())['curves']
     assert (curve['name'], curve['quantity'], curve['unit']) == ('x', 'mobility', 'm/(N*s)')
     assert curve['real'][0] is None and curve['imag'][0] is None
-    np.testing.assert_array_equal(np.array(curve['real'][1:]) + 1j * np.array(curve['imag'][1:]),
-                                  MOBILITY[1:])
+    np.testing.assert_array_equal(
+        np.array(curve['real'][1:]) + 1j * np.array(curve['imag'][1:]), MOBILITY[1:]
+    )
 
 
 def test_format_from_suffix_and_refusals(tmp_path):
@@ -78,8 +89,9 @@ def test_format_from_suffix_and_refusals(tmp_path):
     with pytest.raises(ValueError, match='nothing to export'):
         write_frfs(tmp_path / 'b.csv', [])
     with pytest.raises(ValueError, match='one frequency axis'):
-        write_frf_csv(tmp_path / 'c.csv', [CURVES[0], FrfCurve('y', 'mobility', AXIS[:10],
-                                                               MOBILITY[:10])])
+        write_frf_csv(
+            tmp_path / 'c.csv', [CURVES[0], FrfCurve('y', 'mobility', AXIS[:10], MOBILITY[:10])]
+        )
     with pytest.raises(ValueError, match='unknown quantity'):
         FrfCurve('z', 'compliance', AXIS, MOBILITY)
 
@@ -92,12 +104,19 @@ def test_curves_from_a_summary_and_from_impacts():
     velocity[103:900] = 0.01 * np.sin(np.arange(797) / 50) * np.exp(-np.arange(797) / 100)
     results: list[ImpactResult] = [
         analyze_impact(ImpactRecord(force * scale, velocity * scale, rate), impact_id=i)
-        for i, scale in enumerate((1.0, 1.05))]
+        for i, scale in enumerate((1.0, 1.05))
+    ]
     summary = summarize(results, AnalysisConfig())
     curves = level_curves(summary)
-    assert [c.name for c in curves] == ['level_1 mean mobility', 'level_1 mean receptance',
-                                        'level_1 H1 mobility', 'level_1 H2 mobility',
-                                        'level_1 coherence']
+    assert [c.name for c in curves] == [
+        'level_1 mean mobility',
+        'level_1 mean receptance',
+        'level_1 H1 mobility',
+        'level_1 H2 mobility',
+        'level_1 coherence',
+    ]
     np.testing.assert_array_equal(curves[2].values, summary.levels[0].h1_mobility)
-    assert [c.name for c in impact_curves(summary.impacts)] == ['impact 0 level_1 mobility',
-                                                               'impact 1 level_1 mobility']
+    assert [c.name for c in impact_curves(summary.impacts)] == [
+        'impact 0 level_1 mobility',
+        'impact 1 level_1 mobility',
+    ]

@@ -22,6 +22,7 @@ def paper_set():
 
 # --- mu and c ---------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize('mu, seed', [(0.05, 1), (0.113, 2), (0.2, 3)])
 def test_one_mu_over_three_levels_within_one_percent(mu, seed):
     result = fit.fit_friction(lab_levels(seed, mu=mu))
@@ -46,8 +47,9 @@ def test_mu_and_damping_fitted_together(mu, damping, seed):
     assert result.joint.names == ('mu', 'damping_n_s_per_m')
     # Each impact's own mu is fitted with c held at the joint value.
     assert all(single.names == ('mu',) for single in result.per_impact)
-    assert all(single.rig.damping_n_s_per_m == result.damping_n_s_per_m
-               for single in result.per_impact)
+    assert all(
+        single.rig.damping_n_s_per_m == result.damping_n_s_per_m for single in result.per_impact
+    )
 
 
 def test_frf_misfit_agrees_with_time_misfit(paper_set):
@@ -68,8 +70,9 @@ def test_euler_integrator_fits_too(paper_set):
 
 
 def test_standard_error_matches_the_scatter_over_noise_seeds():
-    hit = lab_impact(1000.0, 7, mu=0.1, force_noise_std_n=0.0, velocity_noise_std_m_s=0.0,
-                     duration_s=8.0)   # the rig is at rest after 4 s
+    hit = lab_impact(
+        1000.0, 7, mu=0.1, force_noise_std_n=0.0, velocity_noise_std_m_s=0.0, duration_s=8.0
+    )  # the rig is at rest after 4 s
     errors, stderrs = [], []
     rng = np.random.default_rng(8)
     for _ in range(12):
@@ -92,12 +95,13 @@ def test_model_fit_reports_residuals_noise_and_names(paper_set):
         result.value('c')
     assert result.noise_std_m_s == pytest.approx(VELOCITY_NOISE_M_S, rel=0.03)
     assert result.n_samples == sum(i.force_n.size for i in paper_set)
-    for index, (impact, residual, rms) in enumerate(zip(
-            paper_set, result.residuals_m_s, result.impact_residual_rms_m_s, strict=True)):
+    for index, (impact, residual, rms) in enumerate(
+        zip(paper_set, result.residuals_m_s, result.impact_residual_rms_m_s, strict=True)
+    ):
         assert result.impacts[index] is impact
         rebuilt = impact.velocity_m_s - result.simulate(index).velocity_m_s
         np.testing.assert_allclose(residual, rebuilt, atol=1e-15)
-        assert rms == pytest.approx(np.sqrt(np.mean(residual ** 2)))
+        assert rms == pytest.approx(np.sqrt(np.mean(residual**2)))
     peak = max(i.peak_velocity_m_s for i in paper_set)
     assert result.normalised_residual == pytest.approx(result.residual_rms_m_s / peak)
     assert all(fraction > 0.999 for fraction in result.explained_fraction)
@@ -107,8 +111,9 @@ def test_model_fit_reports_residuals_noise_and_names(paper_set):
 def test_hits_of_a_session_start_where_the_last_one_left_the_rig():
     # One continuous recording: friction holds the rig off centre after each hit, so the next
     # starts there. Fitting each impact's start brings the residual down to the noise.
-    session = simulated_session(1, seed=3, force_noise_std_n=FORCE_NOISE_N,
-                                velocity_noise_std_m_s=VELOCITY_NOISE_M_S)
+    session = simulated_session(
+        1, seed=3, force_noise_std_n=FORCE_NOISE_N, velocity_noise_std_m_s=VELOCITY_NOISE_M_S
+    )
     records = capture_impacts(session.force_n, session.velocity_m_s, session.sample_rate_hz)
     # Where the hits alone (the recorded force gated, as the noise must not drive it) left it.
     hits = fit.condition_impact(session.force_n, session.velocity_m_s, session.sample_rate_hz)
@@ -122,8 +127,10 @@ def test_hits_of_a_session_start_where_the_last_one_left_the_rig():
     assert result.mu == pytest.approx(session.mu, rel=0.01)
     assert result.joint.names[1:] == tuple(f'initial_position_m[{i}]' for i in range(3))
     np.testing.assert_allclose(result.joint.initial_positions_m, starts, atol=5e-6)
-    assert all(single.initial_positions_m[0] == pytest.approx(x, abs=5e-6)
-               for single, x in zip(result.per_impact, starts, strict=True))
+    assert all(
+        single.initial_positions_m[0] == pytest.approx(x, abs=5e-6)
+        for single, x in zip(result.per_impact, starts, strict=True)
+    )
 
 
 def test_fitting_the_start_costs_little_when_the_rig_starts_at_centre(paper_set):
@@ -142,20 +149,26 @@ def test_one_mu_is_refused_statistically_when_the_levels_differ():
 
 # --- the Jacobian's block structure -------------------------------------------------------------
 
+
 @pytest.fixture(scope='module')
 def session_set():
     """Three hits of one continuous session: each starts where friction left the last one."""
-    session = simulated_session(1, seed=3, force_noise_std_n=FORCE_NOISE_N,
-                                velocity_noise_std_m_s=VELOCITY_NOISE_M_S)
+    session = simulated_session(
+        1, seed=3, force_noise_std_n=FORCE_NOISE_N, velocity_noise_std_m_s=VELOCITY_NOISE_M_S
+    )
     records = capture_impacts(session.force_n, session.velocity_m_s, session.sample_rate_hz)
     return [fit.as_conditioned(record) for record in records]
 
 
-@pytest.mark.parametrize('options', [
-    dict(),
-    dict(fit_damping=True, terms=('velocity_offset',)),
-    dict(misfit='frf'),
-], ids=['mu', 'damping_and_a_term', 'frf'])
+@pytest.mark.parametrize(
+    'options',
+    [
+        dict(),
+        dict(fit_damping=True, terms=('velocity_offset',)),
+        dict(misfit='frf'),
+    ],
+    ids=['mu', 'damping_and_a_term', 'frf'],
+)
 def test_blockwise_jacobian_gives_the_dense_fit(session_set, options):
     blocks = fit.fit_model(session_set, fit_initial_position=True, **options)
     dense = fit.fit_model(session_set, fit_initial_position=True, jacobian='dense', **options)
@@ -164,8 +177,9 @@ def test_blockwise_jacobian_gives_the_dense_fit(session_set, options):
     np.testing.assert_allclose(blocks.values, dense.values, rtol=1e-9, atol=1e-15)
     for part in ('stderr', 'stderr_white', 'stderr_force'):
         np.testing.assert_allclose(getattr(blocks, part), getattr(dense, part), rtol=1e-6)
-    np.testing.assert_allclose(blocks.covariance, dense.covariance, rtol=1e-6,
-                               atol=1e-9 * np.max(np.abs(dense.covariance)))
+    np.testing.assert_allclose(
+        blocks.covariance, dense.covariance, rtol=1e-6, atol=1e-9 * np.max(np.abs(dense.covariance))
+    )
     # Where start positions are fitted, the sandwich and force parts have off-diagonal
     # blocks between impacts only through the global parameters: check one is not zero.
     assert dense.covariance[-1, -2] != 0.0
@@ -197,19 +211,21 @@ def _count_jacobian_runs(monkeypatch) -> list[tuple[int, int]]:
 
 
 @pytest.mark.parametrize('n_impacts', [2, 3])
-def test_a_start_position_runs_and_stores_only_its_own_impact(session_set, monkeypatch,
-                                                               n_impacts):
+def test_a_start_position_runs_and_stores_only_its_own_impact(session_set, monkeypatch, n_impacts):
     impacts = session_set[:n_impacts]
     samples = sum(impact.force_n.size for impact in impacts)
-    n_global = 2    # mu and c
+    n_global = 2  # mu and c
     counted = _count_jacobian_runs(monkeypatch)
     fit.fit_model(impacts, fit_damping=True, fit_initial_position=True)
-    assert counted and all(counts == (n_global * n_impacts + n_impacts,
-                                      (n_global + 1) * samples) for counts in counted)
+    assert counted and all(
+        counts == (n_global * n_impacts + n_impacts, (n_global + 1) * samples) for counts in counted
+    )
     counted.clear()
     fit.fit_model(impacts, fit_damping=True, fit_initial_position=True, jacobian='dense')
-    assert counted and all(counts == ((n_global + n_impacts) * n_impacts,
-                                      (n_global + n_impacts) * samples) for counts in counted)
+    assert counted and all(
+        counts == ((n_global + n_impacts) * n_impacts, (n_global + n_impacts) * samples)
+        for counts in counted
+    )
 
 
 def test_block_jacobian_is_the_dense_one_without_its_zeros():
@@ -223,8 +239,9 @@ def test_block_jacobian_is_the_dense_one_without_its_zeros():
     jacobian = blocks.empty_jacobian()
     jacobian.rows[0][:] = [[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]
     jacobian.rows[1][:] = [[7.0, 8.0], [9.0, 10.0]]
-    dense = np.array([[1.0, 2.0, 3.0, 7.0, 8.0], [4.0, 5.0, 6.0, 0.0, 0.0],
-                      [0.0, 0.0, 0.0, 9.0, 10.0]])
+    dense = np.array(
+        [[1.0, 2.0, 3.0, 7.0, 8.0], [4.0, 5.0, 6.0, 0.0, 0.0], [0.0, 0.0, 0.0, 9.0, 10.0]]
+    )
     residual = np.array([1.0, -1.0, 2.0, 0.5, 3.0])
     np.testing.assert_allclose(jacobian.normal(), dense @ dense.T)
     np.testing.assert_allclose(jacobian.gradient(residual), dense @ residual)
@@ -233,6 +250,7 @@ def test_block_jacobian_is_the_dense_one_without_its_zeros():
 
 
 # --- model terms, as the discrepancy workflow uses them ------------------------------------------
+
 
 def test_fits_the_parameters_of_a_model_term_with_mu():
     delay = model_term('sensor_delay', delay_s=3.3e-4)
@@ -247,9 +265,11 @@ def test_fits_the_parameters_of_a_model_term_with_mu():
 
 def test_fixed_effects_are_held_and_term_instances_set_start_values(paper_set):
     offset = model_term('velocity_offset', offset_m_s=0.0)
-    result = fit.fit_model(paper_set, terms=(model_term('asymmetric_friction',
-                                                        mu_difference=0.0),),
-                           fixed_effects=(offset,))
+    result = fit.fit_model(
+        paper_set,
+        terms=(model_term('asymmetric_friction', mu_difference=0.0),),
+        fixed_effects=(offset,),
+    )
     assert result.effects[0] is offset
     assert result.value('asymmetric_friction.mu_difference') == pytest.approx(0.0, abs=2e-3)
     assert result.mu == pytest.approx(0.113, rel=0.01)
@@ -265,19 +285,22 @@ def test_a_term_far_smaller_in_its_units_still_gets_an_honest_error():
     assert result.mu == pytest.approx(0.113, rel=0.01)
 
 
-@pytest.mark.parametrize('options, message', [
-    (dict(terms=('friction_wheel',)), "unknown model term 'friction_wheel'"),
-    (dict(terms=('stribeck', 'stribeck')), 'model term stribeck given twice'),
-    (dict(terms=('stribeck',), fixed_effects=(model_term('stribeck'),)), 'given twice'),
-    (dict(terms=('viscous_damping',), fit_damping=True), 'the same parameter'),
-    (dict(fixed_effects=('stribeck',)), 'fixed_effects must be model terms'),
-    (dict(misfit='phase'), "unknown misfit 'phase'"),
-    (dict(integrator='leapfrog'), "unknown integrator 'leapfrog'"),
-    (dict(mu_bounds=(0.3, 0.1)), 'mu_bounds must be'),
-    (dict(rig=Rig(normal_force_n=0.0)), 'normal_force_n'),
-    (dict(band_limit_hz=-1.0), 'band_limit_hz must be positive'),
-    (dict(jacobian='sparse'), "unknown jacobian 'sparse'"),
-])
+@pytest.mark.parametrize(
+    'options, message',
+    [
+        (dict(terms=('friction_wheel',)), "unknown model term 'friction_wheel'"),
+        (dict(terms=('stribeck', 'stribeck')), 'model term stribeck given twice'),
+        (dict(terms=('stribeck',), fixed_effects=(model_term('stribeck'),)), 'given twice'),
+        (dict(terms=('viscous_damping',), fit_damping=True), 'the same parameter'),
+        (dict(fixed_effects=('stribeck',)), 'fixed_effects must be model terms'),
+        (dict(misfit='phase'), "unknown misfit 'phase'"),
+        (dict(integrator='leapfrog'), "unknown integrator 'leapfrog'"),
+        (dict(mu_bounds=(0.3, 0.1)), 'mu_bounds must be'),
+        (dict(rig=Rig(normal_force_n=0.0)), 'normal_force_n'),
+        (dict(band_limit_hz=-1.0), 'band_limit_hz must be positive'),
+        (dict(jacobian='sparse'), "unknown jacobian 'sparse'"),
+    ],
+)
 def test_bad_options_are_refused_by_name(paper_set, options, message):
     with pytest.raises(ValueError, match=message):
         fit.fit_model(paper_set[:1], **options)
@@ -285,14 +308,16 @@ def test_bad_options_are_refused_by_name(paper_set, options, message):
 
 # --- conditioning --------------------------------------------------------------------------------
 
+
 def test_the_force_is_gated_to_the_hit_and_its_baseline_removed():
     record = lab_impact(1000.0, 12, mu=0.113)
-    offset = 4.0   # a charge amplifier's zero error [N]
-    impact = fit.condition_impact(record.force_n + offset, record.velocity_m_s,
-                                  record.sample_rate_hz, source='hit.csv')
+    offset = 4.0  # a charge amplifier's zero error [N]
+    impact = fit.condition_impact(
+        record.force_n + offset, record.velocity_m_s, record.sample_rate_hz, source='hit.csv'
+    )
     assert impact.baseline_n == pytest.approx(offset, abs=0.01)
     assert impact.force_noise_std_n == pytest.approx(FORCE_NOISE_N, rel=0.05)
-    (start, stop), = impact.gate
+    ((start, stop),) = impact.gate
     assert start < record.trigger_index and stop - start < 80
     assert not impact.force_n[:start].any() and not impact.force_n[stop:].any()
     assert impact.impulse_n_s == pytest.approx(record.impulse_n_s, rel=1e-3)
@@ -304,16 +329,18 @@ def test_the_force_is_gated_to_the_hit_and_its_baseline_removed():
 def test_a_bounce_is_a_second_gate_and_drives_the_model():
     record = lab_impact(1000.0, 13, mu=0.113, force_noise_std_n=0.0)
     bounce = np.roll(np.where(record.force_n > 0, 0.2 * record.force_n, 0.0), 120)
-    impact = fit.condition_impact(record.force_n + bounce, record.velocity_m_s,
-                                  record.sample_rate_hz)
+    impact = fit.condition_impact(
+        record.force_n + bounce, record.velocity_m_s, record.sample_rate_hz
+    )
     assert len(impact.gate) == 2
     assert impact.impulse_n_s == pytest.approx(1.2 * record.impulse_n_s, rel=1e-6)
 
 
 def test_velocity_noise_estimate_ignores_the_motion():
     record = lab_impact(1450.0, 14, mu=0.05)
-    assert fit.velocity_noise_std(record.velocity_m_s) == pytest.approx(VELOCITY_NOISE_M_S,
-                                                                        rel=0.02)
+    assert fit.velocity_noise_std(record.velocity_m_s) == pytest.approx(
+        VELOCITY_NOISE_M_S, rel=0.02
+    )
     assert fit.velocity_noise_std(record.simulation.velocity_m_s) < 1e-6
 
 
@@ -330,15 +357,22 @@ def test_plain_records_are_conditioned_on_the_way_in():
         fit.fit_model([])
 
 
-@pytest.mark.parametrize('force, velocity, rate, message', [
-    (np.zeros(100), np.zeros(99), 1e4, 'force has 100 samples but velocity has 99'),
-    (np.zeros((2, 50)), np.zeros(100), 1e4, 'force_n must be one-dimensional'),
-    (np.r_[np.zeros(50), np.nan], np.zeros(51), 1e4, 'force_n is not finite at sample 50'),
-    (np.zeros(51), np.r_[np.zeros(7), np.inf, np.zeros(43)], 1e4,
-     'velocity_m_s is not finite at sample 7'),
-    (np.zeros(8), np.zeros(8), 1e4, 'at least 16 samples'),
-    (np.zeros(100), np.zeros(100), 0.0, 'sample_rate_hz must be positive'),
-])
+@pytest.mark.parametrize(
+    'force, velocity, rate, message',
+    [
+        (np.zeros(100), np.zeros(99), 1e4, 'force has 100 samples but velocity has 99'),
+        (np.zeros((2, 50)), np.zeros(100), 1e4, 'force_n must be one-dimensional'),
+        (np.r_[np.zeros(50), np.nan], np.zeros(51), 1e4, 'force_n is not finite at sample 50'),
+        (
+            np.zeros(51),
+            np.r_[np.zeros(7), np.inf, np.zeros(43)],
+            1e4,
+            'velocity_m_s is not finite at sample 7',
+        ),
+        (np.zeros(8), np.zeros(8), 1e4, 'at least 16 samples'),
+        (np.zeros(100), np.zeros(100), 0.0, 'sample_rate_hz must be positive'),
+    ],
+)
 def test_malformed_records_are_refused(force, velocity, rate, message):
     with pytest.raises(ValueError, match=message):
         fit.condition_impact(force, velocity, rate, source='x.csv')
@@ -351,6 +385,7 @@ def test_too_short_a_record_is_refused():
 
 
 # --- clear failures ------------------------------------------------------------------------------
+
 
 def _noise(seed, n=330_000):
     rng = np.random.default_rng(seed)
@@ -390,8 +425,11 @@ def test_a_frictionless_record_puts_mu_on_its_bound():
 @pytest.mark.parametrize('velocity', ['inverted', 'another hit'])
 def test_a_velocity_the_force_did_not_cause_is_unexplained(velocity):
     record = lab_impact(1000.0, 25, mu=0.113, duration_s=10.0)
-    measured = (-record.velocity_m_s if velocity == 'inverted'
-                else lab_impact(450.0, 26, mu=0.113, duration_s=10.0).velocity_m_s[::-1])
+    measured = (
+        -record.velocity_m_s
+        if velocity == 'inverted'
+        else lab_impact(450.0, 26, mu=0.113, duration_s=10.0).velocity_m_s[::-1]
+    )
     impact = fit.condition_impact(record.force_n, measured, 1e4, source='bad.csv')
     with pytest.raises(fit.FitError, match='unexplained.*check the channels') as failure:
         fit.fit_friction([impact])
@@ -406,6 +444,7 @@ def test_fit_errors_are_value_errors_with_known_reasons():
 
 # --- rig identification --------------------------------------------------------------------------
 
+
 @pytest.fixture(scope='module')
 def lifted_rig():
     """A stiffer, more damped flexure than the FMM, hit at three levels with the pin lifted."""
@@ -419,14 +458,13 @@ def test_identify_rig_from_frictionless_impacts(lifted_rig):
     assert result.mass_kg == pytest.approx(lifted_rig.mass_kg, rel=0.01)
     assert result.damping_n_s_per_m == pytest.approx(lifted_rig.damping_n_s_per_m, rel=0.10)
     assert result.stiffness_n_per_m == pytest.approx(lifted_rig.stiffness_n_per_m, rel=0.01)
-    assert result.natural_frequency_hz == pytest.approx(lifted_rig.natural_frequency_hz,
-                                                        rel=1e-4)
+    assert result.natural_frequency_hz == pytest.approx(lifted_rig.natural_frequency_hz, rel=1e-4)
     assert result.damping_ratio == pytest.approx(lifted_rig.damping_ratio, rel=0.05)
-    for value, error, truth in ((result.mass_kg, result.mass_stderr_kg, lifted_rig.mass_kg),
-                                (result.stiffness_n_per_m, result.stiffness_stderr_n_per_m,
-                                 lifted_rig.stiffness_n_per_m),
-                                (result.damping_n_s_per_m, result.damping_stderr_n_s_per_m,
-                                 lifted_rig.damping_n_s_per_m)):
+    for value, error, truth in (
+        (result.mass_kg, result.mass_stderr_kg, lifted_rig.mass_kg),
+        (result.stiffness_n_per_m, result.stiffness_stderr_n_per_m, lifted_rig.stiffness_n_per_m),
+        (result.damping_n_s_per_m, result.damping_stderr_n_s_per_m, lifted_rig.damping_n_s_per_m),
+    ):
         assert 0.0 < error < 0.01 * truth and abs(value - truth) < 5.0 * error
     assert result.residual_rms_m_s == pytest.approx(VELOCITY_NOISE_M_S, rel=0.05)
     rig = result.rig(normal_force_n=6.67)
@@ -449,11 +487,10 @@ def _free_decay(rig, seed, x0_m=3e-3, release_s=0.2):
 
 def test_free_decay_gives_natural_frequency_and_damping_ratio(lifted_rig):
     result = fit.fit_free_decay(_free_decay(lifted_rig, 40), 1e4)
-    assert result.natural_frequency_hz == pytest.approx(lifted_rig.natural_frequency_hz,
-                                                        rel=1e-5)
+    assert result.natural_frequency_hz == pytest.approx(lifted_rig.natural_frequency_hz, rel=1e-5)
     assert result.damping_ratio == pytest.approx(lifted_rig.damping_ratio, rel=0.02)
     assert abs(result.damping_ratio - lifted_rig.damping_ratio) < 5 * result.damping_ratio_stderr
-    assert result.start_index > 2000   # after the release
+    assert result.start_index > 2000  # after the release
     assert result.residual_rms_m_s == pytest.approx(VELOCITY_NOISE_M_S, rel=0.05)
     assert result.damped_frequency_hz < result.natural_frequency_hz
 
@@ -481,7 +518,7 @@ def test_a_decay_with_too_few_cycles_is_refused():
     noise = np.random.default_rng(3).normal(0.0, VELOCITY_NOISE_M_S, 20_000)
     one_cycle = free_vibration(3e-3, 0.5, 1e4, mu=0.0).velocity_m_s
     with pytest.raises(fit.FitError, match='too few cycles') as failure:
-        fit.fit_free_decay(one_cycle + noise[:one_cycle.size], 1e4)
+        fit.fit_free_decay(one_cycle + noise[: one_cycle.size], 1e4)
     assert failure.value.reason == 'too_few_cycles'
     heavy = Rig(mass_kg=1.0, stiffness_n_per_m=400.0, damping_n_s_per_m=16.0)  # zeta = 0.4
     gone = free_vibration(1e-3, 2.0, 1e4, rig=heavy, mu=0.0).velocity_m_s
@@ -499,6 +536,7 @@ def test_a_friction_damped_record_is_not_a_linear_rig():
 
 # --- the optimiser ------------------------------------------------------------------------------
 
+
 def test_normal_inverse_survives_wide_scales_and_marks_dead_parameters():
     normal = np.array([[4e8, 3e-2, 0.0], [3e-2, 1e-11, 0.0], [0.0, 0.0, 0.0]])
     inverse = normal_inverse(normal)
@@ -515,15 +553,33 @@ def test_levenberg_marquardt_with_an_active_bound_and_an_infeasible_region():
             raise Infeasible('too fast')
         np.subtract(data, x[0] * np.exp(-x[1] * t), out=out)
 
-    free = levenberg_marquardt(residual, np.array([1.0, 1.0]), np.array([0.0, 0.0]),
-                               np.array([5.0, 20.0]), np.array([1.0, 1.0]), t.size)
+    free = levenberg_marquardt(
+        residual,
+        np.array([1.0, 1.0]),
+        np.array([0.0, 0.0]),
+        np.array([5.0, 20.0]),
+        np.array([1.0, 1.0]),
+        t.size,
+    )
     assert free.converged and free.x == pytest.approx([2.0, 3.0], rel=1e-6)
-    bounded = levenberg_marquardt(residual, np.array([1.0, 1.0]), np.array([0.0, 0.0]),
-                                  np.array([1.5, 20.0]), np.array([1.0, 1.0]), t.size)
+    bounded = levenberg_marquardt(
+        residual,
+        np.array([1.0, 1.0]),
+        np.array([0.0, 0.0]),
+        np.array([1.5, 20.0]),
+        np.array([1.0, 1.0]),
+        t.size,
+    )
     assert bounded.converged and bounded.x[0] == 1.5 and 1.0 < bounded.x[1] < 3.0
     with pytest.raises(ValueError, match='cannot be evaluated at the start point'):
-        levenberg_marquardt(residual, np.array([1.0, 15.0]), np.array([0.0, 0.0]),
-                            np.array([5.0, 20.0]), np.array([1.0, 1.0]), t.size)
+        levenberg_marquardt(
+            residual,
+            np.array([1.0, 15.0]),
+            np.array([0.0, 0.0]),
+            np.array([5.0, 20.0]),
+            np.array([1.0, 1.0]),
+            t.size,
+        )
 
 
 def test_a_parameter_the_residuals_ignore_gets_infinite_variance_and_spoils_no_other():
@@ -538,8 +594,14 @@ def test_a_parameter_the_residuals_ignore_gets_infinite_variance_and_spoils_no_o
     jacobian = BlockJacobian(Blocks.shared((slice(0, 4000),), 3), (rows,))
     residual = rng.normal(0.0, 0.01, 4000)
     fields = {f.name for f in dataclasses.fields(LsqSolution)}
-    values = dict(x=np.zeros(3), lower=-np.ones(3), upper=np.ones(3), residual=residual,
-                  jacobian=jacobian, cost=float(residual @ residual))
+    values = dict(
+        x=np.zeros(3),
+        lower=-np.ones(3),
+        upper=np.ones(3),
+        residual=residual,
+        jacobian=jacobian,
+        cost=float(residual @ residual),
+    )
     solution = LsqSolution(**values, **{name: 0 for name in fields - set(values)})
     with warnings.catch_warnings():
         warnings.simplefilter('error')

@@ -15,12 +15,11 @@ from signal_records import (
 from fmm_ros.core import frf
 
 RATE_HZ = 10_000.0
-N_SAMPLES = 330_000                     # the paper's 33 s at 10 kHz
+N_SAMPLES = 330_000  # the paper's 33 s at 10 kHz
 F_N_HZ = np.sqrt(STIFFNESS_N_PER_M / MASS_KG) / (2 * np.pi)
 
 
-def trial_spectra(peaks_n, damping, force_noise_n=0.0, velocity_noise_m_s=0.0, seed=0,
-                  window=None):
+def trial_spectra(peaks_n, damping, force_noise_n=0.0, velocity_noise_m_s=0.0, seed=0, window=None):
     """Force and velocity spectra of hits of the given peaks on the linear oscillator."""
     rng = np.random.default_rng(seed)
     force_spectra, velocity_spectra = [], []
@@ -43,7 +42,7 @@ def around_resonance(frequency_hz, width=0.2):
 
 def test_impulse_is_the_trapezoid_area():
     force = np.zeros(100)
-    force[10:20] = 50.0                 # trapezoid: 9 full steps + two half-steps of 50 N
+    force[10:20] = 50.0  # trapezoid: 9 full steps + two half-steps of 50 N
     assert frf.impulse(force, 1000.0) == pytest.approx(50.0 * 10 / 1000.0)
     pulse = half_sine(N_SAMPLES, RATE_HZ, 100, 450.0, 0.004)
     assert frf.impulse(pulse, RATE_HZ) == pytest.approx(450.0 * 0.004 * 2 / np.pi, rel=1e-3)
@@ -63,7 +62,7 @@ def test_pulse_impulse_is_the_pulse_area_above_the_baseline_only():
 
 def test_contact_duration_interpolates_crossings():
     force = np.zeros(50)
-    force[10:21] = [0, 10, 20, 30, 40, 50, 40, 30, 20, 10, 0]   # 10 N per sample ramps
+    force[10:21] = [0, 10, 20, 30, 40, 50, 40, 30, 20, 10, 0]  # 10 N per sample ramps
     assert frf.contact_interval(force, 15.0) == (12, 19)
     # Up-crossing of 15 N at 11.5, down-crossing at 18.5 -> 7 samples.
     assert frf.contact_duration(force, 1000.0, 15.0) == pytest.approx(0.007)
@@ -77,7 +76,7 @@ def test_frf_conventions_receptance_accelerance_and_dc():
     frequency = np.array([0.0, 1.0, 2.0])
     mobility = np.array([0.5 + 0j, 1 + 1j, 2j])
     receptance = frf.receptance_from_mobility(mobility, frequency)
-    assert receptance[0] == 0                             # undefined at DC, stated as 0
+    assert receptance[0] == 0  # undefined at DC, stated as 0
     np.testing.assert_allclose(receptance[1:] * 2j * np.pi * frequency[1:], mobility[1:])
     accelerance = frf.accelerance_from_mobility(mobility, frequency)
     assert accelerance[0] == 0
@@ -114,8 +113,11 @@ def test_unsettled_record_leaks_and_the_exponential_window_is_exactly_accounted_
     window = frf.exponential_window(N_SAMPLES, RATE_HZ, decay_time_s=tau, start_index=100)
     force_spectra, velocity_spectra = trial_spectra([1000.0], DAMPING_N_S_PER_M, window=window)
     windowed = frf.average_frf(force_spectra, velocity_spectra).h1_mobility
-    np.testing.assert_allclose(windowed[near], analytic_mobility(
-        frequency[near], DAMPING_N_S_PER_M, extra_decay_per_s=1 / tau), rtol=0.01)
+    np.testing.assert_allclose(
+        windowed[near],
+        analytic_mobility(frequency[near], DAMPING_N_S_PER_M, extra_decay_per_s=1 / tau),
+        rtol=0.01,
+    )
     # The correction: the windowed system's pole is the true one moved left by 1/tau, so a
     # mode fitted to the windowed FRF has the damping ratio the window adds on top.
     pole = np.roots([MASS_KG, DAMPING_N_S_PER_M, STIFFNESS_N_PER_M])[0]
@@ -127,20 +129,23 @@ def test_unsettled_record_leaks_and_the_exponential_window_is_exactly_accounted_
 
 def test_h1_h2_and_coherence_under_velocity_noise():
     damping = damping_for_ratio(0.05)
-    force_spectra, velocity_spectra = trial_spectra([1000.0] * 8, damping,
-                                                    velocity_noise_m_s=1e-4, seed=3)
+    force_spectra, velocity_spectra = trial_spectra(
+        [1000.0] * 8, damping, velocity_noise_m_s=1e-4, seed=3
+    )
     average = frf.average_frf(force_spectra, velocity_spectra)
     frequency = frf.frequency_axis(N_SAMPLES, RATE_HZ)
     near = around_resonance(frequency, 0.05)
     assert np.all(average.coherence[near] > 0.99)
-    np.testing.assert_allclose(average.h1_mobility[near], analytic_mobility(frequency[near],
-                                                                            damping), rtol=0.01)
-    far = (frequency > 1500) & (frequency < 2500)        # response far below the noise
+    np.testing.assert_allclose(
+        average.h1_mobility[near], analytic_mobility(frequency[near], damping), rtol=0.01
+    )
+    far = (frequency > 1500) & (frequency < 2500)  # response far below the noise
     assert np.median(average.coherence[far]) < 0.5
     # Output noise adds to G_vv only: H2 = G_vv / G_vf is biased up, H1 is not.
     assert np.median(np.abs(average.h2_mobility[far]) / np.abs(average.h1_mobility[far])) > 2
-    np.testing.assert_allclose(average.coherence, np.real(average.h1_mobility
-                                                          / average.h2_mobility), rtol=1e-9)
+    np.testing.assert_allclose(
+        average.coherence, np.real(average.h1_mobility / average.h2_mobility), rtol=1e-9
+    )
 
 
 def test_single_trial_coherence_is_one_and_shapes_must_match():
@@ -154,13 +159,13 @@ def test_single_trial_coherence_is_one_and_shapes_must_match():
 def test_force_window_is_flat_then_tapers_to_zero():
     window = frf.force_window(1000, 1000.0, start_index=100, width_s=0.05, taper_s=0.01)
     assert window[:150].min() == 1.0 and window[160:].max() == 0.0
-    assert np.all(np.diff(window[150:161]) < 0)           # half-cosine taper
+    assert np.all(np.diff(window[150:161]) < 0)  # half-cosine taper
     with pytest.raises(ValueError):
         frf.force_window(1000, 1000.0, start_index=0, width_s=0.0)
 
 
 def test_band_and_peak_search():
-    assert frf.band_bins(330_000, RATE_HZ, 100.0) == 3301      # 0 .. 100 Hz by 1/33 Hz
+    assert frf.band_bins(330_000, RATE_HZ, 100.0) == 3301  # 0 .. 100 Hz by 1/33 Hz
     assert frf.band_bins(330_000, RATE_HZ, None) == 165_001
     frequency = np.arange(10.0)
     values = np.array([100, 1, 2, 9, np.nan, 3, 1, 0, 50, 0], dtype=complex)
@@ -188,8 +193,9 @@ def test_level_assignment_and_clustering():
     nominal = np.repeat([450.0, 1000.0, 1450.0], 10)
     peaks = nominal + rng.uniform(-50, 50, nominal.size)
     assert np.array_equal(frf.cluster_levels(peaks), np.repeat([0, 1, 2], 10))
-    index = frf.assign_nominal_levels(np.array([440.0, 1049.0, 1051.0, 700.0, np.nan]),
-                                      [450.0, 1000.0, 1450.0], 50.0)
+    index = frf.assign_nominal_levels(
+        np.array([440.0, 1049.0, 1051.0, 700.0, np.nan]), [450.0, 1000.0, 1450.0], 50.0
+    )
     assert index.tolist() == [0, 1, -1, -1, -1]
     assert frf.cluster_levels(np.array([1000.0, np.nan, 1010.0])).tolist() == [0, -1, 0]
     assert frf.cluster_levels(np.array([])).size == 0

@@ -21,9 +21,16 @@ from fmm_ros.core.model import MODEL_TERMS, simulate
 
 def test_the_vocabulary_is_the_model_terms_and_none():
     assert HIDDEN_EFFECTS == (*MODEL_TERMS, 'none')
-    assert set(HIDDEN_EFFECTS) == {'viscous_damping', 'stribeck', 'asymmetric_friction',
-                                   'cubic_stiffness', 'velocity_offset', 'sensor_delay',
-                                   'second_mode', 'none'}
+    assert set(HIDDEN_EFFECTS) == {
+        'viscous_damping',
+        'stribeck',
+        'asymmetric_friction',
+        'cubic_stiffness',
+        'velocity_offset',
+        'sensor_delay',
+        'second_mode',
+        'none',
+    }
 
 
 @pytest.mark.parametrize('effect', [e for e in HIDDEN_EFFECTS if e != 'none'])
@@ -37,20 +44,26 @@ def test_each_effect_is_sized_to_the_asked_ratio_of_the_noise(effect):
 def test_the_sizing_matches_a_brute_force_fit_of_mu(effect):
     # The generator's linearised mu steps against a bounded scalar search on the noise-free
     # records: the discrepancy left by the best mu.
-    clean = hidden_effect_case(effect, 12, ratio=3.0, duration_s=8.0, force_noise_std_n=0.0,
-                               velocity_noise_std_m_s=1e-4)
+    clean = hidden_effect_case(
+        effect, 12, ratio=3.0, duration_s=8.0, force_noise_std_n=0.0, velocity_noise_std_m_s=1e-4
+    )
     records = [replace(r, velocity_m_s=r.simulation.velocity_m_s) for r in clean.records]
 
     def rms(mu):
-        residual = [r.velocity_m_s[motion_window(r)] - simulate(
-            r.force_n, r.sample_rate_hz, mu=mu).velocity_m_s[motion_window(r)] for r in records]
+        residual = [
+            r.velocity_m_s[motion_window(r)]
+            - simulate(r.force_n, r.sample_rate_hz, mu=mu).velocity_m_s[motion_window(r)]
+            for r in records
+        ]
         return float(np.sqrt(np.mean(np.concatenate(residual) ** 2)))
 
-    best = scipy.optimize.minimize_scalar(rms, bounds=(0.5 * clean.mu, 1.5 * clean.mu),
-                                          method='bounded', options={'xatol': 1e-7})
+    best = scipy.optimize.minimize_scalar(
+        rms, bounds=(0.5 * clean.mu, 1.5 * clean.mu), method='bounded', options={'xatol': 1e-7}
+    )
     assert clean.ratio * 1e-4 == pytest.approx(best.fun, rel=0.03)
-    assert base_fit_discrepancy(clean.records, clean.mu) == pytest.approx(clean.ratio * 1e-4,
-                                                                         rel=1e-9)
+    assert base_fit_discrepancy(clean.records, clean.mu) == pytest.approx(
+        clean.ratio * 1e-4, rel=1e-9
+    )
 
 
 def test_a_case_is_random_levels_with_the_issues_noise_and_reproducible():
@@ -67,8 +80,9 @@ def test_a_case_is_random_levels_with_the_issues_noise_and_reproducible():
         conditioned = as_conditioned(record)
         assert conditioned.velocity_noise_std_m_s == pytest.approx(1e-4, rel=0.03)
         assert conditioned.force_noise_std_n == pytest.approx(0.2, rel=0.03)
-        nearest = min(PAPER_LEVELS.values(),
-                      key=lambda level: abs(level.peak_force_n - record.peak_force_n))
+        nearest = min(
+            PAPER_LEVELS.values(), key=lambda level: abs(level.peak_force_n - record.peak_force_n)
+        )
         assert abs(nearest.peak_force_n - record.peak_force_n) < 150.0
 
 

@@ -10,9 +10,9 @@ RATE_HZ = 10_000.0
 
 def fed(history, force, velocity, batch, skip=()):
     for first in range(0, force.size, batch):
-        history.feed('force', first, force[first:first + batch], RATE_HZ, 2000.0)
+        history.feed('force', first, force[first : first + batch], RATE_HZ, 2000.0)
         if first not in skip:
-            history.feed('velocity', first, velocity[first:first + batch], RATE_HZ)
+            history.feed('velocity', first, velocity[first : first + batch], RATE_HZ)
     return history
 
 

@@ -22,8 +22,13 @@ SHORT = CaptureConfig(window_s=3.0, min_spacing_s=0.5, rest_time_s=0.5, max_skew
 def stream(n_seconds=14.0, rate_hz=RATE_HZ):
     """Force and velocity with four hits (one double, two overlapping) and noise after rest."""
     n = int(n_seconds * rate_hz)
-    at = [(int(1.0 * rate_hz), 450.0), (int(1.03 * rate_hz), 80.0), (int(5.0 * rate_hz), 1000.0),
-          (int(6.5 * rate_hz), 1450.0), (int(11.0 * rate_hz), 600.0)]
+    at = [
+        (int(1.0 * rate_hz), 450.0),
+        (int(1.03 * rate_hz), 80.0),
+        (int(5.0 * rate_hz), 1000.0),
+        (int(6.5 * rate_hz), 1450.0),
+        (int(11.0 * rate_hz), 600.0),
+    ]
     force, velocity = hits(n, rate_hz, at, zeta=0.08, duration_s=0.005)
     rng = np.random.default_rng(4)
     return force + rng.normal(0, 0.5, n), velocity + rng.normal(0, 2e-5, n)
@@ -67,26 +72,26 @@ def random_sizes(n, rng, low=1, high=700):
 def test_trigger_rule_hysteresis_and_spacing():
     config = CaptureConfig(trigger_level_n=20.0, rearm_level_n=5.0, min_spacing_s=0.1)
     force = np.zeros(1000)
-    force[100:110] = [0, 10, 25, 30, 19, 21, 30, 12, 6, 0]   # wobbles above/below 20 N: one hit
-    force[150:153] = [30, 40, 0]                              # inside min spacing: no trigger
-    force[300:303] = [21, 22, 0]                              # after spacing, re-armed: trigger
+    force[100:110] = [0, 10, 25, 30, 19, 21, 30, 12, 6, 0]  # wobbles above/below 20 N: one hit
+    force[150:153] = [30, 40, 0]  # inside min spacing: no trigger
+    force[300:303] = [21, 22, 0]  # after spacing, re-armed: trigger
     force[303:306] = [0, 0, 0]
     assert find_triggers(force, 1000.0, config).tolist() == [102, 300]
     never_rearmed = force.copy()
-    never_rearmed[105:300] = 10.0                             # stays above the re-arm level
+    never_rearmed[105:300] = 10.0  # stays above the re-arm level
     assert find_triggers(never_rearmed, 1000.0, config).tolist() == [102]
 
 
 def test_trigger_detector_is_independent_of_block_sizes():
     force, _ = stream()
     whole = find_triggers(force, RATE_HZ, SHORT)
-    assert len(whole) == 4   # 450 N + bounce counts once
+    assert len(whole) == 4  # 450 N + bounce counts once
     rng = np.random.default_rng(1)
     for _ in range(5):
         detector = TriggerDetector(SHORT, RATE_HZ)
         found, first = [], 0
         for size in random_sizes(force.size, rng, 1, 50):
-            found += detector.scan(force[first:first + size], first)
+            found += detector.scan(force[first : first + size], first)
             first += size
         assert found == whole.tolist()
 
@@ -94,8 +99,9 @@ def test_trigger_detector_is_independent_of_block_sizes():
 @pytest.mark.parametrize('end_at_rest', [False, True])
 def test_streaming_equals_batch_to_the_last_bit(end_at_rest):
     # Velocity will run up to 25 batches (< 7.5 s) behind force: within max_skew_s.
-    config = CaptureConfig(window_s=3.0, min_spacing_s=0.5, rest_time_s=0.5, max_skew_s=8.0,
-                           end_at_rest=end_at_rest)
+    config = CaptureConfig(
+        window_s=3.0, min_spacing_s=0.5, rest_time_s=0.5, max_skew_s=8.0, end_at_rest=end_at_rest
+    )
     force, velocity = stream()
     batch = capture_impacts(force, velocity, RATE_HZ, config)
     assert [r.trigger_sample_index for r in batch] == find_triggers(force, RATE_HZ, config).tolist()
@@ -117,8 +123,8 @@ def test_records_are_the_stream_samples_aligned_by_index():
     for record in capture_impacts(force, velocity, RATE_HZ, SHORT):
         start = record.record_start_sample_index
         assert record.trigger_sample_index - start == round(SHORT.pretrigger_s * RATE_HZ)
-        np.testing.assert_array_equal(record.force_n, force[start:start + 3000])
-        np.testing.assert_array_equal(record.velocity_m_s, velocity[start:start + 3000])
+        np.testing.assert_array_equal(record.force_n, force[start : start + 3000])
+        np.testing.assert_array_equal(record.velocity_m_s, velocity[start : start + 3000])
 
 
 def test_end_at_rest_shortens_the_record_but_keeps_the_frequency_grid():
@@ -133,8 +139,9 @@ def test_end_at_rest_shortens_the_record_but_keeps_the_frequency_grid():
     (full,) = capture_impacts(force, velocity, RATE_HZ, SHORT)
     short_result, full_result = analyze_impact(record, config), analyze_impact(full, SHORT)
     np.testing.assert_array_equal(short_result.frequency_hz, full_result.frequency_hz)
-    np.testing.assert_allclose(short_result.peak_receptance_m_per_n,
-                               full_result.peak_receptance_m_per_n, rtol=1e-3)
+    np.testing.assert_allclose(
+        short_result.peak_receptance_m_per_n, full_result.peak_receptance_m_per_n, rtol=1e-3
+    )
 
 
 def test_missing_batch_is_a_gap_in_that_record_only():
@@ -148,7 +155,7 @@ def test_missing_batch_is_a_gap_in_that_record_only():
         start = record.record_start_sample_index
         if start <= 5500 < start + 3000:
             assert record.velocity_gaps == ((5500 - start, 6000 - start),)
-            assert np.isnan(record.velocity_m_s[5500 - start:6000 - start]).all()
+            assert np.isnan(record.velocity_m_s[5500 - start : 6000 - start]).all()
             assert 'gap' in quality_flags(record, SHORT)
             assert 'nan' not in quality_flags(record, SHORT)
         else:
@@ -171,7 +178,7 @@ def test_end_of_stream_flushes_open_records_as_gaps():
     force, velocity = stream(n_seconds=6.0)
     capture = ImpactCapture(SHORT)
     done = capture.feed_both(0, force, velocity, RATE_HZ)
-    assert capture.open_impacts == 1   # the 5 s hit needs samples up to 7990
+    assert capture.open_impacts == 1  # the 5 s hit needs samples up to 7990
     (last,) = capture.flush()
     assert last.force_gaps == ((6000 - 4991, 3000),) == last.velocity_gaps
     assert 'gap' in quality_flags(last, SHORT)
@@ -181,7 +188,7 @@ def test_end_of_stream_flushes_open_records_as_gaps():
 def test_a_lagging_channel_beyond_max_skew_is_declared_missing():
     force, velocity = stream()
     capture = ImpactCapture(SHORT)
-    capture.feed('force', 0, force[:3000], RATE_HZ)    # 3 s ahead, max skew 1 s
+    capture.feed('force', 0, force[:3000], RATE_HZ)  # 3 s ahead, max skew 1 s
     with pytest.raises(ValueError, match='already holds samples up to 1999'):
         capture.feed('velocity', 0, velocity[:500], RATE_HZ)
     records = capture.feed('velocity', 2000, velocity[2000:3000], RATE_HZ)

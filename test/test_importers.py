@@ -31,20 +31,31 @@ def bag_arrays(bag):
         batches = list(reader.batches())
     assert [b.first_sample_index for b in batches] == list(range(0, len(batches) * 500, 500))
     rates = {b.sample_rate_hz for b in batches}
-    return (np.concatenate([b.force for b in batches]),
-            np.concatenate([b.velocity for b in batches]), rates.pop())
+    return (
+        np.concatenate([b.force for b in batches]),
+        np.concatenate([b.velocity for b in batches]),
+        rates.pop(),
+    )
 
 
 def test_csv_with_header_units_and_a_time_column(tmp_path):
     force_lbf, velocity_mm_s = raw_channels()
     time_s = np.arange(N) / FS
     path = tmp_path / 'hit.csv'
-    np.savetxt(path, np.column_stack([time_s, force_lbf, velocity_mm_s]), delimiter=',',
-               header='Time [s],Hammer [lbf],Vibrometer [mm/s]', comments='')
-    mapping = ImportMapping.from_dict({
-        'force': {'name': 'Hammer [lbf]', 'unit': 'lbf'},
-        'velocity': {'name': 'Vibrometer [mm/s]', 'unit': 'mm/s'},
-        'time': {'name': 'Time [s]', 'unit': 's'}})
+    np.savetxt(
+        path,
+        np.column_stack([time_s, force_lbf, velocity_mm_s]),
+        delimiter=',',
+        header='Time [s],Hammer [lbf],Vibrometer [mm/s]',
+        comments='',
+    )
+    mapping = ImportMapping.from_dict(
+        {
+            'force': {'name': 'Hammer [lbf]', 'unit': 'lbf'},
+            'velocity': {'name': 'Vibrometer [mm/s]', 'unit': 'mm/s'},
+            'time': {'name': 'Time [s]', 'unit': 's'},
+        }
+    )
     summary = import_to_bag([path], tmp_path / 'bag', mapping)
     assert summary.samples == N and summary.sample_rate_hz == pytest.approx(FS)
     force, velocity, rate = bag_arrays(tmp_path / 'bag')
@@ -69,10 +80,13 @@ def test_npz_with_the_rate_in_a_variable_and_a_volt_channel_with_a_stated_scale(
     force_n, velocity_v = raw_channels()
     path = tmp_path / 'hit.npz'
     np.savez(path, F=force_n, V=velocity_v[:, None], fs=np.array(FS))
-    mapping = ImportMapping.from_dict({'force': {'name': 'F', 'unit': 'N'},
-                                       'velocity': {'name': 'V', 'unit': 'V', 'scale': 0.125,
-                                                    'full_scale': 10},
-                                       'sample_rate_hz': 'fs'})
+    mapping = ImportMapping.from_dict(
+        {
+            'force': {'name': 'F', 'unit': 'N'},
+            'velocity': {'name': 'V', 'unit': 'V', 'scale': 0.125, 'full_scale': 10},
+            'sample_rate_hz': 'fs',
+        }
+    )
     import_to_bag([path], tmp_path / 'bag', mapping, storage='sqlite3')
     force, velocity, rate = bag_arrays(tmp_path / 'bag')
     np.testing.assert_array_equal(force, force_n)
@@ -85,13 +99,16 @@ def test_npz_with_the_rate_in_a_variable_and_a_volt_channel_with_a_stated_scale(
 def test_matlab_v5_struct_fields(tmp_path):
     force_kn, velocity_in_s = raw_channels()
     path = tmp_path / 'hit.mat'
-    scipy.io.savemat(path, {'data': {'force': force_kn[:, None], 'vel': velocity_in_s},
-                            'Fs': FS})
+    scipy.io.savemat(path, {'data': {'force': force_kn[:, None], 'vel': velocity_in_s}, 'Fs': FS})
     lab = open_lab_file(path)
     assert lab.format == 'MATLAB' and {'data.force', 'data.vel', 'Fs'} <= set(lab.names())
-    mapping = ImportMapping.from_dict({'force': {'name': 'data.force', 'unit': 'kN'},
-                                       'velocity': {'name': 'data.vel', 'unit': 'in/s'},
-                                       'sample_rate_hz': 'Fs'})
+    mapping = ImportMapping.from_dict(
+        {
+            'force': {'name': 'data.force', 'unit': 'kN'},
+            'velocity': {'name': 'data.vel', 'unit': 'in/s'},
+            'sample_rate_hz': 'Fs',
+        }
+    )
     import_to_bag([path], tmp_path / 'bag', mapping)
     force, velocity, _ = bag_arrays(tmp_path / 'bag')
     np.testing.assert_allclose(force, force_kn * 1e3, rtol=1e-15)
@@ -113,9 +130,13 @@ def test_matlab_v73_is_read_through_hdf5(tmp_path):
     lab = open_lab_file(path)
     assert lab.format == 'MATLAB v7.3'
     assert sorted(lab.names()) == ['force', 'fs', 'rig.velocity']
-    mapping = ImportMapping.from_dict({'force': {'name': 'force', 'unit': 'N'},
-                                       'velocity': {'name': 'rig.velocity', 'unit': 'm/s'},
-                                       'sample_rate_hz': 'fs'})
+    mapping = ImportMapping.from_dict(
+        {
+            'force': {'name': 'force', 'unit': 'N'},
+            'velocity': {'name': 'rig.velocity', 'unit': 'm/s'},
+            'sample_rate_hz': 'fs',
+        }
+    )
     import_to_bag([path], tmp_path / 'bag', mapping)
     force, velocity_read, rate = bag_arrays(tmp_path / 'bag')
     np.testing.assert_array_equal(force, force_n)
@@ -129,11 +150,15 @@ def test_tdms_units_rate_and_start_time_come_from_the_file(tmp_path):
     path = tmp_path / 'hit.tdms'
     common = {'wf_increment': 1 / FS, 'wf_start_time': start}
     with TdmsWriter(path) as writer:
-        writer.write_segment([
-            GroupObject('Impact'),
-            ChannelObject('Impact', 'Force', force_n, {**common, 'unit_string': 'N'}),
-            ChannelObject('Impact', 'Velocity', velocity_mm_s,
-                          {**common, 'unit_string': 'mm/s'})])
+        writer.write_segment(
+            [
+                GroupObject('Impact'),
+                ChannelObject('Impact', 'Force', force_n, {**common, 'unit_string': 'N'}),
+                ChannelObject(
+                    'Impact', 'Velocity', velocity_mm_s, {**common, 'unit_string': 'mm/s'}
+                ),
+            ]
+        )
     mapping = ImportMapping.from_dict({'force': 'Impact/Force', 'velocity': 'Impact/Velocity'})
     summary = import_to_bag([path], tmp_path / 'bag', mapping)
     force, velocity, rate = bag_arrays(tmp_path / 'bag')
@@ -165,28 +190,37 @@ def test_several_files_make_one_contiguous_session(tmp_path):
 
 def test_a_yaml_mapping_file(tmp_path):
     path = tmp_path / 'map.yaml'
-    path.write_text('force: {name: Hammer, unit: lbf}\n'
-                    'velocity: {name: Vib, unit: V, scale: 0.125}\n'
-                    'sample_rate_hz: 10000\n')
+    path.write_text(
+        'force: {name: Hammer, unit: lbf}\n'
+        'velocity: {name: Vib, unit: V, scale: 0.125}\n'
+        'sample_rate_hz: 10000\n'
+    )
     mapping = ImportMapping.from_dict(load_mapping(path))
     assert mapping.force == ChannelMapping('Hammer', 'lbf')
     assert mapping.velocity.scale == 0.125 and mapping.sample_rate_hz == FS
 
 
-@pytest.mark.parametrize(('spec', 'message'), [
-    ({'force': {'name': 'F', 'unit': 'V'}}, "unit 'V' is not a force unit"),
-    ({'force': {'name': 'F', 'unit': 'lbf', 'scale': 4.4}}, 'unit lbf already fixes the scale'),
-    ({'force': {'name': 'F'}}, 'no unit given'),
-    ({'force': {'name': 'Force'}}, "has no channel 'Force'; it has: F, V, M, fs"),
-    ({'force': {'name': 'M', 'unit': 'N'}}, 'has shape (10, 3); a channel must be a vector'),
-    ({'velocity': {'name': 'V', 'unit': 'm/s'}, 'sample_rate_hz': None}, 'no sample rate'),
-])
+@pytest.mark.parametrize(
+    ('spec', 'message'),
+    [
+        ({'force': {'name': 'F', 'unit': 'V'}}, "unit 'V' is not a force unit"),
+        ({'force': {'name': 'F', 'unit': 'lbf', 'scale': 4.4}}, 'unit lbf already fixes the scale'),
+        ({'force': {'name': 'F'}}, 'no unit given'),
+        ({'force': {'name': 'Force'}}, "has no channel 'Force'; it has: F, V, M, fs"),
+        ({'force': {'name': 'M', 'unit': 'N'}}, 'has shape (10, 3); a channel must be a vector'),
+        ({'velocity': {'name': 'V', 'unit': 'm/s'}, 'sample_rate_hz': None}, 'no sample rate'),
+    ],
+)
 def test_mapping_errors_name_the_problem(tmp_path, spec, message):
     path = tmp_path / 'lab.npz'
     force, velocity = raw_channels(100)
     np.savez(path, F=force, V=velocity, M=np.zeros((10, 3)), fs=FS)
-    full = {'force': {'name': 'F', 'unit': 'N'}, 'velocity': {'name': 'V', 'unit': 'm/s'},
-            'sample_rate_hz': FS, **spec}
+    full = {
+        'force': {'name': 'F', 'unit': 'N'},
+        'velocity': {'name': 'V', 'unit': 'm/s'},
+        'sample_rate_hz': FS,
+        **spec,
+    }
     with pytest.raises(ValueError) as caught:
         read_lab_file(path, ImportMapping.from_dict(full))
     assert message in str(caught.value)
@@ -197,20 +231,35 @@ def test_inconsistent_files_are_refused(tmp_path):
     path = tmp_path / 'lab.csv'
     time_s = np.arange(100) / FS
     time_s[50:] += 0.5  # a jump: not one sample clock
-    np.savetxt(path, np.column_stack([time_s, force, velocity[:100]]), delimiter=';',
-               header='t;F;V', comments='')
-    mapping = {'force': {'name': 'F', 'unit': 'N'}, 'velocity': {'name': 'V', 'unit': 'm/s'},
-               'time': {'name': 't', 'unit': 's'}}
+    np.savetxt(
+        path,
+        np.column_stack([time_s, force, velocity[:100]]),
+        delimiter=';',
+        header='t;F;V',
+        comments='',
+    )
+    mapping = {
+        'force': {'name': 'F', 'unit': 'N'},
+        'velocity': {'name': 'V', 'unit': 'm/s'},
+        'time': {'name': 't', 'unit': 's'},
+    }
     with pytest.raises(ValueError, match='not uniformly increasing'):
         read_lab_file(path, ImportMapping.from_dict(mapping))
-    np.savetxt(path, np.column_stack([np.arange(100) / FS, force, velocity]), delimiter=';',
-               header='t;F;V', comments='')
+    np.savetxt(
+        path,
+        np.column_stack([np.arange(100) / FS, force, velocity]),
+        delimiter=';',
+        header='t;F;V',
+        comments='',
+    )
     with pytest.raises(ValueError, match='disagrees with time channel'):
         read_lab_file(path, ImportMapping.from_dict({**mapping, 'sample_rate_hz': 5000}))
     np.savez(tmp_path / 'short.npz', F=force, V=velocity[:99])
     with pytest.raises(ValueError, match='has 100 samples but velocity .* has 99'):
-        read_lab_file(tmp_path / 'short.npz', ImportMapping.from_dict(
-            {**mapping, 'time': None, 'sample_rate_hz': FS}))
+        read_lab_file(
+            tmp_path / 'short.npz',
+            ImportMapping.from_dict({**mapping, 'time': None, 'sample_rate_hz': FS}),
+        )
     with pytest.raises(ValueError, match='unknown mapping keys: rate'):
         ImportMapping.from_dict({**mapping, 'rate': 1})
     (tmp_path / 'x.xlsx').write_bytes(b'')

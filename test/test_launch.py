@@ -21,11 +21,19 @@ def test_the_simulated_rig_runs_as_separate_processes(tmp_path, monkeypatch):
     domain = random.choice(PRIVATE_DOMAIN_IDS)
     monkeypatch.setenv('ROS_DOMAIN_ID', str(domain))
     monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    overrides = parse_overrides([
-        'hammer_sim.rate_factor=50', 'hammer_sim.hits_per_level=1', 'hammer_sim.batch_size=2000',
-        'hammer_sim.hit_spacing_s=8.0', 'hammer_sim.first_hit_s=1.0',
-        'hammer_sim.wait_for_subscribers=3', 'analyzer.window_s=6.0',
-        f'recorder.bag_path={tmp_path / "bag"}'], SIMULATED_RIG)
+    overrides = parse_overrides(
+        [
+            'hammer_sim.rate_factor=50',
+            'hammer_sim.hits_per_level=1',
+            'hammer_sim.batch_size=2000',
+            'hammer_sim.hit_spacing_s=8.0',
+            'hammer_sim.first_hit_s=1.0',
+            'hammer_sim.wait_for_subscribers=3',
+            'analyzer.window_s=6.0',
+            f'recorder.bag_path={tmp_path / "bag"}',
+        ],
+        SIMULATED_RIG,
+    )
     assert node_command('analyzer')[0].endswith('lib/fmm_ros/analyzer')
     with InProcessGraph(domain_id=domain) as graph:
         listener = graph.add(Listener)
@@ -33,15 +41,16 @@ def test_the_simulated_rig_runs_as_separate_processes(tmp_path, monkeypatch):
         processes = start_processes(SIMULATED_RIG, default_params_file(), overrides)
         try:
             assert wait_for(lambda: len(listener.impacts) == 3, timeout_s=90.0), (
-                f'{len(listener.impacts)} of 3 impacts from the processes')
+                f'{len(listener.impacts)} of 3 impacts from the processes'
+            )
             # The recorder is another process: it may still be writing them (the open bag
             # is read as after a crash, up to the last flushed chunk).
             assert wait_for(lambda: _impacts_in(tmp_path / 'bag') == 3, timeout_s=30.0)
         finally:
             codes = stop_processes(processes)
     assert [m.level for m in listener.impacts] == ['low', 'medium', 'high']
-    assert codes == [0] * len(codes), codes   # each node stopped cleanly on SIGINT
-    with BagReader(tmp_path / 'bag') as reader:   # closed cleanly on SIGINT
+    assert codes == [0] * len(codes), codes  # each node stopped cleanly on SIGINT
+    with BagReader(tmp_path / 'bag') as reader:  # closed cleanly on SIGINT
         assert reader.topics['/fmm/impacts'].count == 3 and not reader.recovered
 
 
@@ -59,5 +68,5 @@ def _impacts_in(bag):
     try:
         with BagReader(bag, strict=False) as reader:
             return sum(1 for _ in reader.messages(['/fmm/impacts']))
-    except (ValueError, OSError):   # not created or not flushed yet
+    except (ValueError, OSError):  # not created or not flushed yet
         return 0

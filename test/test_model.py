@@ -25,8 +25,10 @@ from fmm_ros.core.model import (
 
 RATE_HZ = 10_000.0
 # Every term at its default, but a delay of 2.37 samples: the delay line's fractional path.
-ALL_TERMS = tuple(model_term(name, delay_s=2.37e-4) if name == 'sensor_delay'
-                  else model_term(name) for name in MODEL_TERMS)
+ALL_TERMS = tuple(
+    model_term(name, delay_s=2.37e-4) if name == 'sensor_delay' else model_term(name)
+    for name in MODEL_TERMS
+)
 
 
 def impact(rate_hz=RATE_HZ, duration_s=4.0, peak_n=1000.0, contact_s=2.2e-3, start_s=0.01):
@@ -35,33 +37,45 @@ def impact(rate_hz=RATE_HZ, duration_s=4.0, peak_n=1000.0, contact_s=2.2e-3, sta
 
 def linear_response(force, rate_hz, mass, damping, stiffness):
     """scipy.signal.lsim with interp=True: the exact response to a force linear between samples."""
-    system = scipy.signal.StateSpace([[0, 1], [-stiffness / mass, -damping / mass]],
-                                     [[0], [1 / mass]], np.eye(2), [[0], [0]])
+    system = scipy.signal.StateSpace(
+        [[0, 1], [-stiffness / mass, -damping / mass]], [[0], [1 / mass]], np.eye(2), [[0], [0]]
+    )
     _, y, _ = scipy.signal.lsim(system, force, np.arange(force.size) / rate_hz, interp=True)
     return y[:, 0], y[:, 1]
 
 
 def reference_oscillator(rig=FMM_RIG, mu=PAPER_MU, **extra):
-    return Oscillator(rig.mass_kg, rig.damping_n_s_per_m, rig.stiffness_n_per_m,
-                      rig.normal_force_n, mu, mu, **extra)
+    return Oscillator(
+        rig.mass_kg,
+        rig.damping_n_s_per_m,
+        rig.stiffness_n_per_m,
+        rig.normal_force_n,
+        mu,
+        mu,
+        **extra,
+    )
 
 
 # --- the rig ---------------------------------------------------------------------------------
+
 
 def test_rig_defaults_are_the_paper_fmm():
     assert FMM_RIG == Rig(10.391, 1982.0, 0.275, 0.680 * 9.81)
     assert FMM_RIG.friction_limit_m(PAPER_MU) == pytest.approx(PAPER_MU * 6.6708 / 1982.0)
 
 
-@pytest.mark.parametrize(('field', 'value', 'message'), [
-    ('mass_kg', 0.0, 'mass_kg must be positive'),
-    ('mass_kg', -1.0, 'mass_kg must be positive'),
-    ('stiffness_n_per_m', 0.0, 'stiffness_n_per_m must be positive'),
-    ('damping_n_s_per_m', -0.1, 'damping_n_s_per_m must not be negative'),
-    ('normal_force_n', -1.0, 'normal_force_n must not be negative'),
-    ('mass_kg', math.nan, 'mass_kg must be finite'),
-    ('stiffness_n_per_m', '1982', 'stiffness_n_per_m must be a number'),
-])
+@pytest.mark.parametrize(
+    ('field', 'value', 'message'),
+    [
+        ('mass_kg', 0.0, 'mass_kg must be positive'),
+        ('mass_kg', -1.0, 'mass_kg must be positive'),
+        ('stiffness_n_per_m', 0.0, 'stiffness_n_per_m must be positive'),
+        ('damping_n_s_per_m', -0.1, 'damping_n_s_per_m must not be negative'),
+        ('normal_force_n', -1.0, 'normal_force_n must not be negative'),
+        ('mass_kg', math.nan, 'mass_kg must be finite'),
+        ('stiffness_n_per_m', '1982', 'stiffness_n_per_m must be a number'),
+    ],
+)
 def test_rig_rejects_impossible_constants(field, value, message):
     with pytest.raises(ValueError, match=message):
         Rig(**{field: value})
@@ -69,11 +83,13 @@ def test_rig_rejects_impossible_constants(field, value, message):
 
 # --- exactness of the integrators ------------------------------------------------------------
 
+
 def test_exact_step_is_the_exact_linear_response_without_friction():
     force = impact(duration_s=2.0)
     sim = simulate(force, RATE_HZ, mu=0.0)
-    x, v = linear_response(force, RATE_HZ, FMM_RIG.mass_kg, FMM_RIG.damping_n_s_per_m,
-                           FMM_RIG.stiffness_n_per_m)
+    x, v = linear_response(
+        force, RATE_HZ, FMM_RIG.mass_kg, FMM_RIG.damping_n_s_per_m, FMM_RIG.stiffness_n_per_m
+    )
     np.testing.assert_allclose(sim.displacement_m, x, rtol=0, atol=1e-13 * np.max(np.abs(x)))
     np.testing.assert_allclose(sim.velocity_m_s, v, rtol=0, atol=1e-12 * np.max(np.abs(v)))
 
@@ -111,9 +127,17 @@ def test_nonlinear_terms_agree_with_an_event_located_ode_solution():
     cubic = model_term('cubic_stiffness', cubic_stiffness_n_per_m3=5e6)
     asymmetric = model_term('asymmetric_friction', mu_difference=0.02)
     force = impact(rate_hz=rate, duration_s=4.0)
-    osc = Oscillator(FMM_RIG.mass_kg, FMM_RIG.damping_n_s_per_m, FMM_RIG.stiffness_n_per_m,
-                     FMM_RIG.normal_force_n, PAPER_MU + 0.01, PAPER_MU - 0.01, cubic=5e6,
-                     static_excess=0.03, stribeck_velocity=5e-3)
+    osc = Oscillator(
+        FMM_RIG.mass_kg,
+        FMM_RIG.damping_n_s_per_m,
+        FMM_RIG.stiffness_n_per_m,
+        FMM_RIG.normal_force_n,
+        PAPER_MU + 0.01,
+        PAPER_MU - 0.01,
+        cubic=5e6,
+        static_excess=0.03,
+        stribeck_velocity=5e-3,
+    )
     ref_x, ref_v = solve(osc, force, rate)
     sim = simulate(force, rate, effects=(stribeck, cubic, asymmetric))
     # RK4 is fourth order, not exact, but its segments resolve the Stribeck curve near zero
@@ -140,8 +164,9 @@ def test_exact_path_is_exact_to_rounding_at_coarse_sampling(rate_hz):
     x_lim = rig.friction_limit_m(0.1)
     t = sim.time_s
     half_cycle = np.minimum(np.floor(t / (period / 2)), 7)
-    x = (np.where(half_cycle % 2 == 0, x_lim, -x_lim)
-         + (3e-3 - x_lim - 2 * x_lim * half_cycle) * np.cos(2 * np.pi * t / period))
+    x = np.where(half_cycle % 2 == 0, x_lim, -x_lim) + (
+        3e-3 - x_lim - 2 * x_lim * half_cycle
+    ) * np.cos(2 * np.pi * t / period)
     x = np.where(t >= 4 * period, 3e-3 - 16 * x_lim, x)
     np.testing.assert_allclose(sim.displacement_m, x, rtol=0, atol=1e-16)
     assert sim.rest_time_s == pytest.approx(4 * period, abs=1e-14)
@@ -173,8 +198,9 @@ def test_break_away_is_located_inside_the_sample_interval():
     tau = np.clip(t - t_break, 0, None)
     expected = ramp / rig.stiffness_n_per_m * (tau - np.sin(w * tau) / w)
     np.testing.assert_allclose(sim.displacement_m, expected, rtol=0, atol=1e-15)
-    np.testing.assert_allclose(sim.velocity_m_s, ramp / rig.stiffness_n_per_m
-                               * (1 - np.cos(w * tau)), rtol=0, atol=1e-13)
+    np.testing.assert_allclose(
+        sim.velocity_m_s, ramp / rig.stiffness_n_per_m * (1 - np.cos(w * tau)), rtol=0, atol=1e-13
+    )
 
 
 def test_stribeck_raises_the_break_away_force_to_static_friction():
@@ -197,8 +223,10 @@ def test_asymmetric_friction_shifts_each_half_cycle_by_its_own_limit():
     sim = free_vibration(x0, 10.0, RATE_HZ, effects=(asymmetric,), rig=Rig(damping_n_s_per_m=0))
     # Half cycles by hand: moving in direction s the centre is -s mu_s N / k; the arc ends
     # mirrored about it; rest once the spring force is inside the (asymmetric) static band.
-    limit = {1: (PAPER_MU + difference / 2) * FMM_RIG.normal_force_n / FMM_RIG.stiffness_n_per_m,
-             -1: (PAPER_MU - difference / 2) * FMM_RIG.normal_force_n / FMM_RIG.stiffness_n_per_m}
+    limit = {
+        1: (PAPER_MU + difference / 2) * FMM_RIG.normal_force_n / FMM_RIG.stiffness_n_per_m,
+        -1: (PAPER_MU - difference / 2) * FMM_RIG.normal_force_n / FMM_RIG.stiffness_n_per_m,
+    }
     x = x0
     while not -limit[-1] <= -x <= limit[1]:  # stick test on the spring force -k x
         direction = -np.sign(x)
@@ -209,10 +237,16 @@ def test_asymmetric_friction_shifts_each_half_cycle_by_its_own_limit():
 def test_cubic_stiffness_conserves_energy_without_friction_or_damping():
     k3 = 8e6
     rig = Rig(damping_n_s_per_m=0.0)
-    sim = free_vibration(10e-3, 2.0, RATE_HZ, rig=rig, mu=0.0,
-                         effects=(model_term('cubic_stiffness', cubic_stiffness_n_per_m3=k3),))
+    sim = free_vibration(
+        10e-3,
+        2.0,
+        RATE_HZ,
+        rig=rig,
+        mu=0.0,
+        effects=(model_term('cubic_stiffness', cubic_stiffness_n_per_m3=k3),),
+    )
     x, v = sim.displacement_m, sim.velocity_m_s
-    energy = 0.5 * rig.mass_kg * v ** 2 + 0.5 * rig.stiffness_n_per_m * x ** 2 + 0.25 * k3 * x ** 4
+    energy = 0.5 * rig.mass_kg * v**2 + 0.5 * rig.stiffness_n_per_m * x**2 + 0.25 * k3 * x**4
     assert np.ptp(energy) <= 1e-9 * energy[0]
     # Stiffening raises the frequency: the first return to x0 comes before the linear period.
     first_peak = np.argmax((x[1:-1] > x[:-2]) & (x[1:-1] >= x[2:])) + 1
@@ -230,10 +264,17 @@ def test_exact_and_rk4_paths_agree_on_piecewise_linear_models():
 
 # --- the terms -------------------------------------------------------------------------------
 
+
 def test_terms_have_the_names_the_workflows_use():
-    assert list(MODEL_TERMS) == ['viscous_damping', 'stribeck', 'asymmetric_friction',
-                                 'cubic_stiffness', 'second_mode', 'velocity_offset',
-                                 'sensor_delay']
+    assert list(MODEL_TERMS) == [
+        'viscous_damping',
+        'stribeck',
+        'asymmetric_friction',
+        'cubic_stiffness',
+        'second_mode',
+        'velocity_offset',
+        'sensor_delay',
+    ]
 
 
 @pytest.mark.parametrize('name', list(MODEL_TERMS))
@@ -256,8 +297,9 @@ def test_terms_describe_their_parameters_uniformly(name):
 
 def test_viscous_damping_term_adds_to_the_rig_damping():
     force = impact(duration_s=2.0)
-    with_term = simulate(force, RATE_HZ, effects=(model_term('viscous_damping',
-                                                             damping_n_s_per_m=1.5),))
+    with_term = simulate(
+        force, RATE_HZ, effects=(model_term('viscous_damping', damping_n_s_per_m=1.5),)
+    )
     in_rig = simulate(force, RATE_HZ, rig=Rig(damping_n_s_per_m=FMM_RIG.damping_n_s_per_m + 1.5))
     np.testing.assert_array_equal(with_term.velocity_m_s, in_rig.velocity_m_s)
     alone = simulate(force, RATE_HZ, effects=model_term('viscous_damping', damping_n_s_per_m=1.5))
@@ -271,10 +313,12 @@ def test_second_mode_adds_an_exact_linear_response_to_the_output():
     both = simulate(force, RATE_HZ, effects=(mode,))
     m2, c2, k2 = mode.constants()
     x2, v2 = linear_response(force, RATE_HZ, m2, c2, k2)
-    np.testing.assert_allclose(both.velocity_m_s - base.velocity_m_s, v2, rtol=0,
-                               atol=1e-12 * np.max(np.abs(v2)))
-    np.testing.assert_allclose(both.displacement_m - base.displacement_m, x2, rtol=0,
-                               atol=1e-12 * np.max(np.abs(x2)))
+    np.testing.assert_allclose(
+        both.velocity_m_s - base.velocity_m_s, v2, rtol=0, atol=1e-12 * np.max(np.abs(v2))
+    )
+    np.testing.assert_allclose(
+        both.displacement_m - base.displacement_m, x2, rtol=0, atol=1e-12 * np.max(np.abs(x2))
+    )
     assert both.at_rest  # the friction oscillator is untouched by the second mode:
     assert (both.rest_position_m, both.rest_time_s) == (base.rest_position_m, base.rest_time_s)
 
@@ -297,22 +341,32 @@ def test_velocity_offset_and_delay_act_on_the_vibrometer_output_only():
     np.testing.assert_allclose(fraction.velocity_m_s[3:], expected, rtol=0, atol=1e-15)
 
 
-@pytest.mark.parametrize(('build', 'message'), [
-    (lambda: model_term('coulomb'), "unknown model term 'coulomb'"),
-    (lambda: model_term('stribeck', [0.01]), 'stribeck takes 2 parameter'),
-    (lambda: model_term('stribeck', speed=1.0), 'stribeck has no parameter speed'),
-    (lambda: model_term('stribeck', mu_static_excess=-0.01), 'mu_static_excess must not be neg'),
-    (lambda: model_term('stribeck', stribeck_velocity_m_s=0.0), 'stribeck_velocity_m_s must be'),
-    (lambda: model_term('second_mode', modal_mass_kg=0.0), 'modal_mass_kg must be positive'),
-    (lambda: model_term('sensor_delay', delay_s=-1e-3), 'delay_s must not be negative'),
-    (lambda: model_term('velocity_offset', offset_m_s=math.inf), 'offset_m_s must be finite'),
-])
+@pytest.mark.parametrize(
+    ('build', 'message'),
+    [
+        (lambda: model_term('coulomb'), "unknown model term 'coulomb'"),
+        (lambda: model_term('stribeck', [0.01]), 'stribeck takes 2 parameter'),
+        (lambda: model_term('stribeck', speed=1.0), 'stribeck has no parameter speed'),
+        (
+            lambda: model_term('stribeck', mu_static_excess=-0.01),
+            'mu_static_excess must not be neg',
+        ),
+        (
+            lambda: model_term('stribeck', stribeck_velocity_m_s=0.0),
+            'stribeck_velocity_m_s must be',
+        ),
+        (lambda: model_term('second_mode', modal_mass_kg=0.0), 'modal_mass_kg must be positive'),
+        (lambda: model_term('sensor_delay', delay_s=-1e-3), 'delay_s must not be negative'),
+        (lambda: model_term('velocity_offset', offset_m_s=math.inf), 'offset_m_s must be finite'),
+    ],
+)
 def test_terms_reject_impossible_parameters(build, message):
     with pytest.raises(ValueError, match=message):
         build()
 
 
 # --- streaming ---------------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize('integrator', INTEGRATORS)
 @pytest.mark.parametrize('effects', [(), ALL_TERMS], ids=['base', 'all_terms'])
@@ -325,7 +379,7 @@ def test_streaming_in_batches_is_bit_identical_to_one_call(integrator, effects):
         parts, start, k = [], 0, 0
         while start < force.size:
             size = sizes[k % len(sizes)]
-            x, v = stream.step(force[start:start + size])
+            x, v = stream.step(force[start : start + size])
             parts.append((x.copy(), v.copy()))
             start, k = start + size, k + 1
         np.testing.assert_array_equal(np.concatenate([p[0] for p in parts]), whole.displacement_m)
@@ -377,29 +431,47 @@ def test_rest_is_reported_only_when_the_mass_has_stopped():
 
 # --- bad input ---------------------------------------------------------------------------------
 
-@pytest.mark.parametrize(('call', 'message'), [
-    (lambda f: simulate(np.where(np.arange(f.size) == 5, np.inf, f), RATE_HZ),
-     'force_n is not finite at sample 5'),
-    (lambda f: simulate(np.full(10, np.nan), RATE_HZ), 'force_n is not finite at sample 0'),
-    (lambda f: simulate(f.reshape(2, -1), RATE_HZ), 'force_n must be one-dimensional'),
-    (lambda f: simulate(f, RATE_HZ, mu=-0.1), 'mu must not be negative'),
-    (lambda f: simulate(f, RATE_HZ, mu=math.nan), 'mu must be finite'),
-    (lambda f: simulate(f, 0.0), 'sample_rate_hz must be positive'),
-    (lambda f: simulate(f, 40.0), 'time step too coarse'),
-    (lambda f: simulate(f, RATE_HZ, integrator='rk45'), "unknown integrator 'rk45'"),
-    (lambda f: simulate(f, RATE_HZ, x0_m=math.inf), 'x0_m must be finite'),
-    (lambda f: simulate(f, RATE_HZ, effects=('stribeck',)), 'effects must be model terms'),
-    (lambda f: simulate(f, RATE_HZ, effects=(model_term('stribeck'), model_term('stribeck'))),
-     'model term stribeck given twice'),
-    (lambda f: simulate(f, RATE_HZ, mu=0.01,
-                        effects=(model_term('asymmetric_friction', mu_difference=0.05),)),
-     'makes a friction coefficient negative'),
-    (lambda f: simulate(f, 1000.0, effects=(model_term('second_mode', frequency_hz=600.0),)),
-     'at or above the Nyquist frequency'),
-    (lambda f: OscillatorStream(FMM_RIG, mu=0.1), 'sample_rate_hz must be a number'),
-    (lambda f: simulate(f, RATE_HZ, rig=(10.0, 2000.0)), 'rig must be a Rig'),
-    (lambda f: free_vibration(1e-3, -1.0, RATE_HZ), 'duration_s must be positive'),
-])
+
+@pytest.mark.parametrize(
+    ('call', 'message'),
+    [
+        (
+            lambda f: simulate(np.where(np.arange(f.size) == 5, np.inf, f), RATE_HZ),
+            'force_n is not finite at sample 5',
+        ),
+        (lambda f: simulate(np.full(10, np.nan), RATE_HZ), 'force_n is not finite at sample 0'),
+        (lambda f: simulate(f.reshape(2, -1), RATE_HZ), 'force_n must be one-dimensional'),
+        (lambda f: simulate(f, RATE_HZ, mu=-0.1), 'mu must not be negative'),
+        (lambda f: simulate(f, RATE_HZ, mu=math.nan), 'mu must be finite'),
+        (lambda f: simulate(f, 0.0), 'sample_rate_hz must be positive'),
+        (lambda f: simulate(f, 40.0), 'time step too coarse'),
+        (lambda f: simulate(f, RATE_HZ, integrator='rk45'), "unknown integrator 'rk45'"),
+        (lambda f: simulate(f, RATE_HZ, x0_m=math.inf), 'x0_m must be finite'),
+        (lambda f: simulate(f, RATE_HZ, effects=('stribeck',)), 'effects must be model terms'),
+        (
+            lambda f: simulate(
+                f, RATE_HZ, effects=(model_term('stribeck'), model_term('stribeck'))
+            ),
+            'model term stribeck given twice',
+        ),
+        (
+            lambda f: simulate(
+                f,
+                RATE_HZ,
+                mu=0.01,
+                effects=(model_term('asymmetric_friction', mu_difference=0.05),),
+            ),
+            'makes a friction coefficient negative',
+        ),
+        (
+            lambda f: simulate(f, 1000.0, effects=(model_term('second_mode', frequency_hz=600.0),)),
+            'at or above the Nyquist frequency',
+        ),
+        (lambda f: OscillatorStream(FMM_RIG, mu=0.1), 'sample_rate_hz must be a number'),
+        (lambda f: simulate(f, RATE_HZ, rig=(10.0, 2000.0)), 'rig must be a Rig'),
+        (lambda f: free_vibration(1e-3, -1.0, RATE_HZ), 'duration_s must be positive'),
+    ],
+)
 def test_bad_input_raises_a_value_error_naming_the_problem(call, message):
     with pytest.raises(ValueError, match=message):
         call(impact(duration_s=0.1))

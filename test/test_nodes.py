@@ -23,7 +23,10 @@ def test_every_hit_of_a_session_is_reported_and_judged(ros_graph):
     assert wait_for(lambda: len(listener.impacts) == 3), f'{len(listener.impacts)} of 3 reported'
     assert hammer.hits_sent == 3 == analyzer.impacts_reported
     assert [(m.level, m.accepted, list(m.flags)) for m in listener.impacts] == [
-        ('low', True, []), ('medium', True, []), ('high', True, [])]
+        ('low', True, []),
+        ('medium', True, []),
+        ('high', True, []),
+    ]
     impulses = [m.impulse_n_s for m in listener.impacts]
     assert impulses == sorted(impulses) and 0.8 < impulses[0] < 1.1
     assert all(abs(m.natural_frequency_hz - 2.2) < 0.15 for m in listener.impacts)
@@ -35,24 +38,30 @@ def test_every_hit_of_a_session_is_reported_and_judged(ros_graph):
 def test_a_dropped_batch_flags_the_impact_as_gap_instead_of_a_wrong_frf(ros_graph):
     ros_graph.add(HammerSim, parameter_overrides=params(**FAST_HAMMER | dict(hits_per_level=1)))
     ros_graph.add(RigSim, parameter_overrides=params(output_topic='/test/velocity'))
-    link = ros_graph.add(LossyLink, drop_first_indices=[30_000])   # 3.0 s: inside hit 1
+    link = ros_graph.add(LossyLink, drop_first_indices=[30_000])  # 3.0 s: inside hit 1
     ros_graph.add(Analyzer, parameter_overrides=params(**FAST_ANALYZER))
     listener = ros_graph.add(Listener)
     ros_graph.start()
     assert wait_for(lambda: len(listener.impacts) == 3)
     assert link.dropped == 1
     assert [(list(m.flags), m.accepted) for m in listener.impacts] == [
-        (['gap'], False), ([], True), ([], True)]
+        (['gap'], False),
+        ([], True),
+        ([], True),
+    ]
 
 
-@pytest.mark.parametrize(('node', 'overrides', 'reason'), [
-    (HammerSim, dict(rate_factor=5000.0), 'out of range'),
-    (HammerSim, dict(level_peak_forces_n=[450.0, -1.0, 1450.0]), 'outside'),
-    (RigSim, dict(integrator='rk45'), 'not one of'),
-    (RigSim, dict(mu=-0.1), 'out of range'),
-    (Analyzer, dict(reject_flags=['gap', 'wobbly']), 'unknown flag'),
-    (Analyzer, dict(trigger_level_n=5.0, rearm_level_n=5.0), 'rearm_level_n'),
-])
+@pytest.mark.parametrize(
+    ('node', 'overrides', 'reason'),
+    [
+        (HammerSim, dict(rate_factor=5000.0), 'out of range'),
+        (HammerSim, dict(level_peak_forces_n=[450.0, -1.0, 1450.0]), 'outside'),
+        (RigSim, dict(integrator='rk45'), 'not one of'),
+        (RigSim, dict(mu=-0.1), 'out of range'),
+        (Analyzer, dict(reject_flags=['gap', 'wobbly']), 'unknown flag'),
+        (Analyzer, dict(trigger_level_n=5.0, rearm_level_n=5.0), 'rearm_level_n'),
+    ],
+)
 def test_out_of_range_parameters_are_refused_with_the_reason(ros_graph, node, overrides, reason):
     with pytest.raises((InvalidParameterValueException, ValueError), match=reason):
         ros_graph.add(node, parameter_overrides=params(**overrides))

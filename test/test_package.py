@@ -79,7 +79,8 @@ def test_package_xml_parses_and_declares_every_runtime_import():
         assert module in ROSDEP_KEYS, f'{module} (imported by {sorted(files)}) has no rosdep key'
         assert ROSDEP_KEYS[module] in declared, (
             f'{module} is imported by {sorted(files)} but package.xml lacks '
-            f'<exec_depend>{ROSDEP_KEYS[module]}</exec_depend>')
+            f'<exec_depend>{ROSDEP_KEYS[module]}</exec_depend>'
+        )
 
 
 def test_pip_only_keys_are_defined_for_rosdep_and_pinned():
@@ -137,10 +138,12 @@ def _ros_free_modules() -> list[str]:
 
 def test_core_report_and_offline_commands_import_without_ros():
     """The core must stay ROS-free: importing any of it must not pull in rclpy."""
-    code = ('import importlib, sys\n'
-            f'for name in {_ros_free_modules()!r}:\n'
-            '    importlib.import_module(name)\n'
-            "bad = [m for m in ('rclpy', 'fmm_interfaces') if m in sys.modules]\n"
-            'sys.exit(f"imported {bad}" if bad else 0)\n')
+    code = (
+        'import importlib, sys\n'
+        f'for name in {_ros_free_modules()!r}:\n'
+        '    importlib.import_module(name)\n'
+        "bad = [m for m in ('rclpy', 'fmm_interfaces') if m in sys.modules]\n"
+        'sys.exit(f"imported {bad}" if bad else 0)\n'
+    )
     result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr

@@ -19,8 +19,12 @@ from fmm_ros.core.model import (
 )
 
 # The Sec. 3 example oscillator: mu = 0.1, m = 1 kg, k = 5000 N/m, N = m g, no viscous damping.
-EXAMPLE_RIG = Rig(mass_kg=1.0, stiffness_n_per_m=5000.0, damping_n_s_per_m=0.0,
-                  normal_force_n=1.0 * STANDARD_GRAVITY_M_S2)
+EXAMPLE_RIG = Rig(
+    mass_kg=1.0,
+    stiffness_n_per_m=5000.0,
+    damping_n_s_per_m=0.0,
+    normal_force_n=1.0 * STANDARD_GRAVITY_M_S2,
+)
 EXAMPLE_MU = 0.1
 RATE_HZ = 10_000.0
 
@@ -49,21 +53,27 @@ def test_free_vibration_final_positions_figs_2_and_3(x0_mm, paper_final_mm):
     x_lim = EXAMPLE_RIG.friction_limit_m(EXAMPLE_MU)
     assert sim.at_rest
     assert sim.rest_position_m == pytest.approx(
-        coulomb_final_position(x0_mm * 1e-3, x_lim), abs=1e-12)
+        coulomb_final_position(x0_mm * 1e-3, x_lim), abs=1e-12
+    )
     # The paper prints three decimals; its 0.176 mm for x0 = 1 mm is 1.2 um below the exact
     # 0.1772 mm (x0 - 6 x_lim with x_lim = 0.1962 mm), so allow 1.5 um.
     assert sim.rest_position_m * 1e3 == pytest.approx(paper_final_mm, abs=1.5e-3)
     assert sim.displacement_m[-1] == sim.rest_position_m
     # It stops after a whole number of half periods (each arc lasts exactly T/2).
     half_period = 0.5 / EXAMPLE_RIG.natural_frequency_hz
-    assert sim.rest_time_s / half_period == pytest.approx(round(sim.rest_time_s / half_period),
-                                                          abs=1e-9)
+    assert sim.rest_time_s / half_period == pytest.approx(
+        round(sim.rest_time_s / half_period), abs=1e-9
+    )
 
 
 def test_final_versus_initial_displacement_is_a_triangle_wave_fig_4():
     x0 = np.arange(0, 1001) * 0.005e-3
-    finals = np.array([free_vibration(x, 1.0, RATE_HZ, rig=EXAMPLE_RIG, mu=EXAMPLE_MU
-                                      ).rest_position_m for x in x0])
+    finals = np.array(
+        [
+            free_vibration(x, 1.0, RATE_HZ, rig=EXAMPLE_RIG, mu=EXAMPLE_MU).rest_position_m
+            for x in x0
+        ]
+    )
     x_lim = EXAMPLE_RIG.friction_limit_m(EXAMPLE_MU)
     np.testing.assert_allclose(finals, coulomb_final_position(x0, x_lim), rtol=0, atol=1e-11)
     # Amplitude x_lim and period 4 mu N / k, read off the simulated curve itself.
@@ -83,9 +93,10 @@ def test_natural_frequencies_and_damping_ratio():
 def test_equal_impulse_gives_the_same_receptance_fig_5():
     duration_s = 25.0  # the paper's record for Figs. 5-7
     rate = RATE_HZ
-    cases = {(force, width): rectangular_pulse(force, width, rate, duration_s, start_s=0.01)
-             for force, width in [(100, 2.5e-3), (100, 5e-3), (100, 10e-3), (25, 10e-3),
-                                  (50, 10e-3)]}
+    cases = {
+        (force, width): rectangular_pulse(force, width, rate, duration_s, start_s=0.01)
+        for force, width in [(100, 2.5e-3), (100, 5e-3), (100, 10e-3), (25, 10e-3), (50, 10e-3)]
+    }
     freq = np.fft.rfftfreq(int(duration_s * rate), 1 / rate)
     band = (freq > 2) & (freq < 30)  # below the 100 Hz spectral zero of the 10 ms pulse
     receptance = {}
@@ -120,8 +131,9 @@ def test_peak_displacement_decays_linearly_fig_5():
 def test_peak_mobility_matches_the_coulomb_formula(level):
     rig = Rig(damping_n_s_per_m=0.0)  # the formula's undamped case, FMM otherwise
     peak, impulse = PAPER_LEVELS[level].peak_force_n, PAPER_LEVELS[level].impulse_n_s
-    force = half_sine_pulse(peak, PAPER_LEVELS[level].contact_duration_s, RATE_HZ, 12.0,
-                            start_s=0.1)
+    force = half_sine_pulse(
+        peak, PAPER_LEVELS[level].contact_duration_s, RATE_HZ, 12.0, start_s=0.1
+    )
     sim = simulate(force, RATE_HZ, rig=rig)
     fn = rig.natural_frequency_hz
     mobility = abs(dft_at(sim.velocity_m_s, fn, RATE_HZ) / dft_at(force, fn, RATE_HZ))
@@ -145,14 +157,16 @@ def test_peak_mobility_grows_linearly_with_impulse():
     fit = np.polyval([slope, intercept], impulses)
     r_squared = 1 - np.sum((mobility - fit) ** 2) / np.sum((mobility - np.mean(mobility)) ** 2)
     assert r_squared > 0.9999
-    assert slope == pytest.approx(np.pi / (8 * rig.mass_kg * PAPER_MU * rig.normal_force_n),
-                                  rel=0.02)
+    assert slope == pytest.approx(
+        np.pi / (8 * rig.mass_kg * PAPER_MU * rig.normal_force_n), rel=0.02
+    )
 
 
 def test_odd_harmonics_of_fn_appear_in_the_mobility_fig_24():
     level = PAPER_LEVELS['medium']
-    force = half_sine_pulse(level.peak_force_n, level.contact_duration_s, RATE_HZ, 33.0,
-                            start_s=0.1)
+    force = half_sine_pulse(
+        level.peak_force_n, level.contact_duration_s, RATE_HZ, 33.0, start_s=0.1
+    )
     sim = simulate(force, RATE_HZ)
     freq = np.fft.rfftfreq(force.size, 1 / RATE_HZ)
     magnitude = np.abs(np.fft.rfft(sim.velocity_m_s) / np.fft.rfft(force))

@@ -23,19 +23,26 @@ class _Configured(Node):
 
 def test_defaults_and_overrides_are_returned(ros_graph):
     node = ros_graph.add(_Configured, parameter_overrides=[Parameter('rate_factor', value=20.0)])
-    assert node.values == {'rate_factor': 20.0, 'batch_size': 500,
-                           'levels_n': [450.0, 1000.0], 'storage': 'mcap'}
+    assert node.values == {
+        'rate_factor': 20.0,
+        'batch_size': 500,
+        'levels_n': [450.0, 1000.0],
+        'storage': 'mcap',
+    }
     described = node.describe_parameter('rate_factor')
     assert described.floating_point_range[0].to_value == 1000.0
     assert '[-]' in described.description
 
 
-@pytest.mark.parametrize(('override', 'reason'), [
-    (Parameter('rate_factor', value=5000.0), 'out of range'),
-    (Parameter('batch_size', value=0), 'out of range'),
-    (Parameter('levels_n', value=[450.0, -3.0]), '[-3.0] outside'),
-    (Parameter('storage', value='bag'), "'bag' is not one of mcap, sqlite3"),
-])
+@pytest.mark.parametrize(
+    ('override', 'reason'),
+    [
+        (Parameter('rate_factor', value=5000.0), 'out of range'),
+        (Parameter('batch_size', value=0), 'out of range'),
+        (Parameter('levels_n', value=[450.0, -3.0]), '[-3.0] outside'),
+        (Parameter('storage', value='bag'), "'bag' is not one of mcap, sqlite3"),
+    ],
+)
 def test_bad_start_up_values_are_refused_with_the_reason(ros_graph, override, reason):
     with pytest.raises(InvalidParameterValueException, match=reason.replace('[', r'\[')):
         ros_graph.add(_Configured, parameter_overrides=[override])
@@ -43,9 +50,13 @@ def test_bad_start_up_values_are_refused_with_the_reason(ros_graph, override, re
 
 def test_bad_live_values_are_refused_and_the_old_value_kept(ros_graph):
     node = ros_graph.add(_Configured)
-    results = node.set_parameters([Parameter('storage', value='zip'),
-                                   Parameter('rate_factor', value=-1.0),
-                                   Parameter('batch_size', value=1000)])
+    results = node.set_parameters(
+        [
+            Parameter('storage', value='zip'),
+            Parameter('rate_factor', value=-1.0),
+            Parameter('batch_size', value=1000),
+        ]
+    )
     assert [r.successful for r in results] == [False, False, False]
     assert 'not one of' in results[0].reason and 'out of range' in results[1].reason
     assert 'read-only' in results[2].reason

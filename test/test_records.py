@@ -21,20 +21,25 @@ def test_columns_in_any_order_with_extras(tmp_path):
     path = tmp_path / 'b.csv'
     path.write_text('velocity_m_s,note,time_s,force_n\n0.1,x,0.0,5\n0.2,y,0.001,6\n0.3,z,0.002,7\n')
     record = read_impact_csv(path)
-    assert record.force_n.tolist() == [5, 6, 7] and record.velocity_m_s.tolist() == [.1, .2, .3]
+    assert record.force_n.tolist() == [5, 6, 7] and record.velocity_m_s.tolist() == [0.1, 0.2, 0.3]
     assert record.sample_rate_hz == pytest.approx(1000.0)
 
 
-@pytest.mark.parametrize('text, message', [
-    ('', 'empty file'),
-    ('time_s,force_n\n0,1\n0.001,2\n', 'missing column.*velocity_m_s'),
-    ('time_s,force_n,velocity_m_s\n0,1,0\n0.001,2,0\n0.003,3,0\n0.004,4,0\n',
-     'non-uniform time step: 0.002 s between samples 1 and 2'),
-    ('time_s,force_n,velocity_m_s\n0,1,0\n0.001,nan,0\n0.002,3,0\n', 'force_n is not finite'),
-    ('time_s,force_n,velocity_m_s\n0,1,0\n0.001,oops,0\n', 'b.csv'),
-    ('time_s,force_n,velocity_m_s\n0,1,0\n', 'at least 2 samples'),
-    ('time_s,force_n,velocity_m_s\n0.002,1,0\n0.001,1,0\n0.000,1,0\n', 'must increase'),
-])
+@pytest.mark.parametrize(
+    'text, message',
+    [
+        ('', 'empty file'),
+        ('time_s,force_n\n0,1\n0.001,2\n', 'missing column.*velocity_m_s'),
+        (
+            'time_s,force_n,velocity_m_s\n0,1,0\n0.001,2,0\n0.003,3,0\n0.004,4,0\n',
+            'non-uniform time step: 0.002 s between samples 1 and 2',
+        ),
+        ('time_s,force_n,velocity_m_s\n0,1,0\n0.001,nan,0\n0.002,3,0\n', 'force_n is not finite'),
+        ('time_s,force_n,velocity_m_s\n0,1,0\n0.001,oops,0\n', 'b.csv'),
+        ('time_s,force_n,velocity_m_s\n0,1,0\n', 'at least 2 samples'),
+        ('time_s,force_n,velocity_m_s\n0.002,1,0\n0.001,1,0\n0.000,1,0\n', 'must increase'),
+    ],
+)
 def test_bad_files_are_refused_naming_the_problem(tmp_path, text, message):
     path = tmp_path / 'b.csv'
     path.write_text(text)
@@ -50,5 +55,10 @@ def test_record_checks_its_arrays():
     with pytest.raises(ValueError, match='positive'):
         ImpactRecord(np.zeros(10), np.zeros(10), 0.0)
     with pytest.raises(ValueError, match='outside the record'):
-        ImpactRecord(np.zeros(10), np.zeros(10), 1000.0, record_start_sample_index=100,
-                     trigger_sample_index=110)
+        ImpactRecord(
+            np.zeros(10),
+            np.zeros(10),
+            1000.0,
+            record_start_sample_index=100,
+            trigger_sample_index=110,
+        )

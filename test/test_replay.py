@@ -30,15 +30,15 @@ def session_bag(session, tmp_path_factory):
 
 def test_replay_finds_what_the_capture_finds_in_the_whole_recording(session, session_bag):
     """Batch by batch from the bag, or the original arrays in one block: the same impacts."""
-    direct = capture_impacts(session.force_n, session.velocity_m_s, session.sample_rate_hz,
-                             CAPTURE)
+    direct = capture_impacts(session.force_n, session.velocity_m_s, session.sample_rate_hz, CAPTURE)
     records, problems = bag_impact_records(session_bag, CAPTURE)
     assert problems == []
     assert len(records) == len(direct) == 6
     assert [r.trigger_sample_index for r in records] == [r.trigger_sample_index for r in direct]
     # Each trigger is within a sample of the simulated hit's start.
-    assert np.all(np.abs(np.array([r.trigger_sample_index for r in records])
-                         - session.hit_start_indices) <= 2)
+    assert np.all(
+        np.abs(np.array([r.trigger_sample_index for r in records]) - session.hit_start_indices) <= 2
+    )
     for ours, theirs in zip(records, direct, strict=True):
         np.testing.assert_array_equal(ours.force_n, theirs.force_n)
         np.testing.assert_array_equal(ours.velocity_m_s, theirs.velocity_m_s)
@@ -63,14 +63,21 @@ def test_a_dropped_batch_flags_the_impact_over_it_and_no_other(session, tmp_path
     dropped = (hit // 500 + 10) * 500  # one velocity batch, 1 s into the third impact
     with BagWriter(bag, time_origin_ns=0) as writer:
         for start in range(0, len(session.force_n), 500):
-            writer.write_sample_batch(FORCE_TOPIC, session.force_n[start:start + 500],
-                                      quantity=FORCE, sample_rate_hz=session.sample_rate_hz,
-                                      first_sample_index=start)
+            writer.write_sample_batch(
+                FORCE_TOPIC,
+                session.force_n[start : start + 500],
+                quantity=FORCE,
+                sample_rate_hz=session.sample_rate_hz,
+                first_sample_index=start,
+            )
             if start != dropped:
-                writer.write_sample_batch(VELOCITY_TOPIC, session.velocity_m_s[start:start + 500],
-                                          quantity=VELOCITY,
-                                          sample_rate_hz=session.sample_rate_hz,
-                                          first_sample_index=start)
+                writer.write_sample_batch(
+                    VELOCITY_TOPIC,
+                    session.velocity_m_s[start : start + 500],
+                    quantity=VELOCITY,
+                    sample_rate_hz=session.sample_rate_hz,
+                    first_sample_index=start,
+                )
     replay = replay_bag(bag, CAPTURE, ANALYSIS)
     flags = [result.flags for result in replay.summary.impacts]
     assert len(flags) == 6
@@ -79,12 +86,14 @@ def test_a_dropped_batch_flags_the_impact_over_it_and_no_other(session, tmp_path
 
 
 def test_fmm_analyze_takes_bags_and_csv_files_together(session, session_bag, tmp_path, capsys):
-    record = capture_impacts(session.force_n, session.velocity_m_s, session.sample_rate_hz,
-                             CAPTURE)[0]
+    record = capture_impacts(
+        session.force_n, session.velocity_m_s, session.sample_rate_hz, CAPTURE
+    )[0]
     csv_path = tmp_path / 'one.csv'
     write_impact_csv(csv_path, record.force_n, record.velocity_m_s, record.sample_rate_hz)
-    code = main(['analyze', str(session_bag), str(csv_path), '--paper-levels', '--json',
-                 '--window-s', '5'])
+    code = main(
+        ['analyze', str(session_bag), str(csv_path), '--paper-levels', '--json', '--window-s', '5']
+    )
     assert code == 0
     impacts = json.loads(capsys.readouterr().out)['impacts']
     assert len(impacts) == 7
@@ -110,8 +119,9 @@ def test_replay_of_a_crashed_recording_analyses_what_was_flushed(session, tmp_pa
     writer = BagWriter(bag, time_origin_ns=0)
     writer.open()
     half = len(session.force_n) // 2 // 500 * 500
-    writer.write_signals(session.force_n[:half], session.velocity_m_s[:half],
-                         session.sample_rate_hz)
+    writer.write_signals(
+        session.force_n[:half], session.velocity_m_s[:half], session.sample_rate_hz
+    )
     writer.flush()  # then the recorder is killed
     assert main(['replay', str(bag), '--window-s', '5', '--json']) == 1
     out, err = capsys.readouterr()

@@ -43,8 +43,15 @@ DURATION_S = 4.5
 TEST_DPI = 40
 # Peak forces of the simulated session: two hits per paper level, and one beyond the force
 # sensor's range (clipped, and out of every level's tolerance).
-PEAKS_N = {'00_low': 440.0, '01_low': 470.0, '02_medium': 990.0, '03_medium': 1020.0,
-           '04_high': 1440.0, '05_high': 1460.0, '07_overload': 1600.0}
+PEAKS_N = {
+    '00_low': 440.0,
+    '01_low': 470.0,
+    '02_medium': 990.0,
+    '03_medium': 1020.0,
+    '04_high': 1440.0,
+    '05_high': 1460.0,
+    '07_overload': 1600.0,
+}
 FULL_SCALE_N = 1550.0
 
 
@@ -59,8 +66,12 @@ def clipping_checked():
         box = figure.get_tightbbox()
         width, height = figure.get_size_inches()
         tolerance = 1.5 / dpi  # inches: anti-aliasing may spill a pixel
-        if (box.x0 < -tolerance or box.y0 < -tolerance or box.x1 > width + tolerance
-                or box.y1 > height + tolerance):
+        if (
+            box.x0 < -tolerance
+            or box.y0 < -tolerance
+            or box.x1 > width + tolerance
+            or box.y1 > height + tolerance
+        ):
             clipped.append((figure.get_suptitle(), box.bounds, (width, height)))
         return data
 
@@ -89,10 +100,26 @@ def csv_session(tmp_path_factory):
     out = folder / 'report'
     inputs = sorted(str(path) for path in folder.glob('*.csv'))
     with clipping_checked() as clipped:
-        code = main(['report', *inputs, '--out', str(out), '--paper-levels',
-                     '--force-full-scale-n', str(FULL_SCALE_N), '--dpi', str(TEST_DPI)])
-    return {'code': code, 'out': out, 'inputs': inputs, 'clipped': clipped,
-            'page': (out / 'index.html').read_text(encoding='utf-8')}
+        code = main(
+            [
+                'report',
+                *inputs,
+                '--out',
+                str(out),
+                '--paper-levels',
+                '--force-full-scale-n',
+                str(FULL_SCALE_N),
+                '--dpi',
+                str(TEST_DPI),
+            ]
+        )
+    return {
+        'code': code,
+        'out': out,
+        'inputs': inputs,
+        'clipped': clipped,
+        'page': (out / 'index.html').read_text(encoding='utf-8'),
+    }
 
 
 class _HitTable(html.parser.HTMLParser):
@@ -134,8 +161,13 @@ def check_figures(out, page, expected):
     """Every expected figure is a readable PNG, linked from the page and embedded byte for byte."""
     pngs = {path.stem: path for path in out.glob('*.png')}
     assert set(pngs) == set(expected)
-    embedded = dict(re.findall(r'<img src="data:image/png;base64,([A-Za-z0-9+/=]+)" '
-                               r'alt="([^"]+)\.png">', page))
+    embedded = dict(
+        re.findall(
+            r'<img src="data:image/png;base64,([A-Za-z0-9+/=]+)" '
+            r'alt="([^"]+)\.png">',
+            page,
+        )
+    )
     embedded = {name: data for data, name in embedded.items()}
     assert set(embedded) == set(expected)
     for name, path in pngs.items():
@@ -153,10 +185,19 @@ def check_figures(out, page, expected):
 def test_report_from_csv_session_has_every_figure(csv_session):
     assert csv_session['code'] == 0
     levels = ('low', 'medium', 'high')
-    expected = {'impulses', 'linearity', 'levels_receptance', 'harmonics', 'friction',
-                *(f'{kind}_{level}' for kind in ('trials', 'mobility', 'receptance',
-                                                 'model_mobility') for level in levels),
-                *(f'hit_{number:03d}' for number in range(len(csv_session['inputs'])))}
+    expected = {
+        'impulses',
+        'linearity',
+        'levels_receptance',
+        'harmonics',
+        'friction',
+        *(
+            f'{kind}_{level}'
+            for kind in ('trials', 'mobility', 'receptance', 'model_mobility')
+            for level in levels
+        ),
+        *(f'hit_{number:03d}' for number in range(len(csv_session['inputs']))),
+    }
     check_figures(csv_session['out'], csv_session['page'], expected)
 
 
@@ -207,21 +248,46 @@ def test_report_from_a_recorded_session_bag_shows_the_hit_over_a_lost_batch(tmp_
     with BagWriter(bag) as writer:
         for start in range(0, session.force_n.size, 500):
             if start != lost:
-                writer.write_sample_batch(FORCE_TOPIC, session.force_n[start:start + 500],
-                                          quantity=FORCE, sample_rate_hz=session.sample_rate_hz,
-                                          first_sample_index=start)
-            writer.write_sample_batch(VELOCITY_TOPIC, session.velocity_m_s[start:start + 500],
-                                      quantity=VELOCITY, sample_rate_hz=session.sample_rate_hz,
-                                      first_sample_index=start)
+                writer.write_sample_batch(
+                    FORCE_TOPIC,
+                    session.force_n[start : start + 500],
+                    quantity=FORCE,
+                    sample_rate_hz=session.sample_rate_hz,
+                    first_sample_index=start,
+                )
+            writer.write_sample_batch(
+                VELOCITY_TOPIC,
+                session.velocity_m_s[start : start + 500],
+                quantity=VELOCITY,
+                sample_rate_hz=session.sample_rate_hz,
+                first_sample_index=start,
+            )
     out = tmp_path / 'report'
     with clipping_checked() as clipped:
-        assert main(['report', str(bag), '--out', str(out), '--paper-levels', '--window-s', '4.5',
-                     '--fit-initial-position', '--dpi', str(TEST_DPI)]) == 0
+        assert (
+            main(
+                [
+                    'report',
+                    str(bag),
+                    '--out',
+                    str(out),
+                    '--paper-levels',
+                    '--window-s',
+                    '4.5',
+                    '--fit-initial-position',
+                    '--dpi',
+                    str(TEST_DPI),
+                ]
+            )
+            == 0
+        )
     page = (out / 'index.html').read_text(encoding='utf-8')
     header, rows = hit_rows(page)
     assert [row['source'].split('@')[0] for _, row in rows] == ['session'] * 3
     assert [(css, row['level'], row['flags']) for css, row in rows[:2]] == [
-        ('', 'low', '-'), ('', 'medium', '-')]
+        ('', 'low', '-'),
+        ('', 'medium', '-'),
+    ]
     assert rows[2][0] == 'rejected' and 'gap' in rows[2][1]['flags'].split(', ')
     # In one continuous recording the second hit finds the rig where friction stopped the
     # first; with that start fitted the model leaves only noise (0.01 mm/s) there too. A
@@ -230,18 +296,32 @@ def test_report_from_a_recorded_session_bag_shows_the_hit_over_a_lost_batch(tmp_
     assert float(residuals[0]) < 0.05 and float(residuals[1]) < 0.05 and residuals[2] == '-'
     starts = re.findall(r'± [0-9.]+</td><td>(-?[0-9.]+)</td></tr>', page)
     assert len(starts) == 2 and abs(float(starts[0])) < 0.005 and 0.01 < abs(float(starts[1])) < 0.4
-    check_figures(out, page, {
-        'impulses', 'linearity', 'levels_receptance', 'harmonics',
-        *(f'{kind}_{level}' for kind in ('trials', 'mobility', 'receptance', 'model_mobility')
-          for level in ('low', 'medium')), 'hit_000', 'hit_001', 'hit_002', 'friction'})
+    check_figures(
+        out,
+        page,
+        {
+            'impulses',
+            'linearity',
+            'levels_receptance',
+            'harmonics',
+            *(
+                f'{kind}_{level}'
+                for kind in ('trials', 'mobility', 'receptance', 'model_mobility')
+                for level in ('low', 'medium')
+            ),
+            'hit_000',
+            'hit_001',
+            'hit_002',
+            'friction',
+        },
+    )
     assert clipped == []
 
 
 def test_diagnosis_names_the_hidden_effect_and_shows_the_gap_shrink(tmp_path):
     """Three hits with a Stribeck effect hidden at 2.5 times the velocity noise (the diagnose
     workflow's proof data), reported with --diagnose."""
-    case = hidden_effect_case('stribeck', np.random.default_rng([8, 1]), ratio=2.5,
-                              duration_s=6.0)
+    case = hidden_effect_case('stribeck', np.random.default_rng([8, 1]), ratio=2.5, duration_s=6.0)
     inputs = []
     for index, record in enumerate(case.records):
         inputs.append(str(tmp_path / f'hit{index}.csv'))
@@ -250,15 +330,30 @@ def test_diagnosis_names_the_hidden_effect_and_shows_the_gap_shrink(tmp_path):
     # The proof data's velocity noise (0.1 mm/s) is the default rest threshold: widen it, or
     # every record would be flagged unsettled.
     with clipping_checked() as clipped:
-        assert main(['report', *inputs, '--out', str(out), '--no-fit', '--diagnose',
-                     '--rest-velocity-m-s', '1e-3', '--dpi', str(TEST_DPI)]) == 0
+        assert (
+            main(
+                [
+                    'report',
+                    *inputs,
+                    '--out',
+                    str(out),
+                    '--no-fit',
+                    '--diagnose',
+                    '--rest-velocity-m-s',
+                    '1e-3',
+                    '--dpi',
+                    str(TEST_DPI),
+                ]
+            )
+            == 0
+        )
     page = (out / 'index.html').read_text(encoding='utf-8')
     assert clipped == []
     named = re.search(r'Missing effect: (\w+)\. Gap .*? ([0-9.e-]+) → ([0-9.e-]+);', page)
     assert named is not None and named[1] == 'stribeck'
     assert float(named[3]) <= 0.5 * float(named[2])
-    table = page[page.index('<th class="text">candidate effect</th>'):]
-    candidates = re.findall(r'<tr><td class="text">(\w+)</td>', table[:table.index('</table>')])
+    table = page[page.index('<th class="text">candidate effect</th>') :]
+    candidates = re.findall(r'<tr><td class="text">(\w+)</td>', table[: table.index('</table>')])
     assert len(candidates) == 7 and candidates[0] == 'stribeck'
     assert 'stribeck.mu_static_excess' in page
     for name in ('diagnosis_residuals', 'diagnosis_mobility'):
@@ -271,8 +366,18 @@ def test_all_rejected_session_still_reports_and_says_why_mu_is_not_fitted(tmp_pa
     write_impact_csv(tmp_path / 'clipped.csv', hit.force_n, hit.velocity_m_s, RATE_HZ)
     out = tmp_path / 'report'
     with clipping_checked() as clipped_figures:
-        code = main(['report', str(tmp_path / 'clipped.csv'), '--out', str(out),
-                     '--force-full-scale-n', '900', '--dpi', str(TEST_DPI)])
+        code = main(
+            [
+                'report',
+                str(tmp_path / 'clipped.csv'),
+                '--out',
+                str(out),
+                '--force-full-scale-n',
+                '900',
+                '--dpi',
+                str(TEST_DPI),
+            ]
+        )
     assert code == 1  # the page is written, but mu could not be fitted
     assert 'cannot fit mu: no accepted impact to fit' in capsys.readouterr().err
     text = (out / 'index.html').read_text(encoding='utf-8')
@@ -287,8 +392,9 @@ def test_all_rejected_session_still_reports_and_says_why_mu_is_not_fitted(tmp_pa
 def test_build_report_analyses_records_itself_and_draws_a_given_model(tmp_path):
     """The entry point fmm demo calls: records only (no summary), a given mu."""
     hit = impact_record(1000.0, rng=3, duration_s=DURATION_S)
-    record = ImpactRecord(hit.force_n, hit.velocity_m_s, RATE_HZ, force_full_scale_n=900.0,
-                          source='clipped.csv')
+    record = ImpactRecord(
+        hit.force_n, hit.velocity_m_s, RATE_HZ, force_full_scale_n=900.0, source='clipped.csv'
+    )
     page = build_report([record], tmp_path, model=ModelOverlay(0.113, 'given'), dpi=TEST_DPI)
     text = page.read_text(encoding='utf-8')
     header, rows = hit_rows(text)
@@ -307,15 +413,25 @@ def test_model_overlay_is_the_noise_free_plant_driven_by_the_conditioned_force()
     # Only the force noise inside the hit (0.05 N over ~20 samples) separates them.
     assert np.max(np.abs(given.velocity_m_s(record, 0) - truth)) < 1e-3 * np.max(np.abs(truth))
     # A fitted start position moves the model; other impacts still start at 0.
-    summary = FrictionSummary(0.113, 1e-5, given.rig, (0, 1), (0.113, 0.113), (1e-5, 1e-5),
-                              initial_positions_m=(2e-4, 0.0))
+    summary = FrictionSummary(
+        0.113,
+        1e-5,
+        given.rig,
+        (0, 1),
+        (0.113, 0.113),
+        (1e-5, 1e-5),
+        initial_positions_m=(2e-4, 0.0),
+    )
     moved = summary.overlay()
     assert moved.source == 'fitted'
     assert np.max(np.abs(moved.velocity_m_s(record, 0) - truth)) > 1e-3
     np.testing.assert_array_equal(moved.velocity_m_s(record, 1), given.velocity_m_s(record, 0))
     # Gaps cannot drive it.
-    gapped = ImpactRecord(np.where(np.arange(record.force_n.size) == 9000, np.nan,
-                                   record.force_n), record.velocity_m_s, RATE_HZ)
+    gapped = ImpactRecord(
+        np.where(np.arange(record.force_n.size) == 9000, np.nan, record.force_n),
+        record.velocity_m_s,
+        RATE_HZ,
+    )
     assert given.velocity_m_s(gapped, 0) is None
     with pytest.raises(ValueError, match='one value per impact'):
         FrictionSummary(0.113, 1e-5, given.rig, (0, 1), (0.113,), (1e-5,))
@@ -325,10 +441,21 @@ def test_paper_report_reproduces_figs_2_to_10(tmp_path):
     with clipping_checked() as clipped:
         page = build_paper_report(tmp_path, dpi=TEST_DPI)
     text = page.read_text(encoding='utf-8')
-    check_figures(tmp_path, text, {
-        'fig2_free_vibration_3mm', 'fig3_free_vibration_1mm', 'fig4_final_vs_initial',
-        'fig5_pulse_durations', 'fig6_pulse_spectra', 'fig7_pulse_receptance',
-        'fig8_friction_time', 'fig9_friction_spectra', 'fig10_friction_receptance'})
+    check_figures(
+        tmp_path,
+        text,
+        {
+            'fig2_free_vibration_3mm',
+            'fig3_free_vibration_1mm',
+            'fig4_final_vs_initial',
+            'fig5_pulse_durations',
+            'fig6_pulse_spectra',
+            'fig7_pulse_receptance',
+            'fig8_friction_time',
+            'fig9_friction_spectra',
+            'fig10_friction_receptance',
+        },
+    )
     assert clipped == []
     # The rest positions the paper quotes for Figs. 2 and 3. From 1 mm the swing shrinks by
     # 2 x_lim = 0.392 mm each half cycle: 1, -0.608, 0.215, then rest at 0.177 mm exactly;
@@ -433,7 +560,7 @@ def test_a_trace_line_is_drawn_at_the_pixel_columns_of_its_axes():
         # Inside the frame, the spike's column is inked up to the pixel row of y = 3.
         spike_x, spike_y = ax.transData.transform((x[123_457], 3.0))
         frame_top = int(np.ceil(pixels.shape[0] - ax.bbox.y1)) + 2
-        column = pixels[frame_top:, int(spike_x) - 1:int(spike_x) + 2].min(axis=1)
+        column = pixels[frame_top:, int(spike_x) - 1 : int(spike_x) + 2].min(axis=1)
         inked = np.flatnonzero(column < 0.5) + frame_top
         assert abs(inked.min() - (pixels.shape[0] - spike_y)) <= 2
     assert 1.8 < counts[1] / counts[0] < 2.2
@@ -446,21 +573,28 @@ def test_a_reused_hit_figure_draws_what_a_fresh_one_draws():
     for number, peak in enumerate((1450.0, 440.0)):
         hit = impact_record(peak, rng=number, duration_s=DURATION_S)
         record = ImpactRecord(hit.force_n, hit.velocity_m_s, RATE_HZ, source=f'{number}.csv')
-        hits.append((record, analyze_impact(record, impact_id=number),
-                     model.velocity_m_s(record, number)))
+        hits.append(
+            (record, analyze_impact(record, impact_id=number), model.velocity_m_s(record, number))
+        )
 
     def drawn(figures, number, with_model, colour):
         record, result, velocity = hits[number]
-        figure = figures.draw(record, result, model_velocity_m_s=velocity if with_model else None,
-                              model_label=model.label, colour=colour)
+        figure = figures.draw(
+            record,
+            result,
+            model_velocity_m_s=velocity if with_model else None,
+            model_label=model.label,
+            colour=colour,
+        )
         return figure, matplotlib.image.imread(io.BytesIO(png_bytes(figure, TEST_DPI)))
 
     reused = HitFigures()
     drawn(reused, 0, True, 'tab:green')
     drawn(reused, 0, False, 'tab:gray')
     for with_model in (True, False):
-        (figure, again), (_, fresh) = (drawn(figures, 1, with_model, 'tab:orange')
-                                       for figures in (reused, HitFigures()))
+        (figure, again), (_, fresh) = (
+            drawn(figures, 1, with_model, 'tab:orange') for figures in (reused, HitFigures())
+        )
         assert again.shape == fresh.shape
         # Sub-pixel shifts of the layout change a few edge pixels by a few levels; a leaked
         # colour or artist changes a percent of the image by far more.
@@ -495,7 +629,7 @@ def test_layout_keeps_long_labels_apart_and_inside_with_a_figure_legend():
     for box in [*boxes, figure.legends[0].get_window_extent(renderer)]:
         assert box.x0 >= 0 and box.y0 >= 0 and box.x1 <= width and box.y1 <= height
     for first, box in enumerate(boxes):
-        for other in boxes[first + 1:]:
+        for other in boxes[first + 1 :]:
             assert not box.overlaps(other)
     legend_top = figure.legends[0].get_window_extent(renderer).y1
     assert all(box.y0 > legend_top for box in boxes)

@@ -31,8 +31,7 @@ def test_schedule_follows_the_protocol():
     assert [hit.level for hit in hits] == ['low'] * 3 + ['medium'] * 3 + ['high'] * 3
     starts = np.array([hit.start_index for hit in hits]) / RATE_HZ
     np.testing.assert_allclose(np.diff(starts), 2.0, atol=1.1 / RATE_HZ)
-    for hit, (_, nominal) in zip(hits, [level for level in LEVELS for _ in range(3)],
-                                 strict=True):
+    for hit, (_, nominal) in zip(hits, [level for level in LEVELS for _ in range(3)], strict=True):
         assert abs(hit.peak_force_n - nominal) < 100.0
         assert hit.contact_duration_s == tip_contact_duration_s(hit.peak_force_n)
     assert schedule() == hits and schedule(rng=5) != hits
@@ -52,9 +51,10 @@ def test_streams_do_not_depend_on_the_batch_size():
     # Each pulse lands whole: its area is the half-sine-like hit's 2 F T / pi.
     for hit in schedule():
         first = int(hit.start_index)
-        area = np.trapezoid(applied[first - 2:first + int(hit.contact_duration_s * RATE_HZ) + 3])
+        area = np.trapezoid(applied[first - 2 : first + int(hit.contact_duration_s * RATE_HZ) + 3])
         assert area / RATE_HZ == pytest.approx(
-            2 * hit.peak_force_n * hit.contact_duration_s / np.pi, rel=0.01)
+            2 * hit.peak_force_n * hit.contact_duration_s / np.pi, rel=0.01
+        )
 
 
 def test_hits_are_counted_once_their_first_sample_is_out():
@@ -67,16 +67,23 @@ def test_hits_are_counted_once_their_first_sample_is_out():
 
 def test_indexed_noise_depends_on_the_index_only():
     whole = add_indexed_noise(np.zeros(10_000), 123, 1.0, seed=3)
-    parts = np.concatenate([add_indexed_noise(np.zeros(n), 123 + sum((700, 4000)[:i]), 1.0, 3)
-                            for i, n in enumerate((700, 4000, 5300))])
+    parts = np.concatenate(
+        [
+            add_indexed_noise(np.zeros(n), 123 + sum((700, 4000)[:i]), 1.0, 3)
+            for i, n in enumerate((700, 4000, 5300))
+        ]
+    )
     assert whole.tobytes() == parts.tobytes()
     assert not np.array_equal(whole, add_indexed_noise(np.zeros(10_000), 123, 1.0, seed=4))
 
 
-@pytest.mark.parametrize(('kwargs', 'message'), [
-    (dict(spacing_s=0.0), 'spacing_s'),
-    (dict(spread_std_n=-1.0), 'spread_std_n'),
-])
+@pytest.mark.parametrize(
+    ('kwargs', 'message'),
+    [
+        (dict(spacing_s=0.0), 'spacing_s'),
+        (dict(spread_std_n=-1.0), 'spread_std_n'),
+    ],
+)
 def test_bad_schedules_are_refused(kwargs, message):
     with pytest.raises(ValueError, match=message):
         schedule(**kwargs)
@@ -87,10 +94,16 @@ def test_bad_schedules_are_refused(kwargs, message):
 def test_model_terms_from_text():
     term = parse_model_term('stribeck: mu_static_excess=0.03, stribeck_velocity_m_s=0.001')
     assert (term.name, term.mu_static_excess, term.stribeck_velocity_m_s) == (
-        'stribeck', 0.03, 0.001)
+        'stribeck',
+        0.03,
+        0.001,
+    )
     assert parse_model_term('velocity_offset').offset_m_s == 1e-4
-    for text, message in [('nope', 'unknown model term'), ('stribeck:x=1', 'no parameter x'),
-                          ('stribeck:mu_static_excess', 'is not param=number'),
-                          ('stribeck:mu_static_excess=abc', 'is not param=number')]:
+    for text, message in [
+        ('nope', 'unknown model term'),
+        ('stribeck:x=1', 'no parameter x'),
+        ('stribeck:mu_static_excess', 'is not param=number'),
+        ('stribeck:mu_static_excess=abc', 'is not param=number'),
+    ]:
         with pytest.raises(ValueError, match=message):
             parse_model_term(text)

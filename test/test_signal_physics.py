@@ -35,8 +35,9 @@ def theory_mobility(impulse_n_s, rig=FMM_RIG, mu=PAPER_MU):
 def paper_hit(level, rig, mu=PAPER_MU):
     """A half-sine at one of the paper's levels (its peak and mean impulse) and the response."""
     hammer = HAMMER_LEVELS[level]
-    force = half_sine_pulse(hammer.peak_force_n, hammer.contact_duration_s, RATE_HZ, 33.0,
-                            start_s=0.01)
+    force = half_sine_pulse(
+        hammer.peak_force_n, hammer.contact_duration_s, RATE_HZ, 33.0, start_s=0.01
+    )
     return ImpactRecord(force, simulate(force, RATE_HZ, rig=rig, mu=mu).velocity_m_s, RATE_HZ)
 
 
@@ -60,20 +61,30 @@ def stream_of_hits(levels, spacing_s=40.0, seed=0):
     force = np.zeros(n)
     for i, level in enumerate(levels):
         peak = HAMMER_LEVELS[level].peak_force_n + rng.normal(0, 20)
-        force += hammer_pulse(peak, tip_contact_duration_s(peak), RATE_HZ, seconds,
-                              start_s=1.0 + i * spacing_s + rng.uniform(0, 1e-4))
+        force += hammer_pulse(
+            peak,
+            tip_contact_duration_s(peak),
+            RATE_HZ,
+            seconds,
+            start_s=1.0 + i * spacing_s + rng.uniform(0, 1e-4),
+        )
     velocity = simulate(force, RATE_HZ).velocity_m_s
     return force + rng.normal(0, 0.05, n), velocity + rng.normal(0, 1e-5, n)
 
 
 def test_three_levels_give_a_line_through_the_origin_with_r2_above_0_99():
     force, velocity = stream_of_hits(['low', 'medium', 'high'] * 2)
-    results = [analyze_impact(record, impact_id=i)
-               for i, record in enumerate(capture_impacts(force, velocity, RATE_HZ))]
+    results = [
+        analyze_impact(record, impact_id=i)
+        for i, record in enumerate(capture_impacts(force, velocity, RATE_HZ))
+    ]
     summary = summarize(results, AnalysisConfig(levels=PAPER_LEVELS))
     assert [(r.flags, r.accepted) for r in summary.impacts] == [((), True)] * 6
-    assert [(lv.level, lv.count) for lv in summary.levels] == [('low', 2), ('medium', 2),
-                                                                 ('high', 2)]
+    assert [(lv.level, lv.count) for lv in summary.levels] == [
+        ('low', 2),
+        ('medium', 2),
+        ('high', 2),
+    ]
     fit = summary.linearity
     assert fit.count == 3 and fit.r2 > 0.99
     # Peak receptance = |Y(w_n)| / w_n: slope pi / (8 m mu N w_n), through the origin.
@@ -81,8 +92,7 @@ def test_three_levels_give_a_line_through_the_origin_with_r2_above_0_99():
     assert fit.slope == pytest.approx(theory_mobility(1.0) / omega_n, rel=0.05)
     assert abs(fit.intercept) < 0.05 * fit.slope * 1.0
     for level in summary.levels:
-        assert level.natural_frequency_hz == pytest.approx(FMM_RIG.natural_frequency_hz,
-                                                           abs=0.05)
+        assert level.natural_frequency_hz == pytest.approx(FMM_RIG.natural_frequency_hz, abs=0.05)
 
 
 @pytest.mark.parametrize('seed', range(6))
@@ -106,24 +116,28 @@ def linear_h1(rig, analysis):
         force = half_sine_pulse(peak, tip_contact_duration_s(peak), RATE_HZ, 33.0, start_s=0.01)
         velocity = simulate(force, RATE_HZ, rig=rig, mu=0.0).velocity_m_s
         results.append(analyze_impact(ImpactRecord(force, velocity, RATE_HZ), analysis=analysis))
-    average = frf.average_frf(np.stack([r.force_spectrum for r in results]),
-                              np.stack([r.velocity_spectrum for r in results]))
+    average = frf.average_frf(
+        np.stack([r.force_spectrum for r in results]),
+        np.stack([r.velocity_spectrum for r in results]),
+    )
     return results, results[0].frequency_hz, average.h1_mobility
 
 
 def analytic_mobility(rig, s):
-    return s / (rig.mass_kg * s ** 2 + rig.damping_n_s_per_m * s + rig.stiffness_n_per_m)
+    return s / (rig.mass_kg * s**2 + rig.damping_n_s_per_m * s + rig.stiffness_n_per_m)
 
 
 def test_linear_oscillator_h1_is_the_analytic_frf_around_resonance():
     # mu = 0 and 5 % damping: the response dies out inside the 33 s record, no window needed.
-    rig = dataclasses.replace(FMM_RIG, damping_n_s_per_m=2 * 0.05 * np.sqrt(
-        FMM_RIG.stiffness_n_per_m * FMM_RIG.mass_kg))
+    rig = dataclasses.replace(
+        FMM_RIG, damping_n_s_per_m=2 * 0.05 * np.sqrt(FMM_RIG.stiffness_n_per_m * FMM_RIG.mass_kg)
+    )
     results, frequency, h1 = linear_h1(rig, AnalysisConfig())
     assert all(r.flags == () for r in results)
     near = np.abs(frequency / rig.natural_frequency_hz - 1) < 0.2
-    np.testing.assert_allclose(h1[near], analytic_mobility(rig, 2j * np.pi * frequency[near]),
-                               rtol=0.01)
+    np.testing.assert_allclose(
+        h1[near], analytic_mobility(rig, 2j * np.pi * frequency[near]), rtol=0.01
+    )
 
 
 def test_bare_flexure_needs_the_exponential_window_and_gets_an_exact_frf():

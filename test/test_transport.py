@@ -36,9 +36,15 @@ def test_sample_batch_of_500_float64_arrives_bit_identical(ros_graph):
     talker = ros_graph.add(Node, node_name='talker')
     publisher = talker.create_publisher(SampleBatch, '/fmm/force', QOS)
     ros_graph.start()
-    msg = msgs.sample_batch(samples, quantity=msgs.FORCE, sample_rate_hz=10_000.0,
-                            first_sample_index=1_000_000, stamp=talker.get_clock().now().to_msg(),
-                            frame_id='hammer', full_scale=2224.0)
+    msg = msgs.sample_batch(
+        samples,
+        quantity=msgs.FORCE,
+        sample_rate_hz=10_000.0,
+        first_sample_index=1_000_000,
+        stamp=talker.get_clock().now().to_msg(),
+        frame_id='hammer',
+        full_scale=2224.0,
+    )
     for _ in range(100):  # discovery takes a moment: publish until the first one lands
         publisher.publish(msg)
         if collector.arrived.wait(0.1):
@@ -51,7 +57,10 @@ def test_sample_batch_of_500_float64_arrives_bit_identical(ros_graph):
     assert view.tobytes() == samples.tobytes()
     assert (got.quantity, got.unit, got.sample_rate_hz) == ('force', 'N', 10_000.0)
     assert (got.first_sample_index, got.full_scale, got.header.frame_id) == (
-        1_000_000, 2224.0, 'hammer')
+        1_000_000,
+        2224.0,
+        'hammer',
+    )
 
 
 def test_float64_field_round_trip_copies_once_and_views_without_copy():
@@ -75,8 +84,7 @@ class _EchoFitter(Node):
         response.message = f'{len(request.impact_ids)} impacts, misfit {request.misfit}'
         response.mu = (request.mu_min + request.mu_max) / 2
         response.impact_ids = request.impact_ids
-        response.per_impact_mu = msgs.float64_field(
-            np.full(len(request.impact_ids), response.mu))
+        response.per_impact_mu = msgs.float64_field(np.full(len(request.impact_ids), response.mu))
         return response
 
 
@@ -85,8 +93,9 @@ def test_fit_friction_request_response_round_trip(ros_graph):
     caller = ros_graph.add(Node, node_name='caller')
     client = caller.create_client(FitFriction, '/fmm/fit_friction')
     ros_graph.start()
-    request = FitFriction.Request(impact_ids=[3, 4, 9], fit_damping=True, mu_min=0.05,
-                                  mu_max=0.2, misfit='time')
+    request = FitFriction.Request(
+        impact_ids=[3, 4, 9], fit_damping=True, mu_min=0.05, mu_max=0.2, misfit='time'
+    )
     response = ros_graph.call(client, request)
     assert response.success
     assert response.message == '3 impacts, misfit time'

@@ -32,7 +32,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog='fmm',
         description='Impact-hammer FRF testing and friction identification on the friction '
-                    'measuring machine (Kossack, Ziegert, Schmitz, NAMRC 2019).')
+        'measuring machine (Kossack, Ziegert, Schmitz, NAMRC 2019).',
+    )
     parser.add_argument('--version', action='version', version=f'fmm_ros {__version__}')
     subparsers = parser.add_subparsers(dest='command', metavar='COMMAND')
     for name in SUBCOMMANDS:

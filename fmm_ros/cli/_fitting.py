@@ -18,9 +18,13 @@ from fmm_ros.core.fit import FitError
 from fmm_ros.core.records import ImpactRecord
 
 
-def fit_and_report(command: str, args: argparse.Namespace,
-                   fit: Callable[[Sequence[ImpactRecord]], Any], report: Callable[[Any], dict],
-                   text_report: Callable[[Any], str]) -> int:
+def fit_and_report(
+    command: str,
+    args: argparse.Namespace,
+    fit: Callable[[Sequence[ImpactRecord]], Any],
+    report: Callable[[Any], dict],
+    text_report: Callable[[Any], str],
+) -> int:
     """Read args.inputs, fit them, print the result (or why there is none); the exit status."""
     records, problems = read_records(args.inputs)
     try:
@@ -28,8 +32,15 @@ def fit_and_report(command: str, args: argparse.Namespace,
     except FitError as failure:
         report_problems(command, problems)
         if args.json:
-            print(json.dumps({'error': failure.reason, 'message': str(failure),
-                              'file': failure.source or None}))
+            print(
+                json.dumps(
+                    {
+                        'error': failure.reason,
+                        'message': str(failure),
+                        'file': failure.source or None,
+                    }
+                )
+            )
         else:
             print(f'fmm {command}: cannot fit ({failure.reason}): {failure}', file=sys.stderr)
         return 1

@@ -7,28 +7,52 @@ from fmm_ros.core.model import FMM_RIG, Rig
 
 def add_rig_arguments(parser: argparse.ArgumentParser) -> None:
     """--mass-kg, --stiffness-n-per-m, --damping-n-s-per-m, --normal-force-n (FMM defaults)."""
-    parser.add_argument('--mass-kg', type=float, default=FMM_RIG.mass_kg,
-                        help=f'moving mass m [kg] (default {FMM_RIG.mass_kg})')
-    parser.add_argument('--stiffness-n-per-m', type=float, default=FMM_RIG.stiffness_n_per_m,
-                        help=f'spring constant k [N/m] (default {FMM_RIG.stiffness_n_per_m:g})')
-    parser.add_argument('--damping-n-s-per-m', type=float, default=FMM_RIG.damping_n_s_per_m,
-                        help=f'viscous damping c [N*s/m] (default {FMM_RIG.damping_n_s_per_m})')
-    parser.add_argument('--normal-force-n', type=float, default=FMM_RIG.normal_force_n,
-                        help='normal force N [N] (default 0.680 kg x 9.81 m/s^2 = '
-                             f'{FMM_RIG.normal_force_n:.4f})')
+    parser.add_argument(
+        '--mass-kg',
+        type=float,
+        default=FMM_RIG.mass_kg,
+        help=f'moving mass m [kg] (default {FMM_RIG.mass_kg})',
+    )
+    parser.add_argument(
+        '--stiffness-n-per-m',
+        type=float,
+        default=FMM_RIG.stiffness_n_per_m,
+        help=f'spring constant k [N/m] (default {FMM_RIG.stiffness_n_per_m:g})',
+    )
+    parser.add_argument(
+        '--damping-n-s-per-m',
+        type=float,
+        default=FMM_RIG.damping_n_s_per_m,
+        help=f'viscous damping c [N*s/m] (default {FMM_RIG.damping_n_s_per_m})',
+    )
+    parser.add_argument(
+        '--normal-force-n',
+        type=float,
+        default=FMM_RIG.normal_force_n,
+        help=f'normal force N [N] (default 0.680 kg x 9.81 m/s^2 = {FMM_RIG.normal_force_n:.4f})',
+    )
 
 
 def add_fit_freedom_arguments(parser: argparse.ArgumentParser) -> None:
     """--fit-damping and --fit-initial-position: what a friction fit frees besides mu."""
-    parser.add_argument('--fit-damping', action='store_true',
-                        help='fit the viscous damping c too (otherwise c is the rig constant)')
-    parser.add_argument('--fit-initial-position', action='store_true',
-                        help='fit where the rig rested before each hit (friction leaves it off '
-                             'centre after the previous one; otherwise each starts at x = 0)')
+    parser.add_argument(
+        '--fit-damping',
+        action='store_true',
+        help='fit the viscous damping c too (otherwise c is the rig constant)',
+    )
+    parser.add_argument(
+        '--fit-initial-position',
+        action='store_true',
+        help='fit where the rig rested before each hit (friction leaves it off '
+        'centre after the previous one; otherwise each starts at x = 0)',
+    )
 
 
 def rig_from_args(args: argparse.Namespace) -> Rig:
     """The Rig the rig flags describe (ValueError naming a bad constant)."""
-    return Rig(mass_kg=args.mass_kg, stiffness_n_per_m=args.stiffness_n_per_m,
-               damping_n_s_per_m=args.damping_n_s_per_m, normal_force_n=args.normal_force_n)
-
+    return Rig(
+        mass_kg=args.mass_kg,
+        stiffness_n_per_m=args.stiffness_n_per_m,
+        damping_n_s_per_m=args.damping_n_s_per_m,
+        normal_force_n=args.normal_force_n,
+    )

@@ -11,11 +11,13 @@ from fmm_ros.core.bagio.summary import format_summary, summarize_bag
 def register(subparsers) -> None:
     """Add the bag-info subcommand."""
     parser = subparsers.add_parser(
-        'bag-info', help='what a bag holds: topics, duration, sample rate, gaps, damage',
+        'bag-info',
+        help='what a bag holds: topics, duration, sample rate, gaps, damage',
         description='Read a whole rosbag2 bag (MCAP or sqlite3, also an unfinished or damaged '
-                    'one) and report its topics, message counts, duration, sample channels '
-                    'with rate and gaps, and recorded impacts. Exit status 1 when the bag is '
-                    'damaged or was not closed.')
+        'one) and report its topics, message counts, duration, sample channels '
+        'with rate and gaps, and recorded impacts. Exit status 1 when the bag is '
+        'damaged or was not closed.',
+    )
     parser.add_argument('bag', help='bag directory, or a .mcap / .db3 file')
     parser.add_argument('--json', action='store_true', help='print one JSON object')
     add_quiet_flag(parser)

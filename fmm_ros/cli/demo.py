@@ -13,28 +13,49 @@ from fmm_ros.core.model import PAPER_MU
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add `fmm demo`."""
     parser = subparsers.add_parser(
-        'demo', help='run a simulated rig session through the ROS 2 node graph',
+        'demo',
+        help='run a simulated rig session through the ROS 2 node graph',
         description='hammer_sim, rig_sim, analyzer, fitter and recorder in one process: the '
-                    "paper's three levels, N hits each, recorded to a bag; then the fit "
-                    'service. Prints per-level impulse and peak receptance, R^2 of magnitude '
-                    'against impulse, and the fitted mu against the plant mu.')
+        "paper's three levels, N hits each, recorded to a bag; then the fit "
+        'service. Prints per-level impulse and peak receptance, R^2 of magnitude '
+        'against impulse, and the fitted mu against the plant mu.',
+    )
     parser.add_argument('--hits-per-level', type=int, default=10, help='hits at each level')
-    parser.add_argument('--rate-factor', type=float, default=100.0,
-                        help='speed-up against real time (default 100; the graph runs '
-                             'x500 if asked)')
-    parser.add_argument('--out', type=Path, default=None,
-                        help='output folder (default runs/demo_<date>_<time>)')
+    parser.add_argument(
+        '--rate-factor',
+        type=float,
+        default=100.0,
+        help='speed-up against real time (default 100; the graph runs x500 if asked)',
+    )
+    parser.add_argument(
+        '--out', type=Path, default=None, help='output folder (default runs/demo_<date>_<time>)'
+    )
     parser.add_argument('--json', action='store_true', help='print one JSON object')
-    parser.add_argument('--plant-mu', type=float, default=PAPER_MU,
-                        help=f'friction coefficient of the simulated plant (default {PAPER_MU})')
-    parser.add_argument('--plant-effect', action='append', default=[], metavar='TERM',
-                        help='hide a model term in the plant, e.g. '
-                             'stribeck:mu_static_excess=0.02 (repeatable)')
+    parser.add_argument(
+        '--plant-mu',
+        type=float,
+        default=PAPER_MU,
+        help=f'friction coefficient of the simulated plant (default {PAPER_MU})',
+    )
+    parser.add_argument(
+        '--plant-effect',
+        action='append',
+        default=[],
+        metavar='TERM',
+        help='hide a model term in the plant, e.g. stribeck:mu_static_excess=0.02 (repeatable)',
+    )
     parser.add_argument('--seed', type=int, default=0, help='seed of the session draw')
-    parser.add_argument('--no-report', action='store_true',
-                        help='skip the HTML report written from the bag afterwards')
-    parser.add_argument('--params-file', type=Path, default=None,
-                        help='ROS parameter YAML for the nodes (default: their defaults)')
+    parser.add_argument(
+        '--no-report',
+        action='store_true',
+        help='skip the HTML report written from the bag afterwards',
+    )
+    parser.add_argument(
+        '--params-file',
+        type=Path,
+        default=None,
+        help='ROS parameter YAML for the nodes (default: their defaults)',
+    )
     parser.set_defaults(func=run)
 
 
@@ -49,10 +70,16 @@ def run(args: argparse.Namespace) -> int:
     out = args.out or Path('runs') / datetime.now().strftime('demo_%Y%m%d_%H%M%S')
     if (out / 'bag').exists():
         raise ValueError(f'{out / "bag"} exists: choose another --out (nothing is overwritten)')
-    config = SessionConfig(out_dir=out, hits_per_level=args.hits_per_level,
-                           rate_factor=args.rate_factor, plant_mu=args.plant_mu,
-                           plant_effects=tuple(args.plant_effect), seed=args.seed,
-                           params_file=args.params_file, report=not args.no_report)
+    config = SessionConfig(
+        out_dir=out,
+        hits_per_level=args.hits_per_level,
+        rate_factor=args.rate_factor,
+        plant_mu=args.plant_mu,
+        plant_effects=tuple(args.plant_effect),
+        seed=args.seed,
+        params_file=args.params_file,
+        report=not args.no_report,
+    )
     log = (lambda _: None) if args.json else (lambda line: print(line, file=sys.stderr))
     result = run_session(config, progress=log)
     summary = result.as_json()
@@ -66,27 +93,35 @@ def run(args: argparse.Namespace) -> int:
 
 def _text(result, out: Path) -> str:
     """The ten-second summary."""
-    lines = [f'{"level":<8}{"hits":>5}{"impulse [N*s]":>20}{"peak |X/F| [mm/N]":>20}'
-             f'{"f_n [Hz]":>10}']
+    lines = [
+        f'{"level":<8}{"hits":>5}{"impulse [N*s]":>20}{"peak |X/F| [mm/N]":>20}{"f_n [Hz]":>10}'
+    ]
     for level in result.levels:
         spread = level['std_impulse_n_s']
-        lines.append(f'{level["name"]:<8}{level["count"]:>5}'
-                     f'{level["mean_impulse_n_s"]:>12.3f} +- {spread:<5.3f}'
-                     f'{level["peak_receptance_m_per_n"] * 1e3:>20.3f}'
-                     f'{level["natural_frequency_hz"]:>10.2f}')
+        lines.append(
+            f'{level["name"]:<8}{level["count"]:>5}'
+            f'{level["mean_impulse_n_s"]:>12.3f} +- {spread:<5.3f}'
+            f'{level["peak_receptance_m_per_n"] * 1e3:>20.3f}'
+            f'{level["natural_frequency_hz"]:>10.2f}'
+        )
     error = (result.mu - result.plant_mu) / result.plant_mu * 100
     lines += [
         f'R^2 of peak |X/F| against impulse: {result.r2:.4f}',
         f'hits: {result.hits_sent} sent, {result.hits_reported} reported, '
         f'{result.hits_accepted} accepted',
-        (f'mu: {result.mu:.4f} +- {result.mu_stderr:.2g} fitted, {result.plant_mu:.4f} in the '
-         f'plant ({error:+.2f} %)' if not math.isnan(result.mu)
-         else f'mu: not fitted ({result.fit_message})'),
+        (
+            f'mu: {result.mu:.4f} +- {result.mu_stderr:.2g} fitted, {result.plant_mu:.4f} in the '
+            f'plant ({error:+.2f} %)'
+            if not math.isnan(result.mu)
+            else f'mu: not fitted ({result.fit_message})'
+        ),
         f'model diagnosis: {result.missing_effect or "-"} ({result.diagnosis})',
         f'{result.signal_s:.0f} s of signal in {result.wall_s:.1f} s '
         f'(x{result.signal_s / result.wall_s:.0f} real time); fit {result.fit_s:.1f} s, '
         f'diagnosis {result.diagnose_s:.1f} s',
-        f'bag: {result.bag}', f'summary: {out / "summary.json"}']
+        f'bag: {result.bag}',
+        f'summary: {out / "summary.json"}',
+    ]
     if result.report:
         lines.append(f'report: {result.report}')
     return '\n'.join(lines)

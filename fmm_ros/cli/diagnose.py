@@ -28,23 +28,37 @@ PLOT_DPI = 120
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the `diagnose` subcommand."""
     parser = subparsers.add_parser(
-        'diagnose', help='find where the model and the measurement disagree and name the '
-                         'missing effect',
+        'diagnose',
+        help='find where the model and the measurement disagree and name the missing effect',
         description='Fit the base model (Eq. 3, mu fitted) to every impact at once, locate its '
-                    'misfit in time and frequency, refit it with each candidate effect ('
-                    + ', '.join(EFFECTS) + ') and name the one that is clearly better by the '
-                    'Bayesian information criterion, or none.')
-    parser.add_argument('inputs', nargs='+', type=Path, metavar='INPUT',
-                        help='CSV files of one impact each (time_s,force_n,velocity_m_s) or '
-                             'bags (every impact recorded)')
-    parser.add_argument('--fit-initial-position', action='store_true',
-                        help="fit each impact's start position in every model, base and "
-                             'candidates (a hit that found the rig held off centre by '
-                             'friction); otherwise each starts at x = 0')
+        'misfit in time and frequency, refit it with each candidate effect ('
+        + ', '.join(EFFECTS)
+        + ') and name the one that is clearly better by the '
+        'Bayesian information criterion, or none.',
+    )
+    parser.add_argument(
+        'inputs',
+        nargs='+',
+        type=Path,
+        metavar='INPUT',
+        help='CSV files of one impact each (time_s,force_n,velocity_m_s) or '
+        'bags (every impact recorded)',
+    )
+    parser.add_argument(
+        '--fit-initial-position',
+        action='store_true',
+        help="fit each impact's start position in every model, base and "
+        'candidates (a hit that found the rig held off centre by '
+        'friction); otherwise each starts at x = 0',
+    )
     add_rig_arguments(parser)
     parser.add_argument('--json', action='store_true', help='print the result as JSON')
-    parser.add_argument('--plot', type=Path, metavar='DIR',
-                        help='write residual_before_after.png and frf_overlay.png here')
+    parser.add_argument(
+        '--plot',
+        type=Path,
+        metavar='DIR',
+        help='write residual_before_after.png and frf_overlay.png here',
+    )
     parser.set_defaults(func=run)
 
 
@@ -71,8 +85,11 @@ def run(args: argparse.Namespace) -> int:
 
 def report(run_result: _Run) -> dict:
     """The JSON document: `Diagnosis.to_dict()`, the input names and the figures written."""
-    return {**run_result.diagnosis.to_dict(), 'files': run_result.files,
-            'figures': [str(path) for path in run_result.figures]}
+    return {
+        **run_result.diagnosis.to_dict(),
+        'files': run_result.files,
+        'figures': [str(path) for path in run_result.figures],
+    }
 
 
 def _value(value: float, error: float, unit: str) -> str:
@@ -85,18 +102,25 @@ def _value(value: float, error: float, unit: str) -> str:
 def text_report(run_result: _Run) -> str:
     """The short table a person reads in ten seconds (and the figures written)."""
     result, files = run_result.diagnosis, run_result.files
-    lines = [f'{len(files)} impact(s); velocity noise {result.noise_std_m_s:.3g} m/s (from the '
-             f'data); base fit mu = {_value(result.mu, result.mu_stderr, "1")}']
+    lines = [
+        f'{len(files)} impact(s); velocity noise {result.noise_std_m_s:.3g} m/s (from the '
+        f'data); base fit mu = {_value(result.mu, result.mu_stderr, "1")}'
+    ]
     if result.missing_effect == NONE:
-        lines.append(f'missing effect: none   gap {result.gap_before:.3g} '
-                     f'(FRF {result.frf_gap_before:.3g})')
+        lines.append(
+            f'missing effect: none   gap {result.gap_before:.3g} (FRF {result.frf_gap_before:.3g})'
+        )
     else:
-        lines.append(f'missing effect: {result.missing_effect}   gap {result.gap_before:.3g} -> '
-                     f'{result.gap_after:.3g}   FRF gap {result.frf_gap_before:.3g} -> '
-                     f'{result.frf_gap_after:.3g}')
+        lines.append(
+            f'missing effect: {result.missing_effect}   gap {result.gap_before:.3g} -> '
+            f'{result.gap_after:.3g}   FRF gap {result.frf_gap_before:.3g} -> '
+            f'{result.frf_gap_after:.3g}'
+        )
         for parameter in result.parameters:
-            lines.append(f'  {parameter.name:<40} '
-                         f'{_value(parameter.value, parameter.stderr, parameter.unit)}')
+            lines.append(
+                f'  {parameter.name:<40} '
+                f'{_value(parameter.value, parameter.stderr, parameter.unit)}'
+            )
     lines.append(f'where: {result.where.summary}')
     lines.append('')
     lines.append(f'{"candidate":<22}{"score (dBIC)":>14}{"gap after":>12}')
@@ -122,8 +146,10 @@ def plot_diagnosis(result: Diagnosis, records: list, rig: Rig, directory: Path) 
 
     directory.mkdir(parents=True, exist_ok=True)
     paths = [directory / 'residual_before_after.png', directory / 'frf_overlay.png']
-    figures = (diagnosis_figures.residual_figure(result, records),
-               diagnosis_figures.mobility_gap_figure(result, records, rig.natural_frequency_hz))
+    figures = (
+        diagnosis_figures.residual_figure(result, records),
+        diagnosis_figures.mobility_gap_figure(result, records, rig.natural_frequency_hz),
+    )
     for path, figure in zip(paths, figures, strict=True):
         path.write_bytes(png_bytes(figure, PLOT_DPI))
     return paths

@@ -10,17 +10,22 @@ from fmm_ros.core.bagio.export import FRF_FORMATS, export_results
 def register(subparsers) -> None:
     """Add the export subcommand."""
     parser = subparsers.add_parser(
-        'export', help='recorded impact results and level FRFs of a bag as CSV / UFF 58',
+        'export',
+        help='recorded impact results and level FRFs of a bag as CSV / UFF 58',
         description='Write impacts.csv (one row per recorded impact: impulse, peak force, '
-                    'level, flags, ...) with impact_<id>.csv (its mobility and receptance over '
-                    'frequency), and levels.csv with level_<name>.csv (mean mobility and '
-                    'receptance, H1, H2 and coherence of the newest summary of each level). '
-                    'FRF files can be UFF 58 or JSON instead.')
+        'level, flags, ...) with impact_<id>.csv (its mobility and receptance over '
+        'frequency), and levels.csv with level_<name>.csv (mean mobility and '
+        'receptance, H1, H2 and coherence of the newest summary of each level). '
+        'FRF files can be UFF 58 or JSON instead.',
+    )
     parser.add_argument('bag', help='bag directory, or a .mcap / .db3 file')
     parser.add_argument('-o', '--output', required=True, help='folder for the CSV files')
-    parser.add_argument('--frf-format', choices=FRF_FORMATS, default='csv',
-                        help='format of the FRF files: csv, uff (UFF 58, for modal software) '
-                             'or json (default csv)')
+    parser.add_argument(
+        '--frf-format',
+        choices=FRF_FORMATS,
+        default='csv',
+        help='format of the FRF files: csv, uff (UFF 58, for modal software) or json (default csv)',
+    )
     parser.add_argument('--impacts-topic', default=IMPACTS_TOPIC)
     parser.add_argument('--frf-topic', default=FRF_TOPIC)
     parser.set_defaults(func=run)
@@ -33,10 +38,11 @@ def run(args: argparse.Namespace) -> int:
         if args.impacts_topic not in topics and args.frf_topic not in topics:
             reader.require(args.impacts_topic, IMPACT_RESULT)  # raises, naming what it has
         impacts = list(reader.impacts(args.impacts_topic)) if args.impacts_topic in topics else []
-        summaries = (list(reader.frf_summaries(args.frf_topic)) if args.frf_topic in topics
-                     else [])
+        summaries = list(reader.frf_summaries(args.frf_topic)) if args.frf_topic in topics else []
         written = export_results(impacts, summaries, args.output, frf_format=args.frf_format)
         problems = reader.problems
-    print(f'{len(impacts)} impacts, {len({s.level for s in summaries})} levels: wrote '
-          f'{len(written)} files to {args.output}')
+    print(
+        f'{len(impacts)} impacts, {len({s.level for s in summaries})} levels: wrote '
+        f'{len(written)} files to {args.output}'
+    )
     return report_problems('export', problems)

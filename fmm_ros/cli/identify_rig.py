@@ -19,24 +19,40 @@ from fmm_ros.core.model import FMM_RIG
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the `identify-rig` subcommand."""
     parser = subparsers.add_parser(
-        'identify-rig', help='mass, damping and stiffness of the rig from mu = 0 records',
+        'identify-rig',
+        help='mass, damping and stiffness of the rig from mu = 0 records',
         description='Identify m, c, k (and f_n, zeta) of the rig with the friction contact '
-                    'lifted: from impacts (CSV files time_s,force_n,velocity_m_s with a hit, '
-                    'or bags) by output error with the measured force driving the model, or '
-                    'from free decays (files without a hit) with the mass given.')
-    parser.add_argument('inputs', nargs='+', type=Path, metavar='INPUT',
-                        help='one CSV file per record, or a bag of impacts')
+        'lifted: from impacts (CSV files time_s,force_n,velocity_m_s with a hit, '
+        'or bags) by output error with the measured force driving the model, or '
+        'from free decays (files without a hit) with the mass given.',
+    )
+    parser.add_argument(
+        'inputs',
+        nargs='+',
+        type=Path,
+        metavar='INPUT',
+        help='one CSV file per record, or a bag of impacts',
+    )
     parser.add_argument('--json', action='store_true', help='print the result as JSON')
-    parser.add_argument('--mass-kg', type=float, default=FMM_RIG.mass_kg,
-                        help='moving mass m [kg] for free decays, which cannot tell it '
-                             f'(default {FMM_RIG.mass_kg}); impacts measure it')
+    parser.add_argument(
+        '--mass-kg',
+        type=float,
+        default=FMM_RIG.mass_kg,
+        help='moving mass m [kg] for free decays, which cannot tell it '
+        f'(default {FMM_RIG.mass_kg}); impacts measure it',
+    )
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Read the inputs, identify, print the constants (or why there are none)."""
-    return fit_and_report('identify-rig', args, lambda records: identify_rig(
-        records, mass_kg=args.mass_kg), report, text_report)
+    return fit_and_report(
+        'identify-rig',
+        args,
+        lambda records: identify_rig(records, mass_kg=args.mass_kg),
+        report,
+        text_report,
+    )
 
 
 def report(result: RigIdentification) -> dict:
@@ -56,18 +72,25 @@ def report(result: RigIdentification) -> dict:
         'residual_rms_m_s': result.residual_rms_m_s,
         'normalised_residual': result.normalised_residual,
         'files': list(result.sources),
-        'free_decays': [{'file': decay.source,
-                         'natural_frequency_hz': decay.natural_frequency_hz,
-                         'damping_ratio': decay.damping_ratio}
-                        for decay in result.free_decays],
+        'free_decays': [
+            {
+                'file': decay.source,
+                'natural_frequency_hz': decay.natural_frequency_hz,
+                'damping_ratio': decay.damping_ratio,
+            }
+            for decay in result.free_decays
+        ],
     }
 
 
 def text_report(result: RigIdentification) -> str:
     """The constants with their errors, how they were found, and any free-decay check."""
     given = result.method == 'free_decay'
-    mass = ('(given: a free decay cannot tell the mass)' if given
-            else f'+- {result.mass_stderr_kg:.4g} kg')
+    mass = (
+        '(given: a free decay cannot tell the mass)'
+        if given
+        else f'+- {result.mass_stderr_kg:.4g} kg'
+    )
     lines = [
         f'm   = {result.mass_kg:.5g} kg {mass}',
         f'k   = {result.stiffness_n_per_m:.6g} +- {result.stiffness_stderr_n_per_m:.3g} N/m',
@@ -81,6 +104,9 @@ def text_report(result: RigIdentification) -> str:
     ]
     if not given and result.free_decays:
         lines.append('free decays (check):')
-        lines += [f'  {Path(decay.source).name}: f_n = {decay.natural_frequency_hz:.6g} Hz, '
-                  f'zeta = {100 * decay.damping_ratio:.4f} %' for decay in result.free_decays]
+        lines += [
+            f'  {Path(decay.source).name}: f_n = {decay.natural_frequency_hz:.6g} Hz, '
+            f'zeta = {100 * decay.damping_ratio:.4f} %'
+            for decay in result.free_decays
+        ]
     return '\n'.join(lines)

@@ -10,14 +10,20 @@ from fmm_ros.core.topics import FORCE_TOPIC, FRF_TOPIC, IMPACTS_TOPIC, VELOCITY_
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add `fmm record`."""
     parser = subparsers.add_parser(
-        'record', help='record live topics to a bag (needs a running ROS graph)',
+        'record',
+        help='record live topics to a bag (needs a running ROS graph)',
         description='Run the recorder node until Ctrl-C: raw subscriptions on the topics, '
-                    'stored as received in a rosbag2 bag (MCAP by default), flushed every '
-                    'second so a crash loses at most that much. On ROS_DOMAIN_ID.')
+        'stored as received in a rosbag2 bag (MCAP by default), flushed every '
+        'second so a crash loses at most that much. On ROS_DOMAIN_ID.',
+    )
     parser.add_argument('bag', type=Path, help='bag directory to create (must not exist)')
-    parser.add_argument('--topics', nargs='+', metavar='TOPIC',
-                        default=[FORCE_TOPIC, VELOCITY_TOPIC, IMPACTS_TOPIC, FRF_TOPIC],
-                        help='topics to record (default: the fmm topics)')
+    parser.add_argument(
+        '--topics',
+        nargs='+',
+        metavar='TOPIC',
+        default=[FORCE_TOPIC, VELOCITY_TOPIC, IMPACTS_TOPIC, FRF_TOPIC],
+        help='topics to record (default: the fmm topics)',
+    )
     parser.add_argument('--storage', choices=tuple(STORAGES), default='mcap')
     parser.set_defaults(func=run)
 
@@ -31,8 +37,10 @@ def run(args: argparse.Namespace) -> int:
 
     if args.bag.exists():
         raise ValueError(f'{args.bag} exists: choose a new bag path (nothing is overwritten)')
-    overrides = [Parameter('bag_path', value=str(args.bag)),
-                 Parameter('topics', value=list(args.topics)),
-                 Parameter('storage', value=args.storage)]
+    overrides = [
+        Parameter('bag_path', value=str(args.bag)),
+        Parameter('topics', value=list(args.topics)),
+        Parameter('storage', value=args.storage),
+    ]
     run_node(lambda: Recorder(parameter_overrides=overrides), [])
     return 0

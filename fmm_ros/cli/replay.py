@@ -20,18 +20,25 @@ from fmm_ros.core.export import level_curves, write_frfs
 def register(subparsers) -> None:
     """Add the replay subcommand."""
     parser = subparsers.add_parser(
-        'replay', help='feed a bag through the analyzer core as fast as possible (no ROS)',
+        'replay',
+        help='feed a bag through the analyzer core as fast as possible (no ROS)',
         description='Replay a session bag through the impact capture and analysis the live '
-                    'analyzer runs, batch by batch in recorded order, and print what it would '
-                    'publish: every impact (level, verdict, flags, impulse, peak force, peak '
-                    'receptance), the level averages and the linearity fit, and how much '
-                    'faster than real time it ran. Exit status 1 when the bag is damaged.')
+        'analyzer runs, batch by batch in recorded order, and print what it would '
+        'publish: every impact (level, verdict, flags, impulse, peak force, peak '
+        'receptance), the level averages and the linearity fit, and how much '
+        'faster than real time it ran. Exit status 1 when the bag is damaged.',
+    )
     parser.add_argument('bag', type=Path, help='bag directory, or a .mcap / .db3 file')
     parser.add_argument('--json', action='store_true', help='print one JSON object')
     add_analysis_options(parser)
-    parser.add_argument('--export', action='append', default=[], type=Path, metavar='PATH',
-                        help='write the level FRFs to PATH: .uff/.unv (UFF 58), .csv or .json '
-                             '(repeatable)')
+    parser.add_argument(
+        '--export',
+        action='append',
+        default=[],
+        type=Path,
+        metavar='PATH',
+        help='write the level FRFs to PATH: .uff/.unv (UFF 58), .csv or .json (repeatable)',
+    )
     add_quiet_flag(parser)
     parser.set_defaults(func=run)
 
@@ -51,12 +58,19 @@ def run(args: argparse.Namespace) -> int:
     speed = replay.signal_s / wall_s if wall_s > 0 else float('inf')
     if args.json:
         document = report(replay.summary)
-        document['replay'] = {'bag': str(args.bag), 'signal_s': replay.signal_s,
-                              'batches': replay.batches, 'wall_s': wall_s,
-                              'times_real_time': speed, 'problems': replay.problems}
+        document['replay'] = {
+            'bag': str(args.bag),
+            'signal_s': replay.signal_s,
+            'batches': replay.batches,
+            'wall_s': wall_s,
+            'times_real_time': speed,
+            'problems': replay.problems,
+        }
         print(json.dumps(document, indent=2, allow_nan=False))
     else:
         print(text_report(replay.summary))
-        print(f'\nreplayed {replay.signal_s:.1f} s of signal ({replay.batches} batches) in '
-              f'{wall_s:.2f} s: {speed:.0f}x real time')
+        print(
+            f'\nreplayed {replay.signal_s:.1f} s of signal ({replay.batches} batches) in '
+            f'{wall_s:.2f} s: {speed:.0f}x real time'
+        )
     return report_problems('replay', replay.problems)

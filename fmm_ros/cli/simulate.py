@@ -30,30 +30,51 @@ OUT_COLUMNS = ('time_s', 'force_n', 'displacement_m', 'velocity_m_s')
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the `simulate` subcommand."""
     parser = subparsers.add_parser(
-        'simulate', help='simulate the Coulomb-friction oscillator (paper Eqs. 1-3)',
+        'simulate',
+        help='simulate the Coulomb-friction oscillator (paper Eqs. 1-3)',
         description="Simulate m x'' + c x' + k x + mu N sgn(x') = f(t) with the stick rule, "
-                    'from an initial displacement/velocity and/or a measured force record '
-                    '(linear between samples). Rig flags default to the FMM.')
+        'from an initial displacement/velocity and/or a measured force record '
+        '(linear between samples). Rig flags default to the FMM.',
+    )
     parser.add_argument('--x0-mm', type=float, default=0.0, help='initial displacement [mm]')
     parser.add_argument('--v0-m-s', type=float, default=0.0, help='initial velocity [m/s]')
-    parser.add_argument('--force-csv', type=Path, metavar='FILE',
-                        help='force record with columns time_s,force_n (uniform time step); '
-                             'without it there is no applied force')
-    parser.add_argument('--mu', type=float, default=PAPER_MU,
-                        help=f'Coulomb friction coefficient (default {PAPER_MU})')
+    parser.add_argument(
+        '--force-csv',
+        type=Path,
+        metavar='FILE',
+        help='force record with columns time_s,force_n (uniform time step); '
+        'without it there is no applied force',
+    )
+    parser.add_argument(
+        '--mu',
+        type=float,
+        default=PAPER_MU,
+        help=f'Coulomb friction coefficient (default {PAPER_MU})',
+    )
     add_rig_arguments(parser)
-    parser.add_argument('--duration-s', type=float,
-                        help=f'record length [s] (default {DEFAULT_DURATION_S:g}, or the force '
-                             "record's; a longer one continues with zero force)")
-    parser.add_argument('--sample-rate-hz', type=float,
-                        help=f'sample rate [Hz] (default {DEFAULT_SAMPLE_RATE_HZ:g}, or the '
-                             "force record's, which it must then match)")
-    parser.add_argument('--integrator', choices=('euler', 'exact'), default='exact',
-                        help='exact (default): exact between located stick/slip events; '
-                             "euler: the paper's fixed-step reference")
+    parser.add_argument(
+        '--duration-s',
+        type=float,
+        help=f'record length [s] (default {DEFAULT_DURATION_S:g}, or the force '
+        "record's; a longer one continues with zero force)",
+    )
+    parser.add_argument(
+        '--sample-rate-hz',
+        type=float,
+        help=f'sample rate [Hz] (default {DEFAULT_SAMPLE_RATE_HZ:g}, or the '
+        "force record's, which it must then match)",
+    )
+    parser.add_argument(
+        '--integrator',
+        choices=('euler', 'exact'),
+        default='exact',
+        help='exact (default): exact between located stick/slip events; '
+        "euler: the paper's fixed-step reference",
+    )
     parser.add_argument('--json', action='store_true', help='print the summary as JSON')
-    parser.add_argument('--out', type=Path, metavar='CSV',
-                        help='write time_s,force_n,displacement_m,velocity_m_s')
+    parser.add_argument(
+        '--out', type=Path, metavar='CSV', help='write time_s,force_n,displacement_m,velocity_m_s'
+    )
     parser.set_defaults(func=run)
 
 
@@ -62,8 +83,9 @@ def read_force_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
     with open(path, encoding='utf-8') as stream:
         header = [name.strip() for name in stream.readline().split(',')]
         if tuple(header) != FORCE_COLUMNS:
-            raise ValueError(f'{path}: expected the header {",".join(FORCE_COLUMNS)}, '
-                             f'got {",".join(header)!r}')
+            raise ValueError(
+                f'{path}: expected the header {",".join(FORCE_COLUMNS)}, got {",".join(header)!r}'
+            )
         try:
             table = np.loadtxt(stream, delimiter=',', ndmin=2)
         except ValueError as error:
@@ -80,10 +102,13 @@ def run(args: argparse.Namespace) -> int:
     if args.force_csv is not None:
         time_s, force = read_force_csv(args.force_csv)
         rate = sample_rate_from_times(time_s)
-        if args.sample_rate_hz is not None and not math.isclose(args.sample_rate_hz, rate,
-                                                                rel_tol=1e-6):
-            raise ValueError(f'--sample-rate-hz {args.sample_rate_hz:g} does not match the '
-                             f"force record's {rate:.6g} Hz")
+        if args.sample_rate_hz is not None and not math.isclose(
+            args.sample_rate_hz, rate, rel_tol=1e-6
+        ):
+            raise ValueError(
+                f'--sample-rate-hz {args.sample_rate_hz:g} does not match the '
+                f"force record's {rate:.6g} Hz"
+            )
         start_s = float(time_s[0])
         if args.duration_s is not None:
             n = record_length(args.duration_s, rate)
@@ -92,8 +117,15 @@ def run(args: argparse.Namespace) -> int:
         rate = DEFAULT_SAMPLE_RATE_HZ if args.sample_rate_hz is None else args.sample_rate_hz
         duration = DEFAULT_DURATION_S if args.duration_s is None else args.duration_s
         force = np.zeros(record_length(duration, rate))
-    sim = simulate(force, rate, rig=rig, mu=args.mu, x0_m=args.x0_mm * 1e-3,
-                   v0_m_s=args.v0_m_s, integrator=args.integrator)
+    sim = simulate(
+        force,
+        rate,
+        rig=rig,
+        mu=args.mu,
+        x0_m=args.x0_mm * 1e-3,
+        v0_m_s=args.v0_m_s,
+        integrator=args.integrator,
+    )
     summary = {
         'final_position_m': float(sim.displacement_m[-1]),
         'rest_time_s': start_s + sim.rest_time_s if sim.at_rest else None,
@@ -102,17 +134,22 @@ def run(args: argparse.Namespace) -> int:
         'peak_velocity_m_s': float(np.max(np.abs(sim.velocity_m_s))),
     }
     if args.out is not None:
-        table = np.column_stack((start_s + sim.time_s, force, sim.displacement_m,
-                                 sim.velocity_m_s))
-        np.savetxt(args.out, table, delimiter=',', header=','.join(OUT_COLUMNS), comments='',
-                   fmt='%.10g')
+        table = np.column_stack((start_s + sim.time_s, force, sim.displacement_m, sim.velocity_m_s))
+        np.savetxt(
+            args.out, table, delimiter=',', header=','.join(OUT_COLUMNS), comments='', fmt='%.10g'
+        )
     if args.json:
         print(json.dumps(summary))
     else:
-        rest = ('still sliding at the end' if summary['rest_time_s'] is None
-                else f'at rest from {summary["rest_time_s"]:.4f} s')
-        print(f'natural frequency {summary["natural_frequency_hz"]:.4f} Hz, '
-              f'damping ratio {100 * summary["damping_ratio"]:.4f} %')
+        rest = (
+            'still sliding at the end'
+            if summary['rest_time_s'] is None
+            else f'at rest from {summary["rest_time_s"]:.4f} s'
+        )
+        print(
+            f'natural frequency {summary["natural_frequency_hz"]:.4f} Hz, '
+            f'damping ratio {100 * summary["damping_ratio"]:.4f} %'
+        )
         print(f'final position    {1e3 * summary["final_position_m"]:.6f} mm ({rest})')
         print(f'peak velocity     {summary["peak_velocity_m_s"]:.6g} m/s')
         if args.out is not None:

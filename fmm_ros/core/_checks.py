@@ -44,8 +44,10 @@ def sample_rate_from_times(time_s: np.ndarray, rtol: float = 1e-3) -> float:
         raise ValueError('time_s must increase')
     worst = int(np.argmax(np.abs(steps - step)))
     if abs(steps[worst] - step) > rtol * step:
-        raise ValueError(f'non-uniform time step: {steps[worst]:.6g} s between samples {worst} '
-                         f'and {worst + 1}, against {step:.6g} s on average')
+        raise ValueError(
+            f'non-uniform time step: {steps[worst]:.6g} s between samples {worst} '
+            f'and {worst + 1}, against {step:.6g} s on average'
+        )
     return 1.0 / step
 
 
@@ -62,7 +64,9 @@ def finite_samples(name: str, values: np.ndarray, overflow: str = 'sum') -> np.n
     if not math.isfinite(float(np.add.reduce(array))):
         bad = np.flatnonzero(~np.isfinite(array))
         if bad.size:
-            raise ValueError(f'{name} is not finite at sample {int(bad[0])} '
-                             f'({array[bad[0]]}); {bad.size} bad sample(s)')
+            raise ValueError(
+                f'{name} is not finite at sample {int(bad[0])} '
+                f'({array[bad[0]]}); {bad.size} bad sample(s)'
+            )
         raise ValueError(f'{name} is too large to {overflow} (its sum overflows)')
     return array

@@ -29,25 +29,25 @@ MASS = 0
 DAMPING = 1
 STIFFNESS = 2
 CUBIC = 3
-FRICTION_POS = 4      # kinetic friction force [N] opposing sliding in +x
-FRICTION_NEG = 5      # kinetic friction force [N] opposing sliding in -x
-STATIC_EXCESS = 6     # Stribeck: static minus kinetic friction force [N], both directions
-STRIBECK_V = 7        # Stribeck velocity [m/s]
-STEP = 8              # sample period h [s]
-SUBSTEPS = 9          # RK4 segments per sample interval (nonlinear path)
-NONLINEAR = 10        # 0: closed-form path (piecewise linear), 1: RK4 path
-PHI = 11              # 4 slots: exact step matrix, row-major (x, v) <- (x, v)
-GAMMA_U0 = 15         # 2 slots: response of (x, v) to the input at the interval start
-GAMMA_DU = 17         # 2 slots: response of (x, v) to the input change over the interval
+FRICTION_POS = 4  # kinetic friction force [N] opposing sliding in +x
+FRICTION_NEG = 5  # kinetic friction force [N] opposing sliding in -x
+STATIC_EXCESS = 6  # Stribeck: static minus kinetic friction force [N], both directions
+STRIBECK_V = 7  # Stribeck velocity [m/s]
+STEP = 8  # sample period h [s]
+SUBSTEPS = 9  # RK4 segments per sample interval (nonlinear path)
+NONLINEAR = 10  # 0: closed-form path (piecewise linear), 1: RK4 path
+PHI = 11  # 4 slots: exact step matrix, row-major (x, v) <- (x, v)
+GAMMA_U0 = 15  # 2 slots: response of (x, v) to the input at the interval start
+GAMMA_DU = 17  # 2 slots: response of (x, v) to the input change over the interval
 PARAM_SIZE = 19
 
 # Slots of the state vector (float64[STATE_SIZE]) carried between calls.
-STATE_X = 0           # displacement [m]
-STATE_V = 1           # velocity [m/s]
-STATE_MODE = 2        # +1 / -1 sliding, 0 at rest
-STATE_REST_TIME = 3   # time the current rest began [s], NaN while sliding
-STATE_INDEX = 4       # number of samples produced so far
-STATE_FORCE = 5       # last force sample [N]
+STATE_X = 0  # displacement [m]
+STATE_V = 1  # velocity [m/s]
+STATE_MODE = 2  # +1 / -1 sliding, 0 at rest
+STATE_REST_TIME = 3  # time the current rest began [s], NaN while sliding
+STATE_INDEX = 4  # number of samples produced so far
+STATE_FORCE = 5  # last force sample [N]
 STATE_SIZE = 6
 
 # Slots of a linear mode's vector (float64[MODE_SIZE]): state, then its exact step.
@@ -145,8 +145,7 @@ def _rk4(x, v, f0, df_dt, tau, sigma, p):
     v4 = v + tau * a3
     a4 = _accel(x + tau * v3, v4, f0 + df_dt * tau, sigma, p)
     sixth = tau / 6.0
-    return (x + sixth * (v + 2.0 * v2 + 2.0 * v3 + v4),
-            v + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4))
+    return (x + sixth * (v + 2.0 * v2 + 2.0 * v3 + v4), v + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4))
 
 
 @njit(cache=True)
@@ -261,8 +260,11 @@ def _interval(x, v, mode, f0, f1, t0, rest_time, p):
                 return x, 0.0, 0, rest_time
             # g is linear in time at rest: it leaves the band where it crosses the edge.
             g_now = f0 + df_dt * s - spring
-            edge = (p[FRICTION_POS] + p[STATIC_EXCESS] if direction > 0
-                    else -(p[FRICTION_NEG] + p[STATIC_EXCESS]))
+            edge = (
+                p[FRICTION_POS] + p[STATIC_EXCESS]
+                if direction > 0
+                else -(p[FRICTION_NEG] + p[STATIC_EXCESS])
+            )
             s = min(h, s + (h - s) * (edge - g_now) / (g_end - g_now))
             mode = direction
             v = 0.0
@@ -329,8 +331,15 @@ def _start(force, x_out, v_out, state, p):
         first = 1
     else:
         first = 0
-    return (first, state[STATE_X], state[STATE_V], int(state[STATE_MODE]),
-            state[STATE_REST_TIME], state[STATE_FORCE], state[STATE_INDEX])
+    return (
+        first,
+        state[STATE_X],
+        state[STATE_V],
+        int(state[STATE_MODE]),
+        state[STATE_REST_TIME],
+        state[STATE_FORCE],
+        state[STATE_INDEX],
+    )
 
 
 @njit(cache=True)
@@ -450,8 +459,10 @@ def add_linear_mode(force, force_before, first_call, x_out, v_out, mode):
     for i in range(first, force.shape[0]):
         f1 = force[i]
         du = f1 - f0
-        x, v = (phi0 * x + phi1 * v + ga0 * f0 + gb0 * du,
-                phi2 * x + phi3 * v + ga1 * f0 + gb1 * du)
+        x, v = (
+            phi0 * x + phi1 * v + ga0 * f0 + gb0 * du,
+            phi2 * x + phi3 * v + ga1 * f0 + gb1 * du,
+        )
         x_out[i] += x
         v_out[i] += v
         f0 = f1

@@ -69,13 +69,18 @@ class Blocks:
 
     def __post_init__(self) -> None:
         if len(self.segments) != len(self.parameters):
-            raise ValueError(f'{len(self.segments)} segments but {len(self.parameters)} '
-                             'parameter lists: one a block')
+            raise ValueError(
+                f'{len(self.segments)} segments but {len(self.parameters)} '
+                'parameter lists: one a block'
+            )
         for indices in self.parameters:
-            if indices.size and (np.any(np.diff(indices) <= 0) or indices[0] < 0
-                                 or indices[-1] >= self.n_parameters):
-                raise ValueError(f'block parameters {indices} are not ascending indices below '
-                                 f'{self.n_parameters}')
+            if indices.size and (
+                np.any(np.diff(indices) <= 0) or indices[0] < 0 or indices[-1] >= self.n_parameters
+            ):
+                raise ValueError(
+                    f'block parameters {indices} are not ascending indices below '
+                    f'{self.n_parameters}'
+                )
 
     @classmethod
     def shared(cls, segments: Sequence[slice], n_parameters: int) -> 'Blocks':
@@ -83,12 +88,12 @@ class Blocks:
         return cls.global_and_local(segments, n_parameters, [()] * len(segments))
 
     @classmethod
-    def global_and_local(cls, segments: Sequence[slice], n_global: int,
-                         local: Sequence[Sequence[int]]) -> 'Blocks':
+    def global_and_local(
+        cls, segments: Sequence[slice], n_global: int, local: Sequence[Sequence[int]]
+    ) -> 'Blocks':
         """Parameters 0..n_global-1 touch every block; block k also has its own local[k]."""
         shared = np.arange(n_global)
-        parameters = tuple(np.concatenate((shared, np.asarray(own, dtype=int)))
-                           for own in local)
+        parameters = tuple(np.concatenate((shared, np.asarray(own, dtype=int))) for own in local)
         n_parameters = n_global + sum(len(own) for own in local)
         return cls(tuple(segments), parameters, n_parameters)
 
@@ -102,9 +107,13 @@ class Blocks:
         return tuple(touched)
 
     def empty_jacobian(self) -> 'BlockJacobian':
-        return BlockJacobian(self, tuple(
-            np.empty((indices.size, segment.stop - segment.start))
-            for segment, indices in zip(self.segments, self.parameters, strict=True)))
+        return BlockJacobian(
+            self,
+            tuple(
+                np.empty((indices.size, segment.stop - segment.start))
+                for segment, indices in zip(self.segments, self.parameters, strict=True)
+            ),
+        )
 
 
 @dataclass(frozen=True)
@@ -129,8 +138,9 @@ class BlockJacobian:
     def gradient(self, residual: np.ndarray) -> np.ndarray:
         """J r (p), summed block by block."""
         gradient = np.zeros(self.blocks.n_parameters)
-        for segment, indices, rows in zip(self.blocks.segments, self.blocks.parameters,
-                                          self.rows, strict=True):
+        for segment, indices, rows in zip(
+            self.blocks.segments, self.blocks.parameters, self.rows, strict=True
+        ):
             gradient[indices] += inner(rows, residual[segment])
         return gradient
 
@@ -157,11 +167,19 @@ class LsqSolution:
     message: str
 
 
-def levenberg_marquardt(fun: ResidualFunction | BlockResidualFunction, x0: np.ndarray,
-                        lower: np.ndarray, upper: np.ndarray, typical: np.ndarray,
-                        n_residuals: int, *, blocks: Blocks | None = None,
-                        chi2_tolerance: float = 1e-3, relative_step: float = 1e-4,
-                        max_iterations: int = 60) -> LsqSolution:
+def levenberg_marquardt(
+    fun: ResidualFunction | BlockResidualFunction,
+    x0: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    typical: np.ndarray,
+    n_residuals: int,
+    *,
+    blocks: Blocks | None = None,
+    chi2_tolerance: float = 1e-3,
+    relative_step: float = 1e-4,
+    max_iterations: int = 60,
+) -> LsqSolution:
     """Minimise sum(fun(x)^2) over lower <= x <= upper from x0.
 
     `typical` is each parameter's scale (finite-difference steps are relative_step x max(|x|,
@@ -197,12 +215,14 @@ def levenberg_marquardt(fun: ResidualFunction | BlockResidualFunction, x0: np.nd
     damping = 1e-3
 
     def finish(iterations: int, converged: bool, message: str) -> LsqSolution:
-        return LsqSolution(x, lower, upper, residual, jacobian, cost, evaluations, iterations,
-                           converged, message)
+        return LsqSolution(
+            x, lower, upper, residual, jacobian, cost, evaluations, iterations, converged, message
+        )
 
     for iteration in range(1, max_iterations + 1):
-        evaluations += _forward_jacobian(fun, x, residual, lower, upper, typical, relative_step,
-                                         touched, jacobian)
+        evaluations += _forward_jacobian(
+            fun, x, residual, lower, upper, typical, relative_step, touched, jacobian
+        )
         normal = jacobian.normal()
         gradient = jacobian.gradient(residual)
         noise_variance = cost / max(n_residuals - p, 1)
@@ -210,8 +230,9 @@ def levenberg_marquardt(fun: ResidualFunction | BlockResidualFunction, x0: np.nd
             step = _damped_step(normal, gradient, x, lower, upper, damping)
             candidate = np.clip(x + step, lower, upper)
             if np.array_equal(candidate, x):
-                return finish(iteration, True, 'no step moves the parameters (at a bound or '
-                              'converged)')
+                return finish(
+                    iteration, True, 'no step moves the parameters (at a bound or converged)'
+                )
             try:
                 evaluate(candidate, trial)
                 new_cost = inner(trial, trial)
@@ -234,15 +255,24 @@ def levenberg_marquardt(fun: ResidualFunction | BlockResidualFunction, x0: np.nd
 
 def _one_block(fun: ResidualFunction) -> BlockResidualFunction:
     """A dense residual function as the block function of its one block."""
+
     def block_function(x: np.ndarray, _: Sequence[int], outs: Sequence[np.ndarray]) -> None:
         fun(x, outs[0])
+
     return block_function
 
 
-def _forward_jacobian(fun: BlockResidualFunction, x: np.ndarray, residual: np.ndarray,
-                      lower: np.ndarray, upper: np.ndarray, typical: np.ndarray,
-                      relative_step: float, touched: Sequence[Sequence[tuple[int, int]]],
-                      out: BlockJacobian) -> int:
+def _forward_jacobian(
+    fun: BlockResidualFunction,
+    x: np.ndarray,
+    residual: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    typical: np.ndarray,
+    relative_step: float,
+    touched: Sequence[Sequence[tuple[int, int]]],
+    out: BlockJacobian,
+) -> int:
     """Fill d r_k / d x_j = (r_k(x + h_j e_j) - r_k(x)) / h_j on the blocks k x_j touches.
 
     touched[j]: (block, row) pairs of parameter j (`Blocks.touched_by`). Steps inward at an
@@ -277,8 +307,14 @@ def _forward_jacobian(fun: BlockResidualFunction, x: np.ndarray, residual: np.nd
     return evaluations
 
 
-def _damped_step(normal: np.ndarray, gradient: np.ndarray, x: np.ndarray, lower: np.ndarray,
-                 upper: np.ndarray, damping: float) -> np.ndarray:
+def _damped_step(
+    normal: np.ndarray,
+    gradient: np.ndarray,
+    x: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    damping: float,
+) -> np.ndarray:
     """Marquardt step -(A + damping diag A)^-1 g over the parameters free to move.
 
     Solved in parameters scaled to unit diagonal, so that a term whose Jacobian is 1e7 times

@@ -40,7 +40,10 @@ class NominalLevel:
 
 # The paper's three levels (Sec. 4): 450, 1000 and 1450 N, impacts accepted within +-50 N.
 PAPER_LEVELS: tuple[NominalLevel, ...] = (
-    NominalLevel('low', 450.0), NominalLevel('medium', 1000.0), NominalLevel('high', 1450.0))
+    NominalLevel('low', 450.0),
+    NominalLevel('medium', 1000.0),
+    NominalLevel('high', 1450.0),
+)
 
 
 @dataclass(frozen=True)
@@ -72,15 +75,19 @@ class AnalysisConfig:
     def __post_init__(self) -> None:
         unknown = sorted(set(self.reject_flags) - set(FLAGS))
         if unknown:
-            raise ValueError(f'unknown quality flag(s) {", ".join(unknown)}; known: '
-                             f'{", ".join(FLAGS)}')
+            raise ValueError(
+                f'unknown quality flag(s) {", ".join(unknown)}; known: {", ".join(FLAGS)}'
+            )
         low, high = self.peak_band_hz
         if not 0 <= low < high:
-            raise ValueError(f'peak_band_hz must be (low, high) with 0 <= low < high, got '
-                             f'{self.peak_band_hz}')
+            raise ValueError(
+                f'peak_band_hz must be (low, high) with 0 <= low < high, got {self.peak_band_hz}'
+            )
         if self.band_limit_hz is not None and self.band_limit_hz <= low:
-            raise ValueError(f'band_limit_hz ({self.band_limit_hz} Hz) leaves no room for the '
-                             f'peak band starting at {low} Hz')
+            raise ValueError(
+                f'band_limit_hz ({self.band_limit_hz} Hz) leaves no room for the '
+                f'peak band starting at {low} Hz'
+            )
         for name in ('force_window_s', 'exponential_decay_s'):
             value = getattr(self, name)
             if value is not None and not value > 0:
@@ -162,9 +169,13 @@ class Summary:
     linearity: frf.LinearFit
 
 
-def analyze_impact(record: ImpactRecord, capture: CaptureConfig = DEFAULT_CAPTURE,
-                   analysis: AnalysisConfig = AnalysisConfig(), *, impact_id: int = 0
-                   ) -> ImpactResult:
+def analyze_impact(
+    record: ImpactRecord,
+    capture: CaptureConfig = DEFAULT_CAPTURE,
+    analysis: AnalysisConfig = AnalysisConfig(),
+    *,
+    impact_id: int = 0,
+) -> ImpactResult:
     """Flags, impulse, peak force, contact duration and FRFs of one impact record.
 
     The DFT runs over the whole record zero-padded to `record.window_samples` (the paper's
@@ -179,18 +190,23 @@ def analyze_impact(record: ImpactRecord, capture: CaptureConfig = DEFAULT_CAPTUR
     raw_force = record.force_n
     contact_start = contact_start_index(raw_force, trigger, capture)
     interval = frf.contact_interval(raw_force, capture.rearm_level_n, contact_start)
-    peak_force = float(np.max(raw_force[interval[0]:interval[1]])) if interval else float('nan')
+    peak_force = float(np.max(raw_force[interval[0] : interval[1]])) if interval else float('nan')
 
     impulse = frf.pulse_impulse(raw_force, rate, capture.rearm_level_n, contact_start)
     force, velocity = raw_force, record.velocity_m_s
     if analysis.force_window_s is not None:
         offset = float(np.mean(force[:contact_start])) if contact_start else 0.0
         force = (force - offset) * frf.force_window(
-            force.size, rate, start_index=trigger, width_s=analysis.force_window_s,
-            taper_s=analysis.force_window_taper_s)
+            force.size,
+            rate,
+            start_index=trigger,
+            width_s=analysis.force_window_s,
+            taper_s=analysis.force_window_taper_s,
+        )
     if analysis.exponential_decay_s is not None:
-        weight = frf.exponential_window(force.size, rate, decay_time_s=analysis.exponential_decay_s,
-                                        start_index=trigger)
+        weight = frf.exponential_window(
+            force.size, rate, decay_time_s=analysis.exponential_decay_s, start_index=trigger
+        )
         force, velocity = force * weight, velocity * weight
 
     n_fft = record.window_samples
@@ -203,25 +219,39 @@ def analyze_impact(record: ImpactRecord, capture: CaptureConfig = DEFAULT_CAPTUR
     mobility = frf.mobility(force_spectrum, velocity_spectrum)
     receptance = frf.receptance_from_mobility(mobility, frequency)
     peak_receptance, natural_frequency = frf.peak_magnitude(
-        receptance, frequency, _peak_band(force_spectrum, frequency, analysis))
+        receptance, frequency, _peak_band(force_spectrum, frequency, analysis)
+    )
     return ImpactResult(
-        impact_id=impact_id, trigger_sample_index=record.trigger_sample_index,
-        record_start_sample_index=record.record_start_sample_index, level='',
-        accepted=not set(flags) & set(analysis.reject_flags), flags=flags,
-        impulse_n_s=impulse, peak_force_n=peak_force,
-        contact_duration_s=frf.contact_duration(raw_force, rate, capture.rearm_level_n,
-                                                contact_start),
-        record_duration_s=n_fft / rate, sample_rate_hz=rate,
-        natural_frequency_hz=natural_frequency, peak_receptance_m_per_n=peak_receptance,
-        frequency_step_hz=rate / n_fft, frequency_hz=frequency, mobility=mobility,
-        receptance=receptance, force_window_s=analysis.force_window_s or 0.0,
+        impact_id=impact_id,
+        trigger_sample_index=record.trigger_sample_index,
+        record_start_sample_index=record.record_start_sample_index,
+        level='',
+        accepted=not set(flags) & set(analysis.reject_flags),
+        flags=flags,
+        impulse_n_s=impulse,
+        peak_force_n=peak_force,
+        contact_duration_s=frf.contact_duration(
+            raw_force, rate, capture.rearm_level_n, contact_start
+        ),
+        record_duration_s=n_fft / rate,
+        sample_rate_hz=rate,
+        natural_frequency_hz=natural_frequency,
+        peak_receptance_m_per_n=peak_receptance,
+        frequency_step_hz=rate / n_fft,
+        frequency_hz=frequency,
+        mobility=mobility,
+        receptance=receptance,
+        force_window_s=analysis.force_window_s or 0.0,
         exponential_window_decay_s=analysis.exponential_decay_s or 0.0,
-        force_spectrum=force_spectrum, velocity_spectrum=velocity_spectrum,
-        source=record.source)
+        force_spectrum=force_spectrum,
+        velocity_spectrum=velocity_spectrum,
+        source=record.source,
+    )
 
 
-def summarize(results: Sequence[ImpactResult],
-              analysis: AnalysisConfig = AnalysisConfig()) -> Summary:
+def summarize(
+    results: Sequence[ImpactResult], analysis: AnalysisConfig = AnalysisConfig()
+) -> Summary:
     """Assign levels, judge every impact, average each level and fit |receptance| vs impulse.
 
     With nominal levels an impact belongs to the nearest one within its tolerance, or to none
@@ -230,8 +260,11 @@ def summarize(results: Sequence[ImpactResult],
     """
     peaks = np.array([result.peak_force_n for result in results], dtype=float)
     if analysis.levels:
-        index = frf.assign_nominal_levels(peaks, [level.peak_force_n for level in analysis.levels],
-                                          [level.tolerance_n for level in analysis.levels])
+        index = frf.assign_nominal_levels(
+            peaks,
+            [level.peak_force_n for level in analysis.levels],
+            [level.tolerance_n for level in analysis.levels],
+        )
         names = [analysis.levels[i].name if i >= 0 else '' for i in index]
         level_order = [(level.name, level.peak_force_n) for level in analysis.levels]
     else:
@@ -245,56 +278,76 @@ def summarize(results: Sequence[ImpactResult],
         if analysis.levels and not name:
             flags.add('out_of_tolerance')
         ordered = tuple(flag for flag in FLAGS if flag in flags)
-        judged.append(dataclasses.replace(
-            result, level=name, flags=ordered,
-            accepted=not flags & set(analysis.reject_flags)))
+        judged.append(
+            dataclasses.replace(
+                result, level=name, flags=ordered, accepted=not flags & set(analysis.reject_flags)
+            )
+        )
 
     levels = []
     for name, nominal in level_order:
         members = [result for result in judged if result.level == name and result.accepted]
         if members:
             levels.append(_level_summary(name, nominal, members, analysis))
-    linearity = frf.linear_fit([level.mean_impulse_n_s for level in levels],
-                               [level.peak_receptance_m_per_n for level in levels])
+    linearity = frf.linear_fit(
+        [level.mean_impulse_n_s for level in levels],
+        [level.peak_receptance_m_per_n for level in levels],
+    )
     return Summary(impacts=tuple(judged), levels=tuple(levels), linearity=linearity)
 
 
-def _level_summary(name: str, nominal_peak_force_n: float, members: list[ImpactResult],
-                   analysis: AnalysisConfig) -> LevelSummary:
+def _level_summary(
+    name: str, nominal_peak_force_n: float, members: list[ImpactResult], analysis: AnalysisConfig
+) -> LevelSummary:
     """Average one level's accepted impacts (which must share one frequency grid)."""
     first = members[0]
     for result in members[1:]:
-        if (result.frequency_hz.size != first.frequency_hz.size
-                or not np.isclose(result.frequency_step_hz, first.frequency_step_hz, rtol=1e-9)):
+        if result.frequency_hz.size != first.frequency_hz.size or not np.isclose(
+            result.frequency_step_hz, first.frequency_step_hz, rtol=1e-9
+        ):
             raise ValueError(
                 f'level {name}: impacts {first.impact_id} and {result.impact_id} have different '
                 f'frequency grids ({first.frequency_step_hz:.6g} Hz x {first.frequency_hz.size} vs '
                 f'{result.frequency_step_hz:.6g} Hz x {result.frequency_hz.size}); records must '
-                'share sample rate and window length to be averaged')
-    average = frf.average_frf(np.stack([result.force_spectrum for result in members]),
-                              np.stack([result.velocity_spectrum for result in members]))
+                'share sample rate and window length to be averaged'
+            )
+    average = frf.average_frf(
+        np.stack([result.force_spectrum for result in members]),
+        np.stack([result.velocity_spectrum for result in members]),
+    )
     receptance = frf.receptance_from_mobility(average.mean_mobility, first.frequency_hz)
     peak, natural_frequency = frf.peak_magnitude(
-        receptance, first.frequency_hz,
-        _peak_band(np.stack([result.force_spectrum for result in members]), first.frequency_hz,
-                   analysis))
+        receptance,
+        first.frequency_hz,
+        _peak_band(
+            np.stack([result.force_spectrum for result in members]), first.frequency_hz, analysis
+        ),
+    )
     impulses = np.array([result.impulse_n_s for result in members])
     return LevelSummary(
-        level=name, nominal_peak_force_n=nominal_peak_force_n, count=len(members),
+        level=name,
+        nominal_peak_force_n=nominal_peak_force_n,
+        count=len(members),
         impact_ids=tuple(result.impact_id for result in members),
         mean_impulse_n_s=float(impulses.mean()),
         std_impulse_n_s=float(impulses.std(ddof=1)) if impulses.size > 1 else float('nan'),
         mean_peak_force_n=float(np.mean([result.peak_force_n for result in members])),
-        peak_receptance_m_per_n=peak, natural_frequency_hz=natural_frequency,
-        frequency_step_hz=first.frequency_step_hz, frequency_hz=first.frequency_hz,
-        mobility=average.mean_mobility, receptance=receptance,
-        h1_mobility=average.h1_mobility, h2_mobility=average.h2_mobility,
+        peak_receptance_m_per_n=peak,
+        natural_frequency_hz=natural_frequency,
+        frequency_step_hz=first.frequency_step_hz,
+        frequency_hz=first.frequency_hz,
+        mobility=average.mean_mobility,
+        receptance=receptance,
+        h1_mobility=average.h1_mobility,
+        h2_mobility=average.h2_mobility,
         coherence=average.coherence,
-        exponential_window_decay_s=first.exponential_window_decay_s)
+        exponential_window_decay_s=first.exponential_window_decay_s,
+    )
 
 
-def _peak_band(force_spectrum: np.ndarray, frequency_hz: np.ndarray,
-               analysis: AnalysisConfig) -> tuple[float, float]:
+def _peak_band(
+    force_spectrum: np.ndarray, frequency_hz: np.ndarray, analysis: AnalysisConfig
+) -> tuple[float, float]:
     """The configured peak band, its top lowered to where the excitation has run out."""
     low, high = analysis.peak_band_hz
     usable = frf.excitation_bandwidth(force_spectrum, frequency_hz, analysis.excitation_drop_db)

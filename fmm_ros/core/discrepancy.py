@@ -38,7 +38,7 @@ def excess_rms(residual: np.ndarray, noise_std_value: float) -> float:
     residual = np.asarray(residual, dtype=float)
     if residual.size == 0:
         return 0.0
-    return math.sqrt(max(float(residual @ residual) / residual.size - noise_std_value ** 2, 0.0))
+    return math.sqrt(max(float(residual @ residual) / residual.size - noise_std_value**2, 0.0))
 
 
 @dataclass(frozen=True)
@@ -97,17 +97,24 @@ def region_labels(model_velocity_m_s: np.ndarray, hit_index: int) -> np.ndarray:
             continue  # a stick inside the motion: the model is at rest there
         if first_peak is None:
             first_peak = peak
-        label = 'early, large amplitude' if peak >= LARGE_AMPLITUDE * first_peak else \
-            'late, small amplitude'
-        part = labels[start + a:start + b]
+        label = (
+            'early, large amplitude'
+            if peak >= LARGE_AMPLITUDE * first_peak
+            else 'late, small amplitude'
+        )
+        part = labels[start + a : start + b]
         part[:] = REGIONS.index(label)
         part[speed < NEAR_REVERSAL * peak] = REGIONS.index('near reversals')
         part[speed == 0.0] = REGIONS.index('at rest')
     return labels
 
 
-def time_regions(residuals: Sequence[np.ndarray], model_velocities: Sequence[np.ndarray],
-                 hit_indices: Sequence[int], noise_std_m_s: float) -> tuple[RegionMisfit, ...]:
+def time_regions(
+    residuals: Sequence[np.ndarray],
+    model_velocities: Sequence[np.ndarray],
+    hit_indices: Sequence[int],
+    noise_std_m_s: float,
+) -> tuple[RegionMisfit, ...]:
     """The residual (measured - model velocity) beyond the noise, by region of the decay."""
     sums = np.zeros(len(REGIONS))
     squares = np.zeros(len(REGIONS))
@@ -117,14 +124,18 @@ def time_regions(residuals: Sequence[np.ndarray], model_velocities: Sequence[np.
         counts += np.bincount(labels, minlength=len(REGIONS))
         sums += np.bincount(labels, weights=residual, minlength=len(REGIONS))
         squares += np.bincount(labels, weights=residual * residual, minlength=len(REGIONS))
-    excess = np.maximum(squares - counts * noise_std_m_s ** 2, 0.0)
+    excess = np.maximum(squares - counts * noise_std_m_s**2, 0.0)
     total = float(excess.sum())
     return tuple(
-        RegionMisfit(name, int(counts[i]),
-                     math.sqrt(excess[i] / counts[i]) if counts[i] else 0.0,
-                     float(sums[i] / counts[i]) if counts[i] else 0.0,
-                     float(excess[i] / total) if total > 0.0 else 0.0)
-        for i, name in enumerate(REGIONS))
+        RegionMisfit(
+            name,
+            int(counts[i]),
+            math.sqrt(excess[i] / counts[i]) if counts[i] else 0.0,
+            float(sums[i] / counts[i]) if counts[i] else 0.0,
+            float(excess[i] / total) if total > 0.0 else 0.0,
+        )
+        for i, name in enumerate(REGIONS)
+    )
 
 
 def band_edges_hz(natural_frequency_hz: float) -> dict[str, list[tuple[float, float]]]:
@@ -133,8 +144,10 @@ def band_edges_hz(natural_frequency_hz: float) -> dict[str, list[tuple[float, fl
     return {
         'below f_n': [(0.0, natural_frequency_hz - width)],
         'at f_n': [(natural_frequency_hz - width, natural_frequency_hz + width)],
-        'odd harmonics': [(h * natural_frequency_hz - width, h * natural_frequency_hz + width)
-                          for h in range(3, HIGHEST_ODD_HARMONIC + 1, 2)],
+        'odd harmonics': [
+            (h * natural_frequency_hz - width, h * natural_frequency_hz + width)
+            for h in range(3, HIGHEST_ODD_HARMONIC + 1, 2)
+        ],
     }
 
 
@@ -147,33 +160,40 @@ def band_labels(frequency_hz: np.ndarray, natural_frequency_hz: float) -> np.nda
     return labels
 
 
-def frequency_bands(residuals: Sequence[np.ndarray], sample_rate_hz: float,
-                    natural_frequency_hz: float, noise_std_m_s: float
-                    ) -> tuple[BandMisfit, ...]:
+def frequency_bands(
+    residuals: Sequence[np.ndarray],
+    sample_rate_hz: float,
+    natural_frequency_hz: float,
+    noise_std_m_s: float,
+) -> tuple[BandMisfit, ...]:
     """The residual's spectral energy beyond the noise, by band (DFT of each whole record)."""
     excess = np.zeros(len(BANDS))
     for residual in residuals:
         power, frequency = residual_power(residual, sample_rate_hz, noise_std_m_s)
-        excess += np.bincount(band_labels(frequency, natural_frequency_hz), weights=power,
-                              minlength=len(BANDS))
+        excess += np.bincount(
+            band_labels(frequency, natural_frequency_hz), weights=power, minlength=len(BANDS)
+        )
     excess = np.maximum(excess, 0.0)
     total = float(excess.sum())
     edges = band_edges_hz(natural_frequency_hz)
     nyquist = 0.5 * sample_rate_hz
-    limits = {name: (max(intervals[0][0], 0.0), intervals[-1][1])
-              for name, intervals in edges.items()}
+    limits = {
+        name: (max(intervals[0][0], 0.0), intervals[-1][1]) for name, intervals in edges.items()
+    }
     limits['elsewhere'] = (0.0, nyquist)
-    return tuple(BandMisfit(name, *limits[name],
-                            float(excess[i] / total) if total > 0.0 else 0.0)
-                 for i, name in enumerate(BANDS))
+    return tuple(
+        BandMisfit(name, *limits[name], float(excess[i] / total) if total > 0.0 else 0.0)
+        for i, name in enumerate(BANDS)
+    )
 
 
-def residual_power(residual: np.ndarray, sample_rate_hz: float, noise_std_m_s: float
-                   ) -> tuple[np.ndarray, np.ndarray]:
+def residual_power(
+    residual: np.ndarray, sample_rate_hz: float, noise_std_m_s: float
+) -> tuple[np.ndarray, np.ndarray]:
     """(|DFT r|^2 minus its white-noise expectation n s^2, frequency [Hz]) on the rfft grid."""
     residual = np.asarray(residual, dtype=float)
     spectrum = np.fft.rfft(residual)
-    power = spectrum.real ** 2 + spectrum.imag ** 2 - residual.size * noise_std_m_s ** 2
+    power = spectrum.real**2 + spectrum.imag**2 - residual.size * noise_std_m_s**2
     return power, np.fft.rfftfreq(residual.size, 1.0 / sample_rate_hz)
 
 
@@ -203,12 +223,23 @@ class DecaySignatures:
     (k3 > 0) makes it negative [s/m^2]."""
 
 
-_EMPTY_DECAY = DecaySignatures(0, 'undetermined', math.nan, math.nan, math.nan, math.nan,
-                               math.nan, math.nan, math.nan, math.nan)
+_EMPTY_DECAY = DecaySignatures(
+    0,
+    'undetermined',
+    math.nan,
+    math.nan,
+    math.nan,
+    math.nan,
+    math.nan,
+    math.nan,
+    math.nan,
+    math.nan,
+)
 
 
-def decay_signatures(velocity_m_s: np.ndarray, sample_rate_hz: float, hit_index: int,
-                     natural_frequency_hz: float) -> DecaySignatures:
+def decay_signatures(
+    velocity_m_s: np.ndarray, sample_rate_hz: float, hit_index: int, natural_frequency_hz: float
+) -> DecaySignatures:
     """The decay signatures of one velocity record (measured or simulated).
 
     The velocity is low-passed (zero-phase, 8 f_n) against the noise, integrated to the
@@ -230,7 +261,7 @@ def decay_signatures(velocity_m_s: np.ndarray, sample_rate_hz: float, hit_index:
         return _EMPTY_DECAY
     positions = np.interp(extrema, np.arange(displacement.size), displacement)
     times = extrema / sample_rate_hz
-    swings = 0.5 * np.abs(np.diff(positions))       # half swing of each half cycle
+    swings = 0.5 * np.abs(np.diff(positions))  # half swing of each half cycle
     centres = 0.5 * (positions[1:] + positions[:-1])
     mid_times = 0.5 * (times[1:] + times[:-1])
     half_periods = np.diff(times)
@@ -241,20 +272,28 @@ def decay_signatures(velocity_m_s: np.ndarray, sample_rate_hz: float, hit_index:
         shape = 'undetermined'
     else:
         shape = 'linear' if linear_r2 >= exponential_r2 else 'exponential'
-    slope, intercept = np.polyfit(swings[:-1], swings[1:], 1) if swings.size >= 3 else \
-        (math.nan, math.nan)
+    slope, intercept = (
+        np.polyfit(swings[:-1], swings[1:], 1) if swings.size >= 3 else (math.nan, math.nan)
+    )
     drift = np.polyfit(mid_times, centres, 1)[0] if centres.size >= 3 else math.nan
-    period_slope = np.polyfit(swings ** 2, half_periods, 1)[0] if swings.size >= 3 else math.nan
-    return DecaySignatures(half_cycles=int(swings.size), envelope_shape=shape,
-                           linear_r2=linear_r2, exponential_r2=exponential_r2,
-                           peak_map_slope=float(slope), peak_map_intercept_m=float(intercept),
-                           centre_m=float(np.mean(centres)), centre_drift_m_per_s=float(drift),
-                           half_period_s=float(np.mean(half_periods)),
-                           half_period_amplitude_slope_s_per_m2=float(period_slope))
+    period_slope = np.polyfit(swings**2, half_periods, 1)[0] if swings.size >= 3 else math.nan
+    return DecaySignatures(
+        half_cycles=int(swings.size),
+        envelope_shape=shape,
+        linear_r2=linear_r2,
+        exponential_r2=exponential_r2,
+        peak_map_slope=float(slope),
+        peak_map_intercept_m=float(intercept),
+        centre_m=float(np.mean(centres)),
+        centre_drift_m_per_s=float(drift),
+        half_period_s=float(np.mean(half_periods)),
+        half_period_amplitude_slope_s_per_m2=float(period_slope),
+    )
 
 
-def _extrema(smooth: np.ndarray, displacement: np.ndarray, sample_rate_hz: float,
-             natural_frequency_hz: float) -> np.ndarray:
+def _extrema(
+    smooth: np.ndarray, displacement: np.ndarray, sample_rate_hz: float, natural_frequency_hz: float
+) -> np.ndarray:
     """Times of the displacement extrema [samples, fractional]: where the velocity turns.
 
     Only motion well above the filtered noise counts. Each turn is the zero crossing of the
@@ -270,12 +309,12 @@ def _extrema(smooth: np.ndarray, displacement: np.ndarray, sample_rate_hz: float
     turns = []
     for c in np.flatnonzero(np.diff(signs) != 0):
         a, b = moving[c], moving[c + 1]
-        stretch = smooth[a:b + 1] * signs[c]
+        stretch = smooth[a : b + 1] * signs[c]
         i = a + int(np.argmax(stretch <= 0.0)) - 1  # last sample before the crossing
         turns.append(i + smooth[i] / (smooth[i] - smooth[i + 1]))
     last = int(moving[-1])
     quarter = int(0.25 * sample_rate_hz / natural_frequency_hz)
-    tail = displacement[last:last + quarter] * signs[-1]
+    tail = displacement[last : last + quarter] * signs[-1]
     turns.append(last + float(np.argmax(tail)))
     minimum_gap = 0.25 * sample_rate_hz / natural_frequency_hz
     merged = [turns[0]]
@@ -296,20 +335,25 @@ def _r_squared(x: np.ndarray, y: np.ndarray) -> float:
     return 1.0 - float(np.sum((y - slope * x - intercept) ** 2)) / total
 
 
-def rest_velocity(measured_m_s: np.ndarray, model_m_s: np.ndarray, hit_index: int,
-                  noise_std_m_s: float) -> tuple[float, float]:
+def rest_velocity(
+    measured_m_s: np.ndarray, model_m_s: np.ndarray, hit_index: int, noise_std_m_s: float
+) -> tuple[float, float]:
     """(mean, standard error) of the measured velocity where the model is at rest [m/s]."""
     measured = np.asarray(measured_m_s, dtype=float)
     at_rest = np.asarray(model_m_s) == 0.0
-    at_rest[hit_index:hit_index + 1] = False
+    at_rest[hit_index : hit_index + 1] = False
     count = int(np.count_nonzero(at_rest))
     if count == 0:
         return math.nan, math.nan
     return float(np.mean(measured[at_rest])), noise_std_m_s / math.sqrt(count)
 
 
-def phase_delay_s(measured_m_s: np.ndarray, model_m_s: np.ndarray, sample_rate_hz: float,
-                  natural_frequency_hz: float) -> float:
+def phase_delay_s(
+    measured_m_s: np.ndarray,
+    model_m_s: np.ndarray,
+    sample_rate_hz: float,
+    natural_frequency_hz: float,
+) -> float:
     """Delay of the measured velocity behind the model's, from the slope of their phase [s].
 
     A pure delay tau multiplies the measured spectrum by exp(-i w tau), so the phase of
@@ -342,11 +386,18 @@ class SpectralPeak:
     """That excess over the standard deviation of the noise power in the same bins [-]."""
 
 
-def non_harmonic_peaks(residuals: Sequence[np.ndarray], sample_rate_hz: float,
-                       natural_frequency_hz: float, noise_std_m_s: float, *,
-                       lowest_hz: float | None = None, highest_hz: float | None = None,
-                       count: int = 3, threshold: float = 8.0,
-                       skip_harmonics: bool = True) -> tuple[SpectralPeak, ...]:
+def non_harmonic_peaks(
+    residuals: Sequence[np.ndarray],
+    sample_rate_hz: float,
+    natural_frequency_hz: float,
+    noise_std_m_s: float,
+    *,
+    lowest_hz: float | None = None,
+    highest_hz: float | None = None,
+    count: int = 3,
+    threshold: float = 8.0,
+    skip_harmonics: bool = True,
+) -> tuple[SpectralPeak, ...]:
     """The strongest residual peaks away from f_n and its odd harmonics, above `threshold`.
 
     The residual power beyond the noise is summed over impacts and over a sliding window of
@@ -357,8 +408,11 @@ def non_harmonic_peaks(residuals: Sequence[np.ndarray], sample_rate_hz: float,
     searched too.
     """
     lowest_hz = 1.5 * natural_frequency_hz if lowest_hz is None else lowest_hz
-    highest_hz = min(200.0 * natural_frequency_hz, 0.45 * sample_rate_hz) \
-        if highest_hz is None else highest_hz
+    highest_hz = (
+        min(200.0 * natural_frequency_hz, 0.45 * sample_rate_hz)
+        if highest_hz is None
+        else highest_hz
+    )
     total = None
     noise_power = 0.0
     for residual in residuals:
@@ -369,7 +423,7 @@ def non_harmonic_peaks(residuals: Sequence[np.ndarray], sample_rate_hz: float,
         if power.size != total.size:
             power = np.interp(grid, frequency, power)
         total += power
-        noise_power += residual.size * noise_std_m_s ** 2
+        noise_power += residual.size * noise_std_m_s**2
     if total is None:
         return ()
     step_hz = grid[1] - grid[0]
@@ -382,9 +436,13 @@ def non_harmonic_peaks(residuals: Sequence[np.ndarray], sample_rate_hz: float,
     # Local maxima of the whole curve that stand out of it by half their height at least, so
     # a ripple on the skirt of a strong peak (at f_n, at a harmonic) is no peak of its own.
     peaks, properties = scipy.signal.find_peaks(significance, distance=width, prominence=0.0)
-    keep = allowed[peaks] & (significance[peaks] >= threshold) & \
-        (properties['prominences'] >= 0.5 * significance[peaks])
+    keep = (
+        allowed[peaks]
+        & (significance[peaks] >= threshold)
+        & (properties['prominences'] >= 0.5 * significance[peaks])
+    )
     peaks = peaks[keep]
     strongest = peaks[np.argsort(significance[peaks])[::-1][:count]]
-    return tuple(SpectralPeak(float(grid[i]), float(window[i]), float(significance[i]))
-                 for i in strongest)
+    return tuple(
+        SpectralPeak(float(grid[i]), float(window[i]), float(significance[i])) for i in strongest
+    )

@@ -46,9 +46,13 @@ class HammerLevel:
 
 
 PAPER_LEVELS: dict[str, HammerLevel] = {
-    level.name: level for level in (HammerLevel('low', 450.0, 0.98),
-                                    HammerLevel('medium', 1000.0, 1.42),
-                                    HammerLevel('high', 1450.0, 1.64))}
+    level.name: level
+    for level in (
+        HammerLevel('low', 450.0, 0.98),
+        HammerLevel('medium', 1000.0, 1.42),
+        HammerLevel('high', 1450.0, 1.64),
+    )
+}
 
 
 def half_sine_duration_s(peak_force_n: float, impulse_n_s: float) -> float:
@@ -76,11 +80,12 @@ def tip_contact_duration_s(peak_force_n: float) -> float:
     with force); it reproduces their 3.4 / 2.2 / 1.8 ms within 2 %.
     """
     require_positive('peak_force_n', peak_force_n)
-    return _TIP_SCALE_S * peak_force_n ** TIP_EXPONENT
+    return _TIP_SCALE_S * peak_force_n**TIP_EXPONENT
 
 
-def level_peak_force_n(level: str, rng: np.random.Generator | int,
-                       spread_std_n: float = 30.0) -> float:
+def level_peak_force_n(
+    level: str, rng: np.random.Generator | int, spread_std_n: float = 30.0
+) -> float:
     """A hand-swung hit aimed at a paper level: its nominal peak plus normal scatter [N]."""
     if level not in PAPER_LEVELS:
         raise ValueError(f'unknown hammer level {level!r}; known: {", ".join(PAPER_LEVELS)}')
@@ -89,16 +94,34 @@ def level_peak_force_n(level: str, rng: np.random.Generator | int,
     return max(float(peak), 1.0)
 
 
-def half_sine_pulse(peak_force_n: float, contact_duration_s: float, sample_rate_hz: float,
-                    duration_s: float, *, start_s: float = 0.0) -> np.ndarray:
+def half_sine_pulse(
+    peak_force_n: float,
+    contact_duration_s: float,
+    sample_rate_hz: float,
+    duration_s: float,
+    *,
+    start_s: float = 0.0,
+) -> np.ndarray:
     """F sin(pi (t - start) / T) for start <= t <= start + T, zero elsewhere [N]."""
-    return hammer_pulse(peak_force_n, contact_duration_s, sample_rate_hz, duration_s,
-                        start_s=start_s, rise_fraction=0.5)
+    return hammer_pulse(
+        peak_force_n,
+        contact_duration_s,
+        sample_rate_hz,
+        duration_s,
+        start_s=start_s,
+        rise_fraction=0.5,
+    )
 
 
-def hammer_pulse(peak_force_n: float, contact_duration_s: float, sample_rate_hz: float,
-                 duration_s: float, *, start_s: float = 0.0,
-                 rise_fraction: float = 0.45) -> np.ndarray:
+def hammer_pulse(
+    peak_force_n: float,
+    contact_duration_s: float,
+    sample_rate_hz: float,
+    duration_s: float,
+    *,
+    start_s: float = 0.0,
+    rise_fraction: float = 0.45,
+) -> np.ndarray:
     """A realistic, slightly asymmetric hammer pulse [N].
 
     A quarter sine rises to the peak over rise_fraction of the contact, a quarter cosine falls
@@ -113,13 +136,22 @@ def hammer_pulse(peak_force_n: float, contact_duration_s: float, sample_rate_hz:
     rise_s = rise_fraction * contact_duration_s
     local = time_s - start_s
     inside = (local >= 0.0) & (local <= contact_duration_s)
-    phase = np.where(local < rise_s, 0.5 * local / rise_s,
-                     0.5 + 0.5 * (local - rise_s) / (contact_duration_s - rise_s))
+    phase = np.where(
+        local < rise_s,
+        0.5 * local / rise_s,
+        0.5 + 0.5 * (local - rise_s) / (contact_duration_s - rise_s),
+    )
     return np.where(inside, peak_force_n * np.sin(np.pi * np.clip(phase, 0.0, 1.0)), 0.0)
 
 
-def rectangular_pulse(force_n: float, pulse_duration_s: float, sample_rate_hz: float,
-                      duration_s: float, *, start_s: float = 0.0) -> np.ndarray:
+def rectangular_pulse(
+    force_n: float,
+    pulse_duration_s: float,
+    sample_rate_hz: float,
+    duration_s: float,
+    *,
+    start_s: float = 0.0,
+) -> np.ndarray:
     """Constant force over pulse_duration_s (paper Fig. 5), zero elsewhere [N].
 
     The pulse covers round(pulse_duration_s * rate) samples from the one nearest start_s, so
@@ -132,21 +164,26 @@ def rectangular_pulse(force_n: float, pulse_duration_s: float, sample_rate_hz: f
     first = round(start_s * sample_rate_hz)
     count = round(pulse_duration_s * sample_rate_hz)
     if count < 1:
-        raise ValueError(f'pulse_duration_s {pulse_duration_s:g} is shorter than one sample '
-                         f'at {sample_rate_hz:g} Hz')
+        raise ValueError(
+            f'pulse_duration_s {pulse_duration_s:g} is shorter than one sample '
+            f'at {sample_rate_hz:g} Hz'
+        )
     force = np.zeros(time_s.size)
-    force[first:first + count] = force_n
+    force[first : first + count] = force_n
     return force
 
 
-def _pulse_window(contact_s: float, sample_rate_hz: float, duration_s: float,
-                  start_s: float) -> np.ndarray:
+def _pulse_window(
+    contact_s: float, sample_rate_hz: float, duration_s: float, start_s: float
+) -> np.ndarray:
     """Sample times of a record, checked to hold the whole pulse."""
     n = record_length(duration_s, sample_rate_hz)
     require_non_negative('start_s', start_s)
     if start_s + contact_s > (n - 1) / sample_rate_hz:
-        raise ValueError(f'the pulse ({start_s:g} s + {contact_s:g} s) does not fit in the '
-                         f'{duration_s:g} s record')
+        raise ValueError(
+            f'the pulse ({start_s:g} s + {contact_s:g} s) does not fit in the '
+            f'{duration_s:g} s record'
+        )
     return np.arange(n) / sample_rate_hz
 
 
@@ -174,13 +211,22 @@ class SimulatedImpact:
         return self.simulation.time_s
 
 
-def impact_record(peak_force_n: float, rng: np.random.Generator | int, *, rig: Rig = FMM_RIG,
-                  mu: float = PAPER_MU, effects: tuple[ModelTerm, ...] = (),
-                  sample_rate_hz: float = SAMPLE_RATE_HZ,
-                  duration_s: float = RECORD_DURATION_S, pretrigger_s: float = 0.1,
-                  contact_duration_s: float | None = None, rise_fraction: float = 0.45,
-                  force_noise_std_n: float = 0.05, velocity_noise_std_m_s: float = 1e-5,
-                  integrator: str = 'exact') -> SimulatedImpact:
+def impact_record(
+    peak_force_n: float,
+    rng: np.random.Generator | int,
+    *,
+    rig: Rig = FMM_RIG,
+    mu: float = PAPER_MU,
+    effects: tuple[ModelTerm, ...] = (),
+    sample_rate_hz: float = SAMPLE_RATE_HZ,
+    duration_s: float = RECORD_DURATION_S,
+    pretrigger_s: float = 0.1,
+    contact_duration_s: float | None = None,
+    rise_fraction: float = 0.45,
+    force_noise_std_n: float = 0.05,
+    velocity_noise_std_m_s: float = 1e-5,
+    integrator: str = 'exact',
+) -> SimulatedImpact:
     """A full simulated impact record: the model driven by a realistic hit, both channels noisy.
 
     The hit starts pretrigger_s into the record plus a random fraction of a sample (a hand
@@ -196,15 +242,26 @@ def impact_record(peak_force_n: float, rng: np.random.Generator | int, *, rig: R
     if contact_duration_s is None:
         contact_duration_s = tip_contact_duration_s(peak_force_n)
     start_s = pretrigger_s + rng.uniform(0.0, 1.0) / sample_rate_hz
-    clean = hammer_pulse(peak_force_n, contact_duration_s, sample_rate_hz, duration_s,
-                         start_s=start_s, rise_fraction=rise_fraction)
-    response = simulate(clean, sample_rate_hz, rig=rig, mu=mu, effects=effects,
-                        integrator=integrator)
+    clean = hammer_pulse(
+        peak_force_n,
+        contact_duration_s,
+        sample_rate_hz,
+        duration_s,
+        start_s=start_s,
+        rise_fraction=rise_fraction,
+    )
+    response = simulate(
+        clean, sample_rate_hz, rig=rig, mu=mu, effects=effects, integrator=integrator
+    )
     force = clean + rng.normal(0.0, force_noise_std_n, clean.size)
     velocity = response.velocity_m_s + rng.normal(0.0, velocity_noise_std_m_s, clean.size)
-    return SimulatedImpact(force_n=force, velocity_m_s=velocity, sample_rate_hz=sample_rate_hz,
-                        trigger_index=int(np.argmax(clean > 0.0)), peak_force_n=peak_force_n,
-                        contact_duration_s=contact_duration_s,
-                        impulse_n_s=float(np.trapezoid(clean) / sample_rate_hz),
-                        simulation=response)
-
+    return SimulatedImpact(
+        force_n=force,
+        velocity_m_s=velocity,
+        sample_rate_hz=sample_rate_hz,
+        trigger_index=int(np.argmax(clean > 0.0)),
+        peak_force_n=peak_force_n,
+        contact_duration_s=contact_duration_s,
+        impulse_n_s=float(np.trapezoid(clean) / sample_rate_hz),
+        simulation=response,
+    )

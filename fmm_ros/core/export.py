@@ -54,11 +54,13 @@ class FrfCurve:
 
     def __post_init__(self) -> None:
         if self.quantity not in QUANTITIES:
-            raise ValueError(f'{self.name}: unknown quantity {self.quantity!r}; known: '
-                             f'{", ".join(QUANTITIES)}')
+            raise ValueError(
+                f'{self.name}: unknown quantity {self.quantity!r}; known: {", ".join(QUANTITIES)}'
+            )
         if np.shape(self.frequency_hz) != np.shape(self.values) or np.ndim(self.values) != 1:
-            raise ValueError(f'{self.name}: frequency axis and values must be 1-D and of equal '
-                             'length')
+            raise ValueError(
+                f'{self.name}: frequency axis and values must be 1-D and of equal length'
+            )
 
     @property
     def unit(self) -> str:
@@ -71,30 +73,44 @@ def level_curves(summary: Summary) -> list[FrfCurve]:
     curves = []
     for level in summary.levels:
         axis = level.frequency_hz
-        curves += [FrfCurve(f'{level.level} mean mobility', 'mobility', axis, level.mobility),
-                   FrfCurve(f'{level.level} mean receptance', 'receptance', axis,
-                            level.receptance),
-                   FrfCurve(f'{level.level} H1 mobility', 'mobility', axis, level.h1_mobility),
-                   FrfCurve(f'{level.level} H2 mobility', 'mobility', axis, level.h2_mobility),
-                   FrfCurve(f'{level.level} coherence', 'coherence', axis, level.coherence)]
+        curves += [
+            FrfCurve(f'{level.level} mean mobility', 'mobility', axis, level.mobility),
+            FrfCurve(f'{level.level} mean receptance', 'receptance', axis, level.receptance),
+            FrfCurve(f'{level.level} H1 mobility', 'mobility', axis, level.h1_mobility),
+            FrfCurve(f'{level.level} H2 mobility', 'mobility', axis, level.h2_mobility),
+            FrfCurve(f'{level.level} coherence', 'coherence', axis, level.coherence),
+        ]
     return curves
 
 
 def impact_curves(results: Iterable[ImpactResult]) -> list[FrfCurve]:
     """Each impact's mobility, named by its id (and level, once assigned)."""
-    return [FrfCurve(f'impact {result.impact_id}' + (f' {result.level}' if result.level else '')
-                     + ' mobility', 'mobility', result.frequency_hz, result.mobility)
-            for result in results]
+    return [
+        FrfCurve(
+            f'impact {result.impact_id}'
+            + (f' {result.level}' if result.level else '')
+            + ' mobility',
+            'mobility',
+            result.frequency_hz,
+            result.mobility,
+        )
+        for result in results
+    ]
 
 
 def write_frfs(path: str | Path, curves: Sequence[FrfCurve]) -> None:
     """Write curves in the format the file name asks for: .uff/.unv, .csv or .json."""
     suffix = Path(path).suffix.lower()
-    writers = {'.uff': write_uff58, '.unv': write_uff58, '.csv': write_frf_csv,
-               '.json': write_frf_json}
+    writers = {
+        '.uff': write_uff58,
+        '.unv': write_uff58,
+        '.csv': write_frf_csv,
+        '.json': write_frf_json,
+    }
     if suffix not in writers:
-        raise ValueError(f'{path}: unknown export format {suffix!r}; use .uff or .unv (UFF 58), '
-                         '.csv or .json')
+        raise ValueError(
+            f'{path}: unknown export format {suffix!r}; use .uff or .unv (UFF 58), .csv or .json'
+        )
     writers[suffix](path, curves)
 
 
@@ -106,28 +122,52 @@ def write_uff58(path: str | Path, curves: Sequence[FrfCurve]) -> None:
     """
     import pyuff
 
-    datasets = [pyuff.prepare_164(units_code=1, units_description='SI', temp_mode=1,
-                                  length=1.0, force=1.0, temp=1.0, temp_offset=273.15)]
+    datasets = [
+        pyuff.prepare_164(
+            units_code=1,
+            units_description='SI',
+            temp_mode=1,
+            length=1.0,
+            force=1.0,
+            temp=1.0,
+            temp_offset=273.15,
+        )
+    ]
     for number, curve in enumerate(_nonempty(curves), start=1):
         if curve.frequency_hz.size < 2:
             raise ValueError(f'{curve.name}: UFF 58 needs at least 2 frequency points')
         quantity = QUANTITIES[curve.quantity]
         dataset = pyuff.prepare_58(
-            binary=0, id1=curve.name[:80], id2=f'{curve.quantity} [{curve.unit}]',
-            id3='fmm_ros', func_type=quantity.function_type, rsp_ent_name='FMM', rsp_node=1,
-            rsp_dir=1, ref_ent_name='FMM', ref_node=1, ref_dir=1,
-            abscissa_spacing=1, abscissa_spec_data_type=18, abscissa_axis_units_lab='Hz',
+            binary=0,
+            id1=curve.name[:80],
+            id2=f'{curve.quantity} [{curve.unit}]',
+            id3='fmm_ros',
+            func_type=quantity.function_type,
+            rsp_ent_name='FMM',
+            rsp_node=1,
+            rsp_dir=1,
+            ref_ent_name='FMM',
+            ref_node=1,
+            ref_dir=1,
+            abscissa_spacing=1,
+            abscissa_spec_data_type=18,
+            abscissa_axis_units_lab='Hz',
             ordinate_spec_data_type=quantity.ordinate_type,
             ordinate_len_unit_exp=int(quantity.ordinate_type in (8, 11, 12)),
             ordinate_axis_units_lab=quantity.ordinate_unit,
             orddenom_spec_data_type=quantity.denominator_type,
             orddenom_force_unit_exp=int(quantity.denominator_type == 13),
             orddenom_axis_units_lab='N' if quantity.denominator_type == 13 else '',
-            data=np.asarray(curve.values), x=np.asarray(curve.frequency_hz, dtype=float))
+            data=np.asarray(curve.values),
+            x=np.asarray(curve.frequency_hz, dtype=float),
+        )
         # Fields prepare_58 does not take but the writer does.
-        dataset.update(func_id=number, abscissa_axis_lab='Frequency',
-                       ordinate_axis_lab=quantity.label,
-                       orddenom_axis_lab='Force' if quantity.denominator_type == 13 else 'NONE')
+        dataset.update(
+            func_id=number,
+            abscissa_axis_lab='Frequency',
+            ordinate_axis_lab=quantity.label,
+            orddenom_axis_lab='Force' if quantity.denominator_type == 13 else 'NONE',
+        )
         datasets.append(dataset)
     pyuff.UFF(str(path)).write_sets(datasets, mode='overwrite')
 
@@ -151,18 +191,31 @@ def write_frf_csv(path: str | Path, curves: Sequence[FrfCurve]) -> None:
         else:
             names.append(label)
             columns.append(curve.values)
-    np.savetxt(path, np.column_stack(columns), delimiter=',', header=','.join(names),
-               comments='', fmt='%.17g')
+    np.savetxt(
+        path,
+        np.column_stack(columns),
+        delimiter=',',
+        header=','.join(names),
+        comments='',
+        fmt='%.17g',
+    )
 
 
 def write_frf_json(path: str | Path, curves: Sequence[FrfCurve]) -> None:
     """Write {"curves": [{name, quantity, unit, frequency_hz, real, imag}]}; NaN as null."""
-    document = {'curves': [{
-        'name': curve.name, 'quantity': curve.quantity, 'unit': curve.unit,
-        'frequency_hz': _json_list(curve.frequency_hz),
-        'real': _json_list(np.real(curve.values)),
-        'imag': _json_list(np.imag(curve.values)),
-    } for curve in _nonempty(curves)]}
+    document = {
+        'curves': [
+            {
+                'name': curve.name,
+                'quantity': curve.quantity,
+                'unit': curve.unit,
+                'frequency_hz': _json_list(curve.frequency_hz),
+                'real': _json_list(np.real(curve.values)),
+                'imag': _json_list(np.imag(curve.values)),
+            }
+            for curve in _nonempty(curves)
+        ]
+    }
     Path(path).write_text(json.dumps(document, allow_nan=False))
 
 

@@ -97,8 +97,15 @@ MOTION_THRESHOLD_SIGMA = 10.0
 MIN_EXPLAINED_FRACTION = 0.5
 """A fit must remove at least this fraction of each record's velocity sum of squares (the
 misfit of predicting no motion at all), or the model does not explain the record."""
-FIT_FAILURES = ('no_hit', 'no_motion', 'mu_at_bound', 'at_bound', 'unexplained',
-                'no_convergence', 'too_few_cycles')
+FIT_FAILURES = (
+    'no_hit',
+    'no_motion',
+    'mu_at_bound',
+    'at_bound',
+    'unexplained',
+    'no_convergence',
+    'too_few_cycles',
+)
 MIN_DECAY_CROSSINGS = 6
 """A free decay must cross zero this often above its noise (three cycles) to be fitted."""
 
@@ -118,6 +125,7 @@ class FitError(ValueError):
 
 
 # --- conditioning ------------------------------------------------------------------------------
+
 
 @dataclass(frozen=True, eq=False)
 class ConditionedImpact:
@@ -159,7 +167,8 @@ class ConditionedImpact:
         mu N), so it moves nothing.
         """
         samples = sum(stop - start for start, stop in self.gate) - (
-            self.onset_index - self.gate[0][0])
+            self.onset_index - self.gate[0][0]
+        )
         return self.force_noise_std_n / self.sample_rate_hz * math.sqrt(samples)
 
     @property
@@ -168,8 +177,9 @@ class ConditionedImpact:
         return self.force_n.size / self.sample_rate_hz
 
 
-def condition_impact(force_n: np.ndarray, velocity_m_s: np.ndarray, sample_rate_hz: float, *,
-                     source: str = '') -> ConditionedImpact:
+def condition_impact(
+    force_n: np.ndarray, velocity_m_s: np.ndarray, sample_rate_hz: float, *, source: str = ''
+) -> ConditionedImpact:
     """Baseline-correct and gate a measured force; estimate both channels' noise.
 
     Raises ValueError for malformed input and FitError ('no_hit', 'no_motion') for a force with
@@ -179,17 +189,22 @@ def condition_impact(force_n: np.ndarray, velocity_m_s: np.ndarray, sample_rate_
     velocity = _checked_channel('velocity_m_s', velocity_m_s, source)
     require_positive('sample_rate_hz', sample_rate_hz)
     if force.size != velocity.size:
-        raise ValueError(f'{_where(source)}force has {force.size} samples but velocity has '
-                         f'{velocity.size}: the channels must be sample-aligned')
+        raise ValueError(
+            f'{_where(source)}force has {force.size} samples but velocity has '
+            f'{velocity.size}: the channels must be sample-aligned'
+        )
     if force.size < 16:
         raise ValueError(f'{_where(source)}a record needs at least 16 samples, got {force.size}')
     center, noise_n = _robust_center_and_std(force)
     peak = max(float(force.max()) - center, center - float(force.min()))
     if peak <= HIT_THRESHOLD_SIGMA * noise_n or peak == 0.0:
-        raise FitError('no_hit', f'the force never departs from its baseline {center:.4g} N by '
-                       f'more than {HIT_THRESHOLD_SIGMA:g} noise deviations ({noise_n:.3g} N; '
-                       f'largest departure {peak:.3g} N): there is no hit to drive the model',
-                       source)
+        raise FitError(
+            'no_hit',
+            f'the force never departs from its baseline {center:.4g} N by '
+            f'more than {HIT_THRESHOLD_SIGMA:g} noise deviations ({noise_n:.3g} N; '
+            f'largest departure {peak:.3g} N): there is no hit to drive the model',
+            source,
+        )
     threshold = max(HIT_THRESHOLD_SIGMA * noise_n, 1e-3 * peak)
     hit = (force >= center + threshold) | (force <= center - threshold)
     gate = _gate(hit, sample_rate_hz)
@@ -203,17 +218,27 @@ def condition_impact(force_n: np.ndarray, velocity_m_s: np.ndarray, sample_rate_
     velocity_noise = velocity_noise_std(velocity)
     peak_velocity = float(np.max(np.abs(velocity)))
     if peak_velocity <= MOTION_THRESHOLD_SIGMA * velocity_noise or peak_velocity == 0.0:
-        raise FitError('no_motion', f'the velocity never exceeds {MOTION_THRESHOLD_SIGMA:g} '
-                       f'times its noise ({velocity_noise:.3g} m/s; peak {peak_velocity:.3g} '
-                       'm/s): the rig did not move', source)
+        raise FitError(
+            'no_motion',
+            f'the velocity never exceeds {MOTION_THRESHOLD_SIGMA:g} '
+            f'times its noise ({velocity_noise:.3g} m/s; peak {peak_velocity:.3g} '
+            'm/s): the rig did not move',
+            source,
+        )
     return ConditionedImpact(
-        force_n=conditioned, velocity_m_s=velocity, sample_rate_hz=float(sample_rate_hz),
-        gate=gate, onset_index=int(np.argmax(hit)), baseline_n=baseline,
+        force_n=conditioned,
+        velocity_m_s=velocity,
+        sample_rate_hz=float(sample_rate_hz),
+        gate=gate,
+        onset_index=int(np.argmax(hit)),
+        baseline_n=baseline,
         force_noise_std_n=noise_n,
         velocity_noise_std_m_s=velocity_noise,
         impulse_n_s=impulse(conditioned, sample_rate_hz),
-        peak_force_n=float(np.max(np.abs(conditioned))), peak_velocity_m_s=peak_velocity,
-        source=source)
+        peak_force_n=float(np.max(np.abs(conditioned))),
+        peak_velocity_m_s=peak_velocity,
+        source=source,
+    )
 
 
 def velocity_noise_std(velocity_m_s: np.ndarray) -> float:
@@ -251,8 +276,10 @@ def as_conditioned(impact) -> ConditionedImpact:
     try:
         force, velocity, rate = impact.force_n, impact.velocity_m_s, impact.sample_rate_hz
     except AttributeError:
-        raise ValueError(f'an impact must have force_n, velocity_m_s and sample_rate_hz, got '
-                         f'{type(impact).__name__}') from None
+        raise ValueError(
+            f'an impact must have force_n, velocity_m_s and sample_rate_hz, got '
+            f'{type(impact).__name__}'
+        ) from None
     return condition_impact(force, velocity, rate, source=str(getattr(impact, 'source', '')))
 
 
@@ -284,6 +311,7 @@ def _where(source: str) -> str:
 
 # --- the output-error problem ---------------------------------------------------------------
 
+
 @dataclass(frozen=True)
 class _Model:
     """What a parameter vector stands for: the model, and each impact's initial position."""
@@ -312,8 +340,15 @@ class _OutputError:
     (each run is consumed before the next).
     """
 
-    def __init__(self, impacts: Sequence[ConditionedImpact], build: ModelBuilder, misfit: str,
-                 band_limit_hz: float, integrator: str, natural_frequency_hz: float) -> None:
+    def __init__(
+        self,
+        impacts: Sequence[ConditionedImpact],
+        build: ModelBuilder,
+        misfit: str,
+        band_limit_hz: float,
+        integrator: str,
+        natural_frequency_hz: float,
+    ) -> None:
         self.impacts = tuple(impacts)
         self.build = build
         self.misfit = misfit
@@ -334,8 +369,10 @@ class _OutputError:
                 force_spectrum, velocity_spectrum = spectra(impact.force_n, impact.velocity_m_s)
                 target = mobility(force_spectrum[:bins], velocity_spectrum[:bins])
                 if np.isnan(target).any():
-                    raise ValueError(f'{_where(impact.source)}the force spectrum is zero inside '
-                                     f'the {band_limit_hz:g} Hz band: no mobility there')
+                    raise ValueError(
+                        f'{_where(impact.source)}the force spectrum is zero inside '
+                        f'the {band_limit_hz:g} Hz band: no mobility there'
+                    )
                 self.inverse_force.append(1.0 / force_spectrum[:bins])
                 self.targets.append(target)
                 length = 2 * bins
@@ -352,15 +389,17 @@ class _OutputError:
         except ValueError as error:
             raise Infeasible(str(error)) from None
 
-    def __call__(self, theta: np.ndarray, blocks: Sequence[int],
-                 outs: Sequence[np.ndarray]) -> None:
+    def __call__(
+        self, theta: np.ndarray, blocks: Sequence[int], outs: Sequence[np.ndarray]
+    ) -> None:
         """The residuals of the impacts `blocks` at theta, into outs (a BlockResidualFunction)."""
         model = self.model(theta)
         for index, out in zip(blocks, outs, strict=True):
             self.impact_residual(index, model, out)
 
-    def impact_residual(self, index: int, model: _Model, out: np.ndarray,
-                        force_scale: float = 1.0) -> None:
+    def impact_residual(
+        self, index: int, model: _Model, out: np.ndarray, force_scale: float = 1.0
+    ) -> None:
         """One impact's residual segment; force_scale multiplies its force (sensitivity)."""
         impact = self.impacts[index]
         force = impact.force_n if force_scale == 1.0 else impact.force_n * force_scale
@@ -369,34 +408,41 @@ class _OutputError:
             np.subtract(impact.velocity_m_s, velocity, out=out)
             return
         target = self.targets[index]
-        spectrum = scipy.fft.rfft(velocity)[:target.size]
+        spectrum = scipy.fft.rfft(velocity)[: target.size]
         spectrum *= self.inverse_force[index]
         residual = out.view(complex)
         np.subtract(target, spectrum, out=residual)
         residual /= force_scale  # the measured mobility's denominator scales with the force
 
-    def simulate(self, index: int, model: _Model,
-                 force_n: np.ndarray | None = None) -> Simulation:
+    def simulate(self, index: int, model: _Model, force_n: np.ndarray | None = None) -> Simulation:
         """Run one impact (or force_n in its place) through the model into the shared buffer."""
         impact = self.impacts[index]
         n = impact.force_n.size
         try:
-            return simulate(impact.force_n if force_n is None else force_n,
-                            impact.sample_rate_hz, rig=model.rig, mu=model.mu,
-                            effects=model.effects, x0_m=model.initial_position_m(index),
-                            integrator=self.integrator,
-                            out=(self.buffer[0, :n], self.buffer[1, :n]))
+            return simulate(
+                impact.force_n if force_n is None else force_n,
+                impact.sample_rate_hz,
+                rig=model.rig,
+                mu=model.mu,
+                effects=model.effects,
+                x0_m=model.initial_position_m(index),
+                integrator=self.integrator,
+                out=(self.buffer[0, :n], self.buffer[1, :n]),
+            )
         except ValueError as error:  # e.g. a term that makes one direction's friction < 0
             raise Infeasible(str(error)) from None
 
     def time_residuals(self, theta: np.ndarray) -> tuple[np.ndarray, ...]:
         """Measured minus simulated velocity of every impact at theta (fresh arrays) [m/s]."""
         model = self.model(theta)
-        return tuple(impact.velocity_m_s - self.simulate(index, model).velocity_m_s
-                     for index, impact in enumerate(self.impacts))
+        return tuple(
+            impact.velocity_m_s - self.simulate(index, model).velocity_m_s
+            for index, impact in enumerate(self.impacts)
+        )
 
-    def impulse_jacobians(self, theta: np.ndarray, residual: np.ndarray,
-                          relative_step: float = 1e-4) -> Iterator[np.ndarray]:
+    def impulse_jacobians(
+        self, theta: np.ndarray, residual: np.ndarray, relative_step: float = 1e-4
+    ) -> Iterator[np.ndarray]:
         """Impact by impact, d residual / d impulse [residual units per N*s] on its segment.
 
         The hit is short against the rig's period, so what force noise inside the gate does
@@ -408,7 +454,7 @@ class _OutputError:
         scratch = np.empty(max(segment.stop - segment.start for segment in self.segments))
         for index, impact in enumerate(self.impacts):
             segment = self.segments[index]
-            shifted = scratch[:segment.stop - segment.start]
+            shifted = scratch[: segment.stop - segment.start]
             self.impact_residual(index, model, shifted, 1.0 + relative_step)
             shifted -= residual[segment]
             shifted /= relative_step * impact.impulse_n_s
@@ -423,9 +469,11 @@ class _Uncertainty:
     stderr_force: np.ndarray
 
 
-def _uncertainty(solution: LsqSolution, block_lengths: Sequence[int],
-                 impulse_terms: Iterable[tuple[int, np.ndarray, float]] = ()
-                 ) -> _Uncertainty:
+def _uncertainty(
+    solution: LsqSolution,
+    block_lengths: Sequence[int],
+    impulse_terms: Iterable[tuple[int, np.ndarray, float]] = (),
+) -> _Uncertainty:
     """Covariance of a fit: velocity residuals (block sandwich) plus force noise (module doc).
 
     The sandwich is scaled up where it falls below the white-noise covariance (its block sums
@@ -446,8 +494,9 @@ def _uncertainty(solution: LsqSolution, block_lengths: Sequence[int],
     dead = ~np.isfinite(np.diag(inverse))
     inverse = np.where(np.isfinite(inverse), inverse, 0.0)
     score = np.zeros((p, p))
-    for segment, indices, rows, block in zip(blocks.segments, blocks.parameters, jacobian.rows,
-                                             block_lengths, strict=True):
+    for segment, indices, rows, block in zip(
+        blocks.segments, blocks.parameters, jacobian.rows, block_lengths, strict=True
+    ):
         contributions = rows * residual[segment]
         sums = np.add.reduceat(contributions, np.arange(0, contributions.shape[1], block), axis=1)
         score[np.ix_(indices, indices)] += sums @ sums.T
@@ -461,22 +510,31 @@ def _uncertainty(solution: LsqSolution, block_lengths: Sequence[int],
         along = np.zeros(p)
         along[blocks.parameters[block]] = inner(jacobian.rows[block], impulse_jacobian)
         sensitivity = inverse @ along
-        force_part += std ** 2 * np.outer(sensitivity, sensitivity)
+        force_part += std**2 * np.outer(sensitivity, sensitivity)
     covariance = velocity_part + force_part
     covariance[dead, dead] = np.inf
-    return _Uncertainty(covariance, np.sqrt(np.diag(covariance)), np.sqrt(np.diag(white)),
-                        np.sqrt(np.diag(force_part)))
+    return _Uncertainty(
+        covariance,
+        np.sqrt(np.diag(covariance)),
+        np.sqrt(np.diag(white)),
+        np.sqrt(np.diag(force_part)),
+    )
 
 
 def _fit_uncertainty(solution: LsqSolution, problem: _OutputError) -> _Uncertainty:
     """`_uncertainty` of an output-error fit, force noise included."""
     stds = [impact.impulse_std_n_s for impact in problem.impacts]
-    terms = zip(range(len(stds)), problem.impulse_jacobians(solution.x, solution.residual),
-                stds, strict=True)
+    terms = zip(
+        range(len(stds)),
+        problem.impulse_jacobians(solution.x, solution.residual),
+        stds,
+        strict=True,
+    )
     return _uncertainty(solution, problem.block_lengths, terms)
 
 
 # --- fitting mu, c and model terms ---------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class ModelFit:
@@ -550,8 +608,14 @@ class ModelFit:
     def simulate(self, index: int) -> Simulation:
         """The fitted model's response to impact `index` (its conditioned force, its start)."""
         impact = self.impacts[index]
-        return simulate(impact.force_n, impact.sample_rate_hz, rig=self.rig, mu=self.mu,
-                        effects=self.effects, x0_m=self.initial_positions_m[index])
+        return simulate(
+            impact.force_n,
+            impact.sample_rate_hz,
+            rig=self.rig,
+            mu=self.mu,
+            effects=self.effects,
+            x0_m=self.initial_positions_m[index],
+        )
 
 
 @dataclass(frozen=True)
@@ -580,9 +644,9 @@ class _Space:
         effects = list(self.fixed_effects)
         for term in self.terms:
             count = len(term.parameters)
-            effects.append(term.from_vector(theta[position:position + count]))
+            effects.append(term.from_vector(theta[position : position + count]))
             position += count
-        positions = tuple(float(x) for x in theta[position:position + self.initial_positions])
+        positions = tuple(float(x) for x in theta[position : position + self.initial_positions])
         return _Model(rig, float(theta[0]), tuple(effects), positions)
 
     def blocks(self, segments: Sequence[slice], jacobian: str = 'blocks') -> Blocks:
@@ -598,9 +662,15 @@ class _Space:
         return Blocks.global_and_local(segments, n_global, local)
 
 
-def _space(rig: Rig, mu0: float, mu_bounds: tuple[float, float], fit_damping: bool,
-           terms: Sequence[str | ModelTerm], fixed_effects: Sequence[ModelTerm],
-           initial_positions: int) -> _Space:
+def _space(
+    rig: Rig,
+    mu0: float,
+    mu_bounds: tuple[float, float],
+    fit_damping: bool,
+    terms: Sequence[str | ModelTerm],
+    fixed_effects: Sequence[ModelTerm],
+    initial_positions: int,
+) -> _Space:
     names, units = ['mu'], ['1']
     start, lower, upper = [mu0], [mu_bounds[0]], [mu_bounds[1]]
     typical = [max(mu0, 0.01)]
@@ -636,8 +706,9 @@ def _space(rig: Rig, mu0: float, mu_bounds: tuple[float, float], fit_damping: bo
             upper.append(hi)
             typical.append(max(abs(parameter.default), 1e-3 * (hi - lo)))
     if fit_damping and MODEL_TERMS['viscous_damping'] in classes:
-        raise ValueError('fit_damping and a fitted viscous_damping term are the same parameter; '
-                         'choose one')
+        raise ValueError(
+            'fit_damping and a fitted viscous_damping term are the same parameter; choose one'
+        )
     # Where the mass can rest before a hit: inside the friction band of the largest mu searched.
     band_m = mu_bounds[1] * rig.normal_force_n / rig.stiffness_n_per_m
     for index in range(initial_positions):
@@ -647,10 +718,19 @@ def _space(rig: Rig, mu0: float, mu_bounds: tuple[float, float], fit_damping: bo
         lower.append(-band_m)
         upper.append(band_m)
         typical.append(mu0 * rig.normal_force_n / rig.stiffness_n_per_m)
-    return _Space(rig, fit_damping, tuple(classes), fixed, initial_positions, tuple(names),
-                  tuple(units),
-                  np.array(start, dtype=float), np.array(lower, dtype=float),
-                  np.array(upper, dtype=float), np.array(typical, dtype=float))
+    return _Space(
+        rig,
+        fit_damping,
+        tuple(classes),
+        fixed,
+        initial_positions,
+        tuple(names),
+        tuple(units),
+        np.array(start, dtype=float),
+        np.array(lower, dtype=float),
+        np.array(upper, dtype=float),
+        np.array(typical, dtype=float),
+    )
 
 
 def energy_balance_mu(impacts: Sequence[ConditionedImpact], rig: Rig = FMM_RIG) -> float:
@@ -667,20 +747,29 @@ def energy_balance_mu(impacts: Sequence[ConditionedImpact], rig: Rig = FMM_RIG) 
         step_s = 1.0 / impact.sample_rate_hz
         sigma = impact.velocity_noise_std_m_s
         slid = (float(np.sum(np.abs(v))) - v.size * sigma * math.sqrt(2.0 / math.pi)) * step_s
-        viscous = rig.damping_n_s_per_m * (inner(v, v) - v.size * sigma ** 2) * step_s
-        energy += impact.impulse_n_s ** 2 / (2.0 * rig.mass_kg) - viscous
+        viscous = rig.damping_n_s_per_m * (inner(v, v) - v.size * sigma**2) * step_s
+        energy += impact.impulse_n_s**2 / (2.0 * rig.mass_kg) - viscous
         path += slid
     if rig.normal_force_n <= 0.0 or path <= 0.0 or energy <= 0.0:
         return math.nan
     return energy / (rig.normal_force_n * path)
 
 
-def fit_model(impacts: Sequence, *, rig: Rig = FMM_RIG, mu0: float | None = None,
-              mu_bounds: tuple[float, float] = MU_BOUNDS, fit_damping: bool = False,
-              terms: Sequence[str | ModelTerm] = (), fixed_effects: Sequence[ModelTerm] = (),
-              fit_initial_position: bool = False, misfit: str = 'time',
-              band_limit_hz: float = DEFAULT_BAND_LIMIT_HZ,
-              integrator: str = 'exact', jacobian: str = 'blocks') -> ModelFit:
+def fit_model(
+    impacts: Sequence,
+    *,
+    rig: Rig = FMM_RIG,
+    mu0: float | None = None,
+    mu_bounds: tuple[float, float] = MU_BOUNDS,
+    fit_damping: bool = False,
+    terms: Sequence[str | ModelTerm] = (),
+    fixed_effects: Sequence[ModelTerm] = (),
+    fit_initial_position: bool = False,
+    misfit: str = 'time',
+    band_limit_hz: float = DEFAULT_BAND_LIMIT_HZ,
+    integrator: str = 'exact',
+    jacobian: str = 'blocks',
+) -> ModelFit:
     """Fit one mu (and c, and the parameters of `terms`) to every impact at once.
 
     impacts: ConditionedImpacts, or records with force_n, velocity_m_s, sample_rate_hz (they
@@ -707,20 +796,37 @@ def fit_model(impacts: Sequence, *, rig: Rig = FMM_RIG, mu0: float | None = None
         if not math.isfinite(mu0):
             mu0 = PAPER_MU
     mu0 = min(max(float(mu0), low + 0.01 * (high - low)), high - 0.01 * (high - low))
-    space = _space(rig, mu0, (low, high), fit_damping, terms, fixed_effects,
-                   len(conditioned) if fit_initial_position else 0)
-    problem = _OutputError(conditioned, space.build, misfit, band_limit_hz, integrator,
-                           rig.natural_frequency_hz)
-    solution = levenberg_marquardt(problem, space.start, space.lower, space.upper,
-                                   space.typical, problem.size,
-                                   blocks=space.blocks(problem.segments, jacobian))
+    space = _space(
+        rig,
+        mu0,
+        (low, high),
+        fit_damping,
+        terms,
+        fixed_effects,
+        len(conditioned) if fit_initial_position else 0,
+    )
+    problem = _OutputError(
+        conditioned, space.build, misfit, band_limit_hz, integrator, rig.natural_frequency_hz
+    )
+    solution = levenberg_marquardt(
+        problem,
+        space.start,
+        space.lower,
+        space.upper,
+        space.typical,
+        problem.size,
+        blocks=space.blocks(problem.segments, jacobian),
+    )
     fit = _model_fit(space, problem, solution)
     _require_explained(fit, solution, conditioned)
     if 'mu' in fit.at_bounds:
-        raise FitError('mu_at_bound', f'the best-fit friction coefficient {fit.mu:.4g} lies on '
-                       f'its search bound [{low:g}, {high:g}]: friction does not explain the '
-                       'record(s) (no friction, or far more than the rig can show)',
-                       _joined_sources(conditioned))
+        raise FitError(
+            'mu_at_bound',
+            f'the best-fit friction coefficient {fit.mu:.4g} lies on '
+            f'its search bound [{low:g}, {high:g}]: friction does not explain the '
+            'record(s) (no friction, or far more than the rig can show)',
+            _joined_sources(conditioned),
+        )
     return fit
 
 
@@ -737,47 +843,78 @@ def _model_fit(space: _Space, problem: _OutputError, solution: LsqSolution) -> M
     rms = [math.sqrt(s / r.size) for s, r in zip(squares, residuals, strict=True)]
     total_rms = math.sqrt(sum(squares) / n_samples)
     peaks = [impact.peak_velocity_m_s for impact in impacts]
-    explained = [1.0 - s / inner(impact.velocity_m_s, impact.velocity_m_s)
-                 for s, impact in zip(squares, impacts, strict=True)]
-    noise = math.sqrt(sum(i.velocity_noise_std_m_s ** 2 * i.force_n.size for i in impacts)
-                      / n_samples)
+    explained = [
+        1.0 - s / inner(impact.velocity_m_s, impact.velocity_m_s)
+        for s, impact in zip(squares, impacts, strict=True)
+    ]
+    noise = math.sqrt(
+        sum(i.velocity_noise_std_m_s**2 * i.force_n.size for i in impacts) / n_samples
+    )
     span = space.upper - space.lower
-    at_bounds = tuple(name for name, value, lo, hi, width in zip(
-        space.names, solution.x, space.lower, space.upper, span, strict=True)
-        if value <= lo + 1e-9 * width or value >= hi - 1e-9 * width)
+    at_bounds = tuple(
+        name
+        for name, value, lo, hi, width in zip(
+            space.names, solution.x, space.lower, space.upper, span, strict=True
+        )
+        if value <= lo + 1e-9 * width or value >= hi - 1e-9 * width
+    )
     return ModelFit(
-        names=space.names, units=space.units, values=solution.x.copy(),
-        stderr=uncertainty.stderr, stderr_white=uncertainty.stderr_white,
+        names=space.names,
+        units=space.units,
+        values=solution.x.copy(),
+        stderr=uncertainty.stderr,
+        stderr_white=uncertainty.stderr_white,
         stderr_force=uncertainty.stderr_force,
-        covariance=uncertainty.covariance, rig=model.rig, mu=model.mu, effects=model.effects,
-        initial_positions_m=tuple(model.initial_position_m(index)
-                                  for index in range(len(impacts))),
-        misfit=problem.misfit, impacts=impacts, sources=tuple(i.source for i in impacts),
-        residuals_m_s=residuals, residual_rms_m_s=total_rms,
+        covariance=uncertainty.covariance,
+        rig=model.rig,
+        mu=model.mu,
+        effects=model.effects,
+        initial_positions_m=tuple(model.initial_position_m(index) for index in range(len(impacts))),
+        misfit=problem.misfit,
+        impacts=impacts,
+        sources=tuple(i.source for i in impacts),
+        residuals_m_s=residuals,
+        residual_rms_m_s=total_rms,
         normalised_residual=total_rms / max(peaks),
         impact_residual_rms_m_s=tuple(rms),
         impact_normalised_residual=tuple(r / p for r, p in zip(rms, peaks, strict=True)),
-        explained_fraction=tuple(explained), noise_std_m_s=noise, n_samples=n_samples,
-        misfit_sum_of_squares=solution.cost, n_misfit_residuals=problem.size,
-        at_bounds=at_bounds, evaluations=solution.evaluations, iterations=solution.iterations)
+        explained_fraction=tuple(explained),
+        noise_std_m_s=noise,
+        n_samples=n_samples,
+        misfit_sum_of_squares=solution.cost,
+        n_misfit_residuals=problem.size,
+        at_bounds=at_bounds,
+        evaluations=solution.evaluations,
+        iterations=solution.iterations,
+    )
 
 
-def _require_explained(fit: ModelFit, solution: LsqSolution,
-                       impacts: Sequence[ConditionedImpact]) -> None:
+def _require_explained(
+    fit: ModelFit, solution: LsqSolution, impacts: Sequence[ConditionedImpact]
+) -> None:
     if not solution.converged:
-        raise FitError('no_convergence', f'the fit did not converge ({solution.message})',
-                       _joined_sources(impacts))
+        raise FitError(
+            'no_convergence',
+            f'the fit did not converge ({solution.message})',
+            _joined_sources(impacts),
+        )
     for explained, impact in zip(fit.explained_fraction, impacts, strict=True):
         if explained < MIN_EXPLAINED_FRACTION:
-            raise FitError('unexplained', _unexplained_message('model', explained) +
-                           ': the record is not a friction-damped response to its force (check '
-                           'the channels, their signs and the rig constants)', impact.source)
+            raise FitError(
+                'unexplained',
+                _unexplained_message('model', explained)
+                + ': the record is not a friction-damped response to its force (check '
+                'the channels, their signs and the rig constants)',
+                impact.source,
+            )
 
 
 def _unexplained_message(model: str, explained: float) -> str:
-    return (f'the best-fit {model} leaves {100 * (1 - explained):.0f} % of the velocity sum of '
-            f'squares unexplained (predicting no motion at all leaves 100 %; at most '
-            f'{100 * (1 - MIN_EXPLAINED_FRACTION):.0f} % allowed)')
+    return (
+        f'the best-fit {model} leaves {100 * (1 - explained):.0f} % of the velocity sum of '
+        f'squares unexplained (predicting no motion at all leaves 100 %; at most '
+        f'{100 * (1 - MIN_EXPLAINED_FRACTION):.0f} % allowed)'
+    )
 
 
 def _joined_sources(impacts: Sequence[ConditionedImpact]) -> str:
@@ -793,16 +930,18 @@ def _conditioned_list(impacts: Sequence) -> list[ConditionedImpact]:
     return conditioned
 
 
-def _check_options(rig: Rig, misfit: str, band_limit_hz: float, integrator: str,
-                   jacobian: str) -> None:
+def _check_options(
+    rig: Rig, misfit: str, band_limit_hz: float, integrator: str, jacobian: str
+) -> None:
     if not isinstance(rig, Rig):
         raise ValueError(f'rig must be a Rig, got {rig!r}')
     if misfit not in MISFITS:
         raise ValueError(f'unknown misfit {misfit!r}; choose one of {", ".join(MISFITS)}')
     require_positive('band_limit_hz', band_limit_hz)
     if integrator not in INTEGRATORS:
-        raise ValueError(f'unknown integrator {integrator!r}; choose one of '
-                         f'{", ".join(INTEGRATORS)}')
+        raise ValueError(
+            f'unknown integrator {integrator!r}; choose one of {", ".join(INTEGRATORS)}'
+        )
     if jacobian not in JACOBIANS:
         raise ValueError(f'unknown jacobian {jacobian!r}; choose one of {", ".join(JACOBIANS)}')
 
@@ -811,9 +950,11 @@ def _check_durations(impacts: Sequence[ConditionedImpact], rig: Rig) -> None:
     period_s = 1.0 / rig.natural_frequency_hz
     for impact in impacts:
         if impact.duration_s < 2.0 * period_s:
-            raise ValueError(f'{_where(impact.source)}the record lasts {impact.duration_s:.3g} '
-                             f's, less than two natural periods ({2 * period_s:.3g} s) of the '
-                             'rig: too short to fit')
+            raise ValueError(
+                f'{_where(impact.source)}the record lasts {impact.duration_s:.3g} '
+                f's, less than two natural periods ({2 * period_s:.3g} s) of the '
+                'rig: too short to fit'
+            )
 
 
 @dataclass(frozen=True)
@@ -854,11 +995,18 @@ class FrictionFit:
         return self.joint.error('damping_n_s_per_m')
 
 
-def fit_friction(impacts: Sequence, *, rig: Rig = FMM_RIG, fit_damping: bool = False,
-                 fit_initial_position: bool = False,
-                 mu_bounds: tuple[float, float] = MU_BOUNDS, misfit: str = 'time',
-                 band_limit_hz: float = DEFAULT_BAND_LIMIT_HZ, integrator: str = 'exact',
-                 jacobian: str = 'blocks') -> FrictionFit:
+def fit_friction(
+    impacts: Sequence,
+    *,
+    rig: Rig = FMM_RIG,
+    fit_damping: bool = False,
+    fit_initial_position: bool = False,
+    mu_bounds: tuple[float, float] = MU_BOUNDS,
+    misfit: str = 'time',
+    band_limit_hz: float = DEFAULT_BAND_LIMIT_HZ,
+    integrator: str = 'exact',
+    jacobian: str = 'blocks',
+) -> FrictionFit:
     """The paper's fit: one mu (and optionally c) over all impacts, plus each impact's own mu.
 
     fit_initial_position and jacobian as in `fit_model` (each impact's own fit then refits its
@@ -866,27 +1014,41 @@ def fit_friction(impacts: Sequence, *, rig: Rig = FMM_RIG, fit_damping: bool = F
     impact, or the set, that friction cannot explain.
     """
     conditioned = _conditioned_list(impacts)
-    options = dict(mu_bounds=mu_bounds, fit_initial_position=fit_initial_position,
-                   misfit=misfit, band_limit_hz=band_limit_hz, integrator=integrator,
-                   jacobian=jacobian)
+    options = dict(
+        mu_bounds=mu_bounds,
+        fit_initial_position=fit_initial_position,
+        misfit=misfit,
+        band_limit_hz=band_limit_hz,
+        integrator=integrator,
+        jacobian=jacobian,
+    )
     joint = fit_model(conditioned, rig=rig, fit_damping=fit_damping, **options)
     if len(conditioned) == 1:
-        per_impact = (joint,) if not fit_damping else (
-            fit_model(conditioned, rig=joint.rig, mu0=joint.mu, **options),)
+        per_impact = (
+            (joint,)
+            if not fit_damping
+            else (fit_model(conditioned, rig=joint.rig, mu0=joint.mu, **options),)
+        )
     else:
-        per_impact = tuple(fit_model([impact], rig=joint.rig, mu0=joint.mu, **options)
-                           for impact in conditioned)
+        per_impact = tuple(
+            fit_model([impact], rig=joint.rig, mu0=joint.mu, **options) for impact in conditioned
+        )
     mus = np.array([fit.mu for fit in per_impact])
     errors = np.array([fit.mu_stderr for fit in per_impact])
     chi2 = float(np.sum(((mus - joint.mu) / errors) ** 2))
     dof = len(per_impact) - 1
     p_value = float(scipy.stats.chi2.sf(chi2, dof)) if dof > 0 else math.nan
-    return FrictionFit(joint=joint, per_impact=per_impact, consistency_chi2=chi2,
-                       consistency_p_value=p_value,
-                       impulses_n_s=tuple(impact.impulse_n_s for impact in conditioned))
+    return FrictionFit(
+        joint=joint,
+        per_impact=per_impact,
+        consistency_chi2=chi2,
+        consistency_p_value=p_value,
+        impulses_n_s=tuple(impact.impulse_n_s for impact in conditioned),
+    )
 
 
 # --- rig identification (paper Sec. 4) ----------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class FreeDecayFit:
@@ -908,11 +1070,16 @@ class FreeDecayFit:
     @property
     def damped_frequency_hz(self) -> float:
         """f_d = f_n sqrt(1 - zeta^2) [Hz]."""
-        return self.natural_frequency_hz * math.sqrt(1.0 - self.damping_ratio ** 2)
+        return self.natural_frequency_hz * math.sqrt(1.0 - self.damping_ratio**2)
 
 
-def fit_free_decay(velocity_m_s: np.ndarray, sample_rate_hz: float, *,
-                   start_index: int | None = None, source: str = '') -> FreeDecayFit:
+def fit_free_decay(
+    velocity_m_s: np.ndarray,
+    sample_rate_hz: float,
+    *,
+    start_index: int | None = None,
+    source: str = '',
+) -> FreeDecayFit:
     """Natural frequency and damping ratio of a free decay of the frictionless rig.
 
     Fitted from start_index (default: the first sample reaching half the largest |v|, safely
@@ -927,11 +1094,13 @@ def fit_free_decay(velocity_m_s: np.ndarray, sample_rate_hz: float, *,
         magnitude = np.abs(velocity)
         start_index = int(np.argmax(magnitude >= 0.5 * magnitude.max()))
     if not 0 <= start_index < velocity.size:
-        raise ValueError(f'start_index {start_index} lies outside the record '
-                         f'({velocity.size} samples)')
+        raise ValueError(
+            f'start_index {start_index} lies outside the record ({velocity.size} samples)'
+        )
     segment = velocity[start_index:]
-    frequency0, zeta0 = _decay_start_values(segment, sample_rate_hz,
-                                            velocity_noise_std(velocity), source)
+    frequency0, zeta0 = _decay_start_values(
+        segment, sample_rate_hz, velocity_noise_std(velocity), source
+    )
     basis = np.ones((3, segment.size))
 
     def residual(theta: np.ndarray, out: np.ndarray) -> None:
@@ -939,10 +1108,16 @@ def fit_free_decay(velocity_m_s: np.ndarray, sample_rate_hz: float, *,
         np.subtract(segment, inner(basis.T, _solve_linear(basis, segment)), out=out)
 
     solution = levenberg_marquardt(
-        residual, np.array([frequency0, zeta0]), np.array([0.8 * frequency0, 0.0]),
-        np.array([1.25 * frequency0, 0.5]), np.array([frequency0, 1e-3]), segment.size)
-    _require_inside(solution, ('natural frequency', 'damping ratio'), 'a lightly damped free '
-                    'decay', source)
+        residual,
+        np.array([frequency0, zeta0]),
+        np.array([0.8 * frequency0, 0.0]),
+        np.array([1.25 * frequency0, 0.5]),
+        np.array([frequency0, 1e-3]),
+        segment.size,
+    )
+    _require_inside(
+        solution, ('natural frequency', 'damping ratio'), 'a lightly damped free decay', source
+    )
     uncertainty = _uncertainty(solution, [max(1, round(sample_rate_hz / solution.x[0]))])
     _decay_basis(solution.x[0], solution.x[1], sample_rate_hz, basis)
     a, b, offset = _solve_linear(basis, segment)
@@ -950,14 +1125,18 @@ def fit_free_decay(velocity_m_s: np.ndarray, sample_rate_hz: float, *,
     return FreeDecayFit(
         natural_frequency_hz=float(solution.x[0]),
         natural_frequency_stderr_hz=float(uncertainty.stderr[0]),
-        damping_ratio=float(solution.x[1]), damping_ratio_stderr=float(uncertainty.stderr[1]),
-        start_index=start_index, amplitudes_m_s=(float(a), float(b)), offset_m_s=float(offset),
-        residual_rms_m_s=rms, normalised_residual=rms / float(np.max(np.abs(segment))),
-        source=source)
+        damping_ratio=float(solution.x[1]),
+        damping_ratio_stderr=float(uncertainty.stderr[1]),
+        start_index=start_index,
+        amplitudes_m_s=(float(a), float(b)),
+        offset_m_s=float(offset),
+        residual_rms_m_s=rms,
+        normalised_residual=rms / float(np.max(np.abs(segment))),
+        source=source,
+    )
 
 
-def _decay_basis(frequency_hz: float, zeta: float, sample_rate_hz: float,
-                 out: np.ndarray) -> None:
+def _decay_basis(frequency_hz: float, zeta: float, sample_rate_hz: float, out: np.ndarray) -> None:
     """out[0], out[1] = exp(-zeta w t) cos(w_d t), ... sin(w_d t) at t = i / sample_rate_hz.
 
     As a product of two short tables of exp(s t), s = -zeta w + i w_d (coarse steps times fine
@@ -969,8 +1148,10 @@ def _decay_basis(frequency_hz: float, zeta: float, sample_rate_hz: float,
     n = out.shape[1]
     fine = max(1, math.isqrt(n))
     coarse = -(-n // fine)
-    phasor = np.outer(np.exp(pole * fine / sample_rate_hz * np.arange(coarse)),
-                      np.exp(pole / sample_rate_hz * np.arange(fine))).ravel()[:n]
+    phasor = np.outer(
+        np.exp(pole * fine / sample_rate_hz * np.arange(coarse)),
+        np.exp(pole / sample_rate_hz * np.arange(fine)),
+    ).ravel()[:n]
     out[0] = phasor.real
     out[1] = phasor.imag
 
@@ -980,26 +1161,33 @@ def _solve_linear(basis: np.ndarray, values: np.ndarray) -> np.ndarray:
     return np.linalg.solve(inner(basis, basis), inner(basis, values))
 
 
-def _decay_start_values(segment: np.ndarray, sample_rate_hz: float, noise_m_s: float,
-                        source: str) -> tuple[float, float]:
+def _decay_start_values(
+    segment: np.ndarray, sample_rate_hz: float, noise_m_s: float, source: str
+) -> tuple[float, float]:
     """(f_n, zeta) from the zero crossings and half-cycle peaks of a decaying velocity."""
     level = max(3.0 * noise_m_s, 1e-3 * float(np.max(np.abs(segment))))
     state = np.where(segment > level, 1, np.where(segment < -level, -1, 0))
     signed = np.flatnonzero(state)
     changes = signed[1:][np.diff(state[signed]) != 0]
     if changes.size < MIN_DECAY_CROSSINGS:
-        raise FitError('too_few_cycles', f'the velocity crosses zero only {changes.size} '
-                       'times above its noise: too few cycles to fit a free decay', source)
+        raise FitError(
+            'too_few_cycles',
+            f'the velocity crosses zero only {changes.size} '
+            'times above its noise: too few cycles to fit a free decay',
+            source,
+        )
     # Each crossing's time: the midpoint of the samples on either side of the dead band.
     before = signed[np.searchsorted(signed, changes) - 1]
     crossings = 0.5 * (before + changes) / sample_rate_hz
     damped_hz = 0.5 / np.polyfit(np.arange(crossings.size), crossings, 1)[0]
-    peaks = np.array([np.max(np.abs(segment[a:b]))
-                      for a, b in zip(changes[:-1], changes[1:], strict=True)])
+    peaks = np.array(
+        [np.max(np.abs(segment[a:b])) for a, b in zip(changes[:-1], changes[1:], strict=True)]
+    )
     times = 0.5 * (crossings[:-1] + crossings[1:])
     usable = peaks > 10.0 * level
-    decay_rate = (-np.polyfit(times[usable], np.log(peaks[usable]), 1)[0]
-                  if usable.sum() >= 2 else 0.0)
+    decay_rate = (
+        -np.polyfit(times[usable], np.log(peaks[usable]), 1)[0] if usable.sum() >= 2 else 0.0
+    )
     omega_d = 2.0 * math.pi * damped_hz
     zeta = min(max(decay_rate / math.hypot(omega_d, decay_rate), 0.0), 0.3)
     return damped_hz / math.sqrt(1.0 - zeta * zeta), zeta
@@ -1031,12 +1219,12 @@ class RigIdentification:
 
     def rig(self, normal_force_n: float = FMM_RIG.normal_force_n) -> Rig:
         """These constants as a Rig with the given normal force."""
-        return Rig(self.mass_kg, self.stiffness_n_per_m, self.damping_n_s_per_m,
-                   normal_force_n)
+        return Rig(self.mass_kg, self.stiffness_n_per_m, self.damping_n_s_per_m, normal_force_n)
 
 
-def identify_rig(records: Sequence, *, mass_kg: float | None = None,
-                 integrator: str = 'exact') -> RigIdentification:
+def identify_rig(
+    records: Sequence, *, mass_kg: float | None = None, integrator: str = 'exact'
+) -> RigIdentification:
     """Identify the rig from records taken with the friction contact lifted (mu = 0).
 
     Records with a hit are impacts: m, f_n and zeta (so k and c) are fitted to all of them at
@@ -1049,8 +1237,9 @@ def identify_rig(records: Sequence, *, mass_kg: float | None = None,
     if isinstance(records, ConditionedImpact) or hasattr(records, 'force_n'):
         records = [records]
     if integrator not in INTEGRATORS:
-        raise ValueError(f'unknown integrator {integrator!r}; choose one of '
-                         f'{", ".join(INTEGRATORS)}')
+        raise ValueError(
+            f'unknown integrator {integrator!r}; choose one of {", ".join(INTEGRATORS)}'
+        )
     impacts, decays = [], []
     for record in records:
         try:
@@ -1058,8 +1247,13 @@ def identify_rig(records: Sequence, *, mass_kg: float | None = None,
         except FitError as error:
             if error.reason != 'no_hit':
                 raise
-            decays.append(fit_free_decay(record.velocity_m_s, record.sample_rate_hz,
-                                         source=str(getattr(record, 'source', ''))))
+            decays.append(
+                fit_free_decay(
+                    record.velocity_m_s,
+                    record.sample_rate_hz,
+                    source=str(getattr(record, 'source', '')),
+                )
+            )
     if not impacts and not decays:
         raise ValueError('no records to identify the rig from')
     if impacts:
@@ -1072,48 +1266,66 @@ def identify_rig(records: Sequence, *, mass_kg: float | None = None,
 def _rig_from_decays(decays: Sequence[FreeDecayFit], mass_kg: float) -> RigIdentification:
     require_positive('mass_kg', mass_kg)
     frequency, frequency_error = _weighted_mean(
-        [d.natural_frequency_hz for d in decays], [d.natural_frequency_stderr_hz for d in decays])
-    zeta, zeta_error = _weighted_mean([d.damping_ratio for d in decays],
-                                      [d.damping_ratio_stderr for d in decays])
-    covariance = np.diag([0.0, frequency_error ** 2, zeta_error ** 2])
+        [d.natural_frequency_hz for d in decays], [d.natural_frequency_stderr_hz for d in decays]
+    )
+    zeta, zeta_error = _weighted_mean(
+        [d.damping_ratio for d in decays], [d.damping_ratio_stderr for d in decays]
+    )
+    covariance = np.diag([0.0, frequency_error**2, zeta_error**2])
     values, errors = _rig_constants(np.array([mass_kg, frequency, zeta]), covariance)
-    squares = sum(d.residual_rms_m_s ** 2 for d in decays) / len(decays)
+    squares = sum(d.residual_rms_m_s**2 for d in decays) / len(decays)
     return RigIdentification(
-        mass_kg=mass_kg, stiffness_n_per_m=values[1], damping_n_s_per_m=values[2],
-        mass_stderr_kg=math.nan, stiffness_stderr_n_per_m=errors[1],
-        damping_stderr_n_s_per_m=errors[2], natural_frequency_hz=frequency,
-        natural_frequency_stderr_hz=frequency_error, damping_ratio=zeta,
-        damping_ratio_stderr=zeta_error, method='free_decay',
+        mass_kg=mass_kg,
+        stiffness_n_per_m=values[1],
+        damping_n_s_per_m=values[2],
+        mass_stderr_kg=math.nan,
+        stiffness_stderr_n_per_m=errors[1],
+        damping_stderr_n_s_per_m=errors[2],
+        natural_frequency_hz=frequency,
+        natural_frequency_stderr_hz=frequency_error,
+        damping_ratio=zeta,
+        damping_ratio_stderr=zeta_error,
+        method='free_decay',
         residual_rms_m_s=math.sqrt(squares),
         normalised_residual=max(d.normalised_residual for d in decays),
-        sources=tuple(d.source for d in decays), free_decays=tuple(decays))
+        sources=tuple(d.source for d in decays),
+        free_decays=tuple(decays),
+    )
 
 
-def _require_inside(solution: LsqSolution, names: Sequence[str], what: str,
-                    source: str) -> None:
+def _require_inside(solution: LsqSolution, names: Sequence[str], what: str, source: str) -> None:
     """FitError unless a rig fit converged away from its search bounds."""
     if not solution.converged:
-        raise FitError('no_convergence', f'the fit did not converge ({solution.message})',
-                       source)
-    for name, value, low, high in zip(names, solution.x, solution.lower, solution.upper,
-                                      strict=True):
+        raise FitError('no_convergence', f'the fit did not converge ({solution.message})', source)
+    for name, value, low, high in zip(
+        names, solution.x, solution.lower, solution.upper, strict=True
+    ):
         if value <= low or value >= high:
-            raise FitError('at_bound', f'the best-fit {name} {value:.4g} lies on its search '
-                           f'bound [{low:.4g}, {high:.4g}]: the record is not {what}', source)
+            raise FitError(
+                'at_bound',
+                f'the best-fit {name} {value:.4g} lies on its search '
+                f'bound [{low:.4g}, {high:.4g}]: the record is not {what}',
+                source,
+            )
 
 
-def _rig_constants(modal: np.ndarray, covariance: np.ndarray
-                   ) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+def _rig_constants(
+    modal: np.ndarray, covariance: np.ndarray
+) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """(m, k, c) and their standard errors from (m, f_n, zeta) and its covariance.
 
     k = m w^2 and c = 2 zeta m w with w = 2 pi f_n; errors to first order.
     """
     mass, frequency, zeta = (float(v) for v in modal)
     omega = 2.0 * math.pi * frequency
-    values = np.array([mass, mass * omega ** 2, 2.0 * zeta * mass * omega])
-    gradient = np.array([[1.0, 0.0, 0.0],
-                         [omega ** 2, 4.0 * math.pi * mass * omega, 0.0],
-                         [2.0 * zeta * omega, 4.0 * math.pi * zeta * mass, 2.0 * mass * omega]])
+    values = np.array([mass, mass * omega**2, 2.0 * zeta * mass * omega])
+    gradient = np.array(
+        [
+            [1.0, 0.0, 0.0],
+            [omega**2, 4.0 * math.pi * mass * omega, 0.0],
+            [2.0 * zeta * omega, 4.0 * math.pi * zeta * mass, 2.0 * mass * omega],
+        ]
+    )
     errors = np.sqrt(np.diag(gradient @ covariance @ gradient.T))
     return (tuple(float(v) for v in values), tuple(float(e) for e in errors))
 
@@ -1123,12 +1335,15 @@ def _weighted_mean(values: Sequence[float], errors: Sequence[float]) -> tuple[fl
     weights = 1.0 / np.square(np.asarray(errors, dtype=float))
     if not np.all(np.isfinite(weights)) or weights.sum() <= 0.0:
         return float(np.mean(values)), 0.0
-    return (float(np.sum(weights * np.asarray(values)) / weights.sum()),
-            float(1.0 / math.sqrt(weights.sum())))
+    return (
+        float(np.sum(weights * np.asarray(values)) / weights.sum()),
+        float(1.0 / math.sqrt(weights.sum())),
+    )
 
 
-def _rig_from_impacts(impacts: Sequence[ConditionedImpact], decays: tuple[FreeDecayFit, ...],
-                      integrator: str) -> RigIdentification:
+def _rig_from_impacts(
+    impacts: Sequence[ConditionedImpact], decays: tuple[FreeDecayFit, ...], integrator: str
+) -> RigIdentification:
     """Output-error fit of (m, f_n, zeta), reported as m, k, c.
 
     In these coordinates the phase (f_n), the decay (zeta) and the amplitude (I / m) are nearly
@@ -1143,34 +1358,55 @@ def _rig_from_impacts(impacts: Sequence[ConditionedImpact], decays: tuple[FreeDe
         mass, stiffness, damping = _rig_constants(theta, np.zeros((3, 3)))[0]
         return _Model(Rig(mass, stiffness, damping, 0.0), 0.0, ())
 
-    problem = _OutputError(impacts, build, 'time', DEFAULT_BAND_LIMIT_HZ, integrator,
-                           frequency0)
+    problem = _OutputError(impacts, build, 'time', DEFAULT_BAND_LIMIT_HZ, integrator, frequency0)
     lower = np.array([0.5 * mass0, 0.8 * frequency0, 0.0])
     upper = np.array([2.0 * mass0, 1.25 * frequency0, 0.5])
     typical = np.array([mass0, frequency0, max(start[2], 1e-4)])
-    solution = levenberg_marquardt(problem, start, lower, upper, typical, problem.size,
-                                   blocks=Blocks.shared(problem.segments, start.size))
-    _require_inside(solution, ('mass', 'natural frequency', 'damping ratio'),
-                    'the frictionless rig hit by its force', _joined_sources(impacts))
+    solution = levenberg_marquardt(
+        problem,
+        start,
+        lower,
+        upper,
+        typical,
+        problem.size,
+        blocks=Blocks.shared(problem.segments, start.size),
+    )
+    _require_inside(
+        solution,
+        ('mass', 'natural frequency', 'damping ratio'),
+        'the frictionless rig hit by its force',
+        _joined_sources(impacts),
+    )
     uncertainty = _fit_uncertainty(solution, problem)
     values, errors = _rig_constants(solution.x, uncertainty.covariance)
     residuals = [solution.residual[segment] for segment in problem.segments]
     for impact, r in zip(impacts, residuals, strict=True):
         explained = 1.0 - inner(r, r) / inner(impact.velocity_m_s, impact.velocity_m_s)
         if explained < MIN_EXPLAINED_FRACTION:
-            raise FitError('unexplained', _unexplained_message('linear oscillator', explained)
-                           + ': not a response of the frictionless rig to its force',
-                           impact.source)
+            raise FitError(
+                'unexplained',
+                _unexplained_message('linear oscillator', explained)
+                + ': not a response of the frictionless rig to its force',
+                impact.source,
+            )
     rms = math.sqrt(solution.cost / problem.size)
     return RigIdentification(
-        mass_kg=values[0], stiffness_n_per_m=values[1], damping_n_s_per_m=values[2],
-        mass_stderr_kg=errors[0], stiffness_stderr_n_per_m=errors[1],
-        damping_stderr_n_s_per_m=errors[2], natural_frequency_hz=float(solution.x[1]),
+        mass_kg=values[0],
+        stiffness_n_per_m=values[1],
+        damping_n_s_per_m=values[2],
+        mass_stderr_kg=errors[0],
+        stiffness_stderr_n_per_m=errors[1],
+        damping_stderr_n_s_per_m=errors[2],
+        natural_frequency_hz=float(solution.x[1]),
         natural_frequency_stderr_hz=float(uncertainty.stderr[1]),
-        damping_ratio=float(solution.x[2]), damping_ratio_stderr=float(uncertainty.stderr[2]),
-        method='impact', residual_rms_m_s=rms,
+        damping_ratio=float(solution.x[2]),
+        damping_ratio_stderr=float(uncertainty.stderr[2]),
+        method='impact',
+        residual_rms_m_s=rms,
         normalised_residual=rms / max(i.peak_velocity_m_s for i in impacts),
-        sources=tuple(i.source for i in impacts), free_decays=decays)
+        sources=tuple(i.source for i in impacts),
+        free_decays=decays,
+    )
 
 
 def _impact_start_values(impact: ConditionedImpact) -> tuple[float, float, float]:
@@ -1180,9 +1416,10 @@ def _impact_start_values(impact: ConditionedImpact) -> tuple[float, float, float
     amplitude extrapolated back to the hit's centroid).
     """
     rate = impact.sample_rate_hz
-    segment = impact.velocity_m_s[impact.hit_end_index:]
-    frequency, zeta = _decay_start_values(segment, rate, impact.velocity_noise_std_m_s,
-                                          impact.source)
+    segment = impact.velocity_m_s[impact.hit_end_index :]
+    frequency, zeta = _decay_start_values(
+        segment, rate, impact.velocity_noise_std_m_s, impact.source
+    )
     basis = np.ones((3, segment.size))
     _decay_basis(frequency, zeta, rate, basis)
     a, b, _ = _solve_linear(basis, segment)

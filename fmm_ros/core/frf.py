@@ -45,8 +45,9 @@ def impulse(force_n: np.ndarray, sample_rate_hz: float) -> float:
     return float(np.trapezoid(force_n, dx=1.0 / sample_rate_hz))
 
 
-def pulse_impulse(force_n: np.ndarray, sample_rate_hz: float, threshold_n: float,
-                  start_index: int = 0) -> float:
+def pulse_impulse(
+    force_n: np.ndarray, sample_rate_hz: float, threshold_n: float, start_index: int = 0
+) -> float:
     """Area under the first force pulse [N*s], trapezoid rule, baseline removed (paper Sec. 5).
 
     The pulse is the first run at or above `threshold_n` from `start_index`, widened on each
@@ -61,15 +62,16 @@ def pulse_impulse(force_n: np.ndarray, sample_rate_hz: float, threshold_n: float
         return float('nan')
     start, stop = interval
     baseline = float(np.mean(force_n[:start])) if start else 0.0
-    before = first_true(force_n[start - 1::-1] - baseline <= 0.0) if start else -1
+    before = first_true(force_n[start - 1 :: -1] - baseline <= 0.0) if start else -1
     low = start - 1 - before if before >= 0 else 0
     after = first_true(force_n[stop:] - baseline <= 0.0)
     high = stop + after + 1 if after >= 0 else force_n.size
     return impulse(force_n[low:high] - baseline, sample_rate_hz)
 
 
-def contact_interval(force_n: np.ndarray, threshold_n: float,
-                     start_index: int = 0) -> tuple[int, int] | None:
+def contact_interval(
+    force_n: np.ndarray, threshold_n: float, start_index: int = 0
+) -> tuple[int, int] | None:
     """First run of samples at or above `threshold_n` from `start_index`, as [start, stop).
 
     None when the force never reaches the threshold. A run still going at the end of the
@@ -84,8 +86,9 @@ def contact_interval(force_n: np.ndarray, threshold_n: float,
     return start, stop
 
 
-def contact_duration(force_n: np.ndarray, sample_rate_hz: float, threshold_n: float,
-                     start_index: int = 0) -> float:
+def contact_duration(
+    force_n: np.ndarray, sample_rate_hz: float, threshold_n: float, start_index: int = 0
+) -> float:
     """Time [s] the first force pulse stays at or above `threshold_n`.
 
     The up- and down-crossings are interpolated linearly between samples, so the duration is
@@ -97,7 +100,7 @@ def contact_duration(force_n: np.ndarray, sample_rate_hz: float, threshold_n: fl
         return float('nan')
     start, stop = interval
     rise = float(start)
-    with np.errstate(invalid='ignore'):       # NaN or infinite neighbours give NaN, quietly
+    with np.errstate(invalid='ignore'):  # NaN or infinite neighbours give NaN, quietly
         if start > 0:
             before, at = force_n[start - 1], force_n[start]
             rise = start - (at - threshold_n) / (at - before)
@@ -108,8 +111,9 @@ def contact_duration(force_n: np.ndarray, sample_rate_hz: float, threshold_n: fl
     return float((fall - rise) / sample_rate_hz)
 
 
-def spectra(force_n: np.ndarray, velocity_m_s: np.ndarray,
-            n_fft: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+def spectra(
+    force_n: np.ndarray, velocity_m_s: np.ndarray, n_fft: int | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """One-sided DFTs (F, V) of force and velocity, zero-padded to `n_fft` samples.
 
     The spectra are left unscaled: only their ratios and products enter the FRFs, where any
@@ -123,13 +127,14 @@ def spectra(force_n: np.ndarray, velocity_m_s: np.ndarray,
 def mobility(force_spectrum: np.ndarray, velocity_spectrum: np.ndarray) -> np.ndarray:
     """Mobility V/F [m/(N*s)] bin by bin; NaN where the force spectrum is exactly zero."""
     out = np.full(np.broadcast(force_spectrum, velocity_spectrum).shape, np.nan, dtype=complex)
-    with np.errstate(invalid='ignore'):       # NaN spectra (records with gaps) stay NaN
+    with np.errstate(invalid='ignore'):  # NaN spectra (records with gaps) stay NaN
         np.divide(velocity_spectrum, force_spectrum, out=out, where=force_spectrum != 0)
     return out
 
 
-def receptance_from_mobility(mobility_m_per_n_s: np.ndarray,
-                             frequency_hz: np.ndarray) -> np.ndarray:
+def receptance_from_mobility(
+    mobility_m_per_n_s: np.ndarray, frequency_hz: np.ndarray
+) -> np.ndarray:
     """Receptance X/F [m/N] = mobility / (i*omega); 0 at DC, where it is undefined.
 
     Velocity alone does not determine the mean displacement, so the DC bin carries no
@@ -142,22 +147,25 @@ def receptance_from_mobility(mobility_m_per_n_s: np.ndarray,
     return out
 
 
-def accelerance_from_mobility(mobility_m_per_n_s: np.ndarray,
-                              frequency_hz: np.ndarray) -> np.ndarray:
+def accelerance_from_mobility(
+    mobility_m_per_n_s: np.ndarray, frequency_hz: np.ndarray
+) -> np.ndarray:
     """Accelerance A/F [m/(N*s^2)] = i*omega * mobility (0 at DC)."""
     return 2j * np.pi * np.asarray(frequency_hz, dtype=float) * mobility_m_per_n_s
 
 
-def force_window(n_samples: int, sample_rate_hz: float, *, start_index: int, width_s: float,
-                 taper_s: float = 0.0) -> np.ndarray:
+def force_window(
+    n_samples: int, sample_rate_hz: float, *, start_index: int, width_s: float, taper_s: float = 0.0
+) -> np.ndarray:
     """Force window: 1 up to `width_s` after `start_index`, a half-cosine taper, then 0.
 
     Applied to the force channel only, it zeroes the sensor noise after the hammer pulse (and
     the pre-trigger offset is subtracted by the caller) so the force spectrum is the pulse's.
     """
     if width_s <= 0 or taper_s < 0:
-        raise ValueError(f'force window width must be > 0 and taper >= 0, got {width_s} s, '
-                         f'{taper_s} s')
+        raise ValueError(
+            f'force window width must be > 0 and taper >= 0, got {width_s} s, {taper_s} s'
+        )
     window = np.zeros(n_samples)
     flat_end = min(n_samples, start_index + int(round(width_s * sample_rate_hz)))
     window[:flat_end] = 1.0
@@ -165,12 +173,13 @@ def force_window(n_samples: int, sample_rate_hz: float, *, start_index: int, wid
     if taper > 0 and flat_end < n_samples:
         ramp = 0.5 * (1 + np.cos(np.pi * np.arange(1, taper + 1) / (taper + 1)))
         stop = min(n_samples, flat_end + taper)
-        window[flat_end:stop] = ramp[:stop - flat_end]
+        window[flat_end:stop] = ramp[: stop - flat_end]
     return window
 
 
-def exponential_window(n_samples: int, sample_rate_hz: float, *, decay_time_s: float,
-                       start_index: int) -> np.ndarray:
+def exponential_window(
+    n_samples: int, sample_rate_hz: float, *, decay_time_s: float, start_index: int
+) -> np.ndarray:
     """Exponential window exp(-(t - t0) / decay_time_s), t0 at `start_index` (the trigger).
 
     Applied to both channels it makes a lightly damped response die out inside the record.
@@ -186,8 +195,7 @@ def exponential_window(n_samples: int, sample_rate_hz: float, *, decay_time_s: f
     return np.exp(-t_s / decay_time_s)
 
 
-def exponential_window_damping_ratio(decay_time_s: float, natural_frequency_hz: float
-                                     ) -> float:
+def exponential_window_damping_ratio(decay_time_s: float, natural_frequency_hz: float) -> float:
     """Damping ratio [-] an exponential window adds to a mode at `natural_frequency_hz`.
 
     zeta_true = zeta_measured - 1 / (decay_time_s * omega_n).
@@ -214,8 +222,10 @@ def average_frf(force_spectra: np.ndarray, velocity_spectra: np.ndarray) -> FrfA
     force = np.atleast_2d(force_spectra)
     velocity = np.atleast_2d(velocity_spectra)
     if force.shape != velocity.shape:
-        raise ValueError(f'force spectra {force.shape} and velocity spectra {velocity.shape} '
-                         'must have the same shape (trials, bins)')
+        raise ValueError(
+            f'force spectra {force.shape} and velocity spectra {velocity.shape} '
+            'must have the same shape (trials, bins)'
+        )
     g_ff = np.sum(np.abs(force) ** 2, axis=0)
     g_vv = np.sum(np.abs(velocity) ** 2, axis=0)
     g_fv = np.sum(np.conj(force) * velocity, axis=0)
@@ -223,12 +233,17 @@ def average_frf(force_spectra: np.ndarray, velocity_spectra: np.ndarray) -> FrfA
         h1 = g_fv / g_ff
         h2 = g_vv / np.conj(g_fv)
         coherence = np.abs(g_fv) ** 2 / (g_ff * g_vv)
-    return FrfAverage(mean_mobility=np.mean(mobility(force, velocity), axis=0),
-                      h1_mobility=h1, h2_mobility=h2, coherence=coherence)
+    return FrfAverage(
+        mean_mobility=np.mean(mobility(force, velocity), axis=0),
+        h1_mobility=h1,
+        h2_mobility=h2,
+        coherence=coherence,
+    )
 
 
-def peak_magnitude(values: np.ndarray, frequency_hz: np.ndarray,
-                   band_hz: tuple[float, float]) -> tuple[float, float]:
+def peak_magnitude(
+    values: np.ndarray, frequency_hz: np.ndarray, band_hz: tuple[float, float]
+) -> tuple[float, float]:
     """Largest |values| inside `band_hz` (inclusive) and its frequency [Hz].
 
     NaN bins are skipped; (NaN, NaN) when the band holds no finite bin.
@@ -242,8 +257,9 @@ def peak_magnitude(values: np.ndarray, frequency_hz: np.ndarray,
     return float(np.abs(values[best])), float(frequency_hz[best])
 
 
-def excitation_bandwidth(force_spectrum: np.ndarray, frequency_hz: np.ndarray,
-                         drop_db: float = 20.0) -> float:
+def excitation_bandwidth(
+    force_spectrum: np.ndarray, frequency_hz: np.ndarray, drop_db: float = 20.0
+) -> float:
     """Highest frequency [Hz] up to which the force spectrum stays within `drop_db` of its peak.
 
     Above it a hammer pulse puts too little energy in (its spectrum rolls off, with nulls
@@ -260,8 +276,9 @@ def excitation_bandwidth(force_spectrum: np.ndarray, frequency_hz: np.ndarray,
     return float(frequency_hz[-1] if below < 0 else frequency_hz[max(below - 1, 0)])
 
 
-def assign_nominal_levels(peak_force_n: np.ndarray, nominal_peak_force_n: np.ndarray,
-                          tolerance_n: np.ndarray | float) -> np.ndarray:
+def assign_nominal_levels(
+    peak_force_n: np.ndarray, nominal_peak_force_n: np.ndarray, tolerance_n: np.ndarray | float
+) -> np.ndarray:
     """Index of the nearest nominal level within its tolerance for each peak force, else -1.
 
     The paper accepted impacts within +-50 N of the nominal 450/1000/1450 N (Sec. 4).

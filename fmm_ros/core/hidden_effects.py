@@ -74,11 +74,17 @@ class HiddenEffectCase:
     """The impacts as measured: noisy force and velocity (and the truth in .simulation)."""
 
 
-def hidden_effect_case(effect: str, rng: np.random.Generator | int, *, n_impacts: int = 3,
-                       rig: Rig = FMM_RIG, ratio: float | None = None,
-                       force_noise_std_n: float = FORCE_NOISE_STD_N,
-                       velocity_noise_std_m_s: float = VELOCITY_NOISE_STD_M_S,
-                       duration_s: float = 33.0) -> HiddenEffectCase:
+def hidden_effect_case(
+    effect: str,
+    rng: np.random.Generator | int,
+    *,
+    n_impacts: int = 3,
+    rig: Rig = FMM_RIG,
+    ratio: float | None = None,
+    force_noise_std_n: float = FORCE_NOISE_STD_N,
+    velocity_noise_std_m_s: float = VELOCITY_NOISE_STD_M_S,
+    duration_s: float = 33.0,
+) -> HiddenEffectCase:
     """A session of n_impacts random-level hits with `effect` hidden at a realistic size.
 
     `ratio` fixes the discrepancy-to-noise ratio instead of drawing it from RATIO_RANGE. The
@@ -99,26 +105,38 @@ def hidden_effect_case(effect: str, rng: np.random.Generator | int, *, n_impacts
     shape = _draw_shape(effect, rng)
 
     def record(term, *, force_noise, velocity_noise):
-        return tuple(impact_record(peak, int(seed), rig=rig, mu=mu,
-                                   effects=() if term is None else (term,),
-                                   force_noise_std_n=force_noise,
-                                   velocity_noise_std_m_s=velocity_noise,
-                                   duration_s=duration_s)
-                     for peak, seed in zip(peaks, seeds, strict=True))
+        return tuple(
+            impact_record(
+                peak,
+                int(seed),
+                rig=rig,
+                mu=mu,
+                effects=() if term is None else (term,),
+                force_noise_std_n=force_noise,
+                velocity_noise_std_m_s=velocity_noise,
+                duration_s=duration_s,
+            )
+            for peak, seed in zip(peaks, seeds, strict=True)
+        )
 
     term, realised = None, 0.0
     if effect != NO_EFFECT:
         clean = functools.partial(record, force_noise=0.0, velocity_noise=0.0)
-        term, realised = _sized_term(effect, shape, target * velocity_noise_std_m_s, clean, mu,
-                                     rig)
+        term, realised = _sized_term(effect, shape, target * velocity_noise_std_m_s, clean, mu, rig)
         realised /= velocity_noise_std_m_s
-    return HiddenEffectCase(effect=effect, term=term, mu=mu, rig=rig, ratio=realised,
-                            records=record(term, force_noise=force_noise_std_n,
-                                           velocity_noise=velocity_noise_std_m_s))
+    return HiddenEffectCase(
+        effect=effect,
+        term=term,
+        mu=mu,
+        rig=rig,
+        ratio=realised,
+        records=record(term, force_noise=force_noise_std_n, velocity_noise=velocity_noise_std_m_s),
+    )
 
 
-def _sized_term(effect: str, shape: dict[str, float], target_m_s: float, clean_records,
-                mu: float, rig: Rig) -> tuple[ModelTerm, float]:
+def _sized_term(
+    effect: str, shape: dict[str, float], target_m_s: float, clean_records, mu: float, rig: Rig
+) -> tuple[ModelTerm, float]:
     """The term whose base-fit discrepancy is target_m_s, its size within the term's bounds.
 
     The discrepancy grows with the size (falls with a second mode's mass), close to linearly
@@ -149,8 +167,11 @@ def _sized_term(effect: str, shape: dict[str, float], target_m_s: float, clean_r
             bracket[1] = min(bracket[1], size)
         else:
             bracket[0] = max(bracket[0], size)
-        step = size * math.exp(-error if not inverse else error) if math.isfinite(error) \
+        step = (
+            size * math.exp(-error if not inverse else error)
+            if math.isfinite(error)
             else 10.0 * size
+        )
         if not bracket[0] < step < bracket[1]:
             step = math.sqrt(bracket[0] * bracket[1])
         if step == size:
@@ -159,8 +180,9 @@ def _sized_term(effect: str, shape: dict[str, float], target_m_s: float, clean_r
     return term, value
 
 
-def base_fit_discrepancy(records: tuple[SimulatedImpact, ...], mu: float, rig: Rig = FMM_RIG
-                         ) -> float:
+def base_fit_discrepancy(
+    records: tuple[SimulatedImpact, ...], mu: float, rig: Rig = FMM_RIG
+) -> float:
     """RMS over the motion of (truth - base model with mu re-fitted), noise-free [m/s].
 
     The truth is each record's noise-free simulation; the base model is Eq. 3 driven by the
@@ -199,8 +221,9 @@ def _draw_shape(effect: str, rng: np.random.Generator) -> dict[str, float]:
     if effect in _SIGNED:
         shape['sign'] = float(rng.choice((-1.0, 1.0)))
     if effect == 'stribeck':
-        shape['stribeck_velocity_m_s'] = float(math.exp(rng.uniform(math.log(1.5e-3),
-                                                                    math.log(6e-3))))
+        shape['stribeck_velocity_m_s'] = float(
+            math.exp(rng.uniform(math.log(1.5e-3), math.log(6e-3)))
+        )
     elif effect == 'second_mode':
         shape['frequency_hz'] = float(math.exp(rng.uniform(math.log(15.0), math.log(300.0))))
         shape['damping_ratio'] = float(math.exp(rng.uniform(math.log(3e-3), math.log(3e-2))))

@@ -32,8 +32,15 @@ from fmm_ros.core.records import Gaps, ImpactRecord
 
 # Every quality flag, in the order they are reported. The first six are properties of the
 # record (`quality_flags`); `out_of_tolerance` is set when impacts are grouped into levels.
-FLAGS: tuple[str, ...] = ('double_hit', 'clipped', 'gap', 'nan', 'unsettled', 'overlap',
-                          'out_of_tolerance')
+FLAGS: tuple[str, ...] = (
+    'double_hit',
+    'clipped',
+    'gap',
+    'nan',
+    'unsettled',
+    'overlap',
+    'out_of_tolerance',
+)
 FORCE = 'force'
 VELOCITY = 'velocity'
 # Largest block processed in one step: bounds the ring a huge batch would otherwise need.
@@ -70,8 +77,10 @@ class CaptureConfig:
 
     def __post_init__(self) -> None:
         if not self.rearm_level_n < self.trigger_level_n:
-            raise ValueError(f'rearm_level_n ({self.rearm_level_n} N) must be below '
-                             f'trigger_level_n ({self.trigger_level_n} N) for hysteresis')
+            raise ValueError(
+                f'rearm_level_n ({self.rearm_level_n} N) must be below '
+                f'trigger_level_n ({self.trigger_level_n} N) for hysteresis'
+            )
         for name in ('window_s', 'rest_velocity_m_s', 'rest_time_s', 'min_spacing_s'):
             if not getattr(self, name) > 0:
                 raise ValueError(f'{name} must be > 0, got {getattr(self, name)}')
@@ -79,20 +88,29 @@ class CaptureConfig:
             if not getattr(self, name) >= 0:
                 raise ValueError(f'{name} must be >= 0, got {getattr(self, name)}')
         if not self.pretrigger_s < self.window_s:
-            raise ValueError(f'pretrigger_s ({self.pretrigger_s} s) must be shorter than '
-                             f'window_s ({self.window_s} s)')
+            raise ValueError(
+                f'pretrigger_s ({self.pretrigger_s} s) must be shorter than '
+                f'window_s ({self.window_s} s)'
+            )
 
     def samples(self, sample_rate_hz: float) -> CaptureSamples:
         """The durations of this config as whole sample counts at `sample_rate_hz`."""
+
         def count(seconds: float) -> int:
             return int(round(seconds * sample_rate_hz))
-        result = CaptureSamples(pretrigger=count(self.pretrigger_s), window=count(self.window_s),
-                                rest=max(1, count(self.rest_time_s)),
-                                min_spacing=max(1, count(self.min_spacing_s)),
-                                max_skew=count(self.max_skew_s))
+
+        result = CaptureSamples(
+            pretrigger=count(self.pretrigger_s),
+            window=count(self.window_s),
+            rest=max(1, count(self.rest_time_s)),
+            min_spacing=max(1, count(self.min_spacing_s)),
+            max_skew=count(self.max_skew_s),
+        )
         if result.window <= result.pretrigger:
-            raise ValueError(f'at {sample_rate_hz} Hz the window ({result.window} samples) '
-                             f'leaves nothing after the pre-trigger ({result.pretrigger})')
+            raise ValueError(
+                f'at {sample_rate_hz} Hz the window ({result.window} samples) '
+                f'leaves nothing after the pre-trigger ({result.pretrigger})'
+            )
         return result
 
 
@@ -118,8 +136,9 @@ class TriggerDetector:
     corrupt data) neither trigger nor re-arm.
     """
 
-    def __init__(self, config: CaptureConfig, sample_rate_hz: float,
-                 last_trigger: int | None = None) -> None:
+    def __init__(
+        self, config: CaptureConfig, sample_rate_hz: float, last_trigger: int | None = None
+    ) -> None:
         """Start armed, or, given `last_trigger`, just after that trigger fired."""
         self._trigger_n = config.trigger_level_n
         self._rearm_n = config.rearm_level_n
@@ -152,13 +171,17 @@ class TriggerDetector:
         return triggers
 
 
-def find_triggers(force_n: np.ndarray, sample_rate_hz: float,
-                  config: CaptureConfig = DEFAULT_CAPTURE, first_sample_index: int = 0
-                  ) -> np.ndarray:
+def find_triggers(
+    force_n: np.ndarray,
+    sample_rate_hz: float,
+    config: CaptureConfig = DEFAULT_CAPTURE,
+    first_sample_index: int = 0,
+) -> np.ndarray:
     """Sample indices of every impact trigger in a whole force record (the batch form)."""
     detector = TriggerDetector(config, sample_rate_hz)
-    return np.asarray(detector.scan(np.asarray(force_n, dtype=float), first_sample_index),
-                      dtype=np.int64)
+    return np.asarray(
+        detector.scan(np.asarray(force_n, dtype=float), first_sample_index), dtype=np.int64
+    )
 
 
 def with_trigger(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE) -> ImpactRecord:
@@ -172,10 +195,13 @@ def with_trigger(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE) 
     triggers = TriggerDetector(config, record.sample_rate_hz).scan(record.force_n, 0)
     if not triggers:
         where = f'{record.source}: ' if record.source else ''
-        raise ValueError(f'{where}the force never reaches the trigger level '
-                         f'{config.trigger_level_n} N (peak {np.nanmax(record.force_n):.4g} N)')
+        raise ValueError(
+            f'{where}the force never reaches the trigger level '
+            f'{config.trigger_level_n} N (peak {np.nanmax(record.force_n):.4g} N)'
+        )
     return dataclasses.replace(
-        record, trigger_sample_index=record.record_start_sample_index + triggers[0])
+        record, trigger_sample_index=record.record_start_sample_index + triggers[0]
+    )
 
 
 def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE) -> tuple[str, ...]:
@@ -199,37 +225,41 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
     after_contact = first_true(_below(force[trigger:], config.rearm_level_n))
     if after_contact >= 0:
         contact_end = trigger + after_contact
-        bounce = force[contact_end:trigger + samples.min_spacing]
+        bounce = force[contact_end : trigger + samples.min_spacing]
         if np.any(_reaches(bounce, config.trigger_level_n)):
             flags.add('double_hit')
-    if _beyond(force, record.force_full_scale_n) or _beyond(velocity,
-                                                            record.velocity_full_scale_m_s):
+    if _beyond(force, record.force_full_scale_n) or _beyond(
+        velocity, record.velocity_full_scale_m_s
+    ):
         flags.add('clipped')
     if record.force_gaps or record.velocity_gaps:
         flags.add('gap')
     if _non_finite_outside(force, record.force_gaps) or _non_finite_outside(
-            velocity, record.velocity_gaps):
+        velocity, record.velocity_gaps
+    ):
         flags.add('nan')
     contact_start = contact_start_index(force, trigger, config)
-    tail = velocity[max(trigger + 1, velocity.size - samples.rest):]
-    if (np.any(np.abs(velocity[:contact_start]) > config.rest_velocity_m_s)
-            or np.any(np.abs(tail) > config.rest_velocity_m_s)):
+    tail = velocity[max(trigger + 1, velocity.size - samples.rest) :]
+    if np.any(np.abs(velocity[:contact_start]) > config.rest_velocity_m_s) or np.any(
+        np.abs(tail) > config.rest_velocity_m_s
+    ):
         flags.add('unsettled')
     follower = TriggerDetector(config, record.sample_rate_hz, last_trigger=trigger)
-    if follower.scan(force[trigger + 1:], trigger + 1):
+    if follower.scan(force[trigger + 1 :], trigger + 1):
         flags.add('overlap')
     return tuple(flag for flag in FLAGS if flag in flags)
 
 
-def contact_start_index(force_n: np.ndarray, trigger_offset: int,
-                        config: CaptureConfig = DEFAULT_CAPTURE) -> int:
+def contact_start_index(
+    force_n: np.ndarray, trigger_offset: int, config: CaptureConfig = DEFAULT_CAPTURE
+) -> int:
     """Start of the pulse that fired the trigger (0 if the record starts in contact).
 
     That is just after the last sample below the re-arm level before the trigger.
     """
     if trigger_offset <= 0:
         return 0
-    back = first_true(_below(force_n[trigger_offset - 1::-1], config.rearm_level_n))
+    back = first_true(_below(force_n[trigger_offset - 1 :: -1], config.rearm_level_n))
     return trigger_offset - back if back >= 0 else 0
 
 
@@ -275,8 +305,8 @@ class _Channel:
         capacity = self.ring.size
         at = first % capacity
         head = min(samples.size, capacity - at)
-        self.ring[at:at + head] = samples[:head]
-        self.ring[:samples.size - head] = samples[head:]
+        self.ring[at : at + head] = samples[:head]
+        self.ring[: samples.size - head] = samples[head:]
 
     def load(self, out: np.ndarray, first: int) -> None:
         """Fill `out` with the ring's samples from index `first` (all still in the ring)."""
@@ -284,15 +314,16 @@ class _Channel:
         assert first >= self.next_index - capacity and first + out.size <= self.next_index
         at = first % capacity
         head = min(out.size, capacity - at)
-        out[:head] = self.ring[at:at + head]
-        out[head:] = self.ring[:out.size - head]
+        out[:head] = self.ring[at : at + head]
+        out[head:] = self.ring[: out.size - head]
 
 
 class _OpenImpact:
     """An impact whose record is still being filled."""
 
-    def __init__(self, trigger: int, pretrigger: int, force: np.ndarray,
-                 velocity: np.ndarray) -> None:
+    def __init__(
+        self, trigger: int, pretrigger: int, force: np.ndarray, velocity: np.ndarray
+    ) -> None:
         self.trigger = trigger
         self.start = trigger - pretrigger
         # Record length [samples]: the window, or shorter once the rig is found at rest.
@@ -309,7 +340,7 @@ class _OpenImpact:
         offset = first - self.start
         low, high = max(0, offset), min(self.end, offset + samples.size)
         if low < high:
-            self.buffers[name][low:high] = samples[low - offset:high - offset]
+            self.buffers[name][low:high] = samples[low - offset : high - offset]
 
     def add_gap(self, name: str, start: int, stop: int) -> None:
         """Note missing samples [start, stop) of a channel if they fall in the record."""
@@ -343,8 +374,14 @@ class ImpactCapture:
         """Number of impacts triggered whose records are not complete yet."""
         return len(self._open)
 
-    def feed(self, quantity: str, first_sample_index: int, samples: np.ndarray,
-             sample_rate_hz: float, full_scale: float = 0.0) -> list[ImpactRecord]:
+    def feed(
+        self,
+        quantity: str,
+        first_sample_index: int,
+        samples: np.ndarray,
+        sample_rate_hz: float,
+        full_scale: float = 0.0,
+    ) -> list[ImpactRecord]:
         """Add one batch of `quantity` ('force' [N] or 'velocity' [m/s]) samples.
 
         `first_sample_index` counts from the start of acquisition; a batch that starts past
@@ -358,13 +395,19 @@ class ImpactCapture:
         channel = self._begin(quantity, first_sample_index, sample_rate_hz, full_scale)
         done = self._settle()
         for low in range(0, samples.size, MAX_STEP_SAMPLES):
-            self._take(channel, samples[low:low + MAX_STEP_SAMPLES])
+            self._take(channel, samples[low : low + MAX_STEP_SAMPLES])
             done += self._settle()
         return done
 
-    def feed_both(self, first_sample_index: int, force_n: np.ndarray, velocity_m_s: np.ndarray,
-                  sample_rate_hz: float, force_full_scale_n: float = 0.0,
-                  velocity_full_scale_m_s: float = 0.0) -> list[ImpactRecord]:
+    def feed_both(
+        self,
+        first_sample_index: int,
+        force_n: np.ndarray,
+        velocity_m_s: np.ndarray,
+        sample_rate_hz: float,
+        force_full_scale_n: float = 0.0,
+        velocity_full_scale_m_s: float = 0.0,
+    ) -> list[ImpactRecord]:
         """Add sample-aligned blocks of both channels (e.g. a whole recording) at once.
 
         Equivalent to feeding the two channels batch by batch, whatever the block length.
@@ -372,17 +415,20 @@ class ImpactCapture:
         force_n = self._checked(FORCE, first_sample_index, force_n, sample_rate_hz)
         velocity_m_s = self._checked(VELOCITY, first_sample_index, velocity_m_s, sample_rate_hz)
         if force_n.shape != velocity_m_s.shape:
-            raise ValueError(f'force has {force_n.size} samples but velocity has '
-                             f'{velocity_m_s.size}: feed_both needs aligned blocks')
+            raise ValueError(
+                f'force has {force_n.size} samples but velocity has '
+                f'{velocity_m_s.size}: feed_both needs aligned blocks'
+            )
         if force_n.size == 0:
             return []
         force = self._begin(FORCE, first_sample_index, sample_rate_hz, force_full_scale_n)
-        velocity = self._begin(VELOCITY, first_sample_index, sample_rate_hz,
-                               velocity_full_scale_m_s)
+        velocity = self._begin(
+            VELOCITY, first_sample_index, sample_rate_hz, velocity_full_scale_m_s
+        )
         done = self._settle()
         for low in range(0, force_n.size, MAX_STEP_SAMPLES):
-            self._take(force, force_n[low:low + MAX_STEP_SAMPLES])
-            self._take(velocity, velocity_m_s[low:low + MAX_STEP_SAMPLES])
+            self._take(force, force_n[low : low + MAX_STEP_SAMPLES])
+            self._take(velocity, velocity_m_s[low : low + MAX_STEP_SAMPLES])
             done += self._settle()
         return done
 
@@ -398,37 +444,48 @@ class ImpactCapture:
     def recycle(self, record: ImpactRecord) -> None:
         """Return a completed record's buffers to the pool; the record is invalid afterwards."""
         force, velocity = record.force_n.base, record.velocity_m_s.base
-        if (self._samples is None or force is None or velocity is None
-                or force.shape != (self._samples.window,)
-                or any(force is pooled for pooled, _ in self._pool)):
+        if (
+            self._samples is None
+            or force is None
+            or velocity is None
+            or force.shape != (self._samples.window,)
+            or any(force is pooled for pooled, _ in self._pool)
+        ):
             raise ValueError('only a record completed by this capture can be recycled, once')
         self._pool.append((force, velocity))
 
-    def _checked(self, quantity: str, first_sample_index: int, samples: np.ndarray,
-                 sample_rate_hz: float) -> np.ndarray:
+    def _checked(
+        self, quantity: str, first_sample_index: int, samples: np.ndarray, sample_rate_hz: float
+    ) -> np.ndarray:
         """The batch as a float array, or ValueError (state untouched) if it cannot be taken."""
         if quantity not in (FORCE, VELOCITY):
             raise ValueError(f"quantity must be '{FORCE}' or '{VELOCITY}', got {quantity!r}")
         samples = np.asarray(samples, dtype=float)
         if samples.ndim != 1:
-            raise ValueError(f'{quantity} samples must be one-dimensional, got shape '
-                             f'{samples.shape}')
+            raise ValueError(
+                f'{quantity} samples must be one-dimensional, got shape {samples.shape}'
+            )
         if not np.isfinite(sample_rate_hz) or sample_rate_hz <= 0:
             raise ValueError(f'{quantity} sample_rate_hz must be positive, got {sample_rate_hz}')
-        if self.sample_rate_hz is not None and not np.isclose(sample_rate_hz, self.sample_rate_hz,
-                                                              rtol=1e-9, atol=0):
-            raise ValueError(f'{quantity} batch is sampled at {sample_rate_hz} Hz but the capture '
-                             f'runs at {self.sample_rate_hz} Hz: force and velocity must share '
-                             'one sample rate')
+        if self.sample_rate_hz is not None and not np.isclose(
+            sample_rate_hz, self.sample_rate_hz, rtol=1e-9, atol=0
+        ):
+            raise ValueError(
+                f'{quantity} batch is sampled at {sample_rate_hz} Hz but the capture '
+                f'runs at {self.sample_rate_hz} Hz: force and velocity must share '
+                'one sample rate'
+            )
         if self._channels and first_sample_index < self._channels[quantity].next_index:
             raise ValueError(
                 f'{quantity} batch starts at sample {first_sample_index} but the channel '
                 f'already holds samples up to {self._channels[quantity].next_index - 1}: '
-                'batches of a channel must arrive in order, each once')
+                'batches of a channel must arrive in order, each once'
+            )
         return samples
 
-    def _begin(self, quantity: str, first_sample_index: int, sample_rate_hz: float,
-               full_scale: float) -> _Channel:
+    def _begin(
+        self, quantity: str, first_sample_index: int, sample_rate_hz: float, full_scale: float
+    ) -> _Channel:
         """The channel a checked batch goes to, with any samples skipped before it missing."""
         self._start(int(first_sample_index), sample_rate_hz)
         channel = self._channels[quantity]
@@ -473,14 +530,17 @@ class ImpactCapture:
         for impact in self._open:
             impact.add_gap(channel.name, start, stop)
             offset = impact.start
-            impact.buffers[channel.name][max(0, start - offset):max(0, stop - offset)] = np.nan
+            impact.buffers[channel.name][max(0, start - offset) : max(0, stop - offset)] = np.nan
         oldest = stop - capacity - self._samples.window
         channel.gaps = [gap for gap in channel.gaps if gap[1] > oldest]
 
     def _open_impact(self, trigger: int) -> None:
         """Start a record at `trigger`, filling what both channels already hold."""
-        force, velocity = self._pool.pop() if self._pool else (
-            np.empty(self._samples.window), np.empty(self._samples.window))
+        force, velocity = (
+            self._pool.pop()
+            if self._pool
+            else (np.empty(self._samples.window), np.empty(self._samples.window))
+        )
         impact = _OpenImpact(trigger, self._samples.pretrigger, force, velocity)
         for channel in self._channels.values():
             buffer = impact.buffers[channel.name]
@@ -517,7 +577,7 @@ class ImpactCapture:
         stop = min(velocity_next - impact.start, impact.end)
         if impact.end_found or stop <= impact.rest_position:
             return
-        block = impact.buffers[VELOCITY][impact.rest_position:stop]
+        block = impact.buffers[VELOCITY][impact.rest_position : stop]
         moving = np.flatnonzero(~(np.abs(block) <= self.config.rest_velocity_m_s))
         # Runs of rest between moving samples; the first starts rest_run samples back.
         run_starts = np.concatenate(([-impact.rest_run], moving + 1))
@@ -532,6 +592,7 @@ class ImpactCapture:
 
     def _record(self, impact: _OpenImpact) -> ImpactRecord:
         """The completed record of an impact, as views of its buffers."""
+
         def gaps(name: str) -> Gaps:
             merged: list[tuple[int, int]] = []
             for start, stop in sorted(impact.gaps[name]):
@@ -545,21 +606,36 @@ class ImpactCapture:
             return tuple(merged)
 
         return ImpactRecord(
-            force_n=impact.buffers[FORCE][:impact.end],
-            velocity_m_s=impact.buffers[VELOCITY][:impact.end],
-            sample_rate_hz=self.sample_rate_hz, record_start_sample_index=impact.start,
-            trigger_sample_index=impact.trigger, window_samples=self._samples.window,
+            force_n=impact.buffers[FORCE][: impact.end],
+            velocity_m_s=impact.buffers[VELOCITY][: impact.end],
+            sample_rate_hz=self.sample_rate_hz,
+            record_start_sample_index=impact.start,
+            trigger_sample_index=impact.trigger,
+            window_samples=self._samples.window,
             force_full_scale_n=self._channels[FORCE].full_scale,
             velocity_full_scale_m_s=self._channels[VELOCITY].full_scale,
-            force_gaps=gaps(FORCE), velocity_gaps=gaps(VELOCITY))
+            force_gaps=gaps(FORCE),
+            velocity_gaps=gaps(VELOCITY),
+        )
 
 
-def capture_impacts(force_n: np.ndarray, velocity_m_s: np.ndarray, sample_rate_hz: float,
-                    config: CaptureConfig = DEFAULT_CAPTURE, first_sample_index: int = 0,
-                    force_full_scale_n: float = 0.0,
-                    velocity_full_scale_m_s: float = 0.0) -> list[ImpactRecord]:
+def capture_impacts(
+    force_n: np.ndarray,
+    velocity_m_s: np.ndarray,
+    sample_rate_hz: float,
+    config: CaptureConfig = DEFAULT_CAPTURE,
+    first_sample_index: int = 0,
+    force_full_scale_n: float = 0.0,
+    velocity_full_scale_m_s: float = 0.0,
+) -> list[ImpactRecord]:
     """Every impact in a whole continuous recording of both channels (then end of stream)."""
     capture = ImpactCapture(config)
-    records = capture.feed_both(first_sample_index, force_n, velocity_m_s, sample_rate_hz,
-                                force_full_scale_n, velocity_full_scale_m_s)
+    records = capture.feed_both(
+        first_sample_index,
+        force_n,
+        velocity_m_s,
+        sample_rate_hz,
+        force_full_scale_n,
+        velocity_full_scale_m_s,
+    )
     return records + capture.flush()

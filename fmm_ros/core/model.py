@@ -92,6 +92,7 @@ FMM_RIG = Rig()
 
 # --- model terms ---------------------------------------------------------------------------
 
+
 @dataclass(frozen=True)
 class Parameter:
     """One fitted quantity of a model term: SI unit, plausible bounds and a default."""
@@ -106,15 +107,18 @@ class Parameter:
     """Physical limit, enforced on construction: 'real', 'non-negative' or 'positive'."""
 
 
-_DOMAIN_CHECKS = {'real': require_finite, 'non-negative': require_non_negative,
-                  'positive': require_positive}
+_DOMAIN_CHECKS = {
+    'real': require_finite,
+    'non-negative': require_non_negative,
+    'positive': require_positive,
+}
 
 
-def _parameter(unit: str, lower: float, upper: float, default: float, description: str,
-               domain: str = 'real'):
+def _parameter(
+    unit: str, lower: float, upper: float, default: float, description: str, domain: str = 'real'
+):
     """Declare a term's dataclass field together with its `Parameter` description."""
-    return field(default=default,
-                 metadata={'parameter': (unit, lower, upper, description, domain)})
+    return field(default=default, metadata={'parameter': (unit, lower, upper, description, domain)})
 
 
 @dataclass
@@ -160,8 +164,10 @@ class ModelTerm:
         """The term with its parameters in `parameters` order (what a fitter varies)."""
         values = [float(v) for v in values]
         if len(values) != len(cls.parameters):
-            raise ValueError(f'{cls.name} takes {len(cls.parameters)} parameter(s) '
-                             f'({", ".join(p.name for p in cls.parameters)}), got {len(values)}')
+            raise ValueError(
+                f'{cls.name} takes {len(cls.parameters)} parameter(s) '
+                f'({", ".join(p.name for p in cls.parameters)}), got {len(values)}'
+            )
         return cls(**{p.name: v for p, v in zip(cls.parameters, values, strict=True)})
 
     def to_vector(self) -> np.ndarray:
@@ -171,8 +177,10 @@ class ModelTerm:
     @classmethod
     def bounds(cls) -> tuple[np.ndarray, np.ndarray]:
         """(lower, upper) plausible bounds in `parameters` order, as scipy.optimize wants."""
-        return (np.array([p.lower for p in cls.parameters]),
-                np.array([p.upper for p in cls.parameters]))
+        return (
+            np.array([p.lower for p in cls.parameters]),
+            np.array([p.upper for p in cls.parameters]),
+        )
 
 
 MODEL_TERMS: dict[str, type[ModelTerm]] = {}
@@ -181,15 +189,18 @@ MODEL_TERMS: dict[str, type[ModelTerm]] = {}
 
 def _term(name: str):
     """Class decorator: frozen dataclass, `name`, `parameters` from the fields, registered."""
+
     def declare(cls):
         cls = dataclass(frozen=True)(cls)
         cls.name = name
         cls.parameters = tuple(
             Parameter(f.name, unit, lower, upper, f.default, description, domain)
             for f in fields(cls)
-            for unit, lower, upper, description, domain in [f.metadata['parameter']])
+            for unit, lower, upper, description, domain in [f.metadata['parameter']]
+        )
         MODEL_TERMS[name] = cls
         return cls
+
     return declare
 
 
@@ -197,9 +208,9 @@ def _term(name: str):
 class ViscousDamping(ModelTerm):
     """Viscous damping added to the rig's (air drag, lubricant film shear)."""
 
-    damping_n_s_per_m: float = _parameter('N*s/m', 0.0, 5.0, 0.5, 'added viscous damping c',
-                                          'non-negative')
-
+    damping_n_s_per_m: float = _parameter(
+        'N*s/m', 0.0, 5.0, 0.5, 'added viscous damping c', 'non-negative'
+    )
 
     def _apply(self, spec: _ModelSpec) -> None:
         spec.damping_n_s_per_m += self.damping_n_s_per_m
@@ -210,10 +221,11 @@ class Stribeck(ModelTerm):
     """Static friction above kinetic, decaying with speed: mu(v) = mu + dmu exp(-(v/vs)^2)."""
 
     mu_static_excess: float = _parameter(
-        '1', 0.0, 0.1, 0.02, 'static minus kinetic friction coefficient dmu', 'non-negative')
+        '1', 0.0, 0.1, 0.02, 'static minus kinetic friction coefficient dmu', 'non-negative'
+    )
     stribeck_velocity_m_s: float = _parameter(
-        'm/s', 1e-4, 0.05, 2e-3, 'speed vs over which the excess decays', 'positive')
-
+        'm/s', 1e-4, 0.05, 2e-3, 'speed vs over which the excess decays', 'positive'
+    )
 
     def _apply(self, spec: _ModelSpec) -> None:
         spec.mu_static_excess += self.mu_static_excess
@@ -225,15 +237,18 @@ class AsymmetricFriction(ModelTerm):
     """Friction differing with sliding direction: mu+ = mu + d/2, mu- = mu - d/2 (mean mu)."""
 
     mu_difference: float = _parameter(
-        '1', -0.05, 0.05, 0.01, 'friction coefficient in +x minus that in -x')
+        '1', -0.05, 0.05, 0.01, 'friction coefficient in +x minus that in -x'
+    )
 
     def _apply(self, spec: _ModelSpec) -> None:
         spec.mu_positive += 0.5 * self.mu_difference
         spec.mu_negative -= 0.5 * self.mu_difference
         if min(spec.mu_positive, spec.mu_negative) < 0.0:
-            raise ValueError(f'asymmetric_friction.mu_difference {self.mu_difference} makes a '
-                             f'friction coefficient negative (mu+ {spec.mu_positive:.4g}, '
-                             f'mu- {spec.mu_negative:.4g})')
+            raise ValueError(
+                f'asymmetric_friction.mu_difference {self.mu_difference} makes a '
+                f'friction coefficient negative (mu+ {spec.mu_positive:.4g}, '
+                f'mu- {spec.mu_negative:.4g})'
+            )
 
 
 @_term('cubic_stiffness')
@@ -241,7 +256,8 @@ class CubicStiffness(ModelTerm):
     """Flexure stiffening (k3 > 0) or softening (k3 < 0): spring force k x + k3 x^3."""
 
     cubic_stiffness_n_per_m3: float = _parameter(
-        'N/m^3', -1e7, 1e7, 2e6, 'cubic spring coefficient k3')
+        'N/m^3', -1e7, 1e7, 2e6, 'cubic spring coefficient k3'
+    )
 
     def _apply(self, spec: _ModelSpec) -> None:
         spec.cubic_stiffness_n_per_m3 += self.cubic_stiffness_n_per_m3
@@ -256,11 +272,12 @@ class SecondMode(ModelTerm):
     """
 
     frequency_hz: float = _parameter('Hz', 5.0, 2000.0, 45.0, 'natural frequency f2', 'positive')
-    damping_ratio: float = _parameter('1', 1e-4, 0.1, 0.01, 'viscous damping ratio zeta2',
-                                      'non-negative')
-    modal_mass_kg: float = _parameter('kg', 1.0, 1e4, 100.0, 'modal mass m2 at the hammer point',
-                                      'positive')
-
+    damping_ratio: float = _parameter(
+        '1', 1e-4, 0.1, 0.01, 'viscous damping ratio zeta2', 'non-negative'
+    )
+    modal_mass_kg: float = _parameter(
+        'kg', 1.0, 1e4, 100.0, 'modal mass m2 at the hammer point', 'positive'
+    )
 
     def _apply(self, spec: _ModelSpec) -> None:
         spec.second_mode = self
@@ -268,8 +285,11 @@ class SecondMode(ModelTerm):
     def constants(self) -> tuple[float, float, float]:
         """(mass [kg], damping [N*s/m], stiffness [N/m]) of the mode."""
         omega = 2.0 * math.pi * self.frequency_hz
-        return (self.modal_mass_kg, 2.0 * self.damping_ratio * self.modal_mass_kg * omega,
-                self.modal_mass_kg * omega * omega)
+        return (
+            self.modal_mass_kg,
+            2.0 * self.damping_ratio * self.modal_mass_kg * omega,
+            self.modal_mass_kg * omega * omega,
+        )
 
 
 @_term('velocity_offset')
@@ -290,9 +310,7 @@ class SensorDelay(ModelTerm):
     the first sample the output holds the initial velocity.
     """
 
-    delay_s: float = _parameter('s', 0.0, 5e-3, 5e-4, 'velocity lag behind force',
-                                'non-negative')
-
+    delay_s: float = _parameter('s', 0.0, 5e-3, 5e-4, 'velocity lag behind force', 'non-negative')
 
     def _apply(self, spec: _ModelSpec) -> None:
         spec.delay_s += self.delay_s
@@ -310,8 +328,10 @@ def model_term(name: str, values: Sequence[float] | None = None, **parameters: f
     known = {p.name for p in cls.parameters}
     unknown = sorted(set(parameters) - known)
     if unknown:
-        raise ValueError(f'{name} has no parameter {", ".join(unknown)}; '
-                         f'its parameters: {", ".join(sorted(known))}')
+        raise ValueError(
+            f'{name} has no parameter {", ".join(unknown)}; '
+            f'its parameters: {", ".join(sorted(known))}'
+        )
     return cls(**parameters)
 
 
@@ -340,8 +360,9 @@ def _model_spec(rig: Rig, mu: float, effects: Iterable[ModelTerm]) -> _ModelSpec
     seen = set()
     for effect in effects:
         if not isinstance(effect, ModelTerm):
-            raise ValueError(f'effects must be model terms ({", ".join(MODEL_TERMS)}), '
-                             f'got {effect!r}')
+            raise ValueError(
+                f'effects must be model terms ({", ".join(MODEL_TERMS)}), got {effect!r}'
+            )
         if effect.name in seen:
             raise ValueError(f'model term {effect.name} given twice')
         seen.add(effect.name)
@@ -350,6 +371,7 @@ def _model_spec(rig: Rig, mu: float, effects: Iterable[ModelTerm]) -> _ModelSpec
 
 
 # --- discretisation --------------------------------------------------------------------------
+
 
 @functools.lru_cache(maxsize=512)
 def _foh_step(mass_kg: float, damping: float, stiffness: float, step_s: float) -> np.ndarray:
@@ -384,15 +406,19 @@ def _kernel_params(rig: Rig, spec: _ModelSpec, step_s: float, integrator: str) -
     p[kernels.NONLINEAR] = float(spec.nonlinear or integrator == 'rk4')
     # Fastest rate the RK4 segments must resolve: the mode itself, and the steepest slope of
     # the Stribeck curve, dmu N max|d exp(-(v/vs)^2)/dv| / m = 0.858 dmu N / (vs m).
-    rate = max(2.0 * math.pi * rig.natural_frequency_hz,
-               0.858 * p[kernels.STATIC_EXCESS] / (spec.stribeck_velocity_m_s * rig.mass_kg))
+    rate = max(
+        2.0 * math.pi * rig.natural_frequency_hz,
+        0.858 * p[kernels.STATIC_EXCESS] / (spec.stribeck_velocity_m_s * rig.mass_kg),
+    )
     p[kernels.SUBSTEPS] = max(1, math.ceil(rate * step_s / _RK4_RATE_STEP))
-    p[kernels.PHI:kernels.PARAM_SIZE] = _foh_step(
-        rig.mass_kg, spec.damping_n_s_per_m, rig.stiffness_n_per_m, step_s)
+    p[kernels.PHI : kernels.PARAM_SIZE] = _foh_step(
+        rig.mass_kg, spec.damping_n_s_per_m, rig.stiffness_n_per_m, step_s
+    )
     return p
 
 
 # --- running it --------------------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class Simulation:
@@ -427,15 +453,24 @@ class OscillatorStream:
     so any split of a record gives the same numbers, to the bit, as one `simulate` call.
     """
 
-    def __init__(self, sample_rate_hz: float, *, rig: Rig = FMM_RIG, mu: float = PAPER_MU,
-                 effects: Iterable[ModelTerm] = (), x0_m: float = 0.0, v0_m_s: float = 0.0,
-                 integrator: str = 'exact') -> None:
+    def __init__(
+        self,
+        sample_rate_hz: float,
+        *,
+        rig: Rig = FMM_RIG,
+        mu: float = PAPER_MU,
+        effects: Iterable[ModelTerm] = (),
+        x0_m: float = 0.0,
+        v0_m_s: float = 0.0,
+        integrator: str = 'exact',
+    ) -> None:
         if not isinstance(rig, Rig):
             raise ValueError(f'rig must be a Rig, got {rig!r}')
         require_positive('sample_rate_hz', sample_rate_hz)
         if integrator not in INTEGRATORS:
             raise ValueError(
-                f'unknown integrator {integrator!r}; choose one of {", ".join(INTEGRATORS)}')
+                f'unknown integrator {integrator!r}; choose one of {", ".join(INTEGRATORS)}'
+            )
         require_finite('x0_m', x0_m)
         require_finite('v0_m_s', v0_m_s)
         effects = (effects,) if isinstance(effects, ModelTerm) else tuple(effects)
@@ -445,7 +480,8 @@ class OscillatorStream:
             raise ValueError(
                 f'time step too coarse: sample_rate_hz {sample_rate_hz:g} gives fewer than '
                 f'{MIN_SAMPLES_PER_PERIOD} samples per period of the {rig.natural_frequency_hz:.4g}'
-                f' Hz natural frequency (need >= {needed_hz:.4g} Hz)')
+                f' Hz natural frequency (need >= {needed_hz:.4g} Hz)'
+            )
         self.sample_rate_hz = float(sample_rate_hz)
         self.rig = rig
         self.mu = float(mu)
@@ -453,8 +489,9 @@ class OscillatorStream:
         self.integrator = integrator
         step_s = 1.0 / self.sample_rate_hz
         self._params = _kernel_params(rig, spec, step_s, integrator)
-        self._advance = (kernels.oscillator_euler if integrator == 'euler'
-                         else kernels.oscillator_exact)
+        self._advance = (
+            kernels.oscillator_euler if integrator == 'euler' else kernels.oscillator_exact
+        )
         self._state = np.zeros(kernels.STATE_SIZE)
         self._state[kernels.STATE_X] = x0_m
         self._state[kernels.STATE_V] = v0_m_s
@@ -464,16 +501,18 @@ class OscillatorStream:
                 raise ValueError(
                     f'time step too coarse: second_mode.frequency_hz '
                     f'{spec.second_mode.frequency_hz:g} is at or above the Nyquist frequency '
-                    f'{0.5 * self.sample_rate_hz:g} Hz')
+                    f'{0.5 * self.sample_rate_hz:g} Hz'
+                )
             self._mode = np.zeros(kernels.MODE_SIZE)
-            self._mode[kernels.MODE_PHI:] = _foh_step(*spec.second_mode.constants(), step_s)
+            self._mode[kernels.MODE_PHI :] = _foh_step(*spec.second_mode.constants(), step_s)
         delay_samples = spec.delay_s * self.sample_rate_hz
         if abs(delay_samples - round(delay_samples)) < 1e-9:
             delay_samples = round(delay_samples)  # 3e-4 s at 10 kHz is 3 samples, not 2.999...
         self._delay_whole = int(math.floor(delay_samples))
         self._delay_fraction = delay_samples - self._delay_whole
-        self._delay_line = (np.full(self._delay_whole + 1, float(v0_m_s))
-                            if spec.delay_s > 0.0 else None)
+        self._delay_line = (
+            np.full(self._delay_whole + 1, float(v0_m_s)) if spec.delay_s > 0.0 else None
+        )
         self._offset = spec.velocity_offset_m_s
         self._buffers = (np.empty(0), np.empty(0))
 
@@ -494,8 +533,9 @@ class OscillatorStream:
             return math.nan
         return float(self._state[kernels.STATE_X])
 
-    def step(self, force_n: np.ndarray, out: tuple[np.ndarray, np.ndarray] | None = None
-             ) -> tuple[np.ndarray, np.ndarray]:
+    def step(
+        self, force_n: np.ndarray, out: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Advance over a batch of force samples [N]; return (displacement_m, velocity_m_s).
 
         Without `out` the returned arrays are the stream's own buffers, reused (and
@@ -510,11 +550,17 @@ class OscillatorStream:
             out = (self._buffers[0][:n], self._buffers[1][:n])
         else:
             for name, array in zip(('displacement', 'velocity'), out, strict=True):
-                if (not isinstance(array, np.ndarray) or array.shape != (n,)
-                        or array.dtype != np.float64 or not array.flags.c_contiguous
-                        or not array.flags.writeable):
-                    raise ValueError(f'out {name} buffer must be a writable contiguous float64 '
-                                     f'array of shape ({n},)')
+                if (
+                    not isinstance(array, np.ndarray)
+                    or array.shape != (n,)
+                    or array.dtype != np.float64
+                    or not array.flags.c_contiguous
+                    or not array.flags.writeable
+                ):
+                    raise ValueError(
+                        f'out {name} buffer must be a writable contiguous float64 '
+                        f'array of shape ({n},)'
+                    )
         displacement, velocity = out
         if n == 0:
             return displacement, velocity
@@ -522,20 +568,30 @@ class OscillatorStream:
         first_call = self.samples_done == 0
         self._advance(force, displacement, velocity, self._state, self._params)
         if self._mode is not None:
-            kernels.add_linear_mode(force, force_before, first_call, displacement, velocity,
-                                    self._mode)
+            kernels.add_linear_mode(
+                force, force_before, first_call, displacement, velocity, self._mode
+            )
         if self._delay_line is not None:
-            kernels.delay_in_place(velocity, self._delay_line, self._delay_whole,
-                                   self._delay_fraction)
+            kernels.delay_in_place(
+                velocity, self._delay_line, self._delay_whole, self._delay_fraction
+            )
         if self._offset != 0.0:
             velocity += self._offset
         return displacement, velocity
 
 
-def simulate(force_n: np.ndarray, sample_rate_hz: float, *, rig: Rig = FMM_RIG,
-             mu: float = PAPER_MU, effects: Iterable[ModelTerm] = (), x0_m: float = 0.0,
-             v0_m_s: float = 0.0, integrator: str = 'exact',
-             out: tuple[np.ndarray, np.ndarray] | None = None) -> Simulation:
+def simulate(
+    force_n: np.ndarray,
+    sample_rate_hz: float,
+    *,
+    rig: Rig = FMM_RIG,
+    mu: float = PAPER_MU,
+    effects: Iterable[ModelTerm] = (),
+    x0_m: float = 0.0,
+    v0_m_s: float = 0.0,
+    integrator: str = 'exact',
+    out: tuple[np.ndarray, np.ndarray] | None = None,
+) -> Simulation:
     """Response of the model to a sampled force record [N] (linear between samples).
 
     `effects` are model terms (`model_term(name, ...)`; one term alone is accepted too).
@@ -544,25 +600,48 @@ def simulate(force_n: np.ndarray, sample_rate_hz: float, *, rig: Rig = FMM_RIG,
     negative mu, a sample rate too coarse for the natural frequency).
     """
     force = _checked_force(force_n)
-    stream = OscillatorStream(sample_rate_hz, rig=rig, mu=mu, effects=effects, x0_m=x0_m,
-                              v0_m_s=v0_m_s, integrator=integrator)
+    stream = OscillatorStream(
+        sample_rate_hz,
+        rig=rig,
+        mu=mu,
+        effects=effects,
+        x0_m=x0_m,
+        v0_m_s=v0_m_s,
+        integrator=integrator,
+    )
     if out is None:
         out = tuple(_output_block(force.size))
     displacement, velocity = stream.step(force, out=out)
-    return Simulation(displacement, velocity, stream.sample_rate_hz,
-                      stream.rest_position_m, stream.rest_time_s)
+    return Simulation(
+        displacement, velocity, stream.sample_rate_hz, stream.rest_position_m, stream.rest_time_s
+    )
 
 
-def free_vibration(x0_m: float, duration_s: float, sample_rate_hz: float, *,
-                   v0_m_s: float = 0.0, rig: Rig = FMM_RIG, mu: float = PAPER_MU,
-                   effects: Iterable[ModelTerm] = (), integrator: str = 'exact') -> Simulation:
+def free_vibration(
+    x0_m: float,
+    duration_s: float,
+    sample_rate_hz: float,
+    *,
+    v0_m_s: float = 0.0,
+    rig: Rig = FMM_RIG,
+    mu: float = PAPER_MU,
+    effects: Iterable[ModelTerm] = (),
+    integrator: str = 'exact',
+) -> Simulation:
     """Release from x0_m (and v0_m_s) with no applied force (the paper's Figs. 2-4)."""
-    return simulate(np.zeros(record_length(duration_s, sample_rate_hz)), sample_rate_hz, rig=rig,
-                    mu=mu, effects=effects, x0_m=x0_m, v0_m_s=v0_m_s, integrator=integrator)
+    return simulate(
+        np.zeros(record_length(duration_s, sample_rate_hz)),
+        sample_rate_hz,
+        rig=rig,
+        mu=mu,
+        effects=effects,
+        x0_m=x0_m,
+        v0_m_s=v0_m_s,
+        integrator=integrator,
+    )
 
 
-def coulomb_peak_mobility(impulse_n_s: float, *, rig: Rig = FMM_RIG,
-                          mu: float = PAPER_MU) -> float:
+def coulomb_peak_mobility(impulse_n_s: float, *, rig: Rig = FMM_RIG, mu: float = PAPER_MU) -> float:
     """|Y(w_n)| ~ pi I / (8 m mu N): mobility at f_n after an impulse I, undamped Coulomb case.
 
     Derivation (c = 0, x_lim = mu N / k, w = w_n, pulse short against the period so that

@@ -58,20 +58,25 @@ class ImpactRecord:
         if force.ndim != 1 or velocity.ndim != 1:
             raise ValueError('force and velocity must be one-dimensional sample arrays')
         if force.shape != velocity.shape:
-            raise ValueError(f'force has {force.size} samples but velocity has {velocity.size}: '
-                             'the two channels of a record must be sample-aligned')
+            raise ValueError(
+                f'force has {force.size} samples but velocity has {velocity.size}: '
+                'the two channels of a record must be sample-aligned'
+            )
         if force.size < 2:
             raise ValueError(f'a record needs at least 2 samples, got {force.size}')
         if not np.isfinite(self.sample_rate_hz) or self.sample_rate_hz <= 0:
             raise ValueError(f'sample_rate_hz must be positive, got {self.sample_rate_hz}')
         window = self.window_samples or force.size
         if window < force.size:
-            raise ValueError(f'window_samples ({window}) is shorter than the record '
-                             f'({force.size} samples)')
+            raise ValueError(
+                f'window_samples ({window}) is shorter than the record ({force.size} samples)'
+            )
         offset = self.trigger_offset
         if offset is not None and not 0 <= offset < force.size:
-            raise ValueError(f'trigger sample {self.trigger_sample_index} lies outside the record '
-                             f'({self.record_start_sample_index} + {force.size} samples)')
+            raise ValueError(
+                f'trigger sample {self.trigger_sample_index} lies outside the record '
+                f'({self.record_start_sample_index} + {force.size} samples)'
+            )
         object.__setattr__(self, 'force_n', force)
         object.__setattr__(self, 'velocity_m_s', velocity)
         object.__setattr__(self, 'window_samples', int(window))
@@ -100,8 +105,10 @@ def read_impact_csv(path: str | Path) -> ImpactRecord:
     names = [name.strip() for name in header]
     missing = [name for name in CSV_COLUMNS if name not in names]
     if missing:
-        raise ValueError(f'{path}: missing column(s) {", ".join(missing)}; the header must name '
-                         f'{",".join(CSV_COLUMNS)}')
+        raise ValueError(
+            f'{path}: missing column(s) {", ".join(missing)}; the header must name '
+            f'{",".join(CSV_COLUMNS)}'
+        )
     columns = [names.index(name) for name in CSV_COLUMNS]
     try:
         data = np.loadtxt(path, delimiter=',', skiprows=1, usecols=columns, ndmin=2)
@@ -112,24 +119,36 @@ def read_impact_csv(path: str | Path) -> ImpactRecord:
     for column, name in enumerate(CSV_COLUMNS):
         bad = np.flatnonzero(~np.isfinite(data[:, column]))
         if bad.size:
-            raise ValueError(f'{path}: {name} is not finite ({data[bad[0], column]}) at data row '
-                             f'{bad[0] + 1} and {bad.size - 1} more row(s)')
+            raise ValueError(
+                f'{path}: {name} is not finite ({data[bad[0], column]}) at data row '
+                f'{bad[0] + 1} and {bad.size - 1} more row(s)'
+            )
     try:
         sample_rate_hz = sample_rate_from_times(data[:, 0], rtol=TIME_STEP_TOLERANCE)
     except ValueError as error:
         raise ValueError(f'{path}: {error} (a dropped or repeated sample?)') from None
-    return ImpactRecord(force_n=np.ascontiguousarray(data[:, 1]),
-                        velocity_m_s=np.ascontiguousarray(data[:, 2]),
-                        sample_rate_hz=sample_rate_hz, source=str(path))
+    return ImpactRecord(
+        force_n=np.ascontiguousarray(data[:, 1]),
+        velocity_m_s=np.ascontiguousarray(data[:, 2]),
+        sample_rate_hz=sample_rate_hz,
+        source=str(path),
+    )
 
 
-def write_impact_csv(path: str | Path, force_n: np.ndarray, velocity_m_s: np.ndarray,
-                     sample_rate_hz: float) -> None:
+def write_impact_csv(
+    path: str | Path, force_n: np.ndarray, velocity_m_s: np.ndarray, sample_rate_hz: float
+) -> None:
     """Write one impact in the format `read_impact_csv` reads, samples at full precision."""
     force = np.asarray(force_n, dtype=float)
     velocity = np.asarray(velocity_m_s, dtype=float)
     if force.shape != velocity.shape or force.ndim != 1:
         raise ValueError('force and velocity must be one-dimensional arrays of equal length')
     time_s = np.arange(force.size) / sample_rate_hz
-    np.savetxt(path, np.column_stack((time_s, force, velocity)), delimiter=',',
-               header=','.join(CSV_COLUMNS), comments='', fmt=('%.9f', '%.17g', '%.17g'))
+    np.savetxt(
+        path,
+        np.column_stack((time_s, force, velocity)),
+        delimiter=',',
+        header=','.join(CSV_COLUMNS),
+        comments='',
+        fmt=('%.9f', '%.17g', '%.17g'),
+    )

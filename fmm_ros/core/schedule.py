@@ -28,10 +28,16 @@ class ScheduledHit:
     rise_fraction: float
 
 
-def session_schedule(levels: Sequence[tuple[str, float]], hits_per_level: int, *,
-                     sample_rate_hz: float, spacing_s: float, first_hit_s: float,
-                     rng: np.random.Generator | int, spread_std_n: float = 20.0
-                     ) -> tuple[ScheduledHit, ...]:
+def session_schedule(
+    levels: Sequence[tuple[str, float]],
+    hits_per_level: int,
+    *,
+    sample_rate_hz: float,
+    spacing_s: float,
+    first_hit_s: float,
+    rng: np.random.Generator | int,
+    spread_std_n: float = 20.0,
+) -> tuple[ScheduledHit, ...]:
     """Hits level by level (as the paper's operator worked), `spacing_s` apart.
 
     levels: (name, nominal peak force [N]) pairs. Each hit's peak is the nominal one plus
@@ -53,18 +59,29 @@ def session_schedule(levels: Sequence[tuple[str, float]], hits_per_level: int, *
         for _ in range(hits_per_level):
             peak = max(float(nominal_n + rng.normal(0.0, spread_std_n)), 1.0)
             start_s = first_hit_s + len(hits) * spacing_s + rng.uniform(0.0, 1.0) / sample_rate_hz
-            hits.append(ScheduledHit(level=name, start_index=start_s * sample_rate_hz,
-                                     peak_force_n=peak,
-                                     contact_duration_s=tip_contact_duration_s(peak),
-                                     rise_fraction=float(rng.uniform(0.40, 0.50))))
+            hits.append(
+                ScheduledHit(
+                    level=name,
+                    start_index=start_s * sample_rate_hz,
+                    peak_force_n=peak,
+                    contact_duration_s=tip_contact_duration_s(peak),
+                    rise_fraction=float(rng.uniform(0.40, 0.50)),
+                )
+            )
     return tuple(hits)
 
 
 class HammerStream:
     """Renders a schedule as applied and measured force for any [first, first + n) samples."""
 
-    def __init__(self, schedule: Sequence[ScheduledHit], sample_rate_hz: float, *,
-                 noise_std_n: float, seed: int) -> None:
+    def __init__(
+        self,
+        schedule: Sequence[ScheduledHit],
+        sample_rate_hz: float,
+        *,
+        noise_std_n: float,
+        seed: int,
+    ) -> None:
         require_positive('sample_rate_hz', sample_rate_hz)
         require_non_negative('noise_std_n', noise_std_n)
         self.sample_rate_hz = sample_rate_hz
@@ -76,8 +93,14 @@ class HammerStream:
             first = int(np.floor(hit.start_index))
             offset_s = (hit.start_index - first) / sample_rate_hz
             span_s = offset_s + hit.contact_duration_s + 2.0 / sample_rate_hz
-            pulse = hammer_pulse(hit.peak_force_n, hit.contact_duration_s, sample_rate_hz,
-                                 span_s, start_s=offset_s, rise_fraction=hit.rise_fraction)
+            pulse = hammer_pulse(
+                hit.peak_force_n,
+                hit.contact_duration_s,
+                sample_rate_hz,
+                span_s,
+                start_s=offset_s,
+                rise_fraction=hit.rise_fraction,
+            )
             self._pulses.append((first, pulse))
         self.end_index = max((first + pulse.size for first, pulse in self._pulses), default=0)
 
@@ -92,7 +115,7 @@ class HammerStream:
         for first, pulse in self._pulses:
             low, high = max(first, first_index), min(first + pulse.size, stop)
             if low < high:
-                out[low - first_index:high - first_index] += pulse[low - first:high - first]
+                out[low - first_index : high - first_index] += pulse[low - first : high - first]
         return out
 
     def measured(self, applied_n: np.ndarray, first_index: int, out: np.ndarray) -> np.ndarray:
@@ -118,5 +141,5 @@ def add_indexed_noise(out: np.ndarray, first_index: int, std: float, seed: int) 
     for start in range(first_index - first_index % block, stop, block):
         noise = np.random.default_rng((seed, start // block)).normal(0.0, std, block)
         low, high = max(start, first_index), min(start + block, stop)
-        out[low - first_index:high - first_index] += noise[low - start:high - start]
+        out[low - first_index : high - first_index] += noise[low - start : high - start]
     return out

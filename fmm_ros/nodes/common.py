@@ -35,14 +35,27 @@ _RIG = Rig()
 # with them); defaults are the paper's FMM.
 RIG_PARAMS = (
     Param('mass_kg', _RIG.mass_kg, 'Moving mass m [kg]', limits=(1e-3, 1e4), read_only=True),
-    Param('stiffness_n_per_m', _RIG.stiffness_n_per_m, 'Flexure stiffness k [N/m]',
-          limits=(1e-3, 1e9), read_only=True),
-    Param('damping_n_s_per_m', _RIG.damping_n_s_per_m,
-          'Viscous damping c [N*s/m] (the fitter starts from it when fitting c)',
-          limits=(0.0, 1e6), read_only=True),
-    Param('normal_force_n', _RIG.normal_force_n,
-          'Normal force on the pin N [N] (0.680 kg x 9.81 m/s^2)', limits=(0.0, 1e5),
-          read_only=True),
+    Param(
+        'stiffness_n_per_m',
+        _RIG.stiffness_n_per_m,
+        'Flexure stiffness k [N/m]',
+        limits=(1e-3, 1e9),
+        read_only=True,
+    ),
+    Param(
+        'damping_n_s_per_m',
+        _RIG.damping_n_s_per_m,
+        'Viscous damping c [N*s/m] (the fitter starts from it when fitting c)',
+        limits=(0.0, 1e6),
+        read_only=True,
+    ),
+    Param(
+        'normal_force_n',
+        _RIG.normal_force_n,
+        'Normal force on the pin N [N] (0.680 kg x 9.81 m/s^2)',
+        limits=(0.0, 1e5),
+        read_only=True,
+    ),
 )
 
 
@@ -53,18 +66,29 @@ def rig_from_parameters(config: dict) -> Rig:
 
 # Sample batches: every one matters (a lost batch is a gap in an FRF record), and a subscriber
 # may lag a burst of them, so RELIABLE with a deep queue.
-SAMPLE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
-                        reliability=ReliabilityPolicy.RELIABLE,
-                        durability=DurabilityPolicy.VOLATILE)
+SAMPLE_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=100,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
 
 # Results: a late subscriber (a plot, the fitter started later) still gets the latest ones.
-RESULT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
-                        reliability=ReliabilityPolicy.RELIABLE,
-                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
+RESULT_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
 
 
-def run_node(node_factory: Callable[[], Node], args: list[str] | None = None, *,
-             threads: int = 1, stop_poll_s: float = 0.1) -> None:
+def run_node(
+    node_factory: Callable[[], Node],
+    args: list[str] | None = None,
+    *,
+    threads: int = 1,
+    stop_poll_s: float = 0.1,
+) -> None:
     """Init, spin until Ctrl-C or SIGTERM, then tear down in order (for ros2 run).
 
     rclpy's own signal handler shuts the context down the moment SIGINT arrives, while the
@@ -77,11 +101,14 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None, *,
     """
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop_requested = threading.Event()
-    handlers = {signum: signal.signal(signum, lambda *_: stop_requested.set())
-                for signum in (signal.SIGINT, signal.SIGTERM)}
+    handlers = {
+        signum: signal.signal(signum, lambda *_: stop_requested.set())
+        for signum in (signal.SIGINT, signal.SIGTERM)
+    }
     node = None
-    executor = (SingleThreadedExecutor() if threads == 1
-                else MultiThreadedExecutor(num_threads=threads))
+    executor = (
+        SingleThreadedExecutor() if threads == 1 else MultiThreadedExecutor(num_threads=threads)
+    )
     try:
         node = node_factory()
         executor.add_node(node)

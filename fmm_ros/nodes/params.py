@@ -41,17 +41,22 @@ class Param:
         `-p rate_factor:=20` is taken as 20.0 instead of refused for being an INTEGER; their
         type and range are then checked by `problem`.
         """
-        descriptor = ParameterDescriptor(description=self.description, read_only=self.read_only,
-                                         dynamic_typing=self._is_float)
+        descriptor = ParameterDescriptor(
+            description=self.description, read_only=self.read_only, dynamic_typing=self._is_float
+        )
         if self.limits is not None and isinstance(self.default, list):
             low, high = self.limits
             descriptor.additional_constraints = f'every element in [{low}, {high}]'
         elif self.limits is not None and isinstance(self.default, int):
-            descriptor.integer_range = [IntegerRange(
-                from_value=int(self.limits[0]), to_value=int(self.limits[1]), step=1)]
+            descriptor.integer_range = [
+                IntegerRange(from_value=int(self.limits[0]), to_value=int(self.limits[1]), step=1)
+            ]
         elif self.limits is not None:
-            descriptor.floating_point_range = [FloatingPointRange(
-                from_value=float(self.limits[0]), to_value=float(self.limits[1]), step=0.0)]
+            descriptor.floating_point_range = [
+                FloatingPointRange(
+                    from_value=float(self.limits[0]), to_value=float(self.limits[1]), step=0.0
+                )
+            ]
         if self.choices:
             descriptor.additional_constraints = f'one of {", ".join(self.choices)}'
         return descriptor
@@ -66,8 +71,7 @@ class Param:
             if isinstance(value, bool) or not isinstance(value, int | float):
                 return f'{self.name} = {value!r} is not a number'
             if self.limits is not None and not self.limits[0] <= value <= self.limits[1]:
-                return (f'{self.name} = {value} out of range [{self.limits[0]}, '
-                        f'{self.limits[1]}]')
+                return f'{self.name} = {value} out of range [{self.limits[0]}, {self.limits[1]}]'
         if self.choices and value not in self.choices:
             return f'{self.name} = {value!r} is not one of {", ".join(self.choices)}'
         if self.limits is not None and isinstance(value, list | tuple):
@@ -90,8 +94,9 @@ class Param:
         if value is not None and value != self.default:
             notes.append(f'node default {_yaml_value(self.default)}')
         shown = self.default if value is None else value
-        return (f'{self.name}: {_yaml_value(shown)}  # {self.description}'
-                + ''.join(f'; {note}' for note in notes))
+        return f'{self.name}: {_yaml_value(shown)}  # {self.description}' + ''.join(
+            f'; {note}' for note in notes
+        )
 
     def value(self, parameter: Parameter) -> ParamValue:
         """The parameter's value in the default's type (an integer given for a float: float)."""
@@ -104,10 +109,16 @@ def _yaml_value(value: ParamValue) -> str:
     Strings in lists are always quoted, so `['no']` stays a string.
     """
     if isinstance(value, list):
-        return '[' + ', '.join("'" + item.replace("'", "''") + "'" if isinstance(item, str)
-                               else _yaml_value(item) for item in value) + ']'
+        return (
+            '['
+            + ', '.join(
+                "'" + item.replace("'", "''") + "'" if isinstance(item, str) else _yaml_value(item)
+                for item in value
+            )
+            + ']'
+        )
     if isinstance(value, float):
-        value = float(f'{value:.12g}')   # 0.680 * 9.81 shown as 6.6708, not 6.670800000000001
+        value = float(f'{value:.12g}')  # 0.680 * 9.81 shown as 6.6708, not 6.670800000000001
     return yaml.safe_dump(value, default_flow_style=True).removesuffix('...\n').strip()
 
 
@@ -136,16 +147,20 @@ PARAMS_FILE_VALUES = {'hammer_sim': {'wait_for_subscribers': 1}}
 
 
 def params_file_text(
-        tables: Mapping[str, Sequence[Param]],
-        values: Mapping[str, Mapping[str, ParamValue]] = PARAMS_FILE_VALUES) -> str:
+    tables: Mapping[str, Sequence[Param]],
+    values: Mapping[str, Mapping[str, ParamValue]] = PARAMS_FILE_VALUES,
+) -> str:
     """A ROS params file of every node's parameters (config/fmm_rig.yaml is this text).
 
     Each holds its default except where values gives another.
     """
-    blocks = [f'{node}:\n  ros__parameters:\n'
-              + ''.join(f'    {param.yaml_line(values.get(node, {}).get(param.name))}\n'
-                        for param in params)
-              for node, params in tables.items()]
+    blocks = [
+        f'{node}:\n  ros__parameters:\n'
+        + ''.join(
+            f'    {param.yaml_line(values.get(node, {}).get(param.name))}\n' for param in params
+        )
+        for node, params in tables.items()
+    ]
     return PARAMS_FILE_HEADER + '\n' + '\n'.join(blocks)
 
 
@@ -155,8 +170,10 @@ def node_param_tables() -> dict[str, Sequence[Param]]:
 
     from fmm_ros.launch import NODE_CLASSES
 
-    return {name: importlib.import_module(node_class.__module__).PARAMS
-            for name, node_class in NODE_CLASSES.items()}
+    return {
+        name: importlib.import_module(node_class.__module__).PARAMS
+        for name, node_class in NODE_CLASSES.items()
+    }
 
 
 def declare_parameters(node: Node, params: Sequence[Param]) -> dict[str, ParamValue]:

@@ -21,11 +21,17 @@ MAX_MESSAGES_PER_TICK = 4
 
 PARAMS = (
     Param('bag_path', '', 'Bag directory (or .mcap / .db3 file) to play', read_only=True),
-    Param('rate_factor', 1.0, 'Speed against the recorded pace [-]', limits=(0.01, 1000.0),
-          read_only=True),
+    Param(
+        'rate_factor',
+        1.0,
+        'Speed against the recorded pace [-]',
+        limits=(0.01, 1000.0),
+        read_only=True,
+    ),
     Param('topics', [''], 'Topics to play; [""] for every topic in the bag', read_only=True),
-    Param('tick_s', 0.005, 'Timer period of the pacing loop [s]', limits=(1e-4, 1.0),
-          read_only=True),
+    Param(
+        'tick_s', 0.005, 'Timer period of the pacing loop [s]', limits=(1e-4, 1.0), read_only=True
+    ),
 )
 
 
@@ -43,22 +49,27 @@ class Player(Node):
         missing = sorted(set(wanted) - set(self.reader.topics))
         if missing:
             self.reader.close()
-            raise ValueError(f'bag {self.config["bag_path"]} has no topic {", ".join(missing)}; '
-                             f'it has {", ".join(sorted(self.reader.topics))}')
+            raise ValueError(
+                f'bag {self.config["bag_path"]} has no topic {", ".join(missing)}; '
+                f'it has {", ".join(sorted(self.reader.topics))}'
+            )
         self._topic_publishers = {}
         for topic in wanted:
             msgtype = self.reader.topics[topic].msgtype
             qos = SAMPLE_QOS if msgtype == SAMPLE_BATCH else RESULT_QOS
-            self._topic_publishers[topic] = self.create_publisher(message_class(msgtype), topic,
-                                                                  qos)
+            self._topic_publishers[topic] = self.create_publisher(
+                message_class(msgtype), topic, qos
+            )
         self._messages = self.reader.messages(wanted)
         self._next = next(self._messages, None)
         self.messages_played = 0
         self._anchor: tuple[float, int] | None = None
         self.create_timer(self.config['tick_s'], self._on_tick)
         total = sum(self.reader.topics[topic].count for topic in wanted)
-        self.get_logger().info(f'playing {total} messages on {", ".join(wanted)} from '
-                               f'{self.config["bag_path"]} at x{self.config["rate_factor"]:g}')
+        self.get_logger().info(
+            f'playing {total} messages on {", ".join(wanted)} from '
+            f'{self.config["bag_path"]} at x{self.config["rate_factor"]:g}'
+        )
 
     @property
     def finished(self) -> bool:
@@ -79,7 +90,8 @@ class Player(Node):
                 self._anchor = (now, self._next.log_time_ns)
                 self.get_logger().warning(
                     f'cannot keep x{self.config["rate_factor"]:g}: playing slower',
-                    throttle_duration_sec=10.0)
+                    throttle_duration_sec=10.0,
+                )
                 break
             self._topic_publishers[self._next.topic].publish(bytes(self._next.data))
             self.messages_played += 1

@@ -30,15 +30,28 @@ from fmm_ros.nodes.common import (
 from fmm_ros.nodes.params import Param, declare_parameters
 
 PARAMS = (
-    Param('topics', [FORCE_TOPIC, VELOCITY_TOPIC, IMPACTS_TOPIC, FRF_TOPIC], 'Topics to record',
-          read_only=True),
-    Param('bag_path', '', 'Bag directory to create; "" for fmm_<date>_<time> here',
-          read_only=True),
+    Param(
+        'topics',
+        [FORCE_TOPIC, VELOCITY_TOPIC, IMPACTS_TOPIC, FRF_TOPIC],
+        'Topics to record',
+        read_only=True,
+    ),
+    Param('bag_path', '', 'Bag directory to create; "" for fmm_<date>_<time> here', read_only=True),
     Param('storage', 'mcap', 'rosbag2 storage plugin', choices=tuple(STORAGES), read_only=True),
-    Param('flush_interval_s', 1.0, 'Longest stretch of recording a crash can lose [s]',
-          limits=(0.01, 3600.0), read_only=True),
-    Param('discovery_period_s', 0.5, 'How often topics not seen yet are looked for [s]',
-          limits=(0.01, 60.0), read_only=True),
+    Param(
+        'flush_interval_s',
+        1.0,
+        'Longest stretch of recording a crash can lose [s]',
+        limits=(0.01, 3600.0),
+        read_only=True,
+    ),
+    Param(
+        'discovery_period_s',
+        0.5,
+        'How often topics not seen yet are looked for [s]',
+        limits=(0.01, 60.0),
+        read_only=True,
+    ),
 )
 
 # Topics of this package: type and the QoS their publishers offer.
@@ -58,8 +71,11 @@ class Recorder(Node):
         super().__init__('recorder', **kwargs)
         self.config = declare_parameters(self, PARAMS)
         path = self.config['bag_path'] or datetime.now().strftime('fmm_%Y%m%d_%H%M%S')
-        self.writer = BagWriter(Path(path), storage=self.config['storage'],
-                                flush_interval_s=self.config['flush_interval_s'])
+        self.writer = BagWriter(
+            Path(path),
+            storage=self.config['storage'],
+            flush_interval_s=self.config['flush_interval_s'],
+        )
         self.writer.open()
         self.bag_path = self.writer.path
         self.messages_recorded = 0
@@ -75,8 +91,9 @@ class Recorder(Node):
         recorded = [sub.topic_name for sub in self._raw_subscriptions]
         self.get_logger().info(
             f'recording {", ".join(recorded) or "nothing yet"} to {self.bag_path} '
-            f'({self.config["storage"]})' + (f'; waiting for {", ".join(self._pending)}'
-                                             if self._pending else ''))
+            f'({self.config["storage"]})'
+            + (f'; waiting for {", ".join(self._pending)}' if self._pending else '')
+        )
 
     @property
     def waiting_for(self) -> list[str]:
@@ -91,21 +108,35 @@ class Recorder(Node):
             if not types:
                 continue
             if len(types) > 1:
-                self.get_logger().error(f'{topic} is published with several types {types}: '
-                                        'not recorded', throttle_duration_sec=30.0)
+                self.get_logger().error(
+                    f'{topic} is published with several types {types}: not recorded',
+                    throttle_duration_sec=30.0,
+                )
                 continue
-            self._subscribe(topic, types.pop(),
-                            _subscription_qos([info.qos_profile for info in publishers]))
+            self._subscribe(
+                topic, types.pop(), _subscription_qos([info.qos_profile for info in publishers])
+            )
             self._pending.remove(topic)
 
     def _subscribe(self, topic: str, msgtype: str, qos: QoSProfile) -> None:
-        self.writer.add_topic(topic, msgtype, qos=bag_qos(
-            depth=qos.depth, reliable=qos.reliability == ReliabilityPolicy.RELIABLE,
-            transient_local=qos.durability == DurabilityPolicy.TRANSIENT_LOCAL))
-        self._raw_subscriptions.append(self.create_subscription(
-            message_class(msgtype), topic,
-            lambda data, topic=topic, msgtype=msgtype: self._store(topic, msgtype, data),
-            qos, raw=True))
+        self.writer.add_topic(
+            topic,
+            msgtype,
+            qos=bag_qos(
+                depth=qos.depth,
+                reliable=qos.reliability == ReliabilityPolicy.RELIABLE,
+                transient_local=qos.durability == DurabilityPolicy.TRANSIENT_LOCAL,
+            ),
+        )
+        self._raw_subscriptions.append(
+            self.create_subscription(
+                message_class(msgtype),
+                topic,
+                lambda data, topic=topic, msgtype=msgtype: self._store(topic, msgtype, data),
+                qos,
+                raw=True,
+            )
+        )
 
     def _store(self, topic: str, msgtype: str, data: bytes) -> None:
         self.writer.write_raw(topic, msgtype, data, time.time_ns())
@@ -124,7 +155,8 @@ def _subscription_qos(offered: list[QoSProfile]) -> QoSProfile:
     return QoSProfile(
         depth=1000,
         reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL if durable else DurabilityPolicy.VOLATILE)
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if durable else DurabilityPolicy.VOLATILE,
+    )
 
 
 def main(args: list[str] | None = None) -> None:

@@ -25,20 +25,45 @@ from fmm_ros.nodes.common import (
 from fmm_ros.nodes.params import Param, declare_parameters
 
 PARAMS = (
-    Param('input_topic', APPLIED_FORCE_TOPIC, 'Force that drives the plant (SampleBatch) [N]',
-          read_only=True),
-    Param('output_topic', VELOCITY_TOPIC, 'Where the vibrometer velocity goes [m/s]',
-          read_only=True),
+    Param(
+        'input_topic',
+        APPLIED_FORCE_TOPIC,
+        'Force that drives the plant (SampleBatch) [N]',
+        read_only=True,
+    ),
+    Param(
+        'output_topic', VELOCITY_TOPIC, 'Where the vibrometer velocity goes [m/s]', read_only=True
+    ),
     *RIG_PARAMS,
-    Param('mu', PAPER_MU, 'Coulomb friction coefficient of the plant [-]', limits=(0.0, 2.0),
-          read_only=True),
-    Param('effects', [''], 'Extra model terms, each "name" or "name:param=value,..." '
-          '(see fmm_ros.core.model.MODEL_TERMS); [""] for none', read_only=True),
+    Param(
+        'mu',
+        PAPER_MU,
+        'Coulomb friction coefficient of the plant [-]',
+        limits=(0.0, 2.0),
+        read_only=True,
+    ),
+    Param(
+        'effects',
+        [''],
+        'Extra model terms, each "name" or "name:param=value,..." '
+        '(see fmm_ros.core.model.MODEL_TERMS); [""] for none',
+        read_only=True,
+    ),
     Param('integrator', 'exact', 'Physics integrator', choices=INTEGRATORS, read_only=True),
-    Param('noise_std_m_s', 1e-4, 'Vibrometer noise, standard deviation [m/s]',
-          limits=(0.0, 1.0), read_only=True),
-    Param('full_scale_m_s', 0.5, 'Vibrometer range [m/s] (OFV-5000 at 50 mm/s/V, +-10 V)',
-          limits=(1e-6, 100.0), read_only=True),
+    Param(
+        'noise_std_m_s',
+        1e-4,
+        'Vibrometer noise, standard deviation [m/s]',
+        limits=(0.0, 1.0),
+        read_only=True,
+    ),
+    Param(
+        'full_scale_m_s',
+        0.5,
+        'Vibrometer range [m/s] (OFV-5000 at 50 mm/s/V, +-10 V)',
+        limits=(1e-6, 100.0),
+        read_only=True,
+    ),
     Param('seed', 1, 'Seed of the vibrometer noise [-]', limits=(0, 2**31 - 1), read_only=True),
     Param('frame_id', 'vibrometer', 'Sensor name in the message header', read_only=True),
 )
@@ -63,7 +88,8 @@ class RigSim(Node):
         self.get_logger().info(
             f'plant m={self.rig.mass_kg} kg k={self.rig.stiffness_n_per_m} N/m '
             f'c={self.rig.damping_n_s_per_m} N*s/m N={self.rig.normal_force_n:.3f} N '
-            f'mu={cfg["mu"]}, extra terms: {terms}; driven by {cfg["input_topic"]}')
+            f'mu={cfg["mu"]}, extra terms: {terms}; driven by {cfg["input_topic"]}'
+        )
 
     def _on_force(self, msg: SampleBatch) -> None:
         force = msgs.batch_samples(msg)
@@ -72,33 +98,44 @@ class RigSim(Node):
         elif msg.sample_rate_hz != self._sample_rate_hz:
             self.get_logger().error(
                 f'force batch at {msg.sample_rate_hz} Hz but the plant runs at '
-                f'{self._sample_rate_hz} Hz: batch {msg.first_sample_index} ignored')
+                f'{self._sample_rate_hz} Hz: batch {msg.first_sample_index} ignored'
+            )
             return
         if msg.first_sample_index < self.next_index:
             self.get_logger().warning(
                 f'force batch {msg.first_sample_index} repeats samples already simulated '
-                f'(next is {self.next_index}): ignored')
+                f'(next is {self.next_index}): ignored'
+            )
             return
         if msg.first_sample_index > self.next_index:
             missing = msg.first_sample_index - self.next_index
             self.get_logger().warning(
                 f'{missing} force samples never arrived before {msg.first_sample_index}: the '
-                'plant is run through them with zero applied force')
+                'plant is run through them with zero applied force'
+            )
             self._step(np.zeros(missing))
         velocity = self._step(force)
-        out = msgs.sample_batch(velocity, quantity=msgs.VELOCITY,
-                                sample_rate_hz=self._sample_rate_hz,
-                                first_sample_index=msg.first_sample_index,
-                                stamp=msg.header.stamp, frame_id=self.config['frame_id'],
-                                full_scale=self.config['full_scale_m_s'])
+        out = msgs.sample_batch(
+            velocity,
+            quantity=msgs.VELOCITY,
+            sample_rate_hz=self._sample_rate_hz,
+            first_sample_index=msg.first_sample_index,
+            stamp=msg.header.stamp,
+            frame_id=self.config['frame_id'],
+            full_scale=self.config['full_scale_m_s'],
+        )
         self._publisher.publish(out)
 
     def _start(self, msg: SampleBatch) -> None:
         """The plant starts at rest at the first batch's sample index."""
         self._sample_rate_hz = msg.sample_rate_hz
-        self._stream = OscillatorStream(msg.sample_rate_hz, rig=self.rig, mu=self.config['mu'],
-                                        effects=self.effects,
-                                        integrator=self.config['integrator'])
+        self._stream = OscillatorStream(
+            msg.sample_rate_hz,
+            rig=self.rig,
+            mu=self.config['mu'],
+            effects=self.effects,
+            integrator=self.config['integrator'],
+        )
         self.next_index = msg.first_sample_index
 
     def _step(self, force_n: np.ndarray) -> np.ndarray:
@@ -107,8 +144,9 @@ class RigSim(Node):
             self._velocity = np.empty(force_n.size)
         _, velocity = self._stream.step(force_n)
         np.copyto(self._velocity, velocity)
-        add_indexed_noise(self._velocity, self.next_index, self.config['noise_std_m_s'],
-                          self.config['seed'])
+        add_indexed_noise(
+            self._velocity, self.next_index, self.config['noise_std_m_s'], self.config['seed']
+        )
         self.next_index += force_n.size
         return self._velocity
 

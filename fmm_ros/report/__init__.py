@@ -15,6 +15,14 @@ from fmm_ros.report.model import (
 )
 from fmm_ros.report.session import FLAG_MEANINGS, SessionReport, build_report, report_session
 
-__all__ = ['FLAG_MEANINGS', 'FrictionSummary', 'ModelOverlay', 'SessionDiagnosis',
-           'SessionReport', 'build_report', 'diagnose_accepted_impacts', 'fit_accepted_impacts',
-           'report_session']
+__all__ = [
+    'FLAG_MEANINGS',
+    'FrictionSummary',
+    'ModelOverlay',
+    'SessionDiagnosis',
+    'SessionReport',
+    'build_report',
+    'diagnose_accepted_impacts',
+    'fit_accepted_impacts',
+    'report_session',
+]

@@ -36,28 +36,47 @@ def named_label(diagnosis: Diagnosis) -> str:
     return 'base model' if diagnosis.missing_effect == NONE else f'with {diagnosis.missing_effect}'
 
 
-def residual_figure(diagnosis: Diagnosis, records: Sequence,
-                    rows: Sequence[int] | None = None) -> Figure:
+def residual_figure(
+    diagnosis: Diagnosis, records: Sequence, rows: Sequence[int] | None = None
+) -> Figure:
     """Measured minus model velocity over the motion, base and named model, per impact.
 
     records are the impacts diagnosed (anything with force_n, velocity_m_s and sample_rate_hz,
     as `diagnose` takes), in the diagnosis' order; rows picks which to draw (default all).
     """
     rows = range(len(records)) if rows is None else rows
-    figure, axes = new_figure(len(rows), 1, sharex=True, title=(
-        f'measured minus model velocity: gap {diagnosis.gap_before:.3g} → '
-        f'{diagnosis.gap_after:.3g} ({diagnosis.missing_effect})'))
+    figure, axes = new_figure(
+        len(rows),
+        1,
+        sharex=True,
+        title=(
+            f'measured minus model velocity: gap {diagnosis.gap_before:.3g} → '
+            f'{diagnosis.gap_after:.3g} ({diagnosis.missing_effect})'
+        ),
+    )
     for ax, row in zip(axes, rows, strict=True):
         record = records[row]
         before = diagnosis.base_residuals_m_s[row]
         after = diagnosis.named_residuals_m_s[row]
         time_s = np.arange(before.size) / record.sample_rate_hz
         end = _motion_end(record.velocity_m_s - before, record.sample_rate_hz)
-        plot_trace(ax, time_s[:end], before[:end] * MM_PER_M, color=BASE_COLOUR,
-                   linewidth=0.6, label='base model')
+        plot_trace(
+            ax,
+            time_s[:end],
+            before[:end] * MM_PER_M,
+            color=BASE_COLOUR,
+            linewidth=0.6,
+            label='base model',
+        )
         if diagnosis.missing_effect != NONE:
-            plot_trace(ax, time_s[:end], after[:end] * MM_PER_M, color=MODEL_COLOUR,
-                       linewidth=0.6, label=named_label(diagnosis))
+            plot_trace(
+                ax,
+                time_s[:end],
+                after[:end] * MM_PER_M,
+                color=MODEL_COLOUR,
+                linewidth=0.6,
+                label=named_label(diagnosis),
+            )
         ax.set_ylabel('residual [mm/s]')
         ax.set_title(_name(record, row), fontsize='small')
         ax.legend(loc='upper right', fontsize='x-small')
@@ -65,14 +84,24 @@ def residual_figure(diagnosis: Diagnosis, records: Sequence,
     return figure
 
 
-def mobility_gap_figure(diagnosis: Diagnosis, records: Sequence,
-                        natural_frequency_hz: float, rows: Sequence[int] | None = None,
-                        top_hz: float = HARMONICS_TOP_HZ) -> Figure:
+def mobility_gap_figure(
+    diagnosis: Diagnosis,
+    records: Sequence,
+    natural_frequency_hz: float,
+    rows: Sequence[int] | None = None,
+    top_hz: float = HARMONICS_TOP_HZ,
+) -> Figure:
     """|mobility| of measurement and models, and |measured - model|, per impact, to 20 Hz."""
     rows = range(len(records)) if rows is None else rows
-    figure, axes = new_figure(len(rows), 2, sharex=True, title=(
-        f'mobility: misfit {diagnosis.frf_gap_before:.3g} → {diagnosis.frf_gap_after:.3g} '
-        f'({diagnosis.missing_effect}); dotted: f_n and its odd harmonics'))
+    figure, axes = new_figure(
+        len(rows),
+        2,
+        sharex=True,
+        title=(
+            f'mobility: misfit {diagnosis.frf_gap_before:.3g} → {diagnosis.frf_gap_after:.3g} '
+            f'({diagnosis.missing_effect}); dotted: f_n and its odd harmonics'
+        ),
+    )
     axes = axes.reshape(len(rows), 2)
     for (overlay, error), row in zip(axes, rows, strict=True):
         record = records[row]
@@ -82,21 +111,35 @@ def mobility_gap_figure(diagnosis: Diagnosis, records: Sequence,
         measured = frf.mobility(*frf.spectra(record.force_n, record.velocity_m_s))[band]
         curves = [('base model', before, BASE_COLOUR)]
         if diagnosis.missing_effect != NONE:
-            curves.append((named_label(diagnosis), diagnosis.named_residuals_m_s[row],
-                           MODEL_COLOUR))
-        overlay.semilogy(frequency[band], np.abs(measured) * MM_PER_M, color='black',
-                         linewidth=0.8, linestyle=':', label='measured', zorder=3)
+            curves.append(
+                (named_label(diagnosis), diagnosis.named_residuals_m_s[row], MODEL_COLOUR)
+            )
+        overlay.semilogy(
+            frequency[band],
+            np.abs(measured) * MM_PER_M,
+            color='black',
+            linewidth=0.8,
+            linestyle=':',
+            label='measured',
+            zorder=3,
+        )
         for label, residual, colour in curves:
-            model = frf.mobility(*frf.spectra(record.force_n,
-                                              record.velocity_m_s - residual))[band]
-            overlay.semilogy(frequency[band], np.abs(model) * MM_PER_M, color=colour,
-                             linewidth=0.8, label=label)
-            error.semilogy(frequency[band], np.abs(measured - model) * MM_PER_M, color=colour,
-                           linewidth=0.8, label=label)
+            model = frf.mobility(*frf.spectra(record.force_n, record.velocity_m_s - residual))[band]
+            overlay.semilogy(
+                frequency[band], np.abs(model) * MM_PER_M, color=colour, linewidth=0.8, label=label
+            )
+            error.semilogy(
+                frequency[band],
+                np.abs(measured - model) * MM_PER_M,
+                color=colour,
+                linewidth=0.8,
+                label=label,
+            )
         for ax in (overlay, error):
             for harmonic in range(1, int(top_hz / natural_frequency_hz) + 1, 2):
-                ax.axvline(harmonic * natural_frequency_hz, color='0.4', linewidth=0.5,
-                           linestyle=':')
+                ax.axvline(
+                    harmonic * natural_frequency_hz, color='0.4', linewidth=0.5, linestyle=':'
+                )
             ax.legend(loc='upper right', fontsize='x-small')
         name = _name(record, row)
         overlay.set_title(f'{name}: |mobility|', fontsize='small')

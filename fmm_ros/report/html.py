@@ -86,31 +86,42 @@ class Page:
 
     def items(self, entries: Sequence[object]) -> None:
         """A bulleted list."""
-        self._body.append('<ul>' + ''.join(f'<li>{escape(entry)}</li>' for entry in entries)
-                          + '</ul>')
+        self._body.append(
+            '<ul>' + ''.join(f'<li>{escape(entry)}</li>' for entry in entries) + '</ul>'
+        )
 
-    def table(self, headers: Sequence[str], rows: Sequence[Sequence[object]], *,
-              text_columns: Sequence[int] = (), row_classes: Sequence[str] | None = None,
-              table_id: str = '') -> None:
+    def table(
+        self,
+        headers: Sequence[str],
+        rows: Sequence[Sequence[object]],
+        *,
+        text_columns: Sequence[int] = (),
+        row_classes: Sequence[str] | None = None,
+        table_id: str = '',
+    ) -> None:
         """A table; text_columns are left-aligned (numbers align right)."""
+
         def cell(tag: str, column: int, value: object) -> str:
             css = ' class="text"' if column in text_columns else ''
             return f'<{tag}{css}>{escape(value)}</{tag}>'
 
         ident = f' id="{html.escape(table_id, quote=True)}"' if table_id else ''
-        lines = [f'<table{ident}><thead><tr>'
-                 + ''.join(cell('th', i, h) for i, h in enumerate(headers)) + '</tr></thead>',
-                 '<tbody>']
+        lines = [
+            f'<table{ident}><thead><tr>'
+            + ''.join(cell('th', i, h) for i, h in enumerate(headers))
+            + '</tr></thead>',
+            '<tbody>',
+        ]
         for number, row in enumerate(rows):
             css = row_classes[number] if row_classes else ''
             css = f' class="{html.escape(css, quote=True)}"' if css else ''
-            lines.append(f'<tr{css}>' + ''.join(cell('td', i, v) for i, v in enumerate(row))
-                         + '</tr>')
+            lines.append(
+                f'<tr{css}>' + ''.join(cell('td', i, v) for i, v in enumerate(row)) + '</tr>'
+            )
         lines.append('</tbody></table>')
         self._body.append('\n'.join(lines))
 
-    def figure(self, name: str, figure: Figure, caption: object, *, keep: bool = False
-               ) -> Path:
+    def figure(self, name: str, figure: Figure, caption: object, *, keep: bool = False) -> Path:
         """Render the figure to `<name>.png` next to the page and embed the same PNG.
 
         The figure is cleared afterwards unless keep (the caller draws into it again).
@@ -129,20 +140,30 @@ class Page:
         self._body.append(
             f'<figure id="fig-{name}"><img src="data:image/png;base64,{encoded}" '
             f'alt="{html.escape(name, quote=True)}.png"><figcaption>{escape(caption)} '
-            f'{link(path.name, f"[{path.name}]")}</figcaption></figure>')
+            f'{link(path.name, f"[{path.name}]")}</figcaption></figure>'
+        )
         return path
 
     def write(self, filename: str = 'index.html') -> Path:
         """Write the page (contents list first) and return its path."""
         generated = datetime.now(timezone.utc).strftime('%Y-%m-%d %H:%M UTC')
-        contents = ''.join(f'<li><a href="#{html.escape(anchor, quote=True)}">{escape(title)}'
-                           '</a></li>' for anchor, title in self._sections)
-        page = '\n'.join([
-            '<!DOCTYPE html>', '<html lang="en"><head><meta charset="utf-8">',
-            f'<title>{escape(self.title)}</title>', f'<style>{_STYLE}</style></head><body>',
-            f'<h1>{escape(self.title)}</h1>',
-            f'<p class="note">generated {generated} by fmm_ros</p>',
-            f'<nav><ul>{contents}</ul></nav>', *self._body, '</body></html>'])
+        contents = ''.join(
+            f'<li><a href="#{html.escape(anchor, quote=True)}">{escape(title)}</a></li>'
+            for anchor, title in self._sections
+        )
+        page = '\n'.join(
+            [
+                '<!DOCTYPE html>',
+                '<html lang="en"><head><meta charset="utf-8">',
+                f'<title>{escape(self.title)}</title>',
+                f'<style>{_STYLE}</style></head><body>',
+                f'<h1>{escape(self.title)}</h1>',
+                f'<p class="note">generated {generated} by fmm_ros</p>',
+                f'<nav><ul>{contents}</ul></nav>',
+                *self._body,
+                '</body></html>',
+            ]
+        )
         path = self.out_dir / filename
         path.write_text(page, encoding='utf-8')
         self._remove_stale_figures()

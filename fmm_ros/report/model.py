@@ -59,13 +59,19 @@ class ModelOverlay:
         if not (np.isfinite(record.force_n).all() and np.isfinite(record.velocity_m_s).all()):
             return None
         try:
-            conditioned = condition_impact(record.force_n, record.velocity_m_s,
-                                           record.sample_rate_hz, source=record.source)
+            conditioned = condition_impact(
+                record.force_n, record.velocity_m_s, record.sample_rate_hz, source=record.source
+            )
         except FitError:
             return None
-        return simulate(conditioned.force_n, record.sample_rate_hz, rig=self.rig, mu=self.mu,
-                        effects=self.effects,
-                        x0_m=self.initial_positions_m.get(impact_id, 0.0)).velocity_m_s
+        return simulate(
+            conditioned.force_n,
+            record.sample_rate_hz,
+            rig=self.rig,
+            mu=self.mu,
+            effects=self.effects,
+            x0_m=self.initial_positions_m.get(impact_id, 0.0),
+        ).velocity_m_s
 
 
 @dataclass(frozen=True)
@@ -97,43 +103,64 @@ class FrictionSummary:
         if self.initial_positions_m:
             lengths.add(len(self.initial_positions_m))
         if lengths != {count}:
-            raise ValueError(f'a friction summary needs one value per impact: {count} impact '
-                             f'ids but per-impact lengths {sorted(lengths)}')
+            raise ValueError(
+                f'a friction summary needs one value per impact: {count} impact '
+                f'ids but per-impact lengths {sorted(lengths)}'
+            )
 
     @classmethod
     def from_fit(cls, fit: FrictionFit, impact_ids: Sequence[int]) -> FrictionSummary:
         """The summary of a `fit_friction` result whose impacts were these, in this order."""
         joint = fit.joint
-        return cls(mu=fit.mu, mu_stderr=fit.mu_stderr, rig=joint.rig,
-                   impact_ids=tuple(int(i) for i in impact_ids),
-                   per_impact_mu=tuple(f.mu for f in fit.per_impact),
-                   per_impact_mu_stderr=tuple(f.mu_stderr for f in fit.per_impact),
-                   damping_stderr_n_s_per_m=fit.damping_stderr_n_s_per_m,
-                   effects=joint.effects, initial_positions_m=joint.initial_positions_m,
-                   consistency_p_value=fit.consistency_p_value,
-                   residual_rms_m_s=joint.residual_rms_m_s)
+        return cls(
+            mu=fit.mu,
+            mu_stderr=fit.mu_stderr,
+            rig=joint.rig,
+            impact_ids=tuple(int(i) for i in impact_ids),
+            per_impact_mu=tuple(f.mu for f in fit.per_impact),
+            per_impact_mu_stderr=tuple(f.mu_stderr for f in fit.per_impact),
+            damping_stderr_n_s_per_m=fit.damping_stderr_n_s_per_m,
+            effects=joint.effects,
+            initial_positions_m=joint.initial_positions_m,
+            consistency_p_value=fit.consistency_p_value,
+            residual_rms_m_s=joint.residual_rms_m_s,
+        )
 
     def overlay(self) -> ModelOverlay:
         """The fitted model, each impact started where the fit started it."""
         starts = self.initial_positions_m or (0.0,) * len(self.impact_ids)
-        return ModelOverlay(self.mu, 'fitted', self.rig, self.effects,
-                            dict(zip(self.impact_ids, starts, strict=True)))
+        return ModelOverlay(
+            self.mu,
+            'fitted',
+            self.rig,
+            self.effects,
+            dict(zip(self.impact_ids, starts, strict=True)),
+        )
 
 
-def fit_accepted_impacts(records: Sequence[ImpactRecord], summary: Summary, *,
-                         rig: Rig = FMM_RIG, fit_damping: bool = False,
-                         fit_initial_position: bool = False,
-                         mu_bounds: tuple[float, float] = MU_BOUNDS) -> FrictionSummary:
+def fit_accepted_impacts(
+    records: Sequence[ImpactRecord],
+    summary: Summary,
+    *,
+    rig: Rig = FMM_RIG,
+    fit_damping: bool = False,
+    fit_initial_position: bool = False,
+    mu_bounds: tuple[float, float] = MU_BOUNDS,
+) -> FrictionSummary:
     """Fit one mu (and each impact's own) over the accepted impacts, as the fitter node does.
 
     records[i] is impact i of the summary. Raises ValueError when no impact is accepted and
     FitError when friction cannot explain them.
     """
     ids = _accepted_ids(summary)
-    fit = fit_friction([records[i] for i in ids], rig=rig, fit_damping=fit_damping,
-                       fit_initial_position=fit_initial_position, mu_bounds=mu_bounds)
+    fit = fit_friction(
+        [records[i] for i in ids],
+        rig=rig,
+        fit_damping=fit_damping,
+        fit_initial_position=fit_initial_position,
+        mu_bounds=mu_bounds,
+    )
     return FrictionSummary.from_fit(fit, ids)
-
 
 
 @dataclass(frozen=True)
@@ -147,21 +174,30 @@ class SessionDiagnosis:
 
     def __post_init__(self) -> None:
         if len(self.diagnosis.base_residuals_m_s) != len(self.impact_ids):
-            raise ValueError(f'the diagnosis covers {len(self.diagnosis.base_residuals_m_s)} '
-                             f'impacts but {len(self.impact_ids)} impact ids were given')
+            raise ValueError(
+                f'the diagnosis covers {len(self.diagnosis.base_residuals_m_s)} '
+                f'impacts but {len(self.impact_ids)} impact ids were given'
+            )
 
 
-def diagnose_accepted_impacts(records: Sequence[ImpactRecord], summary: Summary, *,
-                              rig: Rig = FMM_RIG, fit_initial_position: bool = False
-                              ) -> SessionDiagnosis:
+def diagnose_accepted_impacts(
+    records: Sequence[ImpactRecord],
+    summary: Summary,
+    *,
+    rig: Rig = FMM_RIG,
+    fit_initial_position: bool = False,
+) -> SessionDiagnosis:
     """The diagnose workflow over the accepted impacts, as the fitter node runs it.
 
     Raises ValueError when no impact is accepted and FitError when the base model cannot be
     fitted at all.
     """
     ids = _accepted_ids(summary)
-    return SessionDiagnosis(diagnose([records[i] for i in ids], rig=rig,
-                                     fit_initial_position=fit_initial_position), tuple(ids), rig)
+    return SessionDiagnosis(
+        diagnose([records[i] for i in ids], rig=rig, fit_initial_position=fit_initial_position),
+        tuple(ids),
+        rig,
+    )
 
 
 def _accepted_ids(summary: Summary) -> list[int]:

@@ -54,8 +54,16 @@ MOBILITY_UNIT = 'mm/(N·s)'
 FREQUENCY_LABEL = 'frequency [Hz]'
 
 # Levels in ascending force take these colours everywhere (matplotlib's tab10 cycle).
-_LEVEL_COLOURS = ('tab:blue', 'tab:orange', 'tab:green', 'tab:purple', 'tab:brown',
-                  'tab:pink', 'tab:olive', 'tab:cyan')
+_LEVEL_COLOURS = (
+    'tab:blue',
+    'tab:orange',
+    'tab:green',
+    'tab:purple',
+    'tab:brown',
+    'tab:pink',
+    'tab:olive',
+    'tab:cyan',
+)
 MEAN_COLOUR = 'black'
 MODEL_COLOUR = 'tab:red'
 REJECTED_COLOUR = 'tab:gray'
@@ -69,11 +77,18 @@ def level_colour(index: int) -> str:
     return _LEVEL_COLOURS[index % len(_LEVEL_COLOURS)]
 
 
-def new_figure(rows: int = 1, columns: int = 1, *, height_in: float | None = None,
-               sharex: bool | str = False, title: str = '') -> tuple[Figure, np.ndarray]:
+def new_figure(
+    rows: int = 1,
+    columns: int = 1,
+    *,
+    height_in: float | None = None,
+    sharex: bool | str = False,
+    title: str = '',
+) -> tuple[Figure, np.ndarray]:
     """A Figure with a grid of axes (a flat array), laid out when `png_bytes` renders it."""
-    figure = Figure(figsize=(FIGURE_WIDTH_IN, height_in or PANEL_HEIGHT_IN * rows + 0.4),
-                    facecolor='white')
+    figure = Figure(
+        figsize=(FIGURE_WIDTH_IN, height_in or PANEL_HEIGHT_IN * rows + 0.4), facecolor='white'
+    )
     FigureCanvasAgg(figure)
     axes = figure.subplots(rows, columns, sharex=sharex, squeeze=False).ravel()
     for ax in axes:
@@ -83,9 +98,15 @@ def new_figure(rows: int = 1, columns: int = 1, *, height_in: float | None = Non
     # Typical margins, so the ticks `png_bytes` freezes are chosen near the final size.
     row_gap_in = GUESS_SHARED_ROW_GAP_IN if sharex in (True, 'all', 'col') else GUESS_ROW_GAP_IN
     with contextlib.suppress(ValueError):  # too small for typical labels: png_bytes says so
-        _arrange(figure, GUESS_LEFT_IN, GUESS_RIGHT_IN, GUESS_BOTTOM_IN,
-                 GUESS_TOP_IN + (GUESS_TITLE_IN if title else 0.0), GUESS_COLUMN_GAP_IN,
-                 row_gap_in)
+        _arrange(
+            figure,
+            GUESS_LEFT_IN,
+            GUESS_RIGHT_IN,
+            GUESS_BOTTOM_IN,
+            GUESS_TOP_IN + (GUESS_TITLE_IN if title else 0.0),
+            GUESS_COLUMN_GAP_IN,
+            row_gap_in,
+        )
     return figure, axes
 
 
@@ -113,8 +134,9 @@ def png_bytes(figure: Figure, dpi: float = DEFAULT_DPI) -> bytes:
     place_axes(figure, canvas.get_renderer())
     canvas.draw()
     # RGB: the canvas is opaque, and an alpha channel costs a fifth more to compress.
-    image = Image.frombuffer('RGBA', canvas.get_width_height(physical=True),
-                             canvas.buffer_rgba(), 'raw', 'RGBA', 0, 1).convert('RGB')
+    image = Image.frombuffer(
+        'RGBA', canvas.get_width_height(physical=True), canvas.buffer_rgba(), 'raw', 'RGBA', 0, 1
+    ).convert('RGB')
     buffer = io.BytesIO()
     image.save(buffer, format='png', compress_level=PNG_COMPRESS_LEVEL)
     return buffer.getvalue()
@@ -159,14 +181,26 @@ def place_axes(figure: Figure, renderer: RendererBase) -> None:
         else:
             bottom = max(bottom, box.y1)
     inch = figure.dpi
-    _arrange(figure, (pad + left[0]) / inch, (pad + right[-1]) / inch,
-             (bottom + pad + below[-1]) / inch, (height - top + pad + above[0]) / inch,
-             (pad + max(right[:-1] + left[1:], default=0.0)) / inch,
-             (pad + max(below[:-1] + above[1:], default=0.0)) / inch)
+    _arrange(
+        figure,
+        (pad + left[0]) / inch,
+        (pad + right[-1]) / inch,
+        (bottom + pad + below[-1]) / inch,
+        (height - top + pad + above[0]) / inch,
+        (pad + max(right[:-1] + left[1:], default=0.0)) / inch,
+        (pad + max(below[:-1] + above[1:], default=0.0)) / inch,
+    )
 
 
-def _arrange(figure: Figure, left_in: float, right_in: float, bottom_in: float, top_in: float,
-             column_gap_in: float, row_gap_in: float) -> None:
+def _arrange(
+    figure: Figure,
+    left_in: float,
+    right_in: float,
+    bottom_in: float,
+    top_in: float,
+    column_gap_in: float,
+    row_gap_in: float,
+) -> None:
     """Place the figure's grid of axes with these margins and gaps [inches]."""
     grid = _grid(figure)
     if not grid:
@@ -176,16 +210,24 @@ def _arrange(figure: Figure, left_in: float, right_in: float, bottom_in: float, 
     cell_width = (width - left_in - right_in - (columns - 1) * column_gap_in) / columns
     cell_height = (height - bottom_in - top_in - (rows - 1) * row_gap_in) / rows
     if min(cell_width, cell_height) < MIN_AXES_IN:
-        raise ValueError(f'a {width:.3g} x {height:.3g} in figure of {rows} x {columns} axes '
-                         f'leaves {cell_width:.2g} x {cell_height:.2g} in an axes inside its '
-                         'labels: make it larger or its labels shorter')
+        raise ValueError(
+            f'a {width:.3g} x {height:.3g} in figure of {rows} x {columns} axes '
+            f'leaves {cell_width:.2g} x {cell_height:.2g} in an axes inside its '
+            'labels: make it larger or its labels shorter'
+        )
     for ax, spec in grid:
         span_width = len(spec.colspan) * (cell_width + column_gap_in) - column_gap_in
         span_height = len(spec.rowspan) * (cell_height + row_gap_in) - row_gap_in
         ax_left = left_in + spec.colspan.start * (cell_width + column_gap_in)
         ax_top = height - top_in - spec.rowspan.start * (cell_height + row_gap_in)
-        ax.set_position([ax_left / width, (ax_top - span_height) / height,
-                         span_width / width, span_height / height])
+        ax.set_position(
+            [
+                ax_left / width,
+                (ax_top - span_height) / height,
+                span_width / width,
+                span_height / height,
+            ]
+        )
         ax.set_in_layout(True)  # set_position takes an axes out of any layout
 
 
@@ -248,8 +290,7 @@ class TraceLine(Line2D):
     def draw(self, renderer: RendererBase) -> None:
         """Draw the series reduced to the pixel columns the axes now have."""
         if self.axes is not None and self.axes.get_xscale() == 'linear':
-            self.set_data(*pixel_envelope(*self._trace, self.axes.get_xlim(),
-                                          self.axes.bbox.width))
+            self.set_data(*pixel_envelope(*self._trace, self.axes.get_xlim(), self.axes.bbox.width))
         super().draw(renderer)
 
 
@@ -261,8 +302,9 @@ def plot_trace(ax: Axes, x: np.ndarray, y: np.ndarray, **kwargs) -> TraceLine:
     return line
 
 
-def pixel_envelope(x: np.ndarray, y: np.ndarray, view: tuple[float, float],
-                   width_px: float) -> tuple[np.ndarray, np.ndarray]:
+def pixel_envelope(
+    x: np.ndarray, y: np.ndarray, view: tuple[float, float], width_px: float
+) -> tuple[np.ndarray, np.ndarray]:
     """The min and max of y in each pixel column of an axes width_px wide showing view of x.
 
     x increasing. Samples outside the view are dropped but for one each side, which carries
@@ -279,8 +321,9 @@ def pixel_envelope(x: np.ndarray, y: np.ndarray, view: tuple[float, float],
     return _extremes(x, y, np.flatnonzero(np.diff(column, prepend=np.nan)))
 
 
-def envelope(x: np.ndarray, y: np.ndarray, max_points: int = MAX_PLOT_POINTS
-             ) -> tuple[np.ndarray, np.ndarray]:
+def envelope(
+    x: np.ndarray, y: np.ndarray, max_points: int = MAX_PLOT_POINTS
+) -> tuple[np.ndarray, np.ndarray]:
     """A long series reduced to the min and max of each of max_points / 2 bins, in x order.
 
     Drawn as a line it covers the pixels the full series would (noise band and peaks
@@ -293,8 +336,7 @@ def envelope(x: np.ndarray, y: np.ndarray, max_points: int = MAX_PLOT_POINTS
     return _extremes(x, y, np.linspace(0, y.size, max_points // 2 + 1).astype(np.int64)[:-1])
 
 
-def _extremes(x: np.ndarray, y: np.ndarray, starts: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray]:
+def _extremes(x: np.ndarray, y: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Min at the first x and max at the last x of each bin (bins begin at starts)."""
     with np.errstate(invalid='ignore'):
         low = np.fmin.reduceat(y, starts)

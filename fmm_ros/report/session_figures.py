@@ -53,14 +53,24 @@ def trigger_offset(result: ImpactResult) -> int:
     return result.trigger_sample_index - result.record_start_sample_index
 
 
-def hit_figure(record: ImpactRecord, result: ImpactResult, *,
-               capture: CaptureConfig = DEFAULT_CAPTURE,
-               model_velocity_m_s: np.ndarray | None = None, model_label: str = '',
-               colour: str = 'tab:blue') -> Figure:
+def hit_figure(
+    record: ImpactRecord,
+    result: ImpactResult,
+    *,
+    capture: CaptureConfig = DEFAULT_CAPTURE,
+    model_velocity_m_s: np.ndarray | None = None,
+    model_label: str = '',
+    colour: str = 'tab:blue',
+) -> Figure:
     """One hit (Figs. 18/20/22) in a Figure of its own; see `HitFigures.draw`."""
-    return HitFigures().draw(record, result, capture=capture,
-                             model_velocity_m_s=model_velocity_m_s, model_label=model_label,
-                             colour=colour)
+    return HitFigures().draw(
+        record,
+        result,
+        capture=capture,
+        model_velocity_m_s=model_velocity_m_s,
+        model_label=model_label,
+        colour=colour,
+    )
 
 
 class HitFigures:
@@ -76,10 +86,16 @@ class HitFigures:
     def __init__(self) -> None:
         self._panels: dict[bool, _HitPanels] = {}
 
-    def draw(self, record: ImpactRecord, result: ImpactResult, *,
-             capture: CaptureConfig = DEFAULT_CAPTURE,
-             model_velocity_m_s: np.ndarray | None = None, model_label: str = '',
-             colour: str = 'tab:blue') -> Figure:
+    def draw(
+        self,
+        record: ImpactRecord,
+        result: ImpactResult,
+        *,
+        capture: CaptureConfig = DEFAULT_CAPTURE,
+        model_velocity_m_s: np.ndarray | None = None,
+        model_label: str = '',
+        colour: str = 'tab:blue',
+    ) -> Figure:
         """One hit: force pulse zoomed, the whole decay, model and residual.
 
         Top: the force around the contact (widened to show a second pulse of a double hit).
@@ -95,18 +111,31 @@ class HitFigures:
         for ax, start in zip(axes, panels.start, strict=True):
             ax.set_position(start)  # so its ticks are chosen as in a fresh figure
         verdict = 'accepted' if result.accepted else 'rejected: ' + ', '.join(result.flags)
-        figure_title(figure, ' · '.join(part for part in (
-            f'hit {result.impact_id}', source_name(result.source),
-            f'level: {result.level}' if result.level else 'no level', verdict) if part))
+        figure_title(
+            figure,
+            ' · '.join(
+                part
+                for part in (
+                    f'hit {result.impact_id}',
+                    source_name(result.source),
+                    f'level: {result.level}' if result.level else 'no level',
+                    verdict,
+                )
+                if part
+            ),
+        )
         trigger = trigger_offset(result)
         rate = record.sample_rate_hz
         start_s, end_s = _force_window([record], [trigger], capture)
         panels.force.set_trace(*_force_trace(record, trigger, start_s, end_s))
         panels.force.set_color(colour)
         axes[0].set_xlim(start_s * MS_PER_S, end_s * MS_PER_S)
-        axes[0].set_title(f'peak {result.peak_force_n:.4g} N, impulse '
-                          f'{result.impulse_n_s:.4g} N·s, contact '
-                          f'{result.contact_duration_s * MS_PER_S:.3g} ms', fontsize='small')
+        axes[0].set_title(
+            f'peak {result.peak_force_n:.4g} N, impulse '
+            f'{result.impulse_n_s:.4g} N·s, contact '
+            f'{result.contact_duration_s * MS_PER_S:.3g} ms',
+            fontsize='small',
+        )
         velocities = [record.velocity_m_s] + ([model_velocity_m_s] if with_model else [])
         end_s = decay_end_s(velocities, trigger, rate, capture.rest_velocity_m_s)
         time_s, shown = _decay_span(record, trigger, end_s)
@@ -136,39 +165,58 @@ class _HitPanels:
         _force_labels(self.axes[0])
         self.measured = plot_trace(self.axes[1], [], [], linewidth=0.8, label='measured')
         if with_model:
-            self.model = plot_trace(self.axes[1], [], [], color=MODEL_COLOUR, linewidth=0.8,
-                                    linestyle='--')
-            self.residual = plot_trace(self.axes[2], [], [], color='tab:purple',
-                                       linewidth=0.6)
+            self.model = plot_trace(
+                self.axes[1], [], [], color=MODEL_COLOUR, linewidth=0.8, linestyle='--'
+            )
+            self.residual = plot_trace(self.axes[2], [], [], color='tab:purple', linewidth=0.6)
             self.axes[2].set_ylabel('measured − model\n[mm/s]')
         self.axes[1].set_ylabel(VELOCITY_LABEL)
         self.axes[-1].set_xlabel('time from trigger [s]')
         self.start = [ax.get_position() for ax in self.axes]
 
 
-def level_trials_figure(level: str, records: Sequence[ImpactRecord],
-                        results: Sequence[ImpactResult], *, colour: str = 'tab:blue',
-                        capture: CaptureConfig = DEFAULT_CAPTURE) -> Figure:
+def level_trials_figure(
+    level: str,
+    records: Sequence[ImpactRecord],
+    results: Sequence[ImpactResult],
+    *,
+    colour: str = 'tab:blue',
+    capture: CaptureConfig = DEFAULT_CAPTURE,
+) -> Figure:
     """Every trial of one level overlaid (Fig. 12): force pulses, then velocity decays."""
-    figure, axes = new_figure(2, 1, title=f'level {level}: {len(records)} trial(s), '
-                                          'aligned at the trigger')
+    figure, axes = new_figure(
+        2, 1, title=f'level {level}: {len(records)} trial(s), aligned at the trigger'
+    )
     triggers = [trigger_offset(result) for result in results]
     _force_zoom(axes[0], records, triggers, [colour] * len(records), capture)
     rate = records[0].sample_rate_hz
-    end_s = decay_end_s([record.velocity_m_s for record in records], triggers, rate,
-                        capture.rest_velocity_m_s)
+    end_s = decay_end_s(
+        [record.velocity_m_s for record in records], triggers, rate, capture.rest_velocity_m_s
+    )
     for record, trigger in zip(records, triggers, strict=True):
         time_s, shown = _decay_span(record, trigger, end_s)
-        plot_trace(axes[1], time_s, record.velocity_m_s[shown] * MM_PER_M, color=colour,
-                   linewidth=0.6, alpha=0.7)
+        plot_trace(
+            axes[1],
+            time_s,
+            record.velocity_m_s[shown] * MM_PER_M,
+            color=colour,
+            linewidth=0.6,
+            alpha=0.7,
+        )
     axes[1].set_xlim(right=end_s)
     axes[1].set_ylabel(VELOCITY_LABEL)
     axes[1].set_xlabel('time from trigger [s]')
     return figure
 
 
-def frf_trials_figure(level: LevelSummary, trials: Sequence[ImpactResult], quantity: str, *,
-                      colour: str = 'tab:blue', top_hz: float | None = None) -> Figure:
+def frf_trials_figure(
+    level: LevelSummary,
+    trials: Sequence[ImpactResult],
+    quantity: str,
+    *,
+    colour: str = 'tab:blue',
+    top_hz: float | None = None,
+) -> Figure:
     """Real and imaginary parts of one level's trials and their mean (Figs. 14, 15).
 
     quantity: 'mobility' or 'receptance'; the mean is the level's plain frequency-domain
@@ -176,17 +224,31 @@ def frf_trials_figure(level: LevelSummary, trials: Sequence[ImpactResult], quant
     """
     unit = _frf_unit(quantity)
     top_hz = top_hz or resonance_top_hz(level.natural_frequency_hz)
-    figure, axes = new_figure(2, 1, sharex=True,
-                              title=f'{quantity}, level {level.level}: {len(trials)} trial(s) '
-                                    'and their mean')
+    figure, axes = new_figure(
+        2,
+        1,
+        sharex=True,
+        title=f'{quantity}, level {level.level}: {len(trials)} trial(s) and their mean',
+    )
     band = level.frequency_hz <= top_hz
     frequency = level.frequency_hz[band]
     for ax, part in zip(axes, (np.real, np.imag), strict=True):
         for number, trial in enumerate(trials):
-            ax.plot(frequency, part(getattr(trial, quantity)[band]) * MM_PER_M, color=colour,
-                    linewidth=0.6, alpha=0.6, label='trials' if number == 0 else None)
-        ax.plot(frequency, part(getattr(level, quantity)[band]) * MM_PER_M, color=MEAN_COLOUR,
-                linewidth=1.4, label='mean')
+            ax.plot(
+                frequency,
+                part(getattr(trial, quantity)[band]) * MM_PER_M,
+                color=colour,
+                linewidth=0.6,
+                alpha=0.6,
+                label='trials' if number == 0 else None,
+            )
+        ax.plot(
+            frequency,
+            part(getattr(level, quantity)[band]) * MM_PER_M,
+            color=MEAN_COLOUR,
+            linewidth=1.4,
+            label='mean',
+        )
     axes[0].set_ylabel(f'real [{unit}]')
     axes[1].set_ylabel(f'imaginary [{unit}]')
     axes[0].legend(loc='upper right', fontsize='small')
@@ -195,18 +257,23 @@ def frf_trials_figure(level: LevelSummary, trials: Sequence[ImpactResult], quant
     return figure
 
 
-def level_magnitude_figure(levels: Sequence[LevelSummary], *, top_hz: float | None = None
-                           ) -> Figure:
+def level_magnitude_figure(
+    levels: Sequence[LevelSummary], *, top_hz: float | None = None
+) -> Figure:
     """Mean |receptance| of every level on one axis (Fig. 16): it grows with the force."""
     top_hz = top_hz or resonance_top_hz(np.nanmax([lv.natural_frequency_hz for lv in levels]))
-    figure, axes = new_figure(1, 1, height_in=3.2,
-                              title='mean receptance magnitude per force level')
+    figure, axes = new_figure(
+        1, 1, height_in=3.2, title='mean receptance magnitude per force level'
+    )
     for index, level in enumerate(levels):
         band = level.frequency_hz <= top_hz
-        axes[0].plot(level.frequency_hz[band], np.abs(level.receptance[band]) * MM_PER_M,
-                     color=level_colour(index), linewidth=1.2,
-                     label=f'{level.level} ({level.count} trials, '
-                           f'{level.mean_impulse_n_s:.3g} N·s)')
+        axes[0].plot(
+            level.frequency_hz[band],
+            np.abs(level.receptance[band]) * MM_PER_M,
+            color=level_colour(index),
+            linewidth=1.2,
+            label=f'{level.level} ({level.count} trials, {level.mean_impulse_n_s:.3g} N·s)',
+        )
     axes[0].set_xlim(0, top_hz)
     axes[0].set_xlabel(FREQUENCY_LABEL)
     axes[0].set_ylabel(f'|receptance| [{RECEPTANCE_UNIT}]')
@@ -214,14 +281,21 @@ def level_magnitude_figure(levels: Sequence[LevelSummary], *, top_hz: float | No
     return figure
 
 
-def impulse_figure(impacts: Sequence[ImpactResult], levels: Sequence[LevelSummary],
-                   nominal: Sequence[NominalLevel] = ()) -> Figure:
+def impulse_figure(
+    impacts: Sequence[ImpactResult],
+    levels: Sequence[LevelSummary],
+    nominal: Sequence[NominalLevel] = (),
+) -> Figure:
     """Peak force of every hit by level, and each level's mean impulse +-1 sigma (Fig. 13)."""
     figure, axes = new_figure(1, 2, height_in=3.2, title='impact force levels and impulses')
     colours = {level.level: level_colour(index) for index, level in enumerate(levels)}
     for level in nominal:
-        axes[0].axhspan(level.peak_force_n - level.tolerance_n,
-                        level.peak_force_n + level.tolerance_n, color='0.85', zorder=0)
+        axes[0].axhspan(
+            level.peak_force_n - level.tolerance_n,
+            level.peak_force_n + level.tolerance_n,
+            color='0.85',
+            zorder=0,
+        )
     numbers = np.arange(len(impacts))
     peaks = np.array([impact.peak_force_n for impact in impacts])
     accepted = np.array([impact.accepted for impact in impacts], dtype=bool)
@@ -229,20 +303,36 @@ def impulse_figure(impacts: Sequence[ImpactResult], levels: Sequence[LevelSummar
         mine = accepted & np.array([impact.level == name for impact in impacts], dtype=bool)
         axes[0].plot(numbers[mine], peaks[mine], 'o', color=colour, markersize=4, label=name)
     if (~accepted).any():
-        axes[0].plot(numbers[~accepted], peaks[~accepted], 'x', color=REJECTED_COLOUR,
-                     markersize=6, label='rejected')
+        axes[0].plot(
+            numbers[~accepted],
+            peaks[~accepted],
+            'x',
+            color=REJECTED_COLOUR,
+            markersize=6,
+            label='rejected',
+        )
     axes[0].set_xlabel('hit number')
     axes[0].set_ylabel('peak force [N]')
     axes[0].legend(fontsize='small', loc='best')
     x = np.arange(len(levels))
     means = [level.mean_impulse_n_s for level in levels]
-    sigmas = [0.0 if np.isnan(level.std_impulse_n_s) else level.std_impulse_n_s
-              for level in levels]
+    sigmas = [0.0 if np.isnan(level.std_impulse_n_s) else level.std_impulse_n_s for level in levels]
     for index in range(len(levels)):
-        axes[1].errorbar(x[index], means[index], yerr=sigmas[index], fmt='o', capsize=5,
-                         color=level_colour(index))
-        axes[1].annotate(f'{means[index]:.3g} ± {sigmas[index]:.2g}', (x[index], means[index]),
-                         textcoords='offset points', xytext=(8, -3), fontsize='small')
+        axes[1].errorbar(
+            x[index],
+            means[index],
+            yerr=sigmas[index],
+            fmt='o',
+            capsize=5,
+            color=level_colour(index),
+        )
+        axes[1].annotate(
+            f'{means[index]:.3g} ± {sigmas[index]:.2g}',
+            (x[index], means[index]),
+            textcoords='offset points',
+            xytext=(8, -3),
+            fontsize='small',
+        )
     axes[1].set_xticks(x, [f'{level.level}\n(n = {level.count})' for level in levels])
     axes[1].set_xlim(-0.5, len(levels) - 0.5 + 0.6)
     axes[1].set_ylabel('impulse [N·s], mean ± 1σ')
@@ -251,37 +341,57 @@ def impulse_figure(impacts: Sequence[ImpactResult], levels: Sequence[LevelSummar
 
 def linearity_figure(summary: Summary) -> Figure:
     """Peak |receptance| against impulse, hits and level means, with the line and R² (Fig. 17)."""
-    figure, axes = new_figure(1, 1, height_in=3.4,
-                              title='impulse versus peak receptance magnitude')
+    figure, axes = new_figure(1, 1, height_in=3.4, title='impulse versus peak receptance magnitude')
     ax = axes[0]
     for index, level in enumerate(summary.levels):
         colour = level_colour(index)
-        hits = [impact for impact in summary.impacts
-                if impact.accepted and impact.level == level.level]
-        ax.plot([hit.impulse_n_s for hit in hits],
-                [hit.peak_receptance_m_per_n * MM_PER_M for hit in hits], '.', color=colour,
-                alpha=0.5, markersize=5)
-        ax.plot(level.mean_impulse_n_s, level.peak_receptance_m_per_n * MM_PER_M, '+',
-                color=colour, markersize=14, markeredgewidth=2, label=f'{level.level} mean')
+        hits = [
+            impact for impact in summary.impacts if impact.accepted and impact.level == level.level
+        ]
+        ax.plot(
+            [hit.impulse_n_s for hit in hits],
+            [hit.peak_receptance_m_per_n * MM_PER_M for hit in hits],
+            '.',
+            color=colour,
+            alpha=0.5,
+            markersize=5,
+        )
+        ax.plot(
+            level.mean_impulse_n_s,
+            level.peak_receptance_m_per_n * MM_PER_M,
+            '+',
+            color=colour,
+            markersize=14,
+            markeredgewidth=2,
+            label=f'{level.level} mean',
+        )
     fit = summary.linearity
     if np.isfinite(fit.slope):
         impulses = [level.mean_impulse_n_s for level in summary.levels]
         span = np.array([min(impulses), max(impulses)])
         span = span + np.array([-0.1, 0.1]) * max(np.ptp(span), 0.05 * span.mean())
         r2 = f', R² = {fit.r2:.4f}' if np.isfinite(fit.r2) else ''
-        ax.plot(span, (fit.slope * span + fit.intercept) * MM_PER_M, color=MEAN_COLOUR,
-                linewidth=1,
-                label=f'{fit.slope * MM_PER_M:.3g} mm/(N²·s) × I + '
-                      f'{fit.intercept * MM_PER_M:.3g} mm/N{r2}')
+        ax.plot(
+            span,
+            (fit.slope * span + fit.intercept) * MM_PER_M,
+            color=MEAN_COLOUR,
+            linewidth=1,
+            label=f'{fit.slope * MM_PER_M:.3g} mm/(N²·s) × I + '
+            f'{fit.intercept * MM_PER_M:.3g} mm/N{r2}',
+        )
     ax.set_xlabel('impulse I [N·s]')
     ax.set_ylabel(f'peak |receptance| [{RECEPTANCE_UNIT}]')
     ax.legend(fontsize='small', loc='upper left')
     return figure
 
 
-def harmonics_figure(levels: Sequence[LevelSummary],
-                     model_mobility: Mapping[str, np.ndarray] | None = None, *,
-                     model_label: str = 'model', top_hz: float = HARMONICS_TOP_HZ) -> Figure:
+def harmonics_figure(
+    levels: Sequence[LevelSummary],
+    model_mobility: Mapping[str, np.ndarray] | None = None,
+    *,
+    model_label: str = 'model',
+    top_hz: float = HARMONICS_TOP_HZ,
+) -> Figure:
     """Log |mobility| to 20 Hz per level, odd multiples of f_n marked (Fig. 24).
 
     The friction contact puts response at 3, 5, 7, ... f_n; a second structural mode would
@@ -290,24 +400,43 @@ def harmonics_figure(levels: Sequence[LevelSummary],
     over the measured one.
     """
     model_mobility = model_mobility or {}
-    figure, axes = new_figure(len(levels), 1, sharex=True,
-                              title='mobility magnitude with the odd harmonics of f_n')
+    figure, axes = new_figure(
+        len(levels), 1, sharex=True, title='mobility magnitude with the odd harmonics of f_n'
+    )
     for index, (ax, level) in enumerate(zip(axes, levels, strict=True)):
         band = (level.frequency_hz > 0) & (level.frequency_hz <= top_hz)
         frequency = level.frequency_hz[band]
-        ax.semilogy(frequency, np.abs(level.mobility[band]) * MM_PER_M,
-                    color=level_colour(index), linewidth=2.0, alpha=0.7,
-                    label=f'{level.level} measured')
+        ax.semilogy(
+            frequency,
+            np.abs(level.mobility[band]) * MM_PER_M,
+            color=level_colour(index),
+            linewidth=2.0,
+            alpha=0.7,
+            label=f'{level.level} measured',
+        )
         if level.level in model_mobility:
-            ax.semilogy(frequency, np.abs(model_mobility[level.level][band]) * MM_PER_M,
-                        color=MODEL_COLOUR, linewidth=0.8, linestyle='--', label=model_label)
+            ax.semilogy(
+                frequency,
+                np.abs(model_mobility[level.level][band]) * MM_PER_M,
+                color=MODEL_COLOUR,
+                linewidth=0.8,
+                linestyle='--',
+                label=model_label,
+            )
         natural_hz = mobility_peak_hz(level)
         for n, harmonic_hz in odd_harmonics(natural_hz, top_hz):
             ax.axvline(harmonic_hz, color='0.4', linewidth=0.6, linestyle=':')
             left = harmonic_hz > 0.9 * top_hz
-            ax.annotate(f'{n}$f_n$', (harmonic_hz, 1.0), xycoords=('data', 'axes fraction'),
-                        xytext=(-2 if left else 2, -10), textcoords='offset points',
-                        ha='right' if left else 'left', fontsize='x-small', color='0.3')
+            ax.annotate(
+                f'{n}$f_n$',
+                (harmonic_hz, 1.0),
+                xycoords=('data', 'axes fraction'),
+                xytext=(-2 if left else 2, -10),
+                textcoords='offset points',
+                ha='right' if left else 'left',
+                fontsize='x-small',
+                color='0.3',
+            )
         ax.set_ylabel(f'|mobility|\n[{MOBILITY_UNIT}]')
         ax.legend(loc='lower left', fontsize='x-small')
         ax.set_title(f'mobility peak f_n = {natural_hz:.3f} Hz', fontsize='small', loc='right')
@@ -332,26 +461,44 @@ def mobility_peak_hz(level: LevelSummary) -> float:
     k = int(np.searchsorted(frequency, peak_hz))
     if not 0 < k < frequency.size - 1:
         return peak_hz
-    a, b, c = np.abs(level.mobility[k - 1:k + 2])
+    a, b, c = np.abs(level.mobility[k - 1 : k + 2])
     curvature = a - 2 * b + c
     shift = 0.5 * (a - c) / curvature if curvature < 0 else 0.0
     return float(peak_hz + shift * (frequency[1] - frequency[0]))
 
 
-def frf_overlay_figure(level: LevelSummary, model_mobility: np.ndarray, *,
-                       model_label: str = 'model', colour: str = 'tab:blue',
-                       top_hz: float | None = None) -> Figure:
+def frf_overlay_figure(
+    level: LevelSummary,
+    model_mobility: np.ndarray,
+    *,
+    model_label: str = 'model',
+    colour: str = 'tab:blue',
+    top_hz: float | None = None,
+) -> Figure:
     """Real and imaginary mobility, measured mean against the model (Figs. 19, 21, 23)."""
     top_hz = top_hz or resonance_top_hz(level.natural_frequency_hz)
-    figure, axes = new_figure(2, 1, sharex=True,
-                              title=f'mobility, level {level.level}: measured and model')
+    figure, axes = new_figure(
+        2, 1, sharex=True, title=f'mobility, level {level.level}: measured and model'
+    )
     band = level.frequency_hz <= top_hz
     frequency = level.frequency_hz[band]
     for ax, part, name in zip(axes, (np.real, np.imag), ('real', 'imaginary'), strict=True):
-        ax.plot(frequency, part(level.mobility[band]) * MM_PER_M, color=colour, linewidth=2.0,
-                alpha=0.7, label=f'measured mean ({level.count} trials)')
-        ax.plot(frequency, part(model_mobility[band]) * MM_PER_M, color=MODEL_COLOUR,
-                linewidth=1.0, linestyle='--', label=model_label)
+        ax.plot(
+            frequency,
+            part(level.mobility[band]) * MM_PER_M,
+            color=colour,
+            linewidth=2.0,
+            alpha=0.7,
+            label=f'measured mean ({level.count} trials)',
+        )
+        ax.plot(
+            frequency,
+            part(model_mobility[band]) * MM_PER_M,
+            color=MODEL_COLOUR,
+            linewidth=1.0,
+            linestyle='--',
+            label=model_label,
+        )
         ax.set_ylabel(f'{name} [{MOBILITY_UNIT}]')
     axes[0].legend(loc='upper right', fontsize='small')
     axes[1].set_xlabel(FREQUENCY_LABEL)
@@ -359,30 +506,50 @@ def frf_overlay_figure(level: LevelSummary, model_mobility: np.ndarray, *,
     return figure
 
 
-def friction_figure(impulses_n_s: Sequence[float], mus: Sequence[float],
-                    stderrs: Sequence[float], levels: Sequence[str], joint_mu: float,
-                    joint_stderr: float, *, level_order: Sequence[str] = ()) -> Figure:
+def friction_figure(
+    impulses_n_s: Sequence[float],
+    mus: Sequence[float],
+    stderrs: Sequence[float],
+    levels: Sequence[str],
+    joint_mu: float,
+    joint_stderr: float,
+    *,
+    level_order: Sequence[str] = (),
+) -> Figure:
     """Each impact's own mu +-1 sigma against its impulse, and the one mu fitted to all.
 
     The paper's claim (Sec. 5) is that one mu serves every level: the per-impact values then
     scatter about the joint one within their errors, whatever the impulse.
     """
-    figure, axes = new_figure(1, 1, height_in=3.6,
-                              title='friction coefficient per impact and for all impacts')
+    figure, axes = new_figure(
+        1, 1, height_in=3.6, title='friction coefficient per impact and for all impacts'
+    )
     ax = axes[0]
     impulses, values, errors = (np.asarray(a, dtype=float) for a in (impulses_n_s, mus, stderrs))
     span = np.array([np.nanmin(impulses), np.nanmax(impulses)])
     span = span + np.array([-0.05, 0.05]) * max(np.ptp(span), 0.1)
-    ax.fill_between(span, joint_mu - joint_stderr, joint_mu + joint_stderr, color='0.85',
-                    zorder=0)
-    ax.plot(span, [joint_mu, joint_mu], color=MEAN_COLOUR, linewidth=1,
-            label=f'all impacts: μ = {value_with_error(joint_mu, joint_stderr)}')
+    ax.fill_between(span, joint_mu - joint_stderr, joint_mu + joint_stderr, color='0.85', zorder=0)
+    ax.plot(
+        span,
+        [joint_mu, joint_mu],
+        color=MEAN_COLOUR,
+        linewidth=1,
+        label=f'all impacts: μ = {value_with_error(joint_mu, joint_stderr)}',
+    )
     names = list(level_order) + sorted(set(levels) - set(level_order))
     for name in names:
         mine = np.array([level == name for level in levels], dtype=bool)
         colour = level_colour(level_order.index(name)) if name in level_order else REJECTED_COLOUR
-        ax.errorbar(impulses[mine], values[mine], yerr=errors[mine], fmt='o', markersize=4,
-                    capsize=3, color=colour, label=name or 'no level')
+        ax.errorbar(
+            impulses[mine],
+            values[mine],
+            yerr=errors[mine],
+            fmt='o',
+            markersize=4,
+            capsize=3,
+            color=colour,
+            label=name or 'no level',
+        )
     ax.set_xlim(*span)
     ax.set_xlabel('impulse [N·s]')
     ax.set_ylabel('μ [-], ± 1σ')
@@ -399,8 +566,12 @@ def resonance_top_hz(natural_frequency_hz: float) -> float:
     return RESONANCE_SPAN * natural_frequency_hz
 
 
-def decay_end_s(velocities: Sequence[np.ndarray], triggers: Sequence[int] | int,
-                sample_rate_hz: float, rest_velocity_m_s: float) -> float:
+def decay_end_s(
+    velocities: Sequence[np.ndarray],
+    triggers: Sequence[int] | int,
+    sample_rate_hz: float,
+    rest_velocity_m_s: float,
+) -> float:
     """Where a decay plot ends [s after the trigger]: past the last motion of any trace.
 
     The last sample above the rest velocity, plus DECAY_MARGIN of the motion, at least
@@ -417,26 +588,39 @@ def decay_end_s(velocities: Sequence[np.ndarray], triggers: Sequence[int] | int,
     return min(last_s, record_end_s)
 
 
-def _force_zoom(ax, records: Sequence[ImpactRecord], triggers: Sequence[int],
-                colours: Sequence[str], capture: CaptureConfig) -> None:
+def _force_zoom(
+    ax,
+    records: Sequence[ImpactRecord],
+    triggers: Sequence[int],
+    colours: Sequence[str],
+    capture: CaptureConfig,
+) -> None:
     """Force around the contact [ms from trigger] of every record, on one axes."""
     start_s, end_s = _force_window(records, triggers, capture)
     for record, trigger, colour in zip(records, triggers, colours, strict=True):
-        plot_trace(ax, *_force_trace(record, trigger, start_s, end_s), color=colour,
-                   linewidth=0.8, alpha=0.8 if len(records) > 1 else 1.0)
+        plot_trace(
+            ax,
+            *_force_trace(record, trigger, start_s, end_s),
+            color=colour,
+            linewidth=0.8,
+            alpha=0.8 if len(records) > 1 else 1.0,
+        )
     ax.set_xlim(start_s * MS_PER_S, end_s * MS_PER_S)
     _force_labels(ax)
 
 
-def _force_window(records: Sequence[ImpactRecord], triggers: Sequence[int],
-                  capture: CaptureConfig) -> tuple[float, float]:
+def _force_window(
+    records: Sequence[ImpactRecord], triggers: Sequence[int], capture: CaptureConfig
+) -> tuple[float, float]:
     """Start and end of the force zoom [s from trigger]: every pulse within min_spacing."""
     start_s, end_s = 0.0, 0.0
     for record, trigger in zip(records, triggers, strict=True):
         rate = record.sample_rate_hz
         force = record.force_n
-        near = slice(max(trigger - int(capture.pretrigger_s * rate), 0),
-                     trigger + int(capture.min_spacing_s * rate))
+        near = slice(
+            max(trigger - int(capture.pretrigger_s * rate), 0),
+            trigger + int(capture.min_spacing_s * rate),
+        )
         touching = np.flatnonzero(force[near] >= capture.rearm_level_n) + near.start
         if touching.size:
             start_s = min(start_s, (touching[0] - trigger) / rate)
@@ -446,8 +630,9 @@ def _force_window(records: Sequence[ImpactRecord], triggers: Sequence[int],
     return start_s, end_s
 
 
-def _force_trace(record: ImpactRecord, trigger: int, start_s: float, end_s: float
-                 ) -> tuple[np.ndarray, np.ndarray]:
+def _force_trace(
+    record: ImpactRecord, trigger: int, start_s: float, end_s: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Time [ms from trigger] and force [N] of the record from start_s to end_s."""
     rate = record.sample_rate_hz
     first = max(trigger + int(np.floor(start_s * rate)), 0)

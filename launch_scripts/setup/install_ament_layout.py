@@ -57,8 +57,15 @@ def install(prefix: Path, repo: Path) -> None:
         name, target = (part.strip() for part in entry.split('='))
         module, function = target.split(':')
         script = lib_dir / name
-        script.write_text(WRAPPER.format(python=prefix / 'bin' / 'python', name=name,
-                                         target=target, module=module, function=function))
+        script.write_text(
+            WRAPPER.format(
+                python=prefix / 'bin' / 'python',
+                name=name,
+                target=target,
+                module=module,
+                function=function,
+            )
+        )
         script.chmod(0o755)
 
 

@@ -46,8 +46,11 @@ def _read_msg_dir(msg_dir, origin: str) -> InterfaceDefinitions | None:
     """Every *.msg in msg_dir (a Path or importlib Traversable), or None when there is none."""
     if not msg_dir.is_dir():
         return None
-    texts = {f'{INTERFACES_PACKAGE}/msg/{entry.name[:-4]}': entry.read_text(encoding='utf-8')
-             for entry in msg_dir.iterdir() if entry.name.endswith('.msg')}
+    texts = {
+        f'{INTERFACES_PACKAGE}/msg/{entry.name[:-4]}': entry.read_text(encoding='utf-8')
+        for entry in msg_dir.iterdir()
+        if entry.name.endswith('.msg')
+    }
     return InterfaceDefinitions(dict(sorted(texts.items())), origin) if texts else None
 
 
@@ -81,7 +84,10 @@ def from_package_data() -> InterfaceDefinitions | None:
 
 
 LOCATORS: tuple[Callable[[], InterfaceDefinitions | None], ...] = (
-    from_checkout, from_ament_prefixes, from_package_data)
+    from_checkout,
+    from_ament_prefixes,
+    from_package_data,
+)
 
 
 def find_definitions() -> InterfaceDefinitions:
@@ -93,7 +99,8 @@ def find_definitions() -> InterfaceDefinitions:
     raise FileNotFoundError(
         'cannot find the fmm_interfaces .msg files: not beside the fmm_ros package '
         '(source checkout), not in any AMENT_PREFIX_PATH prefix (ROS workspace: source its '
-        'setup script), and not in the fmm_ros package data (reinstall fmm_ros with pip)')
+        'setup script), and not in the fmm_ros package data (reinstall fmm_ros with pip)'
+    )
 
 
 def types_from_definitions(definitions: InterfaceDefinitions) -> dict:
@@ -130,10 +137,12 @@ def new_message(store: Typestore, msgtype: str, **fields):
         raise ValueError(f'unknown message type {msgtype!r}') from None
     names = [name for name, _ in field_defs]
     if unknown := sorted(set(fields) - set(names)):
-        raise ValueError(f'{msgtype} has no field {", ".join(unknown)} (fields: '
-                         f'{", ".join(names)})')
-    values = {name: fields[name] if name in fields else _default(store, desc)
-              for name, desc in field_defs}
+        raise ValueError(
+            f'{msgtype} has no field {", ".join(unknown)} (fields: {", ".join(names)})'
+        )
+    values = {
+        name: fields[name] if name in fields else _default(store, desc) for name, desc in field_defs
+    }
     return cls(**values)
 
 
@@ -152,7 +161,8 @@ def _default(store: Typestore, desc) -> object:
         count = size if kind == Nodetype.ARRAY else 0
         if element[0] == Nodetype.BASE and element[1][0] not in ('string', 'bounded_string'):
             dtype = {'bool': np.bool_, 'byte': np.uint8, 'char': np.uint8}.get(
-                element[1][0], np.dtype(element[1][0]))
+                element[1][0], np.dtype(element[1][0])
+            )
             return np.zeros(count, dtype=dtype)
         return [_default(store, element) for _ in range(count)]
     raise ValueError(f'unsupported field kind {kind!r}')

@@ -17,8 +17,10 @@ class BagDamagedError(BagError):
         self.path = Path(path)
         self.problems = list(problems)
         self.messages_read = messages_read
-        super().__init__(f'bag {self.path} is damaged: {"; ".join(self.problems)} '
-                         f'({messages_read} messages before the damage were read)')
+        super().__init__(
+            f'bag {self.path} is damaged: {"; ".join(self.problems)} '
+            f'({messages_read} messages before the damage were read)'
+        )
 
 
 class MissingTopicError(BagError):

@@ -67,13 +67,14 @@ def write_rows(path: Path, columns: list[str], records: Iterable) -> Path:
 
 
 # FRF fields of the messages (<field> or <field>_real/_imag), their curve label and quantity.
-IMPACT_CURVES = (('mobility', 'mobility', 'mobility'),
-                 ('receptance', 'receptance', 'receptance'))
-LEVEL_CURVES = (('mobility', 'mean mobility', 'mobility'),
-                ('receptance', 'mean receptance', 'receptance'),
-                ('h1_mobility', 'H1 mobility', 'mobility'),
-                ('h2_mobility', 'H2 mobility', 'mobility'),
-                ('coherence', 'coherence', 'coherence'))
+IMPACT_CURVES = (('mobility', 'mobility', 'mobility'), ('receptance', 'receptance', 'receptance'))
+LEVEL_CURVES = (
+    ('mobility', 'mean mobility', 'mobility'),
+    ('receptance', 'mean receptance', 'receptance'),
+    ('h1_mobility', 'H1 mobility', 'mobility'),
+    ('h2_mobility', 'H2 mobility', 'mobility'),
+    ('coherence', 'coherence', 'coherence'),
+)
 
 
 def message_curves(message, name: str, spec=IMPACT_CURVES) -> list[FrfCurve]:
@@ -86,8 +87,9 @@ def message_curves(message, name: str, spec=IMPACT_CURVES) -> list[FrfCurve]:
     curves = []
     for field, label, quantity in spec:
         if hasattr(message, f'{field}_real'):
-            values = (np.asarray(getattr(message, f'{field}_real'))
-                      + 1j * np.asarray(getattr(message, f'{field}_imag')))
+            values = np.asarray(getattr(message, f'{field}_real')) + 1j * np.asarray(
+                getattr(message, f'{field}_imag')
+            )
         else:
             values = np.asarray(getattr(message, field, ()), dtype=np.float64)
         if values.size:
@@ -103,8 +105,9 @@ def _safe(name: str) -> str:
 FRF_FORMATS = ('csv', 'uff', 'json')
 
 
-def export_results(impacts: Iterable, summaries: Iterable, out_dir: str | Path, *,
-                   frf_format: str = 'csv') -> list[Path]:
+def export_results(
+    impacts: Iterable, summaries: Iterable, out_dir: str | Path, *, frf_format: str = 'csv'
+) -> list[Path]:
     """Tables and FRF files of impacts and levels in out_dir; returns the files written.
 
     impacts.csv (one row per impact) and impact_<id>.<frf_format> (its mobility and
@@ -119,15 +122,29 @@ def export_results(impacts: Iterable, summaries: Iterable, out_dir: str | Path, 
     impacts = list(impacts)
     latest = {record.level: record for record in summaries}  # later ones replace earlier
     for records, table, spec, name, stem in (
-            (impacts, IMPACT_RESULT, IMPACT_CURVES, lambda r: f'impact {int(r.impact_id)}',
-             lambda r: f'impact_{int(r.impact_id)}'),
-            (list(latest.values()), FRF_SUMMARY, LEVEL_CURVES, lambda r: r.level,
-             lambda r: f'level_{_safe(r.level)}')):
+        (
+            impacts,
+            IMPACT_RESULT,
+            IMPACT_CURVES,
+            lambda r: f'impact {int(r.impact_id)}',
+            lambda r: f'impact_{int(r.impact_id)}',
+        ),
+        (
+            list(latest.values()),
+            FRF_SUMMARY,
+            LEVEL_CURVES,
+            lambda r: r.level,
+            lambda r: f'level_{_safe(r.level)}',
+        ),
+    ):
         if not records:
             continue
         scalars, _ = table_columns(table)
-        written.append(write_rows(out / ('impacts.csv' if table == IMPACT_RESULT
-                                         else 'levels.csv'), scalars, records))
+        written.append(
+            write_rows(
+                out / ('impacts.csv' if table == IMPACT_RESULT else 'levels.csv'), scalars, records
+            )
+        )
         for record in records:
             curves = message_curves(record, name(record), spec)
             if curves:

@@ -28,8 +28,15 @@ from fmm_ros.core.bagio.writer import DEFAULT_BATCH_SIZE, BagWriter
 
 # SI value of one file unit; lookups ignore case ("MM/S" is mm/s).
 FORCE_UNITS = {'N': 1.0, 'kN': 1e3, 'mN': 1e-3, 'lbf': 4.4482216152605, 'kgf': 9.80665}
-VELOCITY_UNITS = {'m/s': 1.0, 'cm/s': 1e-2, 'mm/s': 1e-3, 'um/s': 1e-6, 'µm/s': 1e-6,
-                  'in/s': 0.0254, 'ft/s': 0.3048}
+VELOCITY_UNITS = {
+    'm/s': 1.0,
+    'cm/s': 1e-2,
+    'mm/s': 1e-3,
+    'um/s': 1e-6,
+    'µm/s': 1e-6,
+    'in/s': 0.0254,
+    'ft/s': 0.3048,
+}
 TIME_UNITS = {'s': 1.0, 'ms': 1e-3, 'us': 1e-6, 'µs': 1e-6}
 QUANTITY_UNITS = {'force': FORCE_UNITS, 'velocity': VELOCITY_UNITS, 'time': TIME_UNITS}
 SI_UNITS = {'force': 'N', 'velocity': 'm/s', 'time': 's'}
@@ -37,8 +44,15 @@ SI_UNITS = {'force': 'N', 'velocity': 'm/s', 'time': 's'}
 # Relative spread of time steps a time column may have and still count as uniform.
 UNIFORM_TIME_TOLERANCE = 0.01
 
-FORMATS = {'.csv': 'CSV', '.txt': 'CSV', '.tsv': 'CSV', '.dat': 'CSV', '.npz': 'NPZ',
-           '.mat': 'MATLAB', '.tdms': 'TDMS'}
+FORMATS = {
+    '.csv': 'CSV',
+    '.txt': 'CSV',
+    '.tsv': 'CSV',
+    '.dat': 'CSV',
+    '.npz': 'NPZ',
+    '.mat': 'MATLAB',
+    '.tdms': 'TDMS',
+}
 
 
 @dataclass(frozen=True)
@@ -67,15 +81,20 @@ class ChannelMapping:
                 raise ValueError(
                     f'{quantity} {self.name!r}: unit {unit} already fixes the scale '
                     f'({known[1]:g} {si} per {unit}); drop scale, or give the raw sensor unit '
-                    f'(e.g. V) with scale in {si} per that unit')
+                    f'(e.g. V) with scale in {si} per that unit'
+                )
             return float(self.scale), f'× {self.scale:g} {si}/{unit or "unit"} (stated scale)'
         if known is None:
             raise ValueError(
-                f'{quantity} {self.name!r}: ' + (
+                f'{quantity} {self.name!r}: '
+                + (
                     f'unit {unit!r} is not a {quantity} unit ({", ".join(units)}); for a '
-                    f'sensor unit give scale in {si} per {unit}' if unit else
-                    f'no unit given; give unit (one of {", ".join(units)}) or a scale in '
-                    f'{si} per file unit'))
+                    f'sensor unit give scale in {si} per {unit}'
+                    if unit
+                    else f'no unit given; give unit (one of {", ".join(units)}) or a scale in '
+                    f'{si} per file unit'
+                )
+            )
         name, value = known
         source = '' if self.unit else ' (from the file)'
         return value, (f'[{name}]{source}' if value == 1.0 else f'[{name}]{source} × {value:g}')
@@ -111,15 +130,20 @@ class ImportMapping:
             raise ValueError(f'an import mapping is a YAML mapping, got {type(spec).__name__}')
         unknown = set(spec) - {'force', 'velocity', 'sample_rate_hz', 'time'}
         if unknown:
-            raise ValueError(f'unknown mapping keys: {", ".join(sorted(unknown))} (known: '
-                             'force, velocity, sample_rate_hz, time)')
+            raise ValueError(
+                f'unknown mapping keys: {", ".join(sorted(unknown))} (known: '
+                'force, velocity, sample_rate_hz, time)'
+            )
         for key in ('force', 'velocity'):
             if key not in spec:
                 raise ValueError(f'the mapping names no {key} channel ({key}: {{name: ...}})')
         rate = spec.get('sample_rate_hz')
-        return cls(_channel(spec['force'], 'force'), _channel(spec['velocity'], 'velocity'),
-                   rate if isinstance(rate, str) or rate is None else float(rate),
-                   _channel(spec['time'], 'time') if spec.get('time') else None)
+        return cls(
+            _channel(spec['force'], 'force'),
+            _channel(spec['velocity'], 'velocity'),
+            rate if isinstance(rate, str) or rate is None else float(rate),
+            _channel(spec['time'], 'time') if spec.get('time') else None,
+        )
 
 
 def _channel(spec, key: str) -> ChannelMapping:
@@ -132,9 +156,12 @@ def _channel(spec, key: str) -> ChannelMapping:
     if unknown:
         raise ValueError(f'unknown keys in mapping entry {key}: {", ".join(sorted(unknown))}')
     scale = spec.get('scale')
-    return ChannelMapping(str(spec['name']), spec.get('unit'),
-                          None if scale is None else float(scale),
-                          float(spec.get('full_scale', 0.0)))
+    return ChannelMapping(
+        str(spec['name']),
+        spec.get('unit'),
+        None if scale is None else float(scale),
+        float(spec.get('full_scale', 0.0)),
+    )
 
 
 def load_mapping(path: str | Path) -> dict:
@@ -145,6 +172,7 @@ def load_mapping(path: str | Path) -> dict:
 
 
 # -- file readers: names() and array(name), plus what the format knows about a channel ----------
+
 
 class LabFile(ABC):
     """One lab file opened for reading its channels by name."""
@@ -175,16 +203,20 @@ class LabFile(ABC):
         return None
 
     def _missing(self, name: str) -> ValueError:
-        return ValueError(f'{self.path} ({self.format}) has no channel {name!r}; it has: '
-                          f'{", ".join(self.names()) or "nothing"}')
+        return ValueError(
+            f'{self.path} ({self.format}) has no channel {name!r}; it has: '
+            f'{", ".join(self.names()) or "nothing"}'
+        )
 
     def vector(self, name: str) -> np.ndarray:
         """array(name) as a 1-D float64 array; anything else is an error naming its shape."""
         values = np.asarray(self.array(name))
         squeezed = np.squeeze(values)
         if squeezed.ndim != 1:
-            raise ValueError(f'{self.path}: {name!r} has shape {values.shape}; a channel must '
-                             'be a vector (one trial per file)')
+            raise ValueError(
+                f'{self.path}: {name!r} has shape {values.shape}; a channel must '
+                'be a vector (one trial per file)'
+            )
         if not np.issubdtype(squeezed.dtype, np.number):
             raise ValueError(f'{self.path}: {name!r} is not numeric ({squeezed.dtype})')
         return squeezed.astype(np.float64, copy=False)
@@ -193,8 +225,9 @@ class LabFile(ABC):
         """A scalar variable (e.g. the sample rate)."""
         values = np.asarray(self.array(name), dtype=np.float64)
         if values.size != 1:
-            raise ValueError(f'{self.path}: {name!r} should be one number, has shape '
-                             f'{values.shape}')
+            raise ValueError(
+                f'{self.path}: {name!r} should be one number, has shape {values.shape}'
+            )
         return float(values.reshape(-1)[0])
 
 
@@ -229,8 +262,13 @@ class CsvFile(LabFile):
             raise self._missing(name)
         if self._table is None:
             self._table = np.loadtxt(
-                self.path, delimiter=None if self._delimiter == ' ' else self._delimiter,
-                comments='#', skiprows=1 if self._has_header else 0, ndmin=2, encoding='utf-8')
+                self.path,
+                delimiter=None if self._delimiter == ' ' else self._delimiter,
+                comments='#',
+                skiprows=1 if self._has_header else 0,
+                ndmin=2,
+                encoding='utf-8',
+            )
         return self._table[:, self._names.index(name)]
 
 
@@ -272,8 +310,11 @@ class MatFile(LabFile):
         super().__init__(path)
         from scipy.io import loadmat
 
-        self._vars = {name: value for name, value in loadmat(
-            path, squeeze_me=True, struct_as_record=False).items() if not name.startswith('__')}
+        self._vars = {
+            name: value
+            for name, value in loadmat(path, squeeze_me=True, struct_as_record=False).items()
+            if not name.startswith('__')
+        }
 
     def names(self) -> list[str]:
         """Variables, and fields of struct variables as struct.field."""
@@ -315,9 +356,13 @@ class Mat73File(LabFile):
 
         self._names: list[str] = []
         with h5py.File(path, 'r') as hdf:  # MATLAB keeps strings and cells under #refs#
-            hdf.visititems(lambda key, obj: self._names.append(key.replace('/', '.'))
-                           if isinstance(obj, h5py.Dataset) and not key.startswith('#')
-                           else None)
+            hdf.visititems(
+                lambda key, obj: (
+                    self._names.append(key.replace('/', '.'))
+                    if isinstance(obj, h5py.Dataset) and not key.startswith('#')
+                    else None
+                )
+            )
 
     def names(self) -> list[str]:
         """Datasets, struct fields as struct.field."""
@@ -343,8 +388,11 @@ class TdmsFile(LabFile):
         from nptdms import TdmsFile as NpTdmsFile
 
         self._file = NpTdmsFile.read(path)
-        self._channels = {f'{group.name}/{channel.name}': channel
-                          for group in self._file.groups() for channel in group.channels()}
+        self._channels = {
+            f'{group.name}/{channel.name}': channel
+            for group in self._file.groups()
+            for channel in group.channels()
+        }
 
     def names(self) -> list[str]:
         """Channels as group/channel."""
@@ -384,8 +432,9 @@ def open_lab_file(path: str | Path) -> LabFile:
         raise FileNotFoundError(f'{path} does not exist')
     kind = FORMATS.get(path.suffix.lower())
     if kind is None:
-        raise ValueError(f'{path}: unknown format {path.suffix!r}; supported: '
-                         f'{", ".join(sorted(FORMATS))}')
+        raise ValueError(
+            f'{path}: unknown format {path.suffix!r}; supported: {", ".join(sorted(FORMATS))}'
+        )
     if kind == 'CSV':
         return CsvFile(path)
     if kind == 'NPZ':
@@ -398,6 +447,7 @@ def open_lab_file(path: str | Path) -> LabFile:
 
 
 # -- conversion -----------------------------------------------------------------------------------
+
 
 @dataclass
 class LabRecording:
@@ -427,19 +477,32 @@ def read_lab_file(path: str | Path, mapping: ImportMapping) -> LabRecording:
         values = lab.vector(spec.name)
         factor, how = spec.factor(quantity, lab.channel_unit(spec.name))
         channels[quantity] = (values * factor, spec.full_scale * factor)
-        report.append(f'  {quantity}: {spec.name!r} {how} -> {SI_UNITS[quantity]}, '
-                      f'{len(values)} samples')
+        report.append(
+            f'  {quantity}: {spec.name!r} {how} -> {SI_UNITS[quantity]}, {len(values)} samples'
+        )
         if nans := int(np.count_nonzero(np.isnan(values))):
-            report.append(f'  warning: {quantity} has {nans} NaN samples (kept; the analyzer '
-                          'flags impacts over them)')
+            report.append(
+                f'  warning: {quantity} has {nans} NaN samples (kept; the analyzer '
+                'flags impacts over them)'
+            )
     force, velocity = channels['force'][0], channels['velocity'][0]
     if len(force) != len(velocity):
-        raise ValueError(f'{lab.path}: force {mapping.force.name!r} has {len(force)} samples '
-                         f'but velocity {mapping.velocity.name!r} has {len(velocity)}')
+        raise ValueError(
+            f'{lab.path}: force {mapping.force.name!r} has {len(force)} samples '
+            f'but velocity {mapping.velocity.name!r} has {len(velocity)}'
+        )
     rate, how = _sample_rate(lab, mapping, len(force))
     report.append(f'  sample rate: {rate:g} Hz ({how})')
-    return LabRecording(force, velocity, rate, channels['force'][1], channels['velocity'][1],
-                        lab.start_time_ns(), lab.path, report)
+    return LabRecording(
+        force,
+        velocity,
+        rate,
+        channels['force'][1],
+        channels['velocity'][1],
+        lab.start_time_ns(),
+        lab.path,
+        report,
+    )
 
 
 def _sample_rate(lab: LabFile, mapping: ImportMapping, length: int) -> tuple[float, str]:
@@ -453,13 +516,17 @@ def _sample_rate(lab: LabFile, mapping: ImportMapping, length: int) -> tuple[flo
     if mapping.time is not None:
         time_s = lab.vector(mapping.time.name) * mapping.time.factor('time')[0]
         if len(time_s) != length:
-            raise ValueError(f'{lab.path}: time {mapping.time.name!r} has {len(time_s)} '
-                             f'samples, the channels {length}')
+            raise ValueError(
+                f'{lab.path}: time {mapping.time.name!r} has {len(time_s)} '
+                f'samples, the channels {length}'
+            )
         steps = np.diff(time_s)
         step = float(np.median(steps)) if len(steps) else 0.0
         if step <= 0 or np.max(np.abs(steps - step)) > UNIFORM_TIME_TOLERANCE * step:
-            raise ValueError(f'{lab.path}: time {mapping.time.name!r} is not uniformly '
-                             'increasing; the importer needs a constant sample rate')
+            raise ValueError(
+                f'{lab.path}: time {mapping.time.name!r} is not uniformly '
+                'increasing; the importer needs a constant sample rate'
+            )
         # Over the whole span, so the rounding of each printed time stamp averages out;
         # within a millionth of a whole number of Hz (what DAQs run at), that number.
         from_time = (len(time_s) - 1) / float(time_s[-1] - time_s[0])
@@ -468,19 +535,26 @@ def _sample_rate(lab: LabFile, mapping: ImportMapping, length: int) -> tuple[flo
         if rate is None:
             rate, how = from_time, f'time channel {mapping.time.name!r}'
         elif abs(from_time - rate) > UNIFORM_TIME_TOLERANCE * rate:
-            raise ValueError(f'{lab.path}: sample rate {rate:g} Hz ({how}) disagrees with '
-                             f'time channel {mapping.time.name!r} ({from_time:g} Hz)')
+            raise ValueError(
+                f'{lab.path}: sample rate {rate:g} Hz ({how}) disagrees with '
+                f'time channel {mapping.time.name!r} ({from_time:g} Hz)'
+            )
     if rate is None:
-        increments = {lab.channel_increment_s(spec.name)
-                      for spec in (mapping.force, mapping.velocity)}
+        increments = {
+            lab.channel_increment_s(spec.name) for spec in (mapping.force, mapping.velocity)
+        }
         if None not in increments and len(increments) == 1:
             rate, how = 1.0 / increments.pop(), 'wf_increment in the file'
         elif len(increments - {None}) > 1:
-            raise ValueError(f'{lab.path}: force and velocity have different sample '
-                             f'intervals {sorted(increments - {None})} s')
+            raise ValueError(
+                f'{lab.path}: force and velocity have different sample '
+                f'intervals {sorted(increments - {None})} s'
+            )
     if rate is None:
-        raise ValueError(f'{lab.path}: no sample rate; state sample_rate_hz (a number or a '
-                         'variable name) or a time channel')
+        raise ValueError(
+            f'{lab.path}: no sample rate; state sample_rate_hz (a number or a '
+            'variable name) or a time channel'
+        )
     if not np.isfinite(rate) or rate <= 0:
         raise ValueError(f'{lab.path}: sample rate {rate} Hz is not a positive number')
     return rate, how
@@ -509,15 +583,22 @@ def read_lab_files(paths: Sequence[str | Path], mapping: ImportMapping) -> list[
     rate = recordings[0].sample_rate_hz
     for recording in recordings[1:]:
         if abs(recording.sample_rate_hz - rate) > 1e-9 * rate:
-            raise ValueError(f'{recording.source} is sampled at {recording.sample_rate_hz:g} '
-                             f'Hz, {recordings[0].source} at {rate:g} Hz: one bag, one rate')
+            raise ValueError(
+                f'{recording.source} is sampled at {recording.sample_rate_hz:g} '
+                f'Hz, {recordings[0].source} at {rate:g} Hz: one bag, one rate'
+            )
     return recordings
 
 
-def write_recordings(recordings: Sequence[LabRecording], bag: str | Path, *,
-                     storage: str = 'mcap', batch_size: int = DEFAULT_BATCH_SIZE,
-                     start_time_ns: int | None = None,
-                     on_progress: Callable[[int], None] | None = None) -> ImportSummary:
+def write_recordings(
+    recordings: Sequence[LabRecording],
+    bag: str | Path,
+    *,
+    storage: str = 'mcap',
+    batch_size: int = DEFAULT_BATCH_SIZE,
+    start_time_ns: int | None = None,
+    on_progress: Callable[[int], None] | None = None,
+) -> ImportSummary:
     """One session bag of recordings, concatenated in order on one sample index.
 
     start_time_ns: acquisition time of the first sample; default the file's own (TDMS),
@@ -535,20 +616,28 @@ def write_recordings(recordings: Sequence[LabRecording], bag: str | Path, *,
     else:
         modified_ns = os.stat(recordings[0].source).st_mtime_ns
         start_time_ns = modified_ns - round(total / rate * 1e9)
-        report.append(f'start time: {recordings[0].source.name} modified time minus the '
-                      'recorded duration (the file states none)')
+        report.append(
+            f'start time: {recordings[0].source.name} modified time minus the '
+            'recorded duration (the file states none)'
+        )
     index = 0
     with BagWriter(bag, storage=storage, time_origin_ns=start_time_ns) as writer:
         for recording in recordings:
             index = writer.write_signals(
-                recording.force_n, recording.velocity_m_s, rate, first_sample_index=index,
-                batch_size=batch_size, full_scale_force=recording.full_scale_force_n,
+                recording.force_n,
+                recording.velocity_m_s,
+                rate,
+                first_sample_index=index,
+                batch_size=batch_size,
+                full_scale_force=recording.full_scale_force_n,
                 full_scale_velocity=recording.full_scale_velocity_m_s,
-                on_progress=on_progress)
+                on_progress=on_progress,
+            )
     return ImportSummary(Path(bag), total, rate, report)
 
 
-def import_to_bag(paths: Sequence[str | Path], bag: str | Path, mapping: ImportMapping,
-                  **options) -> ImportSummary:
+def import_to_bag(
+    paths: Sequence[str | Path], bag: str | Path, mapping: ImportMapping, **options
+) -> ImportSummary:
     """Lab files into one session bag: read_lab_files, then write_recordings(**options)."""
     return write_recordings(read_lab_files(paths, mapping), bag, **options)

@@ -21,11 +21,23 @@ MAGIC = b'\x89MCAP0\r\n'
 
 HEADER, FOOTER, SCHEMA, CHANNEL, MESSAGE, CHUNK = 0x01, 0x02, 0x03, 0x04, 0x05, 0x06
 DATA_END = 0x0F
-RECORD_NAMES = {0x01: 'header', 0x02: 'footer', 0x03: 'schema', 0x04: 'channel',
-                0x05: 'message', 0x06: 'chunk', 0x07: 'message index', 0x08: 'chunk index',
-                0x09: 'attachment', 0x0A: 'attachment index', 0x0B: 'statistics',
-                0x0C: 'metadata', 0x0D: 'metadata index', 0x0E: 'summary offset',
-                0x0F: 'data end'}
+RECORD_NAMES = {
+    0x01: 'header',
+    0x02: 'footer',
+    0x03: 'schema',
+    0x04: 'channel',
+    0x05: 'message',
+    0x06: 'chunk',
+    0x07: 'message index',
+    0x08: 'chunk index',
+    0x09: 'attachment',
+    0x0A: 'attachment index',
+    0x0B: 'statistics',
+    0x0C: 'metadata',
+    0x0D: 'metadata index',
+    0x0E: 'summary offset',
+    0x0F: 'data end',
+}
 
 _RECORD_HEAD = struct.Struct('<BQ')
 _MESSAGE_HEAD = struct.Struct('<HIQQ')  # channel id, sequence, log time, publish time
@@ -84,7 +96,7 @@ def _string(buf: memoryview, pos: int) -> tuple[str, int]:
     end = pos + 4 + size
     if end > len(buf):
         raise _Truncated
-    return bytes(buf[pos + 4:end]).decode('utf-8'), end
+    return bytes(buf[pos + 4 : end]).decode('utf-8'), end
 
 
 def _parse_schema(content: memoryview) -> Schema:
@@ -136,10 +148,13 @@ class McapScan:
             while True:
                 head = stream.read(_RECORD_HEAD.size)
                 if not head:
-                    yield Damage(pos, 'the recording was not closed: the file ends after its '
-                                      'last complete record, with no summary or footer (the '
-                                      'writer crashed, was killed, or is still writing)',
-                                 unfinished=True)
+                    yield Damage(
+                        pos,
+                        'the recording was not closed: the file ends after its '
+                        'last complete record, with no summary or footer (the '
+                        'writer crashed, was killed, or is still writing)',
+                        unfinished=True,
+                    )
                     return
                 if len(head) < _RECORD_HEAD.size:
                     yield Damage(pos, f'the file ends inside a record header at byte {pos}')
@@ -161,11 +176,13 @@ class McapScan:
                         for item in self._chunk(content, content_pos, complete=False):
                             recovered += isinstance(item, ScannedMessage)
                             yield item
-                    yield Damage(pos, f'the {name} record at byte {pos} claims {length} bytes '
-                                      f'but only {available} remain: the file is truncated or '
-                                      f'the record is corrupt'
-                                      + (f' ({recovered} messages recovered from it)'
-                                         if opcode == CHUNK else ''))
+                    yield Damage(
+                        pos,
+                        f'the {name} record at byte {pos} claims {length} bytes '
+                        f'but only {available} remain: the file is truncated or '
+                        f'the record is corrupt'
+                        + (f' ({recovered} messages recovered from it)' if opcode == CHUNK else ''),
+                    )
                     return
                 content = memoryview(stream.read(length))
                 if opcode == CHUNK:
@@ -174,8 +191,9 @@ class McapScan:
                     yield from self._record(opcode, content, content_pos)
                 pos = content_pos + length
 
-    def _record(self, opcode: int, content: memoryview,
-                offset: int) -> Iterator[ScannedMessage | Damage]:
+    def _record(
+        self, opcode: int, content: memoryview, offset: int
+    ) -> Iterator[ScannedMessage | Damage]:
         """Schema, channel or message record at file offset; others are skipped."""
         try:
             if opcode == SCHEMA:
@@ -188,15 +206,19 @@ class McapScan:
                 channel_id, _, log_time, _ = _MESSAGE_HEAD.unpack_from(content, 0)
                 channel = self.channels.get(channel_id)
                 if channel is None:
-                    yield Damage(offset, f'message at byte {offset} is on channel {channel_id}, '
-                                         'which no channel record defines')
+                    yield Damage(
+                        offset,
+                        f'message at byte {offset} is on channel {channel_id}, '
+                        'which no channel record defines',
+                    )
                     return
-                yield ScannedMessage(channel, log_time, content[_MESSAGE_HEAD.size:])
+                yield ScannedMessage(channel, log_time, content[_MESSAGE_HEAD.size :])
         except (struct.error, _Truncated, UnicodeDecodeError):
             yield Damage(offset, f'corrupt {RECORD_NAMES[opcode]} record at byte {offset}')
 
-    def _chunk(self, content: memoryview, offset: int,
-               complete: bool = True) -> Iterator[ScannedMessage | Damage]:
+    def _chunk(
+        self, content: memoryview, offset: int, complete: bool = True
+    ) -> Iterator[ScannedMessage | Damage]:
         """The records inside one chunk; of an incomplete one, those written whole."""
         where = f'chunk at byte {offset - _RECORD_HEAD.size}'
         try:
@@ -207,7 +229,7 @@ class McapScan:
             yield Damage(offset, f'{where}: corrupt chunk header')
             return
         pos += 8
-        data = content[pos:pos + compressed_size]
+        data = content[pos : pos + compressed_size]
         if complete and pos + compressed_size > len(content):
             yield Damage(offset, f'{where}: its data runs past the end of the chunk record')
             return
@@ -223,8 +245,11 @@ class McapScan:
                 return
         if complete:
             if len(records) != uncompressed_size:
-                yield Damage(offset, f'{where}: {len(records)} bytes of records, the chunk '
-                                     f'header says {uncompressed_size}')
+                yield Damage(
+                    offset,
+                    f'{where}: {len(records)} bytes of records, the chunk '
+                    f'header says {uncompressed_size}',
+                )
                 return
             if crc and zlib.crc32(records) != crc:
                 yield Damage(offset, f'{where}: checksum mismatch, its messages are corrupt')
@@ -238,12 +263,14 @@ class McapScan:
             start = inner + _RECORD_HEAD.size
             if opcode == 0 or start + length > len(records):
                 if complete:
-                    yield Damage(offset, f'{where}: corrupt record at chunk byte {inner} '
-                                         f'(opcode 0x{opcode:02x}, {length} bytes)')
+                    yield Damage(
+                        offset,
+                        f'{where}: corrupt record at chunk byte {inner} '
+                        f'(opcode 0x{opcode:02x}, {length} bytes)',
+                    )
                     return
                 break  # a truncated chunk: the rest of this record was never written
-            for item in self._record(opcode, records[start:start + length],
-                                     record_base + start):
+            for item in self._record(opcode, records[start : start + length], record_base + start):
                 yield item
                 if isinstance(item, Damage):
                     return

@@ -142,17 +142,25 @@ class BagReader:
             self._reader.open()
         except ReaderError as error:
             self._reader = None
-            self._note(f'rosbags cannot open it ({error}): read by scanning the '
-                       f'{self.storage} file')
+            self._note(
+                f'rosbags cannot open it ({error}): read by scanning the {self.storage} file'
+            )
             self._start_scan()
         else:
             self._topics = {
                 conn.topic: TopicInfo(conn.topic, conn.msgtype, conn.msgcount)
-                for conn in self._reader.connections}
-            self.typestore = self._typestore({
-                conn.msgtype: (conn.msgdef.data if conn.msgdef.format
-                               == MessageDefinitionFormat.MSG else '')
-                for conn in self._reader.connections})
+                for conn in self._reader.connections
+            }
+            self.typestore = self._typestore(
+                {
+                    conn.msgtype: (
+                        conn.msgdef.data
+                        if conn.msgdef.format == MessageDefinitionFormat.MSG
+                        else ''
+                    )
+                    for conn in self._reader.connections
+                }
+            )
 
     def _storage_target(self) -> Path:
         """What rosbags should open: the directory, or its storage file when unfinished."""
@@ -162,8 +170,9 @@ class BagReader:
         if path.is_file():
             self.storage = {'.mcap': 'mcap', '.db3': 'sqlite3'}.get(path.suffix, '')
             if not self.storage:
-                raise BagError(f'{path} is not a bag: expected a bag directory, a .mcap or '
-                               'a .db3 file')
+                raise BagError(
+                    f'{path} is not a bag: expected a bag directory, a .mcap or a .db3 file'
+                )
             self._storage_file = path
             return path
         files = sorted(path.glob('*.mcap')) + sorted(path.glob('*.db3'))
@@ -174,10 +183,14 @@ class BagReader:
         if (path / 'metadata.yaml').is_file():
             return path
         if len(files) > 1:
-            raise BagError(f'bag {path} has no metadata.yaml and {len(files)} storage files '
-                           f'({", ".join(f.name for f in files)}): open one of them directly')
-        self.problems.append('the recording was not closed: no metadata.yaml (the writer '
-                             'crashed, was killed, or is still writing)')
+            raise BagError(
+                f'bag {path} has no metadata.yaml and {len(files)} storage files '
+                f'({", ".join(f.name for f in files)}): open one of them directly'
+            )
+        self.problems.append(
+            'the recording was not closed: no metadata.yaml (the writer '
+            'crashed, was killed, or is still writing)'
+        )
         return files[0]
 
     def _new_scan(self) -> McapScan | SqliteScan:
@@ -201,8 +214,7 @@ class BagReader:
             schema = schemas.get(channel.schema_id)
             msgtype = schema.name if schema else ''
             msgtypes[msgtype] = schema.data if schema and schema.encoding == 'ros2msg' else ''
-            self._topics[channel.topic] = TopicInfo(channel.topic, msgtype,
-                                                    counts[channel.topic])
+            self._topics[channel.topic] = TopicInfo(channel.topic, msgtype, counts[channel.topic])
         self.typestore = self._typestore(msgtypes)
 
     def _typestore(self, definitions: dict[str, str]):
@@ -213,8 +225,10 @@ class BagReader:
                 try:
                     embedded.update(get_types_from_msg(text, msgtype))
                 except TypesysError as error:
-                    self.problems.append(f'the definition of {msgtype} in the bag cannot be '
-                                         f"parsed ({error}); using this installation's")
+                    self.problems.append(
+                        f'the definition of {msgtype} in the bag cannot be '
+                        f"parsed ({error}); using this installation's"
+                    )
         if not embedded:
             return fmm_typestore()
         store = get_typestore(BASE_STORE)
@@ -223,8 +237,9 @@ class BagReader:
             store.register(embedded)
             store.register({name: own[name] for name in own.keys() - store.fielddefs.keys()})
         except TypesysError as error:
-            raise BagError(f'bag {self.path} defines a standard type differently: '
-                           f'{error}') from None
+            raise BagError(
+                f'bag {self.path} defines a standard type differently: {error}'
+            ) from None
         return store
 
     def close(self) -> None:
@@ -245,14 +260,17 @@ class BagReader:
         """Check the bag has topic with msgtype; the error names what it has instead."""
         info = self._topics.get(topic)
         if info is None:
-            have = ', '.join(f'{t.topic} ({t.msgtype}, {t.count})'
-                             for t in self._topics.values()) or 'no topics at all'
+            have = (
+                ', '.join(f'{t.topic} ({t.msgtype}, {t.count})' for t in self._topics.values())
+                or 'no topics at all'
+            )
             damage = f' (and it is damaged: {"; ".join(self.problems)})' if self.problems else ''
-            raise MissingTopicError(f'bag {self.path} has no topic {topic}; it has: '
-                                    f'{have}{damage}')
+            raise MissingTopicError(f'bag {self.path} has no topic {topic}; it has: {have}{damage}')
         if info.msgtype != msgtype:
-            raise MessageTypeError(f'topic {topic} in bag {self.path} has type '
-                                   f'{info.msgtype or "(none recorded)"}, expected {msgtype}')
+            raise MessageTypeError(
+                f'topic {topic} in bag {self.path} has type '
+                f'{info.msgtype or "(none recorded)"}, expected {msgtype}'
+            )
 
     # -- messages -------------------------------------------------------------------------------
 
@@ -311,14 +329,20 @@ class BagReader:
             raise MessageTypeError(
                 f'topic {message.topic} in bag {self.path} has message type '
                 f'{message.msgtype or "(none recorded)"}, which neither the bag nor '
-                'fmm_interfaces defines')
+                'fmm_interfaces defines'
+            )
         try:
             return self.typestore.deserialize_cdr(message.data, message.msgtype)
         except Exception as error:  # the generated deserializers raise many error types
-            raise BagDamagedError(self.path, [
-                f'a {message.msgtype} message on {message.topic} at log time '
-                f'{message.log_time_ns} ns cannot be decoded ({type(error).__name__}: '
-                f'{error})'], self._messages_read) from None
+            raise BagDamagedError(
+                self.path,
+                [
+                    f'a {message.msgtype} message on {message.topic} at log time '
+                    f'{message.log_time_ns} ns cannot be decoded ({type(error).__name__}: '
+                    f'{error})'
+                ],
+                self._messages_read,
+            ) from None
 
     def _decode_each(self, messages: Iterable[BagMessage]) -> Iterator[tuple[BagMessage, object]]:
         """Each message with its decoding; one that cannot be decoded is damage."""
@@ -348,8 +372,9 @@ class BagReader:
 
     # -- sample batches -----------------------------------------------------------------------
 
-    def sample_batches(self, topics: Iterable[str] = (FORCE_TOPIC, VELOCITY_TOPIC)
-                       ) -> Iterator[ChannelBatch]:
+    def sample_batches(
+        self, topics: Iterable[str] = (FORCE_TOPIC, VELOCITY_TOPIC)
+    ) -> Iterator[ChannelBatch]:
         """Every SampleBatch of the topics, interleaved in storage (arrival) order.
 
         This is what a live subscriber saw, message by message: the form to feed a streaming
@@ -365,8 +390,9 @@ class BagReader:
         """Every SampleBatch of one channel topic, in storage order."""
         return self.sample_batches([topic])
 
-    def batches(self, force_topic: str = FORCE_TOPIC,
-                velocity_topic: str = VELOCITY_TOPIC) -> Iterator[AlignedBatch]:
+    def batches(
+        self, force_topic: str = FORCE_TOPIC, velocity_topic: str = VELOCITY_TOPIC
+    ) -> Iterator[AlignedBatch]:
         """Force and velocity paired by first_sample_index, as the live analyzer pairs them.
 
         Equal batches on both channels come out as they are (views, no copy); unequal ones
@@ -383,10 +409,18 @@ def channel_batch(message: BagMessage, batch) -> ChannelBatch:
     samples = batch.samples
     samples.flags.writeable = False
     stamp = batch.header.stamp
-    return ChannelBatch(message.topic, int(batch.first_sample_index), samples,
-                        float(batch.sample_rate_hz), batch.quantity, batch.unit,
-                        float(batch.full_scale), batch.header.frame_id,
-                        stamp.sec * 10**9 + stamp.nanosec, message.log_time_ns)
+    return ChannelBatch(
+        message.topic,
+        int(batch.first_sample_index),
+        samples,
+        float(batch.sample_rate_hz),
+        batch.quantity,
+        batch.unit,
+        float(batch.full_scale),
+        batch.header.frame_id,
+        stamp.sec * 10**9 + stamp.nanosec,
+        message.log_time_ns,
+    )
 
 
 class BatchAligner:
@@ -402,26 +436,36 @@ class BatchAligner:
         """Take one batch of channel 0 (force) or 1 (velocity); yield what is now paired."""
         end = self._channel_end[channel]
         if end is not None and batch.first_sample_index < end:
-            raise BagError(f'{self.source}: {batch.topic} goes back from sample {end} to '
-                           f'{batch.first_sample_index} (acquisition restarted, or batches '
-                           'out of order)')
+            raise BagError(
+                f'{self.source}: {batch.topic} goes back from sample {end} to '
+                f'{batch.first_sample_index} (acquisition restarted, or batches '
+                'out of order)'
+            )
         self._channel_end[channel] = batch.end_index
         self._pending[channel].append((batch.first_sample_index, batch))
         forces, velocities = self._pending
         while forces and velocities:
             (f_start, f_batch), (v_start, v_batch) = forces[0], velocities[0]
             if f_batch.sample_rate_hz != v_batch.sample_rate_hz:
-                raise BagError(f'{self.source}: {f_batch.topic} is sampled at '
-                               f'{f_batch.sample_rate_hz} Hz but {v_batch.topic} at '
-                               f'{v_batch.sample_rate_hz} Hz')
+                raise BagError(
+                    f'{self.source}: {f_batch.topic} is sampled at '
+                    f'{f_batch.sample_rate_hz} Hz but {v_batch.topic} at '
+                    f'{v_batch.sample_rate_hz} Hz'
+                )
             start = max(f_start, v_start)
             stop = min(f_batch.end_index, v_batch.end_index)
             if stop > start:
                 gap = 0 if self._last_end is None else start - self._last_end
                 self._last_end = stop
                 yield AlignedBatch(
-                    start, _cut(f_batch, start, stop), _cut(v_batch, start, stop),
-                    f_batch.sample_rate_hz, gap, f_batch.full_scale, v_batch.full_scale)
+                    start,
+                    _cut(f_batch, start, stop),
+                    _cut(v_batch, start, stop),
+                    f_batch.sample_rate_hz,
+                    gap,
+                    f_batch.full_scale,
+                    v_batch.full_scale,
+                )
             # The head ending first is used up (or had no partner); the other moves on.
             for queue in (forces, velocities):
                 if queue[0][1].end_index <= stop:
@@ -435,7 +479,7 @@ def _cut(batch: ChannelBatch, start: int, stop: int) -> np.ndarray:
     if start == batch.first_sample_index and stop == batch.end_index:
         return batch.samples
     offset = batch.first_sample_index
-    return batch.samples[start - offset:stop - offset]
+    return batch.samples[start - offset : stop - offset]
 
 
 def _roll_back_unfinished_transaction(db_path: Path) -> None:

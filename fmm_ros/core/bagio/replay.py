@@ -26,11 +26,15 @@ def is_bag(path: str | Path) -> bool:
     return path.suffix in ('.mcap', '.db3')
 
 
-def capture_records(reader: BagReader, capture: CaptureConfig = DEFAULT_CAPTURE, *,
-                    force_topic: str = FORCE_TOPIC, velocity_topic: str = VELOCITY_TOPIC,
-                    reuse_buffers: bool = False,
-                    on_batch: Callable[[ChannelBatch], None] | None = None
-                    ) -> Iterator[ImpactRecord]:
+def capture_records(
+    reader: BagReader,
+    capture: CaptureConfig = DEFAULT_CAPTURE,
+    *,
+    force_topic: str = FORCE_TOPIC,
+    velocity_topic: str = VELOCITY_TOPIC,
+    reuse_buffers: bool = False,
+    on_batch: Callable[[ChannelBatch], None] | None = None,
+) -> Iterator[ImpactRecord]:
     """Each impact record the live capture would complete, in the order it would.
 
     Records are tagged with their source (bag name @ trigger index). reuse_buffers: a
@@ -44,21 +48,33 @@ def capture_records(reader: BagReader, capture: CaptureConfig = DEFAULT_CAPTURE,
     def tagged(records: list[ImpactRecord]) -> Iterator[ImpactRecord]:
         for record in records:
             yield dataclasses.replace(
-                record, source=f'{reader.path.name}@{record.trigger_sample_index}')
+                record, source=f'{reader.path.name}@{record.trigger_sample_index}'
+            )
             if reuse_buffers:
                 impacts.recycle(record)
 
     for batch in reader.sample_batches([force_topic, velocity_topic]):
-        yield from tagged(impacts.feed(quantity[batch.topic], batch.first_sample_index,
-                                       batch.samples, batch.sample_rate_hz, batch.full_scale))
+        yield from tagged(
+            impacts.feed(
+                quantity[batch.topic],
+                batch.first_sample_index,
+                batch.samples,
+                batch.sample_rate_hz,
+                batch.full_scale,
+            )
+        )
         if on_batch:
             on_batch(batch)
     yield from tagged(impacts.flush())
 
 
-def bag_impact_records(path: str | Path, capture: CaptureConfig = DEFAULT_CAPTURE, *,
-                       force_topic: str = FORCE_TOPIC, velocity_topic: str = VELOCITY_TOPIC
-                       ) -> tuple[list[ImpactRecord], list[str]]:
+def bag_impact_records(
+    path: str | Path,
+    capture: CaptureConfig = DEFAULT_CAPTURE,
+    *,
+    force_topic: str = FORCE_TOPIC,
+    velocity_topic: str = VELOCITY_TOPIC,
+) -> tuple[list[ImpactRecord], list[str]]:
     """Bag -> every impact record in its recorded streams, and the bag's problems.
 
     Damage does not stop it: what was readable is captured (missing samples become gaps,
@@ -66,8 +82,9 @@ def bag_impact_records(path: str | Path, capture: CaptureConfig = DEFAULT_CAPTUR
     to report. This is what offline analysis, fitting and diagnosis of a bag start from.
     """
     with BagReader(path, strict=False) as reader:
-        records = list(capture_records(reader, capture, force_topic=force_topic,
-                                       velocity_topic=velocity_topic))
+        records = list(
+            capture_records(reader, capture, force_topic=force_topic, velocity_topic=velocity_topic)
+        )
         return records, list(reader.problems)
 
 
@@ -82,10 +99,14 @@ class Replay:
     problems: list[str]
 
 
-def replay_bag(path: str | Path, capture: CaptureConfig = DEFAULT_CAPTURE,
-               analysis: AnalysisConfig | None = None, *,
-               on_result: Callable[[ImpactResult], None] | None = None,
-               on_batch: Callable[[ChannelBatch], None] | None = None) -> Replay:
+def replay_bag(
+    path: str | Path,
+    capture: CaptureConfig = DEFAULT_CAPTURE,
+    analysis: AnalysisConfig | None = None,
+    *,
+    on_result: Callable[[ImpactResult], None] | None = None,
+    on_batch: Callable[[ChannelBatch], None] | None = None,
+) -> Replay:
     """Capture and analyse every impact of a bag as the live analyzer does, then summarize.
 
     on_result gets each ImpactResult as the analyzer would publish it (impact ids count from

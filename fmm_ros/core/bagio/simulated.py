@@ -42,11 +42,18 @@ class SimulatedSession:
         return self.force_n.size / self.sample_rate_hz
 
 
-def simulated_session(hits_per_level: int = 10, *, spacing_s: float = 33.0,
-                      levels: Sequence[str] = PAPER_LEVEL_ORDER, seed: int = 0,
-                      mu: float = PAPER_MU, pretrigger_s: float = 0.1,
-                      sample_rate_hz: float = SAMPLE_RATE_HZ, force_noise_std_n: float = 0.05,
-                      velocity_noise_std_m_s: float = 1e-5) -> SimulatedSession:
+def simulated_session(
+    hits_per_level: int = 10,
+    *,
+    spacing_s: float = 33.0,
+    levels: Sequence[str] = PAPER_LEVEL_ORDER,
+    seed: int = 0,
+    mu: float = PAPER_MU,
+    pretrigger_s: float = 0.1,
+    sample_rate_hz: float = SAMPLE_RATE_HZ,
+    force_noise_std_n: float = 0.05,
+    velocity_noise_std_m_s: float = 1e-5,
+) -> SimulatedSession:
     """hits_per_level hits of each level in turn, each pretrigger_s into its spacing_s slot.
 
     The recording runs pretrigger_s past the last slot, so that a record as long as the
@@ -62,19 +69,22 @@ def simulated_session(hits_per_level: int = 10, *, spacing_s: float = 33.0,
     for k, level in enumerate(order):
         peak = level_peak_force_n(level, rng)
         start_s = pretrigger_s + rng.uniform(0.0, 1.0) / sample_rate_hz
-        force[k * slot:(k + 1) * slot] = hammer_pulse(
-            peak, tip_contact_duration_s(peak), sample_rate_hz, spacing_s, start_s=start_s)
+        force[k * slot : (k + 1) * slot] = hammer_pulse(
+            peak, tip_contact_duration_s(peak), sample_rate_hz, spacing_s, start_s=start_s
+        )
         starts.append(k * slot + int(np.ceil(start_s * sample_rate_hz)))
         peaks.append(peak)
     velocity = simulate(force, sample_rate_hz, mu=mu).velocity_m_s
     force += rng.normal(0.0, force_noise_std_n, force.size)
     velocity = velocity + rng.normal(0.0, velocity_noise_std_m_s, velocity.size)
-    return SimulatedSession(force, velocity, sample_rate_hz, order, np.array(starts),
-                            np.array(peaks), mu)
+    return SimulatedSession(
+        force, velocity, sample_rate_hz, order, np.array(starts), np.array(peaks), mu
+    )
 
 
-def write_session_bag(path: str | Path, session: SimulatedSession, *,
-                      storage: str = 'mcap', time_origin_ns: int = 0) -> Path:
+def write_session_bag(
+    path: str | Path, session: SimulatedSession, *, storage: str = 'mcap', time_origin_ns: int = 0
+) -> Path:
     """The session as the recorder would have stored it: 500-sample batches, both channels."""
     with BagWriter(path, storage=storage, time_origin_ns=time_origin_ns) as writer:
         writer.write_signals(session.force_n, session.velocity_m_s, session.sample_rate_hz)

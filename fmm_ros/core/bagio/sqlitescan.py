@@ -45,14 +45,19 @@ class SqliteScan:
     def _rows(self, connection: sqlite3.Connection) -> Iterator[ScannedMessage | Damage]:
         try:
             definitions = {}
-            tables = {row[0] for row in connection.execute(
-                "SELECT name FROM sqlite_master WHERE type = 'table'")}
+            tables = {
+                row[0]
+                for row in connection.execute("SELECT name FROM sqlite_master WHERE type = 'table'")
+            }
             if 'message_definitions' in tables:
-                rows = connection.execute('SELECT topic_type, encoding, '
-                                          'encoded_message_definition FROM message_definitions')
+                rows = connection.execute(
+                    'SELECT topic_type, encoding, '
+                    'encoded_message_definition FROM message_definitions'
+                )
                 definitions = {name: (encoding, text) for name, encoding, text in rows}
             for topic_id, name, msgtype, encoding in connection.execute(
-                    'SELECT id, name, type, serialization_format FROM topics'):
+                'SELECT id, name, type, serialization_format FROM topics'
+            ):
                 schema_encoding, text = definitions.get(msgtype, ('', ''))
                 self.schemas[topic_id] = Schema(topic_id, msgtype, schema_encoding, text)
                 self.channels[topic_id] = Channel(topic_id, topic_id, name, encoding)
@@ -62,11 +67,15 @@ class SqliteScan:
         last = 0
         try:
             for row_id, topic_id, log_time, data in connection.execute(
-                    'SELECT id, topic_id, timestamp, data FROM messages ORDER BY id'):
+                'SELECT id, topic_id, timestamp, data FROM messages ORDER BY id'
+            ):
                 channel = self.channels.get(topic_id)
                 if channel is None:
-                    yield Damage(0, f'message row {row_id} is on topic id {topic_id}, which '
-                                    'the topics table does not define')
+                    yield Damage(
+                        0,
+                        f'message row {row_id} is on topic id {topic_id}, which '
+                        'the topics table does not define',
+                    )
                     return
                 last = row_id
                 yield ScannedMessage(channel, log_time, memoryview(data))
@@ -80,7 +89,7 @@ def _fit_header_to_file(path: Path) -> str | None:
         header = stream.read(100)
         if len(header) < 100 or not header.startswith(_HEADER):
             return 'not an SQLite database (bad header)'
-        page_size = int.from_bytes(header[_PAGE_SIZE_AT:_PAGE_SIZE_AT + 2], 'big')
+        page_size = int.from_bytes(header[_PAGE_SIZE_AT : _PAGE_SIZE_AT + 2], 'big')
         page_size = 65536 if page_size == 1 else page_size
         if page_size < 512 or page_size & (page_size - 1):
             return f'corrupt SQLite header (page size {page_size})'

@@ -89,8 +89,9 @@ class BagSummary:
         return data
 
 
-def summarize_bag(reader: BagReader, *,
-                  on_progress: Callable[[int], None] | None = None) -> BagSummary:
+def summarize_bag(
+    reader: BagReader, *, on_progress: Callable[[int], None] | None = None
+) -> BagSummary:
     """Read the whole bag and summarize it; open reader with strict=False to list damage.
 
     on_progress gets 1 per message read.
@@ -118,10 +119,12 @@ def summarize_bag(reader: BagReader, *,
             continue
         if message.msgtype == SAMPLE_BATCH:
             batch = channel_batch(message, decoded)
-            channel = channels.setdefault(message.topic, ChannelSummary(
-                message.topic, batch.quantity, batch.unit))
-            channel.add(batch.first_sample_index, batch.samples, batch.sample_rate_hz,
-                        batch.full_scale)
+            channel = channels.setdefault(
+                message.topic, ChannelSummary(message.topic, batch.quantity, batch.unit)
+            )
+            channel.add(
+                batch.first_sample_index, batch.samples, batch.sample_rate_hz, batch.full_scale
+            )
         elif message.msgtype == IMPACT_RESULT:
             impacts['count'] += 1
             impacts['accepted'] += bool(decoded.accepted)
@@ -129,45 +132,71 @@ def summarize_bag(reader: BagReader, *,
             impacts['levels'][decoded.level or '(none)'] += 1
         else:
             frf_levels[decoded.level] = int(decoded.count)
-    topics = {name: {'type': info.msgtype, 'count': counts[name],
-                     'rate_hz': (counts[name] - 1) / ((end - start) / 1e9)
-                     if end and end > start and counts[name] > 1 else 0.0}
-              for name, info in sorted(reader.topics.items())}
-    impacts = {key: dict(value) if isinstance(value, Counter) else value
-               for key, value in impacts.items()}
-    return BagSummary(str(path), reader.storage, size, reader.recovered,
-                      list(reader.problems), topics, start, end, channels, impacts,
-                      frf_levels)
+    topics = {
+        name: {
+            'type': info.msgtype,
+            'count': counts[name],
+            'rate_hz': (counts[name] - 1) / ((end - start) / 1e9)
+            if end and end > start and counts[name] > 1
+            else 0.0,
+        }
+        for name, info in sorted(reader.topics.items())
+    }
+    impacts = {
+        key: dict(value) if isinstance(value, Counter) else value for key, value in impacts.items()
+    }
+    return BagSummary(
+        str(path),
+        reader.storage,
+        size,
+        reader.recovered,
+        list(reader.problems),
+        topics,
+        start,
+        end,
+        channels,
+        impacts,
+        frf_levels,
+    )
 
 
 def format_summary(summary: BagSummary) -> str:
     """The summary as the lines `fmm bag-info` prints."""
-    lines = [f'bag:       {summary.path}',
-             f'storage:   {summary.storage}, {summary.size_bytes / 1e6:.1f} MB'
-             + (' (recovered by scanning: index unusable)' if summary.recovered else ''),
-             f'duration:  {summary.duration_s:.3f} s']
+    lines = [
+        f'bag:       {summary.path}',
+        f'storage:   {summary.storage}, {summary.size_bytes / 1e6:.1f} MB'
+        + (' (recovered by scanning: index unusable)' if summary.recovered else ''),
+        f'duration:  {summary.duration_s:.3f} s',
+    ]
     lines.append('topics:')
     width = max((len(t) for t in summary.topics), default=0)
     for name, info in summary.topics.items():
-        lines.append(f'  {name:<{width}}  {info["type"]}  {info["count"]} msgs'
-                     f'  {info["rate_hz"]:.1f} msg/s')
+        lines.append(
+            f'  {name:<{width}}  {info["type"]}  {info["count"]} msgs  {info["rate_hz"]:.1f} msg/s'
+        )
     for channel in summary.channels.values():
         rates = ', '.join(f'{rate:g}' for rate in channel.sample_rate_hz)
         seconds = channel.samples / channel.sample_rate_hz[0] if channel.sample_rate_hz else 0
-        lines.append(f'channel {channel.topic}: {channel.quantity} [{channel.unit}] at {rates} '
-                     f'Hz, {channel.samples} samples ({seconds:.3f} s) in {channel.batches} '
-                     f'batches of {"/".join(map(str, channel.batch_sizes))}, indices '
-                     f'{channel.first_sample_index}..{channel.end_sample_index}')
+        lines.append(
+            f'channel {channel.topic}: {channel.quantity} [{channel.unit}] at {rates} '
+            f'Hz, {channel.samples} samples ({seconds:.3f} s) in {channel.batches} '
+            f'batches of {"/".join(map(str, channel.batch_sizes))}, indices '
+            f'{channel.first_sample_index}..{channel.end_sample_index}'
+        )
         if channel.gaps:
             shown = ', '.join(f'{count} at {index}' for index, count in channel.gaps[:5])
             more = f' and {len(channel.gaps) - 5} more' if len(channel.gaps) > 5 else ''
-            lines.append(f'  gaps: {len(channel.gaps)} ({channel.missing_samples} samples '
-                         f'missing): {shown}{more}')
+            lines.append(
+                f'  gaps: {len(channel.gaps)} ({channel.missing_samples} samples '
+                f'missing): {shown}{more}'
+            )
         else:
             lines.append('  gaps: none')
-        for label, count in (('index went back', channel.backward_jumps),
-                             ('clipped samples', channel.clipped_samples),
-                             ('NaN samples', channel.nan_samples)):
+        for label, count in (
+            ('index went back', channel.backward_jumps),
+            ('clipped samples', channel.clipped_samples),
+            ('NaN samples', channel.nan_samples),
+        ):
             if count:
                 lines.append(f'  {label}: {count}')
     if rates := {r for c in summary.channels.values() for r in c.sample_rate_hz}:
@@ -176,10 +205,16 @@ def format_summary(summary: BagSummary) -> str:
     if summary.impacts['count']:
         flags = ', '.join(f'{k} {v}' for k, v in sorted(summary.impacts['flags'].items()))
         levels = ', '.join(f'{k} {v}' for k, v in sorted(summary.impacts['levels'].items()))
-        lines.append(f'impacts:   {summary.impacts["count"]} ({summary.impacts["accepted"]} '
-                     f'accepted); levels: {levels}' + (f'; flags: {flags}' if flags else ''))
+        lines.append(
+            f'impacts:   {summary.impacts["count"]} ({summary.impacts["accepted"]} '
+            f'accepted); levels: {levels}' + (f'; flags: {flags}' if flags else '')
+        )
     if summary.frf_levels:
-        lines.append('frf:       ' + ', '.join(f'{level} ({count} impacts)' for level, count
-                                               in sorted(summary.frf_levels.items())))
+        lines.append(
+            'frf:       '
+            + ', '.join(
+                f'{level} ({count} impacts)' for level, count in sorted(summary.frf_levels.items())
+            )
+        )
     lines.extend(f'problem:   {problem}' for problem in summary.problems)
     return '\n'.join(lines)

@@ -54,10 +54,17 @@ def offered_qos(msgtype: str) -> Qos:
 
 def bag_qos(*, depth: int, reliable: bool, transient_local: bool) -> Qos:
     """A keep-last QoS profile as rosbag2 metadata stores it (the player restores it)."""
-    return Qos(QosHistory.KEEP_LAST, depth,
-               QosReliability.RELIABLE if reliable else QosReliability.BEST_EFFORT,
-               QosDurability.TRANSIENT_LOCAL if transient_local else QosDurability.VOLATILE,
-               _NO_TIME, _NO_TIME, QosLiveliness.AUTOMATIC, _NO_TIME, False)
+    return Qos(
+        QosHistory.KEEP_LAST,
+        depth,
+        QosReliability.RELIABLE if reliable else QosReliability.BEST_EFFORT,
+        QosDurability.TRANSIENT_LOCAL if transient_local else QosDurability.VOLATILE,
+        _NO_TIME,
+        _NO_TIME,
+        QosLiveliness.AUTOMATIC,
+        _NO_TIME,
+        False,
+    )
 
 
 def sample_stamp_ns(time_origin_ns: int, sample_index: int, sample_rate_hz: float) -> int:
@@ -74,9 +81,15 @@ class BagWriter:
     (None: flush only on close).
     """
 
-    def __init__(self, path: str | Path, *, storage: str = 'mcap',
-                 time_origin_ns: int | None = None, flush_interval_s: float | None = 1.0,
-                 typestore: Typestore | None = None) -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        storage: str = 'mcap',
+        time_origin_ns: int | None = None,
+        flush_interval_s: float | None = 1.0,
+        typestore: Typestore | None = None,
+    ) -> None:
         if storage not in STORAGES:
             raise BagError(f'unknown bag storage {storage!r}: use one of {", ".join(STORAGES)}')
         if flush_interval_s is not None and flush_interval_s <= 0:
@@ -86,8 +99,7 @@ class BagWriter:
         self.typestore = typestore or fmm_typestore()
         self.time_origin_ns = time.time_ns() if time_origin_ns is None else int(time_origin_ns)
         self.flush_interval_s = flush_interval_s
-        self._writer = Writer(self.path, version=ROSBAG2_VERSION,
-                              storage_plugin=STORAGES[storage])
+        self._writer = Writer(self.path, version=ROSBAG2_VERSION, storage_plugin=STORAGES[storage])
         self._connections: dict[str, object] = {}
         self._last_flush = time.monotonic()
         self._open = False
@@ -121,37 +133,54 @@ class BagWriter:
         if topic in self._connections:
             known = self._connections[topic].msgtype
             if known != msgtype:
-                raise BagError(f'topic {topic} is already in bag {self.path} as {known}, '
-                               f'cannot also write {msgtype}')
+                raise BagError(
+                    f'topic {topic} is already in bag {self.path} as {known}, '
+                    f'cannot also write {msgtype}'
+                )
             return
         if msgtype not in self.typestore.fielddefs:
             raise MessageTypeError(
                 f'unknown message type {msgtype!r} for topic {topic}: the bag writer knows '
-                'the fmm_interfaces messages and the ROS 2 Jazzy standard types')
+                'the fmm_interfaces messages and the ROS 2 Jazzy standard types'
+            )
         self._connections[topic] = self._writer.add_connection(
-            topic, msgtype, typestore=self.typestore,
-            offered_qos_profiles=[qos or offered_qos(msgtype)])
+            topic,
+            msgtype,
+            typestore=self.typestore,
+            offered_qos_profiles=[qos or offered_qos(msgtype)],
+        )
 
-    def write_raw(self, topic: str, msgtype: str, data: bytes | memoryview,
-                  log_time_ns: int) -> None:
+    def write_raw(
+        self, topic: str, msgtype: str, data: bytes | memoryview, log_time_ns: int
+    ) -> None:
         """Store one serialized (CDR) message as received, without decoding it."""
         if topic not in self._connections:
             self.add_topic(topic, msgtype)
         self._writer.write(self._connections[topic], int(log_time_ns), data)
         self.messages_written += 1
-        if (self.flush_interval_s is not None
-                and time.monotonic() - self._last_flush >= self.flush_interval_s):
+        if (
+            self.flush_interval_s is not None
+            and time.monotonic() - self._last_flush >= self.flush_interval_s
+        ):
             self.flush()
 
     def write_message(self, topic: str, message, log_time_ns: int) -> None:
         """Serialize one rosbags message object (e.g. an ImpactResult) and store it."""
         msgtype = message.__msgtype__
-        self.write_raw(topic, msgtype, self.typestore.serialize_cdr(message, msgtype),
-                       log_time_ns)
+        self.write_raw(topic, msgtype, self.typestore.serialize_cdr(message, msgtype), log_time_ns)
 
-    def write_sample_batch(self, topic: str, samples: np.ndarray, *, quantity: tuple[str, str],
-                           sample_rate_hz: float, first_sample_index: int, frame_id: str = '',
-                           full_scale: float = 0.0, log_time_ns: int | None = None) -> None:
+    def write_sample_batch(
+        self,
+        topic: str,
+        samples: np.ndarray,
+        *,
+        quantity: tuple[str, str],
+        sample_rate_hz: float,
+        first_sample_index: int,
+        frame_id: str = '',
+        full_scale: float = 0.0,
+        log_time_ns: int | None = None,
+    ) -> None:
         """One SampleBatch from an array of samples [SI unit of quantity].
 
         The header stamp is the acquisition time of samples[0]; the log time defaults to
@@ -160,43 +189,73 @@ class BagWriter:
         types = self.typestore.types
         stamp_ns = sample_stamp_ns(self.time_origin_ns, first_sample_index, sample_rate_hz)
         if log_time_ns is None:
-            log_time_ns = sample_stamp_ns(self.time_origin_ns,
-                                          first_sample_index + len(samples), sample_rate_hz)
+            log_time_ns = sample_stamp_ns(
+                self.time_origin_ns, first_sample_index + len(samples), sample_rate_hz
+            )
         header = types['std_msgs/msg/Header'](
-            stamp=types['builtin_interfaces/msg/Time'](sec=stamp_ns // 10**9,
-                                                       nanosec=stamp_ns % 10**9),
-            frame_id=frame_id)
+            stamp=types['builtin_interfaces/msg/Time'](
+                sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9
+            ),
+            frame_id=frame_id,
+        )
         message = types[SAMPLE_BATCH](
-            header=header, quantity=quantity[0], unit=quantity[1],
-            sample_rate_hz=float(sample_rate_hz), first_sample_index=int(first_sample_index),
+            header=header,
+            quantity=quantity[0],
+            unit=quantity[1],
+            sample_rate_hz=float(sample_rate_hz),
+            first_sample_index=int(first_sample_index),
             full_scale=float(full_scale),
-            samples=np.ascontiguousarray(samples, dtype=np.float64))
+            samples=np.ascontiguousarray(samples, dtype=np.float64),
+        )
         self.write_message(topic, message, log_time_ns)
 
-    def write_signals(self, force: np.ndarray, velocity: np.ndarray, sample_rate_hz: float, *,
-                      first_sample_index: int = 0, batch_size: int = DEFAULT_BATCH_SIZE,
-                      full_scale_force: float = 0.0, full_scale_velocity: float = 0.0,
-                      force_frame: str = 'hammer', velocity_frame: str = 'vibrometer',
-                      on_progress: Callable[[int], None] | None = None) -> int:
+    def write_signals(
+        self,
+        force: np.ndarray,
+        velocity: np.ndarray,
+        sample_rate_hz: float,
+        *,
+        first_sample_index: int = 0,
+        batch_size: int = DEFAULT_BATCH_SIZE,
+        full_scale_force: float = 0.0,
+        full_scale_velocity: float = 0.0,
+        force_frame: str = 'hammer',
+        velocity_frame: str = 'vibrometer',
+        on_progress: Callable[[int], None] | None = None,
+    ) -> int:
         """Whole force [N] and velocity [m/s] records as batches on /fmm/force, /fmm/velocity.
 
         Both channels share one sample index, as a DAQ publishes them. on_progress gets the
         number of samples written per batch. Returns the index after the last sample.
         """
         if len(force) != len(velocity):
-            raise ValueError(f'force has {len(force)} samples but velocity {len(velocity)}: '
-                             'the two channels of one acquisition must be equally long')
+            raise ValueError(
+                f'force has {len(force)} samples but velocity {len(velocity)}: '
+                'the two channels of one acquisition must be equally long'
+            )
         if batch_size < 1:
             raise ValueError(f'batch_size must be at least 1, got {batch_size}')
         for start in range(0, len(force), batch_size):
             index = first_sample_index + start
             stop = start + batch_size
-            self.write_sample_batch(FORCE_TOPIC, force[start:stop], quantity=FORCE,
-                                    sample_rate_hz=sample_rate_hz, first_sample_index=index,
-                                    frame_id=force_frame, full_scale=full_scale_force)
-            self.write_sample_batch(VELOCITY_TOPIC, velocity[start:stop], quantity=VELOCITY,
-                                    sample_rate_hz=sample_rate_hz, first_sample_index=index,
-                                    frame_id=velocity_frame, full_scale=full_scale_velocity)
+            self.write_sample_batch(
+                FORCE_TOPIC,
+                force[start:stop],
+                quantity=FORCE,
+                sample_rate_hz=sample_rate_hz,
+                first_sample_index=index,
+                frame_id=force_frame,
+                full_scale=full_scale_force,
+            )
+            self.write_sample_batch(
+                VELOCITY_TOPIC,
+                velocity[start:stop],
+                quantity=VELOCITY,
+                sample_rate_hz=sample_rate_hz,
+                first_sample_index=index,
+                frame_id=velocity_frame,
+                full_scale=full_scale_velocity,
+            )
             if on_progress:
                 on_progress(len(force[start:stop]))
         return first_sample_index + len(force)
