@@ -10,13 +10,13 @@ PACKAGE = 'fmm_ros'
 
 # ROS node executables (`ros2 run fmm_ros <name>`); colcon installs them to lib/fmm_ros.
 NODES = {
-    'hammer_sim': 'fmm_ros.nodes.hammer_sim:main',
-    'rig_sim': 'fmm_ros.nodes.rig_sim:main',
-    'analyzer': 'fmm_ros.nodes.analyzer:main',
-    'fitter': 'fmm_ros.nodes.fitter:main',
-    'recorder': 'fmm_ros.nodes.recorder:main',
-    'player': 'fmm_ros.nodes.player:main',
-    'daq': 'fmm_ros.nodes.daq:main',
+    'hammer_sim': 'fmm_ros.ros.nodes.hammer_sim:main',
+    'rig_sim': 'fmm_ros.ros.nodes.rig_sim:main',
+    'analyzer': 'fmm_ros.ros.nodes.analyzer:main',
+    'fitter': 'fmm_ros.ros.nodes.fitter:main',
+    'recorder': 'fmm_ros.ros.nodes.recorder:main',
+    'player': 'fmm_ros.ros.nodes.player:main',
+    'daq': 'fmm_ros.ros.nodes.daq:main',
 }
 
 

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 from rosbags.rosbag2 import Reader
 
-from fmm_ros.core.bagio import (
+from fmm_ros.io.bags import (
     FORCE_TOPIC,
     SAMPLE_BATCH,
     VELOCITY_TOPIC,

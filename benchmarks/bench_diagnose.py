@@ -5,7 +5,7 @@ Run: .venv/bin/python benchmarks/bench_diagnose.py [--cases N] [--seed S] [--rep
 
 The sweep draws N sessions (three impacts of 33 s at random hammer levels, 0.2 N / 1e-4 m/s
 noise, a random friction coefficient) per hidden effect and for 'none', each with the effect
-sized 1-4x the velocity noise after the base fit (`fmm_ros.core.hidden_effects`), diagnoses
+sized 1-4x the velocity noise after the base fit (`fmm_ros.sim.hidden_effects`), diagnoses
 them, and prints the confusion matrix (rows: hidden, columns: named), the accuracy, the median
 gap reduction where an effect was hidden, and every miss. Then the time of one diagnosis of
 three impacts (all candidates) against the same diagnosis with every candidate refitted from
@@ -23,13 +23,14 @@ import time
 
 import numpy as np
 
-import fmm_ros.core.diagnose as diagnose_module
-from fmm_ros.core.bagio.simulated import simulated_session
-from fmm_ros.core.diagnose import diagnose
-from fmm_ros.core.fit import as_conditioned, fit_model
-from fmm_ros.core.hidden_effects import HIDDEN_EFFECTS, hidden_effect_case
-from fmm_ros.core.impacts import capture_impacts
-from fmm_ros.core.model import MODEL_TERMS
+import fmm_ros.core.diagnose.workflow as diagnose_module
+from fmm_ros.core.diagnose.workflow import diagnose
+from fmm_ros.core.identify.conditioning import as_conditioned
+from fmm_ros.core.identify.friction import fit_model
+from fmm_ros.core.physics.terms import MODEL_TERMS
+from fmm_ros.core.signal.capture import capture_impacts
+from fmm_ros.sim.hidden_effects import HIDDEN_EFFECTS, hidden_effect_case
+from fmm_ros.sim.session import simulated_session
 
 TARGET_ACCURACY = 0.95
 TARGET_SECONDS = 10.0

@@ -23,19 +23,15 @@ import numpy as np
 import scipy.optimize
 from bench_physics import RATE_HZ, euler_in_python, median_s
 
-from fmm_ros.core._lsq import levenberg_marquardt
-from fmm_ros.core.bagio.simulated import simulated_session
-from fmm_ros.core.excitation import PAPER_LEVELS, impact_record
-from fmm_ros.core.fit import (
-    MU_BOUNDS,
-    condition_impact,
-    energy_balance_mu,
-    fit_friction,
-    fit_model,
-    identify_rig,
-)
-from fmm_ros.core.impacts import capture_impacts
-from fmm_ros.core.model import FMM_RIG, PAPER_MU, simulate
+from fmm_ros.core.identify.conditioning import condition_impact
+from fmm_ros.core.identify.friction import MU_BOUNDS, energy_balance_mu, fit_friction, fit_model
+from fmm_ros.core.identify.lsq import levenberg_marquardt
+from fmm_ros.core.identify.rig import identify_rig
+from fmm_ros.core.physics.model import simulate
+from fmm_ros.core.physics.rig import FMM_RIG, PAPER_MU
+from fmm_ros.core.signal.capture import capture_impacts
+from fmm_ros.sim.excitation import PAPER_LEVELS, impact_record
+from fmm_ros.sim.session import simulated_session
 
 TARGET_ONE_MS = 100.0
 TARGET_JOINT_MS = 300.0

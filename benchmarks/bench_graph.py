@@ -17,14 +17,14 @@ import time
 
 from rclpy.parameter import Parameter
 
-from fmm_ros.launch import node_command, start_processes, stop_processes
-from fmm_ros.nodes.analyzer import Analyzer
-from fmm_ros.nodes.fitter import Fitter
-from fmm_ros.nodes.hammer_sim import HammerSim
-from fmm_ros.nodes.recorder import Recorder
-from fmm_ros.nodes.rig_sim import RigSim
-from fmm_ros.ros_graph import PRIVATE_DOMAIN_IDS, InProcessGraph
-from fmm_ros.session import SessionConfig
+from fmm_ros.ros.demo import SessionConfig
+from fmm_ros.ros.graph import PRIVATE_DOMAIN_IDS, InProcessGraph
+from fmm_ros.ros.launch import node_command, start_processes, stop_processes
+from fmm_ros.ros.nodes.analyzer import Analyzer
+from fmm_ros.ros.nodes.fitter import Fitter
+from fmm_ros.ros.nodes.hammer_sim import HammerSim
+from fmm_ros.ros.nodes.recorder import Recorder
+from fmm_ros.ros.nodes.rig_sim import RigSim
 
 CLOCK_TICKS = os.sysconf('SC_CLK_TCK')
 

@@ -17,17 +17,10 @@ import time
 
 import numpy as np
 
-from fmm_ros.core.excitation import impact_record
-from fmm_ros.core.model import (
-    FMM_RIG,
-    PAPER_MU,
-    STANDARD_GRAVITY_M_S2,
-    OscillatorStream,
-    Rig,
-    free_vibration,
-    model_term,
-    simulate,
-)
+from fmm_ros.core.physics.model import OscillatorStream, free_vibration, simulate
+from fmm_ros.core.physics.rig import FMM_RIG, PAPER_MU, STANDARD_GRAVITY_M_S2, Rig
+from fmm_ros.core.physics.terms import model_term
+from fmm_ros.sim.excitation import impact_record
 
 RATE_HZ = 10_000.0
 TARGET_RECORD_MS = 3.0
@@ -79,7 +72,7 @@ def cold_compile_s():
     """First call in a fresh process with an empty numba cache: the JIT compile itself."""
     code = (
         'import time; t = time.perf_counter(); import numpy as np; '
-        'from fmm_ros.core.model import simulate, model_term; '
+        'from fmm_ros.core.physics import simulate, model_term; '
         'f = np.zeros(1000); simulate(f, 1e4); simulate(f, 1e4, integrator="euler"); '
         'simulate(f, 1e4, effects=(model_term("second_mode"), model_term("sensor_delay"),'
         ' model_term("stribeck"))); print(time.perf_counter() - t)'

@@ -19,11 +19,11 @@ from pathlib import Path
 import numpy as np
 from rosbags.rosbag2 import Reader
 
-from fmm_ros.core.analysis import PAPER_LEVELS, AnalysisConfig, analyze_impact, summarize
-from fmm_ros.core.bagio import FORCE_TOPIC, SAMPLE_BATCH, VELOCITY_TOPIC, BagReader, fmm_typestore
-from fmm_ros.core.bagio.replay import capture_records, replay_bag
-from fmm_ros.core.bagio.simulated import simulated_session, write_session_bag
-from fmm_ros.core.impacts import DEFAULT_CAPTURE, capture_impacts
+from fmm_ros.core.signal.analysis import PAPER_LEVELS, AnalysisConfig, analyze_impact, summarize
+from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, capture_impacts
+from fmm_ros.io.bags import FORCE_TOPIC, SAMPLE_BATCH, VELOCITY_TOPIC, BagReader, fmm_typestore
+from fmm_ros.sim.session import simulated_session, write_session_bag
+from fmm_ros.workflows.replay import capture_records, replay_bag
 
 TARGET = 200.0
 ANALYSIS = AnalysisConfig(levels=PAPER_LEVELS)

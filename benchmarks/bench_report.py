@@ -22,13 +22,13 @@ import tempfile
 import time
 from pathlib import Path
 
-from fmm_ros.core.analysis import PAPER_LEVELS, AnalysisConfig
-from fmm_ros.core.bagio.simulated import simulated_session
-from fmm_ros.core.impacts import capture_impacts
-from fmm_ros.core.model import PAPER_MU
+from fmm_ros.core.physics.rig import PAPER_MU
+from fmm_ros.core.signal.analysis import PAPER_LEVELS, AnalysisConfig
+from fmm_ros.core.signal.capture import capture_impacts
 from fmm_ros.report import ModelOverlay, build_report, session_figures
 from fmm_ros.report import html as report_html
 from fmm_ros.report.plotting import DEFAULT_DPI, freeze_ticks
+from fmm_ros.sim.session import simulated_session
 
 TARGET_S = 6.0
 HIT_FIGURES = session_figures.HitFigures

@@ -14,9 +14,9 @@ import time
 import numpy as np
 import scipy.signal
 
-from fmm_ros.core.analysis import analyze_impact
-from fmm_ros.core.impacts import CaptureConfig, ImpactCapture, find_triggers
-from fmm_ros.core.records import ImpactRecord
+from fmm_ros.core.signal.analysis import analyze_impact
+from fmm_ros.core.signal.capture import CaptureConfig, ImpactCapture, find_triggers
+from fmm_ros.core.signal.records import ImpactRecord
 
 RATE_HZ = 10_000.0
 BATCH = 500

@@ -8,7 +8,7 @@
 
 import sys
 
-from fmm_ros.launch import REAL_RIG, launch_main
+from fmm_ros.ros.launch import REAL_RIG, launch_main
 
 if __name__ == '__main__':
     sys.exit(launch_main(REAL_RIG, __doc__.splitlines()[0]))

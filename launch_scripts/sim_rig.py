@@ -7,7 +7,7 @@
 
 import sys
 
-from fmm_ros.launch import SIMULATED_RIG, launch_main
+from fmm_ros.ros.launch import SIMULATED_RIG, launch_main
 
 if __name__ == '__main__':
     sys.exit(launch_main(SIMULATED_RIG, __doc__.splitlines()[0]))

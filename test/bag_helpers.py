@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from fmm_ros.core.bagio import new_message
+from fmm_ros.io.bags import new_message
 
 
 def random_message(store, msgtype: str, rng: np.random.Generator):

@@ -17,7 +17,7 @@ os.environ.setdefault(
 @pytest.fixture
 def ros_graph():
     """An InProcessGraph torn down in the safe order after the test, whatever happens."""
-    from fmm_ros.ros_graph import InProcessGraph
+    from fmm_ros.ros.graph import InProcessGraph
 
     with InProcessGraph() as graph:
         yield graph

@@ -8,13 +8,13 @@ delay of up to 40 samples and a fraction of one: nothing the fitter may know.
 
 import numpy as np
 
-from fmm_ros.core.excitation import (
+from fmm_ros.core.physics.rig import FMM_RIG
+from fmm_ros.sim.excitation import (
     PAPER_LEVELS,
     impact_record,
     level_peak_force_n,
     tip_contact_duration_s,
 )
-from fmm_ros.core.model import FMM_RIG
 
 FORCE_NOISE_N = 0.2
 VELOCITY_NOISE_M_S = 1e-4

@@ -6,13 +6,8 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from fmm_interfaces.msg import FrfSummary, ImpactResult, SampleBatch
-from fmm_ros.nodes.common import (
-    FRF_TOPIC,
-    IMPACTS_TOPIC,
-    RESULT_QOS,
-    SAMPLE_QOS,
-    VELOCITY_TOPIC,
-)
+from fmm_ros.constants import FRF_TOPIC, IMPACTS_TOPIC, VELOCITY_TOPIC
+from fmm_ros.ros.common import RESULT_QOS, SAMPLE_QOS
 
 
 def params(**values):

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from signal_records import analytic_mobility, damping_for_ratio, half_sine, hits, linear_velocity
 
-from fmm_ros.core.analysis import (
+from fmm_ros.core.signal.analysis import (
     PAPER_LEVELS,
     AnalysisConfig,
     ImpactResult,
@@ -15,7 +15,7 @@ from fmm_ros.core.analysis import (
     analyze_impact,
     summarize,
 )
-from fmm_ros.core.impacts import FLAGS, CaptureConfig, ImpactCapture, capture_impacts
+from fmm_ros.core.signal.capture import FLAGS, CaptureConfig, ImpactCapture, capture_impacts
 
 RATE_HZ = 10_000.0
 CAPTURE = CaptureConfig()  # the paper's 33 s window, 10 ms pre-trigger

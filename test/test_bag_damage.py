@@ -11,7 +11,7 @@ import pytest
 from mcap.reader import make_reader
 from rosbags.rosbag2 import StoragePlugin, Writer
 
-from fmm_ros.core.bagio import (
+from fmm_ros.io.bags import (
     FORCE_TOPIC,
     IMPACT_RESULT,
     IMPACTS_TOPIC,
@@ -199,7 +199,7 @@ def test_unknown_message_types_are_named(tmp_path):
 WRITER_SCRIPT = textwrap.dedent("""
     import sys
     import numpy as np
-    from fmm_ros.core.bagio import BagWriter
+    from fmm_ros.io.bags import BagWriter
     path, storage = sys.argv[1], sys.argv[2]
     with BagWriter(path, storage=storage, time_origin_ns=0, flush_interval_s=None) as writer:
         for k in range(10**6):

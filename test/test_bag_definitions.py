@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from fmm_ros.core.bagio import definitions
-from fmm_ros.core.bagio.definitions import SAMPLE_BATCH, fmm_typestore
+from fmm_ros.io.bags import definitions
+from fmm_ros.io.bags.definitions import SAMPLE_BATCH, fmm_typestore
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -79,7 +79,7 @@ def test_a_plain_pip_install_carries_the_definitions_as_package_data(tmp_path):
     # -S: no .pth files, so the editable install of this checkout stays out of the way.
     code = (
         'import sys; sys.path[:0] = sys.argv[1:]; import fmm_ros; '
-        'from fmm_ros.core.bagio.definitions import find_definitions, fmm_typestore; '
+        'from fmm_ros.io.bags.definitions import find_definitions, fmm_typestore; '
         'found = find_definitions(); fmm_typestore(); '
         'print(fmm_ros.__file__); print(found.origin); print(len(found.texts))'
     )

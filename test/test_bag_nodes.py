@@ -7,15 +7,15 @@ import pytest
 from rclpy.parameter import Parameter
 from rig_graph import FAST_ANALYZER, FAST_HAMMER, Listener, params, wait_for
 
-from fmm_ros import msgs
-from fmm_ros.core.bagio.reader import BagReader
-from fmm_ros.core.bagio.replay import replay_bag
-from fmm_ros.nodes.analyzer import Analyzer, configs_from_parameters
-from fmm_ros.nodes.hammer_sim import HammerSim
-from fmm_ros.nodes.player import Player
-from fmm_ros.nodes.recorder import Recorder
-from fmm_ros.nodes.rig_sim import RigSim
-from fmm_ros.ros_graph import PRIVATE_DOMAIN_IDS, InProcessGraph
+from fmm_ros.io.bags.reader import BagReader
+from fmm_ros.ros import msgs
+from fmm_ros.ros.graph import PRIVATE_DOMAIN_IDS, InProcessGraph
+from fmm_ros.ros.nodes.analyzer import Analyzer, configs_from_parameters
+from fmm_ros.ros.nodes.hammer_sim import HammerSim
+from fmm_ros.ros.nodes.player import Player
+from fmm_ros.ros.nodes.recorder import Recorder
+from fmm_ros.ros.nodes.rig_sim import RigSim
+from fmm_ros.workflows.replay import replay_bag
 
 
 @pytest.fixture(scope='module')
@@ -114,7 +114,7 @@ def test_fmm_record_records_live_topics_until_interrupted(tmp_path, signum):
     import subprocess
     import sys
 
-    from fmm_ros.launch import parse_overrides, start_processes, stop_processes
+    from fmm_ros.ros.launch import parse_overrides, start_processes, stop_processes
 
     env = dict(
         os.environ,

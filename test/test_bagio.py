@@ -9,7 +9,7 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.rosbag2 import Reader
 
-from fmm_ros.core.bagio import (
+from fmm_ros.io.bags import (
     FORCE_TOPIC,
     FRF_SUMMARY,
     FRF_TOPIC,

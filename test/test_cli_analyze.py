@@ -10,9 +10,9 @@ import pytest
 from signal_records import hits
 
 from fmm_ros.cli import main
-from fmm_ros.core.analysis import analyze_impact
-from fmm_ros.core.impacts import CaptureConfig, capture_impacts
-from fmm_ros.core.records import read_impact_csv, write_impact_csv
+from fmm_ros.core.signal.analysis import analyze_impact
+from fmm_ros.core.signal.capture import CaptureConfig, capture_impacts
+from fmm_ros.core.signal.records import read_impact_csv, write_impact_csv
 
 RATE_HZ = 1000.0
 SECONDS = 4.0

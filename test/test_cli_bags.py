@@ -10,7 +10,7 @@ from bag_helpers import random_message
 
 from fmm_ros.cli import main
 from fmm_ros.cli.progress import progress_bar
-from fmm_ros.core.bagio import (
+from fmm_ros.io.bags import (
     FORCE,
     FORCE_TOPIC,
     FRF_SUMMARY,
@@ -22,7 +22,7 @@ from fmm_ros.core.bagio import (
     BagWriter,
     fmm_typestore,
 )
-from fmm_ros.core.bagio.export import table_columns
+from fmm_ros.io.bags.tables import table_columns
 
 FS = 10_000.0
 

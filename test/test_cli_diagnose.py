@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from fmm_ros.cli import main
-from fmm_ros.core.hidden_effects import hidden_effect_case
-from fmm_ros.core.records import write_impact_csv
+from fmm_ros.core.signal.records import write_impact_csv
+from fmm_ros.sim.hidden_effects import hidden_effect_case
 
 PNG_MAGIC = b'\x89PNG\r\n\x1a\n'
 

@@ -7,9 +7,10 @@ import pytest
 from fit_records import lab_impact, lab_levels
 
 from fmm_ros.cli import build_parser, main
-from fmm_ros.core.bagio.simulated import simulated_session, write_session_bag
-from fmm_ros.core.model import FMM_RIG, Rig, free_vibration
-from fmm_ros.core.records import write_impact_csv
+from fmm_ros.core.physics.model import free_vibration
+from fmm_ros.core.physics.rig import FMM_RIG, Rig
+from fmm_ros.core.signal.records import write_impact_csv
+from fmm_ros.sim.session import simulated_session, write_session_bag
 
 SECONDS = 8.0  # at mu = 0.113 the FMM is at rest within 4 s of the hit
 FIT_KEYS = {'mu', 'mu_stderr', 'damping_n_s_per_m', 'residual_rms_m_s', 'per_file'}

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from fmm_ros.cli import main
-from fmm_ros.core.excitation import half_sine_pulse
-from fmm_ros.core.model import FMM_RIG, Rig, simulate
+from fmm_ros.core.physics.model import simulate
+from fmm_ros.core.physics.rig import FMM_RIG, Rig
+from fmm_ros.sim.excitation import half_sine_pulse
 
 FIG2 = [
     '--mu',

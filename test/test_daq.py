@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from rig_graph import FAST_ANALYZER, Listener, params, wait_for
 
-from fmm_ros.core.excitation import impact_record
-from fmm_ros.core.records import write_impact_csv
-from fmm_ros.nodes.analyzer import Analyzer
-from fmm_ros.nodes.daq import Daq
+from fmm_ros.core.signal.records import write_impact_csv
+from fmm_ros.ros.nodes.analyzer import Analyzer
+from fmm_ros.ros.nodes.daq import Daq
+from fmm_ros.sim.excitation import impact_record
 
 RATE_HZ = 10_000.0
 

@@ -5,7 +5,7 @@ import json
 import pytest
 
 from fmm_ros.cli import main
-from fmm_ros.core.bagio.reader import BagReader
+from fmm_ros.io.bags.reader import BagReader
 
 
 def test_demo_json_reports_the_session_and_fits_the_plant_mu(tmp_path, capsys):

@@ -11,16 +11,11 @@ import math
 import numpy as np
 import pytest
 
-from fmm_ros.core.diagnose import (
-    EFFECTS,
-    NONE,
-    VOCABULARY,
-    diagnose,
-    start_term,
-)
-from fmm_ros.core.excitation import impact_record
-from fmm_ros.core.fit import FitError
-from fmm_ros.core.hidden_effects import HIDDEN_EFFECTS, hidden_effect_case
+from fmm_ros.core.diagnose.starts import start_term
+from fmm_ros.core.diagnose.workflow import EFFECTS, NONE, VOCABULARY, diagnose
+from fmm_ros.core.identify.conditioning import FitError
+from fmm_ros.sim.excitation import impact_record
+from fmm_ros.sim.hidden_effects import HIDDEN_EFFECTS, hidden_effect_case
 
 SEED = 2019
 
@@ -155,7 +150,8 @@ def test_start_values_come_from_the_signatures(diagnoses):
     # The offset starts at the measured velocity at rest, the delay at the phase slope.
     for effect, attribute in (('velocity_offset', 'offset_m_s'), ('sensor_delay', 'delay_s')):
         case, result = diagnoses[effect]
-        from fmm_ros.core.fit import as_conditioned, fit_model
+        from fmm_ros.core.identify.conditioning import as_conditioned
+        from fmm_ros.core.identify.friction import fit_model
 
         impacts = [as_conditioned(r) for r in case.records]
         base = fit_model(impacts)

@@ -5,13 +5,13 @@ from rclpy.node import Node
 from rig_graph import FAST_ANALYZER, FAST_HAMMER, params, wait_for
 
 from fmm_interfaces.srv import DiagnoseModel
-from fmm_ros import msgs
-from fmm_ros.core.diagnose import EFFECTS
-from fmm_ros.nodes.analyzer import Analyzer
-from fmm_ros.nodes.common import DIAGNOSE_SERVICE
-from fmm_ros.nodes.fitter import Fitter
-from fmm_ros.nodes.hammer_sim import HammerSim
-from fmm_ros.nodes.rig_sim import RigSim
+from fmm_ros.core.diagnose.workflow import EFFECTS
+from fmm_ros.ros import msgs
+from fmm_ros.ros.common import DIAGNOSE_SERVICE
+from fmm_ros.ros.nodes.analyzer import Analyzer
+from fmm_ros.ros.nodes.fitter import Fitter
+from fmm_ros.ros.nodes.hammer_sim import HammerSim
+from fmm_ros.ros.nodes.rig_sim import RigSim
 
 OFFSET_M_S = 3e-4  # three times the vibrometer noise
 

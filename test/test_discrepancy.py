@@ -1,13 +1,15 @@
-"""fmm_ros.core.discrepancy: noise, residual by region and band, decay signatures, peaks."""
+"""fmm_ros.core.diagnose.signatures: noise, residual by region and band, decay signatures, peaks."""
 
 import math
 
 import numpy as np
 import pytest
 
-from fmm_ros.core import discrepancy as d
-from fmm_ros.core.fit import velocity_noise_std
-from fmm_ros.core.model import FMM_RIG, free_vibration, model_term, simulate
+from fmm_ros.core.diagnose import signatures as d
+from fmm_ros.core.identify.conditioning import velocity_noise_std
+from fmm_ros.core.physics.model import free_vibration, simulate
+from fmm_ros.core.physics.rig import FMM_RIG
+from fmm_ros.core.physics.terms import model_term
 
 RATE_HZ = 10_000.0
 F_N = FMM_RIG.natural_frequency_hz

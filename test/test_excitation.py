@@ -1,11 +1,13 @@
-"""fmm_ros.core.excitation: pulse shapes and impulses, the paper's levels, impact records."""
+"""fmm_ros.sim.excitation: pulse shapes and impulses, the paper's levels, impact records."""
 
 import math
 
 import numpy as np
 import pytest
 
-from fmm_ros.core.excitation import (
+from fmm_ros.core.physics.model import simulate
+from fmm_ros.core.physics.terms import model_term
+from fmm_ros.sim.excitation import (
     ACCEPTANCE_TOLERANCE_N,
     PAPER_LEVELS,
     half_sine_duration_s,
@@ -16,7 +18,6 @@ from fmm_ros.core.excitation import (
     rectangular_pulse,
     tip_contact_duration_s,
 )
-from fmm_ros.core.model import model_term, simulate
 
 RATE_HZ = 10_000.0
 

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 import pyuff
 
-from fmm_ros.core.analysis import AnalysisConfig, ImpactResult, analyze_impact, summarize
-from fmm_ros.core.export import (
+from fmm_ros.core.signal.analysis import AnalysisConfig, ImpactResult, analyze_impact, summarize
+from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.io.frf_files import (
     FrfCurve,
     impact_curves,
     level_curves,
@@ -16,7 +17,6 @@ from fmm_ros.core.export import (
     write_frfs,
     write_uff58,
 )
-from fmm_ros.core.records import ImpactRecord
 
 AXIS = np.arange(3301) / 33.0  # 0 .. 100 Hz by 1/33 Hz, the paper's grid
 MOBILITY = (1 + AXIS) * np.exp(1j * AXIS)

@@ -7,11 +7,14 @@ import numpy as np
 import pytest
 from fit_records import FORCE_NOISE_N, VELOCITY_NOISE_M_S, lab_impact, lab_levels
 
-from fmm_ros.core import fit
-from fmm_ros.core._lsq import Infeasible, levenberg_marquardt, normal_inverse
-from fmm_ros.core.bagio.simulated import simulated_session
-from fmm_ros.core.impacts import capture_impacts
-from fmm_ros.core.model import FMM_RIG, Rig, free_vibration, model_term, simulate
+from fmm_ros.core import identify as fit
+from fmm_ros.core.identify import output_error
+from fmm_ros.core.identify.lsq import Infeasible, levenberg_marquardt, normal_inverse
+from fmm_ros.core.physics.model import free_vibration, simulate
+from fmm_ros.core.physics.rig import FMM_RIG, Rig
+from fmm_ros.core.physics.terms import model_term
+from fmm_ros.core.signal.capture import capture_impacts
+from fmm_ros.sim.session import simulated_session
 
 
 @pytest.fixture(scope='module')
@@ -187,11 +190,11 @@ def test_blockwise_jacobian_gives_the_dense_fit(session_set, options):
 
 def _count_jacobian_runs(monkeypatch) -> list[tuple[int, int]]:
     """Per Jacobian of every later fit: (model runs, floats stored)."""
-    from fmm_ros.core import _lsq
+    from fmm_ros.core.identify import lsq as _lsq
 
     runs = [0]
     counted = []
-    simulate_for_real, jacobian_for_real = fit.simulate, _lsq._forward_jacobian
+    simulate_for_real, jacobian_for_real = output_error.simulate, _lsq._forward_jacobian
 
     def counting_simulate(*args, **kwargs):
         runs[0] += 1
@@ -205,7 +208,7 @@ def _count_jacobian_runs(monkeypatch) -> list[tuple[int, int]]:
         counted.append((runs[0] - before, stored))
         return evaluations
 
-    monkeypatch.setattr(fit, 'simulate', counting_simulate)
+    monkeypatch.setattr(output_error, 'simulate', counting_simulate)
     monkeypatch.setattr(_lsq, '_forward_jacobian', counting_jacobian)
     return counted
 
@@ -229,7 +232,7 @@ def test_a_start_position_runs_and_stores_only_its_own_impact(session_set, monke
 
 
 def test_block_jacobian_is_the_dense_one_without_its_zeros():
-    from fmm_ros.core._lsq import Blocks
+    from fmm_ros.core.identify.lsq import Blocks
 
     segments = (slice(0, 3), slice(3, 5))
     blocks = Blocks.global_and_local(segments, 1, [[1], [2]])
@@ -586,8 +589,8 @@ def test_a_parameter_the_residuals_ignore_gets_infinite_variance_and_spoils_no_o
     import dataclasses
     import warnings
 
-    from fmm_ros.core._lsq import BlockJacobian, Blocks, LsqSolution
-    from fmm_ros.core.fit import _uncertainty
+    from fmm_ros.core.identify.lsq import BlockJacobian, Blocks, LsqSolution
+    from fmm_ros.core.identify.output_error import sandwich_uncertainty
 
     rng = np.random.default_rng(0)
     rows = np.vstack([rng.normal(size=(2, 4000)), np.zeros(4000)])
@@ -605,7 +608,7 @@ def test_a_parameter_the_residuals_ignore_gets_infinite_variance_and_spoils_no_o
     solution = LsqSolution(**values, **{name: 0 for name in fields - set(values)})
     with warnings.catch_warnings():
         warnings.simplefilter('error')
-        result = _uncertainty(solution, [400])
+        result = sandwich_uncertainty(solution, [400])
     assert np.isinf(result.stderr[2])
     assert np.all(np.isfinite(result.stderr[:2])) and np.all(result.stderr[:2] > 0)
     assert np.all(np.isfinite(result.covariance[:2, :2]))

@@ -12,7 +12,7 @@ from signal_records import (
     linear_velocity,
 )
 
-from fmm_ros.core import frf
+from fmm_ros.core.signal import frf
 
 RATE_HZ = 10_000.0
 N_SAMPLES = 330_000  # the paper's 33 s at 10 kHz

@@ -1,4 +1,4 @@
-"""fmm_ros.core.hidden_effects: the proof data hides each effect at a lab-realistic size."""
+"""fmm_ros.sim.hidden_effects: the proof data hides each effect at a lab-realistic size."""
 
 from dataclasses import replace
 
@@ -6,9 +6,11 @@ import numpy as np
 import pytest
 import scipy.optimize
 
-from fmm_ros.core.excitation import PAPER_LEVELS
-from fmm_ros.core.fit import as_conditioned
-from fmm_ros.core.hidden_effects import (
+from fmm_ros.core.identify.conditioning import as_conditioned
+from fmm_ros.core.physics.model import simulate
+from fmm_ros.core.physics.terms import MODEL_TERMS
+from fmm_ros.sim.excitation import PAPER_LEVELS
+from fmm_ros.sim.hidden_effects import (
     HIDDEN_EFFECTS,
     MU_RANGE,
     RATIO_RANGE,
@@ -16,7 +18,6 @@ from fmm_ros.core.hidden_effects import (
     hidden_effect_case,
     motion_window,
 )
-from fmm_ros.core.model import MODEL_TERMS, simulate
 
 
 def test_the_vocabulary_is_the_model_terms_and_none():

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from fmm_ros.core.history import SampleHistory
+from fmm_ros.core.signal.history import SampleHistory
 
 RATE_HZ = 10_000.0
 

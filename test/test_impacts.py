@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from signal_records import hits
 
-from fmm_ros.core.analysis import analyze_impact
-from fmm_ros.core.impacts import (
+from fmm_ros.core.signal.analysis import analyze_impact
+from fmm_ros.core.signal.capture import (
     CaptureConfig,
     ImpactCapture,
     TriggerDetector,

@@ -6,8 +6,8 @@ import pytest
 import scipy.io
 from nptdms import ChannelObject, GroupObject, TdmsWriter
 
-from fmm_ros.core.bagio import BagReader
-from fmm_ros.core.bagio.importers import (
+from fmm_ros.io.bags import BagReader
+from fmm_ros.io.labfiles import (
     ChannelMapping,
     ImportMapping,
     import_to_bag,

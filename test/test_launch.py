@@ -5,8 +5,9 @@ import random
 import pytest
 from rig_graph import Listener, wait_for
 
-from fmm_ros.core.bagio.reader import BagReader
-from fmm_ros.launch import (
+from fmm_ros.io.bags.reader import BagReader
+from fmm_ros.ros.graph import PRIVATE_DOMAIN_IDS, InProcessGraph
+from fmm_ros.ros.launch import (
     SIMULATED_RIG,
     default_params_file,
     node_command,
@@ -14,7 +15,6 @@ from fmm_ros.launch import (
     start_processes,
     stop_processes,
 )
-from fmm_ros.ros_graph import PRIVATE_DOMAIN_IDS, InProcessGraph
 
 
 def test_the_simulated_rig_runs_as_separate_processes(tmp_path, monkeypatch):

@@ -1,4 +1,4 @@
-"""fmm_ros.core.model: integrators against independent solutions, terms, streaming, bad input."""
+"""fmm_ros.core.physics: integrators against independent solutions, terms, streaming, bad input."""
 
 import math
 
@@ -7,21 +7,11 @@ import pytest
 import scipy.signal
 from reference_solver import Oscillator, solve
 
-from fmm_ros.core.excitation import half_sine_pulse
-from fmm_ros.core.model import (
-    FMM_RIG,
-    INTEGRATORS,
-    MODEL_TERMS,
-    PAPER_MU,
-    ModelTerm,
-    OscillatorStream,
-    Parameter,
-    Rig,
-    free_vibration,
-    model_term,
-    sample_rate_from_times,
-    simulate,
-)
+from fmm_ros.core._checks import sample_rate_from_times
+from fmm_ros.core.physics.model import INTEGRATORS, OscillatorStream, free_vibration, simulate
+from fmm_ros.core.physics.rig import FMM_RIG, PAPER_MU, Rig
+from fmm_ros.core.physics.terms import MODEL_TERMS, ModelTerm, Parameter, model_term
+from fmm_ros.sim.excitation import half_sine_pulse
 
 RATE_HZ = 10_000.0
 # Every term at its default, but a delay of 2.37 samples: the delay line's fractional path.

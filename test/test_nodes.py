@@ -8,10 +8,10 @@ from rclpy.exceptions import InvalidParameterValueException
 from rclpy.node import Node
 from rig_graph import FAST_ANALYZER, FAST_HAMMER, Listener, LossyLink, params, wait_for
 
-from fmm_ros.nodes.analyzer import Analyzer
-from fmm_ros.nodes.hammer_sim import HammerSim
-from fmm_ros.nodes.rig_sim import RigSim
-from fmm_ros.ros_graph import InProcessGraph
+from fmm_ros.ros.graph import InProcessGraph
+from fmm_ros.ros.nodes.analyzer import Analyzer
+from fmm_ros.ros.nodes.hammer_sim import HammerSim
+from fmm_ros.ros.nodes.rig_sim import RigSim
 
 
 def test_every_hit_of_a_session_is_reported_and_judged(ros_graph):
@@ -73,8 +73,8 @@ def test_rig_sim_rejects_unknown_model_terms_naming_them(ros_graph):
 
 
 def test_clean_start_and_shutdown_leaves_no_threads_and_no_errors(capfd, tmp_path):
-    from fmm_ros.nodes.fitter import Fitter
-    from fmm_ros.nodes.recorder import Recorder
+    from fmm_ros.ros.nodes.fitter import Fitter
+    from fmm_ros.ros.nodes.recorder import Recorder
 
     before = set(threading.enumerate())
     with InProcessGraph() as graph:
@@ -99,10 +99,10 @@ def test_no_node_shadows_an_attribute_rclpy_node_keeps(ros_graph):
     import re
     from pathlib import Path
 
-    import fmm_ros.nodes
+    import fmm_ros.ros.nodes
 
     base = set(vars(ros_graph.add(Node, node_name='bare')))
-    for path in Path(fmm_ros.nodes.__file__).parent.glob('*.py'):
+    for path in Path(fmm_ros.ros.nodes.__file__).parent.glob('*.py'):
         assigned = set(re.findall(r'self\.(\w+)\s*(?::[^=\n]+)?=[^=]', path.read_text()))
         clash = assigned & base
         assert not clash, f'{path.name} overwrites rclpy Node attributes {clash}'

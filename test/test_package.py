@@ -12,8 +12,8 @@ from catkin_pkg.package import parse_package
 REPO = Path(__file__).resolve().parents[1]
 
 # Optional hardware drivers, imported only by the backend that needs them and reported as
-# missing at that backend's start-up (see fmm_ros/nodes/daq.py): not installed for everyone.
-OPTIONAL_IMPORTS = {'nidaqmx': 'fmm_ros/nodes/daq.py'}
+# missing at that backend's start-up (see fmm_ros/ros/nodes/daq.py): not installed for everyone.
+OPTIONAL_IMPORTS = {'nidaqmx': 'fmm_ros/ros/nodes/daq.py'}
 
 # Top-level modules the code imports -> the package.xml key that provides them.
 # An import missing here fails the test below: add it to package.xml and to this map.

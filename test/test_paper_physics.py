@@ -7,16 +7,9 @@ NAMRC 47 (2019): Sec. 3 (Figs. 2-7) and Sec. 5 (Fig. 24).
 import numpy as np
 import pytest
 
-from fmm_ros.core.excitation import PAPER_LEVELS, half_sine_pulse, rectangular_pulse
-from fmm_ros.core.model import (
-    FMM_RIG,
-    PAPER_MU,
-    STANDARD_GRAVITY_M_S2,
-    Rig,
-    coulomb_peak_mobility,
-    free_vibration,
-    simulate,
-)
+from fmm_ros.core.physics.model import coulomb_peak_mobility, free_vibration, simulate
+from fmm_ros.core.physics.rig import FMM_RIG, PAPER_MU, STANDARD_GRAVITY_M_S2, Rig
+from fmm_ros.sim.excitation import PAPER_LEVELS, half_sine_pulse, rectangular_pulse
 
 # The Sec. 3 example oscillator: mu = 0.1, m = 1 kg, k = 5000 N/m, N = m g, no viscous damping.
 EXAMPLE_RIG = Rig(

@@ -5,7 +5,7 @@ from rclpy.exceptions import InvalidParameterValueException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from fmm_ros.nodes.params import Param, declare_parameters
+from fmm_ros.ros.params import Param, declare_parameters
 
 PARAMS = (
     Param('rate_factor', 1.0, 'Speed-up against the wall clock [-]', limits=(0.01, 1000.0)),

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from fmm_ros.core.records import ImpactRecord, read_impact_csv, write_impact_csv
+from fmm_ros.core.signal.records import ImpactRecord, read_impact_csv, write_impact_csv
 
 
 def test_round_trip_keeps_samples_and_rate(tmp_path):

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from fmm_ros.cli import main
-from fmm_ros.core.analysis import PAPER_LEVELS, AnalysisConfig, analyze_impact
-from fmm_ros.core.bagio import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC, BagWriter
-from fmm_ros.core.bagio.replay import bag_impact_records, replay_bag
-from fmm_ros.core.bagio.simulated import simulated_session, write_session_bag
-from fmm_ros.core.impacts import CaptureConfig, capture_impacts
-from fmm_ros.core.records import write_impact_csv
+from fmm_ros.core.signal.analysis import PAPER_LEVELS, AnalysisConfig, analyze_impact
+from fmm_ros.core.signal.capture import CaptureConfig, capture_impacts
+from fmm_ros.core.signal.records import write_impact_csv
+from fmm_ros.io.bags import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC, BagWriter
+from fmm_ros.sim.session import simulated_session, write_session_bag
+from fmm_ros.workflows.replay import bag_impact_records, replay_bag
 
 # Short slots keep the tests quick: 6 s apart, 5 s records.
 CAPTURE = CaptureConfig(window_s=5.0)

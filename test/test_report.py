@@ -15,13 +15,10 @@ import pytest
 from PIL import Image
 
 from fmm_ros.cli import main
-from fmm_ros.core.analysis import analyze_impact
-from fmm_ros.core.bagio import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC, BagWriter
-from fmm_ros.core.bagio.simulated import simulated_session
-from fmm_ros.core.excitation import hammer_pulse, impact_record
-from fmm_ros.core.hidden_effects import hidden_effect_case
-from fmm_ros.core.model import simulate
-from fmm_ros.core.records import ImpactRecord, write_impact_csv
+from fmm_ros.core.physics.model import simulate
+from fmm_ros.core.signal.analysis import analyze_impact
+from fmm_ros.core.signal.records import ImpactRecord, write_impact_csv
+from fmm_ros.io.bags import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC, BagWriter
 from fmm_ros.report import FrictionSummary, ModelOverlay, build_report
 from fmm_ros.report import html as report_html
 from fmm_ros.report.paper import build_paper_report
@@ -34,6 +31,9 @@ from fmm_ros.report.plotting import (
     png_bytes,
 )
 from fmm_ros.report.session_figures import HitFigures
+from fmm_ros.sim.excitation import hammer_pulse, impact_record
+from fmm_ros.sim.hidden_effects import hidden_effect_case
+from fmm_ros.sim.session import simulated_session
 
 PNG_SIGNATURE = b'\x89PNG\r\n\x1a\n'
 RATE_HZ = 10_000.0

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from fmm_ros.core.excitation import tip_contact_duration_s
-from fmm_ros.core.model import parse_model_term
-from fmm_ros.core.schedule import HammerStream, add_indexed_noise, session_schedule
+from fmm_ros.core.physics.terms import parse_model_term
+from fmm_ros.sim.excitation import tip_contact_duration_s
+from fmm_ros.sim.hammer import HammerStream, add_indexed_noise, session_schedule
 
 RATE_HZ = 10_000.0
 LEVELS = [('low', 450.0), ('medium', 1000.0), ('high', 1450.0)]

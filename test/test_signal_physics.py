@@ -11,18 +11,19 @@ import dataclasses
 import numpy as np
 import pytest
 
-from fmm_ros.core import frf
-from fmm_ros.core.analysis import PAPER_LEVELS, AnalysisConfig, analyze_impact, summarize
-from fmm_ros.core.excitation import PAPER_LEVELS as HAMMER_LEVELS
-from fmm_ros.core.excitation import (
+from fmm_ros.core.physics.model import simulate
+from fmm_ros.core.physics.rig import FMM_RIG, PAPER_MU
+from fmm_ros.core.signal import frf
+from fmm_ros.core.signal.analysis import PAPER_LEVELS, AnalysisConfig, analyze_impact, summarize
+from fmm_ros.core.signal.capture import capture_impacts
+from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.sim.excitation import PAPER_LEVELS as HAMMER_LEVELS
+from fmm_ros.sim.excitation import (
     half_sine_pulse,
     hammer_pulse,
     impact_record,
     tip_contact_duration_s,
 )
-from fmm_ros.core.impacts import capture_impacts
-from fmm_ros.core.model import FMM_RIG, PAPER_MU, simulate
-from fmm_ros.core.records import ImpactRecord
 
 RATE_HZ = 10_000.0
 COULOMB_RIG = dataclasses.replace(FMM_RIG, damping_n_s_per_m=0.0)

@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from fmm_ros.core.bagio import BagReader
-from fmm_ros.core.bagio.simulated import simulated_session, write_session_bag
+from fmm_ros.io.bags import BagReader
+from fmm_ros.sim.session import simulated_session, write_session_bag
 
 
 def test_a_session_is_one_continuous_record_of_hits_at_the_paper_levels(tmp_path):

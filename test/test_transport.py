@@ -9,7 +9,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from fmm_interfaces.msg import SampleBatch
 from fmm_interfaces.srv import FitFriction
-from fmm_ros import msgs
+from fmm_ros.ros import msgs
 
 QOS = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
 

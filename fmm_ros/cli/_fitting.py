@@ -14,8 +14,8 @@ from typing import Any
 
 from fmm_ros.cli.analyze import read_records
 from fmm_ros.cli.progress import report_problems
-from fmm_ros.core.fit import FitError
-from fmm_ros.core.records import ImpactRecord
+from fmm_ros.core.identify.conditioning import FitError
+from fmm_ros.core.signal.records import ImpactRecord
 
 
 def fit_and_report(

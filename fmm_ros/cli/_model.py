@@ -2,7 +2,7 @@
 
 import argparse
 
-from fmm_ros.core.model import FMM_RIG, Rig
+from fmm_ros.core.physics.rig import FMM_RIG, Rig
 
 
 def add_rig_arguments(parser: argparse.ArgumentParser) -> None:

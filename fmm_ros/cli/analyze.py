@@ -1,8 +1,8 @@
 """`fmm analyze`: impulses, FRFs, levels and the linear-in-impulse law from CSV files or bags.
 
-Each CSV INPUT is one impact (`time_s,force_n,velocity_m_s`, as `fmm_ros.core.records` reads
+Each CSV INPUT is one impact (`time_s,force_n,velocity_m_s`, as `fmm_ros.core.signal.records` reads
 it); a bag INPUT gives every impact in its recorded streams, found by feeding its batches to
-the analyzer's capture (`fmm_ros.core.bagio.replay`). Both go through the same trigger rule,
+the analyzer's capture (`fmm_ros.workflows.replay`). Both go through the same trigger rule,
 quality flags and FRF code as the analyzer node, so a file, a bag and a live capture of the
 same samples get the same verdict.
 """
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from fmm_ros.cli.progress import report_problems
-from fmm_ros.core.analysis import (
+from fmm_ros.core.signal.analysis import (
     PAPER_LEVELS,
     AnalysisConfig,
     NominalLevel,
@@ -25,10 +25,10 @@ from fmm_ros.core.analysis import (
     analyze_impact,
     summarize,
 )
-from fmm_ros.core.bagio.replay import bag_impact_records, is_bag
-from fmm_ros.core.export import json_number, level_curves, write_frfs
-from fmm_ros.core.impacts import DEFAULT_CAPTURE, FLAGS, CaptureConfig
-from fmm_ros.core.records import ImpactRecord, read_impact_csv
+from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, FLAGS, CaptureConfig
+from fmm_ros.core.signal.records import ImpactRecord, read_impact_csv
+from fmm_ros.io.frf_files import json_number, level_curves, write_frfs
+from fmm_ros.workflows.replay import bag_impact_records, is_bag
 
 # Relative difference in sample rate beyond which two files are not one measurement series.
 RATE_TOLERANCE = 1e-6

@@ -4,8 +4,8 @@ import argparse
 import json
 
 from fmm_ros.cli.progress import add_quiet_flag, progress_bar, report_problems
-from fmm_ros.core.bagio import BagReader
-from fmm_ros.core.bagio.summary import format_summary, summarize_bag
+from fmm_ros.io.bags import BagReader
+from fmm_ros.io.bags.summary import format_summary, summarize_bag
 
 
 def register(subparsers) -> None:

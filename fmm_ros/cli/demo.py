@@ -7,7 +7,7 @@ import sys
 from datetime import datetime
 from pathlib import Path
 
-from fmm_ros.core.model import PAPER_MU
+from fmm_ros.core.physics.rig import PAPER_MU
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -61,7 +61,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the session, write summary.json next to the bag, print the summary."""
-    from fmm_ros.session import SessionConfig, run_session  # imports rclpy: only when run
+    from fmm_ros.ros.demo import SessionConfig, run_session  # imports rclpy: only when run
 
     if args.hits_per_level < 1:
         raise ValueError(f'--hits-per-level must be at least 1, got {args.hits_per_level}')

@@ -18,8 +18,9 @@ from pathlib import Path
 
 from fmm_ros.cli._fitting import fit_and_report
 from fmm_ros.cli._model import add_rig_arguments, rig_from_args
-from fmm_ros.core.diagnose import EFFECTS, NONE, Diagnosis, diagnose
-from fmm_ros.core.model import Rig
+from fmm_ros.core.diagnose.result import Diagnosis
+from fmm_ros.core.diagnose.workflow import EFFECTS, NONE, diagnose
+from fmm_ros.core.physics.rig import Rig
 
 # Resolution of the --plot figures [dots per inch].
 PLOT_DPI = 120

@@ -3,8 +3,8 @@
 import argparse
 
 from fmm_ros.cli.progress import report_problems
-from fmm_ros.core.bagio import FRF_TOPIC, IMPACT_RESULT, IMPACTS_TOPIC, BagReader
-from fmm_ros.core.bagio.export import FRF_FORMATS, export_results
+from fmm_ros.io.bags import FRF_TOPIC, IMPACT_RESULT, IMPACTS_TOPIC, BagReader
+from fmm_ros.io.bags.tables import FRF_FORMATS, export_results
 
 
 def register(subparsers) -> None:

@@ -13,14 +13,9 @@ from pathlib import Path
 
 from fmm_ros.cli._fitting import fit_and_report
 from fmm_ros.cli._model import add_fit_freedom_arguments, add_rig_arguments, rig_from_args
-from fmm_ros.core.export import json_number
-from fmm_ros.core.fit import (
-    DEFAULT_BAND_LIMIT_HZ,
-    MISFITS,
-    MU_BOUNDS,
-    FrictionFit,
-    fit_friction,
-)
+from fmm_ros.core.identify.friction import MU_BOUNDS, FrictionFit, fit_friction
+from fmm_ros.core.identify.output_error import DEFAULT_BAND_LIMIT_HZ, MISFITS
+from fmm_ros.io.frf_files import json_number
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

@@ -11,9 +11,9 @@ import argparse
 from pathlib import Path
 
 from fmm_ros.cli._fitting import fit_and_report
-from fmm_ros.core.export import json_number
-from fmm_ros.core.fit import RigIdentification, identify_rig
-from fmm_ros.core.model import FMM_RIG
+from fmm_ros.core.identify.rig import RigIdentification, identify_rig
+from fmm_ros.core.physics.rig import FMM_RIG
+from fmm_ros.io.frf_files import json_number
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

@@ -4,7 +4,7 @@ import argparse
 from datetime import datetime
 
 from fmm_ros.cli.progress import add_quiet_flag, progress_bar
-from fmm_ros.core.bagio.importers import (
+from fmm_ros.io.labfiles import (
     FORCE_UNITS,
     VELOCITY_UNITS,
     ImportMapping,

@@ -3,8 +3,8 @@
 import argparse
 from pathlib import Path
 
-from fmm_ros.core.bagio.writer import STORAGES
-from fmm_ros.core.topics import FORCE_TOPIC, FRF_TOPIC, IMPACTS_TOPIC, VELOCITY_TOPIC
+from fmm_ros.constants import FORCE_TOPIC, FRF_TOPIC, IMPACTS_TOPIC, VELOCITY_TOPIC
+from fmm_ros.io.bags.writer import STORAGES
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -32,8 +32,8 @@ def run(args: argparse.Namespace) -> int:
     """Record until Ctrl-C, then close the bag."""
     from rclpy.parameter import Parameter  # rclpy only when recording
 
-    from fmm_ros.nodes.common import run_node
-    from fmm_ros.nodes.recorder import Recorder
+    from fmm_ros.ros.common import run_node
+    from fmm_ros.ros.nodes.recorder import Recorder
 
     if args.bag.exists():
         raise ValueError(f'{args.bag} exists: choose a new bag path (nothing is overwritten)')

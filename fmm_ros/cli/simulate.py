@@ -14,12 +14,9 @@ from pathlib import Path
 import numpy as np
 
 from fmm_ros.cli._model import add_rig_arguments, rig_from_args
-from fmm_ros.core.model import (
-    PAPER_MU,
-    record_length,
-    sample_rate_from_times,
-    simulate,
-)
+from fmm_ros.core._checks import sample_rate_from_times
+from fmm_ros.core.physics.model import record_length, simulate
+from fmm_ros.core.physics.rig import PAPER_MU
 
 DEFAULT_DURATION_S = 33.0
 DEFAULT_SAMPLE_RATE_HZ = 10_000.0

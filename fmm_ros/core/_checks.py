@@ -30,7 +30,7 @@ def require_non_negative(name: str, value: float) -> None:
 def sample_rate_from_times(time_s: np.ndarray, rtol: float = 1e-3) -> float:
     """Sample rate [Hz] of a uniformly sampled time column; ValueError if not uniform.
 
-    Shared by the physics core and the record reader (`fmm_ros.core.records`), which must not
+    Shared by the physics core and the record reader (`fmm_ros.core.signal.records`), which must not
     pay for importing the compiled model just to read a CSV file.
     """
     time_s = np.asarray(time_s, dtype=float)

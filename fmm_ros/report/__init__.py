@@ -6,14 +6,14 @@ session's impact records, fits mu and writes its page (what `fmm report` and the
 (in `paper`) reproduces the paper's simulation figures (Figs. 2-10) from the physics core.
 """
 
-from fmm_ros.report.model import (
+from fmm_ros.report.session import FLAG_MEANINGS, SessionReport, build_report, report_session
+from fmm_ros.workflows.session import (
     FrictionSummary,
     ModelOverlay,
     SessionDiagnosis,
     diagnose_accepted_impacts,
     fit_accepted_impacts,
 )
-from fmm_ros.report.session import FLAG_MEANINGS, SessionReport, build_report, report_session
 
 __all__ = [
     'FLAG_MEANINGS',

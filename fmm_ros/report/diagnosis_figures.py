@@ -14,8 +14,9 @@ from collections.abc import Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
-from fmm_ros.core import frf
-from fmm_ros.core.diagnose import NONE, Diagnosis
+from fmm_ros.core.diagnose.result import Diagnosis
+from fmm_ros.core.diagnose.workflow import NONE
+from fmm_ros.core.signal import frf
 from fmm_ros.report.plotting import (
     FREQUENCY_LABEL,
     MM_PER_M,

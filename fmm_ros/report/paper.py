@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from fmm_ros.core import frf
-from fmm_ros.core.excitation import rectangular_pulse
-from fmm_ros.core.model import Rig, Simulation, free_vibration, simulate
+from fmm_ros.core.physics.model import Simulation, free_vibration, simulate
+from fmm_ros.core.physics.rig import Rig
+from fmm_ros.core.signal import frf
 from fmm_ros.report.html import Page
 from fmm_ros.report.plotting import (
     DEFAULT_DPI,
@@ -30,6 +30,7 @@ from fmm_ros.report.plotting import (
     level_colour,
     new_figure,
 )
+from fmm_ros.sim.excitation import rectangular_pulse
 
 PAPER_OSCILLATOR = Rig(
     mass_kg=1.0, stiffness_n_per_m=5000.0, damping_n_s_per_m=0.0, normal_force_n=1.0 * 9.81

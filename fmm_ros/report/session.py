@@ -18,20 +18,19 @@ from pathlib import Path
 
 import numpy as np
 
-from fmm_ros.core.analysis import AnalysisConfig, ImpactResult, Summary, analyze_impact, summarize
-from fmm_ros.core.impacts import DEFAULT_CAPTURE, CaptureConfig
-from fmm_ros.core.model import FMM_RIG, Rig
-from fmm_ros.core.records import ImpactRecord
+from fmm_ros.core.physics.rig import FMM_RIG, Rig
+from fmm_ros.core.signal.analysis import (
+    AnalysisConfig,
+    ImpactResult,
+    Summary,
+    analyze_impact,
+    summarize,
+)
+from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig
+from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.report import diagnosis_figures
 from fmm_ros.report import session_figures as figures
 from fmm_ros.report.html import Markup, Page, escape, link
-from fmm_ros.report.model import (
-    FrictionSummary,
-    ModelOverlay,
-    SessionDiagnosis,
-    diagnose_accepted_impacts,
-    fit_accepted_impacts,
-)
 from fmm_ros.report.plotting import (
     DEFAULT_DPI,
     MM_PER_M,
@@ -39,6 +38,13 @@ from fmm_ros.report.plotting import (
     REJECTED_COLOUR,
     level_colour,
     value_with_error,
+)
+from fmm_ros.workflows.session import (
+    FrictionSummary,
+    ModelOverlay,
+    SessionDiagnosis,
+    diagnose_accepted_impacts,
+    fit_accepted_impacts,
 )
 
 DEFAULT_ANALYSIS = AnalysisConfig()

@@ -13,10 +13,10 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
-from fmm_ros.core import frf
-from fmm_ros.core.analysis import ImpactResult, LevelSummary, NominalLevel, Summary
-from fmm_ros.core.impacts import DEFAULT_CAPTURE, CaptureConfig
-from fmm_ros.core.records import ImpactRecord
+from fmm_ros.core.signal import frf
+from fmm_ros.core.signal.analysis import ImpactResult, LevelSummary, NominalLevel, Summary
+from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig
+from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.report.plotting import (
     FREQUENCY_LABEL,
     MEAN_COLOUR,

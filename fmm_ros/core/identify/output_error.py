@@ -1,0 +1,276 @@
+"""The output-error problem: a parameter vector in, each impact's residual block out.
+
+`OutputError` drives the model with every impact's conditioned force (one simulation buffer
+shared by all impacts) and returns measured minus simulated velocity, or the mobility misfit
+up to `band_limit_hz`, one block per impact, for `fmm_ros.core.identify.lsq`.
+
+Uncertainty, two parts added:
+- Velocity: the residuals of an output-error fit are not independent (a model error is smooth
+  in time, and so are a vibrometer's low-frequency errors), so the white-noise covariance
+  s^2 (J^T J)^-1 is optimistic. Used instead is the sandwich (J^T J)^-1 S (J^T J)^-1 with S
+  summed over blocks of the score J_i r_i (one natural period in time, a quarter of f_n in
+  frequency), valid for residuals correlated within a block, and never below the white one.
+- Force: noise inside the gate is part of the input, so no residual shows it; it changes the
+  hit's impulse by sigma_F / f_s sqrt(gate samples from the onset), which moves the fit by
+  -(J J^T)^-1 J dr/dI per N*s (dr/dI found by scaling the hit). At 0.2 N this part dominates
+  the error of mu for one record (about 1e-4 of mu), and it is what makes per-impact mu's
+  scatter.
+The standard errors were checked against the scatter of fits over noise seeds (test_fit.py).
+"""
+
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.fft
+import scipy.stats
+
+from fmm_ros.core.identify.conditioning import ConditionedImpact, source_prefix
+from fmm_ros.core.identify.lsq import (
+    Infeasible,
+    LsqSolution,
+    inner,
+    normal_inverse,
+)
+from fmm_ros.core.physics.model import Simulation, simulate
+from fmm_ros.core.physics.rig import Rig
+from fmm_ros.core.physics.terms import ModelTerm
+from fmm_ros.core.signal.frf import band_bins, mobility, spectra
+
+MISFITS = ('time', 'frf')
+
+
+JACOBIANS = ('blocks', 'dense')
+"""How fit_model builds its Jacobian: 'blocks' runs and stores an impact's own parameters
+(its start position) on that impact alone; 'dense' runs every column over every impact (the
+plain way, kept as the reference the blocks are checked and benchmarked against)."""
+
+
+DEFAULT_BAND_LIMIT_HZ = 20.0
+"""Upper end of the mobility misfit band: f_n and its odd harmonics to the 9th (paper Fig. 24)."""
+
+
+@dataclass(frozen=True)
+class BuiltModel:
+    """What a parameter vector stands for: the model, and each impact's initial position."""
+
+    rig: Rig
+    mu: float
+    effects: tuple[ModelTerm, ...]
+    initial_positions_m: tuple[float, ...] = ()
+    """Per impact [m]; empty: every impact starts at x = 0."""
+
+    def initial_position_m(self, index: int) -> float:
+        """Where impact `index` starts [m]."""
+        return self.initial_positions_m[index] if self.initial_positions_m else 0.0
+
+
+ModelBuilder = Callable[[np.ndarray], BuiltModel]
+"""theta -> the model a parameter vector stands for."""
+
+
+class OutputError:
+    """Residuals of the model driven by each impact's conditioned force, stacked over impacts.
+
+    Time misfit: measured minus simulated velocity, every sample. FRF misfit: measured minus
+    simulated mobility, (V_meas - V_model) / F, on the bins from DC to band_limit_hz, real and
+    imaginary parts interleaved. Each impact is a block of residuals (`_lsq.Blocks`): a call
+    runs one simulation for each impact asked for, into one buffer allocated once and shared
+    (each run is consumed before the next).
+    """
+
+    def __init__(
+        self,
+        impacts: Sequence[ConditionedImpact],
+        build: ModelBuilder,
+        misfit: str,
+        band_limit_hz: float,
+        integrator: str,
+        natural_frequency_hz: float,
+    ) -> None:
+        self.impacts = tuple(impacts)
+        self.build = build
+        self.misfit = misfit
+        self.integrator = integrator
+        self.buffer = np.empty((2, max(impact.force_n.size for impact in self.impacts)))
+        self.targets: list[np.ndarray] = []
+        self.inverse_force: list[np.ndarray] = []
+        self.segments: list[slice] = []
+        self.block_lengths: list[int] = []
+        start = 0
+        for impact in self.impacts:
+            if misfit == 'time':
+                length = impact.force_n.size
+                block = round(impact.sample_rate_hz / natural_frequency_hz)
+            else:
+                n = impact.force_n.size
+                bins = band_bins(n, impact.sample_rate_hz, band_limit_hz)
+                force_spectrum, velocity_spectrum = spectra(impact.force_n, impact.velocity_m_s)
+                target = mobility(force_spectrum[:bins], velocity_spectrum[:bins])
+                if np.isnan(target).any():
+                    raise ValueError(
+                        f'{source_prefix(impact.source)}the force spectrum is zero inside '
+                        f'the {band_limit_hz:g} Hz band: no mobility there'
+                    )
+                self.inverse_force.append(1.0 / force_spectrum[:bins])
+                self.targets.append(target)
+                length = 2 * bins
+                block = 2 * round(0.25 * natural_frequency_hz * n / impact.sample_rate_hz)
+            self.segments.append(slice(start, start + length))
+            self.block_lengths.append(max(1, block))
+            start += length
+        self.size = start
+
+    def model(self, theta: np.ndarray) -> BuiltModel:
+        """The model at theta, or Infeasible where it cannot be built."""
+        try:
+            return self.build(theta)
+        except ValueError as error:
+            raise Infeasible(str(error)) from None
+
+    def __call__(
+        self, theta: np.ndarray, blocks: Sequence[int], outs: Sequence[np.ndarray]
+    ) -> None:
+        """The residuals of the impacts `blocks` at theta, into outs (a BlockResidualFunction)."""
+        model = self.model(theta)
+        for index, out in zip(blocks, outs, strict=True):
+            self.impact_residual(index, model, out)
+
+    def impact_residual(
+        self, index: int, model: BuiltModel, out: np.ndarray, force_scale: float = 1.0
+    ) -> None:
+        """One impact's residual segment; force_scale multiplies its force (sensitivity)."""
+        impact = self.impacts[index]
+        force = impact.force_n if force_scale == 1.0 else impact.force_n * force_scale
+        velocity = self.simulate(index, model, force).velocity_m_s
+        if self.misfit == 'time':
+            np.subtract(impact.velocity_m_s, velocity, out=out)
+            return
+        target = self.targets[index]
+        spectrum = scipy.fft.rfft(velocity)[: target.size]
+        spectrum *= self.inverse_force[index]
+        residual = out.view(complex)
+        np.subtract(target, spectrum, out=residual)
+        residual /= force_scale  # the measured mobility's denominator scales with the force
+
+    def simulate(
+        self, index: int, model: BuiltModel, force_n: np.ndarray | None = None
+    ) -> Simulation:
+        """Run one impact (or force_n in its place) through the model into the shared buffer."""
+        impact = self.impacts[index]
+        n = impact.force_n.size
+        try:
+            return simulate(
+                impact.force_n if force_n is None else force_n,
+                impact.sample_rate_hz,
+                rig=model.rig,
+                mu=model.mu,
+                effects=model.effects,
+                x0_m=model.initial_position_m(index),
+                integrator=self.integrator,
+                out=(self.buffer[0, :n], self.buffer[1, :n]),
+            )
+        except ValueError as error:  # e.g. a term that makes one direction's friction < 0
+            raise Infeasible(str(error)) from None
+
+    def time_residuals(self, theta: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Measured minus simulated velocity of every impact at theta (fresh arrays) [m/s]."""
+        model = self.model(theta)
+        return tuple(
+            impact.velocity_m_s - self.simulate(index, model).velocity_m_s
+            for index, impact in enumerate(self.impacts)
+        )
+
+    def impulse_jacobians(
+        self, theta: np.ndarray, residual: np.ndarray, relative_step: float = 1e-4
+    ) -> Iterator[np.ndarray]:
+        """Impact by impact, d residual / d impulse [residual units per N*s] on its segment.
+
+        The hit is short against the rig's period, so what force noise inside the gate does
+        to the response is what a change of impulse does: the force is scaled to find it.
+        `residual` is the stacked residual at theta. One array is reused: each is valid until
+        the next is asked for.
+        """
+        model = self.model(theta)
+        scratch = np.empty(max(segment.stop - segment.start for segment in self.segments))
+        for index, impact in enumerate(self.impacts):
+            segment = self.segments[index]
+            shifted = scratch[: segment.stop - segment.start]
+            self.impact_residual(index, model, shifted, 1.0 + relative_step)
+            shifted -= residual[segment]
+            shifted /= relative_step * impact.impulse_n_s
+            yield shifted
+
+
+@dataclass(frozen=True)
+class Uncertainty:
+    """A fit's parameter covariance, its standard errors, and the white-noise ones beside them."""
+
+    covariance: np.ndarray
+    stderr: np.ndarray
+    stderr_white: np.ndarray
+    stderr_force: np.ndarray
+
+
+def sandwich_uncertainty(
+    solution: LsqSolution,
+    block_lengths: Sequence[int],
+    impulse_terms: Iterable[tuple[int, np.ndarray, float]] = (),
+) -> Uncertainty:
+    """Covariance of a fit: velocity residuals (block sandwich) plus force noise (module doc).
+
+    The sandwich is scaled up where it falls below the white-noise covariance (its block sums
+    are few, so it is noisy, and it cannot be more precise than white noise allows). The force
+    part propagates each impact's impulse uncertainty through the fit: d theta / d I =
+    -(J J^T)^-1 J (d r / d I). block_lengths: per block of the Jacobian (`_lsq.Blocks`), the
+    score's summing length; impulse_terms: (block, d r / d I on it, impulse std). Both pieces
+    are summed block by block over the parameters each block depends on.
+    """
+    jacobian, residual = solution.jacobian, solution.residual
+    blocks = jacobian.blocks
+    p = blocks.n_parameters
+    inverse = normal_inverse(jacobian.normal())
+    white = solution.cost / max(residual.size - p, 1) * inverse
+    # A parameter the residuals do not depend on has infinite variance (normal_inverse); the
+    # products below run on the finite part (inf x 0 would make its row and column NaN) and
+    # the infinity is put back on the diagonal at the end.
+    dead = ~np.isfinite(np.diag(inverse))
+    inverse = np.where(np.isfinite(inverse), inverse, 0.0)
+    score = np.zeros((p, p))
+    for segment, indices, rows, block in zip(
+        blocks.segments, blocks.parameters, jacobian.rows, block_lengths, strict=True
+    ):
+        contributions = rows * residual[segment]
+        sums = np.add.reduceat(contributions, np.arange(0, contributions.shape[1], block), axis=1)
+        score[np.ix_(indices, indices)] += sums @ sums.T
+    sandwich = inverse @ score @ inverse
+    with np.errstate(divide='ignore', invalid='ignore'):
+        raise_to_white = np.sqrt(np.maximum(1.0, np.diag(white) / np.diag(sandwich)))
+    raise_to_white = np.where(np.isfinite(raise_to_white), raise_to_white, 1.0)
+    velocity_part = sandwich * np.outer(raise_to_white, raise_to_white)
+    force_part = np.zeros((p, p))
+    for block, impulse_jacobian, std in impulse_terms:
+        along = np.zeros(p)
+        along[blocks.parameters[block]] = inner(jacobian.rows[block], impulse_jacobian)
+        sensitivity = inverse @ along
+        force_part += std**2 * np.outer(sensitivity, sensitivity)
+    covariance = velocity_part + force_part
+    covariance[dead, dead] = np.inf
+    return Uncertainty(
+        covariance,
+        np.sqrt(np.diag(covariance)),
+        np.sqrt(np.diag(white)),
+        np.sqrt(np.diag(force_part)),
+    )
+
+
+def fit_uncertainty(solution: LsqSolution, problem: OutputError) -> Uncertainty:
+    """`sandwich_uncertainty` of an output-error fit, force noise included."""
+    stds = [impact.impulse_std_n_s for impact in problem.impacts]
+    terms = zip(
+        range(len(stds)),
+        problem.impulse_jacobians(solution.x, solution.residual),
+        stds,
+        strict=True,
+    )
+    return sandwich_uncertainty(solution, problem.block_lengths, terms)

@@ -1,0 +1,354 @@
+"""From impact records to per-impact results, per-level averaged FRFs and the linearity law.
+
+This is the pipeline the analyzer node, `fmm analyze` and the fitter share: `analyze_impact`
+turns one `ImpactRecord` into an `ImpactResult` (flags, impulse, peak force, contact duration,
+band-limited mobility and receptance), and `summarize` groups results into force levels,
+averages each level (the paper's plain mean, H1, H2, coherence) and fits peak |receptance|
+against impulse (the paper's Fig. 17). `ImpactResult` and `LevelSummary` carry the fields of
+`fmm_interfaces/ImpactResult.msg` and `FrfSummary.msg` under the same names (complex arrays
+split into `_real`/`_imag` there), so the ROS shell converts them field by field.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from fmm_ros.core.signal import frf
+from fmm_ros.core.signal.capture import (
+    DEFAULT_CAPTURE,
+    FLAGS,
+    CaptureConfig,
+    contact_start_index,
+    quality_flags,
+    with_trigger,
+)
+from fmm_ros.core.signal.records import ImpactRecord
+
+
+@dataclass(frozen=True)
+class NominalLevel:
+    """A force level the operator aims for: name, nominal peak force [N] and tolerance [N]."""
+
+    name: str
+    peak_force_n: float
+    tolerance_n: float = 50.0
+
+
+# The paper's three levels (Sec. 4): 450, 1000 and 1450 N, impacts accepted within +-50 N.
+PAPER_LEVELS: tuple[NominalLevel, ...] = (
+    NominalLevel('low', 450.0),
+    NominalLevel('medium', 1000.0),
+    NominalLevel('high', 1450.0),
+)
+
+
+@dataclass(frozen=True)
+class AnalysisConfig:
+    """How records become FRFs and how results are grouped and judged."""
+
+    # FRF arrays in results stop at this frequency [Hz] (None: Nyquist). The FMM's mode is at
+    # 2.2 Hz and its odd harmonics matter up to ~20 Hz; 100 Hz keeps results small.
+    band_limit_hz: float | None = 100.0
+    # Where the peak |receptance| (and so the natural frequency) is searched [Hz]. Its lower
+    # end keeps out the lowest bins, where the rest offset friction leaves in the displacement
+    # (x_final != 0) makes |mobility / (i omega)| large. Its upper end is lowered further to
+    # where the force spectrum has dropped by excitation_drop_db (`frf.excitation_bandwidth`).
+    peak_band_hz: tuple[float, float] = (1.0, 100.0)
+    excitation_drop_db: float = 20.0
+    # Optional force window: keep the force this long after the trigger [s], then a
+    # half-cosine taper [s]; the pre-contact mean is subtracted first. None: no window.
+    force_window_s: float | None = None
+    force_window_taper_s: float = 0.0
+    # Optional exponential window on both channels, decay time constant [s]. None: no window
+    # (the paper's method: friction brings the rig to rest inside the record).
+    exponential_decay_s: float | None = None
+    # Nominal force levels; empty: cluster peak forces instead (`frf.cluster_levels`).
+    levels: tuple[NominalLevel, ...] = ()
+    cluster_relative_gap: float = 0.15
+    # Flags that reject an impact from averaging; the others are still reported.
+    reject_flags: tuple[str, ...] = FLAGS
+
+    def __post_init__(self) -> None:
+        unknown = sorted(set(self.reject_flags) - set(FLAGS))
+        if unknown:
+            raise ValueError(
+                f'unknown quality flag(s) {", ".join(unknown)}; known: {", ".join(FLAGS)}'
+            )
+        low, high = self.peak_band_hz
+        if not 0 <= low < high:
+            raise ValueError(
+                f'peak_band_hz must be (low, high) with 0 <= low < high, got {self.peak_band_hz}'
+            )
+        if self.band_limit_hz is not None and self.band_limit_hz <= low:
+            raise ValueError(
+                f'band_limit_hz ({self.band_limit_hz} Hz) leaves no room for the '
+                f'peak band starting at {low} Hz'
+            )
+        for name in ('force_window_s', 'exponential_decay_s'):
+            value = getattr(self, name)
+            if value is not None and not value > 0:
+                raise ValueError(f'{name} must be > 0 or None, got {value}')
+        names = [level.name for level in self.levels]
+        if len(set(names)) != len(names) or '' in names:
+            raise ValueError(f'level names must be unique and non-empty, got {names}')
+
+
+@dataclass(frozen=True, eq=False)
+class ImpactResult:
+    """One impact analysed: the fields of ImpactResult.msg plus the spectra averaging needs."""
+
+    impact_id: int
+    trigger_sample_index: int
+    record_start_sample_index: int
+    level: str
+    accepted: bool
+    flags: tuple[str, ...]
+    impulse_n_s: float
+    peak_force_n: float
+    contact_duration_s: float
+    record_duration_s: float
+    sample_rate_hz: float
+    natural_frequency_hz: float
+    peak_receptance_m_per_n: float
+    frequency_step_hz: float
+    # Band-limited axis [Hz] and complex FRFs: mobility [m/(N*s)], receptance [m/N].
+    frequency_hz: np.ndarray
+    mobility: np.ndarray
+    receptance: np.ndarray
+    # Windows the FRF was computed with [s]; 0 where none.
+    force_window_s: float
+    exponential_window_decay_s: float
+    # Band-limited unscaled DFTs of the (windowed) force and velocity, for H1/H2/coherence.
+    force_spectrum: np.ndarray
+    velocity_spectrum: np.ndarray
+    source: str = ''
+
+    @property
+    def accelerance(self) -> np.ndarray:
+        """Accelerance A/F [m/(N*s^2)] = i*omega * mobility."""
+        return frf.accelerance_from_mobility(self.mobility, self.frequency_hz)
+
+
+@dataclass(frozen=True, eq=False)
+class LevelSummary:
+    """One force level's averaged FRF: the per-level fields of FrfSummary.msg."""
+
+    level: str
+    # 0 when the level comes from clustering.
+    nominal_peak_force_n: float
+    count: int
+    impact_ids: tuple[int, ...]
+    mean_impulse_n_s: float
+    # Sample standard deviation; NaN for a single impact.
+    std_impulse_n_s: float
+    mean_peak_force_n: float
+    peak_receptance_m_per_n: float
+    natural_frequency_hz: float
+    frequency_step_hz: float
+    frequency_hz: np.ndarray
+    # Plain mean of the trials (the paper's average): mobility and receptance.
+    mobility: np.ndarray
+    receptance: np.ndarray
+    h1_mobility: np.ndarray
+    h2_mobility: np.ndarray
+    coherence: np.ndarray
+    exponential_window_decay_s: float
+
+
+@dataclass(frozen=True, eq=False)
+class Summary:
+    """Every impact with its level and verdict, each level's average, and the linearity fit."""
+
+    impacts: tuple[ImpactResult, ...]
+    levels: tuple[LevelSummary, ...]
+    # Peak |receptance| [m/N] against mean impulse [N*s] over the levels.
+    linearity: frf.LinearFit
+
+
+def analyze_impact(
+    record: ImpactRecord,
+    capture: CaptureConfig = DEFAULT_CAPTURE,
+    analysis: AnalysisConfig = AnalysisConfig(),
+    *,
+    impact_id: int = 0,
+) -> ImpactResult:
+    """Flags, impulse, peak force, contact duration and FRFs of one impact record.
+
+    The DFT runs over the whole record zero-padded to `record.window_samples` (the paper's
+    method). The impulse is the trapezoid over the pulse that fired the trigger, baseline
+    removed (`frf.pulse_impulse`): the physical impulse, whatever the windows or the noise of
+    the rest of the record. The level is assigned later by `summarize`.
+    """
+    record = with_trigger(record, capture)
+    flags = quality_flags(record, capture)
+    rate = record.sample_rate_hz
+    trigger = record.trigger_offset
+    raw_force = record.force_n
+    contact_start = contact_start_index(raw_force, trigger, capture)
+    interval = frf.contact_interval(raw_force, capture.rearm_level_n, contact_start)
+    peak_force = float(np.max(raw_force[interval[0] : interval[1]])) if interval else float('nan')
+
+    impulse = frf.pulse_impulse(raw_force, rate, capture.rearm_level_n, contact_start)
+    force, velocity = raw_force, record.velocity_m_s
+    if analysis.force_window_s is not None:
+        offset = float(np.mean(force[:contact_start])) if contact_start else 0.0
+        force = (force - offset) * frf.force_window(
+            force.size,
+            rate,
+            start_index=trigger,
+            width_s=analysis.force_window_s,
+            taper_s=analysis.force_window_taper_s,
+        )
+    if analysis.exponential_decay_s is not None:
+        weight = frf.exponential_window(
+            force.size, rate, decay_time_s=analysis.exponential_decay_s, start_index=trigger
+        )
+        force, velocity = force * weight, velocity * weight
+
+    n_fft = record.window_samples
+    bins = frf.band_bins(n_fft, rate, analysis.band_limit_hz)
+    force_spectrum, velocity_spectrum = frf.spectra(force, velocity, n_fft)
+    # Copies, so the full-length spectra are freed rather than kept alive by the slices.
+    force_spectrum = force_spectrum[:bins].copy()
+    velocity_spectrum = velocity_spectrum[:bins].copy()
+    frequency = frf.frequency_axis(n_fft, rate)[:bins]
+    mobility = frf.mobility(force_spectrum, velocity_spectrum)
+    receptance = frf.receptance_from_mobility(mobility, frequency)
+    peak_receptance, natural_frequency = frf.peak_magnitude(
+        receptance, frequency, _peak_band(force_spectrum, frequency, analysis)
+    )
+    return ImpactResult(
+        impact_id=impact_id,
+        trigger_sample_index=record.trigger_sample_index,
+        record_start_sample_index=record.record_start_sample_index,
+        level='',
+        accepted=not set(flags) & set(analysis.reject_flags),
+        flags=flags,
+        impulse_n_s=impulse,
+        peak_force_n=peak_force,
+        contact_duration_s=frf.contact_duration(
+            raw_force, rate, capture.rearm_level_n, contact_start
+        ),
+        record_duration_s=n_fft / rate,
+        sample_rate_hz=rate,
+        natural_frequency_hz=natural_frequency,
+        peak_receptance_m_per_n=peak_receptance,
+        frequency_step_hz=rate / n_fft,
+        frequency_hz=frequency,
+        mobility=mobility,
+        receptance=receptance,
+        force_window_s=analysis.force_window_s or 0.0,
+        exponential_window_decay_s=analysis.exponential_decay_s or 0.0,
+        force_spectrum=force_spectrum,
+        velocity_spectrum=velocity_spectrum,
+        source=record.source,
+    )
+
+
+def summarize(
+    results: Sequence[ImpactResult], analysis: AnalysisConfig = AnalysisConfig()
+) -> Summary:
+    """Assign levels, judge every impact, average each level and fit |receptance| vs impulse.
+
+    With nominal levels an impact belongs to the nearest one within its tolerance, or to none
+    (flag `out_of_tolerance`); without, peak forces are clustered into `level_1`, `level_2`, ...
+    in ascending force. Only accepted impacts enter the averages; every impact is returned.
+    """
+    peaks = np.array([result.peak_force_n for result in results], dtype=float)
+    if analysis.levels:
+        index = frf.assign_nominal_levels(
+            peaks,
+            [level.peak_force_n for level in analysis.levels],
+            [level.tolerance_n for level in analysis.levels],
+        )
+        names = [analysis.levels[i].name if i >= 0 else '' for i in index]
+        level_order = [(level.name, level.peak_force_n) for level in analysis.levels]
+    else:
+        labels = frf.cluster_levels(peaks, analysis.cluster_relative_gap)
+        names = [f'level_{label + 1}' if label >= 0 else '' for label in labels]
+        level_order = [(f'level_{label + 1}', 0.0) for label in range(labels.max(initial=-1) + 1)]
+
+    judged = []
+    for result, name in zip(results, names, strict=True):
+        flags = set(result.flags) - {'out_of_tolerance'}
+        if analysis.levels and not name:
+            flags.add('out_of_tolerance')
+        ordered = tuple(flag for flag in FLAGS if flag in flags)
+        judged.append(
+            dataclasses.replace(
+                result, level=name, flags=ordered, accepted=not flags & set(analysis.reject_flags)
+            )
+        )
+
+    levels = []
+    for name, nominal in level_order:
+        members = [result for result in judged if result.level == name and result.accepted]
+        if members:
+            levels.append(_level_summary(name, nominal, members, analysis))
+    linearity = frf.linear_fit(
+        [level.mean_impulse_n_s for level in levels],
+        [level.peak_receptance_m_per_n for level in levels],
+    )
+    return Summary(impacts=tuple(judged), levels=tuple(levels), linearity=linearity)
+
+
+def _level_summary(
+    name: str, nominal_peak_force_n: float, members: list[ImpactResult], analysis: AnalysisConfig
+) -> LevelSummary:
+    """Average one level's accepted impacts (which must share one frequency grid)."""
+    first = members[0]
+    for result in members[1:]:
+        if result.frequency_hz.size != first.frequency_hz.size or not np.isclose(
+            result.frequency_step_hz, first.frequency_step_hz, rtol=1e-9
+        ):
+            raise ValueError(
+                f'level {name}: impacts {first.impact_id} and {result.impact_id} have different '
+                f'frequency grids ({first.frequency_step_hz:.6g} Hz x {first.frequency_hz.size} vs '
+                f'{result.frequency_step_hz:.6g} Hz x {result.frequency_hz.size}); records must '
+                'share sample rate and window length to be averaged'
+            )
+    average = frf.average_frf(
+        np.stack([result.force_spectrum for result in members]),
+        np.stack([result.velocity_spectrum for result in members]),
+    )
+    receptance = frf.receptance_from_mobility(average.mean_mobility, first.frequency_hz)
+    peak, natural_frequency = frf.peak_magnitude(
+        receptance,
+        first.frequency_hz,
+        _peak_band(
+            np.stack([result.force_spectrum for result in members]), first.frequency_hz, analysis
+        ),
+    )
+    impulses = np.array([result.impulse_n_s for result in members])
+    return LevelSummary(
+        level=name,
+        nominal_peak_force_n=nominal_peak_force_n,
+        count=len(members),
+        impact_ids=tuple(result.impact_id for result in members),
+        mean_impulse_n_s=float(impulses.mean()),
+        std_impulse_n_s=float(impulses.std(ddof=1)) if impulses.size > 1 else float('nan'),
+        mean_peak_force_n=float(np.mean([result.peak_force_n for result in members])),
+        peak_receptance_m_per_n=peak,
+        natural_frequency_hz=natural_frequency,
+        frequency_step_hz=first.frequency_step_hz,
+        frequency_hz=first.frequency_hz,
+        mobility=average.mean_mobility,
+        receptance=receptance,
+        h1_mobility=average.h1_mobility,
+        h2_mobility=average.h2_mobility,
+        coherence=average.coherence,
+        exponential_window_decay_s=first.exponential_window_decay_s,
+    )
+
+
+def _peak_band(
+    force_spectrum: np.ndarray, frequency_hz: np.ndarray, analysis: AnalysisConfig
+) -> tuple[float, float]:
+    """The configured peak band, its top lowered to where the excitation has run out."""
+    low, high = analysis.peak_band_hz
+    usable = frf.excitation_bandwidth(force_spectrum, frequency_hz, analysis.excitation_drop_db)
+    return low, high if np.isnan(usable) else min(high, usable)

@@ -1,0 +1,154 @@
+"""One impact's force and velocity samples, and the CSV file format that holds one impact.
+
+`ImpactRecord` is what the streaming capture (`fmm_ros.core.signal.capture`) emits and what the
+analysis (`fmm_ros.core.signal.analysis`) consumes, so a record read from a file, replayed from a
+bag or captured live goes through exactly the same code. `read_impact_csv` is the one reader of the
+per-impact CSV files (`time_s,force_n,velocity_m_s`) that `fmm analyze`, the fitter and the
+diagnosis tools all take.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from fmm_ros.core._checks import sample_rate_from_times
+
+CSV_COLUMNS: tuple[str, str, str] = ('time_s', 'force_n', 'velocity_m_s')
+
+# A CSV time column whose steps differ from the mean step by more than this fraction is not
+# uniformly sampled (a dropped sample shows up as a step of 2, far beyond it).
+TIME_STEP_TOLERANCE = 1e-3
+
+Gaps = tuple[tuple[int, int], ...]
+
+
+@dataclass(frozen=True, eq=False)
+class ImpactRecord:
+    """Force [N] and velocity [m/s] of one impact, sample-aligned, with where they came from.
+
+    Indices are counted on the acquisition's sample counter (`SampleBatch.first_sample_index`).
+    `window_samples` is the nominal record length: a capture that ended the record early because
+    the rig came to rest gives shorter arrays, and the FRF zero-pads them back to this length so
+    every trial of a session shares one frequency grid. Samples that never arrived are NaN and
+    listed in `force_gaps` / `velocity_gaps` as record-relative [start, stop) ranges.
+    """
+
+    force_n: np.ndarray
+    velocity_m_s: np.ndarray
+    sample_rate_hz: float
+    record_start_sample_index: int = 0
+    # None: not known yet; the analysis finds it with the capture's trigger rule.
+    trigger_sample_index: int | None = None
+    window_samples: int = 0
+    # Sensor full-scale ranges [N], [m/s]; 0 means unknown (no clipping check).
+    force_full_scale_n: float = 0.0
+    velocity_full_scale_m_s: float = 0.0
+    force_gaps: Gaps = field(default=())
+    velocity_gaps: Gaps = field(default=())
+    # File name or other origin, for reports.
+    source: str = ''
+
+    def __post_init__(self) -> None:
+        force = np.asarray(self.force_n, dtype=float)
+        velocity = np.asarray(self.velocity_m_s, dtype=float)
+        if force.ndim != 1 or velocity.ndim != 1:
+            raise ValueError('force and velocity must be one-dimensional sample arrays')
+        if force.shape != velocity.shape:
+            raise ValueError(
+                f'force has {force.size} samples but velocity has {velocity.size}: '
+                'the two channels of a record must be sample-aligned'
+            )
+        if force.size < 2:
+            raise ValueError(f'a record needs at least 2 samples, got {force.size}')
+        if not np.isfinite(self.sample_rate_hz) or self.sample_rate_hz <= 0:
+            raise ValueError(f'sample_rate_hz must be positive, got {self.sample_rate_hz}')
+        window = self.window_samples or force.size
+        if window < force.size:
+            raise ValueError(
+                f'window_samples ({window}) is shorter than the record ({force.size} samples)'
+            )
+        offset = self.trigger_offset
+        if offset is not None and not 0 <= offset < force.size:
+            raise ValueError(
+                f'trigger sample {self.trigger_sample_index} lies outside the record '
+                f'({self.record_start_sample_index} + {force.size} samples)'
+            )
+        object.__setattr__(self, 'force_n', force)
+        object.__setattr__(self, 'velocity_m_s', velocity)
+        object.__setattr__(self, 'window_samples', int(window))
+
+    @property
+    def trigger_offset(self) -> int | None:
+        """Trigger position inside the arrays [samples], or None when not known."""
+        if self.trigger_sample_index is None:
+            return None
+        return self.trigger_sample_index - self.record_start_sample_index
+
+
+def read_impact_csv(path: str | Path) -> ImpactRecord:
+    """Read one impact from a CSV file with the header `time_s,force_n,velocity_m_s`.
+
+    Columns may come in any order and extra columns are ignored. The sample rate is taken from
+    the time column, which must be uniformly spaced. Raises ValueError naming the file and the
+    problem for a missing column, unparsable or non-finite values, or a non-uniform time step,
+    so a bad file is refused instead of turning into a wrong FRF.
+    """
+    path = Path(path)
+    with path.open(newline='') as handle:
+        header = next(csv.reader(handle), None)
+    if header is None:
+        raise ValueError(f'{path}: empty file, expected a header {",".join(CSV_COLUMNS)}')
+    names = [name.strip() for name in header]
+    missing = [name for name in CSV_COLUMNS if name not in names]
+    if missing:
+        raise ValueError(
+            f'{path}: missing column(s) {", ".join(missing)}; the header must name '
+            f'{",".join(CSV_COLUMNS)}'
+        )
+    columns = [names.index(name) for name in CSV_COLUMNS]
+    try:
+        data = np.loadtxt(path, delimiter=',', skiprows=1, usecols=columns, ndmin=2)
+    except ValueError as error:
+        raise ValueError(f'{path}: {error}') from None
+    if data.shape[0] < 2:
+        raise ValueError(f'{path}: needs at least 2 samples, found {data.shape[0]}')
+    for column, name in enumerate(CSV_COLUMNS):
+        bad = np.flatnonzero(~np.isfinite(data[:, column]))
+        if bad.size:
+            raise ValueError(
+                f'{path}: {name} is not finite ({data[bad[0], column]}) at data row '
+                f'{bad[0] + 1} and {bad.size - 1} more row(s)'
+            )
+    try:
+        sample_rate_hz = sample_rate_from_times(data[:, 0], rtol=TIME_STEP_TOLERANCE)
+    except ValueError as error:
+        raise ValueError(f'{path}: {error} (a dropped or repeated sample?)') from None
+    return ImpactRecord(
+        force_n=np.ascontiguousarray(data[:, 1]),
+        velocity_m_s=np.ascontiguousarray(data[:, 2]),
+        sample_rate_hz=sample_rate_hz,
+        source=str(path),
+    )
+
+
+def write_impact_csv(
+    path: str | Path, force_n: np.ndarray, velocity_m_s: np.ndarray, sample_rate_hz: float
+) -> None:
+    """Write one impact in the format `read_impact_csv` reads, samples at full precision."""
+    force = np.asarray(force_n, dtype=float)
+    velocity = np.asarray(velocity_m_s, dtype=float)
+    if force.shape != velocity.shape or force.ndim != 1:
+        raise ValueError('force and velocity must be one-dimensional arrays of equal length')
+    time_s = np.arange(force.size) / sample_rate_hz
+    np.savetxt(
+        path,
+        np.column_stack((time_s, force, velocity)),
+        delimiter=',',
+        header=','.join(CSV_COLUMNS),
+        comments='',
+        fmt=('%.9f', '%.17g', '%.17g'),
+    )

@@ -1,0 +1,60 @@
+"""Bag I/O without ROS: rosbag2 bags (MCAP or sqlite3) written and read with rosbags.
+
+The fmm_interfaces types come from the package's own .msg files (definitions.py); the
+writer takes numpy arrays or raw CDR bytes (writer.py); the reader yields aligned force and
+velocity batches and decoded results, and recovers what a crash or damage left (reader.py).
+"""
+
+from fmm_ros.constants import FRF_TOPIC, IMPACTS_TOPIC
+from fmm_ros.io.bags.definitions import (
+    FRF_SUMMARY,
+    IMPACT_RESULT,
+    SAMPLE_BATCH,
+    find_definitions,
+    fmm_typestore,
+    new_message,
+)
+from fmm_ros.io.bags.errors import BagDamagedError, BagError, MessageTypeError, MissingTopicError
+from fmm_ros.io.bags.reader import (
+    AlignedBatch,
+    BagMessage,
+    BagReader,
+    BatchAligner,
+    ChannelBatch,
+    TopicInfo,
+)
+from fmm_ros.io.bags.writer import (
+    DEFAULT_BATCH_SIZE,
+    FORCE,
+    FORCE_TOPIC,
+    VELOCITY,
+    VELOCITY_TOPIC,
+    BagWriter,
+)
+
+__all__ = [
+    'AlignedBatch',
+    'BagDamagedError',
+    'BagError',
+    'BagMessage',
+    'BagReader',
+    'BagWriter',
+    'BatchAligner',
+    'ChannelBatch',
+    'DEFAULT_BATCH_SIZE',
+    'FORCE',
+    'FORCE_TOPIC',
+    'FRF_SUMMARY',
+    'FRF_TOPIC',
+    'IMPACTS_TOPIC',
+    'IMPACT_RESULT',
+    'MissingTopicError',
+    'SAMPLE_BATCH',
+    'TopicInfo',
+    'MessageTypeError',
+    'VELOCITY',
+    'VELOCITY_TOPIC',
+    'find_definitions',
+    'fmm_typestore',
+    'new_message',
+]

@@ -1,0 +1,494 @@
+"""Read rosbag2 bags (MCAP or sqlite3) without ROS: raw messages, aligned sample batches, results.
+
+An intact bag is read with rosbags. A bag that rosbags cannot open or read to the end (a
+crashed recording has no metadata.yaml and no MCAP footer; a corrupt chunk stops it) is
+read by scanning its MCAP file record by record (mcapscan.py) or its sqlite3 database row
+by row (sqlitescan.py): every message before the damage is delivered,
+then, with strict=True (the default), a BagDamagedError names the problem; with
+strict=False reading goes on past damage where the file's framing allows and the problems
+are listed in `problems`.
+
+Messages are decoded with the definitions the bag carries (a bag stays readable after the
+.msg files change), falling back to this installation's fmm_interfaces. float64[] fields
+come out as numpy arrays viewing the serialized bytes: no copy.
+"""
+
+import sqlite3
+from collections import Counter, deque
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from rosbags.interfaces import MessageDefinitionFormat
+from rosbags.rosbag2 import Reader, ReaderError
+from rosbags.typesys import TypesysError, get_types_from_msg, get_typestore
+
+from fmm_ros.constants import FRF_TOPIC, IMPACTS_TOPIC
+from fmm_ros.io.bags.definitions import (
+    BASE_STORE,
+    FRF_SUMMARY,
+    IMPACT_RESULT,
+    SAMPLE_BATCH,
+    fmm_typestore,
+)
+from fmm_ros.io.bags.errors import BagDamagedError, BagError, MessageTypeError, MissingTopicError
+from fmm_ros.io.bags.mcapscan import Damage, McapScan
+from fmm_ros.io.bags.sqlitescan import SqliteScan
+from fmm_ros.io.bags.writer import FORCE_TOPIC, VELOCITY_TOPIC
+
+
+@dataclass(frozen=True)
+class TopicInfo:
+    """One topic of a bag: its message type and how many messages it holds."""
+
+    topic: str
+    msgtype: str
+    count: int
+
+
+@dataclass(frozen=True)
+class BagMessage:
+    """One stored message: topic, type, log time [ns] and serialized CDR bytes."""
+
+    topic: str
+    msgtype: str
+    log_time_ns: int
+    data: bytes | memoryview
+
+
+@dataclass(frozen=True)
+class ChannelBatch:
+    """One SampleBatch of one channel; samples [unit] view the message bytes (read-only)."""
+
+    topic: str
+    first_sample_index: int
+    samples: np.ndarray
+    sample_rate_hz: float
+    quantity: str
+    unit: str
+    full_scale: float
+    frame_id: str
+    stamp_ns: int
+    log_time_ns: int
+
+    @property
+    def end_index(self) -> int:
+        """Index one past the last sample."""
+        return self.first_sample_index + len(self.samples)
+
+
+@dataclass(frozen=True)
+class AlignedBatch:
+    """Force [N] and velocity [m/s] over the same sample indices, as the analyzer pairs them.
+
+    gap_samples: samples missing between the previous aligned batch and this one (0 when
+    contiguous): a dropped batch on either channel shows up here.
+    """
+
+    first_sample_index: int
+    force: np.ndarray
+    velocity: np.ndarray
+    sample_rate_hz: float
+    gap_samples: int
+    full_scale_force: float
+    full_scale_velocity: float
+
+    @property
+    def end_index(self) -> int:
+        """Index one past the last sample."""
+        return self.first_sample_index + len(self.force)
+
+
+class BagReader:
+    """A rosbag2 bag opened for reading; use as a context manager.
+
+    path: a bag directory (with or without metadata.yaml), or a single .mcap or .db3 file.
+    """
+
+    def __init__(self, path: str | Path, *, strict: bool = True) -> None:
+        self.path = Path(path)
+        self.strict = strict
+        self.problems: list[str] = []
+        self.storage = ''
+        self.recovered = False  # True when read by scanning instead of through the index
+        self._reader: Reader | None = None
+        self._storage_file: Path | None = None
+        self._scan: McapScan | SqliteScan | None = None
+        self._topics: dict[str, TopicInfo] = {}
+        self._messages_read = 0
+        self.typestore = fmm_typestore()
+
+    def __enter__(self) -> 'BagReader':
+        self.open()
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        self.close()
+
+    # -- opening ----------------------------------------------------------------------------
+
+    def open(self) -> None:
+        """Open the bag: through rosbags when it is intact, else by scanning its MCAP file."""
+        target = self._storage_target()
+        if self.storage == 'sqlite3':
+            _roll_back_unfinished_transaction(target)
+        try:
+            self._reader = Reader(target)
+            self._reader.open()
+        except ReaderError as error:
+            self._reader = None
+            self._note(
+                f'rosbags cannot open it ({error}): read by scanning the {self.storage} file'
+            )
+            self._start_scan()
+        else:
+            self._topics = {
+                conn.topic: TopicInfo(conn.topic, conn.msgtype, conn.msgcount)
+                for conn in self._reader.connections
+            }
+            self.typestore = self._typestore(
+                {
+                    conn.msgtype: (
+                        conn.msgdef.data
+                        if conn.msgdef.format == MessageDefinitionFormat.MSG
+                        else ''
+                    )
+                    for conn in self._reader.connections
+                }
+            )
+
+    def _storage_target(self) -> Path:
+        """What rosbags should open: the directory, or its storage file when unfinished."""
+        path = self.path
+        if not path.exists():
+            raise FileNotFoundError(f'bag {path} does not exist')
+        if path.is_file():
+            self.storage = {'.mcap': 'mcap', '.db3': 'sqlite3'}.get(path.suffix, '')
+            if not self.storage:
+                raise BagError(
+                    f'{path} is not a bag: expected a bag directory, a .mcap or a .db3 file'
+                )
+            self._storage_file = path
+            return path
+        files = sorted(path.glob('*.mcap')) + sorted(path.glob('*.db3'))
+        if not files:
+            raise BagError(f'{path} is not a rosbag2 bag: no .mcap or .db3 file in it')
+        self.storage = 'mcap' if files[0].suffix == '.mcap' else 'sqlite3'
+        self._storage_file = files[0]
+        if (path / 'metadata.yaml').is_file():
+            return path
+        if len(files) > 1:
+            raise BagError(
+                f'bag {path} has no metadata.yaml and {len(files)} storage files '
+                f'({", ".join(f.name for f in files)}): open one of them directly'
+            )
+        self.problems.append(
+            'the recording was not closed: no metadata.yaml (the writer '
+            'crashed, was killed, or is still writing)'
+        )
+        return files[0]
+
+    def _new_scan(self) -> McapScan | SqliteScan:
+        """A sequential, damage-tolerant reader of the storage file."""
+        self.recovered = True
+        scan = McapScan if self.storage == 'mcap' else SqliteScan
+        return scan(self._storage_file)
+
+    def _start_scan(self) -> None:
+        """Read the storage file sequentially: a first pass collects topics and counts."""
+        self._scan = self._new_scan()
+        counts: Counter = Counter()
+        for item in self._scan.records():
+            if isinstance(item, Damage):
+                self._note(item.problem)
+            else:
+                counts[item.channel.topic] += 1
+        schemas = self._scan.schemas
+        msgtypes = {}
+        for channel in self._scan.channels.values():
+            schema = schemas.get(channel.schema_id)
+            msgtype = schema.name if schema else ''
+            msgtypes[msgtype] = schema.data if schema and schema.encoding == 'ros2msg' else ''
+            self._topics[channel.topic] = TopicInfo(channel.topic, msgtype, counts[channel.topic])
+        self.typestore = self._typestore(msgtypes)
+
+    def _typestore(self, definitions: dict[str, str]):
+        """A typestore from the bag's embedded definitions, else this installation's."""
+        embedded: dict = {}
+        for msgtype, text in definitions.items():
+            if text:
+                try:
+                    embedded.update(get_types_from_msg(text, msgtype))
+                except TypesysError as error:
+                    self.problems.append(
+                        f'the definition of {msgtype} in the bag cannot be '
+                        f"parsed ({error}); using this installation's"
+                    )
+        if not embedded:
+            return fmm_typestore()
+        store = get_typestore(BASE_STORE)
+        own = fmm_typestore().fielddefs
+        try:
+            store.register(embedded)
+            store.register({name: own[name] for name in own.keys() - store.fielddefs.keys()})
+        except TypesysError as error:
+            raise BagError(
+                f'bag {self.path} defines a standard type differently: {error}'
+            ) from None
+        return store
+
+    def close(self) -> None:
+        """Release the storage file."""
+        if self._reader is not None:
+            self._reader.close()
+            self._reader = None
+        self._scan = None
+
+    # -- what is in it ------------------------------------------------------------------------
+
+    @property
+    def topics(self) -> dict[str, TopicInfo]:
+        """Every topic in the bag, by name (counts of a recovered bag: what was readable)."""
+        return dict(self._topics)
+
+    def require(self, topic: str, msgtype: str) -> None:
+        """Check the bag has topic with msgtype; the error names what it has instead."""
+        info = self._topics.get(topic)
+        if info is None:
+            have = (
+                ', '.join(f'{t.topic} ({t.msgtype}, {t.count})' for t in self._topics.values())
+                or 'no topics at all'
+            )
+            damage = f' (and it is damaged: {"; ".join(self.problems)})' if self.problems else ''
+            raise MissingTopicError(f'bag {self.path} has no topic {topic}; it has: {have}{damage}')
+        if info.msgtype != msgtype:
+            raise MessageTypeError(
+                f'topic {topic} in bag {self.path} has type '
+                f'{info.msgtype or "(none recorded)"}, expected {msgtype}'
+            )
+
+    # -- messages -------------------------------------------------------------------------------
+
+    def messages(self, topics: Iterable[str] | None = None) -> Iterator[BagMessage]:
+        """The stored messages of topics (default: all), serialized, in storage order."""
+        wanted = set(self._topics) if topics is None else set(topics)
+        delivered: Counter = Counter()
+        if self._reader is not None:
+            connections = [c for c in self._reader.connections if c.topic in wanted]
+            if not connections:
+                return
+            try:
+                for conn, log_time, data in self._reader.messages(connections=connections):
+                    delivered[conn.topic] += 1
+                    self._messages_read += 1
+                    yield BagMessage(conn.topic, conn.msgtype, log_time, data)
+                return
+            except ReaderError as error:
+                self._note(f'rosbags stopped reading it ({error}): read on by scanning')
+            # Scan the file for what rosbags could not read, past what it delivered.
+            self._scan = self._new_scan()
+        yield from self._scanned(wanted, delivered)
+
+    def _scanned(self, wanted: set[str], skip: Counter) -> Iterator[BagMessage]:
+        """Messages by scanning; skip: per-topic counts already delivered through rosbags."""
+        for item in self._scan.records():
+            if isinstance(item, Damage):
+                if item.unfinished:
+                    self._note(item.problem)
+                else:
+                    self._damage(item.problem)
+                continue
+            topic = item.channel.topic
+            if topic not in wanted:
+                continue
+            if skip[topic]:
+                skip[topic] -= 1
+                continue
+            self._messages_read += 1
+            yield BagMessage(topic, self._topics[topic].msgtype, item.log_time_ns, item.data)
+
+    def _damage(self, problem: str) -> None:
+        """Raise (strict) or note damage met while reading."""
+        if self.strict:
+            raise BagDamagedError(self.path, [problem], self._messages_read)
+        self._note(problem)
+
+    def _note(self, problem: str) -> None:
+        """Remember a problem once, for `problems`."""
+        if problem not in self.problems:
+            self.problems.append(problem)
+
+    def decode(self, message: BagMessage):
+        """The message as a rosbags object; float64[] fields are numpy views of its bytes."""
+        if message.msgtype not in self.typestore.fielddefs:
+            raise MessageTypeError(
+                f'topic {message.topic} in bag {self.path} has message type '
+                f'{message.msgtype or "(none recorded)"}, which neither the bag nor '
+                'fmm_interfaces defines'
+            )
+        try:
+            return self.typestore.deserialize_cdr(message.data, message.msgtype)
+        except Exception as error:  # the generated deserializers raise many error types
+            raise BagDamagedError(
+                self.path,
+                [
+                    f'a {message.msgtype} message on {message.topic} at log time '
+                    f'{message.log_time_ns} ns cannot be decoded ({type(error).__name__}: '
+                    f'{error})'
+                ],
+                self._messages_read,
+            ) from None
+
+    def _decode_each(self, messages: Iterable[BagMessage]) -> Iterator[tuple[BagMessage, object]]:
+        """Each message with its decoding; one that cannot be decoded is damage."""
+        for message in messages:
+            try:
+                yield message, self.decode(message)
+            except BagDamagedError as error:
+                if self.strict:
+                    raise
+                self._note(error.problems[0])
+
+    def decoded(self, topic: str, msgtype: str) -> Iterator[tuple[int, object]]:
+        """(log time [ns], message) of every message on topic, which must be of msgtype."""
+        self.require(topic, msgtype)
+        for message, decoded in self._decode_each(self.messages([topic])):
+            yield message.log_time_ns, decoded
+
+    def impacts(self, topic: str = IMPACTS_TOPIC) -> Iterator[object]:
+        """The recorded ImpactResult messages, in order."""
+        for _, message in self.decoded(topic, IMPACT_RESULT):
+            yield message
+
+    def frf_summaries(self, topic: str = FRF_TOPIC) -> Iterator[object]:
+        """The recorded FrfSummary messages, in order."""
+        for _, message in self.decoded(topic, FRF_SUMMARY):
+            yield message
+
+    # -- sample batches -----------------------------------------------------------------------
+
+    def sample_batches(
+        self, topics: Iterable[str] = (FORCE_TOPIC, VELOCITY_TOPIC)
+    ) -> Iterator[ChannelBatch]:
+        """Every SampleBatch of the topics, interleaved in storage (arrival) order.
+
+        This is what a live subscriber saw, message by message: the form to feed a streaming
+        consumer that aligns channels by sample index itself, as the analyzer does.
+        """
+        topics = list(topics)
+        for topic in topics:
+            self.require(topic, SAMPLE_BATCH)
+        for message, batch in self._decode_each(self.messages(topics)):
+            yield channel_batch(message, batch)
+
+    def channel(self, topic: str) -> Iterator[ChannelBatch]:
+        """Every SampleBatch of one channel topic, in storage order."""
+        return self.sample_batches([topic])
+
+    def batches(
+        self, force_topic: str = FORCE_TOPIC, velocity_topic: str = VELOCITY_TOPIC
+    ) -> Iterator[AlignedBatch]:
+        """Force and velocity paired by first_sample_index, as the live analyzer pairs them.
+
+        Equal batches on both channels come out as they are (views, no copy); unequal ones
+        are cut to their overlap. A sample present on one channel only is dropped and shows
+        as gap_samples on the next batch.
+        """
+        aligner = BatchAligner(str(self.path))
+        for batch in self.sample_batches([force_topic, velocity_topic]):
+            yield from aligner.add(0 if batch.topic == force_topic else 1, batch)
+
+
+def channel_batch(message: BagMessage, batch) -> ChannelBatch:
+    """A decoded SampleBatch message as a ChannelBatch (samples stay a read-only view)."""
+    samples = batch.samples
+    samples.flags.writeable = False
+    stamp = batch.header.stamp
+    return ChannelBatch(
+        message.topic,
+        int(batch.first_sample_index),
+        samples,
+        float(batch.sample_rate_hz),
+        batch.quantity,
+        batch.unit,
+        float(batch.full_scale),
+        batch.header.frame_id,
+        stamp.sec * 10**9 + stamp.nanosec,
+        message.log_time_ns,
+    )
+
+
+class BatchAligner:
+    """Pairs two channels' batches by sample index: the streaming half of BagReader.batches."""
+
+    def __init__(self, source: str = 'stream') -> None:
+        self.source = source
+        self._pending: tuple[deque, deque] = (deque(), deque())
+        self._channel_end = [None, None]
+        self._last_end: int | None = None
+
+    def add(self, channel: int, batch: ChannelBatch) -> Iterator[AlignedBatch]:
+        """Take one batch of channel 0 (force) or 1 (velocity); yield what is now paired."""
+        end = self._channel_end[channel]
+        if end is not None and batch.first_sample_index < end:
+            raise BagError(
+                f'{self.source}: {batch.topic} goes back from sample {end} to '
+                f'{batch.first_sample_index} (acquisition restarted, or batches '
+                'out of order)'
+            )
+        self._channel_end[channel] = batch.end_index
+        self._pending[channel].append((batch.first_sample_index, batch))
+        forces, velocities = self._pending
+        while forces and velocities:
+            (f_start, f_batch), (v_start, v_batch) = forces[0], velocities[0]
+            if f_batch.sample_rate_hz != v_batch.sample_rate_hz:
+                raise BagError(
+                    f'{self.source}: {f_batch.topic} is sampled at '
+                    f'{f_batch.sample_rate_hz} Hz but {v_batch.topic} at '
+                    f'{v_batch.sample_rate_hz} Hz'
+                )
+            start = max(f_start, v_start)
+            stop = min(f_batch.end_index, v_batch.end_index)
+            if stop > start:
+                gap = 0 if self._last_end is None else start - self._last_end
+                self._last_end = stop
+                yield AlignedBatch(
+                    start,
+                    _cut(f_batch, start, stop),
+                    _cut(v_batch, start, stop),
+                    f_batch.sample_rate_hz,
+                    gap,
+                    f_batch.full_scale,
+                    v_batch.full_scale,
+                )
+            # The head ending first is used up (or had no partner); the other moves on.
+            for queue in (forces, velocities):
+                if queue[0][1].end_index <= stop:
+                    queue.popleft()
+                else:
+                    queue[0] = (max(queue[0][0], stop), queue[0][1])
+
+
+def _cut(batch: ChannelBatch, start: int, stop: int) -> np.ndarray:
+    """Samples of batch over [start, stop) sample indices: the whole array when it fits."""
+    if start == batch.first_sample_index and stop == batch.end_index:
+        return batch.samples
+    offset = batch.first_sample_index
+    return batch.samples[start - offset : stop - offset]
+
+
+def _roll_back_unfinished_transaction(db_path: Path) -> None:
+    """Let sqlite roll back what a crashed writer left uncommitted, as sqlite itself would.
+
+    rosbags reads a .db3 as immutable, which would ignore a hot journal and could show
+    half-written pages; opening it once normally restores the last committed state.
+    """
+    files = [db_path] if db_path.is_file() else sorted(db_path.glob('*.db3'))
+    for db in files:
+        if db.with_name(db.name + '-journal').exists():
+            connection = sqlite3.connect(db)
+            try:
+                connection.execute('SELECT count(*) FROM sqlite_master').fetchone()
+            finally:
+                connection.close()

@@ -1,0 +1,296 @@
+"""Write rosbag2 bags (MCAP by default, sqlite3 on request) with rosbags, without ROS.
+
+Two ways in: numpy sample batches (serialized once, straight from the arrays) and raw CDR
+bytes (what a raw ROS subscription hands the recorder node, stored as received). Either way
+the bag is the one `ros2 bag` and the recorder node write: rosbag2 metadata version 9 (Jazzy),
+the fmm_interfaces definitions and type hashes embedded, the offered QoS of each topic.
+
+A recording must survive a crash of the process writing it: the writer closes the pending
+MCAP chunk (or commits the sqlite3 transaction) every `flush_interval_s` seconds of wall
+time, so a kill loses at most that much; the reader recovers the rest (see reader.py).
+Each MCAP chunk also gets the CRC-32 rosbags leaves at zero, so a flipped bit in a stored
+sample is reported as damage instead of read as data.
+"""
+
+import time
+import zlib
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability
+from rosbags.interfaces import QosTime as _QosTime
+from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
+from rosbags.typesys.store import Typestore
+
+from fmm_ros.constants import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC
+from fmm_ros.io.bags.definitions import SAMPLE_BATCH, fmm_typestore
+from fmm_ros.io.bags.errors import BagError, MessageTypeError
+
+DEFAULT_BATCH_SIZE = 500
+ROSBAG2_VERSION = 9  # the metadata version rosbag2 on Jazzy writes
+
+STORAGES = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}
+
+_NO_TIME = _QosTime(0, 0)
+
+
+def offered_qos(msgtype: str) -> Qos:
+    """The QoS the fmm nodes offer for msgtype (ARCHITECTURE.md, Conventions).
+
+    Sample batches: reliable, volatile, depth 50 (gaps break FRFs). Results: reliable,
+    transient-local, depth 10, so a player republishes them for late subscribers too.
+    """
+    batches = msgtype == SAMPLE_BATCH
+    return bag_qos(depth=50 if batches else 10, reliable=True, transient_local=not batches)
+
+
+def bag_qos(*, depth: int, reliable: bool, transient_local: bool) -> Qos:
+    """A keep-last QoS profile as rosbag2 metadata stores it (the player restores it)."""
+    return Qos(
+        QosHistory.KEEP_LAST,
+        depth,
+        QosReliability.RELIABLE if reliable else QosReliability.BEST_EFFORT,
+        QosDurability.TRANSIENT_LOCAL if transient_local else QosDurability.VOLATILE,
+        _NO_TIME,
+        _NO_TIME,
+        QosLiveliness.AUTOMATIC,
+        _NO_TIME,
+        False,
+    )
+
+
+def sample_stamp_ns(time_origin_ns: int, sample_index: int, sample_rate_hz: float) -> int:
+    """Acquisition time [ns] of sample_index when sample 0 was taken at time_origin_ns."""
+    return time_origin_ns + round(sample_index * 1e9 / sample_rate_hz)
+
+
+class BagWriter:
+    """A rosbag2 bag being written; use as a context manager (closing writes metadata.yaml).
+
+    path: the bag directory to create (must not exist). storage: 'mcap' or 'sqlite3'.
+    time_origin_ns: acquisition time of sample index 0, for headers and log times of batches
+    written from arrays (default: now). flush_interval_s: most wall time a crash can lose
+    (None: flush only on close).
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        storage: str = 'mcap',
+        time_origin_ns: int | None = None,
+        flush_interval_s: float | None = 1.0,
+        typestore: Typestore | None = None,
+    ) -> None:
+        if storage not in STORAGES:
+            raise BagError(f'unknown bag storage {storage!r}: use one of {", ".join(STORAGES)}')
+        if flush_interval_s is not None and flush_interval_s <= 0:
+            raise ValueError(f'flush_interval_s must be positive, got {flush_interval_s}')
+        self.path = Path(path)
+        self.storage = storage
+        self.typestore = typestore or fmm_typestore()
+        self.time_origin_ns = time.time_ns() if time_origin_ns is None else int(time_origin_ns)
+        self.flush_interval_s = flush_interval_s
+        self._writer = Writer(self.path, version=ROSBAG2_VERSION, storage_plugin=STORAGES[storage])
+        self._connections: dict[str, object] = {}
+        self._last_flush = time.monotonic()
+        self._open = False
+        self.messages_written = 0
+
+    def __enter__(self) -> 'BagWriter':
+        self.open()
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        self.close()
+
+    def open(self) -> None:
+        """Create the bag directory and its storage file."""
+        try:
+            self._writer.open()
+        except WriterError as error:
+            raise BagError(f'cannot create bag {self.path}: {error}') from None
+        if self.storage == 'mcap':
+            _add_chunk_checksums(self._writer.storage)
+        self._open = True
+
+    def close(self) -> None:
+        """Finish the storage file (MCAP summary and index) and write metadata.yaml."""
+        if self._open:
+            self._open = False
+            self._writer.close()
+
+    def add_topic(self, topic: str, msgtype: str, *, qos: Qos | None = None) -> None:
+        """Declare topic with msgtype (done on first write otherwise); qos: the offered QoS."""
+        if topic in self._connections:
+            known = self._connections[topic].msgtype
+            if known != msgtype:
+                raise BagError(
+                    f'topic {topic} is already in bag {self.path} as {known}, '
+                    f'cannot also write {msgtype}'
+                )
+            return
+        if msgtype not in self.typestore.fielddefs:
+            raise MessageTypeError(
+                f'unknown message type {msgtype!r} for topic {topic}: the bag writer knows '
+                'the fmm_interfaces messages and the ROS 2 Jazzy standard types'
+            )
+        self._connections[topic] = self._writer.add_connection(
+            topic,
+            msgtype,
+            typestore=self.typestore,
+            offered_qos_profiles=[qos or offered_qos(msgtype)],
+        )
+
+    def write_raw(
+        self, topic: str, msgtype: str, data: bytes | memoryview, log_time_ns: int
+    ) -> None:
+        """Store one serialized (CDR) message as received, without decoding it."""
+        if topic not in self._connections:
+            self.add_topic(topic, msgtype)
+        self._writer.write(self._connections[topic], int(log_time_ns), data)
+        self.messages_written += 1
+        if (
+            self.flush_interval_s is not None
+            and time.monotonic() - self._last_flush >= self.flush_interval_s
+        ):
+            self.flush()
+
+    def write_message(self, topic: str, message, log_time_ns: int) -> None:
+        """Serialize one rosbags message object (e.g. an ImpactResult) and store it."""
+        msgtype = message.__msgtype__
+        self.write_raw(topic, msgtype, self.typestore.serialize_cdr(message, msgtype), log_time_ns)
+
+    def write_sample_batch(
+        self,
+        topic: str,
+        samples: np.ndarray,
+        *,
+        quantity: tuple[str, str],
+        sample_rate_hz: float,
+        first_sample_index: int,
+        frame_id: str = '',
+        full_scale: float = 0.0,
+        log_time_ns: int | None = None,
+    ) -> None:
+        """One SampleBatch from an array of samples [SI unit of quantity].
+
+        The header stamp is the acquisition time of samples[0]; the log time defaults to
+        when the last sample was taken, as a live recording would see it.
+        """
+        types = self.typestore.types
+        stamp_ns = sample_stamp_ns(self.time_origin_ns, first_sample_index, sample_rate_hz)
+        if log_time_ns is None:
+            log_time_ns = sample_stamp_ns(
+                self.time_origin_ns, first_sample_index + len(samples), sample_rate_hz
+            )
+        header = types['std_msgs/msg/Header'](
+            stamp=types['builtin_interfaces/msg/Time'](
+                sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9
+            ),
+            frame_id=frame_id,
+        )
+        message = types[SAMPLE_BATCH](
+            header=header,
+            quantity=quantity[0],
+            unit=quantity[1],
+            sample_rate_hz=float(sample_rate_hz),
+            first_sample_index=int(first_sample_index),
+            full_scale=float(full_scale),
+            samples=np.ascontiguousarray(samples, dtype=np.float64),
+        )
+        self.write_message(topic, message, log_time_ns)
+
+    def write_signals(
+        self,
+        force: np.ndarray,
+        velocity: np.ndarray,
+        sample_rate_hz: float,
+        *,
+        first_sample_index: int = 0,
+        batch_size: int = DEFAULT_BATCH_SIZE,
+        full_scale_force: float = 0.0,
+        full_scale_velocity: float = 0.0,
+        force_frame: str = 'hammer',
+        velocity_frame: str = 'vibrometer',
+        on_progress: Callable[[int], None] | None = None,
+    ) -> int:
+        """Whole force [N] and velocity [m/s] records as batches on /fmm/force, /fmm/velocity.
+
+        Both channels share one sample index, as a DAQ publishes them. on_progress gets the
+        number of samples written per batch. Returns the index after the last sample.
+        """
+        if len(force) != len(velocity):
+            raise ValueError(
+                f'force has {len(force)} samples but velocity {len(velocity)}: '
+                'the two channels of one acquisition must be equally long'
+            )
+        if batch_size < 1:
+            raise ValueError(f'batch_size must be at least 1, got {batch_size}')
+        for start in range(0, len(force), batch_size):
+            index = first_sample_index + start
+            stop = start + batch_size
+            self.write_sample_batch(
+                FORCE_TOPIC,
+                force[start:stop],
+                quantity=FORCE,
+                sample_rate_hz=sample_rate_hz,
+                first_sample_index=index,
+                frame_id=force_frame,
+                full_scale=full_scale_force,
+            )
+            self.write_sample_batch(
+                VELOCITY_TOPIC,
+                velocity[start:stop],
+                quantity=VELOCITY,
+                sample_rate_hz=sample_rate_hz,
+                first_sample_index=index,
+                frame_id=velocity_frame,
+                full_scale=full_scale_velocity,
+            )
+            if on_progress:
+                on_progress(len(force[start:stop]))
+        return first_sample_index + len(force)
+
+    def flush(self) -> None:
+        """Make everything written so far survive a crash of this process.
+
+        MCAP: close the pending chunk (with its message index) and hand it to the OS.
+        sqlite3: commit the open transaction. (rosbags does neither before close.)
+        """
+        storage = self._writer.storage
+        if storage is None:
+            return
+        if self.storage == 'mcap':
+            if storage.chunk.bio.tell():
+                storage.close_chunk()
+            storage.bio.flush()
+        else:
+            storage.conn.commit()
+        self._last_flush = time.monotonic()
+
+
+# Offset of the uncompressed_crc field in an MCAP chunk record: opcode (1), record length (8),
+# message start time, end time and uncompressed size (8 each).
+_CHUNK_CRC_OFFSET = 1 + 8 + 24
+
+
+def _add_chunk_checksums(storage) -> None:
+    """Make a rosbags McapWriter fill in each chunk's CRC-32 (it writes 0, meaning none).
+
+    Wraps its close_chunk: the records of the pending chunk are checksummed before they are
+    written, and the field is patched in the chunk record just written.
+    """
+    close_chunk = storage.close_chunk
+
+    def close_chunk_with_crc() -> None:
+        crc = zlib.crc32(storage.chunk.bio.getbuffer())
+        chunk_start = storage.bio.tell()
+        close_chunk()
+        end = storage.bio.tell()
+        storage.bio.seek(chunk_start + _CHUNK_CRC_OFFSET)
+        storage.bio.write(crc.to_bytes(4, 'little'))
+        storage.bio.seek(end)
+
+    storage.close_chunk = close_chunk_with_crc

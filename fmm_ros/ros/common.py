@@ -1,0 +1,163 @@
+"""What every fmm_ros node shares: QoS profiles, topic names and the `ros2 run` entry point."""
+
+import importlib
+import signal
+import threading
+import time
+from collections.abc import Callable
+
+import rclpy
+from rclpy.executors import (
+    ExternalShutdownException,
+    MultiThreadedExecutor,
+    SingleThreadedExecutor,
+)
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+
+from fmm_ros.core.physics.rig import Rig
+from fmm_ros.ros.params import Param
+
+FIT_SERVICE = '/fmm/fit_friction'
+DIAGNOSE_SERVICE = '/fmm/diagnose_model'
+
+_RIG = Rig()
+
+# The rig constants of Eq. 3, as parameters (rig_sim simulates with them, the fitter fits
+# with them); defaults are the paper's FMM.
+RIG_PARAMS = (
+    Param('mass_kg', _RIG.mass_kg, 'Moving mass m [kg]', limits=(1e-3, 1e4), read_only=True),
+    Param(
+        'stiffness_n_per_m',
+        _RIG.stiffness_n_per_m,
+        'Flexure stiffness k [N/m]',
+        limits=(1e-3, 1e9),
+        read_only=True,
+    ),
+    Param(
+        'damping_n_s_per_m',
+        _RIG.damping_n_s_per_m,
+        'Viscous damping c [N*s/m] (the fitter starts from it when fitting c)',
+        limits=(0.0, 1e6),
+        read_only=True,
+    ),
+    Param(
+        'normal_force_n',
+        _RIG.normal_force_n,
+        'Normal force on the pin N [N] (0.680 kg x 9.81 m/s^2)',
+        limits=(0.0, 1e5),
+        read_only=True,
+    ),
+)
+
+
+def rig_from_parameters(config: dict) -> Rig:
+    """The Rig the RIG_PARAMS values of a node's config describe."""
+    return Rig(**{param.name: config[param.name] for param in RIG_PARAMS})
+
+
+# Sample batches: every one matters (a lost batch is a gap in an FRF record), and a subscriber
+# may lag a burst of them, so RELIABLE with a deep queue.
+SAMPLE_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=100,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+
+# Results: a late subscriber (a plot, the fitter started later) still gets the latest ones.
+RESULT_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+
+
+def run_node(
+    node_factory: Callable[[], Node],
+    args: list[str] | None = None,
+    *,
+    threads: int = 1,
+    stop_poll_s: float = 0.1,
+) -> None:
+    """Init, spin until Ctrl-C or SIGTERM, then tear down in order (for ros2 run).
+
+    rclpy's own signal handler shuts the context down the moment SIGINT arrives, while the
+    node's subscriptions still exist and the middleware still delivers to them; the recorder,
+    closing its bag in that window, crashed in a middleware thread about one run in ten. Here
+    a signal only asks the spin loop to stop (checked every `stop_poll_s` when idle; a
+    callback under way finishes), and the node goes before the context. threads > 1 spins a
+    MultiThreadedExecutor, for nodes whose callback groups let a long service call run
+    beside their stream callbacks.
+    """
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop_requested = threading.Event()
+    handlers = {
+        signum: signal.signal(signum, lambda *_: stop_requested.set())
+        for signum in (signal.SIGINT, signal.SIGTERM)
+    }
+    node = None
+    executor = (
+        SingleThreadedExecutor() if threads == 1 else MultiThreadedExecutor(num_threads=threads)
+    )
+    try:
+        node = node_factory()
+        executor.add_node(node)
+        while not stop_requested.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=stop_poll_s)
+    except ExternalShutdownException:
+        pass
+    finally:
+        for signum, handler in handlers.items():  # a second Ctrl-C interrupts the teardown
+            signal.signal(signum, handler)
+        executor.shutdown()
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def message_class(msgtype: str) -> type:
+    """The generated Python class of a ROS type name such as fmm_interfaces/msg/SampleBatch."""
+    package, kind, name = msgtype.split('/')
+    return getattr(importlib.import_module(f'{package}.{kind}'), name)
+
+
+class BatchPacer:
+    """Releases sample batches at a paced rate against the wall clock, a few per tick.
+
+    rclpy's executor takes one message per subscription per wait cycle, so a source that
+    publishes more than one batch a tick overruns subscribers spun by the same executor once
+    its timer is ready on every cycle (a speed-up the graph cannot keep): seen as queues
+    overflowing into gaps at x1000 with two a tick. So one batch a tick; further behind than
+    that, the clock is re-anchored: the source runs slower than asked (`fell_behind` says
+    so) instead of flooding.
+    """
+
+    def __init__(self, batches_per_s: float, max_per_tick: int = 1) -> None:
+        self.max_per_tick = max_per_tick
+        self.restart(batches_per_s, 0)
+
+    def restart(self, batches_per_s: float, released: int) -> None:
+        """Pace at a new rate from the next tick on, `released` batches already out."""
+        self._anchor = (None, released, batches_per_s)
+        self.released = released
+
+    def due(self) -> int:
+        """How many batches to release now; the caller releases them and counts them here.
+
+        The first call after (re)starting anchors the pace, so the time a graph spends on
+        discovery before it spins is not counted as lag.
+        """
+        wall0, released0, rate = self._anchor
+        now = time.monotonic()
+        if wall0 is None:
+            self._anchor = (wall0 := now, released0, rate)
+        behind = released0 + int((now - wall0) * rate) - self.released
+        self.fell_behind = behind > self.max_per_tick + 1
+        if self.fell_behind:
+            self._anchor = (now, self.released + self.max_per_tick, rate)
+        count = max(0, min(behind, self.max_per_tick))
+        self.released += count
+        return count

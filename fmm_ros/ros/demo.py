@@ -1,0 +1,278 @@
+"""A simulated rig session end to end through the real node graph, in one process.
+
+hammer_sim -> rig_sim -> analyzer -> fitter, with the recorder writing everything to a bag:
+the session's hits go through the same topics, QoS and services a lab uses, and its results
+are taken from what the graph publishes (/fmm/impacts, /fmm/frf) and answers
+(/fmm/fit_friction), never from inside the nodes. `fmm demo` and
+launch_scripts/sim_rig.py run it.
+"""
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from rclpy.logging import LoggingSeverity
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from fmm_interfaces.msg import FrfSummary, ImpactResult
+from fmm_interfaces.srv import DiagnoseModel, FitFriction
+from fmm_ros.constants import FRF_TOPIC, IMPACTS_TOPIC
+from fmm_ros.ros import msgs
+from fmm_ros.ros.common import DIAGNOSE_SERVICE, FIT_SERVICE, RESULT_QOS
+from fmm_ros.ros.graph import InProcessGraph
+from fmm_ros.ros.nodes.analyzer import Analyzer
+from fmm_ros.ros.nodes.fitter import Fitter
+from fmm_ros.ros.nodes.hammer_sim import HammerSim
+from fmm_ros.ros.nodes.recorder import Recorder
+from fmm_ros.ros.nodes.rig_sim import RigSim
+
+# A session stops waiting when no new sample has gone out for this long (wall time) [s].
+STALL_TIMEOUT_S = 60.0
+# Wall-clock messages per second and channel an accelerated session aims at: rclpy costs
+# about 0.1 ms CPU a message and more a wake-up, whatever the size, so larger batches at
+# higher speed-ups keep the one-process graph ahead of its sources.
+MESSAGES_PER_S = 100.0
+# Longest batch [s of signal]: the analyzer declares samples missing once one channel runs
+# more than max_skew_s (5 s) ahead of the other, so a batch must stay well inside that.
+MAX_BATCH_S = 1.0
+
+
+@dataclass
+class SessionConfig:
+    """What to run: the paper's protocol at a chosen speed, on a plant with known mu."""
+
+    out_dir: Path
+    hits_per_level: int = 10
+    rate_factor: float = 100.0
+    plant_mu: float = 0.113
+    plant_effects: tuple[str, ...] = ()
+    seed: int = 0
+    # Samples per message; None picks one that keeps about MESSAGES_PER_S messages per
+    # channel per second of wall time at the chosen rate_factor.
+    batch_size: int | None = None
+    params_file: Path | None = None
+    # Write the session report (fmm_ros.report) from the recorded bag afterwards.
+    report: bool = True
+
+    def batch(self, sample_rate_hz: float = 10_000.0) -> int:
+        """The batch size: given, or whole 500s for ~MESSAGES_PER_S per channel, <= MAX_BATCH_S."""
+        if self.batch_size:
+            return self.batch_size
+        per_s = self.rate_factor * sample_rate_hz
+        wanted = 500 * max(1, math.ceil(per_s / MESSAGES_PER_S / 500))
+        return min(wanted, int(MAX_BATCH_S * sample_rate_hz))
+
+
+@dataclass
+class SessionResult:
+    """What the graph reported: per-impact results, level averages, the fit, the bag."""
+
+    plant_mu: float
+    hits_sent: int
+    hits_reported: int
+    hits_accepted: int
+    levels: list[dict]
+    r2: float
+    mu: float
+    mu_stderr: float
+    fit_success: bool
+    fit_message: str
+    per_impact_mu: list[float]
+    missing_effect: str
+    diagnosis: str
+    bag: str
+    report: str
+    """The report page (index.html) written from the bag, or '' when none was asked for."""
+    wall_s: float
+    """Wall time from the graph's start to the last impact reported [s]."""
+    signal_s: float
+    fit_s: float
+    diagnose_s: float
+    impacts: list[dict] = field(default_factory=list)
+
+    def as_json(self) -> dict:
+        """The JSON summary `fmm demo --json` prints and writes to summary.json."""
+        return asdict(self)
+
+
+class _Results(Node):
+    """Listens to what the analyzer publishes, as any lab client would."""
+
+    def __init__(self, on_impact: Callable[[ImpactResult], None], **kwargs) -> None:
+        super().__init__('session_results', **kwargs)
+        self.impacts: list[ImpactResult] = []
+        self.levels: dict[str, FrfSummary] = {}
+        self.latest: FrfSummary | None = None  # its linearity covers every level so far
+        self._on_impact = on_impact
+        self.create_subscription(ImpactResult, IMPACTS_TOPIC, self._impact, RESULT_QOS)
+        self.create_subscription(FrfSummary, FRF_TOPIC, self._level, RESULT_QOS)
+        self.fit = self.create_client(FitFriction, FIT_SERVICE)
+        self.diagnose = self.create_client(DiagnoseModel, DIAGNOSE_SERVICE)
+
+    def _impact(self, msg: ImpactResult) -> None:
+        self.impacts.append(msg)
+        self._on_impact(msg)
+
+    def _level(self, msg: FrfSummary) -> None:
+        self.levels[msg.level] = msg
+        self.latest = msg
+
+
+def run_session(
+    config: SessionConfig, progress: Callable[[str], None] = lambda _: None
+) -> SessionResult:
+    """Run the session to its last impact, fit mu over it, close the bag; return the results."""
+    config.out_dir.mkdir(parents=True, exist_ok=True)
+    bag = config.out_dir / 'bag'
+    batch = config.batch()
+    cli_args = (
+        ['--ros-args', '--params-file', str(config.params_file)] if config.params_file else None
+    )
+
+    def overrides(**values: object) -> list[Parameter]:
+        return [Parameter(name, value=value) for name, value in values.items()]
+
+    with InProcessGraph() as graph:
+        hammer = graph.add(
+            HammerSim,
+            cli_args=cli_args,
+            parameter_overrides=overrides(
+                hits_per_level=config.hits_per_level,
+                rate_factor=config.rate_factor,
+                batch_size=batch,
+                seed=config.seed,
+            ),
+        )
+        graph.add(
+            RigSim,
+            cli_args=cli_args,
+            parameter_overrides=overrides(
+                mu=config.plant_mu, effects=list(config.plant_effects) or [''], seed=config.seed + 1
+            ),
+        )
+        analyzer = graph.add(Analyzer, cli_args=cli_args)
+        graph.add(Fitter, cli_args=cli_args)
+        graph.add(Recorder, cli_args=cli_args, parameter_overrides=overrides(bag_path=str(bag)))
+        total = len(hammer.schedule)
+        results = graph.add(
+            _Results,
+            on_impact=lambda msg: progress(
+                f'impact {msg.impact_id + 1}/{total}: {msg.level or "no level"} '
+                f'{msg.peak_force_n:.0f} N, {msg.impulse_n_s:.3f} N*s, '
+                f'|X/F| {msg.peak_receptance_m_per_n * 1e3:.3f} mm/N at '
+                f'{msg.natural_frequency_hz:.2f} Hz, '
+                + ('accepted' if msg.accepted else f'rejected ({", ".join(msg.flags)})')
+            ),
+        )
+        for node in (hammer, analyzer):
+            node.get_logger().set_level(LoggingSeverity.WARN)
+        progress(
+            f'{total} hits ({config.hits_per_level} a level) at x{config.rate_factor:g} '
+            f'real time, {batch}-sample batches; recording to {bag}'
+        )
+        start = time.monotonic()
+        graph.start()
+        _wait(lambda: len(results.impacts) >= total, lambda: hammer.next_index)
+        wall_s = time.monotonic() - start
+        progress('session complete; fitting mu over the accepted impacts')
+        fit = graph.call(results.fit, FitFriction.Request(), timeout_s=600.0)
+        fit_s = time.monotonic() - start - wall_s
+        chosen = _one_accepted_per_level(results.impacts)
+        progress(f'diagnosing the model on impacts {chosen} (one a level)')
+        diagnosis = graph.call(
+            results.diagnose, DiagnoseModel.Request(impact_ids=chosen), timeout_s=600.0
+        )
+        diagnose_s = time.monotonic() - start - wall_s - fit_s
+        signal_s = hammer.next_index / hammer.config['sample_rate_hz']
+        impacts, levels, latest = list(results.impacts), dict(results.levels), results.latest
+        hits_sent = hammer.hits_sent
+        capture, analysis = analyzer.capture_config, analyzer.analysis_config
+    page = ''
+    if config.report:  # after the graph: the recorder has closed the bag
+        progress(f'writing the session report to {config.out_dir / "report"}')
+        page = str(_report(bag, config.out_dir / 'report', capture, analysis, config))
+    ordered = sorted(levels.values(), key=lambda summary: summary.mean_impulse_n_s)
+    return SessionResult(
+        plant_mu=config.plant_mu,
+        hits_sent=hits_sent,
+        hits_reported=len(impacts),
+        hits_accepted=sum(msg.accepted for msg in impacts),
+        levels=[
+            {
+                'name': s.level,
+                'count': s.count,
+                'mean_impulse_n_s': s.mean_impulse_n_s,
+                'std_impulse_n_s': s.std_impulse_n_s,
+                'peak_receptance_m_per_n': s.peak_receptance_m_per_n,
+                'natural_frequency_hz': s.natural_frequency_hz,
+            }
+            for s in ordered
+        ],
+        r2=latest.linearity_r2 if latest else math.nan,
+        mu=fit.mu if fit.success else math.nan,
+        mu_stderr=fit.mu_stderr if fit.success else math.nan,
+        fit_success=fit.success,
+        fit_message=fit.message,
+        per_impact_mu=msgs.field_array(fit.per_impact_mu).tolist(),
+        missing_effect=diagnosis.missing_effect if diagnosis.success else '',
+        diagnosis=diagnosis.verdict if diagnosis.success else diagnosis.message,
+        bag=str(bag),
+        report=page,
+        wall_s=wall_s,
+        signal_s=signal_s,
+        fit_s=fit_s,
+        diagnose_s=diagnose_s,
+        impacts=[
+            {
+                'impact_id': m.impact_id,
+                'level': m.level,
+                'accepted': m.accepted,
+                'flags': list(m.flags),
+                'peak_force_n': m.peak_force_n,
+                'impulse_n_s': m.impulse_n_s,
+                'peak_receptance_m_per_n': m.peak_receptance_m_per_n,
+                'natural_frequency_hz': m.natural_frequency_hz,
+            }
+            for m in impacts
+        ],
+    )
+
+
+def _report(bag: Path, out_dir: Path, capture, analysis, config: SessionConfig) -> Path:
+    """The session report from the bag, analysed and fitted as the graph did (offline)."""
+    from fmm_ros.report.session import report_session
+    from fmm_ros.workflows.replay import bag_impact_records
+
+    records, problems = bag_impact_records(bag, capture)
+    return report_session(
+        records,
+        out_dir,
+        capture=capture,
+        analysis=analysis,
+        fit_initial_position=True,
+        inputs=[str(bag)],
+        problems=problems,
+        title=f'fmm demo: {config.hits_per_level} hits a level, plant mu {config.plant_mu}',
+    ).page
+
+
+def _one_accepted_per_level(impacts: list[ImpactResult]) -> list[int]:
+    """The last accepted impact of each level: a diagnosis sample spanning the levels."""
+    chosen = {msg.level: msg.impact_id for msg in impacts if msg.accepted}
+    return sorted(chosen.values())
+
+
+def _wait(done: Callable[[], bool], samples_out: Callable[[], int]) -> None:
+    """Wait until done(); give up if the source stops publishing for STALL_TIMEOUT_S."""
+    last, moved = samples_out(), time.monotonic()
+    while not done():
+        time.sleep(0.05)
+        if samples_out() != last:
+            last, moved = samples_out(), time.monotonic()
+        elif time.monotonic() - moved > STALL_TIMEOUT_S:
+            raise TimeoutError(
+                f'the session stalled: no samples published for {STALL_TIMEOUT_S:g} s'
+            )

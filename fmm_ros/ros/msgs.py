@@ -1,0 +1,158 @@
+"""numpy <-> fmm_interfaces message conversion: the only module that knows field layouts.
+
+Large float64[] fields go in through `array.array('d', x.tobytes())` (one memcpy, no Python
+floats) and come out through `np.frombuffer` (no copy at all), as the brief measured that
+Python lists cost orders of magnitude more.
+"""
+
+import array
+
+import numpy as np
+from builtin_interfaces.msg import Time
+
+from fmm_interfaces.msg import FrfSummary, ImpactResult, SampleBatch
+from fmm_ros.constants import FORCE, VELOCITY  # noqa: F401 (msgs.FORCE in sample_batch calls)
+from fmm_ros.core import diagnose
+from fmm_ros.core.signal import analysis, frf
+
+
+def float64_field(values: np.ndarray) -> array.array:
+    """A float64[] message field holding a copy of values."""
+    return array.array('d', np.ascontiguousarray(values, dtype=np.float64).tobytes())
+
+
+def field_array(field: array.array) -> np.ndarray:
+    """A read-only float64 view of a float64[] message field, without copying."""
+    view = np.frombuffer(field, dtype=np.float64)
+    view.flags.writeable = False
+    return view
+
+
+def sample_batch(
+    samples: np.ndarray,
+    *,
+    quantity: tuple[str, str],
+    sample_rate_hz: float,
+    first_sample_index: int,
+    stamp: Time,
+    frame_id: str,
+    full_scale: float = 0.0,
+) -> SampleBatch:
+    """A SampleBatch message; quantity is FORCE or VELOCITY (name and SI unit)."""
+    msg = SampleBatch()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    msg.quantity, msg.unit = quantity
+    msg.sample_rate_hz = float(sample_rate_hz)
+    msg.first_sample_index = int(first_sample_index)
+    msg.full_scale = float(full_scale)
+    msg.samples = float64_field(samples)
+    return msg
+
+
+def batch_samples(msg: SampleBatch) -> np.ndarray:
+    """The samples of a SampleBatch as a read-only float64 view (no copy)."""
+    return field_array(msg.samples)
+
+
+def _set_complex(msg: object, name: str, values: np.ndarray) -> None:
+    """Set the `<name>_real` / `<name>_imag` float64[] pair of msg from a complex array."""
+    setattr(msg, f'{name}_real', float64_field(values.real))
+    setattr(msg, f'{name}_imag', float64_field(values.imag))
+
+
+def impact_result_msg(
+    result: analysis.ImpactResult, *, stamp: Time, frame_id: str = 'fmm'
+) -> ImpactResult:
+    """An ImpactResult message from the signal core's result (same field names)."""
+    msg = ImpactResult()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    msg.impact_id = int(result.impact_id)
+    msg.trigger_sample_index = int(result.trigger_sample_index)
+    msg.record_start_sample_index = int(result.record_start_sample_index)
+    msg.level = result.level
+    msg.accepted = bool(result.accepted)
+    msg.flags = list(result.flags)
+    for name in (
+        'impulse_n_s',
+        'peak_force_n',
+        'contact_duration_s',
+        'record_duration_s',
+        'sample_rate_hz',
+        'natural_frequency_hz',
+        'peak_receptance_m_per_n',
+        'frequency_step_hz',
+        'force_window_s',
+        'exponential_window_decay_s',
+    ):
+        setattr(msg, name, float(getattr(result, name)))
+    msg.frequency_hz = float64_field(result.frequency_hz)
+    _set_complex(msg, 'mobility', result.mobility)
+    _set_complex(msg, 'receptance', result.receptance)
+    return msg
+
+
+def frf_summary_msg(
+    level: analysis.LevelSummary, linearity: frf.LinearFit, *, stamp: Time, frame_id: str = 'fmm'
+) -> FrfSummary:
+    """A FrfSummary message: one level's averages plus the linearity fit over all levels."""
+    msg = FrfSummary()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    msg.level = level.level
+    msg.count = int(level.count)
+    msg.impact_ids = [int(i) for i in level.impact_ids]
+    for name in (
+        'nominal_peak_force_n',
+        'mean_impulse_n_s',
+        'std_impulse_n_s',
+        'mean_peak_force_n',
+        'peak_receptance_m_per_n',
+        'natural_frequency_hz',
+        'frequency_step_hz',
+        'exponential_window_decay_s',
+    ):
+        setattr(msg, name, float(getattr(level, name)))
+    msg.frequency_hz = float64_field(level.frequency_hz)
+    for name in ('mobility', 'receptance', 'h1_mobility', 'h2_mobility'):
+        _set_complex(msg, name, getattr(level, name))
+    msg.coherence = float64_field(level.coherence)
+    msg.linearity_slope_m_per_n2_s = float(linearity.slope)
+    msg.linearity_intercept_m_per_n = float(linearity.intercept)
+    msg.linearity_r2 = float(linearity.r2)
+    msg.linearity_levels = int(linearity.count)
+    return msg
+
+
+def complex_field(msg: object, name: str) -> np.ndarray:
+    """The complex array stored in msg's `<name>_real` / `<name>_imag` pair."""
+    real = field_array(getattr(msg, f'{name}_real'))
+    return real + 1j * field_array(getattr(msg, f'{name}_imag'))
+
+
+def fill_diagnose_response(response: object, result: diagnose.Diagnosis) -> object:
+    """Copy a Diagnosis into a DiagnoseModel response (success = True); returns it."""
+    response.success = True
+    response.message = result.verdict
+    response.missing_effect = result.missing_effect
+    response.parameter_names = [p.name for p in result.parameters]
+    response.parameter_values = float64_field([p.value for p in result.parameters])
+    response.parameter_units = [p.unit for p in result.parameters]
+    response.parameter_stderr = float64_field([p.stderr for p in result.parameters])
+    response.mu, response.mu_stderr = result.mu, result.mu_stderr
+    response.gap_before, response.gap_after = result.gap_before, result.gap_after
+    response.frf_gap_before, response.frf_gap_after = (result.frf_gap_before, result.frf_gap_after)
+    response.where = result.where.summary
+    response.candidate_effects = [c.effect for c in result.candidates]
+    response.candidate_scores = float64_field([c.score for c in result.candidates])
+    response.candidate_gap_after = float64_field([c.gap_after for c in result.candidates])
+    response.candidate_parameter_counts = [len(c.parameters) for c in result.candidates]
+    response.candidate_parameter_names = [p.name for c in result.candidates for p in c.parameters]
+    response.candidate_parameter_values = float64_field(
+        [p.value for c in result.candidates for p in c.parameters]
+    )
+    response.noise_std_m_s = result.noise_std_m_s
+    response.required_score = result.required_score
+    response.verdict = result.verdict
+    return response

@@ -1,0 +1,282 @@
+"""analyzer: captures impacts from /fmm/force and /fmm/velocity and publishes their FRFs.
+
+Both channels feed one `ImpactCapture`, which aligns them by `first_sample_index` (never by
+arrival time) and flags a missing batch as a gap instead of computing a wrong FRF. Every
+completed record becomes an ImpactResult on /fmm/impacts (accepted or rejected, with its
+flags); the level averages and the peak-receptance-vs-impulse law over all levels so far go
+out on /fmm/frf, one FrfSummary per level, transient-local for late subscribers.
+"""
+
+from collections import deque
+
+from rclpy.node import Node
+
+from fmm_interfaces.msg import FrfSummary, ImpactResult, SampleBatch
+from fmm_ros.constants import FORCE_TOPIC, FRF_TOPIC, IMPACTS_TOPIC, VELOCITY_TOPIC
+from fmm_ros.core.signal.analysis import AnalysisConfig, NominalLevel, analyze_impact, summarize
+from fmm_ros.core.signal.analysis import ImpactResult as CoreImpactResult
+from fmm_ros.core.signal.capture import FLAGS, CaptureConfig, ImpactCapture
+from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.ros import msgs
+from fmm_ros.ros.common import RESULT_QOS, SAMPLE_QOS, run_node
+from fmm_ros.ros.params import Param, declare_parameters
+
+_CAPTURE = CaptureConfig()
+_ANALYSIS = AnalysisConfig()
+
+PARAMS = (
+    Param(
+        'trigger_level_n',
+        _CAPTURE.trigger_level_n,
+        'Force that starts an impact [N]',
+        limits=(0.0, 1e5),
+        read_only=True,
+    ),
+    Param(
+        'rearm_level_n',
+        _CAPTURE.rearm_level_n,
+        'Force the signal must fall below before the next trigger [N]',
+        limits=(-1e5, 1e5),
+        read_only=True,
+    ),
+    Param(
+        'pretrigger_s',
+        _CAPTURE.pretrigger_s,
+        'Record kept before the trigger [s]',
+        limits=(0.0, 10.0),
+        read_only=True,
+    ),
+    Param(
+        'window_s',
+        _CAPTURE.window_s,
+        'Record length, pre-trigger included [s]',
+        limits=(0.01, 3600.0),
+        read_only=True,
+    ),
+    Param(
+        'end_at_rest',
+        _CAPTURE.end_at_rest,
+        'End a record early once the rig has rested rest_time_s',
+        read_only=True,
+    ),
+    Param(
+        'rest_velocity_m_s',
+        _CAPTURE.rest_velocity_m_s,
+        '|velocity| counted as rest [m/s]',
+        limits=(0.0, 10.0),
+        read_only=True,
+    ),
+    Param(
+        'rest_time_s',
+        _CAPTURE.rest_time_s,
+        'How long rest must last [s]',
+        limits=(1e-3, 600.0),
+        read_only=True,
+    ),
+    Param(
+        'min_spacing_s',
+        _CAPTURE.min_spacing_s,
+        'A pulse closer than this to the trigger is a double hit [s]',
+        limits=(1e-3, 600.0),
+        read_only=True,
+    ),
+    Param(
+        'max_skew_s',
+        _CAPTURE.max_skew_s,
+        'How far one channel may run ahead of the other before samples count as missing [s]',
+        limits=(0.0, 600.0),
+        read_only=True,
+    ),
+    Param(
+        'band_limit_hz',
+        _ANALYSIS.band_limit_hz,
+        'Highest FRF frequency published [Hz]',
+        limits=(0.1, 1e6),
+        read_only=True,
+    ),
+    Param(
+        'peak_band_hz',
+        list(_ANALYSIS.peak_band_hz),
+        'Band [low, high] searched for the peak |receptance| [Hz]',
+        limits=(0.0, 1e6),
+        read_only=True,
+    ),
+    Param(
+        'force_window_s',
+        0.0,
+        'Force window length after the trigger [s]; 0 for none',
+        limits=(0.0, 3600.0),
+        read_only=True,
+    ),
+    Param(
+        'exponential_decay_s',
+        0.0,
+        'Exponential window decay time constant [s]; 0 for none (the paper)',
+        limits=(0.0, 3600.0),
+        read_only=True,
+    ),
+    Param(
+        'level_names',
+        ['low', 'medium', 'high'],
+        'Nominal force level names; [""] to cluster peak forces instead',
+        read_only=True,
+    ),
+    Param(
+        'level_peak_forces_n',
+        [450.0, 1000.0, 1450.0],
+        'Nominal peak force per level [N]',
+        limits=(0.0, 1e6),
+        read_only=True,
+    ),
+    Param(
+        'level_tolerance_n',
+        50.0,
+        'Acceptance band around each nominal peak [N]',
+        limits=(0.0, 1e6),
+        read_only=True,
+    ),
+    Param(
+        'reject_flags',
+        list(FLAGS),
+        'Quality flags that reject an impact from averaging',
+        read_only=True,
+    ),
+    Param(
+        'keep_last_impacts',
+        300,
+        'Impacts kept for level averages and linearity [-]',
+        limits=(1, 100_000),
+        read_only=True,
+    ),
+    Param('frame_id', 'fmm', 'Frame id of the published results', read_only=True),
+)
+
+
+def configs_from_parameters(config: dict) -> tuple[CaptureConfig, AnalysisConfig]:
+    """The core's capture and analysis configs from the analyzer's parameter values."""
+    capture = CaptureConfig(
+        **{
+            name: config[name]
+            for name in (
+                'trigger_level_n',
+                'rearm_level_n',
+                'pretrigger_s',
+                'window_s',
+                'end_at_rest',
+                'rest_velocity_m_s',
+                'rest_time_s',
+                'min_spacing_s',
+                'max_skew_s',
+            )
+        }
+    )
+    names = [name for name in config['level_names'] if name]
+    peaks = config['level_peak_forces_n']
+    if names and len(names) != len(peaks):
+        raise ValueError(
+            f'level_names has {len(names)} entries but level_peak_forces_n has '
+            f'{len(peaks)}: give one peak force per level'
+        )
+    unknown = sorted(set(config['reject_flags']) - set(FLAGS))
+    if unknown:
+        raise ValueError(f'reject_flags: unknown flag(s) {unknown}; known: {list(FLAGS)}')
+    if len(config['peak_band_hz']) != 2:
+        raise ValueError(f'peak_band_hz must be [low, high], got {config["peak_band_hz"]}')
+    analysis = AnalysisConfig(
+        band_limit_hz=config['band_limit_hz'],
+        peak_band_hz=tuple(config['peak_band_hz']),
+        force_window_s=config['force_window_s'] or None,
+        exponential_decay_s=config['exponential_decay_s'] or None,
+        levels=tuple(
+            NominalLevel(name, peak, config['level_tolerance_n'])
+            for name, peak in zip(names, peaks, strict=False)
+        ),
+        reject_flags=tuple(config['reject_flags']),
+    )
+    return capture, analysis
+
+
+class Analyzer(Node):
+    """Feeds both streams into the capture and publishes each completed impact's results."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__('analyzer', **kwargs)
+        self.config = declare_parameters(self, PARAMS)
+        self.capture_config, self.analysis_config = configs_from_parameters(self.config)
+        self.capture = ImpactCapture(self.capture_config)
+        self.results: deque[CoreImpactResult] = deque(maxlen=self.config['keep_last_impacts'])
+        self.impacts_reported = 0
+        self.impacts_accepted = 0
+        self._impact_pub = self.create_publisher(ImpactResult, IMPACTS_TOPIC, RESULT_QOS)
+        self._frf_pub = self.create_publisher(FrfSummary, FRF_TOPIC, RESULT_QOS)
+        for topic in (FORCE_TOPIC, VELOCITY_TOPIC):
+            self.create_subscription(SampleBatch, topic, self._on_batch, SAMPLE_QOS)
+        levels = (
+            ', '.join(
+                f'{level.name} {level.peak_force_n:g}+-{level.tolerance_n:g} N'
+                for level in self.analysis_config.levels
+            )
+            or 'clustered'
+        )
+        self.get_logger().info(
+            f'trigger {self.capture_config.trigger_level_n} N, window '
+            f'{self.capture_config.window_s} s, levels: {levels}'
+        )
+
+    def _on_batch(self, msg: SampleBatch) -> None:
+        try:
+            records = self.capture.feed(
+                msg.quantity,
+                msg.first_sample_index,
+                msgs.batch_samples(msg),
+                msg.sample_rate_hz,
+                msg.full_scale,
+            )
+        except ValueError as error:  # the capture is unchanged: report and drop this batch
+            self.get_logger().error(
+                f'{msg.quantity} batch {msg.first_sample_index} from '
+                f'{msg.header.frame_id!r} refused: {error}'
+            )
+            return
+        for record in records:
+            self._report(record, msg)
+
+    def _report(self, record: ImpactRecord, msg: SampleBatch) -> None:
+        """Analyse one completed record, publish it and the updated level summaries."""
+        result = analyze_impact(
+            record, self.capture_config, self.analysis_config, impact_id=self.impacts_reported
+        )
+        self.capture.recycle(record)
+        self.results.append(result)
+        summary = summarize(list(self.results), self.analysis_config)
+        judged = summary.impacts[-1]
+        self.impacts_reported += 1
+        self.impacts_accepted += judged.accepted
+        self._impact_pub.publish(
+            msgs.impact_result_msg(judged, stamp=msg.header.stamp, frame_id=self.config['frame_id'])
+        )
+        for level in summary.levels:
+            self._frf_pub.publish(
+                msgs.frf_summary_msg(
+                    level,
+                    summary.linearity,
+                    stamp=msg.header.stamp,
+                    frame_id=self.config['frame_id'],
+                )
+            )
+        verdict = 'accepted' if judged.accepted else f'rejected ({", ".join(judged.flags)})'
+        self.get_logger().info(
+            f'impact {judged.impact_id} at sample {judged.trigger_sample_index}: '
+            f'{judged.level or "no level"}, peak {judged.peak_force_n:.0f} N, impulse '
+            f'{judged.impulse_n_s:.3f} N*s, |X/F| {judged.peak_receptance_m_per_n:.3e} m/N '
+            f'at {judged.natural_frequency_hz:.2f} Hz, {verdict}'
+        )
+
+
+def main(args: list[str] | None = None) -> None:
+    """`ros2 run fmm_ros analyzer`."""
+    run_node(Analyzer, args)
+
+
+if __name__ == '__main__':
+    main()

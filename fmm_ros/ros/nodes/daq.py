@@ -1,0 +1,303 @@
+"""daq: the real rig's acquisition, publishing force and velocity with one shared sample index.
+
+Backends:
+- `nidaqmx`: an NI-DAQmx device, hardware-clocked continuous acquisition of an IEPE force
+  channel (impact hammer: sensitivity in mV/N, excitation current) and a voltage channel
+  (laser vibrometer decoder output, scaled in m/s per V); an every-N-samples callback reads
+  each batch of both channels into one preallocated buffer and publishes it. Needs the
+  optional `nidaqmx` package and NI's driver; without them the node stops at start-up and
+  says what to install.
+- `file`: streams a recorded lab file (CSV, NPZ, MATLAB, TDMS, read by the bag importers
+  with an explicit channel mapping) at its own sample rate x `rate_factor`, for dry runs
+  of the analysis chain without the rig.
+"""
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+from rclpy.duration import Duration
+from rclpy.node import Node
+
+from fmm_interfaces.msg import SampleBatch
+from fmm_ros.constants import FORCE_TOPIC, VELOCITY_TOPIC
+from fmm_ros.io.labfiles import ChannelMapping, ImportMapping, load_mapping, read_lab_file
+from fmm_ros.ros import msgs
+from fmm_ros.ros.common import SAMPLE_QOS, BatchPacer, run_node
+from fmm_ros.ros.params import Param, declare_parameters
+
+INSTALL_HINT = (
+    'the nidaqmx backend needs NI-DAQmx: `pip install nidaqmx` into the environment '
+    "that runs this node, then NI's driver (`python -m nidaqmx installdriver`, or "
+    'the NI Linux Device Drivers package); use backend:=file for a dry run'
+)
+
+PARAMS = (
+    Param('backend', 'nidaqmx', 'Acquisition backend', choices=('nidaqmx', 'file'), read_only=True),
+    Param(
+        'sample_rate_hz',
+        10_000.0,
+        'Sample clock of the device (nidaqmx) [Hz]',
+        limits=(1.0, 1e7),
+        read_only=True,
+    ),
+    Param(
+        'batch_size',
+        500,
+        'Samples per channel per message [-]',
+        limits=(1, 1_000_000),
+        read_only=True,
+    ),
+    Param('force_channel', 'Dev1/ai0', 'Physical channel of the hammer (IEPE)', read_only=True),
+    Param(
+        'hammer_sensitivity_mv_per_n',
+        0.2248,
+        'Hammer sensitivity [mV/N] (PCB 086D05: 1 mV/lbf)',
+        limits=(1e-4, 1e4),
+        read_only=True,
+    ),
+    Param(
+        'iepe_current_a', 0.004, 'IEPE excitation current [A]', limits=(0.0, 0.02), read_only=True
+    ),
+    Param(
+        'force_range_n',
+        5000.0,
+        'Force channel range +- [N] (also the clipping level)',
+        limits=(1.0, 1e6),
+        read_only=True,
+    ),
+    Param(
+        'velocity_channel', 'Dev1/ai1', 'Physical channel of the vibrometer output', read_only=True
+    ),
+    Param(
+        'velocity_scale_m_s_per_v',
+        0.05,
+        'Vibrometer decoder scale [m/s per V]',
+        limits=(1e-9, 1e3),
+        read_only=True,
+    ),
+    Param(
+        'velocity_range_v',
+        10.0,
+        'Velocity channel range +- [V]',
+        limits=(0.01, 100.0),
+        read_only=True,
+    ),
+    Param('buffer_s', 10.0, 'Device buffer length [s]', limits=(0.1, 3600.0), read_only=True),
+    Param('file_path', '', 'Lab file to stream (file backend)', read_only=True),
+    Param(
+        'file_mapping',
+        '',
+        'YAML channel mapping of the file (see fmm import); "" for the fmm CSV/NPZ layout',
+        read_only=True,
+    ),
+    Param(
+        'rate_factor',
+        1.0,
+        'Speed of the file backend against real time [-]',
+        limits=(0.01, 1000.0),
+        read_only=True,
+    ),
+    Param(
+        'loop',
+        False,
+        'File backend: start over at the end (the sample index runs on)',
+        read_only=True,
+    ),
+)
+
+Publish = Callable[[int, np.ndarray, np.ndarray], None]
+
+
+class Daq(Node):
+    """Publishes both channels of one acquisition as SampleBatch pairs with a shared index."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__('daq', **kwargs)
+        self.config = declare_parameters(self, PARAMS)
+        self._force_pub = self.create_publisher(SampleBatch, FORCE_TOPIC, SAMPLE_QOS)
+        self._velocity_pub = self.create_publisher(SampleBatch, VELOCITY_TOPIC, SAMPLE_QOS)
+        self._start_stamp = self.get_clock().now()
+        self.batches_published = 0
+        backend = {'nidaqmx': NidaqmxBackend, 'file': FileBackend}[self.config['backend']]
+        self.backend = backend(self, self._publish)
+        self.get_logger().info(f'{self.config["backend"]} backend: {self.backend.describe()}')
+
+    def _publish(
+        self, first_sample_index: int, force_n: np.ndarray, velocity_m_s: np.ndarray
+    ) -> None:
+        """Publish one batch of both channels (called from the backend's thread or timer)."""
+        rate = self.backend.sample_rate_hz
+        stamp = (
+            self._start_stamp + Duration(nanoseconds=round(first_sample_index / rate * 1e9))
+        ).to_msg()
+        for publisher, samples, quantity, frame, full_scale in (
+            (self._force_pub, force_n, msgs.FORCE, 'hammer', self.backend.force_full_scale),
+            (
+                self._velocity_pub,
+                velocity_m_s,
+                msgs.VELOCITY,
+                'vibrometer',
+                self.backend.velocity_full_scale,
+            ),
+        ):
+            publisher.publish(
+                msgs.sample_batch(
+                    samples,
+                    quantity=quantity,
+                    sample_rate_hz=rate,
+                    first_sample_index=first_sample_index,
+                    stamp=stamp,
+                    frame_id=frame,
+                    full_scale=full_scale,
+                )
+            )
+        self.batches_published += 1
+
+    def destroy_node(self) -> None:
+        """Stop the acquisition before the node goes."""
+        self.backend.close()
+        super().destroy_node()
+
+
+class NidaqmxBackend:
+    """Continuous hardware-clocked acquisition on an NI-DAQmx device."""
+
+    def __init__(self, node: Daq, publish: Publish) -> None:
+        try:
+            import nidaqmx
+            from nidaqmx import constants
+            from nidaqmx.stream_readers import AnalogMultiChannelReader
+        except ImportError as error:
+            raise RuntimeError(f'nidaqmx is not installed: {INSTALL_HINT}') from error
+        cfg = node.config
+        self.sample_rate_hz = cfg['sample_rate_hz']
+        self.force_full_scale = cfg['force_range_n']
+        self.velocity_full_scale = cfg['velocity_range_v'] * cfg['velocity_scale_m_s_per_v']
+        self._describe = (
+            f'{cfg["force_channel"]} (IEPE {cfg["hammer_sensitivity_mv_per_n"]} '
+            f'mV/N, {cfg["iepe_current_a"] * 1e3:g} mA), {cfg["velocity_channel"]} '
+            f'({cfg["velocity_scale_m_s_per_v"]} m/s/V), '
+            f'{self.sample_rate_hz:g} Hz'
+        )
+        try:
+            self.task = nidaqmx.Task()
+        except nidaqmx.errors.DaqNotFoundError as error:
+            raise RuntimeError(f'NI-DAQmx driver not found ({error}); {INSTALL_HINT}') from error
+        try:
+            self.task.ai_channels.add_ai_force_iepe_chan(
+                cfg['force_channel'],
+                min_val=-cfg['force_range_n'],
+                max_val=cfg['force_range_n'],
+                units=constants.ForceUnits.NEWTONS,
+                sensitivity=cfg['hammer_sensitivity_mv_per_n'],
+                sensitivity_units=constants.ForceIEPESensorSensitivityUnits.MILLIVOLTS_PER_NEWTON,
+                current_excit_source=constants.ExcitationSource.INTERNAL,
+                current_excit_val=cfg['iepe_current_a'],
+            )
+            self.task.ai_channels.add_ai_voltage_chan(
+                cfg['velocity_channel'],
+                min_val=-cfg['velocity_range_v'],
+                max_val=cfg['velocity_range_v'],
+            )
+            self.task.timing.cfg_samp_clk_timing(
+                self.sample_rate_hz,
+                sample_mode=constants.AcquisitionType.CONTINUOUS,
+                samps_per_chan=int(cfg['buffer_s'] * self.sample_rate_hz),
+            )
+            batch = cfg['batch_size']
+            reader = AnalogMultiChannelReader(self.task.in_stream)
+            buffer = np.empty((2, batch))
+            scale = cfg['velocity_scale_m_s_per_v']
+            self.next_index = 0
+
+            def on_samples(task_handle, event_type, number_of_samples, callback_data) -> int:
+                reader.read_many_sample(buffer, number_of_samples_per_channel=batch, timeout=0.0)
+                publish(self.next_index, buffer[0], buffer[1] * scale)
+                self.next_index += batch
+                return 0
+
+            self.task.register_every_n_samples_acquired_into_buffer_event(batch, on_samples)
+            self.task.start()
+        except nidaqmx.errors.DaqError as error:
+            self.task.close()
+            raise RuntimeError(f'NI-DAQmx refused the acquisition: {error}') from error
+
+    def describe(self) -> str:
+        """One line for the start-up log."""
+        return self._describe
+
+    def close(self) -> None:
+        """Stop and release the task."""
+        self.task.close()
+
+
+class FileBackend:
+    """Streams a recorded lab file at its sample rate x rate_factor, as a dry-run rig."""
+
+    def __init__(self, node: Daq, publish: Publish) -> None:
+        cfg = node.config
+        if not cfg['file_path']:
+            raise ValueError(
+                'daq: the file backend needs file_path (a CSV, NPZ, MAT or TDMS recording)'
+            )
+        path = Path(cfg['file_path'])
+        mapping = (
+            ImportMapping.from_dict(load_mapping(cfg['file_mapping']))
+            if cfg['file_mapping']
+            else default_mapping(path)
+        )
+        recording = read_lab_file(path, mapping)
+        self.force_n = recording.force_n
+        self.velocity_m_s = recording.velocity_m_s
+        self.sample_rate_hz = recording.sample_rate_hz
+        self.force_full_scale = recording.full_scale_force_n
+        self.velocity_full_scale = recording.full_scale_velocity_m_s
+        self._path, self._loop, self._publish = path, cfg['loop'], publish
+        self._batch = cfg['batch_size']
+        self.next_index = 0
+        self.finished = False
+        batches_per_s = self.sample_rate_hz * cfg['rate_factor'] / self._batch
+        self._pacer = BatchPacer(batches_per_s)
+        self._log = node.get_logger()
+        self._timer = node.create_timer(1.0 / batches_per_s, self._on_tick)
+
+    def describe(self) -> str:
+        """One line for the start-up log."""
+        return f'{self._path}: {self.force_n.size} samples at {self.sample_rate_hz:g} Hz' + (
+            ', looping' if self._loop else ''
+        )
+
+    def _on_tick(self) -> None:
+        for _ in range(self._pacer.due()):
+            position = self.next_index % self.force_n.size if self._loop else self.next_index
+            if position >= self.force_n.size:
+                if not self.finished:
+                    self.finished = True
+                    self._log.info(f'{self._path} streamed to its end')
+                return
+            stop = min(position + self._batch, self.force_n.size)
+            self._publish(
+                self.next_index, self.force_n[position:stop], self.velocity_m_s[position:stop]
+            )
+            self.next_index += stop - position
+
+    def close(self) -> None:
+        """Nothing is held open: the file was read at start-up."""
+
+
+def default_mapping(path: Path) -> ImportMapping:
+    """The channel layout fmm writes: force_n [N], velocity_m_s [m/s], time_s or sample_rate_hz."""
+    force, velocity = ChannelMapping('force_n', 'N'), ChannelMapping('velocity_m_s', 'm/s')
+    if path.suffix.lower() == '.npz':
+        return ImportMapping(force, velocity, sample_rate_hz='sample_rate_hz')
+    return ImportMapping(force, velocity, time=ChannelMapping('time_s', 's'))
+
+
+def main(args: list[str] | None = None) -> None:
+    """`ros2 run fmm_ros daq --ros-args -p backend:=nidaqmx|file ...`."""
+    run_node(Daq, args)
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,258 @@
+"""fitter: the /fmm/fit_friction and /fmm/diagnose_model services over the analyzer's impacts.
+
+The fitter keeps the recent force and velocity streams itself (`SampleHistory`) and cuts each
+impact the analyzer reports on /fmm/impacts out of them by sample index, keeping the last
+`keep_last_impacts`. So no record travels over a service, a bag played into the graph is
+fitted like a live session, and the analyzer stays a pure stream processor. A request that
+cannot be answered (no impacts yet, unknown ids, a record friction cannot explain) gets
+success = false and the reason, never a number.
+
+Service callbacks run in their own callback group, so under `ros2 run` (a multi-threaded
+executor) the streams keep flowing while a fit runs.
+"""
+
+import threading
+from collections import OrderedDict
+from dataclasses import dataclass
+
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.node import Node
+
+from fmm_interfaces.msg import ImpactResult, SampleBatch
+from fmm_interfaces.srv import DiagnoseModel, FitFriction
+from fmm_ros.constants import FORCE_TOPIC, IMPACTS_TOPIC, VELOCITY_TOPIC
+from fmm_ros.core.diagnose.workflow import diagnose
+from fmm_ros.core.identify.conditioning import FitError
+from fmm_ros.core.identify.friction import MU_BOUNDS, fit_friction
+from fmm_ros.core.signal.history import SampleHistory
+from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.ros import msgs
+from fmm_ros.ros.common import (
+    DIAGNOSE_SERVICE,
+    FIT_SERVICE,
+    RESULT_QOS,
+    RIG_PARAMS,
+    SAMPLE_QOS,
+    rig_from_parameters,
+    run_node,
+)
+from fmm_ros.ros.params import Param, declare_parameters
+
+PARAMS = (
+    *RIG_PARAMS,
+    Param(
+        'fit_initial_position',
+        True,
+        'Fit where each record starts: in a continuous session a hit finds the rig where '
+        'friction stopped the last one (up to mu N / k off centre), which is not measured',
+        read_only=True,
+    ),
+    Param(
+        'keep_last_impacts',
+        60,
+        'Impact records held for fitting [-]',
+        limits=(1, 10_000),
+        read_only=True,
+    ),
+    Param(
+        'history_s',
+        120.0,
+        'Stream history kept to cut records from [s] (>= the analyzer window + latency)',
+        limits=(1.0, 3600.0),
+        read_only=True,
+    ),
+    Param(
+        'sample_rate_hz',
+        10_000.0,
+        'Expected sample rate, sizes the history [Hz]',
+        limits=(1.0, 1e7),
+        read_only=True,
+    ),
+)
+
+
+@dataclass(frozen=True)
+class HeldImpact:
+    """An analyzer-reported impact and its record, cut from the history."""
+
+    impact_id: int
+    level: str
+    accepted: bool
+    flags: tuple[str, ...]
+    record: ImpactRecord
+
+
+class Fitter(Node):
+    """Holds the reported impacts' records and answers fit requests on them."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__('fitter', **kwargs)
+        self.config = declare_parameters(self, PARAMS)
+        cfg = self.config
+        self.rig = rig_from_parameters(cfg)
+        self.history = SampleHistory(int(cfg['history_s'] * cfg['sample_rate_hz']))
+        self.impacts: OrderedDict[int, HeldImpact] = OrderedDict()
+        self._waiting: list[ImpactResult] = []
+        self._lock = threading.Lock()  # impacts: written by the stream group, read by services
+        streams = MutuallyExclusiveCallbackGroup()
+        for topic in (FORCE_TOPIC, VELOCITY_TOPIC):
+            self.create_subscription(
+                SampleBatch, topic, self._on_batch, SAMPLE_QOS, callback_group=streams
+            )
+        self.create_subscription(
+            ImpactResult, IMPACTS_TOPIC, self._on_impact, RESULT_QOS, callback_group=streams
+        )
+        services = MutuallyExclusiveCallbackGroup()
+        self.create_service(FitFriction, FIT_SERVICE, self._on_fit, callback_group=services)
+        self.create_service(
+            DiagnoseModel, DIAGNOSE_SERVICE, self._on_diagnose, callback_group=services
+        )
+        self.get_logger().info(
+            f'{FIT_SERVICE} and {DIAGNOSE_SERVICE} ready on '
+            f'm={self.rig.mass_kg} kg, k={self.rig.stiffness_n_per_m} N/m, '
+            f'N={self.rig.normal_force_n:.3f} N'
+        )
+
+    # -- streams ----------------------------------------------------------------------------
+
+    def _on_batch(self, msg: SampleBatch) -> None:
+        try:
+            self.history.feed(
+                msg.quantity,
+                msg.first_sample_index,
+                msgs.batch_samples(msg),
+                msg.sample_rate_hz,
+                msg.full_scale,
+            )
+        except ValueError as error:
+            self.get_logger().error(
+                f'{msg.quantity} batch {msg.first_sample_index} refused: {error}',
+                throttle_duration_sec=5.0,
+            )
+            return
+        self._cut_waiting()
+
+    def _on_impact(self, msg: ImpactResult) -> None:
+        self._waiting.append(msg)
+        self._cut_waiting()
+
+    def _cut_waiting(self) -> None:
+        """Cut the records of reported impacts whose samples have all arrived."""
+        for msg in list(self._waiting):
+            start = msg.record_start_sample_index
+            length = round(msg.record_duration_s * msg.sample_rate_hz)
+            if not self.history.covers(start, start + length):
+                continue
+            self._waiting.remove(msg)
+            try:
+                record = self.history.record(
+                    start,
+                    length,
+                    trigger_sample_index=msg.trigger_sample_index,
+                    source=f'impact {msg.impact_id}',
+                )
+            except ValueError as error:
+                self.get_logger().warning(f'impact {msg.impact_id} cannot be held: {error}')
+                continue
+            with self._lock:
+                self.impacts[msg.impact_id] = HeldImpact(
+                    msg.impact_id, msg.level, msg.accepted, tuple(msg.flags), record
+                )
+                while len(self.impacts) > self.config['keep_last_impacts']:
+                    self.impacts.popitem(last=False)
+
+    # -- services ---------------------------------------------------------------------------
+
+    def selected(self, impact_ids: list[int]) -> list[HeldImpact]:
+        """The impacts a request names, or every accepted one held; ValueError says why not."""
+        with self._lock:
+            held = list(self.impacts.values())
+        if impact_ids:
+            by_id = {impact.impact_id: impact for impact in held}
+            missing = [i for i in impact_ids if i not in by_id]
+            if missing:
+                raise ValueError(
+                    f'impacts {missing} are not held (held: '
+                    f'{sorted(by_id) or "none"}; the fitter keeps the last '
+                    f'{self.config["keep_last_impacts"]})'
+                )
+            return [by_id[i] for i in impact_ids]
+        chosen = [impact for impact in held if impact.accepted]
+        if not chosen:
+            raise ValueError(
+                f'no accepted impact held yet ({len(held)} held, '
+                f'{len(self._waiting)} still arriving)'
+            )
+        return chosen
+
+    def _on_fit(
+        self, request: FitFriction.Request, response: FitFriction.Response
+    ) -> FitFriction.Response:
+        try:
+            impacts = self.selected(list(request.impact_ids))
+            bounds = (request.mu_min, request.mu_max) if request.mu_max > 0 else MU_BOUNDS
+            fit = fit_friction(
+                [impact.record for impact in impacts],
+                rig=self.rig,
+                fit_damping=request.fit_damping,
+                mu_bounds=bounds,
+                misfit=request.misfit or 'time',
+                fit_initial_position=self.config['fit_initial_position'],
+            )
+        except FitError as error:
+            return _refused(response, f'{error.reason}: {error}')
+        except ValueError as error:
+            return _refused(response, str(error))
+        joint = fit.joint
+        response.success = True
+        response.mu, response.mu_stderr = fit.mu, fit.mu_stderr
+        response.damping_n_s_per_m = fit.damping_n_s_per_m
+        response.damping_stderr_n_s_per_m = (
+            fit.damping_stderr_n_s_per_m if request.fit_damping else 0.0
+        )
+        response.residual_rms_m_s = joint.residual_rms_m_s
+        response.residual_normalized = joint.normalised_residual
+        response.impact_ids = [impact.impact_id for impact in impacts]
+        response.per_impact_mu = msgs.float64_field([f.mu for f in fit.per_impact])
+        response.per_impact_mu_stderr = msgs.float64_field([f.mu_stderr for f in fit.per_impact])
+        response.per_impact_impulse_n_s = msgs.float64_field(fit.impulses_n_s)
+        response.per_impact_residual_rms_m_s = msgs.float64_field(joint.impact_residual_rms_m_s)
+        response.message = (
+            f'mu = {fit.mu:.5f} +- {fit.mu_stderr:.2g} over {len(impacts)} '
+            f'impacts; one mu serves all: p = {fit.consistency_p_value:.3g}'
+        )
+        self.get_logger().info(response.message)
+        return response
+
+    def _on_diagnose(
+        self, request: DiagnoseModel.Request, response: DiagnoseModel.Response
+    ) -> DiagnoseModel.Response:
+        """Name the effect the base model misses in the requested impacts (issue 8)."""
+        try:
+            impacts = self.selected(list(request.impact_ids))
+            result = diagnose(
+                [impact.record for impact in impacts],
+                rig=self.rig,
+                fit_initial_position=self.config['fit_initial_position'],
+            )
+        except FitError as error:
+            return _refused(response, f'{error.reason}: {error}')
+        except ValueError as error:
+            return _refused(response, str(error))
+        self.get_logger().info(f'diagnosis of {len(impacts)} impacts: {result.verdict}')
+        return msgs.fill_diagnose_response(response, result)
+
+
+def _refused(response: object, reason: str) -> object:
+    response.success = False
+    response.message = reason
+    return response
+
+
+def main(args: list[str] | None = None) -> None:
+    """`ros2 run fmm_ros fitter`: two threads, so fits do not stall the streams."""
+    run_node(Fitter, args, threads=2)
+
+
+if __name__ == '__main__':
+    main()

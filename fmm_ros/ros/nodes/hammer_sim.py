@@ -1,0 +1,223 @@
+"""hammer_sim: a simulated impact hammer running the paper's session, published in batches.
+
+Publishes what the force sensor reports on /fmm/force and, for the simulated plant only, the
+force the hammer actually applies on /fmm/sim/applied_force (same sample indices): rig_sim is
+driven by the applied force, as the real rig is, so sensor noise never moves the plant.
+Paced to the wall clock; `rate_factor` runs it faster (it can be changed live).
+"""
+
+import numpy as np
+from rclpy.duration import Duration
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from fmm_interfaces.msg import SampleBatch
+from fmm_ros.constants import APPLIED_FORCE_TOPIC, FORCE_TOPIC
+from fmm_ros.ros import msgs
+from fmm_ros.ros.common import SAMPLE_QOS, BatchPacer, run_node
+from fmm_ros.ros.params import Param, declare_parameters
+from fmm_ros.sim.hammer import HammerStream, session_schedule
+
+PARAMS = (
+    Param(
+        'sample_rate_hz',
+        10_000.0,
+        'Sampling rate of the force channel [Hz]',
+        limits=(100.0, 1e6),
+        read_only=True,
+    ),
+    Param(
+        'batch_size',
+        500,
+        'Samples per published message [-] (>= 500 keeps rclpy cheap)',
+        limits=(1, 1_000_000),
+        read_only=True,
+    ),
+    Param(
+        'rate_factor',
+        1.0,
+        'Speed against the wall clock [-]: 1 is real time',
+        limits=(0.01, 1000.0),
+    ),
+    Param(
+        'level_names',
+        ['low', 'medium', 'high'],
+        'Names of the force levels, in order',
+        read_only=True,
+    ),
+    Param(
+        'level_peak_forces_n',
+        [450.0, 1000.0, 1450.0],
+        'Nominal peak force per level [N]',
+        limits=(1.0, 50_000.0),
+        read_only=True,
+    ),
+    Param('hits_per_level', 10, 'Hits at each level [-]', limits=(1, 10_000), read_only=True),
+    Param(
+        'hit_spacing_s',
+        40.0,
+        'Time from one hit to the next [s] (record window + settling)',
+        limits=(0.5, 86_400.0),
+        read_only=True,
+    ),
+    Param(
+        'first_hit_s',
+        2.0,
+        'Time of the first hit after start [s]',
+        limits=(0.0, 86_400.0),
+        read_only=True,
+    ),
+    Param(
+        'peak_spread_std_n',
+        20.0,
+        'Hand scatter of the peak force around nominal [N]',
+        limits=(0.0, 1000.0),
+        read_only=True,
+    ),
+    Param(
+        'noise_std_n',
+        0.2,
+        'Force sensor noise, standard deviation [N]',
+        limits=(0.0, 100.0),
+        read_only=True,
+    ),
+    Param(
+        'full_scale_n',
+        22_240.0,
+        'Force sensor range [N] (PCB 086D05: 22.24 kN)',
+        limits=(1.0, 1e6),
+        read_only=True,
+    ),
+    Param(
+        'seed',
+        0,
+        'Seed of the session draw and the noise [-]',
+        limits=(0, 2**31 - 1),
+        read_only=True,
+    ),
+    Param('frame_id', 'hammer', 'Sensor name in the message header', read_only=True),
+    Param(
+        'wait_for_subscribers',
+        0,
+        'Hold the session until /fmm/force has this many subscribers and the applied force '
+        'one (nodes in other processes are discovered later; a hit sent before is lost)',
+        limits=(0, 1000),
+        read_only=True,
+    ),
+)
+
+
+class HammerSim(Node):
+    """Publishes the simulated session's force, one batch per tick of the sample clock."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__('hammer_sim', **kwargs)
+        self.config = declare_parameters(self, PARAMS)
+        names, peaks = self.config['level_names'], self.config['level_peak_forces_n']
+        if len(names) != len(peaks):
+            raise ValueError(
+                f'level_names has {len(names)} entries but level_peak_forces_n '
+                f'has {len(peaks)}: give one peak force per level'
+            )
+        rate = self.config['sample_rate_hz']
+        self.schedule = session_schedule(
+            list(zip(names, peaks, strict=True)),
+            self.config['hits_per_level'],
+            sample_rate_hz=rate,
+            spacing_s=self.config['hit_spacing_s'],
+            first_hit_s=self.config['first_hit_s'],
+            rng=self.config['seed'],
+            spread_std_n=self.config['peak_spread_std_n'],
+        )
+        self.stream = HammerStream(
+            self.schedule, rate, noise_std_n=self.config['noise_std_n'], seed=self.config['seed']
+        )
+        self.next_index = 0
+        self._measured_pub = self.create_publisher(SampleBatch, FORCE_TOPIC, SAMPLE_QOS)
+        self._applied_pub = self.create_publisher(SampleBatch, APPLIED_FORCE_TOPIC, SAMPLE_QOS)
+        batch = self._batch = self.config['batch_size']
+        self._applied = np.empty(batch)
+        self._measured = np.empty(batch)
+        self._start_stamp = self.get_clock().now()
+        self._timer = None
+        self._started = False
+        self._pacer = BatchPacer(1.0)
+        self._pace(self.config['rate_factor'])
+        self.add_post_set_parameters_callback(self._on_parameters)
+        self.get_logger().info(
+            f'{len(self.schedule)} hits at {", ".join(names)} ({peaks} N), '
+            f'{self.config["hit_spacing_s"]} s apart, {rate:g} Hz in batches of {batch}, '
+            f'x{self.config["rate_factor"]:g} real time'
+        )
+
+    @property
+    def hits_sent(self) -> int:
+        """Hits whose first force sample has been published."""
+        return self.stream.hits_started_before(self.next_index)
+
+    @property
+    def schedule_done(self) -> bool:
+        """True once every hit's pulse has been published."""
+        return self.next_index >= self.stream.end_index
+
+    def _pace(self, rate_factor: float) -> None:
+        """(Re)start the timer at one batch of sample time per tick, paced from now."""
+        rate = self.config['sample_rate_hz'] * rate_factor
+        self._pacer.restart(rate / self._batch, self.next_index // self._batch)
+        if self._timer is not None:
+            self.destroy_timer(self._timer)
+        self._timer = self.create_timer(self._batch / rate, self._on_tick)
+
+    def _on_parameters(self, parameters: list[Parameter]) -> None:
+        for parameter in parameters:
+            if parameter.name == 'rate_factor':
+                self._pace(parameter.value)
+
+    def _on_tick(self) -> None:
+        if not self._started:
+            wanted = self.config['wait_for_subscribers']
+            self._started = (
+                self._measured_pub.get_subscription_count() >= wanted
+                and self._applied_pub.get_subscription_count() >= min(wanted, 1)
+            )
+            if not self._started:
+                self.get_logger().info(
+                    f'waiting for {wanted} subscribers on {FORCE_TOPIC}', throttle_duration_sec=5.0
+                )
+                return
+        for _ in range(self._pacer.due()):
+            self._publish_batch()
+        if self._pacer.fell_behind:
+            self.get_logger().warning(
+                f'cannot keep x{self.config["rate_factor"]:g} real time: running slower',
+                throttle_duration_sec=10.0,
+            )
+
+    def _publish_batch(self) -> None:
+        first = self.next_index
+        rate = self.config['sample_rate_hz']
+        stamp = (self._start_stamp + Duration(nanoseconds=round(first / rate * 1e9))).to_msg()
+        self.stream.applied(first, self._applied)
+        self.stream.measured(self._applied, first, self._measured)
+        common = dict(
+            quantity=msgs.FORCE,
+            sample_rate_hz=rate,
+            first_sample_index=first,
+            stamp=stamp,
+            frame_id=self.config['frame_id'],
+            full_scale=self.config['full_scale_n'],
+        )
+        self._applied_pub.publish(msgs.sample_batch(self._applied, **common))
+        self._measured_pub.publish(msgs.sample_batch(self._measured, **common))
+        self.next_index = first + self._applied.size
+        if self.next_index >= self.stream.end_index > first:
+            self.get_logger().info(f'session complete: {len(self.schedule)} hits sent')
+
+
+def main(args: list[str] | None = None) -> None:
+    """`ros2 run fmm_ros hammer_sim`."""
+    run_node(HammerSim, args)
+
+
+if __name__ == '__main__':
+    main()

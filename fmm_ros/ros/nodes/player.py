@@ -1,0 +1,117 @@
+"""player: republishes a recorded bag into the live graph, paced by its log times.
+
+The stored CDR bytes are published as they are (no decode), at `rate_factor` times the pace
+they were recorded at, so the analyzer and the fitter see the session again exactly as
+recorded: same sample indices, same batches. For analysis without a ROS graph, `fmm replay`
+feeds a bag straight into the core instead.
+"""
+
+import time
+
+from rclpy.node import Node
+
+from fmm_ros.io.bags.definitions import SAMPLE_BATCH
+from fmm_ros.io.bags.reader import BagReader
+from fmm_ros.ros.common import RESULT_QOS, SAMPLE_QOS, message_class, run_node
+from fmm_ros.ros.params import Param, declare_parameters
+
+# As for hammer_sim: rclpy takes one message per subscription per wait cycle, so a tick
+# sends only a few messages; further behind than that the pace is re-anchored.
+MAX_MESSAGES_PER_TICK = 4
+
+PARAMS = (
+    Param('bag_path', '', 'Bag directory (or .mcap / .db3 file) to play', read_only=True),
+    Param(
+        'rate_factor',
+        1.0,
+        'Speed against the recorded pace [-]',
+        limits=(0.01, 1000.0),
+        read_only=True,
+    ),
+    Param('topics', [''], 'Topics to play; [""] for every topic in the bag', read_only=True),
+    Param(
+        'tick_s', 0.005, 'Timer period of the pacing loop [s]', limits=(1e-4, 1.0), read_only=True
+    ),
+)
+
+
+class Player(Node):
+    """Publishes a bag's messages (raw) on their topics, in recorded order and pace."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__('player', **kwargs)
+        self.config = declare_parameters(self, PARAMS)
+        if not self.config['bag_path']:
+            raise ValueError('player: set the bag_path parameter to the bag to play')
+        self.reader = BagReader(self.config['bag_path'], strict=False)
+        self.reader.open()
+        wanted = [topic for topic in self.config['topics'] if topic] or list(self.reader.topics)
+        missing = sorted(set(wanted) - set(self.reader.topics))
+        if missing:
+            self.reader.close()
+            raise ValueError(
+                f'bag {self.config["bag_path"]} has no topic {", ".join(missing)}; '
+                f'it has {", ".join(sorted(self.reader.topics))}'
+            )
+        self._topic_publishers = {}
+        for topic in wanted:
+            msgtype = self.reader.topics[topic].msgtype
+            qos = SAMPLE_QOS if msgtype == SAMPLE_BATCH else RESULT_QOS
+            self._topic_publishers[topic] = self.create_publisher(
+                message_class(msgtype), topic, qos
+            )
+        self._messages = self.reader.messages(wanted)
+        self._next = next(self._messages, None)
+        self.messages_played = 0
+        self._anchor: tuple[float, int] | None = None
+        self.create_timer(self.config['tick_s'], self._on_tick)
+        total = sum(self.reader.topics[topic].count for topic in wanted)
+        self.get_logger().info(
+            f'playing {total} messages on {", ".join(wanted)} from '
+            f'{self.config["bag_path"]} at x{self.config["rate_factor"]:g}'
+        )
+
+    @property
+    def finished(self) -> bool:
+        """True once every message has been published."""
+        return self._next is None
+
+    def _on_tick(self) -> None:
+        if self._next is None:
+            return
+        now = time.monotonic()
+        if self._anchor is None:
+            self._anchor = (now, self._next.log_time_ns)
+        wall0, log0 = self._anchor
+        due_ns = log0 + (now - wall0) * 1e9 * self.config['rate_factor']
+        sent = 0
+        while self._next is not None and self._next.log_time_ns <= due_ns:
+            if sent == MAX_MESSAGES_PER_TICK:
+                self._anchor = (now, self._next.log_time_ns)
+                self.get_logger().warning(
+                    f'cannot keep x{self.config["rate_factor"]:g}: playing slower',
+                    throttle_duration_sec=10.0,
+                )
+                break
+            self._topic_publishers[self._next.topic].publish(bytes(self._next.data))
+            self.messages_played += 1
+            sent += 1
+            self._next = next(self._messages, None)
+        if self._next is None:
+            self.get_logger().info(f'bag played: {self.messages_played} messages')
+            for problem in self.reader.problems:
+                self.get_logger().warning(f'bag: {problem}')
+
+    def destroy_node(self) -> None:
+        """Close the bag before the node goes."""
+        self.reader.close()
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> None:
+    """`ros2 run fmm_ros player --ros-args -p bag_path:=<bag>`."""
+    run_node(Player, args)
+
+
+if __name__ == '__main__':
+    main()

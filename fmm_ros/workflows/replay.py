@@ -1,0 +1,147 @@
+"""A recorded session through the signal core, exactly as the live analyzer runs it.
+
+The analyzer node feeds each SampleBatch it receives to one `ImpactCapture` by sample index
+and analyses each record the capture completes. Replay does the same with the batches of a
+bag, in the order they were recorded, so offline and live find the same impacts with the
+same samples, flags and FRFs; only the clock differs (here: as fast as the CPU goes).
+"""
+
+import dataclasses
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+from fmm_ros.core.signal.analysis import (
+    AnalysisConfig,
+    ImpactResult,
+    Summary,
+    analyze_impact,
+    summarize,
+)
+from fmm_ros.core.signal.capture import (
+    DEFAULT_CAPTURE,
+    FORCE,
+    VELOCITY,
+    CaptureConfig,
+    ImpactCapture,
+)
+from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.io.bags.reader import BagReader, ChannelBatch
+from fmm_ros.io.bags.writer import FORCE_TOPIC, VELOCITY_TOPIC
+
+
+def is_bag(path: str | Path) -> bool:
+    """Whether path looks like a bag: a directory with .mcap/.db3 in it, or such a file."""
+    path = Path(path)
+    if path.is_dir():
+        return any(path.glob('*.mcap')) or any(path.glob('*.db3'))
+    return path.suffix in ('.mcap', '.db3')
+
+
+def capture_records(
+    reader: BagReader,
+    capture: CaptureConfig = DEFAULT_CAPTURE,
+    *,
+    force_topic: str = FORCE_TOPIC,
+    velocity_topic: str = VELOCITY_TOPIC,
+    reuse_buffers: bool = False,
+    on_batch: Callable[[ChannelBatch], None] | None = None,
+) -> Iterator[ImpactRecord]:
+    """Each impact record the live capture would complete, in the order it would.
+
+    Records are tagged with their source (bag name @ trigger index). reuse_buffers: a
+    record is valid only until the next one is asked for, its memory then reused (as the
+    analyzer node does; a long session then runs in warm memory). on_batch sees every
+    recorded batch as it is fed.
+    """
+    impacts = ImpactCapture(capture)
+    quantity = {force_topic: FORCE, velocity_topic: VELOCITY}
+
+    def tagged(records: list[ImpactRecord]) -> Iterator[ImpactRecord]:
+        for record in records:
+            yield dataclasses.replace(
+                record, source=f'{reader.path.name}@{record.trigger_sample_index}'
+            )
+            if reuse_buffers:
+                impacts.recycle(record)
+
+    for batch in reader.sample_batches([force_topic, velocity_topic]):
+        yield from tagged(
+            impacts.feed(
+                quantity[batch.topic],
+                batch.first_sample_index,
+                batch.samples,
+                batch.sample_rate_hz,
+                batch.full_scale,
+            )
+        )
+        if on_batch:
+            on_batch(batch)
+    yield from tagged(impacts.flush())
+
+
+def bag_impact_records(
+    path: str | Path,
+    capture: CaptureConfig = DEFAULT_CAPTURE,
+    *,
+    force_topic: str = FORCE_TOPIC,
+    velocity_topic: str = VELOCITY_TOPIC,
+) -> tuple[list[ImpactRecord], list[str]]:
+    """Bag -> every impact record in its recorded streams, and the bag's problems.
+
+    Damage does not stop it: what was readable is captured (missing samples become gaps,
+    and the impacts over them are flagged), and the problems are returned for the caller
+    to report. This is what offline analysis, fitting and diagnosis of a bag start from.
+    """
+    with BagReader(path, strict=False) as reader:
+        records = list(
+            capture_records(reader, capture, force_topic=force_topic, velocity_topic=velocity_topic)
+        )
+        return records, list(reader.problems)
+
+
+@dataclass(frozen=True)
+class Replay:
+    """What the analyzer would have published for a bag, and what it took to find out."""
+
+    results: list[ImpactResult]
+    summary: Summary
+    signal_s: float
+    batches: int
+    problems: list[str]
+
+
+def replay_bag(
+    path: str | Path,
+    capture: CaptureConfig = DEFAULT_CAPTURE,
+    analysis: AnalysisConfig | None = None,
+    *,
+    on_result: Callable[[ImpactResult], None] | None = None,
+    on_batch: Callable[[ChannelBatch], None] | None = None,
+) -> Replay:
+    """Capture and analyse every impact of a bag as the live analyzer does, then summarize.
+
+    on_result gets each ImpactResult as the analyzer would publish it (impact ids count from
+    0 in capture order); on_batch sees every recorded batch.
+    """
+    analysis = analysis or AnalysisConfig()
+    results: list[ImpactResult] = []
+    fed = {'batches': 0, 'samples': 0, 'rate': 0.0}
+
+    def count(batch: ChannelBatch) -> None:
+        fed['batches'] += 1
+        if batch.topic == FORCE_TOPIC:
+            fed['samples'] += len(batch.samples)
+            fed['rate'] = batch.sample_rate_hz
+        if on_batch:
+            on_batch(batch)
+
+    with BagReader(path, strict=False) as reader:
+        for record in capture_records(reader, capture, reuse_buffers=True, on_batch=count):
+            result = analyze_impact(record, capture, analysis, impact_id=len(results))
+            results.append(result)
+            if on_result:
+                on_result(result)
+        problems = list(reader.problems)
+    signal_s = fed['samples'] / fed['rate'] if fed['rate'] else 0.0
+    return Replay(results, summarize(results, analysis), signal_s, fed['batches'], problems)
