@@ -22,15 +22,8 @@ from pathlib import Path
 import numpy as np
 from rosbags.rosbag2 import Reader
 
-from fmm_ros.io.bags import (
-    FORCE_TOPIC,
-    SAMPLE_BATCH,
-    VELOCITY_TOPIC,
-    BagReader,
-    BagWriter,
-    fmm_typestore,
-    new_message,
-)
+from fmm_ros.constants import FORCE_TOPIC, VELOCITY_TOPIC
+from fmm_ros.io.bags import SAMPLE_BATCH, BagReader, BagWriter, fmm_typestore, new_message
 
 FS = 10_000.0
 BATCH = 500

@@ -23,14 +23,15 @@ import numpy as np
 import scipy.optimize
 from bench_physics import RATE_HZ, euler_in_python, median_s
 
+from fmm_ros.constants import PAPER_LEVELS, PAPER_MU
 from fmm_ros.core.identify.conditioning import condition_impact
 from fmm_ros.core.identify.friction import MU_BOUNDS, energy_balance_mu, fit_friction, fit_model
 from fmm_ros.core.identify.lsq import levenberg_marquardt
 from fmm_ros.core.identify.rig import identify_rig
 from fmm_ros.core.physics.model import simulate
-from fmm_ros.core.physics.rig import FMM_RIG, PAPER_MU
+from fmm_ros.core.physics.rig import FMM_RIG
 from fmm_ros.core.signal.capture import capture_impacts
-from fmm_ros.sim.excitation import PAPER_LEVELS, impact_record
+from fmm_ros.sim.excitation import impact_record
 from fmm_ros.sim.session import simulated_session
 
 TARGET_ONE_MS = 100.0
@@ -165,12 +166,11 @@ def main() -> None:
 
     one = lab_record(1000.0, 1)
     three = [
-        lab_record(level.peak_force_n, seed)
-        for seed, level in enumerate(PAPER_LEVELS.values(), start=2)
+        lab_record(level.peak_force_n, seed) for seed, level in enumerate(PAPER_LEVELS, start=2)
     ]
     lifted = [
         lab_record(level.peak_force_n, seed, mu=0.0)
-        for seed, level in enumerate(PAPER_LEVELS.values(), start=5)
+        for seed, level in enumerate(PAPER_LEVELS, start=5)
     ]
     impact = condition_impact(one.force_n, one.velocity_m_s, RATE_HZ)
     impacts = [condition_impact(r.force_n, r.velocity_m_s, RATE_HZ) for r in three]

@@ -17,8 +17,9 @@ import time
 
 import numpy as np
 
+from fmm_ros.constants import PAPER_MU
 from fmm_ros.core.physics.model import OscillatorStream, free_vibration, simulate
-from fmm_ros.core.physics.rig import FMM_RIG, PAPER_MU, STANDARD_GRAVITY_M_S2, Rig
+from fmm_ros.core.physics.rig import FMM_RIG, STANDARD_GRAVITY_M_S2, Rig
 from fmm_ros.core.physics.terms import model_term
 from fmm_ros.sim.excitation import impact_record
 

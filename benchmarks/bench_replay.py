@@ -19,14 +19,15 @@ from pathlib import Path
 import numpy as np
 from rosbags.rosbag2 import Reader
 
-from fmm_ros.core.signal.analysis import PAPER_LEVELS, AnalysisConfig, analyze_impact, summarize
+from fmm_ros.constants import FORCE_TOPIC, VELOCITY_TOPIC
+from fmm_ros.core.signal.analysis import AnalysisConfig, analyze_impact, paper_levels, summarize
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, capture_impacts
-from fmm_ros.io.bags import FORCE_TOPIC, SAMPLE_BATCH, VELOCITY_TOPIC, BagReader, fmm_typestore
+from fmm_ros.io.bags import SAMPLE_BATCH, BagReader, fmm_typestore
 from fmm_ros.sim.session import simulated_session, write_session_bag
 from fmm_ros.workflows.replay import capture_records, replay_bag
 
 TARGET = 200.0
-ANALYSIS = AnalysisConfig(levels=PAPER_LEVELS)
+ANALYSIS = AnalysisConfig(levels=paper_levels())
 
 
 def replay(bag: Path) -> int:

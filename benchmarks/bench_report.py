@@ -22,8 +22,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from fmm_ros.core.physics.rig import PAPER_MU
-from fmm_ros.core.signal.analysis import PAPER_LEVELS, AnalysisConfig
+from fmm_ros.constants import PAPER_MU
+from fmm_ros.core.signal.analysis import AnalysisConfig, paper_levels
 from fmm_ros.core.signal.capture import capture_impacts
 from fmm_ros.report import ModelOverlay, build_report, session_figures
 from fmm_ros.report import html as report_html
@@ -32,7 +32,7 @@ from fmm_ros.sim.session import simulated_session
 
 TARGET_S = 6.0
 HIT_FIGURES = session_figures.HitFigures
-ANALYSIS = AnalysisConfig(levels=PAPER_LEVELS)
+ANALYSIS = AnalysisConfig(levels=paper_levels())
 FIGURE_TYPES = (
     'impulse_figure',
     'linearity_figure',

@@ -1,15 +1,70 @@
-"""The names the live graph and its bags share: topics and the two sample channels' quantities.
+"""Every named constant fmm_ros's layers share, each in one place.
 
-Kept in the core (no ROS) because bag I/O reads and writes these topics without a ROS runtime.
+The paper's numbers, the acquisition's, the channels and their units, topic and service names,
+analysis bands. Imports nothing, so the ROS-free core, the file I/O, the simulators and the ROS
+shell can all take their constants from here. A value a single module owns (a fit's tolerance,
+a node's queue depth) stays in that module; what two places must agree on lives here.
 """
 
+from dataclasses import dataclass
+from typing import NamedTuple
+
+
+class Channel(NamedTuple):
+    """A sample channel: `SampleBatch.quantity` and `SampleBatch.unit` (SI)."""
+
+    quantity: str
+    unit: str
+
+
+FORCE = Channel('force', 'N')
+"""The impact hammer's force channel."""
+VELOCITY = Channel('velocity', 'm/s')
+"""The laser vibrometer's velocity channel."""
+CHANNELS: tuple[Channel, ...] = (FORCE, VELOCITY)
+
+# -- acquisition (the paper's Sec. 4) -----------------------------------------------------------
+SAMPLE_RATE_HZ = 10_000.0
+"""Sampling rate of both channels in the paper, and every source's default [Hz]."""
+RECORD_DURATION_S = 33.0
+"""Length of one impact record in the paper (frequency resolution 1/33 Hz) [s]."""
+
+# -- the paper's friction contact and hammer levels -------------------------------------------
+
+
+@dataclass(frozen=True)
+class PaperLevel:
+    """One of the paper's nominal hammer levels: its peak force and the mean impulse measured."""
+
+    name: str
+    peak_force_n: float
+    impulse_n_s: float
+
+
+PAPER_LEVELS: tuple[PaperLevel, ...] = (
+    PaperLevel('low', 450.0, 0.98),
+    PaperLevel('medium', 1000.0, 1.42),
+    PaperLevel('high', 1450.0, 1.64),
+)
+"""The paper's three levels (Secs. 4-5), in ascending force."""
+LEVEL_TOLERANCE_N = 50.0
+"""A hit counts at a level when its peak is within this of the nominal peak (the paper) [N]."""
+PAPER_MU = 0.113
+"""Best-fit Coulomb friction coefficient of the paper's PTFE pin on lubricated steel [-]."""
+
+# -- analysis bands and windows -----------------------------------------------------------------
+MISFIT_BAND_LIMIT_HZ = 20.0
+"""Top of the mobility band a fit's FRF misfit and the diagnosis's FRF gap use [Hz]: the FMM's
+mode (2.2 Hz) and the odd harmonics friction puts into its response."""
+SETTLE_S = 1.0
+"""A motion window runs this long past the model's rest: what residuals are judged over [s]."""
+
+# -- ROS names (also the topics of bags, which are read and written without ROS) ----------------
 FORCE_TOPIC = '/fmm/force'
 VELOCITY_TOPIC = '/fmm/velocity'
 APPLIED_FORCE_TOPIC = '/fmm/sim/applied_force'
 """Simulation only: the force the hammer applies (noise-free), which drives rig_sim."""
 IMPACTS_TOPIC = '/fmm/impacts'
 FRF_TOPIC = '/fmm/frf'
-
-# SampleBatch.quantity and SampleBatch.unit of the two channels.
-FORCE = ('force', 'N')
-VELOCITY = ('velocity', 'm/s')
+FIT_SERVICE = '/fmm/fit_friction'
+DIAGNOSE_SERVICE = '/fmm/diagnose_model'

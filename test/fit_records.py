@@ -8,9 +8,9 @@ delay of up to 40 samples and a fraction of one: nothing the fitter may know.
 
 import numpy as np
 
+from fmm_ros.constants import PAPER_LEVELS
 from fmm_ros.core.physics.rig import FMM_RIG
 from fmm_ros.sim.excitation import (
-    PAPER_LEVELS,
     impact_record,
     level_peak_force_n,
     tip_contact_duration_s,
@@ -18,7 +18,7 @@ from fmm_ros.sim.excitation import (
 
 FORCE_NOISE_N = 0.2
 VELOCITY_NOISE_M_S = 1e-4
-LEVELS = tuple(PAPER_LEVELS)
+LEVELS = tuple(level.name for level in PAPER_LEVELS)
 
 
 def lab_impact(

@@ -8,11 +8,11 @@ import pytest
 from signal_records import analytic_mobility, damping_for_ratio, half_sine, hits, linear_velocity
 
 from fmm_ros.core.signal.analysis import (
-    PAPER_LEVELS,
     AnalysisConfig,
     ImpactResult,
     LevelSummary,
     analyze_impact,
+    paper_levels,
     summarize,
 )
 from fmm_ros.core.signal.capture import FLAGS, CaptureConfig, ImpactCapture, capture_impacts
@@ -40,7 +40,7 @@ def test_clean_records_raise_no_flag_and_land_in_their_levels():
     _, _, records = captured([(1.0, 450.0), (35.0, 1000.0), (69.0, 1450.0)], seconds=103.0)
     results = [analyze_impact(r, CAPTURE, impact_id=i) for i, r in enumerate(records)]
     assert [r.flags for r in results] == [(), (), ()]
-    summary = summarize(results, AnalysisConfig(levels=PAPER_LEVELS))
+    summary = summarize(results, AnalysisConfig(levels=paper_levels()))
     assert [(r.level, r.accepted, r.flags) for r in summary.impacts] == [
         ('low', True, ()),
         ('medium', True, ()),
@@ -125,11 +125,11 @@ def test_overlap_when_the_next_hit_falls_inside_the_window():
 def test_out_of_tolerance_and_configurable_rejection():
     _, _, records = captured([(1.0, 700.0)])
     (result,) = [analyze_impact(r, CAPTURE) for r in records]
-    summary = summarize([result], AnalysisConfig(levels=PAPER_LEVELS))
+    summary = summarize([result], AnalysisConfig(levels=paper_levels()))
     (judged,) = summary.impacts
     assert (judged.level, judged.flags, judged.accepted) == ('', ('out_of_tolerance',), False)
     assert summary.levels == ()
-    lenient = summarize([result], AnalysisConfig(levels=PAPER_LEVELS, reject_flags=('gap',)))
+    lenient = summarize([result], AnalysisConfig(levels=paper_levels(), reject_flags=('gap',)))
     assert lenient.impacts[0].accepted and lenient.impacts[0].flags == ('out_of_tolerance',)
     with pytest.raises(ValueError, match='unknown quality flag'):
         AnalysisConfig(reject_flags=('wobbly',))

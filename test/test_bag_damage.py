@@ -11,10 +11,9 @@ import pytest
 from mcap.reader import make_reader
 from rosbags.rosbag2 import StoragePlugin, Writer
 
+from fmm_ros.constants import FORCE_TOPIC, IMPACTS_TOPIC
 from fmm_ros.io.bags import (
-    FORCE_TOPIC,
     IMPACT_RESULT,
-    IMPACTS_TOPIC,
     BagDamagedError,
     BagError,
     BagReader,

@@ -9,14 +9,11 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.rosbag2 import Reader
 
+from fmm_ros.constants import FORCE_TOPIC, FRF_TOPIC, IMPACTS_TOPIC, VELOCITY_TOPIC
 from fmm_ros.io.bags import (
-    FORCE_TOPIC,
     FRF_SUMMARY,
-    FRF_TOPIC,
     IMPACT_RESULT,
-    IMPACTS_TOPIC,
     SAMPLE_BATCH,
-    VELOCITY_TOPIC,
     BagReader,
     BagWriter,
     fmm_typestore,

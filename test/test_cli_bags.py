@@ -10,18 +10,8 @@ from bag_helpers import random_message
 
 from fmm_ros.cli import main
 from fmm_ros.cli.progress import progress_bar
-from fmm_ros.io.bags import (
-    FORCE,
-    FORCE_TOPIC,
-    FRF_SUMMARY,
-    FRF_TOPIC,
-    IMPACT_RESULT,
-    IMPACTS_TOPIC,
-    VELOCITY,
-    VELOCITY_TOPIC,
-    BagWriter,
-    fmm_typestore,
-)
+from fmm_ros.constants import FORCE, FORCE_TOPIC, FRF_TOPIC, IMPACTS_TOPIC, VELOCITY, VELOCITY_TOPIC
+from fmm_ros.io.bags import FRF_SUMMARY, IMPACT_RESULT, BagWriter, fmm_typestore
 from fmm_ros.io.bags.tables import table_columns
 
 FS = 10_000.0

@@ -5,9 +5,9 @@ from rclpy.node import Node
 from rig_graph import FAST_ANALYZER, FAST_HAMMER, params, wait_for
 
 from fmm_interfaces.srv import DiagnoseModel
+from fmm_ros.constants import DIAGNOSE_SERVICE
 from fmm_ros.core.diagnose.workflow import EFFECTS
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import DIAGNOSE_SERVICE
 from fmm_ros.ros.nodes.analyzer import Analyzer
 from fmm_ros.ros.nodes.fitter import Fitter
 from fmm_ros.ros.nodes.hammer_sim import HammerSim

@@ -5,16 +5,17 @@ import math
 import numpy as np
 import pytest
 
+from fmm_ros.constants import LEVEL_TOLERANCE_N, PAPER_LEVELS
 from fmm_ros.core.physics.model import simulate
 from fmm_ros.core.physics.terms import model_term
 from fmm_ros.sim.excitation import (
-    ACCEPTANCE_TOLERANCE_N,
-    PAPER_LEVELS,
     half_sine_duration_s,
     half_sine_pulse,
     hammer_pulse,
     impact_record,
+    level_contact_duration_s,
     level_peak_force_n,
+    paper_level,
     rectangular_pulse,
     tip_contact_duration_s,
 )
@@ -27,13 +28,13 @@ def trapezoid_impulse(force, rate_hz=RATE_HZ):
 
 
 def test_paper_levels_and_their_half_sine_contact_durations():
-    durations_ms = {name: level.contact_duration_s * 1e3 for name, level in PAPER_LEVELS.items()}
+    durations_ms = {level.name: level_contact_duration_s(level) * 1e3 for level in PAPER_LEVELS}
     assert durations_ms == pytest.approx({'low': 3.4, 'medium': 2.2, 'high': 1.8}, abs=0.05)
-    assert ACCEPTANCE_TOLERANCE_N == 50.0
-    for level in PAPER_LEVELS.values():
+    assert LEVEL_TOLERANCE_N == 50.0
+    for level in PAPER_LEVELS:
         # the tip law fitted through the three levels reproduces each within 2 %
         assert tip_contact_duration_s(level.peak_force_n) == pytest.approx(
-            level.contact_duration_s, rel=0.02
+            level_contact_duration_s(level), rel=0.02
         )
     # a harder hit is a shorter one (the rubber tip stiffens)
     assert tip_contact_duration_s(2000.0) < tip_contact_duration_s(1000.0)
@@ -72,12 +73,12 @@ def test_rectangular_pulse_impulse_is_force_times_duration(force_n, width_s):
 
 
 def test_impact_record_defaults_and_contents():
-    record = impact_record(PAPER_LEVELS['medium'].peak_force_n, rng=3)
+    record = impact_record(paper_level('medium').peak_force_n, rng=3)
     assert record.force_n.size == record.velocity_m_s.size == 330_000
     assert record.sample_rate_hz == RATE_HZ
     assert record.time_s[-1] == pytest.approx(33.0 - 1e-4)
     assert record.trigger_index == 1001  # 0.1 s pre-trigger plus a fraction of a sample
-    assert record.impulse_n_s == pytest.approx(PAPER_LEVELS['medium'].impulse_n_s, rel=0.03)
+    assert record.impulse_n_s == pytest.approx(paper_level('medium').impulse_n_s, rel=0.03)
     pre = slice(0, record.trigger_index)
     assert np.std(record.force_n[pre]) == pytest.approx(0.05, rel=0.15)
     assert np.std(record.velocity_m_s[pre]) == pytest.approx(1e-5, rel=0.15)

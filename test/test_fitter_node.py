@@ -5,9 +5,8 @@ from rclpy.node import Node
 from rig_graph import FAST_ANALYZER, FAST_HAMMER, Listener, params, wait_for
 
 from fmm_interfaces.srv import FitFriction
-from fmm_ros.core.physics.rig import PAPER_MU
+from fmm_ros.constants import FIT_SERVICE, PAPER_MU
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import FIT_SERVICE
 from fmm_ros.ros.nodes.analyzer import Analyzer
 from fmm_ros.ros.nodes.fitter import Fitter
 from fmm_ros.ros.nodes.hammer_sim import HammerSim

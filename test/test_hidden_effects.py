@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 import scipy.optimize
 
+from fmm_ros.constants import PAPER_LEVELS
 from fmm_ros.core.identify.conditioning import as_conditioned
 from fmm_ros.core.physics.model import simulate
 from fmm_ros.core.physics.terms import MODEL_TERMS
-from fmm_ros.sim.excitation import PAPER_LEVELS
 from fmm_ros.sim.hidden_effects import (
     HIDDEN_EFFECTS,
     MU_RANGE,
@@ -81,9 +81,7 @@ def test_a_case_is_random_levels_with_the_issues_noise_and_reproducible():
         conditioned = as_conditioned(record)
         assert conditioned.velocity_noise_std_m_s == pytest.approx(1e-4, rel=0.03)
         assert conditioned.force_noise_std_n == pytest.approx(0.2, rel=0.03)
-        nearest = min(
-            PAPER_LEVELS.values(), key=lambda level: abs(level.peak_force_n - record.peak_force_n)
-        )
+        nearest = min(PAPER_LEVELS, key=lambda level: abs(level.peak_force_n - record.peak_force_n))
         assert abs(nearest.peak_force_n - record.peak_force_n) < 150.0
 
 

@@ -7,9 +7,10 @@ import pytest
 import scipy.signal
 from reference_solver import Oscillator, solve
 
+from fmm_ros.constants import PAPER_MU
 from fmm_ros.core._checks import sample_rate_from_times
 from fmm_ros.core.physics.model import INTEGRATORS, OscillatorStream, free_vibration, simulate
-from fmm_ros.core.physics.rig import FMM_RIG, PAPER_MU, Rig
+from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import MODEL_TERMS, ModelTerm, Parameter, model_term
 from fmm_ros.sim.excitation import half_sine_pulse
 

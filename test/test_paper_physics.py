@@ -7,9 +7,15 @@ NAMRC 47 (2019): Sec. 3 (Figs. 2-7) and Sec. 5 (Fig. 24).
 import numpy as np
 import pytest
 
+from fmm_ros.constants import PAPER_LEVELS, PAPER_MU
 from fmm_ros.core.physics.model import coulomb_peak_mobility, free_vibration, simulate
-from fmm_ros.core.physics.rig import FMM_RIG, PAPER_MU, STANDARD_GRAVITY_M_S2, Rig
-from fmm_ros.sim.excitation import PAPER_LEVELS, half_sine_pulse, rectangular_pulse
+from fmm_ros.core.physics.rig import FMM_RIG, STANDARD_GRAVITY_M_S2, Rig
+from fmm_ros.sim.excitation import (
+    half_sine_pulse,
+    level_contact_duration_s,
+    paper_level,
+    rectangular_pulse,
+)
 
 # The Sec. 3 example oscillator: mu = 0.1, m = 1 kg, k = 5000 N/m, N = m g, no viscous damping.
 EXAMPLE_RIG = Rig(
@@ -120,12 +126,12 @@ def test_peak_displacement_decays_linearly_fig_5():
     np.testing.assert_allclose(np.diff(peaks), -2 * x_lim, rtol=1e-3)
 
 
-@pytest.mark.parametrize('level', list(PAPER_LEVELS))
+@pytest.mark.parametrize('level', [level.name for level in PAPER_LEVELS])
 def test_peak_mobility_matches_the_coulomb_formula(level):
     rig = Rig(damping_n_s_per_m=0.0)  # the formula's undamped case, FMM otherwise
-    peak, impulse = PAPER_LEVELS[level].peak_force_n, PAPER_LEVELS[level].impulse_n_s
+    peak, impulse = paper_level(level).peak_force_n, paper_level(level).impulse_n_s
     force = half_sine_pulse(
-        peak, PAPER_LEVELS[level].contact_duration_s, RATE_HZ, 12.0, start_s=0.1
+        peak, level_contact_duration_s(paper_level(level)), RATE_HZ, 12.0, start_s=0.1
     )
     sim = simulate(force, RATE_HZ, rig=rig)
     fn = rig.natural_frequency_hz
@@ -156,9 +162,9 @@ def test_peak_mobility_grows_linearly_with_impulse():
 
 
 def test_odd_harmonics_of_fn_appear_in_the_mobility_fig_24():
-    level = PAPER_LEVELS['medium']
+    level = paper_level('medium')
     force = half_sine_pulse(
-        level.peak_force_n, level.contact_duration_s, RATE_HZ, 33.0, start_s=0.1
+        level.peak_force_n, level_contact_duration_s(level), RATE_HZ, 33.0, start_s=0.1
     )
     sim = simulate(force, RATE_HZ)
     freq = np.fft.rfftfreq(force.size, 1 / RATE_HZ)

@@ -6,16 +6,17 @@ import numpy as np
 import pytest
 
 from fmm_ros.cli import main
-from fmm_ros.core.signal.analysis import PAPER_LEVELS, AnalysisConfig, analyze_impact
+from fmm_ros.constants import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC
+from fmm_ros.core.signal.analysis import AnalysisConfig, analyze_impact, paper_levels
 from fmm_ros.core.signal.capture import CaptureConfig, capture_impacts
 from fmm_ros.core.signal.records import write_impact_csv
-from fmm_ros.io.bags import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC, BagWriter
+from fmm_ros.io.bags import BagWriter
 from fmm_ros.sim.session import simulated_session, write_session_bag
 from fmm_ros.workflows.replay import bag_impact_records, replay_bag
 
 # Short slots keep the tests quick: 6 s apart, 5 s records.
 CAPTURE = CaptureConfig(window_s=5.0)
-ANALYSIS = AnalysisConfig(levels=PAPER_LEVELS)
+ANALYSIS = AnalysisConfig(levels=paper_levels())
 
 
 @pytest.fixture(scope='module')

@@ -15,10 +15,11 @@ import pytest
 from PIL import Image
 
 from fmm_ros.cli import main
+from fmm_ros.constants import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC
 from fmm_ros.core.physics.model import simulate
 from fmm_ros.core.signal.analysis import analyze_impact
 from fmm_ros.core.signal.records import ImpactRecord, write_impact_csv
-from fmm_ros.io.bags import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC, BagWriter
+from fmm_ros.io.bags import BagWriter
 from fmm_ros.report import FrictionSummary, ModelOverlay, build_report
 from fmm_ros.report import html as report_html
 from fmm_ros.report.paper import build_paper_report

@@ -11,17 +11,19 @@ import dataclasses
 import numpy as np
 import pytest
 
+from fmm_ros.constants import PAPER_MU
 from fmm_ros.core.physics.model import simulate
-from fmm_ros.core.physics.rig import FMM_RIG, PAPER_MU
+from fmm_ros.core.physics.rig import FMM_RIG
 from fmm_ros.core.signal import frf
-from fmm_ros.core.signal.analysis import PAPER_LEVELS, AnalysisConfig, analyze_impact, summarize
+from fmm_ros.core.signal.analysis import AnalysisConfig, analyze_impact, paper_levels, summarize
 from fmm_ros.core.signal.capture import capture_impacts
 from fmm_ros.core.signal.records import ImpactRecord
-from fmm_ros.sim.excitation import PAPER_LEVELS as HAMMER_LEVELS
 from fmm_ros.sim.excitation import (
     half_sine_pulse,
     hammer_pulse,
     impact_record,
+    level_contact_duration_s,
+    paper_level,
     tip_contact_duration_s,
 )
 
@@ -35,9 +37,9 @@ def theory_mobility(impulse_n_s, rig=FMM_RIG, mu=PAPER_MU):
 
 def paper_hit(level, rig, mu=PAPER_MU):
     """A half-sine at one of the paper's levels (its peak and mean impulse) and the response."""
-    hammer = HAMMER_LEVELS[level]
+    hammer = paper_level(level)
     force = half_sine_pulse(
-        hammer.peak_force_n, hammer.contact_duration_s, RATE_HZ, 33.0, start_s=0.01
+        hammer.peak_force_n, level_contact_duration_s(hammer), RATE_HZ, 33.0, start_s=0.01
     )
     return ImpactRecord(force, simulate(force, RATE_HZ, rig=rig, mu=mu).velocity_m_s, RATE_HZ)
 
@@ -61,7 +63,7 @@ def stream_of_hits(levels, spacing_s=40.0, seed=0):
     rng = np.random.default_rng(seed)
     force = np.zeros(n)
     for i, level in enumerate(levels):
-        peak = HAMMER_LEVELS[level].peak_force_n + rng.normal(0, 20)
+        peak = paper_level(level).peak_force_n + rng.normal(0, 20)
         force += hammer_pulse(
             peak,
             tip_contact_duration_s(peak),
@@ -79,7 +81,7 @@ def test_three_levels_give_a_line_through_the_origin_with_r2_above_0_99():
         analyze_impact(record, impact_id=i)
         for i, record in enumerate(capture_impacts(force, velocity, RATE_HZ))
     ]
-    summary = summarize(results, AnalysisConfig(levels=PAPER_LEVELS))
+    summary = summarize(results, AnalysisConfig(levels=paper_levels()))
     assert [(r.flags, r.accepted) for r in summary.impacts] == [((), True)] * 6
     assert [(lv.level, lv.count) for lv in summary.levels] == [
         ('low', 2),
@@ -101,12 +103,12 @@ def test_clean_physics_records_raise_no_flag(seed):
     level = ['low', 'medium', 'high'][seed % 3]
     # Odd seeds carry the issues' lab noise (0.2 N, 1e-4 m/s): still no flag, no rejection.
     noise = {'force_noise_std_n': 0.2, 'velocity_noise_std_m_s': 1e-4} if seed % 2 else {}
-    record = impact_record(HAMMER_LEVELS[level].peak_force_n, rng=seed, **noise)
+    record = impact_record(paper_level(level).peak_force_n, rng=seed, **noise)
     result = analyze_impact(ImpactRecord(record.force_n, record.velocity_m_s, RATE_HZ))
     assert result.flags == ()
     assert result.impulse_n_s == pytest.approx(record.impulse_n_s, rel=0.01)
     assert result.peak_force_n == pytest.approx(record.peak_force_n, rel=0.01)
-    (judged,) = summarize([result], AnalysisConfig(levels=PAPER_LEVELS)).impacts
+    (judged,) = summarize([result], AnalysisConfig(levels=paper_levels())).impacts
     assert (judged.level, judged.accepted) == (level, True)
 
 

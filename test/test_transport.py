@@ -9,6 +9,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from fmm_interfaces.msg import SampleBatch
 from fmm_interfaces.srv import FitFriction
+from fmm_ros.constants import FORCE
 from fmm_ros.ros import msgs
 
 QOS = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
@@ -38,7 +39,7 @@ def test_sample_batch_of_500_float64_arrives_bit_identical(ros_graph):
     ros_graph.start()
     msg = msgs.sample_batch(
         samples,
-        quantity=msgs.FORCE,
+        quantity=FORCE,
         sample_rate_hz=10_000.0,
         first_sample_index=1_000_000,
         stamp=talker.get_clock().now().to_msg(),

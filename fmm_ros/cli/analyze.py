@@ -18,11 +18,11 @@ import numpy as np
 
 from fmm_ros.cli.progress import report_problems
 from fmm_ros.core.signal.analysis import (
-    PAPER_LEVELS,
     AnalysisConfig,
     NominalLevel,
     Summary,
     analyze_impact,
+    paper_levels,
     summarize,
 )
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, FLAGS, CaptureConfig
@@ -160,9 +160,10 @@ def analysis_configs(args: argparse.Namespace) -> tuple[CaptureConfig, AnalysisC
         rest_velocity_m_s=args.rest_velocity_m_s,
         window_s=args.window_s,
     )
-    levels = tuple(
-        dataclasses.replace(level, tolerance_n=args.tolerance_n)
-        for level in (PAPER_LEVELS if args.paper_levels else args.level)
+    levels = (
+        paper_levels(args.tolerance_n)
+        if args.paper_levels
+        else tuple(dataclasses.replace(level, tolerance_n=args.tolerance_n) for level in args.level)
     )
     analysis = AnalysisConfig(
         band_limit_hz=args.band_limit_hz,

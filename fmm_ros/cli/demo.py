@@ -7,7 +7,7 @@ import sys
 from datetime import datetime
 from pathlib import Path
 
-from fmm_ros.core.physics.rig import PAPER_MU
+from fmm_ros.constants import PAPER_MU
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

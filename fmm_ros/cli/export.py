@@ -3,7 +3,8 @@
 import argparse
 
 from fmm_ros.cli.progress import report_problems
-from fmm_ros.io.bags import FRF_TOPIC, IMPACT_RESULT, IMPACTS_TOPIC, BagReader
+from fmm_ros.constants import FRF_TOPIC, IMPACTS_TOPIC
+from fmm_ros.io.bags import IMPACT_RESULT, BagReader
 from fmm_ros.io.bags.tables import FRF_FORMATS, export_results
 
 

@@ -13,8 +13,9 @@ from pathlib import Path
 
 from fmm_ros.cli._fitting import fit_and_report
 from fmm_ros.cli._model import add_fit_freedom_arguments, add_rig_arguments, rig_from_args
+from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ
 from fmm_ros.core.identify.friction import MU_BOUNDS, FrictionFit, fit_friction
-from fmm_ros.core.identify.output_error import DEFAULT_BAND_LIMIT_HZ, MISFITS
+from fmm_ros.core.identify.output_error import MISFITS
 from fmm_ros.io.frf_files import json_number
 
 
@@ -48,8 +49,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         '--band-limit-hz',
         type=float,
-        default=DEFAULT_BAND_LIMIT_HZ,
-        help=f'top of the mobility misfit band [Hz] (default {DEFAULT_BAND_LIMIT_HZ:g})',
+        default=MISFIT_BAND_LIMIT_HZ,
+        help=f'top of the mobility misfit band [Hz] (default {MISFIT_BAND_LIMIT_HZ:g})',
     )
     parser.add_argument(
         '--mu-min',

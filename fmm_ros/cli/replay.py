@@ -12,7 +12,8 @@ from pathlib import Path
 
 from fmm_ros.cli.analyze import add_analysis_options, analysis_configs, report, text_report
 from fmm_ros.cli.progress import add_quiet_flag, progress_bar, report_problems
-from fmm_ros.io.bags import FORCE_TOPIC, VELOCITY_TOPIC, BagReader
+from fmm_ros.constants import FORCE_TOPIC, VELOCITY_TOPIC
+from fmm_ros.io.bags import BagReader
 from fmm_ros.io.frf_files import level_curves, write_frfs
 from fmm_ros.workflows.replay import replay_bag
 

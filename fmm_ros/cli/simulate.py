@@ -14,12 +14,11 @@ from pathlib import Path
 import numpy as np
 
 from fmm_ros.cli._model import add_rig_arguments, rig_from_args
+from fmm_ros.constants import PAPER_MU, SAMPLE_RATE_HZ
 from fmm_ros.core._checks import sample_rate_from_times
 from fmm_ros.core.physics.model import record_length, simulate
-from fmm_ros.core.physics.rig import PAPER_MU
 
 DEFAULT_DURATION_S = 33.0
-DEFAULT_SAMPLE_RATE_HZ = 10_000.0
 FORCE_COLUMNS = ('time_s', 'force_n')
 OUT_COLUMNS = ('time_s', 'force_n', 'displacement_m', 'velocity_m_s')
 
@@ -58,7 +57,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         '--sample-rate-hz',
         type=float,
-        help=f'sample rate [Hz] (default {DEFAULT_SAMPLE_RATE_HZ:g}, or the '
+        help=f'sample rate [Hz] (default {SAMPLE_RATE_HZ:g}, or the '
         "force record's, which it must then match)",
     )
     parser.add_argument(
@@ -111,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
             n = record_length(args.duration_s, rate)
             force = np.concatenate((force[:n], np.zeros(max(0, n - force.size))))
     else:
-        rate = DEFAULT_SAMPLE_RATE_HZ if args.sample_rate_hz is None else args.sample_rate_hz
+        rate = SAMPLE_RATE_HZ if args.sample_rate_hz is None else args.sample_rate_hz
         duration = DEFAULT_DURATION_S if args.duration_s is None else args.duration_s
         force = np.zeros(record_length(duration, rate))
     sim = simulate(

@@ -14,6 +14,7 @@ from collections.abc import Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
+from fmm_ros.core.diagnose.gaps import motion_window
 from fmm_ros.core.diagnose.result import Diagnosis
 from fmm_ros.core.diagnose.workflow import NONE
 from fmm_ros.core.signal import frf
@@ -28,8 +29,6 @@ from fmm_ros.report.plotting import (
 from fmm_ros.report.session_figures import HARMONICS_TOP_HZ, source_name
 
 BASE_COLOUR = '0.55'
-# The residual plot runs this long past the base model's last motion [s].
-SETTLE_S = 1.0
 
 
 def named_label(diagnosis: Diagnosis) -> str:
@@ -60,7 +59,7 @@ def residual_figure(
         before = diagnosis.base_residuals_m_s[row]
         after = diagnosis.named_residuals_m_s[row]
         time_s = np.arange(before.size) / record.sample_rate_hz
-        end = _motion_end(record.velocity_m_s - before, record.sample_rate_hz)
+        end = motion_window(record.velocity_m_s - before, 0, record.sample_rate_hz).stop
         plot_trace(
             ax,
             time_s[:end],
@@ -155,10 +154,3 @@ def mobility_gap_figure(
 def _name(record, row: int) -> str:
     """A record's file name (CSV records and bag records have a source), else its row."""
     return source_name(getattr(record, 'source', '')) or f'impact {row}'
-
-
-def _motion_end(model_m_s: np.ndarray, sample_rate_hz: float) -> int:
-    """Sample SETTLE_S past the model's last motion (the model is exactly 0 at rest)."""
-    moving = np.flatnonzero(model_m_s != 0.0)
-    last = int(moving[-1]) if moving.size else model_m_s.size
-    return min(model_m_s.size, last + int(SETTLE_S * sample_rate_hz))

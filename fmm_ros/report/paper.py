@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from fmm_ros.constants import SAMPLE_RATE_HZ
 from fmm_ros.core.physics.model import Simulation, free_vibration, simulate
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.signal import frf
@@ -37,7 +38,6 @@ PAPER_OSCILLATOR = Rig(
 )
 """The Sec. 3 example: m = 1 kg, k = 5000 N/m, no viscous damping, N = m g."""
 PAPER_OSCILLATOR_MU = 0.1
-SAMPLE_RATE_HZ = 10_000.0
 FREE_VIBRATION_S = 0.6
 PULSE_RECORD_S = 25.0
 PULSE_FORCE_N = 100.0

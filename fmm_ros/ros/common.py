@@ -19,9 +19,6 @@ from rclpy.signals import SignalHandlerOptions
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.ros.params import Param
 
-FIT_SERVICE = '/fmm/fit_friction'
-DIAGNOSE_SERVICE = '/fmm/diagnose_model'
-
 _RIG = Rig()
 
 # The rig constants of Eq. 3, as parameters (rig_sim simulates with them, the fitter fits

@@ -19,9 +19,15 @@ from rclpy.parameter import Parameter
 
 from fmm_interfaces.msg import FrfSummary, ImpactResult
 from fmm_interfaces.srv import DiagnoseModel, FitFriction
-from fmm_ros.constants import FRF_TOPIC, IMPACTS_TOPIC
+from fmm_ros.constants import (
+    DIAGNOSE_SERVICE,
+    FIT_SERVICE,
+    FRF_TOPIC,
+    IMPACTS_TOPIC,
+    SAMPLE_RATE_HZ,
+)
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import DIAGNOSE_SERVICE, FIT_SERVICE, RESULT_QOS
+from fmm_ros.ros.common import RESULT_QOS
 from fmm_ros.ros.graph import InProcessGraph
 from fmm_ros.ros.nodes.analyzer import Analyzer
 from fmm_ros.ros.nodes.fitter import Fitter
@@ -57,7 +63,7 @@ class SessionConfig:
     # Write the session report (fmm_ros.report) from the recorded bag afterwards.
     report: bool = True
 
-    def batch(self, sample_rate_hz: float = 10_000.0) -> int:
+    def batch(self, sample_rate_hz: float = SAMPLE_RATE_HZ) -> int:
         """The batch size: given, or whole 500s for ~MESSAGES_PER_S per channel, <= MAX_BATCH_S."""
         if self.batch_size:
             return self.batch_size

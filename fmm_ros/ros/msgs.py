@@ -11,7 +11,7 @@ import numpy as np
 from builtin_interfaces.msg import Time
 
 from fmm_interfaces.msg import FrfSummary, ImpactResult, SampleBatch
-from fmm_ros.constants import FORCE, VELOCITY  # noqa: F401 (msgs.FORCE in sample_batch calls)
+from fmm_ros.constants import Channel
 from fmm_ros.core import diagnose
 from fmm_ros.core.signal import analysis, frf
 
@@ -31,14 +31,14 @@ def field_array(field: array.array) -> np.ndarray:
 def sample_batch(
     samples: np.ndarray,
     *,
-    quantity: tuple[str, str],
+    quantity: Channel,
     sample_rate_hz: float,
     first_sample_index: int,
     stamp: Time,
     frame_id: str,
     full_scale: float = 0.0,
 ) -> SampleBatch:
-    """A SampleBatch message; quantity is FORCE or VELOCITY (name and SI unit)."""
+    """A SampleBatch message of one channel (`fmm_ros.constants.FORCE` or `VELOCITY`)."""
     msg = SampleBatch()
     msg.header.stamp = stamp
     msg.header.frame_id = frame_id

@@ -14,39 +14,25 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fmm_ros.constants import PAPER_LEVELS, PAPER_MU, RECORD_DURATION_S, SAMPLE_RATE_HZ, PaperLevel
 from fmm_ros.core._checks import require_finite, require_non_negative, require_positive
 from fmm_ros.core.physics.model import Simulation, record_length, simulate
-from fmm_ros.core.physics.rig import FMM_RIG, PAPER_MU, Rig
+from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import ModelTerm
 
-SAMPLE_RATE_HZ = 10_000.0
-RECORD_DURATION_S = 33.0
-ACCEPTANCE_TOLERANCE_N = 50.0
-"""A hit is accepted at a level when its peak is within this of the nominal peak."""
+
+def paper_level(name: str) -> PaperLevel:
+    """The paper's hammer level of this name ('low', 'medium', 'high'); ValueError otherwise."""
+    for level in PAPER_LEVELS:
+        if level.name == name:
+            return level
+    known = ', '.join(level.name for level in PAPER_LEVELS)
+    raise ValueError(f'unknown hammer level {name!r}; known: {known}')
 
 
-@dataclass(frozen=True)
-class HammerLevel:
-    """A nominal impact level of the paper: peak force and the mean impulse measured at it."""
-
-    name: str
-    peak_force_n: float
-    impulse_n_s: float
-
-    @property
-    def contact_duration_s(self) -> float:
-        """Duration of the half-sine with this peak and impulse [s]."""
-        return half_sine_duration_s(self.peak_force_n, self.impulse_n_s)
-
-
-PAPER_LEVELS: dict[str, HammerLevel] = {
-    level.name: level
-    for level in (
-        HammerLevel('low', 450.0, 0.98),
-        HammerLevel('medium', 1000.0, 1.42),
-        HammerLevel('high', 1450.0, 1.64),
-    )
-}
+def level_contact_duration_s(level: PaperLevel) -> float:
+    """Duration of the half-sine with a paper level's peak and impulse [s]."""
+    return half_sine_duration_s(level.peak_force_n, level.impulse_n_s)
 
 
 def half_sine_duration_s(peak_force_n: float, impulse_n_s: float) -> float:
@@ -58,8 +44,8 @@ def half_sine_duration_s(peak_force_n: float, impulse_n_s: float) -> float:
 
 def _fit_tip_law() -> tuple[float, float]:
     """Least-squares power law T = a F^b through the paper's three (peak, duration) levels."""
-    peaks = np.log([level.peak_force_n for level in PAPER_LEVELS.values()])
-    durations = np.log([level.contact_duration_s for level in PAPER_LEVELS.values()])
+    peaks = np.log([level.peak_force_n for level in PAPER_LEVELS])
+    durations = np.log([level_contact_duration_s(level) for level in PAPER_LEVELS])
     exponent, log_scale = np.polyfit(peaks, durations, 1)
     return math.exp(log_scale), exponent
 
@@ -81,10 +67,9 @@ def level_peak_force_n(
     level: str, rng: np.random.Generator | int, spread_std_n: float = 30.0
 ) -> float:
     """A hand-swung hit aimed at a paper level: its nominal peak plus normal scatter [N]."""
-    if level not in PAPER_LEVELS:
-        raise ValueError(f'unknown hammer level {level!r}; known: {", ".join(PAPER_LEVELS)}')
+    nominal = paper_level(level).peak_force_n
     require_non_negative('spread_std_n', spread_std_n)
-    peak = PAPER_LEVELS[level].peak_force_n + np.random.default_rng(rng).normal(0.0, spread_std_n)
+    peak = nominal + np.random.default_rng(rng).normal(0.0, spread_std_n)
     return max(float(peak), 1.0)
 
 

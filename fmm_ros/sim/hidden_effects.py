@@ -22,11 +22,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fmm_ros.constants import PAPER_LEVELS, SETTLE_S
 from fmm_ros.core._checks import require_non_negative, require_positive
 from fmm_ros.core.physics.model import simulate
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import MODEL_TERMS, ModelTerm, model_term
-from fmm_ros.sim.excitation import PAPER_LEVELS, SimulatedImpact, impact_record, level_peak_force_n
+from fmm_ros.sim.excitation import SimulatedImpact, impact_record, level_peak_force_n
 
 NO_EFFECT = 'none'
 HIDDEN_EFFECTS: tuple[str, ...] = (*MODEL_TERMS, NO_EFFECT)
@@ -38,8 +39,6 @@ MU_RANGE = (0.08, 0.16)
 """Friction coefficients the sessions are drawn from (around the paper's 0.113)."""
 FORCE_NOISE_STD_N = 0.2
 VELOCITY_NOISE_STD_M_S = 1e-4
-SETTLE_S = 0.5
-"""The motion window runs this long past the noise-free rest time."""
 
 # The parameter scaled to set the size, and a starting value of it near the middle of the
 # range the calibration lands in (the calibration is linear in it, so only its sign matters).
@@ -95,7 +94,7 @@ def hidden_effect_case(
     require_non_negative('force_noise_std_n', force_noise_std_n)
     rng = np.random.default_rng(rng)
     mu = float(rng.uniform(*MU_RANGE))
-    levels = rng.choice(list(PAPER_LEVELS), size=n_impacts)
+    levels = rng.choice([level.name for level in PAPER_LEVELS], size=n_impacts)
     peaks = [level_peak_force_n(str(level), rng) for level in levels]
     seeds = rng.integers(0, 2**63, size=n_impacts)
     target = float(rng.uniform(*RATIO_RANGE)) if ratio is None else float(ratio)

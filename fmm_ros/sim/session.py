@@ -12,17 +12,16 @@ from pathlib import Path
 
 import numpy as np
 
+from fmm_ros.constants import PAPER_LEVELS, PAPER_MU, SAMPLE_RATE_HZ
 from fmm_ros.core.physics.model import simulate
-from fmm_ros.core.physics.rig import PAPER_MU
 from fmm_ros.io.bags.writer import BagWriter
 from fmm_ros.sim.excitation import (
-    SAMPLE_RATE_HZ,
     hammer_pulse,
     level_peak_force_n,
     tip_contact_duration_s,
 )
 
-PAPER_LEVEL_ORDER = ('low', 'medium', 'high')
+PAPER_LEVEL_ORDER = tuple(level.name for level in PAPER_LEVELS)
 
 
 @dataclass(frozen=True)

@@ -55,7 +55,7 @@ def capture_records(
     recorded batch as it is fed.
     """
     impacts = ImpactCapture(capture)
-    quantity = {force_topic: FORCE, velocity_topic: VELOCITY}
+    quantity = {force_topic: FORCE.quantity, velocity_topic: VELOCITY.quantity}
 
     def tagged(records: list[ImpactRecord]) -> Iterator[ImpactRecord]:
         for record in records:

@@ -2,7 +2,7 @@
 
 The RMS of the velocity residual beyond the noise, sqrt(max(mean r^2 - s^2, 0)), over the
 motion (hit to the model's rest + `SETTLE_S`) of every impact, divided by the largest measured
-speed; and the mobility misfit beyond the noise over f_n/2 to `FRF_BAND_LIMIT_HZ`. The raw
+speed; and the mobility misfit beyond the noise over f_n/2 to `MISFIT_BAND_LIMIT_HZ`. The raw
 RMS could not halve for effects the size of the noise; the excess can, and reaches the noise
 floor when the effect is captured. `input_noise_allowance` is what the force noise alone puts
 into a residual, which no model term may claim as evidence.
@@ -13,18 +13,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ, SETTLE_S
 from fmm_ros.core.diagnose import signatures as discrepancy
 from fmm_ros.core.identify.conditioning import ConditionedImpact
 from fmm_ros.core.identify.friction import ModelFit
 from fmm_ros.core.physics.model import simulate
 from fmm_ros.core.signal import frf
-
-SETTLE_S = 1.0
-"""The gap's motion window runs this long past the base model's rest."""
-
-
-FRF_BAND_LIMIT_HZ = 20.0
-"""Top of the FRF misfit band (f_n and its odd harmonics to the 9th, the paper's Fig. 24)."""
 
 
 def motion_window(model_m_s: np.ndarray, hit_index: int, sample_rate_hz: float) -> slice:
@@ -54,14 +48,14 @@ def frf_gap(
     """Mobility misfit beyond the noise, relative to the measured mobility [-].
 
     sqrt((sum |R/F|^2 - n s^2 sum 1/|F|^2) / sum |V/F|^2) over the bins from f_n / 2 to
-    FRF_BAND_LIMIT_HZ and over impacts, R, V, F the DFTs of residual, measured velocity and
+    MISFIT_BAND_LIMIT_HZ and over impacts, R, V, F the DFTs of residual, measured velocity and
     conditioned force: the residual is the model's mobility error times F.
     """
     misfit = noise = total = 0.0
     for impact, residual in zip(impacts, residuals, strict=True):
         n = residual.size
         frequency = frf.frequency_axis(n, impact.sample_rate_hz)
-        band = (frequency >= 0.5 * natural_frequency_hz) & (frequency <= FRF_BAND_LIMIT_HZ)
+        band = (frequency >= 0.5 * natural_frequency_hz) & (frequency <= MISFIT_BAND_LIMIT_HZ)
         force, velocity = frf.spectra(impact.force_n, impact.velocity_m_s)
         _, error = frf.spectra(impact.force_n, residual)
         inverse_power = 1.0 / np.maximum(np.abs(force[band]) ** 2, np.finfo(float).tiny)

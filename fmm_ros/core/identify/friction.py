@@ -17,6 +17,7 @@ import numpy as np
 import scipy.fft
 import scipy.stats
 
+from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ, PAPER_MU
 from fmm_ros.core._checks import require_positive
 from fmm_ros.core.identify.conditioning import (
     ConditionedImpact,
@@ -31,7 +32,6 @@ from fmm_ros.core.identify.lsq import (
     levenberg_marquardt,
 )
 from fmm_ros.core.identify.output_error import (
-    DEFAULT_BAND_LIMIT_HZ,
     JACOBIANS,
     MISFITS,
     BuiltModel,
@@ -39,7 +39,7 @@ from fmm_ros.core.identify.output_error import (
     fit_uncertainty,
 )
 from fmm_ros.core.physics.model import INTEGRATORS, Simulation, simulate
-from fmm_ros.core.physics.rig import FMM_RIG, PAPER_MU, Rig
+from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import MODEL_TERMS, ModelTerm
 
 MU_BOUNDS = (1e-3, 1.0)
@@ -289,7 +289,7 @@ def fit_model(
     fixed_effects: Sequence[ModelTerm] = (),
     fit_initial_position: bool = False,
     misfit: str = 'time',
-    band_limit_hz: float = DEFAULT_BAND_LIMIT_HZ,
+    band_limit_hz: float = MISFIT_BAND_LIMIT_HZ,
     integrator: str = 'exact',
     jacobian: str = 'blocks',
 ) -> ModelFit:
@@ -528,7 +528,7 @@ def fit_friction(
     fit_initial_position: bool = False,
     mu_bounds: tuple[float, float] = MU_BOUNDS,
     misfit: str = 'time',
-    band_limit_hz: float = DEFAULT_BAND_LIMIT_HZ,
+    band_limit_hz: float = MISFIT_BAND_LIMIT_HZ,
     integrator: str = 'exact',
     jacobian: str = 'blocks',
 ) -> FrictionFit:

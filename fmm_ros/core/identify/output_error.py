@@ -46,7 +46,6 @@ JACOBIANS = ('blocks', 'dense')
 plain way, kept as the reference the blocks are checked and benchmarked against)."""
 
 
-DEFAULT_BAND_LIMIT_HZ = 20.0
 """Upper end of the mobility misfit band: f_n and its odd harmonics to the 9th (paper Fig. 24)."""
 
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ
 from fmm_ros.core._checks import require_positive
 from fmm_ros.core.identify.conditioning import (
     ConditionedImpact,
@@ -32,7 +33,6 @@ from fmm_ros.core.identify.lsq import (
     levenberg_marquardt,
 )
 from fmm_ros.core.identify.output_error import (
-    DEFAULT_BAND_LIMIT_HZ,
     BuiltModel,
     OutputError,
     fit_uncertainty,
@@ -350,7 +350,7 @@ def _rig_from_impacts(
         mass, stiffness, damping = _rig_constants(theta, np.zeros((3, 3)))[0]
         return BuiltModel(Rig(mass, stiffness, damping, 0.0), 0.0, ())
 
-    problem = OutputError(impacts, build, 'time', DEFAULT_BAND_LIMIT_HZ, integrator, frequency0)
+    problem = OutputError(impacts, build, 'time', MISFIT_BAND_LIMIT_HZ, integrator, frequency0)
     lower = np.array([0.5 * mass0, 0.8 * frequency0, 0.0])
     upper = np.array([2.0 * mass0, 1.25 * frequency0, 0.5])
     typical = np.array([mass0, frequency0, max(start[2], 1e-4)])

@@ -30,14 +30,14 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
+from fmm_ros.constants import PAPER_MU
 from fmm_ros.core._checks import (
     finite_samples,
     require_finite,
     require_positive,
 )
-from fmm_ros.core._checks import sample_rate_from_times as sample_rate_from_times  # re-export
 from fmm_ros.core.physics import _kernels as kernels
-from fmm_ros.core.physics.rig import FMM_RIG, PAPER_MU, Rig
+from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import ModelSpec, ModelTerm, model_spec
 
 MIN_SAMPLES_PER_PERIOD = 20

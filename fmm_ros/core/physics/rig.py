@@ -12,13 +12,8 @@ from fmm_ros.core._checks import (
     require_non_negative,
     require_positive,
 )
-from fmm_ros.core._checks import sample_rate_from_times as sample_rate_from_times  # re-export
 
 STANDARD_GRAVITY_M_S2 = 9.81
-
-
-PAPER_MU = 0.113
-"""Best-fit Coulomb friction coefficient of the paper's PTFE pin on lubricated steel."""
 
 
 FMM_NORMAL_LOAD_KG = 0.680

@@ -19,7 +19,6 @@ from fmm_ros.core._checks import (
     require_non_negative,
     require_positive,
 )
-from fmm_ros.core._checks import sample_rate_from_times as sample_rate_from_times  # re-export
 from fmm_ros.core.physics.rig import Rig
 
 

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fmm_ros.constants import LEVEL_TOLERANCE_N, PAPER_LEVELS
 from fmm_ros.core.signal import frf
 from fmm_ros.core.signal.capture import (
     DEFAULT_CAPTURE,
@@ -35,15 +36,14 @@ class NominalLevel:
 
     name: str
     peak_force_n: float
-    tolerance_n: float = 50.0
+    tolerance_n: float = LEVEL_TOLERANCE_N
 
 
-# The paper's three levels (Sec. 4): 450, 1000 and 1450 N, impacts accepted within +-50 N.
-PAPER_LEVELS: tuple[NominalLevel, ...] = (
-    NominalLevel('low', 450.0),
-    NominalLevel('medium', 1000.0),
-    NominalLevel('high', 1450.0),
-)
+def paper_levels(tolerance_n: float = LEVEL_TOLERANCE_N) -> tuple[NominalLevel, ...]:
+    """The paper's three levels (Sec. 4: 450, 1000 and 1450 N) as nominal levels, +-50 N."""
+    return tuple(
+        NominalLevel(level.name, level.peak_force_n, tolerance_n) for level in PAPER_LEVELS
+    )
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fmm_ros.constants import FORCE, VELOCITY
 from fmm_ros.core.signal.frf import first_true
 from fmm_ros.core.signal.records import Gaps, ImpactRecord
 
@@ -41,8 +42,6 @@ FLAGS: tuple[str, ...] = (
     'overlap',
     'out_of_tolerance',
 )
-FORCE = 'force'
-VELOCITY = 'velocity'
 # Largest block processed in one step: bounds the ring a huge batch would otherwise need.
 MAX_STEP_SAMPLES = 4096
 
@@ -329,8 +328,8 @@ class _OpenImpact:
         # Record length [samples]: the window, or shorter once the rig is found at rest.
         self.end = force.size
         self.end_found = False
-        self.buffers = {FORCE: force, VELOCITY: velocity}
-        self.gaps: dict[str, list[tuple[int, int]]] = {FORCE: [], VELOCITY: []}
+        self.buffers = {FORCE.quantity: force, VELOCITY.quantity: velocity}
+        self.gaps: dict[str, list[tuple[int, int]]] = {FORCE.quantity: [], VELOCITY.quantity: []}
         # Rest search: next record index to examine and the at-rest run ending just before it.
         self.rest_position = pretrigger
         self.rest_run = 0
@@ -412,8 +411,10 @@ class ImpactCapture:
 
         Equivalent to feeding the two channels batch by batch, whatever the block length.
         """
-        force_n = self._checked(FORCE, first_sample_index, force_n, sample_rate_hz)
-        velocity_m_s = self._checked(VELOCITY, first_sample_index, velocity_m_s, sample_rate_hz)
+        force_n = self._checked(FORCE.quantity, first_sample_index, force_n, sample_rate_hz)
+        velocity_m_s = self._checked(
+            VELOCITY.quantity, first_sample_index, velocity_m_s, sample_rate_hz
+        )
         if force_n.shape != velocity_m_s.shape:
             raise ValueError(
                 f'force has {force_n.size} samples but velocity has '
@@ -421,9 +422,9 @@ class ImpactCapture:
             )
         if force_n.size == 0:
             return []
-        force = self._begin(FORCE, first_sample_index, sample_rate_hz, force_full_scale_n)
+        force = self._begin(FORCE.quantity, first_sample_index, sample_rate_hz, force_full_scale_n)
         velocity = self._begin(
-            VELOCITY, first_sample_index, sample_rate_hz, velocity_full_scale_m_s
+            VELOCITY.quantity, first_sample_index, sample_rate_hz, velocity_full_scale_m_s
         )
         done = self._settle()
         for low in range(0, force_n.size, MAX_STEP_SAMPLES):
@@ -458,8 +459,10 @@ class ImpactCapture:
         self, quantity: str, first_sample_index: int, samples: np.ndarray, sample_rate_hz: float
     ) -> np.ndarray:
         """The batch as a float array, or ValueError (state untouched) if it cannot be taken."""
-        if quantity not in (FORCE, VELOCITY):
-            raise ValueError(f"quantity must be '{FORCE}' or '{VELOCITY}', got {quantity!r}")
+        if quantity not in (FORCE.quantity, VELOCITY.quantity):
+            raise ValueError(
+                f"quantity must be '{FORCE.quantity}' or '{VELOCITY.quantity}', got {quantity!r}"
+            )
         samples = np.asarray(samples, dtype=float)
         if samples.ndim != 1:
             raise ValueError(
@@ -501,7 +504,9 @@ class ImpactCapture:
         capacity = samples.pretrigger + samples.max_skew + MAX_STEP_SAMPLES + 1
         self.sample_rate_hz = float(sample_rate_hz)
         self._samples = samples
-        self._channels = {name: _Channel(name, capacity, origin) for name in (FORCE, VELOCITY)}
+        self._channels = {
+            name: _Channel(name, capacity, origin) for name in (FORCE.quantity, VELOCITY.quantity)
+        }
         self._detector = TriggerDetector(self.config, sample_rate_hz)
         # One warm pair of record buffers (page faults now, not on the first impact).
         self._pool.append((np.zeros(samples.window), np.zeros(samples.window)))
@@ -513,7 +518,7 @@ class ImpactCapture:
         channel.next_index = first + samples.size
         for impact in self._open:
             impact.put(channel.name, first, samples)
-        if channel.name == FORCE:
+        if channel.name == FORCE.quantity:
             for trigger in self._detector.scan(samples, first):
                 self._open_impact(trigger)
 
@@ -561,7 +566,7 @@ class ImpactCapture:
         if leading.next_index - lagging.next_index > self._samples.max_skew:
             self._declare_missing(lagging, leading.next_index - self._samples.max_skew)
         if self.config.end_at_rest:
-            velocity_next = self._channels[VELOCITY].next_index
+            velocity_next = self._channels[VELOCITY.quantity].next_index
             for impact in self._open:
                 self._search_rest(impact, velocity_next)
         complete_below = min(channel.next_index for channel in self._channels.values())
@@ -577,7 +582,7 @@ class ImpactCapture:
         stop = min(velocity_next - impact.start, impact.end)
         if impact.end_found or stop <= impact.rest_position:
             return
-        block = impact.buffers[VELOCITY][impact.rest_position : stop]
+        block = impact.buffers[VELOCITY.quantity][impact.rest_position : stop]
         moving = np.flatnonzero(~(np.abs(block) <= self.config.rest_velocity_m_s))
         # Runs of rest between moving samples; the first starts rest_run samples back.
         run_starts = np.concatenate(([-impact.rest_run], moving + 1))
@@ -606,16 +611,16 @@ class ImpactCapture:
             return tuple(merged)
 
         return ImpactRecord(
-            force_n=impact.buffers[FORCE][: impact.end],
-            velocity_m_s=impact.buffers[VELOCITY][: impact.end],
+            force_n=impact.buffers[FORCE.quantity][: impact.end],
+            velocity_m_s=impact.buffers[VELOCITY.quantity][: impact.end],
             sample_rate_hz=self.sample_rate_hz,
             record_start_sample_index=impact.start,
             trigger_sample_index=impact.trigger,
             window_samples=self._samples.window,
-            force_full_scale_n=self._channels[FORCE].full_scale,
-            velocity_full_scale_m_s=self._channels[VELOCITY].full_scale,
-            force_gaps=gaps(FORCE),
-            velocity_gaps=gaps(VELOCITY),
+            force_full_scale_n=self._channels[FORCE.quantity].full_scale,
+            velocity_full_scale_m_s=self._channels[VELOCITY.quantity].full_scale,
+            force_gaps=gaps(FORCE.quantity),
+            velocity_gaps=gaps(VELOCITY.quantity),
         )
 
 

@@ -8,9 +8,10 @@ One ring per channel, preallocated; samples that never arrived are NaN.
 
 import numpy as np
 
+from fmm_ros.constants import CHANNELS
 from fmm_ros.core.signal.records import ImpactRecord
 
-CHANNELS = ('force', 'velocity')
+QUANTITIES = tuple(channel.quantity for channel in CHANNELS)
 
 
 class SampleHistory:
@@ -21,10 +22,10 @@ class SampleHistory:
             raise ValueError(f'capacity_samples must be at least 1, got {capacity_samples}')
         self.capacity = int(capacity_samples)
         self.sample_rate_hz: float | None = None
-        self._rings = {name: np.full(self.capacity, np.nan) for name in CHANNELS}
+        self._rings = {name: np.full(self.capacity, np.nan) for name in QUANTITIES}
         # Next index each channel expects; None until its first batch.
-        self._next: dict[str, int | None] = dict.fromkeys(CHANNELS)
-        self._full_scale = dict.fromkeys(CHANNELS, 0.0)
+        self._next: dict[str, int | None] = dict.fromkeys(QUANTITIES)
+        self._full_scale = dict.fromkeys(QUANTITIES, 0.0)
 
     def next_index(self, quantity: str) -> int | None:
         """The index after the last sample held for a channel (None before any)."""
@@ -39,7 +40,7 @@ class SampleHistory:
         full_scale: float = 0.0,
     ) -> None:
         """Store a batch; a jump ahead leaves NaN, a batch from the past is refused."""
-        if quantity not in CHANNELS:
+        if quantity not in QUANTITIES:
             raise ValueError(f"quantity must be 'force' or 'velocity', got {quantity!r}")
         if self.sample_rate_hz is None:
             self.sample_rate_hz = float(sample_rate_hz)

@@ -5,7 +5,6 @@ writer takes numpy arrays or raw CDR bytes (writer.py); the reader yields aligne
 velocity batches and decoded results, and recovers what a crash or damage left (reader.py).
 """
 
-from fmm_ros.constants import FRF_TOPIC, IMPACTS_TOPIC
 from fmm_ros.io.bags.definitions import (
     FRF_SUMMARY,
     IMPACT_RESULT,
@@ -25,10 +24,6 @@ from fmm_ros.io.bags.reader import (
 )
 from fmm_ros.io.bags.writer import (
     DEFAULT_BATCH_SIZE,
-    FORCE,
-    FORCE_TOPIC,
-    VELOCITY,
-    VELOCITY_TOPIC,
     BagWriter,
 )
 
@@ -42,18 +37,12 @@ __all__ = [
     'BatchAligner',
     'ChannelBatch',
     'DEFAULT_BATCH_SIZE',
-    'FORCE',
-    'FORCE_TOPIC',
     'FRF_SUMMARY',
-    'FRF_TOPIC',
-    'IMPACTS_TOPIC',
     'IMPACT_RESULT',
     'MissingTopicError',
     'SAMPLE_BATCH',
     'TopicInfo',
     'MessageTypeError',
-    'VELOCITY',
-    'VELOCITY_TOPIC',
     'find_definitions',
     'fmm_typestore',
     'new_message',

@@ -12,7 +12,14 @@ from collections import deque
 from rclpy.node import Node
 
 from fmm_interfaces.msg import FrfSummary, ImpactResult, SampleBatch
-from fmm_ros.constants import FORCE_TOPIC, FRF_TOPIC, IMPACTS_TOPIC, VELOCITY_TOPIC
+from fmm_ros.constants import (
+    FORCE_TOPIC,
+    FRF_TOPIC,
+    IMPACTS_TOPIC,
+    LEVEL_TOLERANCE_N,
+    PAPER_LEVELS,
+    VELOCITY_TOPIC,
+)
 from fmm_ros.core.signal.analysis import AnalysisConfig, NominalLevel, analyze_impact, summarize
 from fmm_ros.core.signal.analysis import ImpactResult as CoreImpactResult
 from fmm_ros.core.signal.capture import FLAGS, CaptureConfig, ImpactCapture
@@ -117,20 +124,20 @@ PARAMS = (
     ),
     Param(
         'level_names',
-        ['low', 'medium', 'high'],
+        [level.name for level in PAPER_LEVELS],
         'Nominal force level names; [""] to cluster peak forces instead',
         read_only=True,
     ),
     Param(
         'level_peak_forces_n',
-        [450.0, 1000.0, 1450.0],
+        [level.peak_force_n for level in PAPER_LEVELS],
         'Nominal peak force per level [N]',
         limits=(0.0, 1e6),
         read_only=True,
     ),
     Param(
         'level_tolerance_n',
-        50.0,
+        LEVEL_TOLERANCE_N,
         'Acceptance band around each nominal peak [N]',
         limits=(0.0, 1e6),
         read_only=True,

@@ -20,7 +20,7 @@ from rclpy.duration import Duration
 from rclpy.node import Node
 
 from fmm_interfaces.msg import SampleBatch
-from fmm_ros.constants import FORCE_TOPIC, VELOCITY_TOPIC
+from fmm_ros.constants import FORCE, FORCE_TOPIC, SAMPLE_RATE_HZ, VELOCITY, VELOCITY_TOPIC
 from fmm_ros.io.labfiles import ChannelMapping, ImportMapping, load_mapping, read_lab_file
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import SAMPLE_QOS, BatchPacer, run_node
@@ -36,7 +36,7 @@ PARAMS = (
     Param('backend', 'nidaqmx', 'Acquisition backend', choices=('nidaqmx', 'file'), read_only=True),
     Param(
         'sample_rate_hz',
-        10_000.0,
+        SAMPLE_RATE_HZ,
         'Sample clock of the device (nidaqmx) [Hz]',
         limits=(1.0, 1e7),
         read_only=True,
@@ -132,11 +132,11 @@ class Daq(Node):
             self._start_stamp + Duration(nanoseconds=round(first_sample_index / rate * 1e9))
         ).to_msg()
         for publisher, samples, quantity, frame, full_scale in (
-            (self._force_pub, force_n, msgs.FORCE, 'hammer', self.backend.force_full_scale),
+            (self._force_pub, force_n, FORCE, 'hammer', self.backend.force_full_scale),
             (
                 self._velocity_pub,
                 velocity_m_s,
-                msgs.VELOCITY,
+                VELOCITY,
                 'vibrometer',
                 self.backend.velocity_full_scale,
             ),

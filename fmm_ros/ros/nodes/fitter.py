@@ -20,22 +20,21 @@ from rclpy.node import Node
 
 from fmm_interfaces.msg import ImpactResult, SampleBatch
 from fmm_interfaces.srv import DiagnoseModel, FitFriction
-from fmm_ros.constants import FORCE_TOPIC, IMPACTS_TOPIC, VELOCITY_TOPIC
+from fmm_ros.constants import (
+    DIAGNOSE_SERVICE,
+    FIT_SERVICE,
+    FORCE_TOPIC,
+    IMPACTS_TOPIC,
+    SAMPLE_RATE_HZ,
+    VELOCITY_TOPIC,
+)
 from fmm_ros.core.diagnose.workflow import diagnose
 from fmm_ros.core.identify.conditioning import FitError
 from fmm_ros.core.identify.friction import MU_BOUNDS, fit_friction
 from fmm_ros.core.signal.history import SampleHistory
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import (
-    DIAGNOSE_SERVICE,
-    FIT_SERVICE,
-    RESULT_QOS,
-    RIG_PARAMS,
-    SAMPLE_QOS,
-    rig_from_parameters,
-    run_node,
-)
+from fmm_ros.ros.common import RESULT_QOS, RIG_PARAMS, SAMPLE_QOS, rig_from_parameters, run_node
 from fmm_ros.ros.params import Param, declare_parameters
 
 PARAMS = (
@@ -63,7 +62,7 @@ PARAMS = (
     ),
     Param(
         'sample_rate_hz',
-        10_000.0,
+        SAMPLE_RATE_HZ,
         'Expected sample rate, sizes the history [Hz]',
         limits=(1.0, 1e7),
         read_only=True,

@@ -12,7 +12,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from fmm_interfaces.msg import SampleBatch
-from fmm_ros.constants import APPLIED_FORCE_TOPIC, FORCE_TOPIC
+from fmm_ros.constants import APPLIED_FORCE_TOPIC, FORCE, FORCE_TOPIC, PAPER_LEVELS, SAMPLE_RATE_HZ
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import SAMPLE_QOS, BatchPacer, run_node
 from fmm_ros.ros.params import Param, declare_parameters
@@ -21,7 +21,7 @@ from fmm_ros.sim.hammer import HammerStream, session_schedule
 PARAMS = (
     Param(
         'sample_rate_hz',
-        10_000.0,
+        SAMPLE_RATE_HZ,
         'Sampling rate of the force channel [Hz]',
         limits=(100.0, 1e6),
         read_only=True,
@@ -41,13 +41,13 @@ PARAMS = (
     ),
     Param(
         'level_names',
-        ['low', 'medium', 'high'],
+        [level.name for level in PAPER_LEVELS],
         'Names of the force levels, in order',
         read_only=True,
     ),
     Param(
         'level_peak_forces_n',
-        [450.0, 1000.0, 1450.0],
+        [level.peak_force_n for level in PAPER_LEVELS],
         'Nominal peak force per level [N]',
         limits=(1.0, 50_000.0),
         read_only=True,
@@ -200,7 +200,7 @@ class HammerSim(Node):
         self.stream.applied(first, self._applied)
         self.stream.measured(self._applied, first, self._measured)
         common = dict(
-            quantity=msgs.FORCE,
+            quantity=FORCE,
             sample_rate_hz=rate,
             first_sample_index=first,
             stamp=stamp,

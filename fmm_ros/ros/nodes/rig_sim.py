@@ -11,9 +11,8 @@ import numpy as np
 from rclpy.node import Node
 
 from fmm_interfaces.msg import SampleBatch
-from fmm_ros.constants import APPLIED_FORCE_TOPIC, VELOCITY_TOPIC
+from fmm_ros.constants import APPLIED_FORCE_TOPIC, PAPER_MU, VELOCITY, VELOCITY_TOPIC
 from fmm_ros.core.physics.model import INTEGRATORS, OscillatorStream
-from fmm_ros.core.physics.rig import PAPER_MU
 from fmm_ros.core.physics.terms import parse_model_term
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import RIG_PARAMS, SAMPLE_QOS, rig_from_parameters, run_node
@@ -113,7 +112,7 @@ class RigSim(Node):
         velocity = self._step(force)
         out = msgs.sample_batch(
             velocity,
-            quantity=msgs.VELOCITY,
+            quantity=VELOCITY,
             sample_rate_hz=self._sample_rate_hz,
             first_sample_index=msg.first_sample_index,
             stamp=msg.header.stamp,
