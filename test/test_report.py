@@ -78,10 +78,9 @@ def write_double_hit(path, seed):
     write_impact_csv(path, force, velocity, RATE_HZ)
 
 
-@pytest.fixture(scope='module')
-def csv_session(tmp_path_factory):
-    """A session written as per-impact CSV files, reported by `fmm report` (mu fitted)."""
-    folder = tmp_path_factory.mktemp('session')
+def write_csv_session(folder):
+    """A session written as per-impact CSV files in folder, reported by `fmm report` (mu
+    fitted) into folder/report."""
     for seed, (name, peak) in enumerate(PEAKS_N.items()):
         hit = impact_record(peak, rng=seed, duration_s=DURATION_S)
         write_impact_csv(folder / f'{name}.csv', hit.force_n, hit.velocity_m_s, RATE_HZ)
@@ -93,6 +92,11 @@ def csv_session(tmp_path_factory):
                      '--force-full-scale-n', str(FULL_SCALE_N), '--dpi', str(TEST_DPI)])
     return {'code': code, 'out': out, 'inputs': inputs, 'clipped': clipped,
             'page': (out / 'index.html').read_text(encoding='utf-8')}
+
+
+@pytest.fixture(scope='module')
+def csv_session(tmp_path_factory):
+    return write_csv_session(tmp_path_factory.mktemp('session'))
 
 
 class _HitTable(html.parser.HTMLParser):
@@ -134,9 +138,8 @@ def check_figures(out, page, expected):
     """Every expected figure is a readable PNG, linked from the page and embedded byte for byte."""
     pngs = {path.stem: path for path in out.glob('*.png')}
     assert set(pngs) == set(expected)
-    embedded = dict(re.findall(r'<img src="data:image/png;base64,([A-Za-z0-9+/=]+)" '
-                               r'alt="([^"]+)\.png">', page))
-    embedded = {name: data for data, name in embedded.items()}
+    embedded = dict(re.findall(r'<figure id="fig-([^"]+)">'
+                               r'<img src="data:image/png;base64,([A-Za-z0-9+/=]+)"', page))
     assert set(embedded) == set(expected)
     for name, path in pngs.items():
         data = path.read_bytes()
