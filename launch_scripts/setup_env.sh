@@ -5,7 +5,8 @@
 #
 # Each step is skipped when the inputs it depends on are unchanged (hashes kept in
 # .venv/.fmm_setup/), so a re-run with nothing changed takes about a second.
-# Writes only inside the repo (.venv/, build/); pip keeps no cache outside it.
+# Writes only inside the repo (.venv/, build/); pip keeps no cache outside it. The one
+# exception is Debian's chromium, installed system-wide with apt-get when missing (step 5).
 set -euo pipefail
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -22,6 +23,10 @@ die() { printf '[setup] error: %s\n' "$*" >&2; exit 1; }
 inputs_hash() { (for f in "$@"; do printf '%s\n' "${f#"$ROOT"/}"; cat "$f"; done) | sha256sum | cut -c1-16; }
 is_current() { [ -f "$STAMPS/$1" ] && [ "$(cat "$STAMPS/$1")" = "$2" ]; }
 mark_current() { printf '%s\n' "$2" >"$STAMPS/$1"; }
+
+# Playwright (a test dependency) drives the system's chromium (step 5): pip installs it
+# without a browser, and this keeps anything in the setup from fetching one of its own.
+export PLAYWRIGHT_SKIP_BROWSER_DOWNLOAD=1
 
 # pip's per-package warnings about the machine's local index mirrors are noise here.
 quiet_pip() {
@@ -85,6 +90,27 @@ if ! is_current fmm_ros "$pkg_key"; then
   quiet_pip install --quiet --no-deps --no-build-isolation --editable "$ROOT"
   "$VENV/bin/python" "$SETUP/install_ament_layout.py" --prefix "$VENV"
   mark_current fmm_ros "$pkg_key"
+fi
+
+# 5. Chromium, for the test that opens the HTML report in a real browser
+#    (test/test_report_browser.py; Playwright in the venv drives it): a Debian package, so
+#    it is not in the venv. Skipped when present (a re-run costs one `command -v`); the
+#    first install (apt's lists updated, then 25 packages, 113 MB, without the recommended
+#    extras) took 11 s here.
+if ! command -v chromium >/dev/null; then
+  [ "$(id -u)" -eq 0 ] || die "Debian's chromium is not installed (the report's browser test needs it) and only root can install it: run 'sudo apt-get install --no-install-recommends chromium', then this script again"
+  command -v apt-get >/dev/null || die "chromium is not installed and there is no apt-get to install it with (the report's browser test needs /usr/bin/chromium)"
+  say "installing Debian's chromium (the report's browser test)"
+  log="$ROOT/build/apt-chromium.log"
+  mkdir -p "$ROOT/build"
+  if ! (
+    export DEBIAN_FRONTEND=noninteractive
+    apt-get update -q && apt-get install -y -q --no-install-recommends chromium
+  ) >"$log" 2>&1; then
+    tail -n 20 "$log" >&2
+    die "installing chromium with apt-get failed; full log in $log"
+  fi
+  command -v chromium >/dev/null || die "apt-get installed chromium, but no chromium is on PATH"
 fi
 
 say "ready: $VENV (python: $VENV/bin/python, CLI: $VENV/bin/fmm)"

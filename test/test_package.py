@@ -90,7 +90,8 @@ def test_pip_only_keys_are_defined_for_rosdep_and_pinned():
     definitions = yaml.safe_load((REPO / 'rosdep' / 'fmm_ros.yaml').read_text())
     requirements = (REPO / 'launch_scripts' / 'setup' / 'requirements.txt').read_text()
     package = parse_package(str(REPO / 'package.xml'))
-    for key in (dep.name for dep in package.exec_depends if dep.name.endswith('-pip')):
+    depends = package.exec_depends + package.test_depends
+    for key in (dep.name for dep in depends if dep.name.endswith('-pip')):
         assert key in definitions, f'{key} is not defined in rosdep/fmm_ros.yaml'
         for platform in definitions[key].values():
             for name in platform['pip']['packages']:

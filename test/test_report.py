@@ -90,10 +90,9 @@ def write_double_hit(path, seed):
     write_impact_csv(path, force, velocity, RATE_HZ)
 
 
-@pytest.fixture(scope='module')
-def csv_session(tmp_path_factory):
-    """A session written as per-impact CSV files, reported by `fmm report` (mu fitted)."""
-    folder = tmp_path_factory.mktemp('session')
+def write_csv_session(folder):
+    """A session written as per-impact CSV files in folder, reported by `fmm report` (mu
+    fitted) into folder/report."""
     for seed, (name, peak) in enumerate(PEAKS_N.items()):
         hit = impact_record(peak, rng=seed, duration_s=DURATION_S)
         write_impact_csv(folder / f'{name}.csv', hit.force_n, hit.velocity_m_s, RATE_HZ)
@@ -121,6 +120,11 @@ def csv_session(tmp_path_factory):
         'clipped': clipped,
         'page': (out / 'index.html').read_text(encoding='utf-8'),
     }
+
+
+@pytest.fixture(scope='module')
+def csv_session(tmp_path_factory):
+    return write_csv_session(tmp_path_factory.mktemp('session'))
 
 
 class _HitTable(html.parser.HTMLParser):
@@ -164,12 +168,11 @@ def check_figures(out, page, expected):
     assert set(pngs) == set(expected)
     embedded = dict(
         re.findall(
-            r'<img src="data:image/png;base64,([A-Za-z0-9+/=]+)" '
-            r'alt="([^"]+)\.png">',
+            r'<figure id="fig-([^"]+)">'
+            r'<img src="data:image/png;base64,([A-Za-z0-9+/=]+)"',
             page,
         )
     )
-    embedded = {name: data for data, name in embedded.items()}
     assert set(embedded) == set(expected)
     for name, path in pngs.items():
         data = path.read_bytes()

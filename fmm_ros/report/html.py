@@ -14,7 +14,9 @@ from collections.abc import Sequence
 from datetime import datetime, timezone
 from pathlib import Path
 
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.legend import Legend
 
 from fmm_ros.report.plotting import DEFAULT_DPI, png_bytes
 
@@ -52,6 +54,69 @@ def escape(value: object) -> str:
 def link(href: str, text: object) -> Markup:
     """An <a> element with escaped target and text."""
     return Markup(f'<a href="{html.escape(href, quote=True)}">{escape(text)}</a>')
+
+
+def alt_text(figure: Figure) -> str:
+    """What a figure shows, in the words a sighted reader reads on it ('' if it has none).
+
+    Its title, then each panel's title, quantity against what, and legend: the page's alt
+    text for the figure (for a screen reader, or where the image does not load). Taken from
+    the figure itself, it names what is plotted in every figure and stays true when a figure
+    changes; the caption beside it says what the plot means.
+    """
+    panels = []
+    for ax in figure.axes:
+        titles = ', '.join(filter(None, (ax.get_title(loc) for loc in ('left', 'center', 'right'))))
+        legend = ax.get_legend()
+        panels.append(
+            ' '.join(
+                filter(
+                    None,
+                    (
+                        f'{titles}:' if titles else '',
+                        ' against '.join(filter(None, (ax.get_ylabel(), _x_label(ax)))),
+                        f'(legend: {_legend_text(legend)})' if legend is not None else '',
+                    ),
+                )
+            )
+        )
+    panels = [panel for panel in panels if panel]
+    text = ' '.join(
+        filter(
+            None,
+            (
+                f'{figure.get_suptitle()}.' if figure.get_suptitle() else '',
+                f'{len(panels)} panels:' if len(panels) > 1 else '',
+                '; '.join(panels) + '.' if panels else '',
+                *(f'Legend: {_legend_text(legend)}.' for legend in figure.legends),
+            ),
+        )
+    )
+    return ' '.join(text.split())  # one line: labels may break theirs
+
+
+def _x_label(ax: Axes) -> str:
+    """The axes' x label, else the one of the nearest panel below it in its column.
+
+    Stacked panels label only the bottom one, and a reader takes that label for all.
+    """
+    spec = ax.get_subplotspec()
+    if ax.get_xlabel() or spec is None:
+        return ax.get_xlabel()
+    below = [
+        (other_spec.rowspan.start, other.get_xlabel())
+        for other in ax.figure.axes
+        if (other_spec := other.get_subplotspec()) is not None
+        and other.get_xlabel()
+        and other_spec.colspan == spec.colspan
+        and other_spec.rowspan.start > spec.rowspan.start
+    ]
+    return min(below)[1] if below else ''
+
+
+def _legend_text(legend: Legend) -> str:
+    """A legend's entries, comma separated."""
+    return ', '.join(text.get_text() for text in legend.get_texts())
 
 
 class Page:
@@ -124,7 +189,8 @@ class Page:
     def figure(self, name: str, figure: Figure, caption: object, *, keep: bool = False) -> Path:
         """Render the figure to `<name>.png` next to the page and embed the same PNG.
 
-        The figure is cleared afterwards unless keep (the caller draws into it again).
+        Its alt text is made of the figure's own words (`alt_text`). The figure is cleared
+        afterwards unless keep (the caller draws into it again).
         """
         if not _NAME.match(name):
             raise ValueError(f'figure name {name!r} must be letters, digits, _ . - only')
@@ -132,6 +198,7 @@ class Page:
         if path in self.figures:
             raise ValueError(f'figure {name!r} is already on the page')
         data = png_bytes(figure, self.dpi)
+        alt = alt_text(figure) or str(caption)  # a figure without words: its caption
         if not keep:
             figure.clear()
         path.write_bytes(data)
@@ -139,7 +206,7 @@ class Page:
         encoded = base64.b64encode(data).decode('ascii')
         self._body.append(
             f'<figure id="fig-{name}"><img src="data:image/png;base64,{encoded}" '
-            f'alt="{html.escape(name, quote=True)}.png"><figcaption>{escape(caption)} '
+            f'alt="{html.escape(alt, quote=True)}"><figcaption>{escape(caption)} '
             f'{link(path.name, f"[{path.name}]")}</figcaption></figure>'
         )
         return path
