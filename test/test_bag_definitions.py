@@ -46,6 +46,7 @@ def test_a_ros_workspace_is_found_through_the_ament_index(tmp_path):
     assert found.texts == {SAMPLE_BATCH: text} and str(prefix) in found.origin
 
 
+@pytest.mark.slow
 def test_a_plain_pip_install_carries_the_definitions_as_package_data(tmp_path):
     """Build a wheel as pip would, unpack it, and use it with no checkout and no ament."""
     source = tmp_path / 'src'

@@ -17,6 +17,8 @@ from fmm_ros.ros.nodes.recorder import Recorder
 from fmm_ros.ros.nodes.rig_sim import RigSim
 from fmm_ros.workflows.replay import replay_bag
 
+pytestmark = pytest.mark.ros
+
 
 @pytest.fixture(scope='module')
 def recorded_session(tmp_path_factory):
@@ -104,6 +106,7 @@ def test_recorder_refuses_an_unknown_storage(ros_graph, tmp_path):
         )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('signum', ['SIGINT', 'SIGTERM'])
 def test_fmm_record_records_live_topics_until_interrupted(tmp_path, signum):
     """`fmm record` in its own process beside a simulated rig; Ctrl-C or SIGTERM (what a

@@ -152,6 +152,7 @@ def test_bad_options_are_refused_by_the_parser(series, capsys):
     assert 'unknown flag' in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_installed_command_runs(series):
     fmm = Path(sys.executable).with_name('fmm')
     result = subprocess.run(

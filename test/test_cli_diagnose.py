@@ -9,6 +9,8 @@ from fmm_ros.cli import main
 from fmm_ros.core.signal.records import write_impact_csv
 from fmm_ros.sim.hidden_effects import hidden_effect_case
 
+pytestmark = pytest.mark.slow
+
 PNG_MAGIC = b'\x89PNG\r\n\x1a\n'
 
 

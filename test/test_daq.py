@@ -11,6 +11,8 @@ from fmm_ros.ros.nodes.analyzer import Analyzer
 from fmm_ros.ros.nodes.daq import Daq
 from fmm_ros.sim.excitation import impact_record
 
+pytestmark = pytest.mark.ros
+
 RATE_HZ = 10_000.0
 
 

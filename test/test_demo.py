@@ -7,6 +7,8 @@ import pytest
 from fmm_ros.cli import main
 from fmm_ros.io.bags.reader import BagReader
 
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
 
 def test_demo_json_reports_the_session_and_fits_the_plant_mu(tmp_path, capsys):
     out = tmp_path / 'demo'

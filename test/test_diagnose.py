@@ -17,6 +17,8 @@ from fmm_ros.core.identify.conditioning import FitError
 from fmm_ros.sim.excitation import impact_record
 from fmm_ros.sim.hidden_effects import HIDDEN_EFFECTS, hidden_effect_case
 
+pytestmark = pytest.mark.slow
+
 SEED = 2019
 
 # The parameter that sets each effect's size, and how close the refit must bring it.

@@ -13,6 +13,8 @@ from fmm_ros.ros.nodes.fitter import Fitter
 from fmm_ros.ros.nodes.hammer_sim import HammerSim
 from fmm_ros.ros.nodes.rig_sim import RigSim
 
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
 OFFSET_M_S = 3e-4  # three times the vibrometer noise
 
 

@@ -12,6 +12,8 @@ from fmm_ros.ros.nodes.fitter import Fitter
 from fmm_ros.ros.nodes.hammer_sim import HammerSim
 from fmm_ros.ros.nodes.rig_sim import RigSim
 
+pytestmark = pytest.mark.ros
+
 
 def fit_client(graph):
     return graph.add(Node, node_name='caller').create_client(FitFriction, FIT_SERVICE)

@@ -67,6 +67,7 @@ def test_the_sizing_matches_a_brute_force_fit_of_mu(effect):
     )
 
 
+@pytest.mark.slow
 def test_a_case_is_random_levels_with_the_issues_noise_and_reproducible():
     case = hidden_effect_case('stribeck', 5)
     again = hidden_effect_case('stribeck', 5)

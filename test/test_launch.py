@@ -16,6 +16,8 @@ from fmm_ros.ros.launch import (
     stop_processes,
 )
 
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
 
 def test_the_simulated_rig_runs_as_separate_processes(tmp_path, monkeypatch):
     domain = random.choice(PRIVATE_DOMAIN_IDS)

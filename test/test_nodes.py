@@ -13,6 +13,8 @@ from fmm_ros.ros.nodes.analyzer import Analyzer
 from fmm_ros.ros.nodes.hammer_sim import HammerSim
 from fmm_ros.ros.nodes.rig_sim import RigSim
 
+pytestmark = pytest.mark.ros
+
 
 def test_every_hit_of_a_session_is_reported_and_judged(ros_graph):
     hammer = ros_graph.add(HammerSim, parameter_overrides=params(**FAST_HAMMER))

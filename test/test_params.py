@@ -7,6 +7,8 @@ from rclpy.parameter import Parameter
 
 from fmm_ros.ros.params import Param, declare_parameters
 
+pytestmark = pytest.mark.ros
+
 PARAMS = (
     Param('rate_factor', 1.0, 'Speed-up against the wall clock [-]', limits=(0.01, 1000.0)),
     Param('batch_size', 500, 'Samples per message [-]', limits=(1, 100_000), read_only=True),

@@ -36,6 +36,8 @@ from fmm_ros.sim.excitation import hammer_pulse, impact_record
 from fmm_ros.sim.hidden_effects import hidden_effect_case
 from fmm_ros.sim.session import simulated_session
 
+pytestmark = pytest.mark.slow
+
 PNG_SIGNATURE = b'\x89PNG\r\n\x1a\n'
 RATE_HZ = 10_000.0
 # Long enough for the FMM to come to rest after the hardest hit (about 3.4 s) plus the 0.5 s

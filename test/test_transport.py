@@ -4,6 +4,7 @@ import array
 import threading
 
 import numpy as np
+import pytest
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
@@ -11,6 +12,8 @@ from fmm_interfaces.msg import SampleBatch
 from fmm_interfaces.srv import FitFriction
 from fmm_ros.constants import FORCE
 from fmm_ros.ros import msgs
+
+pytestmark = pytest.mark.ros
 
 QOS = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
 
