@@ -20,6 +20,8 @@ OPTIONAL_IMPORTS = {'nidaqmx': 'fmm_ros/ros/nodes/daq.py'}
 ROSDEP_KEYS = {
     'ament_index_python': 'ament_index_python',
     'builtin_interfaces': 'builtin_interfaces',
+    'dask': 'python3-dask-pip',
+    'distributed': 'python3-distributed-pip',
     'fmm_interfaces': 'fmm_interfaces',
     'h5py': 'python3-h5py',
     'lz4': 'python3-lz4',
@@ -28,6 +30,7 @@ ROSDEP_KEYS = {
     'numba': 'python3-numba',
     'numpy': 'python3-numpy',
     'PIL': 'python3-pil',
+    'pyarrow': 'python3-pyarrow-pip',
     'pyuff': 'python3-pyuff-pip',
     'rcl_interfaces': 'rcl_interfaces',
     'rclpy': 'rclpy',
