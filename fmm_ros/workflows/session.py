@@ -99,6 +99,8 @@ class FrictionSummary:
     """Where each impact's model started in the joint fit [m]; empty: all at 0."""
     consistency_p_value: float = math.nan
     """Chance of per-impact mus scattering this much if one mu served all (chi^2 test)."""
+    consistency_chi2: float = math.nan
+    """That test's sum of ((per-impact mu - mu) / its stderr)^2 (NaN for a single impact)."""
     residual_rms_m_s: float = math.nan
 
     def __post_init__(self) -> None:
@@ -127,6 +129,7 @@ class FrictionSummary:
             effects=joint.effects,
             initial_positions_m=joint.initial_positions_m,
             consistency_p_value=fit.consistency_p_value,
+            consistency_chi2=fit.consistency_chi2 if len(fit.per_impact) > 1 else math.nan,
             residual_rms_m_s=joint.residual_rms_m_s,
         )
 
