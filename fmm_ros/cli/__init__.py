@@ -24,6 +24,7 @@ SUBCOMMANDS: tuple[str, ...] = (
     'fit',
     'identify_rig',
     'diagnose',
+    'campaign',
 )
 
 
