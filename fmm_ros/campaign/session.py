@@ -145,6 +145,8 @@ class SessionResult:
     diagnosis_failure: str = ''
     seconds: dict[str, float] = field(default_factory=dict)
     """Wall time of each step where it was computed: read, analyse, fit, diagnose."""
+    cpu_seconds: float = math.nan
+    """Processor time the session took where it was computed (user and system) [s]."""
     key: str = ''
     """The cache key (data and settings hash); empty when the inputs could not be hashed."""
     cached: bool = False
@@ -263,13 +265,14 @@ def read_session(
 def compute_session(spec: SessionSpec, settings: SessionSettings) -> SessionResult:
     """Run the session's pipeline; data the pipeline refuses give a 'failed' result."""
     seconds: dict[str, float] = {}
-    clock = time.perf_counter()
+    cpu = time.process_time()
     try:
-        records, problems = read_session(spec, settings.capture)
+        records, problems = _Timer(seconds)('read', lambda: read_session(spec, settings.capture))
     except (ValueError, OSError) as error:  # bag, CSV and lab-file errors are ValueErrors
-        return SessionResult(FAILED, f'cannot read: {error}', seconds=seconds)
-    seconds['read'] = time.perf_counter() - clock
-    return _analyse_fit_diagnose(records, tuple(problems), spec.rig, settings, seconds)
+        result = SessionResult(FAILED, f'cannot read: {error}', seconds=seconds)
+    else:
+        result = _analyse_fit_diagnose(records, tuple(problems), spec.rig, settings, seconds)
+    return dataclasses.replace(result, cpu_seconds=time.process_time() - cpu)
 
 
 def _analyse_fit_diagnose(
