@@ -10,12 +10,13 @@ Modules: `friction` (laws), `world` (plant and effects), `pulses` (hammer hits),
 (the stick-slip solver), `daq` (the acquisition chain), `damage`, `lab` (sessions, records,
 truth), `csvfile` (the per-impact CSV), `speed` (the timing script).
 
-Speed (process CPU time, shared 2-core machine, `python -m worlds.speed` from test/): the
-plant's motion over a 33 s record costs 1.5 ms on the closed-form path and 17 ms on the
-general (DOP853) path; a whole 33 s record with the default DAQ chain (8x oversampled
-filtering of the moving part, hum, drift, noise, 16-bit ADC on 330,000 samples per channel)
-costs 35-40 ms on the closed-form path and 80-90 ms on the general one; a 20-hit session
-(~12 minutes of signal) about 0.7-1.2 s.
+Speed (process CPU time on a shared 2-core machine, `python -m worlds.speed` from test/): the
+rig's motion over a 33 s record costs 2.5 ms on the closed-form path, 19 ms forced through
+DOP853 (the general path) and 57 ms for a Stribeck plus cubic-stiffness world, which has no
+closed form. A whole 33 s record with the default DAQ chain (80 kHz filtering of the ~3 s of
+motion, hum, drift, noise and a 16-bit ADC on 330,000 samples per channel) costs about 41 ms
+on the closed-form path and 85 ms on the general one; a 20-hit session (~12 minutes of signal)
+about 0.75 s.
 """
 
 from worlds.csvfile import write_record_csv

@@ -40,6 +40,22 @@ class AnalogArrays:
     velocity_interference: np.ndarray
 
 
+@dataclass
+class DigitalArrays:
+    """Both digitised channels and the mask of samples kept, for digital damage."""
+
+    force: np.ndarray
+    velocity: np.ndarray
+    keep: np.ndarray
+    sample_rate_hz: float
+
+    def run(self, hit_time_s: float, offset_s: float, length: int) -> slice:
+        """The samples from `offset_s` after the hit, `length` of them (inside the arrays)."""
+        size = self.force.size
+        first = min(max(math.ceil((hit_time_s + offset_s) * self.sample_rate_hz), 0), size)
+        return slice(first, min(first + length, size))
+
+
 class Damage:
     """Base of the damage kinds; each overrides the stage it acts at."""
 
@@ -50,22 +66,8 @@ class Damage:
     def apply_analog(self, arrays: AnalogArrays, span: slice) -> None:
         """Change the analog channels in place over the hit's span."""
 
-    def apply_digital(
-        self,
-        force: np.ndarray,
-        velocity: np.ndarray,
-        keep: np.ndarray,
-        hit_time_s: float,
-        sample_rate_hz: float,
-    ) -> None:
+    def apply_digital(self, arrays: DigitalArrays, hit_time_s: float) -> None:
         """Change the digitised channels (or the kept-sample mask) in place."""
-
-
-def _run(
-    hit_time_s: float, offset_s: float, length: int, sample_rate_hz: float, size: int
-) -> slice:
-    first = min(max(math.ceil((hit_time_s + offset_s) * sample_rate_hz), 0), size)
-    return slice(first, min(first + length, size))
 
 
 @dataclass(frozen=True)
@@ -146,16 +148,9 @@ class NonFiniteBurst(Damage):
                 f'{self.value}, {self.length_samples}'
             )
 
-    def apply_digital(
-        self,
-        force: np.ndarray,
-        velocity: np.ndarray,
-        keep: np.ndarray,
-        hit_time_s: float,
-        sample_rate_hz: float,
-    ) -> None:
-        run = _run(hit_time_s, self.offset_s, self.length_samples, sample_rate_hz, force.size)
-        for name, array in (('force', force), ('velocity', velocity)):
+    def apply_digital(self, arrays: DigitalArrays, hit_time_s: float) -> None:
+        run = arrays.run(hit_time_s, self.offset_s, self.length_samples)
+        for name, array in (('force', arrays.force), ('velocity', arrays.velocity)):
             if self.channel in (name, 'both'):
                 array[run] = self.value
 
@@ -171,17 +166,8 @@ class DroppedSamples(Damage):
         if self.length_samples < 1:
             raise ValueError(f'a drop needs >= 1 sample, got {self.length_samples}')
 
-    def apply_digital(
-        self,
-        force: np.ndarray,
-        velocity: np.ndarray,
-        keep: np.ndarray,
-        hit_time_s: float,
-        sample_rate_hz: float,
-    ) -> None:
-        keep[_run(hit_time_s, self.offset_s, self.length_samples, sample_rate_hz, force.size)] = (
-            False
-        )
+    def apply_digital(self, arrays: DigitalArrays, hit_time_s: float) -> None:
+        arrays.keep[arrays.run(hit_time_s, self.offset_s, self.length_samples)] = False
 
 
 DAMAGE_KINDS: tuple[type[Damage], ...] = (

@@ -334,7 +334,7 @@ def _hum(
             * abs(h)
             * np.sin(2.0 * np.pi * component.frequency_hz * t_s + component.phase_rad + np.angle(h))
         )
-    return np.resize(hum, n_samples), components
+    return np.tile(hum, -(-n_samples // hum.size))[:n_samples], components
 
 
 def _pink(n_samples: int, std: float, rng: np.random.Generator) -> np.ndarray:
@@ -393,6 +393,7 @@ def analog_channel(
 def digitise(values: np.ndarray, chain: ChannelChain) -> np.ndarray:
     """The ADC: clip to [-full_scale, full_scale - step] and round to whole steps."""
     step = chain.adc_step
-    counts = np.rint(values * (1.0 / step))
+    counts = np.multiply(values, 1.0 / step)
+    np.rint(counts, out=counts)
     counts *= step
     return np.clip(counts, -chain.full_scale, chain.full_scale - step, out=counts)

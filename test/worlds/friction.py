@@ -214,7 +214,29 @@ class Stribeck(_Modifier):
 
 
 @dataclass(frozen=True)
-class WearTrack(_Modifier):
+class _PositionFactor(_Modifier):
+    """A law whose base coefficients are multiplied by a function of position."""
+
+    def position_factor(self, position_m: float) -> float:
+        """Multiplier of the base coefficients at this position."""
+        raise NotImplementedError
+
+    def sliding_mu(self, direction: int, speed_m_s: float, position_m: float) -> float:
+        return self.base.sliding_mu(direction, speed_m_s, position_m) * self.position_factor(
+            position_m
+        )
+
+    def static_mu(self, direction: int, position_m: float, dwell_s: float) -> float:
+        return self.base.static_mu(direction, position_m, dwell_s) * self.position_factor(
+            position_m
+        )
+
+    def constant_sliding_mu(self, direction: int) -> float | None:
+        return None
+
+
+@dataclass(frozen=True)
+class WearTrack(_PositionFactor):
     """Friction varying along a worn track: mu(x) = mu_base (1 + a sin(2 pi x / lambda + phi)).
 
     Repeated sliding over the same few millimetres polishes, scores or transfers material
@@ -232,24 +254,14 @@ class WearTrack(_Modifier):
         )
         _require(self.wavelength_m > 0, f'wavelength must be > 0, got {self.wavelength_m}')
 
-    def factor(self, position_m: float) -> float:
-        """Multiplier of the base coefficients at this position."""
+    def position_factor(self, position_m: float) -> float:
         return 1.0 + self.relative_amplitude * np.sin(
             2.0 * np.pi * position_m / self.wavelength_m + self.phase_rad
         )
 
-    def sliding_mu(self, direction: int, speed_m_s: float, position_m: float) -> float:
-        return self.base.sliding_mu(direction, speed_m_s, position_m) * self.factor(position_m)
-
-    def static_mu(self, direction: int, position_m: float, dwell_s: float) -> float:
-        return self.base.static_mu(direction, position_m, dwell_s) * self.factor(position_m)
-
-    def constant_sliding_mu(self, direction: int) -> float | None:
-        return None
-
 
 @dataclass(frozen=True)
-class WearPatch(_Modifier):
+class WearPatch(_PositionFactor):
     """A patch [start_m, stop_m) of the track where friction is `factor` times the base.
 
     A scratch, a lubricant-starved spot or a transfer-film island: sharp-edged, so the
@@ -267,18 +279,10 @@ class WearPatch(_Modifier):
         )
         _require(self.factor >= 0, f'patch factor must be >= 0, got {self.factor}')
 
-    def _factor(self, position_m: float) -> float:
-        inside = (self.start_m <= np.asarray(position_m)) & (np.asarray(position_m) < self.stop_m)
+    def position_factor(self, position_m: float) -> float:
+        position = np.asarray(position_m)
+        inside = (self.start_m <= position) & (position < self.stop_m)
         return np.where(inside, self.factor, 1.0)[()]
-
-    def sliding_mu(self, direction: int, speed_m_s: float, position_m: float) -> float:
-        return self.base.sliding_mu(direction, speed_m_s, position_m) * self._factor(position_m)
-
-    def static_mu(self, direction: int, position_m: float, dwell_s: float) -> float:
-        return self.base.static_mu(direction, position_m, dwell_s) * self._factor(position_m)
-
-    def constant_sliding_mu(self, direction: int) -> float | None:
-        return None
 
     @property
     def position_breaks_m(self) -> tuple[float, ...]:

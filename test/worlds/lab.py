@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from worlds.damage import SPAN_LEAD_S, AnalogArrays, Damage
+from worlds.damage import SPAN_LEAD_S, AnalogArrays, Damage, DigitalArrays
 from worlds.daq import (
     DEFAULT_DAQ,
     ContinuousSignal,
@@ -91,7 +91,18 @@ class HitTruth:
     rest_position_m: float | None
     """Where the rig stopped before the next hit or the end (None: still moving)."""
     rest_time_s: float | None
+    """When the rig stopped (None: still moving at the next hit or the end)."""
     damage: tuple[Damage, ...] = ()
+
+    def on_clock(self, start_s: float, first_sample: int) -> 'HitTruth':
+        """This hit seen from arrays that start `start_s` later, at sample `first_sample`."""
+        return replace(
+            self,
+            time_s=self.time_s - start_s,
+            sample_position=self.sample_position - first_sample,
+            pulses=tuple(replace(p, start_s=p.start_s - start_s) for p in self.pulses),
+            rest_time_s=None if self.rest_time_s is None else self.rest_time_s - start_s,
+        )
 
 
 @dataclass(frozen=True)
@@ -153,7 +164,7 @@ class Session(LabRecord):
         )
         time_s = self.time_s[first:stop]
         hits = tuple(
-            replace(hit, time_s=hit.time_s - start, sample_position=hit.sample_position - first)
+            hit.on_clock(start, first)
             for hit in self.truth.hits
             if start <= hit.time_s < start + duration_s
         )
@@ -251,10 +262,11 @@ def _record(
         digitise(arrays.force, daq.force),
         digitise(arrays.velocity, daq.velocity),
     )
-    keep = np.ones(n_samples, dtype=bool)
+    digital = DigitalArrays(force_n, velocity_m_s, np.ones(n_samples, dtype=bool), rate)
     for kinds, t in zip(hit_damage, starts, strict=True):
         for kind in kinds:
-            kind.apply_digital(force_n, velocity_m_s, keep, t, rate)
+            kind.apply_digital(digital, t)
+    keep = digital.keep
     time_s = np.arange(n_samples) / rate
     if not keep.all():
         time_s, force_n, velocity_m_s = time_s[keep], force_n[keep], velocity_m_s[keep]

@@ -149,7 +149,7 @@ class Trajectory:
         shape = np.shape(t_s)
         t_s = np.asarray(t_s, dtype=float).ravel()
         if t_s.size and (
-            t_s[0] < self.start_s or t_s[-1] > self.stop_s or np.any(np.diff(t_s) < 0)
+            t_s[0] < self.start_s or t_s[-1] > self.stop_s or np.any(t_s[1:] < t_s[:-1])
         ):
             raise ValueError(f'times must be sorted and inside [{self.start_s}, {self.stop_s}] s')
         position, velocity = np.empty(t_s.shape), np.empty(t_s.shape)

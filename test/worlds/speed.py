@@ -10,10 +10,11 @@ from collections.abc import Callable
 
 import numpy as np
 
+from worlds.friction import Coulomb, Stribeck
 from worlds.lab import impact_record, record_session
 from worlds.motion import PlantState, simulate_motion
 from worlds.pulses import HalfSine, PlacedPulse
-from worlds.world import World
+from worlds.world import CubicStiffness, World
 
 _REPEATS = 15
 
@@ -41,11 +42,15 @@ def main() -> None:
         rows[f'33 s record, {method}'] = _median_s(
             lambda m=method: impact_record(world, rng, pulse=hit[0].pulse, method=m)
         )
+    stribeck = World(friction=Stribeck(Coulomb(0.1), 0.03, 3e-3), effects=(CubicStiffness(2e6),))
+    rows['plant only, Stribeck + cubic'] = _median_s(
+        lambda: simulate_motion(stribeck, hit, 0.0, 33.0, PlantState(2e-4))
+    )
     rows['20-hit session (~12 min), auto'] = _median_s(
         lambda: record_session(world, rng, hits=20), repeats=3
     )
     for name, seconds in rows.items():
-        print(f'{name:34s} {seconds * 1e3:9.1f} ms')
+        print(f'{name:36s} {seconds * 1e3:9.1f} ms')
     plant = rows['plant only, general'] / rows['plant only, auto']
     record = rows['33 s record, general'] / rows['33 s record, auto']
     print(f'general / auto: plant only {plant:.1f}x, whole record {record:.1f}x')
