@@ -94,7 +94,7 @@ def test_a_bad_csv_table_is_refused_naming_the_problem(tmp_path, text, message):
     ('text', 'message'),
     [
         ('sessions: {session: s1}\n', 'expected a list of sessions'),
-        ('sesions: []\n', "unknown key\\(s\\) sesions"),
+        ('sesions: []\n', 'unknown key\\(s\\) sesions'),
         ('by: 3\nsessions:\n  - {session: s1}\n', '"by" must be a column name'),
         ('by: [lube]\nsessions:\n  - {session: s1, lubricant: A}\n', "no condition column 'lube'"),
         ('- {session: s1, lubricant: [A, B]}\n', 'a table cell must be a single value'),

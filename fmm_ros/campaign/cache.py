@@ -19,11 +19,11 @@ import os
 import tempfile
 from pathlib import Path
 
-from fmm_ros.campaign.session import SessionResult, SessionSettings, SessionSpec, session_files
+from fmm_ros.campaign.session import SessionOutcome, SessionSettings, SessionSpec, session_files
 
 _CHUNK_BYTES = 1 << 20
 CACHE_FORMAT = 1
-"""Bumped when SessionResult's stored form changes."""
+"""Bumped when SessionOutcome's stored form changes."""
 
 
 def session_key(spec: SessionSpec, settings: SessionSettings) -> str:
@@ -76,15 +76,15 @@ class ResultCache:
         """Where the entry of a key lives."""
         return self.directory / f'{key}.json'
 
-    def get(self, key: str) -> SessionResult | None:
+    def get(self, key: str) -> SessionOutcome | None:
         """The stored result, marked cached; None when absent or unreadable."""
         try:
             data = json.loads(self.path(key).read_text(encoding='utf-8'))
-            return dataclasses.replace(SessionResult.from_dict(data), cached=True)
+            return dataclasses.replace(SessionOutcome.from_dict(data), cached=True)
         except (OSError, ValueError):
             return None
 
-    def put(self, key: str, result: SessionResult) -> None:
+    def put(self, key: str, result: SessionOutcome) -> None:
         """Store a result under its key, atomically."""
         self.directory.mkdir(parents=True, exist_ok=True)
         text = json.dumps(dataclasses.replace(result, cached=False).to_dict())

@@ -1,6 +1,6 @@
 """Across sessions: mu by condition, pairwise differences, trends, and the verdict in words.
 
-Each session contributes its mu and the variance of it (`SessionResult.within_variance`:
+Each session contributes its mu and the variance of it (`SessionOutcome.within_variance`:
 the fitter's standard error squared, scaled up by the Birge ratio when its hits disagree
 beyond their errors); sessions of one condition also scatter between themselves (tau^2). The
 model is the random-effects meta-regression of `stats` (REML tau^2, Knapp-Hartung t
@@ -435,7 +435,7 @@ def difference_sentence(difference: Difference) -> str:
     if not math.isfinite(c.p_value):
         return f'{name} against {difference.reference}: {signed}, no test possible{where}.'
     adjusted = (
-        f', Holm-adjusted {format_p(difference.p_adjusted)} over {difference.family_size} pairs'
+        f', Holm-adjusted {_p_phrase(difference.p_adjusted)} over {difference.family_size} pairs'
         if difference.family_size > 1
         else ''
     )
@@ -445,11 +445,11 @@ def difference_sentence(difference: Difference) -> str:
         return (
             f'{name} {verb} mu by {value_with_error(abs(c.estimate), c.stderr)} against '
             f'{difference.reference} (95 % CI {_num(low)} to {_num(high)}, '
-            f'p = {format_p(c.p_value)}{adjusted}{where}).'
+            f'{_p_phrase(c.p_value)}{adjusted}{where}).'
         )
     return (
         f'{name} and {difference.reference}: no detectable difference, {signed} (95 % CI '
-        f'{_num(c.ci_low)} to {_num(c.ci_high)}, p = {format_p(c.p_value)}{adjusted}{where}).'
+        f'{_num(c.ci_low)} to {_num(c.ci_high)}, {_p_phrase(c.p_value)}{adjusted}{where}).'
     )
 
 
@@ -460,7 +460,7 @@ def trend_sentence(trend: Trend) -> str:
     slope = f'{value_with_error(c.estimate, c.stderr)} per {trend.unit}'
     if not math.isfinite(c.p_value):
         return f'mu against {trend.column}{group}: slope {slope}, no test possible.'
-    detail = f'95 % CI {_num(c.ci_low)} to {_num(c.ci_high)}, p = {format_p(c.p_value)}'
+    detail = f'95 % CI {_num(c.ci_low)} to {_num(c.ci_high)}, {_p_phrase(c.p_value)}'
     if c.p_value < ALPHA:
         verb = 'rises' if c.estimate > 0 else 'falls'
         return f'mu {verb} with {trend.column}{group}: slope {slope} ({detail}).'
@@ -477,3 +477,9 @@ def format_p(p_value: float) -> str:
     if not math.isfinite(p_value):
         return '-'
     return '< 0.0001' if p_value < 1e-4 else f'{p_value:.2g}'
+
+
+def _p_phrase(p_value: float) -> str:
+    """'p = 0.65' or 'p < 0.0001'."""
+    text = format_p(p_value)
+    return f'p {text}' if text.startswith('<') else f'p = {text}'

@@ -166,6 +166,7 @@ def conditions_figure(conditions: Sequence[ConditionEstimate], campaign: Campaig
         ax.plot(c.estimate, row, 'D', color=MEAN_COLOUR, markersize=6)
     ax.set_yticks(range(len(labels)), [_plain(label) for label in labels])
     ax.set_ylim(len(labels) - 0.5, -0.5)
+    ax.set_ylabel(_plain(', '.join(by)))
     ax.set_xlabel('μ [-]')
     ax.ticklabel_format(axis='x', style='plain', useOffset=False)
     return figure

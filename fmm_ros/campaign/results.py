@@ -29,7 +29,7 @@ from fmm_ros.campaign.compare import (
     Trend,
     compare_sessions,
 )
-from fmm_ros.campaign.session import SessionResult, SessionSettings
+from fmm_ros.campaign.session import SessionOutcome, SessionSettings
 from fmm_ros.campaign.stats import Contrast
 from fmm_ros.campaign.table import CampaignTable
 from fmm_ros.campaign.tasks import run_sessions
@@ -43,7 +43,7 @@ class CampaignResult:
 
     table: CampaignTable
     settings: SessionSettings
-    results: tuple[SessionResult, ...]
+    results: tuple[SessionOutcome, ...]
     comparison: CampaignComparison
     by: tuple[str, ...]
     trend: tuple[str, ...]
@@ -69,7 +69,7 @@ def run_campaign(
     scheduler: str | None = None,
     workers: int | None = None,
     cache_dir: str | os.PathLike | None = None,
-    on_result: Callable[[int, SessionResult], None] | None = None,
+    on_result: Callable[[int, SessionOutcome], None] | None = None,
 ) -> CampaignResult:
     """Run and compare a campaign: `by` and `trend` default to the table's (see `table`)."""
     by = tuple(by) if by else table.default_by()
@@ -90,7 +90,7 @@ def run_campaign(
     return CampaignResult(table, settings, tuple(results), comparison, by, trend, seconds)
 
 
-def session_mus(table: CampaignTable, results: Sequence[SessionResult]) -> list[SessionMu]:
+def session_mus(table: CampaignTable, results: Sequence[SessionOutcome]) -> list[SessionMu]:
     """The fitted sessions as the comparison takes them (failed ones left out)."""
     return [
         SessionMu(
@@ -131,7 +131,7 @@ def tidy_tables(campaign: CampaignResult) -> dict[str, list[dict]]:
 
 def _conditions(conditions: dict, names: Sequence[str]) -> dict:
     """Condition values under their column names (prefixed where a result column has it)."""
-    taken = {field.name for field in dataclasses.fields(SessionResult)} | {
+    taken = {field.name for field in dataclasses.fields(SessionOutcome)} | {
         'session_id',
         'accepted_hits',
         'rejected_hits',
@@ -141,7 +141,7 @@ def _conditions(conditions: dict, names: Sequence[str]) -> dict:
     return {(f'condition_{name}' if name in taken else name): conditions[name] for name in names}
 
 
-def _session_row(result: SessionResult) -> dict:
+def _session_row(result: SessionOutcome) -> dict:
     """A session's scalars."""
     rejected = Counter(flag for hit in result.hits if not hit.accepted for flag in hit.flags)
     diagnosis = result.diagnosis or {}

@@ -7,7 +7,7 @@ through `fmm import`'s mapping), analysed by the signal core, and fitted and dia
 rig the session ran on: its normal force sets mu = F_f / N. `_analyse_fit_diagnose` is the
 one place that calls the workflows.
 
-The result (`SessionResult`) is plain data: it travels between processes and machines (Dask),
+The result (`SessionOutcome`) is plain data: it travels between processes and machines (Dask),
 is cached as JSON, and feeds the campaign's statistics and tables. A session whose data the
 pipeline refuses (a missing or damaged file, no hit, no accepted hit, a fit friction cannot
 explain) is a result too, with status 'failed' and the reason; only a bug raises.
@@ -118,7 +118,7 @@ class LevelRow:
 
 
 @dataclass(frozen=True)
-class SessionResult:
+class SessionOutcome:
     """What one session gave (status 'ok': a fitted mu), or why it gave nothing ('failed')."""
 
     status: str
@@ -186,7 +186,7 @@ class SessionResult:
         return dataclasses.asdict(self)
 
     @classmethod
-    def from_dict(cls, data: dict) -> SessionResult:
+    def from_dict(cls, data: dict) -> SessionOutcome:
         """The inverse of `to_dict`; ValueError if the data are not a session result."""
         try:
             values = dict(data)
@@ -262,17 +262,28 @@ def read_session(
     ], []
 
 
-def compute_session(spec: SessionSpec, settings: SessionSettings) -> SessionResult:
+def compute_session(spec: SessionSpec, settings: SessionSettings) -> SessionOutcome:
     """Run the session's pipeline; data the pipeline refuses give a 'failed' result."""
     seconds: dict[str, float] = {}
     cpu = time.process_time()
     try:
         records, problems = _Timer(seconds)('read', lambda: read_session(spec, settings.capture))
     except (ValueError, OSError) as error:  # bag, CSV and lab-file errors are ValueErrors
-        result = SessionResult(FAILED, f'cannot read: {error}', seconds=seconds)
+        result = SessionOutcome(FAILED, f'cannot read: {error}', seconds=seconds)
     else:
         result = _analyse_fit_diagnose(records, tuple(problems), spec.rig, settings, seconds)
     return dataclasses.replace(result, cpu_seconds=time.process_time() - cpu)
+
+
+@dataclass(frozen=True)
+class _Processed:
+    """What the pipeline gave, under the names workflows' session results use."""
+
+    summary: Summary
+    friction: FrictionSummary | None
+    fit_failure: str
+    diagnosis: dict | None
+    diagnosis_failure: str
 
 
 def _analyse_fit_diagnose(
@@ -281,9 +292,18 @@ def _analyse_fit_diagnose(
     rig: Rig,
     settings: SessionSettings,
     seconds: dict[str, float],
-) -> SessionResult:
+) -> SessionOutcome:
     """The product's per-session pipeline over records, summarised as plain data."""
-    timed = _Timer(seconds)
+    return _outcome(_process(records, rig, settings, _Timer(seconds)), problems, rig, seconds)
+
+
+def _process(
+    records: Sequence[ImpactRecord], rig: Rig, settings: SessionSettings, timed: _Timer
+) -> _Processed:
+    """Analyse every record, fit mu over the accepted ones, diagnose them if asked.
+
+    The one place that calls the workflows: what `fmm report` computes for a session.
+    """
     summary = timed(
         'analyse',
         lambda: summarize(
@@ -294,15 +314,7 @@ def _analyse_fit_diagnose(
             settings.analysis,
         ),
     )
-    base = dict(
-        problems=problems,
-        hits=_hits(summary, None),
-        levels=tuple(_level_row(level) for level in summary.levels),
-        linearity_slope=float(summary.linearity.slope),
-        linearity_r2=float(summary.linearity.r2),
-        normal_force_n=rig.normal_force_n,
-        seconds=seconds,
-    )
+    friction, fit_failure = None, ''
     try:
         friction = timed(
             'fit',
@@ -316,7 +328,7 @@ def _analyse_fit_diagnose(
             ),
         )
     except ValueError as error:  # FitError is one; so is 'no accepted impact to fit'
-        return SessionResult(FAILED, f'cannot fit mu: {error}', **base)
+        fit_failure = str(error)
     diagnosis, diagnosis_failure = None, ''
     if settings.diagnose:
         try:
@@ -328,17 +340,36 @@ def _analyse_fit_diagnose(
             ).diagnosis.to_dict()
         except ValueError as error:
             diagnosis_failure = str(error)
-    return SessionResult(
+    return _Processed(summary, friction, fit_failure, diagnosis, diagnosis_failure)
+
+
+def _outcome(
+    processed: _Processed, problems: tuple[str, ...], rig: Rig, seconds: dict[str, float]
+) -> SessionOutcome:
+    """A processed session as plain data: failed when it has no fitted mu."""
+    summary, friction = processed.summary, processed.friction
+    common = dict(
+        problems=problems,
+        hits=_hits(summary, friction),
+        levels=tuple(_level_row(level) for level in summary.levels),
+        linearity_slope=float(summary.linearity.slope),
+        linearity_r2=float(summary.linearity.r2),
+        normal_force_n=rig.normal_force_n,
+        diagnosis=processed.diagnosis,
+        diagnosis_failure=processed.diagnosis_failure,
+        seconds=seconds,
+    )
+    if friction is None:
+        return SessionOutcome(FAILED, f'cannot fit mu: {processed.fit_failure}', **common)
+    return SessionOutcome(
         OK,
-        **{**base, 'hits': _hits(summary, friction)},
         mu=friction.mu,
         mu_stderr=friction.mu_stderr,
         consistency_chi2=friction.consistency_chi2,
         consistency_p_value=friction.consistency_p_value,
         damping_n_s_per_m=friction.rig.damping_n_s_per_m,
         residual_rms_m_s=friction.residual_rms_m_s,
-        diagnosis=diagnosis,
-        diagnosis_failure=diagnosis_failure,
+        **common,
     )
 
 

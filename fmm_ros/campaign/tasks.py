@@ -26,7 +26,7 @@ from collections.abc import Callable, Sequence
 from fmm_ros.campaign.cache import ResultCache, session_key
 from fmm_ros.campaign.session import (
     FAILED,
-    SessionResult,
+    SessionOutcome,
     SessionSettings,
     SessionSpec,
     compute_session,
@@ -41,7 +41,7 @@ PRE_SPAWN_ENVIRON = 'distributed.nanny.pre-spawn-environ'
 
 def run_session(
     spec: SessionSpec, settings: SessionSettings, cache_dir: str | None = None
-) -> SessionResult:
+) -> SessionOutcome:
     """One session: from the cache when its data and settings are known, else computed.
 
     Without a cache directory the session is computed and its inputs are not hashed. A
@@ -53,7 +53,7 @@ def run_session(
     try:
         key = session_key(spec, settings)
     except (ValueError, OSError) as error:
-        return SessionResult(FAILED, f'cannot read: {error}')
+        return SessionOutcome(FAILED, f'cannot read: {error}')
     cache = ResultCache(cache_dir)
     if (stored := cache.get(key)) is not None:
         return stored
@@ -69,8 +69,8 @@ def run_sessions(
     cache_dir: str | os.PathLike | None = None,
     scheduler: str | None = None,
     workers: int | None = None,
-    on_result: Callable[[int, SessionResult], None] | None = None,
-) -> list[SessionResult]:
+    on_result: Callable[[int, SessionOutcome], None] | None = None,
+) -> list[SessionOutcome]:
     """Every session's result, in the order of `specs`.
 
     scheduler: None for a local cluster of `workers` processes (default: one a core), an
@@ -119,8 +119,8 @@ def _compute(
     specs: Sequence[SessionSpec],
     settings: SessionSettings,
     cache: str | None,
-    on_result: Callable[[int, SessionResult], None] | None,
-) -> list[SessionResult]:
+    on_result: Callable[[int, SessionOutcome], None] | None,
+) -> list[SessionOutcome]:
     """Send the graph of sessions to the client's scheduler and gather it as it completes."""
     import dask
     from distributed import as_completed
@@ -128,7 +128,7 @@ def _compute(
     tasks = [dask.delayed(run_session, pure=False)(spec, settings, cache) for spec in specs]
     futures = client.compute(tasks)
     index_of = {future.key: index for index, future in enumerate(futures)}
-    results: list[SessionResult | None] = [None] * len(specs)
+    results: list[SessionOutcome | None] = [None] * len(specs)
     try:
         for future in as_completed(futures):
             index = index_of[future.key]
@@ -144,7 +144,7 @@ def _compute(
     return [result for result in results if result is not None]
 
 
-def _guarded(task: Callable[..., SessionResult], *args) -> SessionResult:
+def _guarded(task: Callable[..., SessionOutcome], *args) -> SessionOutcome:
     """task(*args), with an exception turned into that session's failure."""
     try:
         return task(*args)
@@ -152,9 +152,9 @@ def _guarded(task: Callable[..., SessionResult], *args) -> SessionResult:
         return _task_failure(error)
 
 
-def _task_failure(error: BaseException) -> SessionResult:
+def _task_failure(error: BaseException) -> SessionOutcome:
     """The failed result of a task that raised (not cached: it may not happen again)."""
     name = type(error).__name__
     if name == 'KilledWorker':
-        return SessionResult(FAILED, f'its worker died repeatedly (memory? killed?): {error}')
-    return SessionResult(FAILED, f'the analysis raised {name}: {error}')
+        return SessionOutcome(FAILED, f'its worker died repeatedly (memory? killed?): {error}')
+    return SessionOutcome(FAILED, f'the analysis raised {name}: {error}')
