@@ -25,6 +25,7 @@ import argparse
 import math
 import os
 import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -32,18 +33,19 @@ from pathlib import Path
 import numpy as np
 import scipy.stats
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
+from campaign_sessions import COLUMNS, LOADS_N, LUBRICANTS, random_effects_campaign  # noqa: E402
+
 from fmm_ros.campaign.cache import session_key
-from fmm_ros.campaign.compare import SessionMu, compare_sessions
+from fmm_ros.campaign.compare import compare_sessions
 from fmm_ros.campaign.results import run_campaign
 from fmm_ros.campaign.session import SessionSettings
 from fmm_ros.campaign.stats import meta_regression
-from fmm_ros.campaign.table import NUMBER, TEXT, Column, read_campaign_table
+from fmm_ros.campaign.table import read_campaign_table
 from fmm_ros.campaign.tasks import SERIAL, run_session
 from fmm_ros.core.signal.analysis import AnalysisConfig, paper_levels
 from fmm_ros.sim.campaign import simulated_campaign
 
-LUBRICANTS = {'A': 0.113, 'B': 0.101, 'C': 0.113}
-LOADS_N = (6.6708, 9.81)
 LOAD_SLOPE_PER_N = 0.001
 SESSION_SCATTER = 0.002
 TARGET_SPEEDUP = 1.7
@@ -220,26 +222,6 @@ def correctness(campaign, generated) -> None:
 
 # -- calibration ------------------------------------------------------------------------------
 
-COLUMNS = (Column('lubricant', TEXT), Column('normal_force_n', NUMBER))
-
-
-def campaign_mus(rng, per_condition: int, tau: float, sigma_median: float) -> list[SessionMu]:
-    sessions = []
-    for lubricant, mu in LUBRICANTS.items():
-        for load in LOADS_N:
-            for number in range(per_condition):
-                sigma = sigma_median * math.exp(rng.normal(0.0, 0.8))
-                value = mu + LOAD_SLOPE_PER_N * load + rng.normal(0.0, tau) + rng.normal(0, sigma)
-                sessions.append(
-                    SessionMu(
-                        f'{lubricant}{load}{number}',
-                        {'lubricant': lubricant, 'normal_force_n': load},
-                        value,
-                        sigma**2,
-                    )
-                )
-    return sessions
-
 
 def naive_contrast(sessions, method: str):
     """C - A and B - A averaged over loads, with a two-sided 95 % z interval and p.
@@ -293,7 +275,7 @@ def calibration(campaigns: int, seed: int) -> None:
         rng = np.random.default_rng(seed)
         tallies = {key: ([], []) for key in ('model', 'fixed', 'dl')}
         for _ in range(campaigns):
-            sessions = campaign_mus(rng, per_condition, tau, sigma)
+            sessions = random_effects_campaign(rng, per_condition, tau, sigma)
             comparison = compare_sessions(sessions, COLUMNS, ('lubricant', 'normal_force_n'))
             for d in comparison.differences:
                 if d.column == 'lubricant' and d.averaged and d.reference == 'A':

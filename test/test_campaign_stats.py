@@ -13,10 +13,10 @@ import math
 
 import numpy as np
 import pytest
+from campaign_sessions import COLUMNS, LUBRICANTS, random_effects_campaign
 
 from fmm_ros.campaign.compare import SessionMu, compare_sessions
 from fmm_ros.campaign.stats import holm, meta_regression
-from fmm_ros.campaign.table import NUMBER, TEXT, Column
 
 # BCG trials: vaccinated TB cases, vaccinated without, controls with TB, without; latitude.
 BCG = np.array(
@@ -120,31 +120,6 @@ def test_holm_adjusts_step_down_and_keeps_order():
 
 # -- calibration by simulation ----------------------------------------------------------------
 
-LUBRICANTS = {'A': 0.113, 'B': 0.101, 'C': 0.113}  # C - A: no real difference
-LOADS = (6.67, 9.81)
-COLUMNS = (Column('lubricant', TEXT), Column('normal_force_n', NUMBER))
-
-
-def simulated_sessions(rng, sessions_per_condition, tau, sigma_median):
-    """Session mu of a campaign: condition mu + N(0, tau^2) + N(0, sigma_i^2), sigma_i spread
-    over a decade (a session's fit error depends on its hits)."""
-    sessions = []
-    for lubricant, mu in LUBRICANTS.items():
-        for load in LOADS:
-            for number in range(sessions_per_condition):
-                sigma = sigma_median * math.exp(rng.normal(0.0, 0.8))
-                value = mu + rng.normal(0.0, tau) + rng.normal(0.0, sigma)
-                sessions.append(
-                    SessionMu(
-                        f'{lubricant}{load}{number}',
-                        {'lubricant': lubricant, 'normal_force_n': load},
-                        value,
-                        sigma**2,
-                        10,
-                    )
-                )
-    return sessions
-
 
 @pytest.mark.slow
 @pytest.mark.parametrize(
@@ -167,7 +142,7 @@ def test_difference_intervals_cover_the_truth_and_null_pairs_are_rarely_declared
     covered, null_declared = [], []
     for _ in range(campaigns):
         comparison = compare_sessions(
-            simulated_sessions(rng, sessions_per_condition, tau, sigma_median),
+            random_effects_campaign(rng, sessions_per_condition, tau, sigma_median),
             COLUMNS,
             ('lubricant', 'normal_force_n'),
         )
@@ -190,7 +165,7 @@ def test_difference_intervals_cover_the_truth_and_null_pairs_are_rarely_declared
 def test_a_real_difference_is_found_and_said_in_words():
     rng = np.random.default_rng(11)
     comparison = compare_sessions(
-        simulated_sessions(rng, 4, 0.002, 2e-5), COLUMNS, ('lubricant', 'normal_force_n')
+        random_effects_campaign(rng, 4, 0.002, 2e-5), COLUMNS, ('lubricant', 'normal_force_n')
     )
     b_vs_a = next(
         d

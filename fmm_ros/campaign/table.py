@@ -117,7 +117,7 @@ def read_campaign_table(path: str | Path, base_rig: Rig = FMM_RIG) -> CampaignTa
     for column in columns:
         if column.name in RIG_COLUMNS and column.kind != NUMBER:
             raise ValueError(f'{path}: column {column.name!r} sets the rig and must be numeric')
-    folder = path.parent
+    folder = path.absolute().parent  # absolute: workers elsewhere resolve the same paths
     default_mapping = options.get('mapping')
     sessions = []
     for number, row in rows:
