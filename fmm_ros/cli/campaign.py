@@ -14,8 +14,10 @@ others are still compared), 2 bad input or flags.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
+import signal
 import sys
 from pathlib import Path
 
@@ -143,9 +145,10 @@ def run(args: argparse.Namespace) -> int:
     output = args.output or args.table.with_name(f'{args.table.stem}_results')
     cache = None if args.no_cache else (args.cache or output / 'cache')
     failures = 0
-    with progress_bar(
-        len(table.sessions), desc='sessions', unit='session', quiet=args.quiet
-    ) as bar:
+    with (
+        _stop_on_sigterm(),
+        progress_bar(len(table.sessions), desc='sessions', unit='session', quiet=args.quiet) as bar,
+    ):
 
         def done(_index: int, result) -> None:
             nonlocal failures
@@ -175,6 +178,24 @@ def run(args: argparse.Namespace) -> int:
     for session, reason in campaign.failed:
         print(f'fmm campaign: session {session}: {reason}', file=sys.stderr)
     return 1 if campaign.failed else 0
+
+
+@contextlib.contextmanager
+def _stop_on_sigterm():
+    """SIGTERM (a process manager, a batch system) ends the run as Ctrl-C does.
+
+    Python's default would kill the process where it stands; as an exception it unwinds, so
+    the local cluster's worker processes are stopped and finished sessions stay cached.
+    """
+
+    def stop(signum, _frame):
+        raise SystemExit(128 + signum)
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def text_report(campaign) -> str:
