@@ -344,3 +344,32 @@ def test_lab_sessions_from_the_independent_generator_as_csv_folders(tmp_path):
         d for d in campaign.comparison.differences if d.averaged and d.column == 'lubricant'
     ]
     assert b_vs_a.estimate.ci_low <= -0.012 <= b_vs_a.estimate.ci_high and b_vs_a.different
+
+
+@pytest.mark.slow
+def test_a_session_of_lab_files_is_read_through_its_mapping(tmp_path):
+    """Lab files (here NPZ in kN and mm/s) with an `fmm import` mapping: joined as one
+    recording, captured as the analyzer captures a stream, fitted."""
+    session = simulated_session(1, levels=('medium', 'high'), spacing_s=WINDOW_S + 2, seed=3)
+    half = int((WINDOW_S + 1) * 1e4)  # between the first record's end and the second hit
+    folder = tmp_path / 'lab'
+    folder.mkdir()
+    for number, part in enumerate((slice(0, half), slice(half, None))):
+        np.savez(
+            folder / f'part_{number}.npz',
+            F=session.force_n[part] / 1e3,
+            V=session.velocity_m_s[part] * 1e3,
+        )
+    mapping = folder / 'mapping.yaml'  # in the folder, so also the check that it is no input
+    mapping.write_text(
+        'force: {name: F, unit: kN}\nvelocity: {name: V, unit: mm/s}\nsample_rate_hz: 10000\n'
+    )
+    table = tmp_path / 'lab.yaml'
+    table.write_text('mapping: lab/mapping.yaml\nsessions:\n  - {session: lab, id: L1}\n')
+    (spec,) = [s.spec for s in read_campaign_table(table).sessions]
+    assert spec.mapping == mapping
+    (outcome,) = run_sessions([spec], SETTINGS, scheduler=SERIAL)
+    assert outcome.ok, outcome.reason
+    assert len(outcome.hits) == 2 and outcome.accepted_hits >= 1, outcome.hits
+    assert not any('gap' in hit.flags for hit in outcome.hits)
+    assert abs(outcome.mu / session.mu - 1) < 0.01
