@@ -444,12 +444,12 @@ def difference_sentence(difference: Difference) -> str:
         low, high = sorted((abs(c.ci_low), abs(c.ci_high)))
         return (
             f'{name} {verb} mu by {value_with_error(abs(c.estimate), c.stderr)} against '
-            f'{difference.reference} (95 % CI {_num(low)} to {_num(high)}, '
+            f'{difference.reference} (95 % CI {format_interval(low, high)}, '
             f'{_p_phrase(c.p_value)}{adjusted}{where}).'
         )
     return (
         f'{name} and {difference.reference}: no detectable difference, {signed} (95 % CI '
-        f'{_num(c.ci_low)} to {_num(c.ci_high)}, {_p_phrase(c.p_value)}{adjusted}{where}).'
+        f'{format_interval(c.ci_low, c.ci_high)}, {_p_phrase(c.p_value)}{adjusted}{where}).'
     )
 
 
@@ -460,16 +460,20 @@ def trend_sentence(trend: Trend) -> str:
     slope = f'{value_with_error(c.estimate, c.stderr)} per {trend.unit}'
     if not math.isfinite(c.p_value):
         return f'mu against {trend.column}{group}: slope {slope}, no test possible.'
-    detail = f'95 % CI {_num(c.ci_low)} to {_num(c.ci_high)}, {_p_phrase(c.p_value)}'
+    detail = f'95 % CI {format_interval(c.ci_low, c.ci_high)}, {_p_phrase(c.p_value)}'
     if c.p_value < ALPHA:
         verb = 'rises' if c.estimate > 0 else 'falls'
         return f'mu {verb} with {trend.column}{group}: slope {slope} ({detail}).'
     return f'No detectable trend of mu with {trend.column}{group}: slope {slope} ({detail}).'
 
 
-def _num(value: float) -> str:
-    """An interval's end, to three significant digits."""
-    return f'{value:.3g}'
+def format_interval(low: float, high: float) -> str:
+    """'0.0112 to 0.0144': both ends to the decimal that gives the width three digits."""
+    if not (math.isfinite(low) and math.isfinite(high)):
+        return '-'
+    width = high - low
+    decimals = max(0, 2 - math.floor(math.log10(width))) if width > 0 else 6
+    return f'{low:.{decimals}f} to {high:.{decimals}f}'
 
 
 def format_p(p_value: float) -> str:

@@ -25,6 +25,7 @@ from fmm_ros.campaign.compare import (
     Difference,
     Trend,
     condition_label,
+    format_interval,
     format_p,
 )
 from fmm_ros.campaign.results import CampaignResult, session_mus
@@ -115,7 +116,7 @@ def _conditions(page: Page, campaign: CampaignResult) -> None:
                 c.hits,
                 f'{c.mean_of_sessions:.5f}',
                 value_with_error(c.estimate.estimate, c.estimate.stderr),
-                _interval(c.estimate.ci_low, c.estimate.ci_high),
+                format_interval(c.estimate.ci_low, c.estimate.ci_high),
             ]
             for c in comparison.conditions
         ],
@@ -188,7 +189,7 @@ def _differences(page: Page, differences: Sequence[Difference]) -> None:
                 f'{d.level} − {d.reference}',
                 d.stratum or 'all sessions',
                 value_with_error(d.estimate.estimate, d.estimate.stderr),
-                _interval(d.estimate.ci_low, d.estimate.ci_high),
+                format_interval(d.estimate.ci_low, d.estimate.ci_high),
                 format_p(d.estimate.p_value),
                 format_p(d.p_adjusted),
                 'different' if d.different else 'not shown different',
@@ -252,7 +253,7 @@ def _trends(page: Page, campaign: CampaignResult) -> None:
                 t.group,
                 t.sessions,
                 f'{value_with_error(t.slope.estimate, t.slope.stderr)} per {t.unit}',
-                _interval(t.slope.ci_low, t.slope.ci_high),
+                format_interval(t.slope.ci_low, t.slope.ci_high),
                 format_p(t.slope.p_value),
             ]
             for t in trends
@@ -521,10 +522,6 @@ def _method(page: Page, comparison: CampaignComparison) -> None:
                 "(against no scatter beyond the fits' errors)",
             ]
         )
-
-
-def _interval(low: float, high: float) -> str:
-    return f'{low:.4g} to {high:.4g}' if math.isfinite(low) else '-'
 
 
 def _number(value) -> str:
