@@ -175,26 +175,39 @@ def speed(folder: Path, args) -> None:
         f'one session diagnosed as well (--diagnose): diagnosis '
         f'{diagnosed.seconds["diagnose"]:.1f} s against the fit {diagnosed.seconds["fit"]:.2f} s'
     )
-    scaling(serial_s / sessions, cpu_serial, speedup / args.workers, start_s, args.workers)
+    scaling(
+        serial_s / sessions, cpu_serial, cpu_workers, speedup / args.workers, start_s, args.workers
+    )
     correctness(serial, generated)
 
 
 def scaling(
-    wall_per_session: float, cpu_per_session: float, efficiency: float, start_s: float, workers: int
+    wall_per_session: float,
+    cpu_serial: float,
+    cpu_worker: float,
+    efficiency: float,
+    start_s: float,
+    workers: int,
 ) -> None:
-    """Sessions per hour per core, and 1,000 sessions on N workers at the measured efficiency."""
+    """Sessions per hour per core, and 1,000 sessions on N workers.
+
+    On cores of their own: the processor time a session takes serially, at the efficiency
+    its processor time in a worker gives (cpu_serial / cpu_worker). As loaded here: the
+    serial wall time a session at the measured wall-time efficiency.
+    """
+    cpu_efficiency = min(cpu_serial / cpu_worker, 1.0)
     print(
-        f'\nscaling model: a session costs {cpu_per_session:.2f} s of processor time '
-        f'({3600 / cpu_per_session:.0f} sessions an hour on a core of its own) and took '
-        f'{wall_per_session:.2f} s of wall time a session serially on the shared machine '
-        f'({3600 / wall_per_session:.0f} an hour); parallel efficiency on {workers} workers '
-        f'{efficiency:.2f}; cluster start {start_s:.1f} s'
+        f'\nscaling model: a session costs {cpu_serial:.2f} s of processor time '
+        f'({3600 / cpu_serial:.0f} sessions an hour on a core of its own), {cpu_worker:.2f} s in '
+        f'a worker (efficiency {cpu_efficiency:.2f}); it took {wall_per_session:.2f} s of wall '
+        f'time serially on the shared machine ({3600 / wall_per_session:.0f} an hour), wall-time '
+        f'efficiency on {workers} workers {efficiency:.2f}; cluster start {start_s:.1f} s'
     )
     print(f'{"workers":>8} {"1,000 sessions (cores of their own)":>36} {"(as loaded here)":>17}')
     for count in WORKER_COUNTS:
-        idle = start_s + 1000 * cpu_per_session / count
+        own = start_s + 1000 * cpu_serial / (count * cpu_efficiency)
         loaded = start_s + 1000 * wall_per_session / (count * min(efficiency, 1.0))
-        print(f'{count:>8} {idle / 60:>32.1f} min {loaded / 60:>13.1f} min')
+        print(f'{count:>8} {own / 60:>32.1f} min {loaded / 60:>13.1f} min')
 
 
 def correctness(campaign, generated) -> None:
