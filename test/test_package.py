@@ -20,6 +20,8 @@ OPTIONAL_IMPORTS = {'nidaqmx': 'fmm_ros/ros/nodes/daq.py'}
 ROSDEP_KEYS = {
     'ament_index_python': 'ament_index_python',
     'builtin_interfaces': 'builtin_interfaces',
+    'chardet': 'python3-chardet',
+    'clevercsv': 'python3-clevercsv-pip',
     'fmm_interfaces': 'fmm_interfaces',
     'h5py': 'python3-h5py',
     'lz4': 'python3-lz4',
