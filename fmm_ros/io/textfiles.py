@@ -4,8 +4,9 @@ A German Excel export is `Zeit;Hammer;Vibrometer` over `s;N;mm/s` over `0,0001;1
 cp1252; LabVIEW writes tabs; a DAQ tool may put a few lines of settings first. `read_table`
 finds all of it, and `TextFormat` states any part instead:
 
-- encoding: a byte-order mark, else UTF-8, else chardet's guess over the first 64 kB (cp1252
-  and its kin on Windows machines), else Latin-1, which decodes any byte;
+- encoding: a byte-order mark, else UTF-8, else chardet's guess from the lines of the first
+  64 kB that are not ASCII (cp1252 and its kin on Windows machines), else Latin-1, which
+  decodes any byte;
 - delimiter: clevercsv's dialect detection over the first lines, restricted to `,;|`, tab
   and blanks (it scores how consistently rows split into typed cells, so a header-less
   semicolon file full of decimal commas is not taken for comma-separated, as the standard
@@ -210,7 +211,10 @@ def decode_text(raw: bytes, encoding: str | None, path: Path) -> tuple[str, str]
         pass
     import chardet  # only for files that are not UTF-8
 
-    guess = chardet.detect(raw[:SNIFF_BYTES]).get('encoding')
+    # Only the lines with non-ASCII bytes (names, units, remarks): thousands of ASCII numbers
+    # around a few umlauts make chardet guess Big5 where the names alone say Windows-1252.
+    words = b'\n'.join(line for line in raw[:SNIFF_BYTES].splitlines() if not line.isascii())
+    guess = chardet.detect(words).get('encoding')
     if guess:
         try:
             return raw.decode(guess), guess.lower()
