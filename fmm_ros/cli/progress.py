@@ -46,7 +46,6 @@ class StatusLine:
     def __init__(self, *, quiet: bool, stream: TextIO | None = None) -> None:
         stream = stream or sys.stderr
         self.enabled = not quiet and stream.isatty()
-        self.steps: list[str] = []
         self._bar = tqdm(
             total=None,
             file=stream,
@@ -61,9 +60,8 @@ class StatusLine:
     def __call__(self, message: str) -> None:
         """Show message as the current step."""
         if self.enabled:
-            self.steps.append(message)
-            self._bar.set_description_str(message, refresh=False)
-            self._bar.update()
+            self._bar.set_description_str(message)  # drawn now: steps may come faster than
+            # tqdm's own redraw interval, and each says what the job is doing
 
     def _tick(self) -> None:
         while not self._stop.wait(REFRESH_S):

@@ -36,20 +36,22 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description=__doc__.split('\n\n', 1)[1],
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument(
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument(
         '--discovery-s',
         type=float,
-        default=1.0,
-        help='time to let discovery find the graph before asking it [s] (default 1)',
+        default=2.0,
+        help='time to let discovery find the graph before asking it [s] (default 2)',
     )
     commands = parser.add_subparsers(dest='ros_command', metavar='COMMAND', required=True)
-    commands.add_parser('nodes', help='the nodes of the graph').set_defaults(func=run_list)
+    nodes = commands.add_parser('nodes', help='the nodes of the graph', parents=[common])
+    nodes.set_defaults(func=run_list)
     for name in ('topics', 'services'):
-        listing = commands.add_parser(name, help=f'the {name} of the graph')
+        listing = commands.add_parser(name, help=f'the {name} of the graph', parents=[common])
         listing.add_argument('-t', '--types', action='store_true', help='show their types')
         listing.set_defaults(func=run_list)
 
-    call = commands.add_parser('call', help='call the fitter node services')
+    call = commands.add_parser('call', help='call the fitter node services', parents=[common])
     call.add_argument('service', choices=('fit', 'diagnose'))
     call.add_argument(
         '--impact-id',
@@ -75,7 +77,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     options.add_json(call, 'the answer')
     call.set_defaults(func=run_call)
 
-    param = commands.add_parser('param', help="a node's parameters")
+    param = commands.add_parser('param', help="a node's parameters", parents=[common])
     param.add_argument('action', choices=('describe',))
     param.add_argument('node', help='node name, e.g. /fitter')
     param.add_argument('names', nargs='*', metavar='PARAM', help='parameters (default: all)')

@@ -23,6 +23,11 @@ from rclpy.parameter_client import AsyncParameterClient
 from fmm_ros.ros.graph import InProcessGraph
 
 PROBE_NODE = 'fmm_cli'
+# Discovery finds node names before their endpoints; a listing is taken once it has not
+# changed for SETTLED_S, or after SETTLE_TIMEOUT_S at most.
+SETTLED_S = 0.5
+SETTLE_TIMEOUT_S = 5.0
+POLL_S = 0.1
 TYPE_NAMES = {
     value: name.removeprefix('PARAMETER_').lower()
     for name, value in vars(ParameterType).items()
@@ -46,7 +51,7 @@ class ParameterInfo:
 class GraphProbe:
     """One node in the shell's ROS graph, for looking around and calling services."""
 
-    def __init__(self, *, discovery_s: float = 1.0) -> None:
+    def __init__(self, *, discovery_s: float = 2.0) -> None:
         domain = int(os.environ.get('ROS_DOMAIN_ID', '0') or 0)
         self._graph = InProcessGraph(domain_id=domain, localhost_only=False)
         self._discovery_s = discovery_s
@@ -56,7 +61,8 @@ class GraphProbe:
         self._graph.__enter__()
         self.node = self._graph.add(lambda **kwargs: Node(PROBE_NODE, **kwargs))
         self._graph.start()
-        time.sleep(self._discovery_s)  # discovery of the others' endpoints takes this long
+        time.sleep(self._discovery_s)  # discovery of the others takes this long
+        self._wait_for_endpoints()
         return self
 
     def __exit__(self, *exc_info: object) -> None:
@@ -64,20 +70,58 @@ class GraphProbe:
 
     def nodes(self) -> list[str]:
         """Full names of the graph's nodes (not this one), sorted."""
-        names = [
-            f'{namespace.rstrip("/")}/{name}'
-            for name, namespace in self.node.get_node_names_and_namespaces()
-            if name != PROBE_NODE
-        ]
-        return sorted(names)
+        return self._settled(
+            lambda: sorted(
+                f'{namespace.rstrip("/")}/{name}'
+                for name, namespace in self.node.get_node_names_and_namespaces()
+                if name != PROBE_NODE
+            )
+        )
 
     def topics(self) -> list[tuple[str, list[str]]]:
         """(name, types) of every topic, sorted."""
-        return sorted(self.node.get_topic_names_and_types())
+        return self._settled(lambda: sorted(self.node.get_topic_names_and_types()))
 
     def services(self) -> list[tuple[str, list[str]]]:
-        """(name, types) of every service, sorted."""
-        return sorted(self.node.get_service_names_and_types())
+        """(name, types) of every service but this node's own, sorted."""
+        own = f'/{PROBE_NODE}/'
+        return self._settled(
+            lambda: sorted(
+                (name, types)
+                for name, types in self.node.get_service_names_and_types()
+                if not name.startswith(own)
+            )
+        )
+
+    def _wait_for_endpoints(self) -> None:
+        """Wait until every node found shows its services (each has parameter services).
+
+        Discovery announces a node before its endpoints; a listing taken in between would
+        miss them.
+        """
+        deadline = time.monotonic() + SETTLE_TIMEOUT_S
+        while time.monotonic() < deadline:
+            pending = [
+                (name, namespace)
+                for name, namespace in self.node.get_node_names_and_namespaces()
+                if name != PROBE_NODE
+                and not self.node.get_service_names_and_types_by_node(name, namespace)
+            ]
+            if not pending:
+                return
+            time.sleep(POLL_S)
+
+    @staticmethod
+    def _settled(query):
+        """query() once its answer has stopped changing (discovery still arriving)."""
+        deadline = time.monotonic() + SETTLE_TIMEOUT_S
+        answer, since = query(), time.monotonic()
+        while time.monotonic() < deadline and time.monotonic() - since < SETTLED_S:
+            time.sleep(POLL_S)
+            latest = query()
+            if latest != answer:
+                answer, since = latest, time.monotonic()
+        return answer
 
     def call(self, service_type: type, name: str, request: object, timeout_s: float) -> object:
         """Call a service and wait for its response (TimeoutError if none comes)."""
