@@ -208,6 +208,38 @@ def test_report_from_csv_session_has_every_figure(csv_session):
     check_figures(csv_session['out'], csv_session['page'], expected)
 
 
+def test_f_n_and_units_are_the_same_in_every_table_figure_and_the_cli(csv_session, capsys):
+    """One f_n per level (the analysis's) in the level table and the harmonics figure; the
+    receptance in mm/N in the report's tables and in fmm analyze's text alike."""
+    page = csv_session['page']
+    table = dict(
+        re.findall(
+            r'<tr><td class="text">(low|medium|high)</td>(?:<td>[^<]*</td>){3}<td>([0-9.]+)</td>',
+            page,
+        )
+    )
+    alt = re.search(r'<figure id="fig-harmonics"><img [^>]*alt="([^"]+)"', page)[1]
+    drawn = re.findall(r'f_n = ([0-9.]+) Hz', alt)
+    assert len(table) == 3 and drawn == [table[level] for level in ('low', 'medium', 'high')]
+    assert main(['analyze', *csv_session['inputs'], '--paper-levels']) == 0
+    text = capsys.readouterr().out
+    assert '|X/F| mm/N' in text
+    cli_levels = {
+        line.split()[0]: (line.split()[3], line.split()[4])
+        for line in text.splitlines()
+        if line.split()[:1] in (['low'], ['medium'], ['high']) and len(line.split()) == 5
+    }
+    report_levels = dict(
+        re.findall(
+            r'<tr><td class="text">(low|medium|high)</td>(?:<td>[^<]*</td>){4}<td>([0-9.]+)</td>',
+            page,
+        )
+    )
+    for level, (receptance_mm_n, natural_hz) in cli_levels.items():
+        assert float(receptance_mm_n) == pytest.approx(float(report_levels[level]), rel=1e-3)
+        assert natural_hz == table[level]
+
+
 def test_nothing_in_a_figure_is_clipped(csv_session):
     assert csv_session['clipped'] == []
 
