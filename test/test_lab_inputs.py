@@ -224,3 +224,41 @@ def test_a_non_finite_sample_of_a_one_impact_file_is_refused_naming_it(hit, tmp_
     scipy.io.savemat(path, {'force_n': force, 'velocity_m_s': velocity, 'sample_rate_hz': RATE_HZ})
     assert main(['analyze', str(path)]) == 2
     assert 'force_n is not finite (nan) at data row 8' in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_a_labs_continuous_tdms_session_is_fitted_to_its_true_mu(tmp_path, capsys):
+    """A session as NI software saves it (one TDMS file, force in lbf and velocity in mm/s with
+    their unit strings, the rate as wf_increment), made by the independent generator
+    (test/worlds: continuous-time plant, anti-alias filter, hum, drift, ADC): fmm fit cuts
+    it into impacts, keeps the paper-level hits and finds the world's mu."""
+    from worlds import World, record_session
+
+    session = record_session(World(), np.random.default_rng(17), hits=3, tail_s=12.0)
+    path = tmp_path / 'Session 2024-05-01.tdms'
+    common = {'wf_increment': 1 / session.sample_rate_hz}
+    with TdmsWriter(path) as writer:
+        writer.write_segment(
+            [
+                GroupObject('Untitled'),
+                ChannelObject(
+                    'Untitled',
+                    'Hammer',
+                    session.force_n / 4.4482216152605,
+                    {**common, 'unit_string': 'lbf'},
+                ),
+                ChannelObject(
+                    'Untitled',
+                    'LDV',
+                    session.velocity_m_s / MM_S,
+                    {**common, 'unit_string': 'mm/s'},
+                ),
+            ]
+        )
+    flags = ['--continuous', '--window-s', '12', '--paper-levels', '--tolerance-n', '80']
+    flags += ['--fit-initial-position', '--rest-velocity-m-s', '2e-3', '--json']
+    assert main(['fit', str(path), *flags]) == 0
+    fit = json.loads(capsys.readouterr().out)
+    truth = [hit.mu for hit in session.truth.hits]
+    assert len(fit['per_file']) == 3
+    assert fit['mu'] == pytest.approx(np.mean(truth), rel=0.01)
