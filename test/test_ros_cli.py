@@ -136,5 +136,5 @@ def test_no_ros2_is_needed_by_the_readme_venv_commands():
         if line.startswith(('fmm ', '.venv/'))
     ]
     assert len(commands) >= 8 and not any('ros2' in command for command in commands)
-    parser_commands = {command.split()[2] for command in commands if command.startswith('fmm ros')}
+    parser_commands = {c.split()[2].rstrip(':') for c in commands if c.startswith('fmm ros')}
     assert parser_commands == {'nodes', 'topics', 'services', 'call', 'param', 'run'}
