@@ -34,16 +34,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         'mean, H1, H2, coherence) and the peak |receptance| vs impulse regression.',
     )
     options.add_inputs(parser)
-    options.add_json(parser, 'the results')
-    options.add_output(
-        parser,
-        'write the level FRFs to PATH: .uff/.unv (UFF 58), .csv or .json (repeatable)',
-        repeat=True,
-        aliases=('--export',),
-    )
-    options.add_hit_selection(parser)
-    options.add_frf_options(parser)
-    options.add_quiet(parser)
+    options.add_analysis(parser)
     parser.set_defaults(func=run)
 
 

@@ -299,6 +299,20 @@ def add_frf_options(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_analysis(parser: argparse.ArgumentParser) -> None:
+    """What analyze and replay share: --json, -o for the level FRFs, hits, FRFs, --quiet."""
+    add_json(parser, 'one object')
+    add_output(
+        parser,
+        'write the level FRFs to PATH: .uff/.unv (UFF 58), .csv or .json (repeatable)',
+        repeat=True,
+        aliases=('--export',),
+    )
+    add_hit_selection(parser)
+    add_frf_options(parser)
+    add_quiet(parser)
+
+
 def selects_hits(args: argparse.Namespace) -> bool:
     """Whether a hit-selection option was given (for commands where selection is optional)."""
     return bool(args.paper_levels or args.level or args.reject is not None)

@@ -32,16 +32,7 @@ def register(subparsers) -> None:
         'faster than real time it ran. Exit status 1 when the bag is damaged.',
     )
     parser.add_argument('bag', type=Path, help='bag directory, or a .mcap / .db3 file')
-    options.add_json(parser, 'one object')
-    options.add_output(
-        parser,
-        'write the level FRFs to PATH: .uff/.unv (UFF 58), .csv or .json (repeatable)',
-        repeat=True,
-        aliases=('--export',),
-    )
-    options.add_hit_selection(parser)
-    options.add_frf_options(parser)
-    options.add_quiet(parser)
+    options.add_analysis(parser)
     parser.set_defaults(func=run)
 
 
