@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import codecs
 import csv
+import io
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -115,7 +116,8 @@ class TextTable:
     decimal: str
     data_line: int
     """1-based line number of the first data row."""
-    _lines: tuple[str, ...]
+    _data: str
+    """The text from the first data row on."""
 
     def describe(self) -> str:
         """How the file was read, for an import report: 'semicolon, decimal comma, cp1252'."""
@@ -131,16 +133,15 @@ class TextTable:
 
     def values(self) -> np.ndarray:
         """The data rows as a (rows, columns) float64 array; ValueError naming the line."""
-        lines = [line for line in self._lines[self.data_line - 1 :] if _is_data(line)]
-        if self.decimal == ',':
-            lines = [line.replace(',', '.') for line in lines]
+        text = self._data.replace(',', '.') if self.decimal == ',' else self._data
         try:
             table = np.loadtxt(
-                lines,
+                io.StringIO(text),
                 delimiter=None if self.delimiter == ' ' else self.delimiter,
                 usecols=range(len(self.names)),
                 ndmin=2,
                 quotechar='"',
+                comments='#',
             )
         except ValueError as error:
             raise ValueError(
@@ -155,12 +156,13 @@ def read_table(path: str | Path, text_format: TextFormat = DETECT) -> TextTable:
     """Read a delimited text file's layout (the values are parsed by `TextTable.values`)."""
     path = Path(path)
     content, encoding = decode_text(path.read_bytes(), text_format.encoding, path)
-    lines = tuple(content.splitlines())
-    body = [
-        (number, line)
-        for number, line in enumerate(lines, 1)
-        if number > text_format.skip_rows and _is_data(line)
-    ]
+    lines = content.splitlines()
+    body = []  # the lines the layout is found from: up to SNIFF_LINES * 4 of them
+    for number, line in enumerate(lines, 1):
+        if number > text_format.skip_rows and _is_data(line):
+            body.append((number, line))
+            if len(body) == SNIFF_LINES * 4:
+                break
     if not body:
         raise ValueError(f'{path} holds no data')
     sample = [line for _, line in body[:SNIFF_LINES]]
@@ -170,7 +172,7 @@ def read_table(path: str | Path, text_format: TextFormat = DETECT) -> TextTable:
         raise ValueError(
             f'{path}: the delimiter and the decimal separator cannot both be {decimal!r}'
         )
-    rows = [(number, _cells(line, delimiter)) for number, line in body[: SNIFF_LINES * 4]]
+    rows = [(number, _cells(line, delimiter)) for number, line in body]
     start = next(
         (position for position, (_, cells) in enumerate(rows) if _numeric(cells, decimal)), None
     )
@@ -190,8 +192,16 @@ def read_table(path: str | Path, text_format: TextFormat = DETECT) -> TextTable:
             raise ValueError(f'{path}: the header names a column twice: {names}')
         if len(above) > 1:
             units = [cell or None for cell in _trimmed(above[1])]
+    data_line = rows[start][0]
     return TextTable(
-        path, tuple(names), tuple(units), encoding, delimiter, decimal, rows[start][0], lines
+        path,
+        tuple(names),
+        tuple(units),
+        encoding,
+        delimiter,
+        decimal,
+        data_line,
+        '\n'.join(lines[data_line - 1 :]),
     )
 
 
