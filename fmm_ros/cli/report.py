@@ -103,8 +103,7 @@ def run(args: argparse.Namespace) -> int:
     )
     with StatusLine(quiet=args.quiet) as progress:
         session = process_session(args.inputs, session_options, progress=progress)
-        progress('drawing the report')
-        page = build_report(session, args.output, title=args.title, dpi=dpi)
+        page = build_report(session, args.output, title=args.title, dpi=dpi, progress=progress)
     failures = [
         f'cannot {what}: {why}'
         for what, why in (('fit mu', session.fit_failure), ('diagnose', session.diagnosis_failure))

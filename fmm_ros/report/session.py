@@ -9,7 +9,7 @@ with the figures embedded plus each figure as a PNG, and computes nothing itself
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -53,16 +53,17 @@ def build_report(
     *,
     title: str = 'Impact session report',
     dpi: float = DEFAULT_DPI,
+    progress: Callable[[str], None] | None = None,
 ) -> Path:
     """Write the session's report into out_dir (index.html and one PNG per figure); its path.
 
     Every hit is in the table and has its figure; a friction fit is shown per impact and
     overall, and its model (or a given one) is drawn over each hit and each level's FRF; a
     diagnosis (or why there is none) has its section; problems reading the inputs (a damaged
-    bag) are shown at the top so no one misses them.
+    bag) are shown at the top so no one misses them. progress is told of each figure.
     """
     summary = session.summary
-    page = Page(out_dir, title, dpi=dpi)
+    page = Page(out_dir, title, dpi=dpi, progress=progress)
     colours = {level.level: level_colour(index) for index, level in enumerate(summary.levels)}
     comparison = session.comparison
     _session_section(page, session)

@@ -15,7 +15,7 @@ A fit or diagnosis the data refuse does not stop the pipeline: the result says w
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -27,11 +27,9 @@ from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.signal.analysis import AnalysisConfig, Summary, analyze_impact, summarize
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig
 from fmm_ros.core.signal.records import ImpactRecord
-from fmm_ros.workflows.inputs import DEFAULT_INPUTS, InputOptions, read_inputs
+from fmm_ros.workflows.inputs import DEFAULT_INPUTS, InputOptions, Progress, read_inputs
 from fmm_ros.workflows.model import ModelComparison, ModelOverlay, compare_model
 from fmm_ros.workflows.results import FrictionResult, analysis_dict, diagnosis_dict, json_safe
-
-Progress = Callable[[str], None]
 
 
 @dataclass(frozen=True)
