@@ -20,7 +20,7 @@ from worlds import Coulomb, Plant, World, record_session, write_record_csv
 
 from fmm_ros.campaign.cache import ResultCache, session_key
 from fmm_ros.campaign.results import run_campaign, to_json, write_tables
-from fmm_ros.campaign.session import FAILED, SessionOutcome, SessionSettings, SessionSpec
+from fmm_ros.campaign.session import FAILED, SessionOutcome, SessionSpec
 from fmm_ros.campaign.table import read_campaign_table
 from fmm_ros.campaign.tasks import SERIAL, run_sessions
 from fmm_ros.cli import main
@@ -31,12 +31,15 @@ from fmm_ros.core.signal.records import write_impact_csv
 from fmm_ros.sim.campaign import simulated_campaign
 from fmm_ros.sim.excitation import impact_record
 from fmm_ros.sim.session import simulated_session, write_session_bag
+from fmm_ros.workflows.inputs import InputOptions
+from fmm_ros.workflows.session import SessionOptions
 
 LUBRICANTS = {'A': 0.113, 'B': 0.101, 'C': 0.113}
 LOADS_N = (6.6708, 9.81)
 WINDOW_S = 10.0  # short sessions: hits 10 s apart, each record 10 s
-SETTINGS = SessionSettings(
-    capture=CaptureConfig(window_s=WINDOW_S), analysis=AnalysisConfig(levels=paper_levels())
+SETTINGS = SessionOptions(
+    inputs=InputOptions(capture=CaptureConfig(window_s=WINDOW_S)),
+    analysis=AnalysisConfig(levels=paper_levels()),
 )
 BROKEN = {
     'missing': 'no such file or directory',
@@ -184,7 +187,8 @@ def test_the_cache_key_follows_data_settings_and_rig_not_the_name(tmp_path):
     spec = SessionSpec('one', folder)
     key = session_key(spec, SETTINGS)
     assert session_key(dataclasses.replace(spec, session_id='renamed'), SETTINGS) == key
-    assert session_key(spec, dataclasses.replace(SETTINGS, fit_damping=True)) != key
+    damped = dataclasses.replace(SETTINGS.model, fit_damping=True)
+    assert session_key(spec, dataclasses.replace(SETTINGS, model=damped)) != key
     assert session_key(dataclasses.replace(spec, rig=Rig(normal_force_n=9.81)), SETTINGS) != key
     (folder / 'hit.csv').write_text((folder / 'hit.csv').read_text().replace('0.', '1.', 1))
     assert session_key(spec, SETTINGS) != key
@@ -348,8 +352,8 @@ def test_lab_sessions_from_the_independent_generator_as_csv_folders(tmp_path):
 
 @pytest.mark.slow
 def test_a_session_of_lab_files_is_read_through_its_mapping(tmp_path):
-    """Lab files (here NPZ in kN and mm/s) with an `fmm import` mapping: joined as one
-    recording, captured as the analyzer captures a stream, fitted."""
+    """Lab files (here NPZ in kN and mm/s), each a recording of hits (continuous), read with
+    the session's `fmm import` mapping file, cut as the analyzer cuts a stream, fitted."""
     session = simulated_session(1, levels=('medium', 'high'), spacing_s=WINDOW_S + 2, seed=3)
     half = int((WINDOW_S + 1) * 1e4)  # between the first record's end and the second hit
     folder = tmp_path / 'lab'
@@ -368,7 +372,10 @@ def test_a_session_of_lab_files_is_read_through_its_mapping(tmp_path):
     table.write_text('mapping: lab/mapping.yaml\nsessions:\n  - {session: lab, id: L1}\n')
     (spec,) = [s.spec for s in read_campaign_table(table).sessions]
     assert spec.mapping == mapping
-    (outcome,) = run_sessions([spec], SETTINGS, scheduler=SERIAL)
+    continuous = dataclasses.replace(SETTINGS.inputs, continuous=True)
+    (outcome,) = run_sessions(
+        [spec], dataclasses.replace(SETTINGS, inputs=continuous), scheduler=SERIAL
+    )
     assert outcome.ok, outcome.reason
     assert len(outcome.hits) == 2 and outcome.accepted_hits >= 1, outcome.hits
     assert not any('gap' in hit.flags for hit in outcome.hits)

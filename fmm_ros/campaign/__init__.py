@@ -15,7 +15,7 @@ from fmm_ros.campaign.results import (
     write_json,
     write_tables,
 )
-from fmm_ros.campaign.session import SessionOutcome, SessionSettings, SessionSpec
+from fmm_ros.campaign.session import SessionOutcome, SessionSpec
 from fmm_ros.campaign.stats import MetaRegression, meta_regression
 from fmm_ros.campaign.table import CampaignTable, read_campaign_table
 from fmm_ros.campaign.tasks import SERIAL, run_session, run_sessions
@@ -28,7 +28,6 @@ __all__ = [
     'MetaRegression',
     'SessionMu',
     'SessionOutcome',
-    'SessionSettings',
     'SessionSpec',
     'compare_sessions',
     'meta_regression',

@@ -1,10 +1,11 @@
 """Per-session results kept on disk, keyed by what they were computed from.
 
-A key is the BLAKE2b hash of the session's bytes (every file it reads, and its mapping), the
-settings, the rig it is fitted with, and the source of the fmm_ros package that computes it.
+A key is the BLAKE2b hash of the session's bytes (every file it reads, and its mapping), its
+options (how it is read, analysed, fitted with which rig, diagnosed or not), and the source of
+the fmm_ros package that computes it.
 So a campaign run again after a crash, or with sessions added, recomputes only what is new or
 changed; relabelling a session (its conditions, its id) reuses its result, and any change to
-the code or the settings recomputes everything. Entries are JSON files written atomically
+the code or the options recomputes everything. Entries are JSON files written atomically
 (a temporary file renamed into place), so a crash mid-write leaves no half entry; an entry
 that cannot be read is treated as absent.
 """
@@ -19,22 +20,27 @@ import os
 import tempfile
 from pathlib import Path
 
-from fmm_ros.campaign.session import SessionOutcome, SessionSettings, SessionSpec, session_files
+from fmm_ros.campaign.session import (
+    SessionOutcome,
+    SessionSpec,
+    options_dict,
+    session_files,
+    session_options,
+)
+from fmm_ros.workflows.session import SessionOptions
 
 _CHUNK_BYTES = 1 << 20
 CACHE_FORMAT = 1
 """Bumped when SessionOutcome's stored form changes."""
 
 
-def session_key(spec: SessionSpec, settings: SessionSettings) -> str:
-    """The cache key of a session under these settings (reads every byte of its files)."""
+def session_key(spec: SessionSpec, options: SessionOptions) -> str:
+    """The cache key of a session under these options (reads every byte of its files)."""
     digest = hashlib.blake2b(digest_size=20)
     header = {
         'format': CACHE_FORMAT,
         'code': code_hash(),
-        'settings': settings.to_dict(),
-        'rig': dataclasses.asdict(spec.rig),
-        'lab_files': spec.mapping is not None,
+        'options': options_dict(session_options(spec, options)),  # its rig and mapping too
     }
     digest.update(json.dumps(header, sort_keys=True, default=repr).encode())
     files = [*session_files(spec), *([spec.mapping] if spec.mapping else [])]

@@ -31,11 +31,11 @@ from fmm_ros.campaign.compare import (
 from fmm_ros.campaign.results import CampaignResult, session_mus
 from fmm_ros.campaign.stats import CONFIDENCE
 from fmm_ros.campaign.table import DATE, format_value
+from fmm_ros.constants import MM_PER_M
 from fmm_ros.report.html import Page
 from fmm_ros.report.plotting import (
     DEFAULT_DPI,
     MEAN_COLOUR,
-    MM_PER_M,
     RECEPTANCE_UNIT,
     REJECTED_COLOUR,
     level_colour,
@@ -74,9 +74,10 @@ def write_campaign_report(
 def _overview(page: Page, campaign: CampaignResult) -> None:
     """What was run, and the verdict in words."""
     comparison, results = campaign.comparison, campaign.results
-    settings = campaign.settings
+    options = campaign.options
     page.section('Campaign and verdict', 'campaign')
-    levels = ', '.join(f'{lv.name} {lv.peak_force_n:g} N' for lv in settings.analysis.levels)
+    levels = ', '.join(f'{lv.name} {lv.peak_force_n:g} N' for lv in options.analysis.levels)
+    model = options.model
     page.items(
         [
             f'table: {campaign.table.path}',
@@ -85,11 +86,11 @@ def _overview(page: Page, campaign: CampaignResult) -> None:
             f'compared by: {", ".join(campaign.by)}'
             + (f'; trends against: {", ".join(campaign.trend)}' if campaign.trend else ''),
             f'hit levels: {levels or "clustered from the peak forces"}; capture window '
-            f'{settings.capture.window_s:g} s',
+            f'{options.inputs.capture.window_s:g} s',
             "fit: one mu over each session's accepted hits, with the normal force of its row "
-            f'(damping {"fitted" if settings.fit_damping else "the rig constant"}, start '
-            f'positions {"fitted" if settings.fit_initial_position else "at rest at 0"}); '
-            f'diagnosis {"run" if settings.diagnose else "not run"}',
+            f'(damping {"fitted" if model.fit_damping else "the rig constant"}, start '
+            f'positions {"fitted" if model.fit_initial_position else "at rest at 0"}); '
+            f'diagnosis {"run" if options.diagnose else "not run"}',
             f'run time: {campaign.seconds:.1f} s',
         ]
     )

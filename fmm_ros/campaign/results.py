@@ -29,10 +29,11 @@ from fmm_ros.campaign.compare import (
     Trend,
     compare_sessions,
 )
-from fmm_ros.campaign.session import SessionOutcome, SessionSettings
+from fmm_ros.campaign.session import SessionOutcome, options_dict
 from fmm_ros.campaign.stats import Contrast
 from fmm_ros.campaign.table import CampaignTable
 from fmm_ros.campaign.tasks import run_sessions
+from fmm_ros.workflows.session import SessionOptions
 
 TABLES = ('sessions', 'hits', 'levels', 'estimates')
 
@@ -42,7 +43,7 @@ class CampaignResult:
     """A campaign's sessions (in table order) with their results, and the comparison."""
 
     table: CampaignTable
-    settings: SessionSettings
+    options: SessionOptions
     results: tuple[SessionOutcome, ...]
     comparison: CampaignComparison
     by: tuple[str, ...]
@@ -62,7 +63,7 @@ class CampaignResult:
 
 def run_campaign(
     table: CampaignTable,
-    settings: SessionSettings,
+    options: SessionOptions,
     *,
     by: Sequence[str] | None = None,
     trend: Sequence[str] | None = None,
@@ -79,7 +80,7 @@ def run_campaign(
     clock = time.perf_counter()
     results = run_sessions(
         [session.spec for session in table.sessions],
-        settings,
+        options,
         cache_dir=cache_dir,
         scheduler=scheduler,
         workers=workers,
@@ -87,7 +88,7 @@ def run_campaign(
     )
     seconds = time.perf_counter() - clock
     comparison = compare_sessions(session_mus(table, results), table.columns, by, trend)
-    return CampaignResult(table, settings, tuple(results), comparison, by, trend, seconds)
+    return CampaignResult(table, options, tuple(results), comparison, by, trend, seconds)
 
 
 def session_mus(table: CampaignTable, results: Sequence[SessionOutcome]) -> list[SessionMu]:
@@ -283,7 +284,7 @@ def to_json(campaign: CampaignResult) -> dict:
         'sessions_cached': sum(result.cached for result in campaign.results),
         'failed': [{'session_id': i, 'reason': why} for i, why in campaign.failed],
         'seconds': campaign.seconds,
-        'settings': campaign.settings.to_dict(),
+        'options': options_dict(campaign.options),
         'model': None
         if model is None
         else {

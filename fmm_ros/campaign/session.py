@@ -1,16 +1,16 @@
 """One campaign session as an independent task: its inputs -> analysis, fit, diagnosis, summary.
 
-The work is the product's per-session pipeline, not a copy of it: records are read as `fmm
-analyze` reads them (bags through the analyzer's capture, per-impact CSV files, lab files
-through `fmm import`'s mapping), analysed by the signal core, and fitted and diagnosed by
-`fmm_ros.workflows.session` (`fit_accepted_impacts`, `diagnose_accepted_impacts`) with the
-rig the session ran on: its normal force sets mu = F_f / N. `_analyse_fit_diagnose` is the
-one place that calls the workflows.
+The work is the product's per-session pipeline, not a copy of it: the session's files are
+read by the one input layer (`fmm_ros.workflows.inputs.read_inputs`: bags, lab files by
+content, a mapping) and processed by `fmm_ros.workflows.session.run_session` (analysis, the
+friction fit over the accepted hits, the model run for every hit, optionally the diagnosis),
+exactly as `fmm report` processes a session, with the rig the session ran on: its normal
+force sets mu = F_f / N.
 
 The result (`SessionOutcome`) is plain data: it travels between processes and machines (Dask),
 is cached as JSON, and feeds the campaign's statistics and tables. A session whose data the
 pipeline refuses (a missing or damaged file, no hit, no accepted hit, a fit friction cannot
-explain) is a result too, with status 'failed' and the reason; only a bug raises.
+explain) is an outcome too, with status 'failed' and the reason; only a bug raises.
 """
 
 from __future__ import annotations
@@ -19,46 +19,37 @@ import dataclasses
 import glob
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from fmm_ros.cli.analyze import read_records
-from fmm_ros.core.identify.friction import MU_BOUNDS
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
-from fmm_ros.core.signal.analysis import (
-    AnalysisConfig,
-    LevelSummary,
-    Summary,
-    analyze_impact,
-    summarize,
-)
-from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, capture_impacts
-from fmm_ros.core.signal.records import ImpactRecord
-from fmm_ros.io.labfiles import ImportMapping, load_mapping, read_lab_files
-from fmm_ros.workflows.replay import is_bag
-from fmm_ros.workflows.session import (
-    FrictionSummary,
-    diagnose_accepted_impacts,
-    fit_accepted_impacts,
-)
+from fmm_ros.core.signal.analysis import LevelSummary, Summary
+from fmm_ros.io import sniff
+from fmm_ros.io.labfiles import load_mapping
+from fmm_ros.workflows.inputs import read_inputs
+from fmm_ros.workflows.results import FrictionResult
+from fmm_ros.workflows.session import SessionOptions, SessionResult, run_session
 
 OK = 'ok'
 FAILED = 'failed'
 RIG_COLUMNS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(Rig))
 """Table columns that set a session's rig constants (SI units, as Rig names them)."""
 _GLOB_CHARACTERS = frozenset('*?[')
+_NOT_DATA = frozenset({'.yaml', '.yml', '.md'})
+"""Files of a session folder that are not its data: a mapping, notes."""
 
 
 @dataclass(frozen=True)
 class SessionSpec:
     """One row of a campaign: where its data are and the rig it ran on.
 
-    `source` is a bag (directory, .mcap or .db3), a per-impact CSV file, a folder of them, or
-    a glob of such files; with `mapping` (an `fmm import` mapping file) a lab file or folder
-    of lab files (CSV, NPZ, MAT, TDMS) joined in name order as one continuous recording.
+    `source` is a bag (directory, .mcap or .db3), a lab file (text, NPZ, MAT, TDMS, read by
+    content: one impact each, or with the options' `continuous` a recording of several hits),
+    a folder of them, or a glob. `mapping`: an `fmm import` mapping file for this session's
+    lab files, in place of the campaign's.
     """
 
     session_id: str
@@ -67,20 +58,19 @@ class SessionSpec:
     mapping: Path | None = None
 
 
-@dataclass(frozen=True)
-class SessionSettings:
-    """How every session of a campaign is analysed, fitted and diagnosed."""
+def session_options(spec: SessionSpec, options: SessionOptions) -> SessionOptions:
+    """The campaign's options with this session's rig, and its mapping file where it has one."""
+    inputs = options.inputs
+    if spec.mapping is not None:
+        inputs = dataclasses.replace(inputs, mapping=load_mapping(spec.mapping))
+    return dataclasses.replace(
+        options, inputs=inputs, model=dataclasses.replace(options.model, rig=spec.rig)
+    )
 
-    capture: CaptureConfig = DEFAULT_CAPTURE
-    analysis: AnalysisConfig = AnalysisConfig()
-    fit_damping: bool = False
-    fit_initial_position: bool = False
-    mu_bounds: tuple[float, float] = MU_BOUNDS
-    diagnose: bool = False
 
-    def to_dict(self) -> dict:
-        """The settings as plain data (the cache key hashes this)."""
-        return dataclasses.asdict(self)
+def options_dict(options: SessionOptions) -> dict:
+    """Session options as plain data (the cache key hashes it; the JSON shows it)."""
+    return dataclasses.asdict(options)
 
 
 @dataclass(frozen=True)
@@ -100,6 +90,8 @@ class HitSummary:
     mu: float = math.nan
     """This hit's own mu (c and the rest as in the joint fit); NaN unless fitted."""
     mu_stderr: float = math.nan
+    residual_rms_m_s: float = math.nan
+    """RMS of measured minus fitted-model velocity over the hit's motion [m/s]."""
 
 
 @dataclass(frozen=True)
@@ -144,7 +136,8 @@ class SessionOutcome:
     """`Diagnosis.to_dict()` of the accepted hits, when diagnosed."""
     diagnosis_failure: str = ''
     seconds: dict[str, float] = field(default_factory=dict)
-    """Wall time of each step where it was computed: read, analyse, fit, diagnose."""
+    """Wall time of each step where it was computed [s]: read, and process (analysis, fit,
+    the model run for every hit, diagnosis)."""
     cpu_seconds: float = math.nan
     """Processor time the session took where it was computed (user and system) [s]."""
     key: str = ''
@@ -204,8 +197,8 @@ class SessionOutcome:
 def session_files(spec: SessionSpec) -> list[Path]:
     """The files a session reads, in the order they are read; ValueError if there are none.
 
-    A bag is one entry (its directory or file); a folder gives its *.csv files (or, with a
-    mapping, every file in it but the mapping), sorted by name; a glob its matches.
+    A bag is one entry (its directory or file); a glob gives its matches; a folder every
+    file in it but hidden ones, YAML and Markdown (a mapping, notes), sorted by name.
     """
     source = spec.source
     text = str(source)
@@ -216,146 +209,70 @@ def session_files(spec: SessionSpec) -> list[Path]:
         return paths
     if not source.exists():
         raise ValueError(f'{source}: no such file or directory')
-    if spec.mapping is None and is_bag(source):
-        return [source]
-    if source.is_dir():
-        if spec.mapping is None:
-            paths = sorted(source.glob('*.csv'))
-        else:
-            mapping = spec.mapping.resolve()
-            paths = sorted(p for p in source.iterdir() if p.is_file() and p.resolve() != mapping)
+    if source.is_dir() and not _is_bag(source):
+        paths = sorted(
+            path
+            for path in source.iterdir()
+            if path.is_file()
+            and not path.name.startswith('.')
+            and path.suffix.lower() not in _NOT_DATA
+        )
         if not paths:
-            kind = 'lab file' if spec.mapping else 'bag or per-impact CSV file'
-            raise ValueError(f'{source}: a folder with no {kind} in it')
+            raise ValueError(f'{source}: a folder with no bag or lab file in it')
         return paths
     return [source]
 
 
-def read_session(
-    spec: SessionSpec, capture: CaptureConfig = DEFAULT_CAPTURE
-) -> tuple[list[ImpactRecord], list[str]]:
-    """The session's impact records, and the damage its bags showed (see `session_files`)."""
-    paths = session_files(spec)
-    if spec.mapping is None:
-        return read_records(paths, capture=capture)
-    mapping = ImportMapping.from_dict(load_mapping(spec.mapping))
-    records: list[ImpactRecord] = []
-    first_index = 0
-    for recording in read_lab_files(paths, mapping):
-        records += capture_impacts(
-            recording.force_n,
-            recording.velocity_m_s,
-            recording.sample_rate_hz,
-            capture,
-            first_index,
-            recording.full_scale_force_n,
-            recording.full_scale_velocity_m_s,
-        )
-        first_index += len(recording.force_n)
-    if not records:
-        raise ValueError(
-            f'{spec.source}: no impact in the recording (the force never reaches the '
-            f'trigger level {capture.trigger_level_n:g} N)'
-        )
-    return [
-        dataclasses.replace(r, source=f'{spec.source}@{r.trigger_sample_index}') for r in records
-    ], []
+def _is_bag(folder: Path) -> bool:
+    """Whether a folder is a bag (metadata.yaml, .mcap or .db3 in it) rather than files."""
+    try:
+        return sniff.file_kind(folder) == sniff.BAG
+    except ValueError:
+        return False
 
 
-def compute_session(spec: SessionSpec, settings: SessionSettings) -> SessionOutcome:
-    """Run the session's pipeline; data the pipeline refuses give a 'failed' result."""
+def compute_session(spec: SessionSpec, options: SessionOptions) -> SessionOutcome:
+    """Run the session's pipeline; data the pipeline refuses give a 'failed' outcome."""
     seconds: dict[str, float] = {}
+    timed = _Timer(seconds)
     cpu = time.process_time()
+    mine = session_options(spec, options)
     try:
-        records, problems = _Timer(seconds)('read', lambda: read_session(spec, settings.capture))
-    except (ValueError, OSError) as error:  # bag, CSV and lab-file errors are ValueErrors
-        result = SessionOutcome(FAILED, f'cannot read: {error}', seconds=seconds)
-    else:
-        result = _analyse_fit_diagnose(records, tuple(problems), spec.rig, settings, seconds)
-    return dataclasses.replace(result, cpu_seconds=time.process_time() - cpu)
-
-
-@dataclass(frozen=True)
-class _Processed:
-    """What the pipeline gave, under the names workflows' session results use."""
-
-    summary: Summary
-    friction: FrictionSummary | None
-    fit_failure: str
-    diagnosis: dict | None
-    diagnosis_failure: str
-
-
-def _analyse_fit_diagnose(
-    records: Sequence[ImpactRecord],
-    problems: tuple[str, ...],
-    rig: Rig,
-    settings: SessionSettings,
-    seconds: dict[str, float],
-) -> SessionOutcome:
-    """The product's per-session pipeline over records, summarised as plain data."""
-    return _outcome(_process(records, rig, settings, _Timer(seconds)), problems, rig, seconds)
-
-
-def _process(
-    records: Sequence[ImpactRecord], rig: Rig, settings: SessionSettings, timed: _Timer
-) -> _Processed:
-    """Analyse every record, fit mu over the accepted ones, diagnose them if asked.
-
-    The one place that calls the workflows: what `fmm report` computes for a session.
-    """
-    summary = timed(
-        'analyse',
-        lambda: summarize(
-            [
-                analyze_impact(record, settings.capture, settings.analysis, impact_id=number)
-                for number, record in enumerate(records)
-            ],
-            settings.analysis,
-        ),
-    )
-    friction, fit_failure = None, ''
-    try:
-        friction = timed(
-            'fit',
-            lambda: fit_accepted_impacts(
-                records,
-                summary,
-                rig=rig,
-                fit_damping=settings.fit_damping,
-                fit_initial_position=settings.fit_initial_position,
-                mu_bounds=settings.mu_bounds,
+        read = timed('read', lambda: read_inputs(session_files(spec), mine.inputs))
+        processed = timed(
+            'process',
+            lambda: run_session(
+                read.records,
+                mine,
+                inputs=read.paths,
+                problems=read.problems,
+                notes=read.notes,
             ),
         )
-    except ValueError as error:  # FitError is one; so is 'no accepted impact to fit'
-        fit_failure = str(error)
-    diagnosis, diagnosis_failure = None, ''
-    if settings.diagnose:
-        try:
-            diagnosis = timed(
-                'diagnose',
-                lambda: diagnose_accepted_impacts(
-                    records, summary, rig=rig, fit_initial_position=settings.fit_initial_position
-                ),
-            ).diagnosis.to_dict()
-        except ValueError as error:
-            diagnosis_failure = str(error)
-    return _Processed(summary, friction, fit_failure, diagnosis, diagnosis_failure)
+    except (ValueError, OSError) as error:  # bag, lab-file and input errors are ValueErrors
+        step = 'read' if 'process' not in seconds else 'analyse'
+        outcome = SessionOutcome(FAILED, f'cannot {step}: {error}', seconds=seconds)
+    else:
+        outcome = _outcome(processed, mine.model.rig, seconds)
+    return dataclasses.replace(outcome, cpu_seconds=time.process_time() - cpu)
 
 
-def _outcome(
-    processed: _Processed, problems: tuple[str, ...], rig: Rig, seconds: dict[str, float]
-) -> SessionOutcome:
+def _outcome(processed: SessionResult, rig: Rig, seconds: dict[str, float]) -> SessionOutcome:
     """A processed session as plain data: failed when it has no fitted mu."""
     summary, friction = processed.summary, processed.friction
+    residuals = (
+        {i: hit.residual_rms_m_s for i, hit in processed.comparison.hits.items()}
+        if processed.comparison
+        else {}
+    )
     common = dict(
-        problems=problems,
-        hits=_hits(summary, friction),
+        problems=tuple(processed.problems),
+        hits=_hits(summary, friction, residuals),
         levels=tuple(_level_row(level) for level in summary.levels),
         linearity_slope=float(summary.linearity.slope),
         linearity_r2=float(summary.linearity.r2),
         normal_force_n=rig.normal_force_n,
-        diagnosis=processed.diagnosis,
+        diagnosis=processed.diagnosis.to_dict() if processed.diagnosis else None,
         diagnosis_failure=processed.diagnosis_failure,
         seconds=seconds,
     )
@@ -387,19 +304,19 @@ class _Timer:
             self.seconds[name] = time.perf_counter() - clock
 
 
-def _hits(summary: Summary, friction: FrictionSummary | None) -> tuple[HitSummary, ...]:
+def _hits(
+    summary: Summary, friction: FrictionResult | None, residuals: dict[int, float]
+) -> tuple[HitSummary, ...]:
     """Every impact of the summary, with its own mu where the fit gave one."""
     own = {}
     if friction is not None:
-        own = {
-            impact_id: (mu, stderr)
-            for impact_id, mu, stderr in zip(
+        own = dict(
+            zip(
                 friction.impact_ids,
-                friction.per_impact_mu,
-                friction.per_impact_mu_stderr,
+                zip(friction.per_impact_mu, friction.per_impact_mu_stderr, strict=True),
                 strict=True,
             )
-        }
+        )
     return tuple(
         HitSummary(
             impact_id=impact.impact_id,
@@ -412,8 +329,9 @@ def _hits(summary: Summary, friction: FrictionSummary | None) -> tuple[HitSummar
             contact_duration_s=float(impact.contact_duration_s),
             natural_frequency_hz=float(impact.natural_frequency_hz),
             peak_receptance_m_per_n=float(impact.peak_receptance_m_per_n),
-            mu=float(own.get(impact.impact_id, (math.nan,))[0]),
-            mu_stderr=float(own.get(impact.impact_id, (0.0, math.nan))[1]),
+            mu=float(own.get(impact.impact_id, (math.nan, math.nan))[0]),
+            mu_stderr=float(own.get(impact.impact_id, (math.nan, math.nan))[1]),
+            residual_rms_m_s=float(residuals.get(impact.impact_id, math.nan)),
         )
         for impact in summary.impacts
     )

@@ -27,10 +27,10 @@ from fmm_ros.campaign.cache import ResultCache, session_key
 from fmm_ros.campaign.session import (
     FAILED,
     SessionOutcome,
-    SessionSettings,
     SessionSpec,
     compute_session,
 )
+from fmm_ros.workflows.session import SessionOptions
 
 SERIAL = 'serial'
 """The scheduler name that runs every session in this process, without Dask."""
@@ -40,31 +40,31 @@ PRE_SPAWN_ENVIRON = 'distributed.nanny.pre-spawn-environ'
 
 
 def run_session(
-    spec: SessionSpec, settings: SessionSettings, cache_dir: str | None = None
+    spec: SessionSpec, options: SessionOptions, cache_dir: str | None = None
 ) -> SessionOutcome:
-    """One session: from the cache when its data and settings are known, else computed.
+    """One session: from the cache when its data and options are known, else computed.
 
     Without a cache directory the session is computed and its inputs are not hashed. A
     result the data decided (fitted or failed) is cached; inputs that cannot be read at all
     have no key and fail uncached.
     """
     if not cache_dir:
-        return compute_session(spec, settings)
+        return compute_session(spec, options)
     try:
-        key = session_key(spec, settings)
+        key = session_key(spec, options)
     except (ValueError, OSError) as error:
         return SessionOutcome(FAILED, f'cannot read: {error}')
     cache = ResultCache(cache_dir)
     if (stored := cache.get(key)) is not None:
         return stored
-    result = dataclasses.replace(compute_session(spec, settings), key=key)
+    result = dataclasses.replace(compute_session(spec, options), key=key)
     cache.put(key, result)
     return result
 
 
 def run_sessions(
     specs: Sequence[SessionSpec],
-    settings: SessionSettings,
+    options: SessionOptions,
     *,
     cache_dir: str | os.PathLike | None = None,
     scheduler: str | None = None,
@@ -82,7 +82,7 @@ def run_sessions(
     if scheduler == SERIAL:
         results = []
         for index, spec in enumerate(specs):
-            results.append(_guarded(run_session, spec, settings, cache))
+            results.append(_guarded(run_session, spec, options, cache))
             if on_result:
                 on_result(index, results[-1])
         return results
@@ -105,19 +105,19 @@ def run_sessions(
                 silence_logs=logging.ERROR,
             )
         with cluster, Client(cluster) as client:
-            return _compute(client, specs, settings, cache, on_result)
+            return _compute(client, specs, options, cache, on_result)
     try:
         client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
     except (OSError, TimeoutError) as error:
         raise OSError(f'cannot reach the Dask scheduler at {scheduler}: {error}') from error
     with client:
-        return _compute(client, specs, settings, cache, on_result)
+        return _compute(client, specs, options, cache, on_result)
 
 
 def _compute(
     client,
     specs: Sequence[SessionSpec],
-    settings: SessionSettings,
+    options: SessionOptions,
     cache: str | None,
     on_result: Callable[[int, SessionOutcome], None] | None,
 ) -> list[SessionOutcome]:
@@ -125,7 +125,7 @@ def _compute(
     import dask
     from distributed import as_completed
 
-    tasks = [dask.delayed(run_session, pure=False)(spec, settings, cache) for spec in specs]
+    tasks = [dask.delayed(run_session, pure=False)(spec, options, cache) for spec in specs]
     futures = client.compute(tasks)
     index_of = {future.key: index for index, future in enumerate(futures)}
     results: list[SessionOutcome | None] = [None] * len(specs)

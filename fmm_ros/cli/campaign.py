@@ -23,13 +23,12 @@ from pathlib import Path
 
 from fmm_ros.campaign.report import write_campaign_report
 from fmm_ros.campaign.results import run_campaign, to_json, write_json, write_tables
-from fmm_ros.campaign.session import SessionSettings
 from fmm_ros.campaign.table import format_value, read_campaign_table
 from fmm_ros.campaign.tasks import SERIAL
-from fmm_ros.cli._model import add_fit_freedom_arguments, add_rig_arguments, rig_from_args
-from fmm_ros.cli.analyze import add_analysis_options, analysis_configs
-from fmm_ros.cli.progress import add_quiet_flag, progress_bar
+from fmm_ros.cli import options
+from fmm_ros.cli.progress import progress_bar
 from fmm_ros.report.plotting import DEFAULT_DPI, value_with_error
+from fmm_ros.workflows.session import SessionOptions
 
 EPILOG = """\
 table (CSV; YAML takes the same columns as a list under `sessions:`, plus by/trend/mapping):
@@ -37,9 +36,10 @@ table (CSV; YAML takes the same columns as a list under `sessions:`, plus by/tre
   bags/a1,A1,PTFE-A,6.67,2026-11-02,kb,
   csv/b1,B1,PTFE-B,9.81,2026-11-03,tz,new counterface
 
-  `session` is a bag, a per-impact CSV file, a folder of them or a glob (relative to the
-  table); `normal_force_n` (and mass_kg, stiffness_n_per_m, damping_n_s_per_m) set the rig
-  of that session's fit; any other column is a condition.
+  `session` is a bag, a lab file (one impact, or with --continuous a recording), a folder of
+  them or a glob (relative to the table); `mapping` a mapping file for its lab files;
+  `normal_force_n` (and mass_kg, stiffness_n_per_m, damping_n_s_per_m) set the rig of that
+  session's fit; any other column is a condition.
 
 a cluster: `dask scheduler` on one machine (it prints tcp://HOST:8786), `dask worker
 tcp://HOST:8786 --nworkers N --nthreads 1` on each machine with the same fmm_ros and access
@@ -61,12 +61,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument('table', type=Path, metavar='TABLE', help='campaign table (.csv, .yaml)')
-    parser.add_argument(
-        '-o',
-        '--output',
-        type=Path,
+    options.add_output(
+        parser,
+        'where the report, tables and JSON go (default: TABLE_STEM_results beside TABLE)',
         metavar='DIR',
-        help='where the report, tables and JSON go (default: TABLE_STEM_results beside TABLE)',
     )
     parser.add_argument(
         '--by',
@@ -112,8 +110,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="also run the discrepancy workflow on each session (several times the fit's "
         'cost: see README, Campaigns)',
     )
-    add_fit_freedom_arguments(parser)
-    add_rig_arguments(parser)
+    options.add_model(parser)
     parser.add_argument('--title', default='', help="report title (default: the table's)")
     parser.add_argument(
         '--dpi',
@@ -121,11 +118,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=DEFAULT_DPI,
         help=f'PNG resolution [dots per inch] (default {DEFAULT_DPI:g})',
     )
-    parser.add_argument(
-        '--json', action='store_true', help='print the campaign as JSON (also DIR/campaign.json)'
-    )
-    add_quiet_flag(parser)
-    add_analysis_options(parser)
+    options.add_json(parser, 'the campaign (also written as DIR/campaign.json)')
+    options.add_quiet(parser)
+    options.add_hit_selection(parser)
+    options.add_frf_options(parser)
+    options.add_lab_file_reading(parser)
     parser.set_defaults(func=run)
 
 
@@ -133,13 +130,12 @@ def run(args: argparse.Namespace) -> int:
     """Run, compare and write the campaign; print the verdict (or the JSON)."""
     if args.dpi <= 0:
         raise ValueError(f'--dpi must be positive, got {args.dpi:g}')
-    table = read_campaign_table(args.table, rig_from_args(args))
-    capture, analysis = analysis_configs(args)
-    settings = SessionSettings(
-        capture=capture,
+    table = read_campaign_table(args.table, options.rig_from_args(args))
+    capture, analysis = options.analysis_configs(args)
+    session_options = SessionOptions(
+        inputs=options.input_options(args, capture),
         analysis=analysis,
-        fit_damping=args.fit_damping,
-        fit_initial_position=args.fit_initial_position,
+        model=options.fit_options(args),
         diagnose=args.diagnose,
     )
     output = args.output or args.table.with_name(f'{args.table.stem}_results')
@@ -159,7 +155,7 @@ def run(args: argparse.Namespace) -> int:
 
         campaign = run_campaign(
             table,
-            settings,
+            session_options,
             by=args.by,
             trend=args.trend,
             scheduler=SERIAL if args.serial else args.scheduler,
