@@ -27,12 +27,12 @@ from fmm_ros.cli import main
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.signal.analysis import AnalysisConfig, paper_levels
 from fmm_ros.core.signal.capture import CaptureConfig
-from fmm_ros.core.signal.records import write_impact_csv
+from fmm_ros.core.signal.records import ImpactRecord, write_impact_csv
 from fmm_ros.sim.campaign import simulated_campaign
 from fmm_ros.sim.excitation import impact_record
 from fmm_ros.sim.session import simulated_session, write_session_bag
 from fmm_ros.workflows.inputs import InputOptions
-from fmm_ros.workflows.session import SessionOptions
+from fmm_ros.workflows.session import SessionOptions, run_session
 
 LUBRICANTS = {'A': 0.113, 'B': 0.101, 'C': 0.113}
 LOADS_N = (6.6708, 9.81)
@@ -380,3 +380,17 @@ def test_a_session_of_lab_files_is_read_through_its_mapping(tmp_path):
     assert len(outcome.hits) == 2 and outcome.accepted_hits >= 1, outcome.hits
     assert not any('gap' in hit.flags for hit in outcome.hits)
     assert abs(outcome.mu / session.mu - 1) < 0.01
+
+
+def test_the_campaign_skips_the_model_run_only_the_report_draws():
+    """run_session(compare=False): the fit and its per-hit residuals, no model run per hit."""
+    hits = [impact_record(level, rng=n, duration_s=WINDOW_S) for n, level in enumerate((450, 1450))]
+    records = [
+        ImpactRecord(hit.force_n, hit.velocity_m_s, 1e4, source=f'hit{n}')
+        for n, hit in enumerate(hits)
+    ]
+    drawn = run_session(records, SETTINGS)
+    skipped = run_session(records, dataclasses.replace(SETTINGS, compare=False))
+    assert drawn.comparison is not None and skipped.comparison is None
+    assert skipped.friction.mu == drawn.friction.mu
+    assert all(r > 0 for r in skipped.friction.per_impact_residual_rms_m_s)

@@ -64,7 +64,10 @@ def session_options(spec: SessionSpec, options: SessionOptions) -> SessionOption
     if spec.mapping is not None:
         inputs = dataclasses.replace(inputs, mapping=load_mapping(spec.mapping))
     return dataclasses.replace(
-        options, inputs=inputs, model=dataclasses.replace(options.model, rig=spec.rig)
+        options,
+        inputs=inputs,
+        model=dataclasses.replace(options.model, rig=spec.rig),
+        compare=False,  # the model run for every hit is drawn by the session report only
     )
 
 
@@ -91,7 +94,7 @@ class HitSummary:
     """This hit's own mu (c and the rest as in the joint fit); NaN unless fitted."""
     mu_stderr: float = math.nan
     residual_rms_m_s: float = math.nan
-    """RMS of measured minus fitted-model velocity over the hit's motion [m/s]."""
+    """RMS of measured minus fitted velocity of this hit at the session's mu [m/s]."""
 
 
 @dataclass(frozen=True)
@@ -236,8 +239,8 @@ def compute_session(spec: SessionSpec, options: SessionOptions) -> SessionOutcom
     seconds: dict[str, float] = {}
     timed = _Timer(seconds)
     cpu = time.process_time()
-    mine = session_options(spec, options)
     try:
+        mine = session_options(spec, options)  # reads its mapping file, if it has one
         read = timed('read', lambda: read_inputs(session_files(spec), mine.inputs))
         processed = timed(
             'process',
@@ -260,14 +263,9 @@ def compute_session(spec: SessionSpec, options: SessionOptions) -> SessionOutcom
 def _outcome(processed: SessionResult, rig: Rig, seconds: dict[str, float]) -> SessionOutcome:
     """A processed session as plain data: failed when it has no fitted mu."""
     summary, friction = processed.summary, processed.friction
-    residuals = (
-        {i: hit.residual_rms_m_s for i, hit in processed.comparison.hits.items()}
-        if processed.comparison
-        else {}
-    )
     common = dict(
         problems=tuple(processed.problems),
-        hits=_hits(summary, friction, residuals),
+        hits=_hits(summary, friction),
         levels=tuple(_level_row(level) for level in summary.levels),
         linearity_slope=float(summary.linearity.slope),
         linearity_r2=float(summary.linearity.r2),
@@ -304,37 +302,42 @@ class _Timer:
             self.seconds[name] = time.perf_counter() - clock
 
 
-def _hits(
-    summary: Summary, friction: FrictionResult | None, residuals: dict[int, float]
-) -> tuple[HitSummary, ...]:
-    """Every impact of the summary, with its own mu where the fit gave one."""
-    own = {}
+def _hits(summary: Summary, friction: FrictionResult | None) -> tuple[HitSummary, ...]:
+    """Every impact of the summary, with its own mu and residual where the fit gave them."""
+    fitted = {}
     if friction is not None:
-        own = dict(
-            zip(
+        residuals = friction.per_impact_residual_rms_m_s or (math.nan,) * len(friction.impact_ids)
+        fitted = {
+            impact_id: tuple(values)
+            for impact_id, *values in zip(
                 friction.impact_ids,
-                zip(friction.per_impact_mu, friction.per_impact_mu_stderr, strict=True),
+                friction.per_impact_mu,
+                friction.per_impact_mu_stderr,
+                residuals,
                 strict=True,
             )
+        }
+    hits = []
+    for impact in summary.impacts:
+        mu, mu_stderr, residual = fitted.get(impact.impact_id, (math.nan,) * 3)
+        hits.append(
+            HitSummary(
+                impact_id=impact.impact_id,
+                source=impact.source,
+                level=impact.level,
+                accepted=impact.accepted,
+                flags=tuple(impact.flags),
+                impulse_n_s=float(impact.impulse_n_s),
+                peak_force_n=float(impact.peak_force_n),
+                contact_duration_s=float(impact.contact_duration_s),
+                natural_frequency_hz=float(impact.natural_frequency_hz),
+                peak_receptance_m_per_n=float(impact.peak_receptance_m_per_n),
+                mu=float(mu),
+                mu_stderr=float(mu_stderr),
+                residual_rms_m_s=float(residual),
+            )
         )
-    return tuple(
-        HitSummary(
-            impact_id=impact.impact_id,
-            source=impact.source,
-            level=impact.level,
-            accepted=impact.accepted,
-            flags=tuple(impact.flags),
-            impulse_n_s=float(impact.impulse_n_s),
-            peak_force_n=float(impact.peak_force_n),
-            contact_duration_s=float(impact.contact_duration_s),
-            natural_frequency_hz=float(impact.natural_frequency_hz),
-            peak_receptance_m_per_n=float(impact.peak_receptance_m_per_n),
-            mu=float(own.get(impact.impact_id, (math.nan, math.nan))[0]),
-            mu_stderr=float(own.get(impact.impact_id, (math.nan, math.nan))[1]),
-            residual_rms_m_s=float(residuals.get(impact.impact_id, math.nan)),
-        )
-        for impact in summary.impacts
-    )
+    return tuple(hits)
 
 
 def _level_row(level: LevelSummary) -> LevelRow:
