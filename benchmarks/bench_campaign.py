@@ -42,7 +42,7 @@ from fmm_ros.campaign.compare import compare_sessions
 from fmm_ros.campaign.results import run_campaign
 from fmm_ros.campaign.stats import meta_regression
 from fmm_ros.campaign.table import read_campaign_table
-from fmm_ros.campaign.tasks import SERIAL, run_session
+from fmm_ros.campaign.tasks import SERIAL, run_session, run_sessions
 from fmm_ros.core.signal.analysis import AnalysisConfig, paper_levels
 from fmm_ros.sim.campaign import simulated_campaign
 from fmm_ros.workflows.session import SessionOptions
@@ -82,26 +82,6 @@ def machine_ceiling(workers: int, tasks: int = 8) -> float:
             pool.map(_numpy_work, range(processes))  # started and warm
             times.append(timed(lambda pool=pool: pool.map(_numpy_work, range(tasks)))[1])
     return times[0] / times[1]
-
-
-def cluster_start_s(workers: int) -> float:
-    """What starting and stopping a LocalCluster of this many workers costs alone."""
-    import logging
-
-    from distributed import Client, LocalCluster
-
-    clock = time.perf_counter()
-    with (
-        LocalCluster(
-            n_workers=workers,
-            threads_per_worker=1,
-            dashboard_address=None,
-            silence_logs=logging.ERROR,
-        ) as cluster,
-        Client(cluster) as client,
-    ):
-        client.run(lambda: None)
-    return time.perf_counter() - clock
 
 
 def speed(folder: Path, args) -> None:
@@ -161,7 +141,7 @@ def speed(folder: Path, args) -> None:
         ]
         pairs.append((serial_load + parallel_load, serial, serial_s, parallel, parallel_s))
     _, serial, serial_s, parallel, parallel_s = min(pairs, key=lambda pair: pair[0])
-    start_s = cluster_start_s(args.workers)
+    start_s = timed(lambda: run_sessions([], SETTINGS, workers=args.workers))[1]
     _, cold_s = timed(lambda: campaign(None, folder / 'cache'))
     _, cached_s = timed(lambda: campaign(None, folder / 'cache'))
     speedup = serial_s / parallel_s

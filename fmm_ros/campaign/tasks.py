@@ -96,13 +96,22 @@ def run_sessions(
         # back at once; a session allocates and frees many 2.6 MB record arrays, each then
         # faulted in afresh (15x the page faults, 7x the system time measured). The workers
         # keep glibc's own adaptive threshold instead.
-        with dask.config.set({f'{PRE_SPAWN_ENVIRON}.MALLOC_TRIM_THRESHOLD_': None}):
+        # Nor do they run Dask's statistical profiler (a stack sample every 10 ms, under the
+        # interpreter lock, for a dashboard no one opens here).
+        with dask.config.set(
+            {
+                f'{PRE_SPAWN_ENVIRON}.MALLOC_TRIM_THRESHOLD_': None,
+                'distributed.worker.profile.enabled': False,
+            }
+        ):
             cluster = LocalCluster(
                 n_workers=workers or os.cpu_count() or 1,
                 threads_per_worker=1,
                 processes=True,
                 dashboard_address=None,
-                silence_logs=logging.ERROR,
+                # A task's error comes back with its future; what the workers would log
+                # besides is a heartbeat missing a scheduler that is already closing.
+                silence_logs=logging.CRITICAL,
             )
         with cluster, Client(cluster) as client:
             return _compute(client, specs, options, cache, on_result)
