@@ -1,4 +1,6 @@
-"""`fmm diagnose`: name the effect the base model (Eq. 3) misses in measured impacts.
+"""`fmm diagnose`: name the effects the base model (Eq. 3) misses, or say none explains them.
+
+It also bins the friction the records show against sliding speed and position.
 
 Same inputs and rig flags as `fmm fit` (CSV files of one impact each, or bags). Exit status:
 0 diagnosed (whatever was named, 'none' included), 1 the base model cannot be fitted at all
@@ -9,6 +11,7 @@ Examples:
     fmm diagnose low_*.csv medium_*.csv high_*.csv
     fmm diagnose hit1.csv hit2.csv hit3.csv --json
     fmm diagnose hit*.csv --plot figures/
+    fmm diagnose session.mcap --fit-initial-position
 """
 
 import argparse
@@ -19,7 +22,7 @@ from pathlib import Path
 from fmm_ros.cli._fitting import fit_and_report
 from fmm_ros.cli._model import add_rig_arguments, rig_from_args
 from fmm_ros.core.diagnose.result import Diagnosis
-from fmm_ros.core.diagnose.workflow import EFFECTS, NONE, diagnose
+from fmm_ros.core.diagnose.workflow import EFFECTS, UNEXPLAINED, diagnose
 from fmm_ros.core.physics.rig import Rig
 
 # Resolution of the --plot figures [dots per inch].
@@ -30,12 +33,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the `diagnose` subcommand."""
     parser = subparsers.add_parser(
         'diagnose',
-        help='find where the model and the measurement disagree and name the missing effect',
+        help='find where the model and the measurement disagree and name the missing effects',
         description='Fit the base model (Eq. 3, mu fitted) to every impact at once, locate its '
-        'misfit in time and frequency, refit it with each candidate effect ('
+        'misfit in time and frequency, add candidate effects ('
         + ', '.join(EFFECTS)
-        + ') and name the one that is clearly better by the '
-        'Bayesian information criterion, or none.',
+        + ') one at a time while the Bayesian information criterion improves clearly and '
+        'the gap shrinks, check each still earns its place, and say "unexplained" where the '
+        'residual stays structured. Also bins the friction the records show against sliding '
+        'speed and position.',
     )
     parser.add_argument(
         'inputs',
@@ -58,8 +63,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         '--plot',
         type=Path,
         metavar='DIR',
-        help='write residual_before_after.png and frf_overlay.png here',
+        help='write residual_before_after.png, frf_overlay.png and friction_map.png here',
     )
+
     parser.set_defaults(func=run)
 
 
@@ -101,55 +107,95 @@ def _value(value: float, error: float, unit: str) -> str:
 
 
 def text_report(run_result: _Run) -> str:
-    """The short table a person reads in ten seconds (and the figures written)."""
+    """The short tables a person reads in half a minute (and the figures written)."""
     result, files = run_result.diagnosis, run_result.files
     lines = [
         f'{len(files)} impact(s); velocity noise {result.noise_std_m_s:.3g} m/s (from the '
         f'data); base fit mu = {_value(result.mu, result.mu_stderr, "1")}'
     ]
-    if result.missing_effect == NONE:
+    names = ', '.join(result.named_effects) or 'none'
+    lines.append(
+        f'missing effects: {names}   gap {result.gap_before:.3g} -> {result.gap_after:.3g}   '
+        f'FRF gap {result.frf_gap_before:.3g} -> {result.frf_gap_after:.3g}'
+    )
+    for named in result.missing_effects:
+        if named.effect == UNEXPLAINED:
+            lines.append(f'  unexplained: {named.where.summary}')
+            continue
+        partial = ', a partial description only' if named.partial else ''
         lines.append(
-            f'missing effect: none   gap {result.gap_before:.3g} (FRF {result.frf_gap_before:.3g})'
+            f'  {named.effect}: score {named.score:.0f}, dropping it again would cost '
+            f'{named.drop_score:.0f}{partial}'
         )
-    else:
-        lines.append(
-            f'missing effect: {result.missing_effect}   gap {result.gap_before:.3g} -> '
-            f'{result.gap_after:.3g}   FRF gap {result.frf_gap_before:.3g} -> '
-            f'{result.frf_gap_after:.3g}'
-        )
-        for parameter in result.parameters:
+        if named.trend is not None:
+            trend = named.trend
             lines.append(
-                f'  {parameter.name:<40} '
-                f'{_value(parameter.value, parameter.stderr, parameter.unit)}'
+                f'    mu per hit {trend.mu[0]:.4f} ... {trend.mu[-1]:.4f}, slope '
+                f'{_value(trend.slope_per_hit, trend.slope_stderr, "1")} per hit '
+                f'(p = {trend.p_value:.2g})'
             )
-    lines.append(f'where: {result.where.summary}')
+        else:
+            for parameter in named.parameters:
+                lines.append(
+                    f'    {parameter.name:<38} '
+                    f'{_value(parameter.value, parameter.stderr, parameter.unit)}'
+                )
+    lines.append(f'where (base model): {result.where.summary}')
     lines.append('')
-    lines.append(f'{"candidate":<22}{"score (dBIC)":>14}{"gap after":>12}')
+    lines.append(f'{"candidate (step 1)":<22}{"score (dBIC)":>14}{"gap after":>12}')
     for candidate in result.candidates:
-        mark = '  <- named' if candidate.effect == result.missing_effect else ''
+        mark = '  <- named' if candidate.effect in result.named_effects else ''
+        if candidate.message.startswith('screened'):
+            mark += '  (screened)'
         score = f'{candidate.score:.0f}' if math.isfinite(candidate.score) else 'failed'
         lines.append(f'{candidate.effect:<22}{score:>14}{candidate.gap_after:>12.3g}{mark}')
-    lines.append(f'(named when dBIC <= {result.required_score:.0f} and the gap at least halves)')
+    lines.append(
+        f'(an effect is added when dBIC <= {result.required_score:.0f} and it removes a tenth '
+        'of the squared gap; the named set must halve the gap)'
+    )
+    lines += result.selection
+    lines.append(_friction_line(result))
     lines.append(result.verdict)
     lines += [f'wrote {path}' for path in run_result.figures]
     return '\n'.join(lines)
 
 
-def plot_diagnosis(result: Diagnosis, records: list, rig: Rig, directory: Path) -> list[Path]:
-    """Write residual_before_after.png and frf_overlay.png into directory; return the paths.
+def _friction_line(result: Diagnosis) -> str:
+    """Friction at the slowest and fastest speed bins, and its range over position."""
+    speed, position = result.friction_map.speed, result.friction_map.position
+    if not speed.mu:
+        return 'friction map: no sliding above the noise'
+    text = (
+        f'friction map: mu {speed.mu[0]:.4f} +- {speed.mu_stderr[0]:.2g} at '
+        f'{1e3 * speed.centres[0]:.3g} mm/s, {speed.mu[-1]:.4f} +- {speed.mu_stderr[-1]:.2g} at '
+        f'{1e3 * speed.centres[-1]:.3g} mm/s'
+    )
+    if position.mu:
+        text += f'; {min(position.mu):.4f} to {max(position.mu):.4f} over position'
+    return text
 
-    The figures of the report's diagnosis section (`fmm_ros.report.diagnosis_figures`), one
-    row per impact: residuals of the base and the named model over the motion, and
-    |mobility| of measurement and models to 20 Hz beside |measured - model|.
+
+def plot_diagnosis(result: Diagnosis, records: list, rig: Rig, directory: Path) -> list[Path]:
+    """Write residual_before_after.png, frf_overlay.png and friction_map.png; return the paths.
+
+    The figures of the report's diagnosis section (`fmm_ros.report.diagnosis_figures`): one
+    row per impact, residuals of the base and the final model over the motion, and |mobility|
+    of measurement and models to 20 Hz beside |measured - model|; and mu against sliding
+    speed and against position.
     """
     from fmm_ros.report import diagnosis_figures  # matplotlib: only when figures are asked for
     from fmm_ros.report.plotting import png_bytes
 
     directory.mkdir(parents=True, exist_ok=True)
-    paths = [directory / 'residual_before_after.png', directory / 'frf_overlay.png']
+    paths = [
+        directory / 'residual_before_after.png',
+        directory / 'frf_overlay.png',
+        directory / 'friction_map.png',
+    ]
     figures = (
         diagnosis_figures.residual_figure(result, records),
         diagnosis_figures.mobility_gap_figure(result, records, rig.natural_frequency_hz),
+        diagnosis_figures.friction_map_figure(result),
     )
     for path, figure in zip(paths, figures, strict=True):
         path.write_bytes(png_bytes(figure, PLOT_DPI))

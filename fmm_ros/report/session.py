@@ -612,15 +612,16 @@ def _diagnosis_section(
     found: SessionDiagnosis | None,
     failure: str,
 ) -> None:
-    """The named effect, the gap before and after, every candidate, and the two figures."""
+    """The named effects, the gap before and after, every candidate, and the figures."""
     page.section('Model diagnosis', 'diagnosis')
     if found is None:
         page.text(f'No diagnosis: {failure}', note=True)
         return
     result = found.diagnosis
     page.text(
-        f'Missing effect: {result.missing_effect}. Gap (RMS velocity residual beyond the '
-        f'noise over the motion, over the peak speed) {result.gap_before:.3g} → '
+        f'Missing effects: {", ".join(result.named_effects) or "none"}. Gap (RMS velocity '
+        'residual beyond the noise over the motion, over the peak speed) '
+        f'{result.gap_before:.3g} → '
         f'{result.gap_after:.3g}; mobility misfit {result.frf_gap_before:.3g} → '
         f'{result.frf_gap_after:.3g}, over {len(found.impact_ids)} accepted hits '
         f'(velocity noise {result.noise_std_m_s * MM_PER_M:.3g} mm/s from the data).'
@@ -643,7 +644,7 @@ def _diagnosis_section(
                 _number(c.score, '.0f'),
                 _number(c.gap_after, '.3g'),
                 _number(c.frf_gap_after, '.3g'),
-                'named' if c.effect == result.missing_effect else c.message or '-',
+                'named' if c.effect in result.named_effects else c.message or '-',
             ]
             for c in result.candidates
         ],
@@ -672,6 +673,14 @@ def _diagnosis_section(
         ),
         f'|mobility| of measurement and models to 20 Hz for hits {shown}, and beside it '
         '|measured − model|: where the gap is, and whether the named effect closes it.',
+    )
+    page.figure(
+        'diagnosis_friction_map',
+        diagnosis_figures.friction_map_figure(result),
+        'μ the records show against sliding speed and position over every diagnosed hit, '
+        'from the equation of motion integrated over short runs (inverse dynamics): a '
+        'Coulomb contact lies on the dashed line, a Stribeck contact rises towards low speed, '
+        'a wear track varies with position.',
     )
 
 

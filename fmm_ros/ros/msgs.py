@@ -6,6 +6,7 @@ Python lists cost orders of magnitude more.
 """
 
 import array
+import math
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -155,4 +156,33 @@ def fill_diagnose_response(response: object, result: diagnose.Diagnosis) -> obje
     response.noise_std_m_s = result.noise_std_m_s
     response.required_score = result.required_score
     response.verdict = result.verdict
+    named = result.missing_effects
+    response.missing_effects = [n.effect for n in named]
+    response.missing_effect_scores = float64_field([n.score for n in named])
+    response.missing_effect_drop_scores = float64_field([n.drop_score for n in named])
+    response.missing_effect_parameter_counts = [len(n.parameters) for n in named]
+    response.missing_effect_parameter_names = [p.name for n in named for p in n.parameters]
+    response.missing_effect_parameter_values = float64_field(
+        [p.value for n in named for p in n.parameters]
+    )
+    response.missing_effect_parameter_stderr = float64_field(
+        [p.stderr for n in named for p in n.parameters]
+    )
+    unexplained = [n for n in named if n.where is not None]
+    response.unexplained = bool(unexplained)
+    response.unexplained_where = unexplained[0].where.summary if unexplained else ''
+    trend = result.mu_trend
+    response.mu_per_hit = float64_field(trend.mu if trend else ())
+    response.mu_per_hit_stderr = float64_field(trend.mu_stderr if trend else ())
+    response.mu_slope_per_hit = trend.slope_per_hit if trend else math.nan
+    response.mu_slope_stderr = trend.slope_stderr if trend else math.nan
+    response.mu_trend_p_value = trend.p_value if trend else math.nan
+    speed, position = result.friction_map.speed, result.friction_map.position
+    response.friction_speed_m_s = float64_field(speed.centres)
+    response.friction_speed_mu = float64_field(speed.mu)
+    response.friction_speed_mu_stderr = float64_field(speed.mu_stderr)
+    response.friction_position_m = float64_field(position.centres)
+    response.friction_position_mu = float64_field(position.mu)
+    response.friction_position_mu_stderr = float64_field(position.mu_stderr)
+    response.selection = list(result.selection)
     return response

@@ -9,6 +9,7 @@ mu and its trend in hit order), `friction_map` (mu against speed and position by
 dynamics), `signatures` (plain functions on arrays that point at causes).
 """
 
+from fmm_ros.constants import MU_DRIFT
 from fmm_ros.core.diagnose.drift import MuTrend
 from fmm_ros.core.diagnose.friction_map import FrictionCurve, FrictionMap
 from fmm_ros.core.diagnose.result import (
@@ -19,7 +20,6 @@ from fmm_ros.core.diagnose.result import (
     ResidualLocation,
     Where,
 )
-from fmm_ros.core.diagnose.session_model import MU_DRIFT
 from fmm_ros.core.diagnose.workflow import EFFECTS, NONE, UNEXPLAINED, VOCABULARY, diagnose
 
 __all__ = [

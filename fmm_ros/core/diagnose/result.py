@@ -78,6 +78,9 @@ class NamedEffect:
     """mu_drift: the per-hit mu, their slope in hit order and its significance."""
     where: ResidualLocation | None = None
     """'unexplained': where the residual the vocabulary leaves sits."""
+    partial: bool = False
+    """Named after 'unexplained': the vocabulary's best partial description of data it does
+    not explain, not a finding on its own."""
 
 
 @dataclass(frozen=True)
@@ -107,8 +110,9 @@ class Diagnosis:
     missing_effect: str
     """The first of missing_effects, or 'none' (what single-answer callers read)."""
     missing_effects: tuple[NamedEffect, ...]
-    """Every effect named, in the order added; 'unexplained' last when the best model leaves
-    a structured residual, or alone when no combination of the vocabulary halves the gap."""
+    """Every effect named, in the order added; 'unexplained' first when the best model leaves
+    a structured residual or does not halve the gap (the names after it are then only the
+    vocabulary's best partial description)."""
     parameters: tuple[ParameterEstimate, ...]
     """The final model's fitted parameters (the base model's when nothing is named)."""
     mu: float
@@ -207,6 +211,7 @@ def _named_dict(named: NamedEffect) -> dict:
         'score': named.score,
         'drop_score': named.drop_score,
         'gap_after': named.gap_after,
+        'partial': named.partial,
         **_estimates_dict(named.parameters),
     }
     if named.trend is not None:

@@ -24,7 +24,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from fmm_ros.core.diagnose.session_model import MU_DRIFT, SessionModel
+from fmm_ros.constants import MU_DRIFT
+from fmm_ros.core.diagnose.session_model import SessionModel
 from fmm_ros.core.identify.conditioning import ConditionedImpact
 from fmm_ros.core.identify.lsq import inner
 from fmm_ros.core.physics.terms import EFFECT_SIZE, MODEL_TERMS, ModelTerm

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fmm_ros.constants import MU_DRIFT
 from fmm_ros.core.diagnose.result import ParameterEstimate
 from fmm_ros.core.identify.conditioning import ConditionedImpact
 from fmm_ros.core.identify.friction import ModelFit, fit_model
@@ -20,9 +21,6 @@ from fmm_ros.core.identify.lsq import inner
 from fmm_ros.core.physics.model import simulate
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.physics.terms import ModelTerm
-
-MU_DRIFT = 'mu_drift'
-"""The effect 'one mu per hit, trending in hit order' (wear, run-in, temperature)."""
 
 
 @dataclass(frozen=True)

@@ -31,6 +31,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from fmm_ros.constants import MU_DRIFT
 from fmm_ros.core.diagnose.drift import MIN_DRIFT_HITS, MuTrend, mu_trend
 from fmm_ros.core.diagnose.friction_map import (
     HIT_GUARD_S,
@@ -54,7 +55,6 @@ from fmm_ros.core.diagnose.result import (
 )
 from fmm_ros.core.diagnose.screen import Linearisation, Screen, screen_drift, screen_term
 from fmm_ros.core.diagnose.session_model import (
-    MU_DRIFT,
     SessionModel,
     with_mu_per_hit,
     with_terms,
@@ -120,6 +120,11 @@ BIC gain (a refit finds more than the linear step, rarely four times more)."""
 
 MAX_REFITS = 2
 """Candidates refitted in full per selection step, best screens first."""
+
+
+RUNNER_UP_FRACTION = 0.1
+"""A candidate after the best screen is refitted only if its screen reaches this fraction of
+the best's: the screen ranks well, and a refit with nothing to find wanders longest."""
 
 
 MIN_DECAY_PERIODS = 3.0
@@ -347,7 +352,7 @@ class _Session:
             self.say(f'step {number}: screened {effect}: chi^2 could fall {screen.chi2_gain:.0f}')
             screens.append(screen)
         screens.sort(key=lambda s: -s.chi2_gain)
-        threshold = SCREEN_FRACTION * -self.required
+        threshold = max(SCREEN_FRACTION * -self.required, RUNNER_UP_FRACTION * screens[0].chi2_gain)
         tried = []
         for rank, screen in enumerate(screens):
             if rank < MAX_REFITS and screen.chi2_gain >= threshold:
@@ -359,22 +364,23 @@ class _Session:
     def _screened(self, current: SessionModel, screen: Screen, threshold: float) -> Candidate:
         """A candidate scored by its screen alone: predicted chi^2 fall, parameters counted."""
         gain, k = screen.chi2_gain, screen.added_parameters
+        parameters = current.estimates()
         if screen.start is not None:
-            parameters = tuple(
+            parameters += tuple(
                 ParameterEstimate(f'{screen.effect}.{p.name}', float(v), p.unit, math.nan)
                 for p, v in zip(screen.start.parameters, screen.start.to_vector(), strict=True)
             )
-        else:
-            parameters = tuple(
+        elif screen.mu_per_hit is not None:
+            parameters += tuple(
                 ParameterEstimate(f'{MU_DRIFT}.mu[{i}]', float(mu), '1', float(error))
                 for i, (mu, error) in enumerate(
                     zip(screen.mu_per_hit, screen.mu_per_hit_stderr, strict=True)
                 )
             )
         why = (
-            f'below {threshold:.0f}, a quarter of the required gain'
+            f'below {threshold:.0f} (a quarter of the required gain, a tenth of the best screen)'
             if gain < threshold
-            else f'fewer than the {MAX_REFITS} best screens'
+            else f'not among the {MAX_REFITS} best screens'
         )
         note = f'screened: chi^2 could fall {gain:.0f}, {why}; not refitted'
         if screen.note:
@@ -524,7 +530,19 @@ class _Session:
             self.noise,
         )
         structured = location.excess_to_noise >= UNEXPLAINED_EXCESS
+        unexplained = structured or (bool(selection.steps) and not halved)
         named = []
+        if unexplained:
+            named.append(
+                NamedEffect(
+                    UNEXPLAINED,
+                    math.nan,
+                    math.nan,
+                    self.gap(explained.residuals_m_s),
+                    (),
+                    where=location,
+                )
+            )
         for step in selection.steps if explained is final else ():
             drop = math.nan
             reduced = self._without(final, step.effect) if len(final.effects) > 1 else self.base
@@ -538,18 +556,7 @@ class _Session:
                     step.gap_after,
                     _own_parameters(final, step.effect),
                     _trend(final) if step.effect == MU_DRIFT else None,
-                )
-            )
-        unexplained = structured or (bool(selection.steps) and not halved)
-        if unexplained:
-            named.append(
-                NamedEffect(
-                    UNEXPLAINED,
-                    math.nan,
-                    math.nan,
-                    self.gap(explained.residuals_m_s),
-                    (),
-                    where=location,
+                    partial=unexplained,
                 )
             )
         verdict = self._verdict(named, selection, explained, location)
@@ -591,31 +598,30 @@ class _Session:
         )
 
     def _verdict(self, named, selection, explained, location) -> str:
-        names = [n.effect for n in named]
-        if not names:
+        if not named:
             reason = selection.log[-1].split(': ', 1)[-1] if selection.log else ''
             return f'none: {reason}'
-        if names == [UNEXPLAINED]:
-            why = (
-                selection.best_partial + ', which does not halve the gap'
-                if selection.best_partial
-                else 'no candidate of the vocabulary clears the required score'
-            )
-            return (
-                f'unexplained: the residual stays {location.excess_to_noise:.1f}x the noise '
-                f'beyond it and {why}; it sits at {location.summary}'
-            )
+        names = [n.effect for n in named if n.effect != UNEXPLAINED]
         gap_after = self.gap(explained.residuals_m_s)
-        text = (
-            f'{" + ".join(n for n in names if n != UNEXPLAINED)}: gap {self.gap_before:.3g} -> '
-            f'{gap_after:.3g} ({100 * (1 - gap_after / self.gap_before):.0f} % smaller)'
+        shrink = (
+            f'gap {self.gap_before:.3g} -> {gap_after:.3g} '
+            f'({100 * (1 - gap_after / self.gap_before):.0f} % smaller)'
         )
-        if UNEXPLAINED in names:
-            text += (
-                f'; unexplained: the residual left is still {location.excess_to_noise:.1f}x '
-                f'the noise beyond it, at {location.summary}'
+        if named[0].effect != UNEXPLAINED:
+            return f'{" + ".join(names)}: {shrink}'
+        if names:
+            why = (
+                f'{" + ".join(names)} describe part of it ({shrink}), and what is left is '
+                f'still {location.excess_to_noise:.1f}x the noise beyond it'
             )
-        return text
+        elif selection.best_partial:
+            why = f'{selection.best_partial}, which does not halve the gap'
+        else:
+            why = (
+                f'the residual stays {location.excess_to_noise:.1f}x the noise beyond it and '
+                'no candidate of the vocabulary clears the required score'
+            )
+        return f'unexplained: {why}; the residual sits at {location.summary}'
 
     def _linear_trend(self, model: SessionModel) -> MuTrend | None:
         """Each hit's mu by one linearised step from the model, and its trend."""
