@@ -16,6 +16,11 @@ term); most candidates have nothing to find. Each is first screened at the curre
 
 `mu_drift` is screened the same way with no extra model run: the gain of one mu per hit over
 one mu for all, and the linearised per-hit mu it gives.
+
+With more than SCREEN_HITS hits the terms are screened on SCREEN_HITS of them spread over the
+session, and the gain scaled by the hits' count over theirs (a term acts on every hit): the
+screen only ranks and gates refits, and each probe of a nonlinear term costs a run on the RK4
+path per hit. mu_drift, which is about every hit, is screened on all.
 """
 
 import math
@@ -32,6 +37,17 @@ from fmm_ros.core.physics.terms import EFFECT_SIZE, MODEL_TERMS, ModelTerm
 
 RELATIVE_STEP = 1e-4
 """Forward-difference step of mu and of a start position, relative to their scale."""
+
+
+SCREEN_HITS = 8
+"""Terms are screened on at most this many hits, spread over the session."""
+
+
+def screened_hits(count: int, limit: int = SCREEN_HITS) -> tuple[int, ...]:
+    """Indices of at most `limit` hits spread evenly over `count`, first and last included."""
+    if count <= limit:
+        return tuple(range(count))
+    return tuple(int(i) for i in np.unique(np.round(np.linspace(0, count - 1, limit))))
 
 
 @dataclass(frozen=True)
@@ -52,10 +68,11 @@ class Screen:
 
 
 class Linearisation:
-    """A model's residuals and its nuisance directions on each cropped impact.
+    """A model's residuals and its nuisance directions on some of the cropped impacts.
 
     Built once per model (two model runs per hit, one without fitted starts) and shared by
-    every candidate screened at it.
+    every candidate screened at it. hits: which impacts (default all); `scale` is the count
+    of all impacts over theirs.
     """
 
     def __init__(
@@ -63,10 +80,13 @@ class Linearisation:
         impacts: Sequence[ConditionedImpact],
         model: SessionModel,
         fit_initial_position: bool,
+        hits: Sequence[int] | None = None,
     ) -> None:
-        self.impacts = tuple(impacts)
+        self.hits = tuple(range(len(impacts)) if hits is None else hits)
+        self.scale = len(impacts) / len(self.hits)
+        self.impacts = tuple(impacts[i] for i in self.hits)
         self.model = model
-        self.residuals = model.residuals_m_s
+        self.residuals = tuple(model.residuals_m_s[i] for i in self.hits)
         self.velocities = [
             impact.velocity_m_s - residual
             for impact, residual in zip(self.impacts, self.residuals, strict=True)
@@ -76,28 +96,33 @@ class Linearisation:
         position_scale = max(float(np.mean(mus)), 0.01) * rig.normal_force_n
         position_scale /= rig.stiffness_n_per_m
         self.mu_columns, self.position_columns = [], []
-        for index in range(len(self.impacts)):
-            step = RELATIVE_STEP * mus[index]
-            self.mu_columns.append(self._difference(index, step, mu=mus[index] + step))
+        for place, hit in enumerate(self.hits):
+            step = RELATIVE_STEP * mus[hit]
+            self.mu_columns.append(self._difference(place, step, mu=mus[hit] + step))
             if fit_initial_position:
-                x0 = model.positions_m[index]
+                x0 = model.positions_m[hit]
                 step = RELATIVE_STEP * max(abs(x0), position_scale)
-                self.position_columns.append([self._difference(index, step, x0_m=x0 + step)])
+                self.position_columns.append([self._difference(place, step, x0_m=x0 + step)])
             else:
                 self.position_columns.append([])
 
-    def _difference(self, index: int, step: float, **change) -> np.ndarray:
-        impact = self.impacts[index]
-        moved = self.model.velocity(index, impact.force_n, impact.sample_rate_hz, **change)
-        return (moved - self.velocities[index]) / step
-
-    def response(self, index: int, term: ModelTerm) -> np.ndarray:
-        """Change of hit `index`'s velocity when the term is added to the model [m/s]."""
-        impact = self.impacts[index]
+    def _difference(self, place: int, step: float, **change) -> np.ndarray:
+        impact = self.impacts[place]
         moved = self.model.velocity(
-            index, impact.force_n, impact.sample_rate_hz, effects=(*self.model.terms, term)
+            self.hits[place], impact.force_n, impact.sample_rate_hz, **change
         )
-        return moved - self.velocities[index]
+        return (moved - self.velocities[place]) / step
+
+    def response(self, place: int, term: ModelTerm) -> np.ndarray:
+        """Change of the velocity of the place-th screened hit when the term is added [m/s]."""
+        impact = self.impacts[place]
+        moved = self.model.velocity(
+            self.hits[place],
+            impact.force_n,
+            impact.sample_rate_hz,
+            effects=(*self.model.terms, term),
+        )
+        return moved - self.velocities[place]
 
     def nuisance(self) -> tuple[list[list[np.ndarray]], list[list[np.ndarray]]]:
         """(global, local) columns of each hit: mu global unless mu already drifts."""
@@ -183,7 +208,7 @@ def screen_term(
             [[response, *columns] for response, columns in zip(responses, shared, strict=True)],
             own,
         )
-        gain = max(fall - before, 0.0) / noise_std_m_s**2
+        gain = linear.scale * max(fall - before, 0.0) / noise_std_m_s**2
         start, note = _scaled(probe, float(solution[0]))
         if start is None:
             gain = 0.0
@@ -211,7 +236,12 @@ def _scaled(probe: ModelTerm, coefficient: float) -> tuple[ModelTerm | None, str
 
 
 def screen_drift(linear: Linearisation, noise_std_m_s: float) -> Screen:
-    """mu_drift: the chi^2 gain of one mu per hit over one for all, and the per-hit mu."""
+    """mu_drift: the chi^2 gain of one mu per hit over one for all, and the per-hit mu.
+
+    The linearisation must hold every hit.
+    """
+    if linear.scale != 1.0:
+        raise ValueError('mu_drift is screened on every hit')
     shared, own = linear.nuisance()
     before, _, _ = chi2_fall(linear.residuals, shared, own)
     per_hit = [

@@ -53,7 +53,13 @@ from fmm_ros.core.diagnose.result import (
     ParameterEstimate,
     Where,
 )
-from fmm_ros.core.diagnose.screen import Linearisation, Screen, screen_drift, screen_term
+from fmm_ros.core.diagnose.screen import (
+    Linearisation,
+    Screen,
+    screen_drift,
+    screen_term,
+    screened_hits,
+)
 from fmm_ros.core.diagnose.session_model import (
     SessionModel,
     with_mu_per_hit,
@@ -113,9 +119,9 @@ DRIFT_P_VALUE = 1e-3
 """mu_drift is named only when the per-hit mu trend in hit order at least this significantly."""
 
 
-SCREEN_FRACTION = 0.25
+SCREEN_FRACTION = 0.5
 """A candidate is refitted only when its screen predicts at least this share of the required
-BIC gain (a refit finds more than the linear step, rarely four times more)."""
+BIC gain (a refit finds more than the linear step, rarely twice as much)."""
 
 
 MAX_REFITS = 2
@@ -339,14 +345,20 @@ class _Session:
         self, number: int, current: SessionModel, remaining: Sequence[str]
     ) -> list[tuple[Candidate, SessionModel | None]]:
         """Screen every remaining candidate at the current model; refit the best few."""
-        linear = Linearisation(self.impacts, current, self.fit_initial_position)
+        hits = screened_hits(len(self.impacts))
+        linear = Linearisation(self.impacts, current, self.fit_initial_position, hits)
         screens = []
         for effect in remaining:
             if effect == MU_DRIFT:
-                screen = screen_drift(linear, self.noise)
+                every = (
+                    linear
+                    if linear.scale == 1.0
+                    else Linearisation(self.impacts, current, self.fit_initial_position)
+                )
+                screen = screen_drift(every, self.noise)
             else:
                 shapes = probes(
-                    effect, self.impacts, current.residuals_m_s, self.noise, self.where, self.rig
+                    effect, linear.impacts, linear.residuals, self.noise, self.where, self.rig
                 )
                 screen = screen_term(effect, shapes, linear, self.noise)
             self.say(f'step {number}: screened {effect}: chi^2 could fall {screen.chi2_gain:.0f}')
@@ -378,7 +390,7 @@ class _Session:
                 )
             )
         why = (
-            f'below {threshold:.0f} (a quarter of the required gain, a tenth of the best screen)'
+            f'below {threshold:.0f} (half the required gain, a tenth of the best screen)'
             if gain < threshold
             else f'not among the {MAX_REFITS} best screens'
         )
