@@ -279,6 +279,7 @@ class _Session:
         self.required = -(BIC_EVIDENCE + INPUT_NOISE_FACTOR * self.allowance)
         self.gap_before = self.gap(base.residuals_m_s)
         self.cache: dict[frozenset, SessionModel] = {frozenset(): base}
+        self.drift_screens: dict[frozenset, Screen] = {}
 
     def gap(self, residuals: Sequence[np.ndarray]) -> float:
         """Normalised RMS residual beyond the noise over the motion windows [-]."""
@@ -356,6 +357,7 @@ class _Session:
                     else Linearisation(self.impacts, current, self.fit_initial_position)
                 )
                 screen = screen_drift(every, self.noise)
+                self.drift_screens[frozenset(current.effects)] = screen
             else:
                 shapes = probes(
                     effect, linear.impacts, linear.residuals, self.noise, self.where, self.rig
@@ -639,9 +641,10 @@ class _Session:
         """Each hit's mu by one linearised step from the model, and its trend."""
         if len(self.impacts) < MIN_DRIFT_HITS:
             return None
-        screen = screen_drift(
-            Linearisation(self.impacts, model, self.fit_initial_position), self.noise
-        )
+        screen = self.drift_screens.get(frozenset(model.effects))
+        if screen is None:
+            every = Linearisation(self.impacts, model, self.fit_initial_position)
+            screen = screen_drift(every, self.noise)
         return mu_trend(screen.mu_per_hit, screen.mu_per_hit_stderr, refitted=False)
 
     def _full_residuals(
