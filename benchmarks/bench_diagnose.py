@@ -1,7 +1,7 @@
 """Diagnose workflow: the open-world sweep with its confusion table, and the time of a diagnosis.
 
-Run: .venv/bin/python benchmarks/bench_diagnose.py [--cases N] [--seed S] [--repeats R]
-     [--session-hits H] [--skip-sweep]
+Run: .venv/bin/python benchmarks/bench_diagnose.py [--cases N] [--world-cases W] [--seed S]
+     [--repeats R] [--session-hits H] [--skip-sweep]
 
 The sweep draws N sessions of each kind, 0.2 N / 1e-4 m/s noise, random hammer levels and
 friction coefficient (`fmm_ros.sim.hidden_effects`), and diagnoses them seeing only force and
@@ -17,6 +17,11 @@ It prints the confusion table (rows: what was hidden; columns: the first effect 
 `missing_effect`), how many answers were exactly right (the named set is the hidden set; for
 the out-of-vocabulary laws, 'unexplained' first), and every miss.
 
+Then the same over W sessions of each kind from the independent generator `worlds` (test/,
+`world_cases.py`): its laws and effects, continuous-force hits, an anti-alias filter, hum,
+drift and an ADC; run-in over eight hits of a continuous recording (each start fitted); two
+speed regimes, a sinusoidal wear track and a sharp wear patch outside the vocabulary.
+
 Then the time of one diagnosis of three 33 s impacts (hidden Stribeck) and of a 30-hit
 session with each impact's start fitted (as /fmm/diagnose_model does), against issue 8's
 closed-world algorithm (`issue8_diagnose.py`) in the same run; and a 30-hit session with a
@@ -27,14 +32,19 @@ alarms; <= 5 s for 30 hits, <= 1.5 s for three.
 
 import argparse
 import statistics
+import sys
 import time
 from collections import Counter
+from pathlib import Path
 
 import numpy as np
 from issue8_diagnose import diagnose_issue8
 
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'test'))
+from world_cases import OUTSIDE_KINDS, VOCABULARY_KINDS, world_case  # noqa: E402
+
 from fmm_ros.constants import MU_DRIFT
-from fmm_ros.core.diagnose.workflow import NONE, UNEXPLAINED, diagnose
+from fmm_ros.core.diagnose.workflow import NONE, UNEXPLAINED, UNEXPLAINED_EXCESS, diagnose
 from fmm_ros.core.identify.conditioning import as_conditioned
 from fmm_ros.core.physics.terms import MODEL_TERMS
 from fmm_ros.core.signal.capture import capture_impacts
@@ -63,6 +73,7 @@ SHORT = {
     'speed_regimes': 'speed',
     'wear_track': 'wear',
     'pair': 'pair',
+    'wear_patch': 'patch',
     'none': 'none',
     'none8': 'none8',
     UNEXPLAINED: 'unexpl',
@@ -89,47 +100,70 @@ def draw(kind: str, rng: np.random.Generator):
     return session.records, session.effects, session.ratios
 
 
+WORLD_ROWS = (*VOCABULARY_KINDS, 'pair', MU_DRIFT, *OUTSIDE_KINDS, 'none', 'none8')
+
+
 def right(kind: str, hidden: tuple[str, ...], named: tuple[str, ...]) -> bool:
     """Whether a diagnosis answered a kind of session rightly."""
-    if kind in OUT_OF_VOCABULARY:
+    if kind in OUT_OF_VOCABULARY or kind in OUTSIDE_KINDS:
         return bool(named) and named[0] == UNEXPLAINED
     return set(named) == set(hidden) and len(named) == len(hidden)
 
 
-def sweep(cases: int, seed: int) -> None:
-    confusion = {row: Counter() for row in ROWS}
+def draw_world(kind: str, rng: np.random.Generator):
+    """A worlds session: (records, hidden, sizes unknown beforehand, starts to be fitted)."""
+    records, hidden, fit_starts = world_case(kind, rng)
+    return records, hidden, {}, fit_starts
+
+
+def sweep(cases: int, seed: int, rows=ROWS, source: str = 'hidden_effects') -> None:
+    """Diagnose `cases` sessions of each kind in rows and print the confusion table."""
+    confusion = {row: Counter() for row in rows}
     exact = Counter()
     misses, seconds, shrink, pair_gaps = [], [], [], []
-    for row_index, kind in enumerate(ROWS):
+    sizes = {row: [] for row in rows}
+    left = {'vocabulary': []}
+    for row_index, kind in enumerate(rows):
         for case in range(cases):
             rng = np.random.default_rng([seed, row_index, case])
-            records, hidden, ratios = draw(kind, rng)
+            if source == 'worlds':
+                records, hidden, ratios, fit_starts = draw_world(kind, rng)
+            else:
+                (records, hidden, ratios), fit_starts = draw(kind, rng), False
             start = time.perf_counter()
-            result = diagnose(records)
+            result = diagnose(records, fit_initial_position=fit_starts)
             seconds.append(time.perf_counter() - start)
+            peak = max(float(np.max(np.abs(r.velocity_m_s))) for r in records)
+            sizes[kind].append(result.gap_before * peak / result.noise_std_m_s)
             named = result.named_effects
             confusion[kind][result.missing_effect] += 1
+            outside = kind in OUT_OF_VOCABULARY or kind in OUTSIDE_KINDS
+            if not outside and hidden and right(kind, hidden, named):
+                left['vocabulary'].append(result.residual_where.excess_to_noise)
+                )
             if right(kind, hidden, named):
                 exact[kind] += 1
             else:
-                sizes = ', '.join(f'{SHORT[e]} {r:.1f}x' for e, r in ratios.items())
+                drawn = ', '.join(f'{SHORT[e]} {r:.1f}x' for e, r in ratios.items())
                 misses.append(
-                    f'  {kind} [{sizes}] case {case}: named {", ".join(named) or "none"}; '
-                    f'{result.verdict[:160]}'
+                    f'  {kind} [{drawn or f"{sizes[kind][-1]:.1f}x"}] case {case}: named '
+                    f'{", ".join(named) or "none"}; {result.verdict[:160]}'
                 )
-            if hidden and kind not in OUT_OF_VOCABULARY and result.gap_before > 0.0:
+            if hidden and not outside and result.gap_before > 0.0:
                 shrink.append(1.0 - result.gap_after / result.gap_before)
             if kind == 'pair':
                 pair_gaps.append(1.0 - result.gap_after / result.gap_before)
         print(f'  {kind}: {exact[kind]}/{cases} right', flush=True)
     width = 7
-    print('\nconfusion table (rows: hidden; columns: missing_effect, the first named; right: the')
-    print('named set is the hidden set, or "unexplained" first for a law outside the vocabulary)')
-    print(' ' * 8 + ''.join(f'{SHORT[c]:>{width}}' for c in COLUMNS) + f'{"right":>{width}}')
-    for row in ROWS:
+    print(f'\nconfusion table, {source} (rows: hidden; columns: missing_effect, the first named;')
+    print('right: the named set is the hidden set, or "unexplained" first for a law outside the')
+    print('vocabulary; size: median excess of the base model over the noise, in noise RMS)')
+    header = ''.join(f'{SHORT[c]:>{width}}' for c in COLUMNS)
+    print(' ' * 8 + header + f'{"right":>{width}}{"size":>{width}}')
+    for row in rows:
         counts = ''.join(f'{confusion[row][c]:>{width}}' for c in COLUMNS)
-        print(f'{SHORT[row]:>8}{counts}{exact[row]:>{width}}')
-    total, sessions = sum(exact.values()), cases * len(ROWS)
+        print(f'{SHORT[row]:>8}{counts}{exact[row]:>{width}}{np.median(sizes[row]):>{width}.1f}')
+    total, sessions = sum(exact.values()), cases * len(rows)
     print(f'\nright: {total} of {sessions} sessions ({100 * total / sessions:.1f} %)')
     clean = cases * 2
     alarms = clean - exact['none'] - exact['none8']
@@ -144,6 +178,11 @@ def sweep(cases: int, seed: int) -> None:
     print(
         f'median gap reduction where vocabulary effects were hidden: '
         f'{100 * np.median(shrink):.1f} % (smallest {100 * min(shrink):.1f} %)'
+    )
+    print(
+        'residual left beyond the noise by a right vocabulary answer: median '
+        f'{np.median(left["vocabulary"]):.2f}, largest {max(left["vocabulary"]):.2f} noise RMS '
+        f'(unexplained from {UNEXPLAINED_EXCESS})'
     )
     print(
         f'diagnosis time per session: median {statistics.median(seconds):.2f} s, '
@@ -202,6 +241,9 @@ def timing(repeats: int, seed: int, hits_per_level: int) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--cases', type=int, default=10, help='sessions per kind')
+    parser.add_argument(
+        '--world-cases', type=int, default=10, help='sessions per kind from worlds (0: skip)'
+    )
     parser.add_argument('--seed', type=int, default=2019)
     parser.add_argument('--repeats', type=int, default=5, help='timing repeats')
     parser.add_argument(
@@ -210,8 +252,13 @@ def main() -> None:
     parser.add_argument('--skip-sweep', action='store_true', help='time only')
     args = parser.parse_args()
     if not args.skip_sweep:
-        print(f'sweep: {args.cases} sessions of each of {len(ROWS)} kinds')
+        print(f'sweep: {args.cases} sessions of each of {len(ROWS)} kinds (hidden_effects)')
         sweep(args.cases, args.seed)
+        if args.world_cases:
+            print(
+                f'\nsweep: {args.world_cases} sessions of each of {len(WORLD_ROWS)} kinds (worlds)'
+            )
+            sweep(args.world_cases, args.seed, WORLD_ROWS, 'worlds')
     timing(args.repeats, args.seed, args.session_hits)
 
 

@@ -12,8 +12,8 @@
    step could remove); the best `MAX_REFITS` whose screen reaches `SCREEN_FRACTION` of the
    required gain are refitted in full, and the best refit is added when it is clearly better
    (BIC lower by `BIC_EVIDENCE` plus `INPUT_NOISE_FACTOR` times what the force noise alone
-   explains, the required score), removes at least `MIN_STEP_SHARE` of the base model's
-   squared gap, and, for `mu_drift`, the refitted per-hit mu trend in hit order
+   explains, the required score), removes at least `MIN_STEP_SHARE` of the squared gap left
+   at that step, and, for `mu_drift`, the refitted per-hit mu trend in hit order
    (p < `DRIFT_P_VALUE`). Repeat until no candidate qualifies.
 5. Backward check: with two or more named, each is taken out in turn (the rest refitted);
    one whose removal costs less than the required score is dropped, and the check repeats.
@@ -105,9 +105,12 @@ EXPLAINED_GAP = 0.5
 """The named effects together must at least halve the gap: gap_after <= (1 - this) x before."""
 
 
-MIN_STEP_SHARE = 0.1
-"""Each named effect removes at least this share of the base model's squared gap (two effects
-of 2 and 4 times the noise share it 20 / 80)."""
+MIN_STEP_SHARE = 0.25
+"""Each effect added removes at least this share of the squared gap left at its step: the gap
+shrinks clearly. Of the step's gap, not the base model's: of two effects whose signatures
+overlap, the first added takes most of the other's share too, and once the first is in, most
+of what is left is the second's; a term that only trims a law outside the vocabulary removes
+much less."""
 
 
 UNEXPLAINED_EXCESS = 0.5
@@ -296,9 +299,10 @@ class _Session:
             model.aic(self.noise) - reference.aic(self.noise),
         )
 
-    def share(self, before: float, after: float) -> float:
-        """Share of the base model's squared gap removed going from gap before to after [-]."""
-        return (before**2 - after**2) / self.gap_before**2 if self.gap_before > 0.0 else 0.0
+    @staticmethod
+    def share(before: float, after: float) -> float:
+        """Share of the squared gap removed going from gap before to after [-]."""
+        return (before**2 - after**2) / before**2 if before > 0.0 else 0.0
 
     def predicted_gap(self, residuals: Sequence[np.ndarray], chi2_gain: float) -> float:
         """The gap once chi2_gain is removed from inside the motion windows [-]."""
