@@ -60,6 +60,8 @@ class Screen:
     added_parameters: int
     start: ModelTerm | None
     """The refit's start: the probe scaled by the regression (None: mu_drift, or no probe)."""
+    mu_shift: float = 0.0
+    """The change of the common mu the regression makes with it [-]."""
     mu_per_hit: np.ndarray | None = None
     """mu_drift: each hit's linearised mu [-]."""
     mu_per_hit_stderr: np.ndarray | None = None
@@ -212,8 +214,9 @@ def screen_term(
         start, note = _scaled(probe, float(solution[0]))
         if start is None:
             gain = 0.0
+        shift = float(solution[1]) if solution.size > 1 else 0.0
         if gain > best.chi2_gain or best.start is None:
-            best = Screen(effect, gain, len(cls.parameters), start or probe, note=note)
+            best = Screen(effect, gain, len(cls.parameters), start or probe, shift, note=note)
     return best
 
 

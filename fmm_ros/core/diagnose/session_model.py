@@ -131,16 +131,17 @@ def with_terms(
     effect: str,
     start: ModelTerm,
     fit_initial_position: bool,
+    mu0: float | None = None,
 ) -> SessionModel:
     """The model with one more term: every term refitted jointly from where it stands.
 
-    A model with mu_drift gets each hit's mu refitted again on top of the new joint fit.
-    Raises FitError when the fitter refuses.
+    mu0: where mu starts (default the model's). A model with mu_drift gets each hit's mu
+    refitted again on top of the new joint fit. Raises FitError when the fitter refuses.
     """
     joint = fit_model(
         impacts,
         rig=model.rig,
-        mu0=model.joint.mu,
+        mu0=model.joint.mu if mu0 is None else mu0,
         terms=(*model.terms, start),
         fit_initial_position=fit_initial_position,
     )

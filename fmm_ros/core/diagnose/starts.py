@@ -32,6 +32,11 @@ SECOND_MODE_DAMPING_RATIOS = (3e-3, 1e-2, 3e-2)
 """Damping ratios probed for the second mode (its modal mass is what the screen scales)."""
 
 
+MODE_PEAK_SIGMAS = 8.0
+"""A residual peak must stand this many noise deviations out for a second mode to be probed
+there (the significance the base model's `where` reports peaks at)."""
+
+
 def probes(
     effect: str,
     impacts: Sequence[ConditionedImpact],
@@ -43,7 +48,9 @@ def probes(
     """The shapes of one candidate to screen, each at a size that moves the response.
 
     Stribeck at each of STRIBECK_PROBE_SPEEDS_M_S; the second mode at the strongest peak of
-    the residual above 1.5 f_n (none without one) with each damping ratio and 1 kg; every
+    the residual above 1.5 f_n, inside the term's frequency bounds, standing MODE_PEAK_SIGMAS
+    noise deviations out of it (none
+    without one: a mode rings narrow-band), with each damping ratio and 1 kg; every
     other term at its start from the signatures (`start_term`), or at its default size where
     the signature points at none.
     """
@@ -54,13 +61,16 @@ def probes(
             for speed in STRIBECK_PROBE_SPEEDS_M_S
         )
     if effect == 'second_mode':
+        low, high = cls.bounds()
         peaks = discrepancy.non_harmonic_peaks(
             residuals,
             impacts[0].sample_rate_hz,
             rig.natural_frequency_hz,
             noise_std_m_s,
+            lowest_hz=max(1.5 * rig.natural_frequency_hz, float(low[0])),
+            highest_hz=min(float(high[0]), 0.45 * impacts[0].sample_rate_hz),
             count=1,
-            threshold=0.0,
+            threshold=MODE_PEAK_SIGMAS,
             skip_harmonics=False,
         )
         if not peaks:

@@ -17,10 +17,12 @@
    (p < `DRIFT_P_VALUE`). Repeat until no candidate qualifies.
 5. Backward check: with two or more named, each is taken out in turn (the rest refitted);
    one whose removal costs less than the required score is dropped, and the check repeats.
-6. Verdict. The named set must at least halve the gap (`EXPLAINED_GAP`), or the data are
-   'unexplained' and no vocabulary name is given; a residual still `UNEXPLAINED_EXCESS`
-   times the noise beyond the noise over the motion adds 'unexplained' after the names.
-   Where the residual sits (regions, bands, speed, position) is reported either way.
+6. Verdict. The named set must at least halve the gap (`EXPLAINED_GAP`), or no vocabulary
+   name is given. The data are 'unexplained' when what is left, by the named model or by
+   the base model when nothing is named, is still `UNEXPLAINED_EXCESS` times the noise RMS
+   beyond the noise over the motion; with names that halve the gap, 'unexplained' comes
+   first and the names are marked partial. Where the residual sits (regions, bands, speed,
+   position) is reported either way.
 7. The friction law the records show (`friction_map`), the per-hit mu trend (`drift`), and
    the residuals of the base and final models over the whole records.
 """
@@ -131,9 +133,9 @@ MAX_REFITS = 2
 """Candidates refitted in full per selection step, best screens first."""
 
 
-RUNNER_UP_FRACTION = 0.1
+RUNNER_UP_FRACTION = 0.3
 """A candidate after the best screen is refitted only if its screen reaches this fraction of
-the best's: the screen ranks well, and a refit with nothing to find wanders longest."""
+the best's: the screen ranks well, and a refit with little to find wanders longest."""
 
 
 MIN_DECAY_PERIODS = 3.0
@@ -396,7 +398,7 @@ class _Session:
                 )
             )
         why = (
-            f'below {threshold:.0f} (half the required gain, a tenth of the best screen)'
+            f'below {threshold:.0f} (half the required gain, 30 % of the best screen)'
             if gain < threshold
             else f'not among the {MAX_REFITS} best screens'
         )
@@ -427,7 +429,12 @@ class _Session:
                 )
             else:
                 model = with_terms(
-                    self.impacts, current, screen.effect, screen.start, self.fit_initial_position
+                    self.impacts,
+                    current,
+                    screen.effect,
+                    screen.start,
+                    self.fit_initial_position,
+                    mu0=current.joint.mu + screen.mu_shift,
                 )
         except FitError as error:
             self.say(f'step {number}: refit of {screen.effect} failed: {error}')
@@ -547,8 +554,7 @@ class _Session:
             self.rig,
             self.noise,
         )
-        structured = location.excess_to_noise >= UNEXPLAINED_EXCESS
-        unexplained = structured or (bool(selection.steps) and not halved)
+        unexplained = location.excess_to_noise >= UNEXPLAINED_EXCESS
         named = []
         if unexplained:
             named.append(
@@ -616,6 +622,11 @@ class _Session:
         )
 
     def _verdict(self, named, selection, explained, location) -> str:
+        if not named and selection.best_partial:
+            return (
+                f'none: {selection.best_partial}, which does not halve the gap, and the misfit '
+                f'is only {location.excess_to_noise:.2f}x the noise beyond it'
+            )
         if not named:
             reason = selection.log[-1].split(': ', 1)[-1] if selection.log else ''
             return f'none: {reason}'
