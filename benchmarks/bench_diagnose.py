@@ -140,7 +140,6 @@ def sweep(cases: int, seed: int, rows=ROWS, source: str = 'hidden_effects') -> N
             outside = kind in OUT_OF_VOCABULARY or kind in OUTSIDE_KINDS
             if not outside and hidden and right(kind, hidden, named):
                 left['vocabulary'].append(result.residual_where.excess_to_noise)
-                )
             if right(kind, hidden, named):
                 exact[kind] += 1
             else:
