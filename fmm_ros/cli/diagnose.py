@@ -150,8 +150,8 @@ def text_report(run_result: _Run) -> str:
         score = f'{candidate.score:.0f}' if math.isfinite(candidate.score) else 'failed'
         lines.append(f'{candidate.effect:<22}{score:>14}{candidate.gap_after:>12.3g}{mark}')
     lines.append(
-        f'(an effect is added when dBIC <= {result.required_score:.0f} and it removes a tenth '
-        'of the squared gap; the named set must halve the gap)'
+        f'(an effect is added when dBIC <= {result.required_score:.0f} and it removes a quarter '
+        'of the squared gap left; the named set must halve the gap)'
     )
     lines += result.selection
     lines.append(_friction_line(result))

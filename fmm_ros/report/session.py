@@ -651,9 +651,10 @@ def _diagnosis_section(
         text_columns=(0, 4),
     )
     page.text(
-        f'A candidate is named when its score is at most {result.required_score:.0f} '
-        '(BIC lower than the base model by 10 plus three times what the force noise '
-        'alone explains) and it at least halves the gap.'
+        f'Effects are added one at a time while the best scores at most '
+        f'{result.required_score:.0f} (BIC lower by 10 plus three times what the force noise '
+        'alone explains) and removes a quarter of the squared gap left; together they must '
+        'halve the gap. "unexplained" means what is left stays well above the noise.'
     )
     records = [by_id[i] for i in found.impact_ids]
     rows = _one_per_level(summary, found.impact_ids)
