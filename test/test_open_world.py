@@ -17,6 +17,7 @@ from fmm_ros.constants import MU_DRIFT
 from fmm_ros.core.diagnose import UNEXPLAINED, diagnose
 from fmm_ros.core.physics.terms import EFFECT_SIZE, MODEL_TERMS
 from fmm_ros.sim.hidden_effects import OUT_OF_VOCABULARY, hidden_session
+from fmm_ros.workflows.results import diagnosis_dict
 
 pytestmark = pytest.mark.slow
 
@@ -84,7 +85,7 @@ def test_a_drifting_mu_is_named_with_each_hits_mu_and_the_slope(cases):
     assert np.all(np.abs(np.array(trend.mu) - session.mu_per_hit) < 5 * errors + 2e-4)
     assert result.gap_after <= 0.5 * result.gap_before
     assert result.mu_trend == trend
-    payload = result.to_dict()
+    payload = diagnosis_dict(result)
     drift = payload['missing_effects'][0]
     assert drift['effect'] == MU_DRIFT and len(drift['mu_per_hit']) == 8
     assert drift['slope_per_hit'] == pytest.approx(trend.slope_per_hit)

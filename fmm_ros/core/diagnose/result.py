@@ -1,7 +1,8 @@
 """What a diagnosis returns: the named effects, their parameters, candidates, where, the gaps.
 
-`Diagnosis.to_dict()` is the JSON of `fmm diagnose --json`; the DiagnoseModel service response
-is filled from the same object (`fmm_ros.ros.msgs.fill_diagnose_response`).
+`fmm_ros.workflows.results.diagnosis_dict` is the JSON of `fmm diagnose --json`; the
+DiagnoseModel service response is filled from the same object
+(`fmm_ros.ros.msgs.fill_diagnose_response`).
 """
 
 from dataclasses import dataclass, field
@@ -10,8 +11,7 @@ import numpy as np
 
 from fmm_ros.core.diagnose import signatures as discrepancy
 from fmm_ros.core.diagnose.drift import MuTrend
-from fmm_ros.core.diagnose.friction_map import FrictionCurve, FrictionMap
-from fmm_ros.io.frf_files import json_number
+from fmm_ros.core.diagnose.friction_map import FrictionMap
 
 
 @dataclass(frozen=True)
@@ -154,170 +154,3 @@ class Diagnosis:
     def named_effects(self) -> tuple[str, ...]:
         """The named effects, 'unexplained' included, in order."""
         return tuple(named.effect for named in self.missing_effects)
-
-    def to_dict(self) -> dict:
-        """JSON-ready (undefined numbers are None): the keys of `fmm diagnose --json`."""
-        return _json_safe(
-            {
-                'missing_effect': self.missing_effect,
-                'missing_effects': [_named_dict(named) for named in self.missing_effects],
-                'parameters': {p.name: p.value for p in self.parameters},
-                'parameter_units': {p.name: p.unit for p in self.parameters},
-                'parameter_stderr': {p.name: p.stderr for p in self.parameters},
-                'mu': self.mu,
-                'mu_stderr': self.mu_stderr,
-                'gap_before': self.gap_before,
-                'gap_after': self.gap_after,
-                'frf_gap_before': self.frf_gap_before,
-                'frf_gap_after': self.frf_gap_after,
-                'where': _where_dict(self.where),
-                'candidates': [
-                    {
-                        'effect': c.effect,
-                        'score': c.score,
-                        'aic_score': c.aic_score,
-                        'gap_after': c.gap_after,
-                        'frf_gap_after': c.frf_gap_after,
-                        'parameters': {p.name: p.value for p in c.parameters},
-                        'parameter_stderr': {p.name: p.stderr for p in c.parameters},
-                        **({'message': c.message} if c.message else {}),
-                    }
-                    for c in self.candidates
-                ],
-                'noise_std_m_s': self.noise_std_m_s,
-                'force_noise_std_n': self.force_noise_std_n,
-                'input_noise_allowance': self.input_noise_allowance,
-                'required_score': self.required_score,
-                'verdict': self.verdict,
-                'selection': list(self.selection),
-                'residual_where': _location_dict(self.residual_where),
-                'mu_trend': None if self.mu_trend is None else _trend_dict(self.mu_trend),
-                'friction_map': friction_map_dict(self.friction_map),
-            }
-        )
-
-
-def _estimates_dict(parameters: tuple[ParameterEstimate, ...]) -> dict:
-    return {
-        'parameters': {p.name: p.value for p in parameters},
-        'parameter_stderr': {p.name: p.stderr for p in parameters},
-        'parameter_units': {p.name: p.unit for p in parameters},
-    }
-
-
-def _named_dict(named: NamedEffect) -> dict:
-    entry = {
-        'effect': named.effect,
-        'score': named.score,
-        'drop_score': named.drop_score,
-        'gap_after': named.gap_after,
-        'partial': named.partial,
-        **_estimates_dict(named.parameters),
-    }
-    if named.trend is not None:
-        entry.update(_trend_dict(named.trend))
-    if named.where is not None:
-        entry['where'] = _location_dict(named.where)
-    return entry
-
-
-def _trend_dict(trend: MuTrend) -> dict:
-    return {
-        'mu_per_hit': list(trend.mu),
-        'mu_per_hit_stderr': list(trend.mu_stderr),
-        'mu_per_hit_refitted': trend.refitted,
-        'slope_per_hit': trend.slope_per_hit,
-        'slope_stderr': trend.slope_stderr,
-        'trend_p_value': trend.p_value,
-        'consistency_chi2': trend.consistency_chi2,
-        'consistency_p_value': trend.consistency_p_value,
-    }
-
-
-def _location_dict(location: ResidualLocation) -> dict:
-    def bins(values, unit):
-        return [
-            {
-                f'low_{unit}': b.low,
-                f'high_{unit}': b.high,
-                'samples': b.samples,
-                'excess_rms_m_s': b.excess_rms_m_s,
-                'share': b.share,
-            }
-            for b in values
-        ]
-
-    return {
-        'summary': location.summary,
-        'excess_to_noise': location.excess_to_noise,
-        'time': [
-            {'region': r.name, 'share': r.share, 'excess_rms_m_s': r.excess_rms_m_s}
-            for r in location.time
-        ],
-        'frequency': [
-            {'band': b.name, 'low_hz': b.low_hz, 'high_hz': b.high_hz, 'share': b.share}
-            for b in location.frequency
-        ],
-        'speed': bins(location.speed, 'm_s'),
-        'position': bins(location.position, 'm'),
-    }
-
-
-def friction_map_dict(friction_map: FrictionMap) -> dict:
-    """The `friction_map` of `fmm diagnose --json`: bin centres, mu, its error, runs."""
-
-    def curve(values: FrictionCurve, key: str) -> dict:
-        return {
-            key: list(values.centres),
-            'mu': list(values.mu),
-            'mu_stderr': list(values.mu_stderr),
-            'runs': list(values.runs),
-        }
-
-    return {
-        'speed': curve(friction_map.speed, 'speed_m_s'),
-        'position': curve(friction_map.position, 'position_m'),
-    }
-
-
-def _json_safe(value):
-    """Plain floats all the way down, NaN and infinities as None (JSON has neither)."""
-    if isinstance(value, dict):
-        return {key: _json_safe(item) for key, item in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_safe(item) for item in value]
-    if isinstance(value, (float, np.floating)):
-        return json_number(value)
-    return value
-
-
-def _where_dict(where: Where) -> dict:
-    return {
-        'summary': where.summary,
-        'time': [
-            {
-                'region': r.name,
-                'share': r.share,
-                'excess_rms_m_s': r.excess_rms_m_s,
-                'mean_m_s': r.mean_m_s,
-                'samples': r.samples,
-            }
-            for r in where.time
-        ],
-        'frequency': [
-            {'band': b.name, 'low_hz': b.low_hz, 'high_hz': b.high_hz, 'share': b.share}
-            for b in where.frequency
-        ],
-        'non_harmonic_peaks_hz': [p.frequency_hz for p in where.peaks],
-        'rest_velocity_m_s': where.rest_velocity_m_s,
-        'rest_velocity_stderr_m_s': where.rest_velocity_stderr_m_s,
-        'phase_delay_s': where.phase_delay_s,
-        'signatures': [
-            {'measured': _signature_dict(m), 'model': _signature_dict(s)}
-            for m, s in zip(where.measured, where.model, strict=True)
-        ],
-    }
-
-
-def _signature_dict(signature: discrepancy.DecaySignatures) -> dict:
-    return dict(vars(signature))
