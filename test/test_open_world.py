@@ -17,7 +17,7 @@ from fmm_ros.constants import MU_DRIFT
 from fmm_ros.core.diagnose import UNEXPLAINED, diagnose
 from fmm_ros.core.physics.terms import EFFECT_SIZE, MODEL_TERMS
 from fmm_ros.sim.hidden_effects import OUT_OF_VOCABULARY, hidden_session
-from fmm_ros.workflows.results import diagnosis_dict
+from fmm_ros.workflows.results import diagnosis_dict, json_safe
 
 pytestmark = pytest.mark.slow
 
@@ -168,3 +168,31 @@ def test_a_small_sweep_holds_the_claims():
             if not right:
                 wrong.append((kind, effects, named))
     assert wrong == []
+
+
+@pytest.mark.parametrize('name', ['drift', 'wear_track'])
+def test_the_service_carries_the_list_the_trend_and_the_map(cases, name):
+    """What the fitter node fills is what `fmm ros call diagnose` reads back and prints."""
+    from fmm_interfaces.srv import DiagnoseModel
+    from fmm_ros.cli.formats import diagnosis_text
+    from fmm_ros.ros import msgs
+
+    _, result, _ = cases[name]
+    sent = diagnosis_dict(result)
+    received = json_safe(
+        msgs.diagnose_response_dict(msgs.fill_diagnose_response(DiagnoseModel.Response(), result))
+    )
+    for key in ('missing_effect', 'selection', 'verdict'):
+        assert received[key] == sent[key]
+    for got, want in zip(received['missing_effects'], sent['missing_effects'], strict=True):
+        for key in ('effect', 'score', 'drop_score', 'partial', 'parameters', 'parameter_units'):
+            assert got[key] == want[key]
+        if 'where' in want:
+            assert got['where']['summary'] == want['where']['summary']
+        if 'slope_per_hit' in want:
+            assert got['mu_per_hit'] == want['mu_per_hit']
+            assert got['trend_p_value'] == want['trend_p_value']
+    for axis, key in (('speed', 'speed_m_s'), ('position', 'position_m')):
+        for field in (key, 'mu', 'mu_stderr'):
+            assert received['friction_map'][axis][field] == sent['friction_map'][axis][field]
+    assert diagnosis_text(received, 8).splitlines()[1] == diagnosis_text(sent, 8).splitlines()[1]
