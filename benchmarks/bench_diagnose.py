@@ -44,7 +44,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'test'))
 from world_cases import OUTSIDE_KINDS, VOCABULARY_KINDS, world_case  # noqa: E402
 
 from fmm_ros.constants import MU_DRIFT
-from fmm_ros.core.diagnose.workflow import NONE, UNEXPLAINED, UNEXPLAINED_EXCESS, diagnose
+from fmm_ros.core.diagnose.workflow import MIN_EXCESS, NONE, UNEXPLAINED, diagnose
 from fmm_ros.core.identify.conditioning import as_conditioned
 from fmm_ros.core.physics.terms import MODEL_TERMS
 from fmm_ros.core.signal.capture import capture_impacts
@@ -181,7 +181,7 @@ def sweep(cases: int, seed: int, rows=ROWS, source: str = 'hidden_effects') -> N
     print(
         'residual left beyond the noise by a right vocabulary answer: median '
         f'{np.median(left["vocabulary"]):.2f}, largest {max(left["vocabulary"]):.2f} noise RMS '
-        f'(unexplained from {UNEXPLAINED_EXCESS})'
+        f'(unexplained from {MIN_EXCESS})'
     )
     print(
         f'diagnosis time per session: median {statistics.median(seconds):.2f} s, '

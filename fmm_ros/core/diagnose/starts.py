@@ -37,6 +37,11 @@ MODE_PEAK_SIGMAS = 8.0
 there (the significance the base model's `where` reports peaks at)."""
 
 
+MODE_PEAKS = 3
+"""The second mode is probed at this many of the strongest peaks: mains hum (50 Hz and its
+harmonics) can stand out more than a weak mode, and no mode reproduces a steady tone."""
+
+
 def probes(
     effect: str,
     impacts: Sequence[ConditionedImpact],
@@ -47,9 +52,9 @@ def probes(
 ) -> tuple[ModelTerm, ...]:
     """The shapes of one candidate to screen, each at a size that moves the response.
 
-    Stribeck at each of STRIBECK_PROBE_SPEEDS_M_S; the second mode at the strongest peak of
-    the residual above 1.5 f_n, inside the term's frequency bounds, standing MODE_PEAK_SIGMAS
-    noise deviations out of it (none
+    Stribeck at each of STRIBECK_PROBE_SPEEDS_M_S; the second mode at each of the MODE_PEAKS
+    strongest peaks of the residual above 1.5 f_n, inside the term's frequency bounds,
+    standing MODE_PEAK_SIGMAS noise deviations out of it (none
     without one: a mode rings narrow-band), with each damping ratio and 1 kg; every
     other term at its start from the signatures (`start_term`), or at its default size where
     the signature points at none.
@@ -69,16 +74,15 @@ def probes(
             noise_std_m_s,
             lowest_hz=max(1.5 * rig.natural_frequency_hz, float(low[0])),
             highest_hz=min(float(high[0]), 0.45 * impacts[0].sample_rate_hz),
-            count=1,
+            count=MODE_PEAKS,
             threshold=MODE_PEAK_SIGMAS,
             skip_harmonics=False,
         )
-        if not peaks:
-            return ()
         return tuple(
             model_term(
-                effect, frequency_hz=peaks[0].frequency_hz, damping_ratio=zeta, modal_mass_kg=1.0
+                effect, frequency_hz=peak.frequency_hz, damping_ratio=zeta, modal_mass_kg=1.0
             )
+            for peak in peaks
             for zeta in SECOND_MODE_DAMPING_RATIOS
         )
     start = start_term(effect, impacts, where, rig)

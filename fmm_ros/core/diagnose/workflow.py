@@ -13,13 +13,14 @@
    required gain are refitted in full, and the best refit is added when it is clearly better
    (BIC lower by `BIC_EVIDENCE` plus `INPUT_NOISE_FACTOR` times what the force noise alone
    explains, the required score), removes at least `MIN_STEP_SHARE` of the squared gap left
-   at that step, and, for `mu_drift`, the refitted per-hit mu trend in hit order
-   (p < `DRIFT_P_VALUE`). Repeat until no candidate qualifies.
+   at that step, accounts for at least `MIN_EXCESS` of the noise RMS (sqrt of the fall of
+   the squared excess over the motion), and, for `mu_drift`, the refitted per-hit mu trend
+   in hit order (p < `DRIFT_P_VALUE`). Repeat until no candidate qualifies.
 5. Backward check: with two or more named, each is taken out in turn (the rest refitted);
    one whose removal costs less than the required score is dropped, and the check repeats.
 6. Verdict. The named set must at least halve the gap (`EXPLAINED_GAP`), or no vocabulary
    name is given. The data are 'unexplained' when what is left, by the named model or by
-   the base model when nothing is named, is still `UNEXPLAINED_EXCESS` times the noise RMS
+   the base model when nothing is named, is still `MIN_EXCESS` times the noise RMS
    beyond the noise over the motion; with names that halve the gap, 'unexplained' comes
    first and the names are marked partial. Where the residual sits (regions, bands, speed,
    position) is reported either way.
@@ -115,9 +116,12 @@ of what is left is the second's; a term that only trims a law outside the vocabu
 much less."""
 
 
-UNEXPLAINED_EXCESS = 0.5
-"""A residual this many times the noise RMS beyond the noise over the motion is structure the
-named model does not explain."""
+MIN_EXCESS = 0.5
+"""The smallest misfit the diagnosis speaks of, as RMS beyond the noise over the motion in
+units of the noise RMS: an effect is named only if it accounts for this much, and what the
+best model leaves is 'unexplained' from this much. (A worlds vibrometer whose zero drifts by
+0.2 of the noise over a session is real, and BIC over 40,000 samples a hit finds it, but it
+is not what a diagnosis of the rig is for; a right answer leaves 0.0-0.15.)"""
 
 
 DRIFT_P_VALUE = 1e-3
@@ -477,6 +481,8 @@ class _Session:
         reasons = []
         for candidate, model in refits:
             share = self.share(gap_now, candidate.gap_after)
+            size = self.peak * math.sqrt(max(gap_now**2 - candidate.gap_after**2, 0.0))
+            size /= self.noise
             if candidate.score > self.required:
                 reasons.append(
                     f'{candidate.effect} scores {candidate.score:.0f} > required '
@@ -486,6 +492,11 @@ class _Session:
                 reasons.append(
                     f'{candidate.effect} scores {candidate.score:.0f} but removes only '
                     f'{100 * share:.1f} % of the squared gap'
+                )
+            elif size < MIN_EXCESS:
+                reasons.append(
+                    f'{candidate.effect} scores {candidate.score:.0f} but accounts for only '
+                    f'{size:.2f}x the noise RMS'
                 )
             elif candidate.effect == MU_DRIFT and (trend := _trend(model)).p_value >= DRIFT_P_VALUE:
                 reasons.append(
@@ -554,7 +565,7 @@ class _Session:
             self.rig,
             self.noise,
         )
-        unexplained = location.excess_to_noise >= UNEXPLAINED_EXCESS
+        unexplained = location.excess_to_noise >= MIN_EXCESS
         named = []
         if unexplained:
             named.append(
