@@ -14,8 +14,10 @@ from fmm_ros.core.diagnose import diagnose
 from fmm_ros.core.diagnose.drift import mu_trend
 from fmm_ros.core.diagnose.friction_map import MapRecord, friction_map
 from fmm_ros.core.diagnose.gaps import measured_motion_stop
-from fmm_ros.core.diagnose.screen import chi2_fall, screened_hits
+from fmm_ros.core.diagnose.screen import Linearisation, chi2_fall, screened_hits
+from fmm_ros.core.diagnose.session_model import SessionModel
 from fmm_ros.core.identify.conditioning import as_conditioned, cropped_impact
+from fmm_ros.core.identify.friction import fit_model
 from fmm_ros.core.physics.model import simulate
 from fmm_ros.core.physics.rig import FMM_RIG
 from fmm_ros.core.physics.terms import model_term
@@ -193,3 +195,24 @@ def test_bad_input_gets_a_clear_error_naming_the_problem():
         diagnose([good, slow])
     with pytest.raises(ValueError, match='no impacts'):
         diagnose([])
+
+
+def test_a_modes_and_an_offsets_response_need_no_run_of_the_nonlinear_oscillator():
+    # The screen takes the second mode's share with the plain linear model (delayed as the
+    # model delays it) and the offset as itself: the same, to rounding, as running the
+    # whole nonlinear model with the term added.
+    record = small_record()
+    impact = cropped_impact(as_conditioned(record), 40_000)
+    stribeck = model_term('stribeck', mu_static_excess=0.04, stribeck_velocity_m_s=3e-3)
+    delay = model_term('sensor_delay', delay_s=2e-4)
+    fit = fit_model([impact], fixed_effects=(stribeck, delay))
+    linear = Linearisation([impact], SessionModel(('stribeck', 'sensor_delay'), fit), False)
+    for term in (
+        model_term('second_mode', frequency_hz=40.0, damping_ratio=0.01, modal_mass_kg=1.0),
+        model_term('velocity_offset', offset_m_s=1e-4),
+    ):
+        full = fit.simulate(0).velocity_m_s
+        moved = simulate(
+            impact.force_n, RATE_HZ, mu=fit.mu, effects=(*fit.effects, term)
+        ).velocity_m_s
+        assert linear.response(0, term) == pytest.approx(moved - full, abs=1e-12)

@@ -116,13 +116,26 @@ class Linearisation:
         return (moved - self.velocities[place]) / step
 
     def response(self, place: int, term: ModelTerm) -> np.ndarray:
-        """Change of the velocity of the place-th screened hit when the term is added [m/s]."""
+        """Change of the velocity of the place-th screened hit when the term is added [m/s].
+
+        An offset adds itself. A second mode is linear and decoupled from the friction
+        oscillator, so its share of the vibrometer's reading is the same whatever the
+        oscillator does: it is found with the oscillator's plain linear model (the exact
+        path, however nonlinear the current model is), delayed as the model delays it.
+        """
         impact = self.impacts[place]
+        if term.name == 'velocity_offset':
+            return np.full(impact.force_n.size, term.offset_m_s)
+        index = self.hits[place]
+        if term.name == 'second_mode':
+            outputs = tuple(t for t in self.model.terms if t.name == 'sensor_delay')
+            plain = (
+                self.model.velocity(index, impact.force_n, impact.sample_rate_hz, effects=e)
+                for e in ((*outputs, term), outputs)
+            )
+            return next(plain) - next(plain)
         moved = self.model.velocity(
-            self.hits[place],
-            impact.force_n,
-            impact.sample_rate_hz,
-            effects=(*self.model.terms, term),
+            index, impact.force_n, impact.sample_rate_hz, effects=(*self.model.terms, term)
         )
         return moved - self.velocities[place]
 
