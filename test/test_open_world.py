@@ -17,7 +17,7 @@ from fmm_ros.constants import MU_DRIFT
 from fmm_ros.core.diagnose import UNEXPLAINED, diagnose
 from fmm_ros.core.physics.terms import EFFECT_SIZE, MODEL_TERMS
 from fmm_ros.sim.hidden_effects import OUT_OF_VOCABULARY, hidden_session
-from fmm_ros.workflows.results import diagnosis_dict, json_safe
+from fmm_ros.workflows.results import diagnosis_dict
 
 pytestmark = pytest.mark.slow
 
@@ -179,9 +179,10 @@ def test_the_service_carries_the_list_the_trend_and_the_map(cases, name):
 
     _, result, _ = cases[name]
     sent = diagnosis_dict(result)
-    received = json_safe(
-        msgs.diagnose_response_dict(msgs.fill_diagnose_response(DiagnoseModel.Response(), result))
+    received = msgs.diagnose_response_dict(
+        msgs.fill_diagnose_response(DiagnoseModel.Response(), result)
     )
+    json.dumps(received, allow_nan=False)  # what `fmm ros call diagnose --json` prints
     for key in ('missing_effect', 'selection', 'verdict'):
         assert received[key] == sent[key]
     for got, want in zip(received['missing_effects'], sent['missing_effects'], strict=True):

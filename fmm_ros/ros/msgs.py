@@ -16,7 +16,7 @@ from fmm_ros.constants import Channel
 from fmm_ros.core import diagnose
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.signal import analysis, frf
-from fmm_ros.workflows.results import FrictionResult
+from fmm_ros.workflows.results import FrictionResult, json_safe
 
 
 def float64_field(values: np.ndarray) -> array.array:
@@ -262,7 +262,11 @@ def friction_result(response: object) -> FrictionResult:
 
 
 def diagnose_response_dict(response: object) -> dict:
-    """A DiagnoseModel response as the JSON keys of `fmm diagnose --json` it carries."""
+    """A DiagnoseModel response as the JSON keys of `fmm diagnose --json` it carries.
+
+    JSON-ready as `diagnosis_dict` is: undefined numbers (an 'unexplained' entry's score, the
+    trend of fewer than four hits) are None.
+    """
     if not response.success:
         raise ValueError(f'the diagnosis was refused: {response.message}')
     counts = list(response.candidate_parameter_counts)
@@ -271,53 +275,57 @@ def diagnose_response_dict(response: object) -> dict:
         field_array(response.candidate_parameter_values),
     )
     starts = np.concatenate(([0], np.cumsum(counts))).astype(int)
-    return {
-        'missing_effect': response.missing_effect,
-        'parameters': dict(
-            zip(
-                response.parameter_names,
-                field_array(response.parameter_values).tolist(),
-                strict=True,
-            )
-        ),
-        'parameter_units': dict(
-            zip(response.parameter_names, response.parameter_units, strict=True)
-        ),
-        'parameter_stderr': dict(
-            zip(
-                response.parameter_names,
-                field_array(response.parameter_stderr).tolist(),
-                strict=True,
-            )
-        ),
-        'mu': response.mu,
-        'mu_stderr': response.mu_stderr,
-        'gap_before': response.gap_before,
-        'gap_after': response.gap_after,
-        'frf_gap_before': response.frf_gap_before,
-        'frf_gap_after': response.frf_gap_after,
-        'where': {'summary': response.where},
-        'candidates': [
-            {
-                'effect': effect,
-                'score': score,
-                'gap_after': gap_after,
-                'parameters': dict(zip(names[start:end], values[start:end].tolist(), strict=True)),
-            }
-            for effect, score, gap_after, start, end in zip(
-                response.candidate_effects,
-                field_array(response.candidate_scores).tolist(),
-                field_array(response.candidate_gap_after).tolist(),
-                starts[:-1],
-                starts[1:],
-                strict=True,
-            )
-        ],
-        'noise_std_m_s': response.noise_std_m_s,
-        'required_score': response.required_score,
-        'verdict': response.verdict,
-        **_open_world_dict(response),
-    }
+    return json_safe(
+        {
+            'missing_effect': response.missing_effect,
+            'parameters': dict(
+                zip(
+                    response.parameter_names,
+                    field_array(response.parameter_values).tolist(),
+                    strict=True,
+                )
+            ),
+            'parameter_units': dict(
+                zip(response.parameter_names, response.parameter_units, strict=True)
+            ),
+            'parameter_stderr': dict(
+                zip(
+                    response.parameter_names,
+                    field_array(response.parameter_stderr).tolist(),
+                    strict=True,
+                )
+            ),
+            'mu': response.mu,
+            'mu_stderr': response.mu_stderr,
+            'gap_before': response.gap_before,
+            'gap_after': response.gap_after,
+            'frf_gap_before': response.frf_gap_before,
+            'frf_gap_after': response.frf_gap_after,
+            'where': {'summary': response.where},
+            'candidates': [
+                {
+                    'effect': effect,
+                    'score': score,
+                    'gap_after': gap_after,
+                    'parameters': dict(
+                        zip(names[start:end], values[start:end].tolist(), strict=True)
+                    ),
+                }
+                for effect, score, gap_after, start, end in zip(
+                    response.candidate_effects,
+                    field_array(response.candidate_scores).tolist(),
+                    field_array(response.candidate_gap_after).tolist(),
+                    starts[:-1],
+                    starts[1:],
+                    strict=True,
+                )
+            ],
+            'noise_std_m_s': response.noise_std_m_s,
+            'required_score': response.required_score,
+            'verdict': response.verdict,
+            **_open_world_dict(response),
+        }
+    )
 
 
 def _open_world_dict(response: object) -> dict:
