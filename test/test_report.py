@@ -388,14 +388,14 @@ def test_diagnosis_names_the_hidden_effect_and_shows_the_gap_shrink(tmp_path):
         )
     page = (out / 'index.html').read_text(encoding='utf-8')
     assert clipped == []
-    named = re.search(r'Missing effect: (\w+)\. Gap .*? ([0-9.e-]+) → ([0-9.e-]+);', page)
+    named = re.search(r'Missing effects: (\w+)\. Gap .*? ([0-9.e-]+) → ([0-9.e-]+);', page)
     assert named is not None and named[1] == 'stribeck'
     assert float(named[3]) <= 0.5 * float(named[2])
     table = page[page.index('<th class="text">candidate effect</th>') :]
     candidates = re.findall(r'<tr><td class="text">(\w+)</td>', table[: table.index('</table>')])
     assert len(candidates) == 7 and candidates[0] == 'stribeck'
     assert 'stribeck.mu_static_excess' in page
-    for name in ('diagnosis_residuals', 'diagnosis_mobility'):
+    for name in ('diagnosis_residuals', 'diagnosis_mobility', 'diagnosis_friction_map'):
         assert (out / f'{name}.png').read_bytes().startswith(PNG_SIGNATURE)
         assert f'href="{name}.png"' in page
 

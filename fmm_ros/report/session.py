@@ -421,15 +421,16 @@ def _diagnosis_section(
     found: SessionDiagnosis | None,
     failure: str,
 ) -> None:
-    """The named effect, the gap before and after, every candidate, and the two figures."""
+    """The named effects, the gap before and after, every candidate, and the figures."""
     page.section('Model diagnosis', 'diagnosis')
     if found is None:
         page.text(f'No diagnosis: {failure}', note=True)
         return
     result = found.diagnosis
     page.text(
-        f'Missing effect: {result.missing_effect}. Gap (RMS velocity residual beyond the '
-        f'noise over the motion, over the peak speed) {result.gap_before:.3g} → '
+        f'Missing effects: {", ".join(result.named_effects) or "none"}. Gap (RMS velocity '
+        'residual beyond the noise over the motion, over the peak speed) '
+        f'{result.gap_before:.3g} → '
         f'{result.gap_after:.3g}; mobility misfit {result.frf_gap_before:.3g} → '
         f'{result.frf_gap_after:.3g}, over {len(found.impact_ids)} accepted hits '
         f'(velocity noise {result.noise_std_m_s * MM_PER_M:.3g} mm/s from the data).'
@@ -452,16 +453,17 @@ def _diagnosis_section(
                 _number(c.score, '.0f'),
                 _number(c.gap_after, '.3g'),
                 _number(c.frf_gap_after, '.3g'),
-                'named' if c.effect == result.missing_effect else c.message or '-',
+                'named' if c.effect in result.named_effects else c.message or '-',
             ]
             for c in result.candidates
         ],
         text_columns=(0, 4),
     )
     page.text(
-        f'A candidate is named when its score is at most {result.required_score:.0f} '
-        '(BIC lower than the base model by 10 plus three times what the force noise '
-        'alone explains) and it at least halves the gap.'
+        f'Effects are added one at a time while the best scores at most '
+        f'{result.required_score:.0f} (BIC lower by 10 plus three times what the force noise '
+        'alone explains) and removes a quarter of the squared gap left; together they must '
+        'halve the gap. "unexplained" means what is left stays well above the noise.'
     )
     summary = session.summary
     records = [session.records[i] for i in found.impact_ids]
@@ -482,6 +484,14 @@ def _diagnosis_section(
         ),
         f'|mobility| of measurement and models to 20 Hz for hits {shown}, and beside it '
         '|measured − model|: where the gap is, and whether the named effect closes it.',
+    )
+    page.figure(
+        'diagnosis_friction_map',
+        diagnosis_figures.friction_map_figure(result),
+        'μ the records show against sliding speed and position over every diagnosed hit, '
+        'from the equation of motion integrated over short runs (inverse dynamics): a '
+        'Coulomb contact lies on the dashed line, a Stribeck contact rises towards low speed, '
+        'a wear track varies with position.',
     )
 
 
