@@ -28,7 +28,7 @@ from fmm_ros.campaign.compare import (
     format_interval,
     format_p,
 )
-from fmm_ros.campaign.results import CampaignResult, session_mus
+from fmm_ros.campaign.results import CampaignResult, named_effects, session_mus
 from fmm_ros.campaign.stats import CONFIDENCE
 from fmm_ros.campaign.table import DATE, format_value
 from fmm_ros.constants import MM_PER_M
@@ -483,14 +483,14 @@ def _diagnoses(page: Page, campaign: CampaignResult) -> None:
         rows.append(
             [
                 session.session_id,
-                diagnosis.get('missing_effect', ''),
+                named_effects(diagnosis),
                 _number(diagnosis.get('gap_before')),
                 _number(diagnosis.get('gap_after')),
                 diagnosis.get('verdict', ''),
             ]
         )
     page.table(
-        ['session', 'missing effect', 'gap before', 'gap after', 'verdict'],
+        ['session', 'missing effects', 'gap before', 'gap after', 'verdict'],
         rows,
         text_columns=(0, 1, 4),
     )

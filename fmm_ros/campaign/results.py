@@ -165,11 +165,19 @@ def _session_row(result: SessionOutcome) -> dict:
         'residual_rms_m_s': result.residual_rms_m_s,
         'linearity_slope': result.linearity_slope,
         'linearity_r2': result.linearity_r2,
-        'missing_effect': diagnosis.get('missing_effect', ''),
+        'missing_effects': named_effects(diagnosis),
         'diagnosis_verdict': diagnosis.get('verdict', '') or result.diagnosis_failure,
         'problems': '; '.join(result.problems),
         **{f'seconds_{step}': value for step, value in result.seconds.items()},
     }
+
+
+def named_effects(diagnosis: dict) -> str:
+    """The effects a diagnosis named ('unexplained' and 'mu_drift' among them), or 'none'."""
+    if not diagnosis:
+        return ''
+    names = [entry['effect'] for entry in diagnosis.get('missing_effects', ())]
+    return ', '.join(names) or diagnosis.get('missing_effect', '')
 
 
 def estimate_rows(comparison: CampaignComparison) -> list[dict]:
