@@ -133,7 +133,7 @@ def second_mode_start(impacts: Sequence[ConditionedImpact], base: ModelFit, rig:
         )
         shapes = [
             simulate(
-                impact.force_n,
+                base.force_n(index),
                 rate,
                 rig=base.rig,
                 mu=base.mu,

@@ -10,7 +10,7 @@ own mu beside it, and a chi^2 test of whether one mu serves them all.
 """
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -19,6 +19,7 @@ import scipy.stats
 
 from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ, PAPER_MU
 from fmm_ros.core._checks import require_positive
+from fmm_ros.core.identify.chain import VelocityNuisance, estimate_nuisance
 from fmm_ros.core.identify.conditioning import (
     ConditionedImpact,
     FitError,
@@ -30,6 +31,7 @@ from fmm_ros.core.identify.lsq import (
     LsqSolution,
     inner,
     levenberg_marquardt,
+    normal_inverse,
 )
 from fmm_ros.core.identify.output_error import (
     JACOBIANS,
@@ -48,6 +50,12 @@ MU_BOUNDS = (1e-3, 1.0)
 
 DAMPING_BOUNDS_N_S_PER_M = (0.0, 50.0)
 """Search range of the viscous damping c when it is fitted [N*s/m]."""
+
+
+IMPULSE_SCALE_BOUNDS = (0.5, 1.5)
+"""Search range of a hit's impulse scale: the factor between the impulse that moved the rig
+and the one its sampled force shows (sampling, filtering and noise make it a few 1e-3; a
+hammer whose calibration is off by half is not measuring force)."""
 
 
 MIN_EXPLAINED_FRACTION = 0.5
@@ -82,12 +90,20 @@ class ModelFit:
     """Model terms of the fitted model: the fixed ones, then the fitted ones."""
     initial_positions_m: tuple[float, ...]
     """Where each impact's model started [m] (0 unless fit_initial_position)."""
+    impulse_scales: tuple[float, ...]
+    """Per impact, the factor on its measured hit that drove the model [-] (1 unless
+    fit_impulse_scale)."""
+    velocity_nuisance: tuple[VelocityNuisance, ...]
+    """Per impact, the mains hum, offset and drift taken off its measured velocity (zero
+    unless remove_mains_hum or fit_velocity_drift); `impacts` hold the velocity without it."""
     misfit: str
     impacts: tuple[ConditionedImpact, ...]
-    """The conditioned impacts fitted (their force drives `simulate`)."""
+    """The conditioned impacts fitted (their force drives `simulate`; their velocity is the
+    measured one less `velocity_nuisance`)."""
     sources: tuple[str, ...]
     residuals_m_s: tuple[np.ndarray, ...]
-    """Measured minus simulated velocity per impact at the fitted values [m/s]."""
+    """Measured minus simulated velocity per impact at the fitted values, every sample [m/s]
+    (the time misfit leaves each impact's `hit_windows` out; these keep them)."""
     residual_rms_m_s: float
     """RMS of the velocity residual over every sample of every impact [m/s]."""
     normalised_residual: float
@@ -128,11 +144,15 @@ class ModelFit:
         """Standard error of mu [-]."""
         return self.error('mu')
 
+    def force_n(self, index: int) -> np.ndarray:
+        """The force that drove the fitted model in impact `index`: conditioned, scaled [N]."""
+        return self.impacts[index].force_n * self.impulse_scales[index]
+
     def simulate(self, index: int) -> Simulation:
-        """The fitted model's response to impact `index` (its conditioned force, its start)."""
+        """The fitted model's response to impact `index` (its driving force, its start)."""
         impact = self.impacts[index]
         return simulate(
-            impact.force_n,
+            self.force_n(index),
             impact.sample_rate_hz,
             rig=self.rig,
             mu=self.mu,
@@ -150,7 +170,9 @@ class _Space:
     terms: tuple[type[ModelTerm], ...]
     fixed_effects: tuple[ModelTerm, ...]
     initial_positions: int
-    """Impacts whose initial position is fitted (the last entries of theta); 0: none."""
+    """Impacts whose initial position is fitted (after the global entries of theta); 0: none."""
+    impulse_scales: int
+    """Impacts whose impulse scale is fitted (the last entries of theta); 0: none."""
     names: tuple[str, ...]
     units: tuple[str, ...]
     start: np.ndarray
@@ -170,18 +192,30 @@ class _Space:
             effects.append(term.from_vector(theta[position : position + count]))
             position += count
         positions = tuple(float(x) for x in theta[position : position + self.initial_positions])
-        return BuiltModel(rig, float(theta[0]), tuple(effects), positions)
+        position += self.initial_positions
+        scales = tuple(float(s) for s in theta[position : position + self.impulse_scales])
+        return BuiltModel(rig, float(theta[0]), tuple(effects), positions, scales)
+
+    @property
+    def n_global(self) -> int:
+        """Parameters that move every impact: mu, c and the terms."""
+        return self.start.size - self.initial_positions - self.impulse_scales
 
     def blocks(self, segments: Sequence[slice], jacobian: str = 'blocks') -> Blocks:
         """Which parameters move which impact's residual segment (`_lsq.Blocks`).
 
-        mu, c and the terms move every impact, initial_position_m[k] only impact k; with
-        jacobian='dense' every parameter is taken to move every impact.
+        mu, c and the terms move every impact, initial_position_m[k] and impulse_scale[k]
+        only impact k; with jacobian='dense' every parameter is taken to move every impact.
         """
         if jacobian == 'dense':
             return Blocks.shared(segments, self.start.size)
-        n_global = self.start.size - self.initial_positions
-        local = [[n_global + k] for k in range(self.initial_positions)] or [()] * len(segments)
+        n_global = self.n_global
+        scales = n_global + self.initial_positions
+        local = [
+            ([n_global + k] if self.initial_positions else [])
+            + ([scales + k] if self.impulse_scales else [])
+            for k in range(len(segments))
+        ]
         return Blocks.global_and_local(segments, n_global, local)
 
 
@@ -193,6 +227,7 @@ def _space(
     terms: Sequence[str | ModelTerm],
     fixed_effects: Sequence[ModelTerm],
     initial_positions: int,
+    impulse_scales: int,
 ) -> _Space:
     names, units = ['mu'], ['1']
     start, lower, upper = [mu0], [mu_bounds[0]], [mu_bounds[1]]
@@ -241,12 +276,20 @@ def _space(
         lower.append(-band_m)
         upper.append(band_m)
         typical.append(mu0 * rig.normal_force_n / rig.stiffness_n_per_m)
+    for index in range(impulse_scales):
+        names.append(f'impulse_scale[{index}]')
+        units.append('1')
+        start.append(1.0)
+        lower.append(IMPULSE_SCALE_BOUNDS[0])
+        upper.append(IMPULSE_SCALE_BOUNDS[1])
+        typical.append(1.0)
     return _Space(
         rig,
         fit_damping,
         tuple(classes),
         fixed,
         initial_positions,
+        impulse_scales,
         tuple(names),
         tuple(units),
         np.array(start, dtype=float),
@@ -288,10 +331,15 @@ def fit_model(
     terms: Sequence[str | ModelTerm] = (),
     fixed_effects: Sequence[ModelTerm] = (),
     fit_initial_position: bool = False,
+    fit_impulse_scale: bool = False,
+    remove_mains_hum: bool = False,
+    fit_velocity_drift: bool = False,
+    mains_hz: float | None = None,
     misfit: str = 'time',
     band_limit_hz: float = MISFIT_BAND_LIMIT_HZ,
     integrator: str = 'exact',
     jacobian: str = 'blocks',
+    start_values: Mapping[str, float] | None = None,
 ) -> ModelFit:
     """Fit one mu (and c, and the parameters of `terms`) to every impact at once.
 
@@ -327,7 +375,13 @@ def fit_model(
         terms,
         fixed_effects,
         len(conditioned) if fit_initial_position else 0,
+        len(conditioned) if fit_impulse_scale else 0,
     )
+    for name, value in (start_values or {}).items():
+        if name not in space.names:
+            raise ValueError(f'start value for {name!r}, which is not fitted: {space.names}')
+        at = space.names.index(name)
+        space.start[at] = min(max(float(value), space.lower[at]), space.upper[at])
     problem = OutputError(
         conditioned, space.build, misfit, band_limit_hz, integrator, rig.natural_frequency_hz
     )
@@ -340,7 +394,9 @@ def fit_model(
         problem.size,
         blocks=space.blocks(problem.segments, jacobian),
     )
-    fit = _model_fit(space, problem, solution)
+    chain = _VelocityChain(remove_mains_hum, fit_velocity_drift, mains_hz)
+    problem, solution, nuisances = chain.fit(problem, solution, space, jacobian)
+    fit = _model_fit(space, problem, solution, nuisances, fit_velocity_drift)
     _require_explained(fit, solution, conditioned)
     if 'mu' in fit.at_bounds:
         raise FitError(
@@ -353,13 +409,129 @@ def fit_model(
     return fit
 
 
-def _model_fit(space: _Space, problem: OutputError, solution: LsqSolution) -> ModelFit:
-    uncertainty = fit_uncertainty(solution, problem)
-    model = space.build(solution.x)
+@dataclass(frozen=True)
+class _VelocityChain:
+    """What the fit estimates of the velocity channel's chain: mains hum, offset and drift.
+
+    `fit` alternates: the model is fitted, the nuisance estimated from measured minus
+    modelled velocity (`chain.estimate_nuisance`) and taken off the measured velocity, and
+    the model refitted from where it was, until the nuisance's change would move no
+    parameter by more than `CHAIN_TOLERANCE` of its white-noise standard error (predicted
+    from the last Jacobian, so a last refit that would change nothing is not run). The hum
+    is orthogonal to the model's few-Hz motion and an offset nearly so: one refit, rarely
+    two.
+    """
+
+    hum: bool
+    drift: bool
+    mains_hz: float | None
+
+    def fit(
+        self, problem: OutputError, solution: LsqSolution, space: _Space, jacobian: str
+    ) -> tuple[OutputError, LsqSolution, tuple[VelocityNuisance, ...]]:
+        raw = problem.impacts
+        nuisances = tuple(VelocityNuisance.none(i.velocity_m_s.size) for i in raw)
+        if not (self.hum or self.drift):
+            return problem, solution, nuisances
+        for _ in range(CHAIN_ROUNDS):
+            residuals = _time_residuals(problem, solution)
+            estimates = tuple(
+                estimate_nuisance(
+                    residual + before.values_m_s,
+                    impact.sample_rate_hz,
+                    impact.velocity_noise_std_m_s,
+                    hum=self.hum,
+                    drift=self.drift,
+                    mains_hz=self.mains_hz,
+                )
+                for residual, before, impact in zip(residuals, nuisances, raw, strict=True)
+            )
+            changes = [
+                after.values_m_s - before.values_m_s
+                for after, before in zip(estimates, nuisances, strict=True)
+            ]
+            nuisances = estimates
+            cleaned = [
+                replace(impact, velocity_m_s=impact.velocity_m_s - nuisance.values_m_s)
+                for impact, nuisance in zip(raw, nuisances, strict=True)
+            ]
+            problem = OutputError(
+                cleaned,
+                space.build,
+                problem.misfit,
+                problem.band_limit_hz,
+                problem.integrator,
+                space.rig.natural_frequency_hz,
+            )
+            if problem.misfit == 'time' and _negligible(solution, changes):
+                residual = problem.clear_hit_windows(solution.residual - np.concatenate(changes))
+                return (
+                    problem,
+                    replace(solution, residual=residual, cost=inner(residual, residual)),
+                    nuisances,
+                )
+            solution = levenberg_marquardt(
+                problem,
+                solution.x,
+                space.lower,
+                space.upper,
+                space.typical,
+                problem.size,
+                blocks=space.blocks(problem.segments, jacobian),
+            )
+        return problem, solution, nuisances
+
+
+CHAIN_ROUNDS = 3
+"""Most refits `_VelocityChain` runs after the first fit."""
+
+
+CHAIN_TOLERANCE = 0.05
+"""A nuisance change that would move no parameter by this much of its white-noise standard
+error is taken without refitting."""
+
+
+def _time_residuals(problem: OutputError, solution: LsqSolution) -> list[np.ndarray]:
+    """Measured minus modelled velocity per impact at a solution."""
     if problem.misfit == 'time':
-        residuals = tuple(solution.residual[segment].copy() for segment in problem.segments)
-    else:
-        residuals = problem.time_residuals(solution.x)
+        return [solution.residual[segment] for segment in problem.segments]
+    return list(problem.time_residuals(solution.x))
+
+
+def _negligible(solution: LsqSolution, changes: Sequence[np.ndarray]) -> bool:
+    """Whether taking `changes` off the measured velocities would leave the fit where it is.
+
+    The residuals fall by the changes, so Gauss-Newton moves the parameters by
+    (J J^T)^-1 J changes; compared with the white-noise standard errors.
+    """
+    jacobian = solution.jacobian
+    gradient = np.zeros(jacobian.blocks.n_parameters)
+    for indices, rows, change in zip(
+        jacobian.blocks.parameters, jacobian.rows, changes, strict=True
+    ):
+        gradient[indices] += inner(rows, change)
+    inverse = normal_inverse(jacobian.normal())
+    finite = np.isfinite(np.diag(inverse))
+    inverse = np.where(np.isfinite(inverse), inverse, 0.0)
+    step = inverse @ gradient
+    variance = solution.cost / max(solution.residual.size - step.size, 1) * np.diag(inverse)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        moved = np.abs(step[finite]) / np.sqrt(variance[finite])
+    return bool(np.all(np.nan_to_num(moved, nan=0.0) < CHAIN_TOLERANCE))
+
+
+def _model_fit(
+    space: _Space,
+    problem: OutputError,
+    solution: LsqSolution,
+    nuisances: tuple[VelocityNuisance, ...],
+    drift: bool,
+) -> ModelFit:
+    uncertainty = fit_uncertainty(
+        solution, problem, force_noise=not space.impulse_scales, drift=drift
+    )
+    model = space.build(solution.x)
+    residuals = problem.time_residuals(solution.x)  # the hit windows too
     squares = [inner(r, r) for r in residuals]
     impacts = problem.impacts
     n_samples = sum(r.size for r in residuals)
@@ -393,6 +565,8 @@ def _model_fit(space: _Space, problem: OutputError, solution: LsqSolution) -> Mo
         mu=model.mu,
         effects=model.effects,
         initial_positions_m=tuple(model.initial_position_m(index) for index in range(len(impacts))),
+        impulse_scales=tuple(model.impulse_scale(index) for index in range(len(impacts))),
+        velocity_nuisance=nuisances,
         misfit=problem.misfit,
         impacts=impacts,
         sources=tuple(i.source for i in impacts),
@@ -520,12 +694,25 @@ class FrictionFit:
         return self.joint.error('damping_n_s_per_m')
 
 
+def _own_start(joint: ModelFit, index: int) -> dict[str, float]:
+    """Start values of impact `index`'s own fit: its start position and scale in the joint."""
+    own = {}
+    for name in (f'initial_position_m[{index}]', f'impulse_scale[{index}]'):
+        if name in joint.names:
+            own[name.replace(f'[{index}]', '[0]')] = joint.value(name)
+    return own
+
+
 def fit_friction(
     impacts: Sequence,
     *,
     rig: Rig = FMM_RIG,
     fit_damping: bool = False,
     fit_initial_position: bool = False,
+    fit_impulse_scale: bool = True,
+    remove_mains_hum: bool = True,
+    fit_velocity_drift: bool = True,
+    mains_hz: float | None = None,
     mu_bounds: tuple[float, float] = MU_BOUNDS,
     misfit: str = 'time',
     band_limit_hz: float = MISFIT_BAND_LIMIT_HZ,
@@ -542,6 +729,10 @@ def fit_friction(
     options = dict(
         mu_bounds=mu_bounds,
         fit_initial_position=fit_initial_position,
+        fit_impulse_scale=fit_impulse_scale,
+        remove_mains_hum=remove_mains_hum,
+        fit_velocity_drift=fit_velocity_drift,
+        mains_hz=mains_hz,
         misfit=misfit,
         band_limit_hz=band_limit_hz,
         integrator=integrator,
@@ -552,11 +743,18 @@ def fit_friction(
         per_impact = (
             (joint,)
             if not fit_damping
-            else (fit_model(conditioned, rig=joint.rig, mu0=joint.mu, **options),)
+            else (fit_model(joint.impacts, rig=joint.rig, mu0=joint.mu, **options),)
         )
-    else:
+    else:  # each from the joint fit's cleaned velocity and values: only refined
         per_impact = tuple(
-            fit_model([impact], rig=joint.rig, mu0=joint.mu, **options) for impact in conditioned
+            fit_model(
+                [impact],
+                rig=joint.rig,
+                mu0=joint.mu,
+                start_values=_own_start(joint, index),
+                **options,
+            )
+            for index, impact in enumerate(joint.impacts)
         )
     mus = np.array([fit.mu for fit in per_impact])
     errors = np.array([fit.mu_stderr for fit in per_impact])
