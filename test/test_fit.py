@@ -16,7 +16,6 @@ from fmm_ros.core.physics.terms import model_term
 from fmm_ros.core.signal.capture import capture_impacts
 from fmm_ros.sim.session import simulated_session
 
-
 SCALES = tuple(f'impulse_scale[{i}]' for i in range(3))
 """fit_friction fits each hit's impulse scale."""
 

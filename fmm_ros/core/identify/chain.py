@@ -15,10 +15,11 @@ from the measured velocity before the fit is repeated (`fit_model` alternates th
   noise alone gives a P-sample average (`HUM_DETECTION_Z` standard deviations above it).
   Each segment removes P degrees of freedom of the residual (1 % at 50 Hz and 10 kHz), which
   `VelocityNuisance.dof` reports.
-- Drift: an offset and a linear trend over the record, by least squares.
-  A vibrometer's zero creeps slowly (a random walk of 1e-6 m/s per root second moves it by
-  6e-6 m/s in a 33 s record); what a straight line leaves of it is coloured noise, which the
-  fit's standard errors take from the residual's spectrum (`output_error`).
+- Drift: an offset that may creep, linear between knots `DRIFT_KNOT_S` apart
+  (`DriftBasis`), by least squares. A vibrometer's zero wanders slowly (a random walk of
+  1e-6 m/s per root second moves it by 6e-6 m/s in a 33 s record); what the knots leave of
+  it wanders within a few seconds, where the residual's spectrum (from which the fit's
+  standard errors come, `output_error`) sees it.
 """
 
 import functools
@@ -51,7 +52,7 @@ class VelocityNuisance:
     offset_m_s: float
     """Velocity offset at the record's first sample [m/s]."""
     drift_m_s2: float
-    """Slope of the offset over the record [m/s per s]."""
+    """The offset's mean slope over the record [m/s per s]."""
     mains_hz: float
     """Mains frequency whose hum was removed [Hz]; 0 where none was found."""
     hum_rms_m_s: float
@@ -76,7 +77,7 @@ def estimate_nuisance(
     drift: bool,
     mains_hz: float | None = None,
 ) -> VelocityNuisance:
-    """The hum (if `hum`) and offset and trend (if `drift`) in a fit's velocity residual.
+    """The hum (if `hum`) and the drifting offset (if `drift`) in a fit's velocity residual.
 
     noise_std_m_s: the white noise level of the record (decides whether hum is there).
     mains_hz: 50 or 60 to look for that one only; None for whichever shows.
@@ -94,35 +95,90 @@ def estimate_nuisance(
             hum_rms = math.sqrt(float(np.einsum('i,i->', values, values)) / n)
     offset = slope = 0.0
     if drift and n:
-        index = _centred_index(n)
-        # The line through residual - hum, from sums (no array of the difference is made).
-        mean = (float(np.einsum('i->', residual_m_s)) - float(np.einsum('i->', values))) / n
-        slope = (
-            float(np.einsum('i,i->', index, residual_m_s))
-            - float(np.einsum('i,i->', index, values))
-        ) / max(float(n * (n * n - 1) / 12.0), 1.0)
-        values += mean
-        values += slope * index
-        offset = mean - slope * index[0]
-        dof += 2
+        basis = DriftBasis.of(n, sample_rate_hz)
+        # The drift of residual - hum, from the basis's sums (no array of the difference).
+        coefficients = basis.solve(basis.project(residual_m_s) - basis.project(values))
+        values += basis.curve(coefficients)
+        offset = float(coefficients[0])
+        slope = float(coefficients[-1] - coefficients[0]) / max(n - 1, 1)
+        dof += coefficients.size
     return VelocityNuisance(offset, slope * sample_rate_hz, found_hz, hum_rms, dof, values)
 
 
-def without_line(rows: np.ndarray) -> np.ndarray:
-    """Rows (along the last axis) less their least-squares line a + b i (fresh array)."""
-    n = rows.shape[-1]
-    index = _centred_index(n)
-    mean = rows.mean(axis=-1, keepdims=True)
-    slope = np.einsum('...i,i->...', rows, index)[..., None] / max(n * (n * n - 1) / 12.0, 1.0)
-    return rows - mean - slope * index
+DRIFT_KNOT_S = 4.0
+"""Spacing of the drift's knots [s]: the zero is taken as linear between them."""
 
 
-@functools.lru_cache(maxsize=4)
-def _centred_index(n: int) -> np.ndarray:
-    """I - (n - 1) / 2 for i < n, made once per record length (read-only)."""
-    index = np.arange(n) - 0.5 * (n - 1)
-    index.flags.writeable = False
-    return index
+@dataclass(frozen=True, eq=False)
+class DriftBasis:
+    """Hat functions at knots `DRIFT_KNOT_S` apart: a drift linear between its knots.
+
+    Least squares onto them is a few sums over each knot interval; their Gram matrix is
+    tridiagonal and small (nine knots in 33 s). A 33 s record's random-walk zero, which a
+    straight line left at a few times 1e-6 m/s and wandering over tens of seconds (where the
+    Welch spectrum behind the standard errors cannot resolve it, and it correlates with the
+    rig's slow motion), is followed to what wanders within 4 s.
+    """
+
+    interval: np.ndarray
+    """Per sample, the knot interval it lies in."""
+    fraction: np.ndarray
+    """Per sample, how far into that interval (0 at its left knot, up to 1)."""
+    gram: np.ndarray
+    """(knots, knots) inner products of the hat functions."""
+
+    @classmethod
+    @functools.lru_cache(maxsize=8)
+    def of(cls, n: int, sample_rate_hz: float) -> 'DriftBasis':
+        """The basis of an n-sample record (made once per length and rate)."""
+        intervals = max(1, round((n - 1) / sample_rate_hz / DRIFT_KNOT_S))
+        knots = np.linspace(0.0, n - 1, intervals + 1)
+        position = np.arange(n) / max(n - 1, 1) * intervals
+        interval = np.minimum(position.astype(int), intervals - 1)
+        fraction = position - interval
+        left, right = 1.0 - fraction, fraction
+        gram = np.zeros((knots.size, knots.size))
+        diagonal = np.bincount(interval, left * left, knots.size) + np.bincount(
+            interval + 1, right * right, knots.size
+        )
+        off = np.bincount(interval, left * right, intervals)
+        gram[np.diag_indices(knots.size)] = diagonal
+        gram[np.arange(intervals), np.arange(1, intervals + 1)] = off
+        gram[np.arange(1, intervals + 1), np.arange(intervals)] = off
+        for array in (interval, fraction):
+            array.flags.writeable = False
+        return cls(interval, fraction, gram)
+
+    @property
+    def size(self) -> int:
+        """Number of knots (the degrees of freedom a drift costs)."""
+        return self.gram.shape[0]
+
+    def project(self, values: np.ndarray) -> np.ndarray:
+        """B^T values: each knot's hat-weighted sum, along the last axis."""
+        rows = np.atleast_2d(values)
+        out = np.empty((rows.shape[0], self.size))
+        for row, target in zip(rows, out, strict=True):
+            target[:] = np.bincount(
+                self.interval, row * (1.0 - self.fraction), self.size
+            ) + np.bincount(self.interval + 1, row * self.fraction, self.size)
+        return out if values.ndim > 1 else out[0]
+
+    def solve(self, projected: np.ndarray) -> np.ndarray:
+        """Least-squares knot values from `project`'s sums."""
+        return np.linalg.solve(self.gram, np.asarray(projected).T).T
+
+    def curve(self, coefficients: np.ndarray) -> np.ndarray:
+        """The drift sample by sample from knot values (along the last axis)."""
+        coefficients = np.asarray(coefficients)
+        return (
+            coefficients[..., self.interval] * (1.0 - self.fraction)
+            + coefficients[..., self.interval + 1] * self.fraction
+        )
+
+    def remove(self, rows: np.ndarray) -> np.ndarray:
+        """Rows less their least-squares drift (a fresh array)."""
+        return rows - self.curve(self.solve(self.project(rows)))
 
 
 def hum_period_samples(sample_rate_hz: float, mains_hz: float) -> int | None:

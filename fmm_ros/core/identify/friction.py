@@ -36,6 +36,7 @@ from fmm_ros.core.identify.lsq import (
 from fmm_ros.core.identify.output_error import (
     JACOBIANS,
     MISFITS,
+    UNCERTAINTIES,
     BuiltModel,
     OutputError,
     fit_uncertainty,
@@ -339,6 +340,8 @@ def fit_model(
     band_limit_hz: float = MISFIT_BAND_LIMIT_HZ,
     integrator: str = 'exact',
     jacobian: str = 'blocks',
+    judge_hit: bool = False,
+    uncertainty: str = 'spectral',
     start_values: Mapping[str, float] | None = None,
 ) -> ModelFit:
     """Fit one mu (and c, and the parameters of `terms`) to every impact at once.
@@ -350,13 +353,29 @@ def fit_model(
     mass rested before the hit (a nuisance parameter per impact, `initial_position_m[i]`):
     friction holds the FMM anywhere within +-mu N / k of centre after the previous hit, and
     the velocity alone does not say where; without it every impact starts at x = 0, as in
-    the paper. jacobian: 'blocks' (default) runs each start position's Jacobian column on its
-    own impact only; 'dense' runs every column on every impact (same result, the reference).
+    the paper. fit_impulse_scale: also fit a factor on each hit's measured force
+    (`impulse_scale[i]`, a nuisance parameter): a sampled, filtered, noisy force misstates the
+    impulse by 1e-4 to 1e-2, which the decay, not the force, then decides; mu comes from the
+    decay's shape alone. remove_mains_hum, fit_velocity_drift: estimate the mains hum (50 or
+    60 Hz, or `mains_hz`) and a drifting velocity offset from the residual and take them off
+    the measured velocity, refitting (`chain`); off by default, so that the diagnosis sees an
+    offset as the `velocity_offset` it is. judge_hit: also judge the velocity inside each
+    `ConditionedImpact.hit_windows` (off: it follows the force between its samples).
+    uncertainty: 'spectral' or 'blocks' (`output_error.UNCERTAINTIES`). start_values: start
+    values of fitted parameters by name (e.g. 'initial_position_m[0]'). jacobian: 'blocks'
+    (default) runs each impact's own parameters' Jacobian columns on that impact only;
+    'dense' runs every column on every impact (same result, the reference).
     Raises ValueError for bad arguments and FitError when the fit does not converge, puts mu
     on a bound of mu_bounds, or leaves an impact unexplained.
     """
     conditioned = _conditioned_list(impacts)
     _check_options(rig, misfit, band_limit_hz, integrator, jacobian)
+    if uncertainty not in UNCERTAINTIES:
+        raise ValueError(
+            f'unknown uncertainty {uncertainty!r}; choose one of {", ".join(UNCERTAINTIES)}'
+        )
+    if mains_hz is not None and not mains_hz > 0:
+        raise ValueError(f'mains_hz must be > 0 (or None to find it), got {mains_hz}')
     low, high = (float(bound) for bound in mu_bounds)
     if not 0.0 <= low < high or not math.isfinite(high):
         raise ValueError(f'mu_bounds must be 0 <= lower < upper, finite; got {mu_bounds}')
@@ -383,7 +402,14 @@ def fit_model(
         at = space.names.index(name)
         space.start[at] = min(max(float(value), space.lower[at]), space.upper[at])
     problem = OutputError(
-        conditioned, space.build, misfit, band_limit_hz, integrator, rig.natural_frequency_hz
+        conditioned,
+        space.build,
+        misfit,
+        band_limit_hz,
+        integrator,
+        rig.natural_frequency_hz,
+        judge_hit=judge_hit,
+        uncertainty=uncertainty,
     )
     solution = levenberg_marquardt(
         problem,
@@ -455,14 +481,7 @@ class _VelocityChain:
                 replace(impact, velocity_m_s=impact.velocity_m_s - nuisance.values_m_s)
                 for impact, nuisance in zip(raw, nuisances, strict=True)
             ]
-            problem = OutputError(
-                cleaned,
-                space.build,
-                problem.misfit,
-                problem.band_limit_hz,
-                problem.integrator,
-                space.rig.natural_frequency_hz,
-            )
+            problem = problem.with_impacts(cleaned)
             if problem.misfit == 'time' and _negligible(solution, changes):
                 residual = problem.clear_hit_windows(solution.residual - np.concatenate(changes))
                 return (
@@ -718,11 +737,15 @@ def fit_friction(
     band_limit_hz: float = MISFIT_BAND_LIMIT_HZ,
     integrator: str = 'exact',
     jacobian: str = 'blocks',
+    judge_hit: bool = False,
+    uncertainty: str = 'spectral',
 ) -> FrictionFit:
     """The paper's fit: one mu (and optionally c) over all impacts, plus each impact's own mu.
 
-    fit_initial_position and jacobian as in `fit_model` (each impact's own fit then refits its
-    own start). Raises ValueError for bad input and FitError (naming the impact) for any
+    The records as a data acquisition delivers them: by default each hit's impulse scale is
+    fitted and mains hum, velocity offset and drift are taken off (options as in
+    `fit_model`); each impact's own fit starts from the joint fit's cleaned velocity, start
+    and scale. Raises ValueError for bad input and FitError (naming the impact) for any
     impact, or the set, that friction cannot explain.
     """
     conditioned = _conditioned_list(impacts)
@@ -737,6 +760,8 @@ def fit_friction(
         band_limit_hz=band_limit_hz,
         integrator=integrator,
         jacobian=jacobian,
+        judge_hit=judge_hit,
+        uncertainty=uncertainty,
     )
     joint = fit_model(conditioned, rig=rig, fit_damping=fit_damping, **options)
     if len(conditioned) == 1:

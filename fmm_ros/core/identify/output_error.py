@@ -27,7 +27,7 @@ import scipy.fft
 import scipy.signal
 import scipy.stats
 
-from fmm_ros.core.identify.chain import without_line
+from fmm_ros.core.identify.chain import DriftBasis
 from fmm_ros.core.identify.conditioning import ConditionedImpact, source_prefix
 from fmm_ros.core.identify.lsq import (
     BlockJacobian,
@@ -42,6 +42,13 @@ from fmm_ros.core.physics.terms import ModelTerm
 from fmm_ros.core.signal.frf import band_bins, mobility, spectra
 
 MISFITS = ('time', 'frf')
+
+
+UNCERTAINTIES = ('spectral', 'blocks')
+"""How the velocity residuals' share of a time fit's covariance is found: from the residual's
+spectrum over the whole record (default), or from block sums of the score over the motion
+(the way before issue 14: noisy where the motion lasts a few periods; kept as the reference
+the uncertainty benchmark compares with)."""
 
 
 JACOBIANS = ('blocks', 'dense')
@@ -96,12 +103,18 @@ class OutputError:
         band_limit_hz: float,
         integrator: str,
         natural_frequency_hz: float,
+        *,
+        judge_hit: bool = False,
+        uncertainty: str = 'spectral',
     ) -> None:
         self.impacts = tuple(impacts)
         self.build = build
         self.misfit = misfit
         self.integrator = integrator
         self.band_limit_hz = band_limit_hz
+        self.natural_frequency_hz = natural_frequency_hz
+        self.judge_hit = judge_hit
+        self.uncertainty = uncertainty
         longest = max(impact.force_n.size for impact in self.impacts)
         self.buffer = np.empty((2, longest))
         # The force that drives a run: zero but for one impact's gates, scaled (`drive`).
@@ -135,6 +148,19 @@ class OutputError:
             start += length
         self.size = start
 
+    def with_impacts(self, impacts: Sequence[ConditionedImpact]) -> 'OutputError':
+        """The same problem over other impacts (the same records with a cleaned velocity)."""
+        return OutputError(
+            impacts,
+            self.build,
+            self.misfit,
+            self.band_limit_hz,
+            self.integrator,
+            self.natural_frequency_hz,
+            judge_hit=self.judge_hit,
+            uncertainty=self.uncertainty,
+        )
+
     def model(self, theta: np.ndarray) -> BuiltModel:
         """The model at theta, or Infeasible where it cannot be built."""
         try:
@@ -159,7 +185,8 @@ class OutputError:
         velocity = self.simulate(index, model, force).velocity_m_s
         if self.misfit == 'time':
             np.subtract(impact.velocity_m_s, velocity, out=out)
-            _clear_hit_windows(impact, out)
+            if not self.judge_hit:
+                _clear_hit_windows(impact, out)
             return
         target = self.targets[index]
         spectrum = scipy.fft.rfft(velocity)[: target.size]
@@ -206,6 +233,8 @@ class OutputError:
 
     def clear_hit_windows(self, residual: np.ndarray) -> np.ndarray:
         """Zero the hit windows of a stacked time residual (in place), as the misfit has it."""
+        if self.judge_hit:
+            return residual
         for impact, segment in zip(self.impacts, self.segments, strict=True):
             _clear_hit_windows(impact, residual[segment])
         return residual
@@ -224,15 +253,16 @@ class OutputError:
     def scores(self, solution: LsqSolution) -> list[np.ndarray]:
         """Each block's score covariance at a solution (`sandwich_uncertainty`).
 
-        In time from the residual's spectrum (`spectral_score`), for the FRF misfit from block
-        sums over f_n/4 of bins (`block_score`).
+        In time from the residual's spectrum (`spectral_score`), for the FRF misfit (and with
+        uncertainty='blocks', the way before issue 14) from block sums over a natural period
+        or f_n/4 of bins (`block_score`).
         """
         scores = []
         for index, (segment, rows) in enumerate(
             zip(self.segments, solution.jacobian.rows, strict=True)
         ):
             residual = solution.residual[segment]
-            if self.misfit == 'time':
+            if self.misfit == 'time' and self.uncertainty == 'spectral':
                 impact = self.impacts[index]
                 scores.append(
                     spectral_score(
@@ -391,13 +421,19 @@ def fit_uncertainty(
 
     force_noise=False where the fit has its own parameter for each hit's impulse: the noise's
     effect on the impulse is then part of what the fit estimates, not an error beside it.
-    drift: each impact's velocity offset and trend were estimated too (`chain`), so the
-    Jacobian's part along them carries no information: it is projected out first (time
-    misfit), as a joint fit of them would.
+    drift: each impact's velocity drift was estimated too (`chain.DriftBasis`), so the
+    Jacobian's part along its basis carries no information: it is projected out first (time
+    misfit), as a joint fit of the drift would.
     """
     if drift and problem.misfit == 'time':
         jacobian = solution.jacobian
-        projected = BlockJacobian(jacobian.blocks, tuple(without_line(r) for r in jacobian.rows))
+        projected = BlockJacobian(
+            jacobian.blocks,
+            tuple(
+                DriftBasis.of(rows.shape[1], impact.sample_rate_hz).remove(rows)
+                for rows, impact in zip(jacobian.rows, problem.impacts, strict=True)
+            ),
+        )
         solution = replace(solution, jacobian=projected)
     scores = problem.scores(solution)
     if not force_noise:
