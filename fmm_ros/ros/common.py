@@ -18,6 +18,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.ros.params import Param
+from fmm_ros.sim.daq import ChannelChain
 
 _RIG = Rig()
 
@@ -47,6 +48,65 @@ RIG_PARAMS = (
         read_only=True,
     ),
 )
+
+
+def chain_params(channel: str, unit: str, suffix: str, offset_limit: float) -> tuple[Param, ...]:
+    """A simulated channel's data acquisition chain (`sim.daq.ChannelChain`) as parameters.
+
+    channel: what the descriptions call it; unit and suffix: its SI unit and the names' unit
+    suffix ('N' and 'n'); offset_limit: the largest zero error accepted [unit].
+    """
+    return (
+        Param(
+            'anti_alias_order',
+            0,
+            f'Butterworth anti-alias filter of the {channel} channel, order [-] (0: none)',
+            limits=(0, 12),
+            read_only=True,
+        ),
+        Param(
+            'anti_alias_cutoff_hz',
+            4000.0,
+            'Its -3 dB frequency [Hz] (below half the sample rate)',
+            limits=(1.0, 1e6),
+            read_only=True,
+        ),
+        Param(
+            f'offset_{suffix}',
+            0.0,
+            f'Zero error of the {channel} channel [{unit}]',
+            limits=(-offset_limit, offset_limit),
+            read_only=True,
+        ),
+        Param(
+            f'drift_{suffix}_per_sqrt_s',
+            0.0,
+            f'Random-walk drift of that zero: its standard deviation after 1 s [{unit}]',
+            limits=(0.0, offset_limit),
+            read_only=True,
+        ),
+        Param(
+            f'hum_amplitude_{suffix}',
+            0.0,
+            f'Mains hum on the {channel} channel, amplitude of the fundamental [{unit}] '
+            '(harmonics 2, 3, 5 at 1/2, 1/3, 1/5 of it)',
+            limits=(0.0, offset_limit),
+            read_only=True,
+        ),
+        Param('mains_hz', 50.0, 'Mains frequency [Hz]', limits=(10.0, 1000.0), read_only=True),
+    )
+
+
+def chain_from_parameters(config: dict, suffix: str) -> ChannelChain:
+    """The ChannelChain the `chain_params` values of a node's config describe."""
+    return ChannelChain(
+        anti_alias_order=config['anti_alias_order'],
+        anti_alias_cutoff_hz=config['anti_alias_cutoff_hz'],
+        offset=config[f'offset_{suffix}'],
+        drift_per_sqrt_s=config[f'drift_{suffix}_per_sqrt_s'],
+        hum_amplitude=config[f'hum_amplitude_{suffix}'],
+        mains_hz=config['mains_hz'],
+    )
 
 
 def rig_from_parameters(config: dict) -> Rig:

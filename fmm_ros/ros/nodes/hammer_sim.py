@@ -1,8 +1,10 @@
 """hammer_sim: a simulated impact hammer running the paper's session, published in batches.
 
-Publishes what the force sensor reports on /fmm/force and, for the simulated plant only, the
+Publishes what the force channel reports on /fmm/force and, for the simulated plant only, the
 force the hammer actually applies on /fmm/sim/applied_force (same sample indices): rig_sim is
-driven by the applied force, as the real rig is, so sensor noise never moves the plant.
+driven by the applied force, as the real rig is, so sensor noise never moves the plant. The
+channel's data acquisition chain (anti-alias filter, zero error and drift, mains hum:
+`sim.daq`) acts on the reported force only.
 Paced to the wall clock; `rate_factor` runs it faster (it can be changed live).
 """
 
@@ -14,8 +16,15 @@ from rclpy.parameter import Parameter
 from fmm_interfaces.msg import SampleBatch
 from fmm_ros.constants import APPLIED_FORCE_TOPIC, FORCE, FORCE_TOPIC, PAPER_LEVELS, SAMPLE_RATE_HZ
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import SAMPLE_QOS, BatchPacer, run_node
+from fmm_ros.ros.common import (
+    SAMPLE_QOS,
+    BatchPacer,
+    chain_from_parameters,
+    chain_params,
+    run_node,
+)
 from fmm_ros.ros.params import Param, declare_parameters
+from fmm_ros.sim.daq import ChainStream
 from fmm_ros.sim.hammer import HammerStream, session_schedule
 
 PARAMS = (
@@ -75,12 +84,20 @@ PARAMS = (
         read_only=True,
     ),
     Param(
+        'contact_scale',
+        1.0,
+        "Contact duration against the paper's tip [-] (below 1: a harder tip, sharper hits)",
+        limits=(0.05, 10.0),
+        read_only=True,
+    ),
+    Param(
         'noise_std_n',
         0.2,
-        'Force sensor noise, standard deviation [N]',
+        'Force sensor noise, standard deviation [N] (it passes the anti-alias filter)',
         limits=(0.0, 100.0),
         read_only=True,
     ),
+    *chain_params('force', 'N', 'n', 1000.0),
     Param(
         'full_scale_n',
         22_240.0,
@@ -128,9 +145,13 @@ class HammerSim(Node):
             first_hit_s=self.config['first_hit_s'],
             rng=self.config['seed'],
             spread_std_n=self.config['peak_spread_std_n'],
+            contact_scale=self.config['contact_scale'],
         )
         self.stream = HammerStream(
             self.schedule, rate, noise_std_n=self.config['noise_std_n'], seed=self.config['seed']
+        )
+        self.chain = ChainStream(
+            chain_from_parameters(self.config, 'n'), rate, seed=self.config['seed']
         )
         self.next_index = 0
         self._measured_pub = self.create_publisher(SampleBatch, FORCE_TOPIC, SAMPLE_QOS)
@@ -199,6 +220,7 @@ class HammerSim(Node):
         stamp = (self._start_stamp + Duration(nanoseconds=round(first / rate * 1e9))).to_msg()
         self.stream.applied(first, self._applied)
         self.stream.measured(self._applied, first, self._measured)
+        self.chain.apply(first, self._measured)
         common = dict(
             quantity=FORCE,
             sample_rate_hz=rate,

@@ -2,7 +2,9 @@
 
 Runs the physics core in streaming form (the oscillator state carries over between batches,
 so 500-sample batches give exactly the one-long-call result) and publishes the velocity with
-the force batch's sample index and stamp, plus vibrometer noise. Its model terms come from
+the force batch's sample index and stamp, plus vibrometer noise and the channel's data
+acquisition chain (anti-alias filter, zero error and drift, mains hum: `sim.daq`). Its model
+terms come from
 parameters (`effects`, e.g. `stribeck:mu_static_excess=0.02`), so a test or a demo can hide
 an effect in the plant that the analysis is not told about.
 """
@@ -15,8 +17,16 @@ from fmm_ros.constants import APPLIED_FORCE_TOPIC, PAPER_MU, VELOCITY, VELOCITY_
 from fmm_ros.core.physics.model import INTEGRATORS, OscillatorStream
 from fmm_ros.core.physics.terms import parse_model_term
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import RIG_PARAMS, SAMPLE_QOS, rig_from_parameters, run_node
+from fmm_ros.ros.common import (
+    RIG_PARAMS,
+    SAMPLE_QOS,
+    chain_from_parameters,
+    chain_params,
+    rig_from_parameters,
+    run_node,
+)
 from fmm_ros.ros.params import Param, declare_parameters
+from fmm_ros.sim.daq import ChainStream
 from fmm_ros.sim.hammer import add_indexed_noise
 
 PARAMS = (
@@ -48,10 +58,11 @@ PARAMS = (
     Param(
         'noise_std_m_s',
         1e-4,
-        'Vibrometer noise, standard deviation [m/s]',
+        'Vibrometer noise, standard deviation [m/s] (it passes the anti-alias filter)',
         limits=(0.0, 1.0),
         read_only=True,
     ),
+    *chain_params('velocity', 'm/s', 'm_s', 1.0),
     Param(
         'full_scale_m_s',
         0.5,
@@ -77,6 +88,8 @@ class RigSim(Node):
         self._sample_rate_hz = 0.0
         self.next_index = 0
         self._velocity = np.empty(0)
+        self._chain = chain_from_parameters(cfg, 'm_s')
+        self._chain_stream: ChainStream | None = None
         self._publisher = self.create_publisher(SampleBatch, cfg['output_topic'], SAMPLE_QOS)
         self.create_subscription(SampleBatch, cfg['input_topic'], self._on_force, SAMPLE_QOS)
         terms = ', '.join(str(effect) for effect in self.effects) or 'none'
@@ -132,6 +145,7 @@ class RigSim(Node):
             integrator=self.config['integrator'],
         )
         self.next_index = msg.first_sample_index
+        self._chain_stream = ChainStream(self._chain, msg.sample_rate_hz, seed=self.config['seed'])
 
     def _step(self, force_n: np.ndarray) -> np.ndarray:
         """Advance the plant over force_n and return the noisy vibrometer output (reused buffer)."""
@@ -142,6 +156,7 @@ class RigSim(Node):
         add_indexed_noise(
             self._velocity, self.next_index, self.config['noise_std_m_s'], self.config['seed']
         )
+        self._chain_stream.apply(self.next_index, self._velocity)
         self.next_index += force_n.size
         return self._velocity
 
