@@ -66,5 +66,7 @@ APPLIED_FORCE_TOPIC = '/fmm/sim/applied_force'
 """Simulation only: the force the hammer applies (noise-free), which drives rig_sim."""
 IMPACTS_TOPIC = '/fmm/impacts'
 FRF_TOPIC = '/fmm/frf'
+FRICTION_TOPIC = '/fmm/friction'
+"""The fitter's running mu (FrictionEstimate), one message after every accepted impact."""
 FIT_SERVICE = '/fmm/fit_friction'
 DIAGNOSE_SERVICE = '/fmm/diagnose_model'

@@ -10,9 +10,10 @@ import array
 import numpy as np
 from builtin_interfaces.msg import Time
 
-from fmm_interfaces.msg import FrfSummary, ImpactResult, SampleBatch
+from fmm_interfaces.msg import FrfSummary, FrictionEstimate, ImpactResult, SampleBatch
 from fmm_ros.constants import Channel
 from fmm_ros.core import diagnose
+from fmm_ros.core.identify.running import LevelEstimate, RunningEstimate
 from fmm_ros.core.signal import analysis, frf
 
 
@@ -123,6 +124,55 @@ def frf_summary_msg(
     msg.linearity_r2 = float(linearity.r2)
     msg.linearity_levels = int(linearity.count)
     return msg
+
+
+def friction_estimate_msg(
+    estimate: RunningEstimate, *, stamp: Time, frame_id: str = 'fmm'
+) -> FrictionEstimate:
+    """A FrictionEstimate message from the running estimate (same field names)."""
+    msg = FrictionEstimate()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    msg.impact_id = int(estimate.impact_id)
+    msg.count = int(estimate.count)
+    for name in (
+        'mu',
+        'mu_stderr',
+        'consistency_chi2',
+        'consistency_p_value',
+        'impact_mu',
+        'impact_mu_stderr',
+    ):
+        setattr(msg, name, float(getattr(estimate, name)))
+    msg.level_names = [level.level for level in estimate.levels]
+    msg.level_counts = [int(level.count) for level in estimate.levels]
+    msg.level_mu = float64_field([level.mu for level in estimate.levels])
+    msg.level_mu_stderr = float64_field([level.mu_stderr for level in estimate.levels])
+    return msg
+
+
+def running_estimate(msg: FrictionEstimate) -> RunningEstimate:
+    """The running estimate a FrictionEstimate message carries."""
+    return RunningEstimate(
+        impact_id=int(msg.impact_id),
+        impact_mu=msg.impact_mu,
+        impact_mu_stderr=msg.impact_mu_stderr,
+        count=int(msg.count),
+        mu=msg.mu,
+        mu_stderr=msg.mu_stderr,
+        consistency_chi2=msg.consistency_chi2,
+        consistency_p_value=msg.consistency_p_value,
+        levels=tuple(
+            LevelEstimate(name, int(count), float(mu), float(stderr))
+            for name, count, mu, stderr in zip(
+                msg.level_names,
+                msg.level_counts,
+                field_array(msg.level_mu),
+                field_array(msg.level_mu_stderr),
+                strict=True,
+            )
+        ),
+    )
 
 
 def complex_field(msg: object, name: str) -> np.ndarray:

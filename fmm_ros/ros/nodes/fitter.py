@@ -7,10 +7,15 @@ fitted like a live session, and the analyzer stays a pure stream processor. A re
 cannot be answered (no impacts yet, unknown ids, a record friction cannot explain) gets
 success = false and the reason, never a number.
 
+After every accepted impact it also fits that impact alone and publishes the running mu (the
+impacts' own mus, inverse-variance weighted: `core.identify.running`) on /fmm/friction, so the
+lab sees mu converge while the session runs.
+
 Service callbacks run in their own callback group, so under `ros2 run` (a multi-threaded
 executor) the streams keep flowing while a fit runs.
 """
 
+import queue
 import threading
 from collections import OrderedDict
 from dataclasses import dataclass
@@ -18,12 +23,13 @@ from dataclasses import dataclass
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
 
-from fmm_interfaces.msg import ImpactResult, SampleBatch
+from fmm_interfaces.msg import FrictionEstimate, ImpactResult, SampleBatch
 from fmm_interfaces.srv import DiagnoseModel, FitFriction
 from fmm_ros.constants import (
     DIAGNOSE_SERVICE,
     FIT_SERVICE,
     FORCE_TOPIC,
+    FRICTION_TOPIC,
     IMPACTS_TOPIC,
     SAMPLE_RATE_HZ,
     VELOCITY_TOPIC,
@@ -31,6 +37,7 @@ from fmm_ros.constants import (
 from fmm_ros.core.diagnose.workflow import diagnose
 from fmm_ros.core.identify.conditioning import FitError
 from fmm_ros.core.identify.friction import MU_BOUNDS, fit_friction
+from fmm_ros.core.identify.running import RunningFriction
 from fmm_ros.core.signal.history import SampleHistory
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.ros import msgs
@@ -44,6 +51,13 @@ PARAMS = (
         True,
         'Fit where each record starts: in a continuous session a hit finds the rig where '
         'friction stopped the last one (up to mu N / k off centre), which is not measured',
+        read_only=True,
+    ),
+    Param(
+        'live_mu',
+        True,
+        f'After every accepted impact, fit it alone (in a worker thread) and publish the running '
+        f'mu on {FRICTION_TOPIC}',
         read_only=True,
     ),
     Param(
@@ -101,6 +115,13 @@ class Fitter(Node):
         self.create_subscription(
             ImpactResult, IMPACTS_TOPIC, self._on_impact, RESULT_QOS, callback_group=streams
         )
+        self._friction_pub = self.create_publisher(FrictionEstimate, FRICTION_TOPIC, RESULT_QOS)
+        self._running = RunningFriction()
+        self._to_fit: queue.Queue[HeldImpact | None] = queue.Queue()
+        self._worker = None
+        if cfg['live_mu']:
+            self._worker = threading.Thread(target=self._fit_live, name='live_mu', daemon=True)
+            self._worker.start()
         services = MutuallyExclusiveCallbackGroup()
         self.create_service(FitFriction, FIT_SERVICE, self._on_fit, callback_group=services)
         self.create_service(
@@ -153,12 +174,49 @@ class Fitter(Node):
             except ValueError as error:
                 self.get_logger().warning(f'impact {msg.impact_id} cannot be held: {error}')
                 continue
+            held = HeldImpact(msg.impact_id, msg.level, msg.accepted, tuple(msg.flags), record)
             with self._lock:
-                self.impacts[msg.impact_id] = HeldImpact(
-                    msg.impact_id, msg.level, msg.accepted, tuple(msg.flags), record
-                )
+                self.impacts[msg.impact_id] = held
                 while len(self.impacts) > self.config['keep_last_impacts']:
                     self.impacts.popitem(last=False)
+            if held.accepted and self._worker is not None:
+                self._to_fit.put(held)
+
+    # -- live mu ----------------------------------------------------------------------------
+
+    def _fit_live(self) -> None:
+        """Worker thread: fit each accepted impact alone, publish the running estimate.
+
+        Off the executor, so a fit (tens of ms) never holds up the streams; rclpy publishers
+        may be used from another thread. Stops at the None `destroy_node` puts in.
+        """
+        while (held := self._to_fit.get()) is not None:
+            try:
+                fit = fit_friction(
+                    [held.record],
+                    rig=self.rig,
+                    fit_initial_position=self.config['fit_initial_position'],
+                )
+                estimate = self._running.add(held.impact_id, held.level, fit.mu, fit.mu_stderr)
+            except ValueError as error:  # FitError included: the impact adds nothing
+                self.get_logger().warning(f'live mu: impact {held.impact_id} not used: {error}')
+                continue
+            self._friction_pub.publish(
+                msgs.friction_estimate_msg(estimate, stamp=self.get_clock().now().to_msg())
+            )
+            self.get_logger().info(
+                f'live mu after impact {held.impact_id}: {estimate.mu:.5f} +- '
+                f'{estimate.mu_stderr:.2g} over {estimate.count} impacts (one mu: p = '
+                f'{estimate.consistency_p_value:.3g})'
+            )
+
+    def destroy_node(self) -> None:
+        """Stop the live-mu worker (after the fit it is in), then the node."""
+        if self._worker is not None:
+            self._to_fit.put(None)
+            self._worker.join()
+            self._worker = None
+        super().destroy_node()
 
     # -- services ---------------------------------------------------------------------------
 

@@ -19,6 +19,7 @@ from fmm_ros.constants import (
     APPLIED_FORCE_TOPIC,
     FORCE_TOPIC,
     FRF_TOPIC,
+    FRICTION_TOPIC,
     IMPACTS_TOPIC,
     VELOCITY_TOPIC,
 )
@@ -29,7 +30,7 @@ from fmm_ros.ros.params import Param, declare_parameters
 PARAMS = (
     Param(
         'topics',
-        [FORCE_TOPIC, VELOCITY_TOPIC, IMPACTS_TOPIC, FRF_TOPIC],
+        [FORCE_TOPIC, VELOCITY_TOPIC, IMPACTS_TOPIC, FRF_TOPIC, FRICTION_TOPIC],
         'Topics to record',
         read_only=True,
     ),
@@ -58,6 +59,7 @@ KNOWN_TOPICS = {
     APPLIED_FORCE_TOPIC: ('fmm_interfaces/msg/SampleBatch', SAMPLE_QOS),
     IMPACTS_TOPIC: ('fmm_interfaces/msg/ImpactResult', RESULT_QOS),
     FRF_TOPIC: ('fmm_interfaces/msg/FrfSummary', RESULT_QOS),
+    FRICTION_TOPIC: ('fmm_interfaces/msg/FrictionEstimate', RESULT_QOS),
 }
 
 
