@@ -34,17 +34,26 @@ def add_rig_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def add_fit_freedom_arguments(parser: argparse.ArgumentParser) -> None:
-    """--fit-damping and --fit-initial-position: what a friction fit frees besides mu."""
+    """--fit-damping and --[no-]fit-initial-position: what a friction fit frees besides mu."""
     parser.add_argument(
         '--fit-damping',
         action='store_true',
         help='fit the viscous damping c too (otherwise c is the rig constant)',
     )
+    add_initial_position_argument(
+        parser,
+        'fit where the rig rested before each hit (default: friction leaves it off centre '
+        'after the previous one); --no-fit-initial-position starts each at x = 0',
+    )
+
+
+def add_initial_position_argument(parser: argparse.ArgumentParser, help_text: str) -> None:
+    """--fit-initial-position (the default) / --no-fit-initial-position."""
     parser.add_argument(
         '--fit-initial-position',
-        action='store_true',
-        help='fit where the rig rested before each hit (friction leaves it off '
-        'centre after the previous one; otherwise each starts at x = 0)',
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help=help_text,
     )
 
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from fmm_ros.cli._fitting import fit_and_report
-from fmm_ros.cli._model import add_rig_arguments, rig_from_args
+from fmm_ros.cli._model import add_initial_position_argument, add_rig_arguments, rig_from_args
 from fmm_ros.core.diagnose.result import Diagnosis
 from fmm_ros.core.diagnose.workflow import EFFECTS, NONE, diagnose
 from fmm_ros.core.physics.rig import Rig
@@ -45,12 +45,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help='CSV files of one impact each (time_s,force_n,velocity_m_s) or '
         'bags (every impact recorded)',
     )
-    parser.add_argument(
-        '--fit-initial-position',
-        action='store_true',
-        help="fit each impact's start position in every model, base and "
-        'candidates (a hit that found the rig held off centre by '
-        'friction); otherwise each starts at x = 0',
+    add_initial_position_argument(
+        parser,
+        "fit each impact's start position in every model, base and candidates alike "
+        '(default: a hit finds the rig where friction held it); --no-fit-initial-position '
+        'starts each at x = 0',
     )
     add_rig_arguments(parser)
     parser.add_argument('--json', action='store_true', help='print the result as JSON')

@@ -104,14 +104,21 @@ def report(result: FrictionFit) -> dict:
                 'mu_stderr': single.mu_stderr,
                 'normalised_residual': normalised,
                 'initial_position_m': start,
+                'impulse_scale': scale,
+                'mains_hum_hz': nuisance.mains_hz or None,
+                'hum_rms_m_s': nuisance.hum_rms_m_s,
+                'velocity_offset_m_s': nuisance.offset_m_s,
+                'velocity_drift_m_s2': nuisance.drift_m_s2,
             }
-            for source, single, impulse, rms, normalised, start in zip(
+            for source, single, impulse, rms, normalised, start, scale, nuisance in zip(
                 joint.sources,
                 result.per_impact,
                 result.impulses_n_s,
                 joint.impact_residual_rms_m_s,
                 joint.impact_normalised_residual,
                 joint.initial_positions_m,
+                joint.impulse_scales,
+                joint.velocity_nuisance,
                 strict=True,
             )
         ],
@@ -144,6 +151,14 @@ def text_report(result: FrictionFit) -> str:
         f'residual {joint.residual_rms_m_s:.3e} m/s RMS = '
         f'{100 * joint.normalised_residual:.3f} % of the peak velocity '
         f'(velocity noise {joint.noise_std_m_s:.3e} m/s)'
+    )
+    hum = sorted({n.mains_hz for n in joint.velocity_nuisance if n.mains_hz})
+    offsets = [n.offset_m_s for n in joint.velocity_nuisance]
+    lines.append(
+        'velocity chain: '
+        + (f'{"/".join(f"{h:g}" for h in hum)} Hz mains hum' if hum else 'no mains hum')
+        + f' and an offset of {min(offsets):.2g} to {max(offsets):.2g} m/s taken off; hit '
+        f'impulses scaled by {min(joint.impulse_scales):.4f} to {max(joint.impulse_scales):.4f}'
     )
     if count > 1:
         verdict = (

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fmm_ros.core.identify.running import running_estimates
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.signal.analysis import (
     AnalysisConfig,
@@ -140,7 +141,7 @@ def report_session(
     mu: float | None = None,
     fit: bool = True,
     fit_damping: bool = False,
-    fit_initial_position: bool = False,
+    fit_initial_position: bool = True,
     diagnose: bool = False,
     title: str = 'Impact session report',
     inputs: Sequence[str] = (),
@@ -488,6 +489,19 @@ def _friction(page: Page, summary: Summary, friction: FrictionSummary) -> None:
             )
         ],
         text_columns=(1,),
+    )
+    estimates = running_estimates(
+        list(friction.impact_ids),
+        [impacts[i].level for i in friction.impact_ids],
+        list(friction.per_impact_mu),
+        list(friction.per_impact_mu_stderr),
+    )
+    page.figure(
+        'running_mu',
+        figures.running_mu_figure(estimates),
+        "The running μ after each accepted hit, in the order they came (the hits' own μ, "
+        'inverse-variance weighted, as the fitter node publishes it live): it settles as the '
+        'hits add up, and a hit that disagrees stands out beside it.',
     )
     page.figure(
         'friction',

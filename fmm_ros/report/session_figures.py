@@ -13,6 +13,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
+from fmm_ros.core.identify.running import RunningEstimate
 from fmm_ros.core.signal import frf
 from fmm_ros.core.signal.analysis import ImpactResult, LevelSummary, NominalLevel, Summary
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig
@@ -395,9 +396,9 @@ def harmonics_figure(
     """Log |mobility| to 20 Hz per level, odd multiples of f_n marked (Fig. 24).
 
     The friction contact puts response at 3, 5, 7, ... f_n; a second structural mode would
-    sit elsewhere. f_n here is the mobility peak (the oscillation frequency between
-    reversals), which the harmonics are multiples of. With a model, its mobility is drawn
-    over the measured one.
+    sit elsewhere. f_n is the level's own (`LevelSummary.natural_frequency_hz`, from the
+    period between velocity reversals: the tables' value). With a model, its mobility is
+    drawn over the measured one.
     """
     model_mobility = model_mobility or {}
     figure, axes = new_figure(
@@ -423,7 +424,7 @@ def harmonics_figure(
                 linestyle='--',
                 label=model_label,
             )
-        natural_hz = mobility_peak_hz(level)
+        natural_hz = level.natural_frequency_hz
         for n, harmonic_hz in odd_harmonics(natural_hz, top_hz):
             ax.axvline(harmonic_hz, color='0.4', linewidth=0.6, linestyle=':')
             left = harmonic_hz > 0.9 * top_hz
@@ -439,32 +440,14 @@ def harmonics_figure(
             )
         ax.set_ylabel(f'|mobility|\n[{MOBILITY_UNIT}]')
         ax.legend(loc='lower left', fontsize='x-small')
-        ax.set_title(f'mobility peak f_n = {natural_hz:.3f} Hz', fontsize='small', loc='right')
+        ax.set_title(
+            f'f_n = {natural_hz:.4f} Hz ({frf.NATURAL_FREQUENCY_METHOD})',
+            fontsize='small',
+            loc='right',
+        )
     axes[-1].set_xlim(0, top_hz)
     axes[-1].set_xlabel(FREQUENCY_LABEL)
     return figure
-
-
-def mobility_peak_hz(level: LevelSummary) -> float:
-    """Frequency of the mean |mobility| peak near the level's receptance peak [Hz].
-
-    Friction shifts the receptance peak below f_n (it divides by omega); the mobility peaks
-    at the frequency the rig oscillates at between reversals. A parabola through the peak bin
-    and its neighbours places it between bins (the 1/33 Hz grid would put 9 f_n up to
-    0.14 Hz off).
-    """
-    guess = level.natural_frequency_hz
-    if not np.isfinite(guess):
-        return float('nan')
-    frequency = level.frequency_hz
-    peak_hz = frf.peak_magnitude(level.mobility, frequency, (0.5 * guess, 1.5 * guess))[1]
-    k = int(np.searchsorted(frequency, peak_hz))
-    if not 0 < k < frequency.size - 1:
-        return peak_hz
-    a, b, c = np.abs(level.mobility[k - 1 : k + 2])
-    curvature = a - 2 * b + c
-    shift = 0.5 * (a - c) / curvature if curvature < 0 else 0.0
-    return float(peak_hz + shift * (frequency[1] - frequency[0]))
 
 
 def frf_overlay_figure(
@@ -556,6 +539,38 @@ def friction_figure(
     ax.ticklabel_format(axis='y', style='plain', useOffset=False)
     # Under the axes (the error bars fill them): the layout keeps the axes above it.
     figure.legend(fontsize='small', loc='lower center', ncols=len(names) + 1)
+    return figure
+
+
+def running_mu_figure(estimates: Sequence[RunningEstimate]) -> Figure:
+    """The running mu +- 1 sigma against hit number, as the fitter publishes it live.
+
+    Each point is the estimate after that accepted hit (the hits' own mus, inverse-variance
+    weighted); each hit's own mu sits beside it, so a level that disagrees shows as it comes.
+    """
+    figure, axes = new_figure(1, 1, height_in=3.2, title='running μ as the hits came in')
+    ax = axes[0]
+    hits = np.arange(1, len(estimates) + 1)
+    running = np.array([e.mu for e in estimates])
+    sigma = np.array([e.mu_stderr for e in estimates])
+    ax.fill_between(hits, running - sigma, running + sigma, color='0.85', step='mid')
+    ax.plot(
+        hits, running, color=MEAN_COLOUR, linewidth=1, drawstyle='steps-mid', label='running μ ± 1σ'
+    )
+    ax.errorbar(
+        hits,
+        [e.impact_mu for e in estimates],
+        yerr=[e.impact_mu_stderr for e in estimates],
+        fmt='o',
+        markersize=3,
+        capsize=2,
+        color=level_colour(0),
+        label="the hit's own μ ± 1σ",
+    )
+    ax.set_xlabel('accepted hit [-]')
+    ax.set_ylabel('μ [-]')
+    ax.ticklabel_format(axis='y', style='plain', useOffset=False)
+    ax.legend(fontsize='small', loc='upper right')
     return figure
 
 

@@ -36,7 +36,8 @@ class ModelOverlay:
 
     `source` says where mu came from ('fitted', 'given', ...) and appears in every legend.
     `initial_positions_m`: where the model starts for an impact id [m] (a fit of the rest
-    position the previous hit left); 0 for any other.
+    position the previous hit left); 0 for any other. `impulse_scales`: the factor a fit put
+    on an impact id's measured hit [-]; 1 for any other.
     """
 
     mu: float
@@ -44,6 +45,7 @@ class ModelOverlay:
     rig: Rig = FMM_RIG
     effects: tuple[ModelTerm, ...] = ()
     initial_positions_m: Mapping[int, float] = field(default_factory=dict)
+    impulse_scales: Mapping[int, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         require_non_negative('mu', self.mu)
@@ -69,7 +71,7 @@ class ModelOverlay:
         except FitError:
             return None
         return simulate(
-            conditioned.force_n,
+            conditioned.force_n * self.impulse_scales.get(impact_id, 1.0),
             record.sample_rate_hz,
             rig=self.rig,
             mu=self.mu,
@@ -97,6 +99,8 @@ class FrictionSummary:
     effects: tuple[ModelTerm, ...] = ()
     initial_positions_m: tuple[float, ...] = ()
     """Where each impact's model started in the joint fit [m]; empty: all at 0."""
+    impulse_scales: tuple[float, ...] = ()
+    """The factor the joint fit put on each impact's measured hit [-]; empty: all 1."""
     consistency_p_value: float = math.nan
     """Chance of per-impact mus scattering this much if one mu served all (chi^2 test)."""
     residual_rms_m_s: float = math.nan
@@ -104,8 +108,9 @@ class FrictionSummary:
     def __post_init__(self) -> None:
         count = len(self.impact_ids)
         lengths = {len(self.per_impact_mu), len(self.per_impact_mu_stderr)}
-        if self.initial_positions_m:
-            lengths.add(len(self.initial_positions_m))
+        for per_impact in (self.initial_positions_m, self.impulse_scales):
+            if per_impact:
+                lengths.add(len(per_impact))
         if lengths != {count}:
             raise ValueError(
                 f'a friction summary needs one value per impact: {count} impact '
@@ -126,6 +131,7 @@ class FrictionSummary:
             damping_stderr_n_s_per_m=fit.damping_stderr_n_s_per_m,
             effects=joint.effects,
             initial_positions_m=joint.initial_positions_m,
+            impulse_scales=joint.impulse_scales,
             consistency_p_value=fit.consistency_p_value,
             residual_rms_m_s=joint.residual_rms_m_s,
         )
@@ -133,12 +139,14 @@ class FrictionSummary:
     def overlay(self) -> ModelOverlay:
         """The fitted model, each impact started where the fit started it."""
         starts = self.initial_positions_m or (0.0,) * len(self.impact_ids)
+        scales = self.impulse_scales or (1.0,) * len(self.impact_ids)
         return ModelOverlay(
             self.mu,
             'fitted',
             self.rig,
             self.effects,
             dict(zip(self.impact_ids, starts, strict=True)),
+            dict(zip(self.impact_ids, scales, strict=True)),
         )
 
 
@@ -148,7 +156,7 @@ def fit_accepted_impacts(
     *,
     rig: Rig = FMM_RIG,
     fit_damping: bool = False,
-    fit_initial_position: bool = False,
+    fit_initial_position: bool = True,
     mu_bounds: tuple[float, float] = MU_BOUNDS,
 ) -> FrictionSummary:
     """Fit one mu (and each impact's own) over the accepted impacts, as the fitter node does.
@@ -189,7 +197,7 @@ def diagnose_accepted_impacts(
     summary: Summary,
     *,
     rig: Rig = FMM_RIG,
-    fit_initial_position: bool = False,
+    fit_initial_position: bool = True,
 ) -> SessionDiagnosis:
     """The diagnose workflow over the accepted impacts, as the fitter node runs it.
 
