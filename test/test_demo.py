@@ -26,11 +26,17 @@ def test_demo_json_reports_the_session_and_fits_the_plant_mu(tmp_path, capsys):
     assert summary['r2'] > 0.99
     assert summary['missing_effect'] == 'none', summary['diagnosis']
     assert json.loads((out / 'summary.json').read_text()) == summary
+    # The live mu after each accepted hit, as the fitter published (and the recorder kept) it.
+    running = summary['running_mu']
+    assert [e['count'] for e in running] == [1, 2, 3]
+    assert running[-1]['mu'] == pytest.approx(summary['mu'], abs=0.5 * summary['mu_stderr'])
+    assert set(running[-1]['levels']) == {'low', 'medium', 'high'}
     with BagReader(summary['bag']) as reader:
         assert reader.topics['/fmm/impacts'].count == 3
+        assert reader.topics['/fmm/friction'].count == 3
     page = out / 'report' / 'index.html'
     assert summary['report'] == str(page) and page.is_file()
-    assert page.read_text().count('<img') >= 10
+    assert page.read_text().count('<img') >= 10 and (out / 'report' / 'running_mu.png').is_file()
 
 
 def test_demo_refuses_to_overwrite_a_bag(tmp_path, capsys):

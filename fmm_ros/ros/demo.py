@@ -2,7 +2,8 @@
 
 hammer_sim -> rig_sim -> analyzer -> fitter, with the recorder writing everything to a bag:
 the session's hits go through the same topics, QoS and services a lab uses, and its results
-are taken from what the graph publishes (/fmm/impacts, /fmm/frf) and answers
+are taken from what the graph publishes (/fmm/impacts, /fmm/frf, the live mu on
+/fmm/friction) and answers
 (/fmm/fit_friction), never from inside the nodes. `fmm demo` and
 launch_scripts/sim_rig.py run it.
 """
@@ -17,15 +18,17 @@ from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from fmm_interfaces.msg import FrfSummary, ImpactResult
+from fmm_interfaces.msg import FrfSummary, FrictionEstimate, ImpactResult
 from fmm_interfaces.srv import DiagnoseModel, FitFriction
 from fmm_ros.constants import (
     DIAGNOSE_SERVICE,
     FIT_SERVICE,
     FRF_TOPIC,
+    FRICTION_TOPIC,
     IMPACTS_TOPIC,
     SAMPLE_RATE_HZ,
 )
+from fmm_ros.core.identify.running import RunningEstimate
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import RESULT_QOS
 from fmm_ros.ros.graph import InProcessGraph
@@ -98,6 +101,8 @@ class SessionResult:
     fit_s: float
     diagnose_s: float
     impacts: list[dict] = field(default_factory=list)
+    running_mu: list[dict] = field(default_factory=list)
+    """The fitter's live estimate after each accepted hit, as published on /fmm/friction."""
 
     def as_json(self) -> dict:
         """The JSON summary `fmm demo --json` prints and writes to summary.json."""
@@ -107,14 +112,22 @@ class SessionResult:
 class _Results(Node):
     """Listens to what the analyzer publishes, as any lab client would."""
 
-    def __init__(self, on_impact: Callable[[ImpactResult], None], **kwargs) -> None:
+    def __init__(
+        self,
+        on_impact: Callable[[ImpactResult], None],
+        on_estimate: Callable[[RunningEstimate], None],
+        **kwargs,
+    ) -> None:
         super().__init__('session_results', **kwargs)
         self.impacts: list[ImpactResult] = []
         self.levels: dict[str, FrfSummary] = {}
         self.latest: FrfSummary | None = None  # its linearity covers every level so far
+        self.estimates: list[RunningEstimate] = []
         self._on_impact = on_impact
+        self._on_estimate = on_estimate
         self.create_subscription(ImpactResult, IMPACTS_TOPIC, self._impact, RESULT_QOS)
         self.create_subscription(FrfSummary, FRF_TOPIC, self._level, RESULT_QOS)
+        self.create_subscription(FrictionEstimate, FRICTION_TOPIC, self._estimate, RESULT_QOS)
         self.fit = self.create_client(FitFriction, FIT_SERVICE)
         self.diagnose = self.create_client(DiagnoseModel, DIAGNOSE_SERVICE)
 
@@ -125,6 +138,11 @@ class _Results(Node):
     def _level(self, msg: FrfSummary) -> None:
         self.levels[msg.level] = msg
         self.latest = msg
+
+    def _estimate(self, msg: FrictionEstimate) -> None:
+        estimate = msgs.running_estimate(msg)
+        self.estimates.append(estimate)
+        self._on_estimate(estimate)
 
 
 def run_session(
@@ -172,6 +190,10 @@ def run_session(
                 f'{msg.natural_frequency_hz:.2f} Hz, '
                 + ('accepted' if msg.accepted else f'rejected ({", ".join(msg.flags)})')
             ),
+            on_estimate=lambda estimate: progress(
+                f'live mu after {estimate.count} accepted: {estimate.mu:.5f} +- '
+                f'{estimate.mu_stderr:.2g} (one mu: p = {estimate.consistency_p_value:.3g})'
+            ),
         )
         for node in (hammer, analyzer):
             node.get_logger().set_level(LoggingSeverity.WARN)
@@ -183,6 +205,8 @@ def run_session(
         graph.start()
         _wait(lambda: len(results.impacts) >= total, lambda: hammer.next_index)
         wall_s = time.monotonic() - start
+        accepted = sum(msg.accepted for msg in results.impacts)
+        _settle(lambda: len(results.estimates) >= accepted, lambda: len(results.estimates))
         progress('session complete; fitting mu over the accepted impacts')
         fit = graph.call(results.fit, FitFriction.Request(), timeout_s=600.0)
         fit_s = time.monotonic() - start - wall_s
@@ -194,6 +218,7 @@ def run_session(
         diagnose_s = time.monotonic() - start - wall_s - fit_s
         signal_s = hammer.next_index / hammer.config['sample_rate_hz']
         impacts, levels, latest = list(results.impacts), dict(results.levels), results.latest
+        estimates = list(results.estimates)
         hits_sent = hammer.hits_sent
         capture, analysis = analyzer.capture_config, analyzer.analysis_config
     page = ''
@@ -244,6 +269,17 @@ def run_session(
             }
             for m in impacts
         ],
+        running_mu=[
+            {
+                'impact_id': e.impact_id,
+                'count': e.count,
+                'mu': e.mu,
+                'mu_stderr': e.mu_stderr,
+                'consistency_p_value': e.consistency_p_value,
+                'levels': {level.level: [level.mu, level.mu_stderr] for level in e.levels},
+            }
+            for e in estimates
+        ],
     )
 
 
@@ -269,6 +305,20 @@ def _one_accepted_per_level(impacts: list[ImpactResult]) -> list[int]:
     """The last accepted impact of each level: a diagnosis sample spanning the levels."""
     chosen = {msg.level: msg.impact_id for msg in impacts if msg.accepted}
     return sorted(chosen.values())
+
+
+LIVE_MU_QUIET_S = 10.0
+"""The demo stops waiting for the live mu of the last hits when none came for this long (an
+impact the fitter could not fit alone has none) [s]."""
+
+
+def _settle(done: Callable[[], bool], count: Callable[[], int]) -> None:
+    """Wait until done(), or until count() has not moved for LIVE_MU_QUIET_S."""
+    last, moved = count(), time.monotonic()
+    while not done() and time.monotonic() - moved < LIVE_MU_QUIET_S:
+        time.sleep(0.05)
+        if count() != last:
+            last, moved = count(), time.monotonic()
 
 
 def _wait(done: Callable[[], bool], samples_out: Callable[[], int]) -> None:
