@@ -600,7 +600,7 @@ def test_a_parameter_the_residuals_ignore_gets_infinite_variance_and_spoils_no_o
     import warnings
 
     from fmm_ros.core.identify.lsq import BlockJacobian, Blocks, LsqSolution
-    from fmm_ros.core.identify.output_error import sandwich_uncertainty
+    from fmm_ros.core.identify.output_error import block_score, sandwich_uncertainty
 
     rng = np.random.default_rng(0)
     rows = np.vstack([rng.normal(size=(2, 4000)), np.zeros(4000)])
@@ -613,12 +613,13 @@ def test_a_parameter_the_residuals_ignore_gets_infinite_variance_and_spoils_no_o
         upper=np.ones(3),
         residual=residual,
         jacobian=jacobian,
+        block_normals=jacobian.block_normals(),
         cost=float(residual @ residual),
     )
     solution = LsqSolution(**values, **{name: 0 for name in fields - set(values)})
     with warnings.catch_warnings():
         warnings.simplefilter('error')
-        result = sandwich_uncertainty(solution, [400])
+        result = sandwich_uncertainty(solution, [block_score(rows, residual, 400)])
     assert np.isinf(result.stderr[2])
     assert np.all(np.isfinite(result.stderr[:2])) and np.all(result.stderr[:2] > 0)
     assert np.all(np.isfinite(result.covariance[:2, :2]))

@@ -24,7 +24,7 @@ from the measured velocity before the fit is repeated (`fit_model` alternates th
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -45,27 +45,95 @@ MAX_PERIOD_CYCLES = 100
 """Mains cycles a hum period may span to be a whole number of samples (else no hum removal)."""
 
 
-@dataclass(frozen=True)
-class VelocityNuisance:
-    """What the chain added to one velocity record, estimated: offset, trend and mains hum."""
+@dataclass(frozen=True, eq=False)
+class MainsHum:
+    """Mains hum found in a record: a waveform per segment, linear in time between them."""
 
-    offset_m_s: float
-    """Velocity offset at the record's first sample [m/s]."""
-    drift_m_s2: float
-    """The offset's mean slope over the record [m/s per s]."""
     mains_hz: float
-    """Mains frequency whose hum was removed [Hz]; 0 where none was found."""
-    hum_rms_m_s: float
-    """RMS of the removed hum [m/s]."""
-    dof: int
-    """Degrees of freedom of the residual the estimate used up."""
-    values_m_s: np.ndarray
-    """The nuisance sample by sample [m/s]: offset + trend + hum."""
+    period: int
+    """Samples in one hum period (whole mains cycles)."""
+    periods_per_segment: int
+    waveforms: np.ndarray
+    """(segments, period) mean waveforms, each of zero mean [m/s]."""
 
-    @classmethod
-    def none(cls, n: int) -> 'VelocityNuisance':
-        """No nuisance: zero over n samples."""
-        return cls(0.0, 0.0, 0.0, 0.0, 0, np.zeros(n))
+    @property
+    def rms_m_s(self) -> float:
+        """RMS of the hum [m/s]."""
+        return math.sqrt(float(np.mean(self.waveforms**2)))
+
+    def add_to(self, out: np.ndarray) -> None:
+        """Add the hum sample by sample to out (`_interpolate`)."""
+        hum = np.empty(out.size)
+        _interpolate(self.waveforms, self.period, self.periods_per_segment, hum)
+        out += hum
+
+
+@dataclass(frozen=True, eq=False)
+class VelocityNuisance:
+    """What the chain added to one velocity record, estimated: mains hum and a drifting offset.
+
+    Held as its parameters (a few thousand numbers), its samples made on demand.
+    """
+
+    n: int
+    sample_rate_hz: float
+    hum: MainsHum | None = None
+    drift_knots_m_s: np.ndarray | None = None
+    """The drift's values at its knots (`DriftBasis`) [m/s]; None where it was not fitted."""
+
+    def plus(self, more: 'VelocityNuisance') -> 'VelocityNuisance':
+        """The sum of this estimate and `more`, made on what it left (both are linear in data).
+
+        ValueError for hums of different mains frequencies (look for the first's again).
+        """
+        hum = self.hum or more.hum
+        if self.hum is not None and more.hum is not None:
+            if more.hum.mains_hz != self.hum.mains_hz:
+                raise ValueError(
+                    f'hum at {more.hum.mains_hz:g} Hz added to hum at {self.hum.mains_hz:g} Hz'
+                )
+            hum = replace(self.hum, waveforms=self.hum.waveforms + more.hum.waveforms)
+        knots = [k for k in (self.drift_knots_m_s, more.drift_knots_m_s) if k is not None]
+        return VelocityNuisance(self.n, self.sample_rate_hz, hum, sum(knots) if knots else None)
+
+    @property
+    def mains_hz(self) -> float:
+        """Mains frequency whose hum was removed [Hz]; 0 where none was found."""
+        return self.hum.mains_hz if self.hum is not None else 0.0
+
+    @property
+    def hum_rms_m_s(self) -> float:
+        """RMS of the removed hum [m/s]; 0 where none."""
+        return self.hum.rms_m_s if self.hum is not None else 0.0
+
+    @property
+    def offset_m_s(self) -> float:
+        """Velocity offset at the record's first sample [m/s]."""
+        return float(self.drift_knots_m_s[0]) if self.drift_knots_m_s is not None else 0.0
+
+    @property
+    def drift_m_s2(self) -> float:
+        """The offset's mean slope over the record [m/s per s]."""
+        if self.drift_knots_m_s is None or self.n < 2:
+            return 0.0
+        knots = self.drift_knots_m_s
+        return float(knots[-1] - knots[0]) / (self.n - 1) * self.sample_rate_hz
+
+    @property
+    def dof(self) -> int:
+        """Degrees of freedom of the residual the estimate used up."""
+        hum = self.hum.waveforms.size if self.hum is not None else 0
+        return hum + (self.drift_knots_m_s.size if self.drift_knots_m_s is not None else 0)
+
+    @property
+    def values_m_s(self) -> np.ndarray:
+        """The nuisance sample by sample [m/s]: hum plus drift (a fresh array)."""
+        values = np.zeros(self.n)
+        if self.hum is not None:
+            self.hum.add_to(values)
+        if self.drift_knots_m_s is not None:
+            values += DriftBasis.of(self.n, self.sample_rate_hz).curve(self.drift_knots_m_s)
+        return values
 
 
 def estimate_nuisance(
@@ -83,26 +151,17 @@ def estimate_nuisance(
     mains_hz: 50 or 60 to look for that one only; None for whichever shows.
     """
     n = residual_m_s.size
-    values = np.zeros(n)
-    if not (hum or drift):
-        return VelocityNuisance(0.0, 0.0, 0.0, 0.0, 0, values)
-    dof = 0
-    found_hz, hum_rms = 0.0, 0.0
-    if hum:
-        found = mains_hum(residual_m_s, sample_rate_hz, noise_std_m_s, mains_hz, out=values)
-        if found is not None:
-            found_hz, dof = found
-            hum_rms = math.sqrt(float(np.einsum('i,i->', values, values)) / n)
-    offset = slope = 0.0
-    if drift and n:
+    found = mains_hum(residual_m_s, sample_rate_hz, noise_std_m_s, mains_hz) if hum else None
+    knots = None
+    if drift and n > 1:
         basis = DriftBasis.of(n, sample_rate_hz)
-        # The drift of residual - hum, from the basis's sums (no array of the difference).
-        coefficients = basis.solve(basis.project(residual_m_s) - basis.project(values))
-        values += basis.curve(coefficients)
-        offset = float(coefficients[0])
-        slope = float(coefficients[-1] - coefficients[0]) / max(n - 1, 1)
-        dof += coefficients.size
-    return VelocityNuisance(offset, slope * sample_rate_hz, found_hz, hum_rms, dof, values)
+        projected = basis.project(residual_m_s)
+        if found is not None:  # the drift of residual - hum
+            hum_values = np.zeros(n)
+            found.add_to(hum_values)
+            projected = projected - basis.project(hum_values)
+        knots = basis.solve(projected)
+    return VelocityNuisance(n, sample_rate_hz, found, knots)
 
 
 DRIFT_KNOT_S = 4.0
@@ -113,17 +172,19 @@ DRIFT_KNOT_S = 4.0
 class DriftBasis:
     """Hat functions at knots `DRIFT_KNOT_S` apart: a drift linear between its knots.
 
-    Least squares onto them is a few sums over each knot interval; their Gram matrix is
-    tridiagonal and small (nine knots in 33 s). A 33 s record's random-walk zero, which a
-    straight line left at a few times 1e-6 m/s and wandering over tens of seconds (where the
-    Welch spectrum behind the standard errors cannot resolve it, and it correlates with the
-    rig's slow motion), is followed to what wanders within 4 s.
+    Least squares onto them is two sums over each knot interval (of v and of i v: the hats
+    are linear in the sample index i there); their Gram matrix is tridiagonal and small (nine
+    knots in 33 s). A 33 s record's random-walk zero, which a straight line left at a few
+    times 1e-6 m/s and wandering over tens of seconds (where the Welch spectrum behind the
+    standard errors cannot resolve it, and it correlates with the rig's slow motion), is
+    followed to what wanders within 4 s.
     """
 
-    interval: np.ndarray
-    """Per sample, the knot interval it lies in."""
-    fraction: np.ndarray
-    """Per sample, how far into that interval (0 at its left knot, up to 1)."""
+    n: int
+    starts: tuple[int, ...]
+    """First sample of each knot interval, and n at the end."""
+    scale: float
+    """Intervals per sample: sample i lies (i scale - j) of the way through interval j."""
     gram: np.ndarray
     """(knots, knots) inner products of the hat functions."""
 
@@ -132,53 +193,71 @@ class DriftBasis:
     def of(cls, n: int, sample_rate_hz: float) -> 'DriftBasis':
         """The basis of an n-sample record (made once per length and rate)."""
         intervals = max(1, round((n - 1) / sample_rate_hz / DRIFT_KNOT_S))
-        knots = np.linspace(0.0, n - 1, intervals + 1)
-        position = np.arange(n) / max(n - 1, 1) * intervals
-        interval = np.minimum(position.astype(int), intervals - 1)
-        fraction = position - interval
-        left, right = 1.0 - fraction, fraction
-        gram = np.zeros((knots.size, knots.size))
-        diagonal = np.bincount(interval, left * left, knots.size) + np.bincount(
-            interval + 1, right * right, knots.size
-        )
-        off = np.bincount(interval, left * right, intervals)
-        gram[np.diag_indices(knots.size)] = diagonal
-        gram[np.arange(intervals), np.arange(1, intervals + 1)] = off
-        gram[np.arange(1, intervals + 1), np.arange(intervals)] = off
-        for array in (interval, fraction):
-            array.flags.writeable = False
-        return cls(interval, fraction, gram)
+        scale = intervals / max(n - 1, 1)
+        starts = tuple(math.ceil(j / scale) for j in range(intervals)) + (n,)
+        gram = np.zeros((intervals + 1, intervals + 1))
+        index = _sample_index(n)
+        for j, (first, stop) in enumerate(zip(starts[:-1], starts[1:], strict=True)):
+            u = index[first:stop] * scale - j
+            gram[j, j] += float(np.sum((1.0 - u) ** 2))
+            gram[j + 1, j + 1] += float(np.sum(u**2))
+            gram[j, j + 1] = gram[j + 1, j] = float(np.sum(u * (1.0 - u)))
+        return cls(n, starts, scale, gram)
 
     @property
     def size(self) -> int:
         """Number of knots (the degrees of freedom a drift costs)."""
-        return self.gram.shape[0]
+        return len(self.starts)
+
+    def _sums(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per interval j: (sum of v (1 - u), sum of v u) of each row, u the hat fraction."""
+        index = _sample_index(self.n)
+        left = np.empty((rows.shape[0], self.size - 1))
+        right = np.empty_like(left)
+        for j, (first, stop) in enumerate(zip(self.starts[:-1], self.starts[1:], strict=True)):
+            plain = rows[:, first:stop].sum(axis=1)
+            weighted = np.einsum('pi,i->p', rows[:, first:stop], index[first:stop])
+            right[:, j] = self.scale * weighted - j * plain
+            left[:, j] = plain - right[:, j]
+        return left, right
 
     def project(self, values: np.ndarray) -> np.ndarray:
         """B^T values: each knot's hat-weighted sum, along the last axis."""
         rows = np.atleast_2d(values)
-        out = np.empty((rows.shape[0], self.size))
-        for row, target in zip(rows, out, strict=True):
-            target[:] = np.bincount(
-                self.interval, row * (1.0 - self.fraction), self.size
-            ) + np.bincount(self.interval + 1, row * self.fraction, self.size)
-        return out if values.ndim > 1 else out[0]
+        left, right = self._sums(rows)
+        out = np.zeros((rows.shape[0], self.size))
+        out[:, :-1] += left
+        out[:, 1:] += right
+        return out if np.ndim(values) > 1 else out[0]
 
     def solve(self, projected: np.ndarray) -> np.ndarray:
         """Least-squares knot values from `project`'s sums."""
         return np.linalg.solve(self.gram, np.asarray(projected).T).T
 
-    def curve(self, coefficients: np.ndarray) -> np.ndarray:
-        """The drift sample by sample from knot values (along the last axis)."""
-        coefficients = np.asarray(coefficients)
-        return (
-            coefficients[..., self.interval] * (1.0 - self.fraction)
-            + coefficients[..., self.interval + 1] * self.fraction
-        )
+    def curve(self, knots: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """The drift sample by sample from knot values (along the last axis), into out."""
+        knots = np.asarray(knots, dtype=float)
+        if out is None:
+            out = np.empty((*knots.shape[:-1], self.n))
+        index = _sample_index(self.n)
+        for j, (first, stop) in enumerate(zip(self.starts[:-1], self.starts[1:], strict=True)):
+            u = index[first:stop] * self.scale - j
+            step = knots[..., j + 1] - knots[..., j]
+            out[..., first:stop] = np.multiply.outer(step, u)
+            out[..., first:stop] += knots[..., j, None] if knots.ndim > 1 else knots[j]
+        return out
 
-    def remove(self, rows: np.ndarray) -> np.ndarray:
-        """Rows less their least-squares drift (a fresh array)."""
-        return rows - self.curve(self.solve(self.project(rows)))
+    def remove(self, rows: np.ndarray) -> None:
+        """Take each row's least-squares drift off it, in place."""
+        rows -= self.curve(self.solve(self.project(rows)))
+
+
+@functools.lru_cache(maxsize=4)
+def _sample_index(n: int) -> np.ndarray:
+    """0.0, 1.0, ..., n - 1 (read-only, made once per length)."""
+    index = np.arange(n, dtype=float)
+    index.flags.writeable = False
+    return index
 
 
 def hum_period_samples(sample_rate_hz: float, mains_hz: float) -> int | None:
@@ -196,13 +275,8 @@ def mains_hum(
     sample_rate_hz: float,
     noise_std_m_s: float,
     mains_hz: float | None = None,
-    *,
-    out: np.ndarray,
-) -> tuple[float, int] | None:
-    """Write the hum sample by sample into out; (mains frequency, degrees of freedom used).
-
-    None (out untouched) when no hum stands out of the noise. See the module docstring.
-    """
+) -> MainsHum | None:
+    """The mains hum in a residual, or None when none stands out of the noise (module doc)."""
     best = None
     for frequency in MAINS_FREQUENCIES_HZ if mains_hz is None else (mains_hz,):
         period = hum_period_samples(sample_rate_hz, frequency)
@@ -211,12 +285,8 @@ def mains_hum(
         waveforms, periods_per_segment = _segment_waveforms(residual_m_s, period, sample_rate_hz)
         excess_z = _detection_z(waveforms, periods_per_segment, noise_std_m_s)
         if excess_z > HUM_DETECTION_Z and (best is None or excess_z > best[0]):
-            best = (excess_z, frequency, period, waveforms, periods_per_segment)
-    if best is None:
-        return None
-    _, frequency, period, waveforms, periods_per_segment = best
-    _interpolate(waveforms, period, periods_per_segment, out)
-    return frequency, waveforms.size
+            best = (excess_z, MainsHum(frequency, period, periods_per_segment, waveforms))
+    return best[1] if best is not None else None
 
 
 def _segment_waveforms(

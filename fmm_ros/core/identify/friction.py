@@ -19,7 +19,7 @@ import scipy.stats
 
 from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ, PAPER_MU
 from fmm_ros.core._checks import require_positive
-from fmm_ros.core.identify.chain import VelocityNuisance, estimate_nuisance
+from fmm_ros.core.identify.chain import DriftBasis, VelocityNuisance, estimate_nuisance
 from fmm_ros.core.identify.conditioning import (
     ConditionedImpact,
     FitError,
@@ -27,6 +27,7 @@ from fmm_ros.core.identify.conditioning import (
     source_prefix,
 )
 from fmm_ros.core.identify.lsq import (
+    BlockJacobian,
     Blocks,
     LsqSolution,
     inner,
@@ -368,7 +369,70 @@ def fit_model(
     Raises ValueError for bad arguments and FitError when the fit does not converge, puts mu
     on a bound of mu_bounds, or leaves an impact unexplained.
     """
-    conditioned = _conditioned_list(impacts)
+    return _fit(
+        _conditioned_list(impacts),
+        rig=rig,
+        mu0=mu0,
+        mu_bounds=mu_bounds,
+        fit_damping=fit_damping,
+        terms=terms,
+        fixed_effects=fixed_effects,
+        fit_initial_position=fit_initial_position,
+        fit_impulse_scale=fit_impulse_scale,
+        remove_mains_hum=remove_mains_hum,
+        fit_velocity_drift=fit_velocity_drift,
+        mains_hz=mains_hz,
+        misfit=misfit,
+        band_limit_hz=band_limit_hz,
+        integrator=integrator,
+        jacobian=jacobian,
+        judge_hit=judge_hit,
+        uncertainty=uncertainty,
+        start_values=start_values,
+    ).fit
+
+
+@dataclass(frozen=True)
+class _Fitted:
+    """A fit and what it was solved as: its parameter space, problem and last solution."""
+
+    fit: ModelFit
+    space: _Space
+    problem: OutputError
+    solution: LsqSolution
+
+
+def _fit(
+    conditioned: list[ConditionedImpact],
+    *,
+    rig: Rig,
+    mu0: float | None,
+    mu_bounds: tuple[float, float],
+    fit_damping: bool,
+    terms: Sequence[str | ModelTerm],
+    fixed_effects: Sequence[ModelTerm],
+    fit_initial_position: bool,
+    fit_impulse_scale: bool,
+    remove_mains_hum: bool,
+    fit_velocity_drift: bool,
+    mains_hz: float | None,
+    misfit: str,
+    band_limit_hz: float,
+    integrator: str,
+    jacobian: str,
+    judge_hit: bool,
+    uncertainty: str,
+    start_values: Mapping[str, float] | None,
+    start: tuple[np.ndarray, tuple[np.ndarray, ...]] | None = None,
+    drift_estimated: bool = False,
+) -> _Fitted:
+    """`fit_model` on conditioned impacts.
+
+    start: the residual and each block's Jacobian rows at the start values, where another
+    fit's solution has them (`fit_friction`'s per-impact fits): no model run is spent on them.
+    drift_estimated: the velocities' drift was taken off by an earlier fit (its degrees of
+    freedom count in the errors, as with fit_velocity_drift).
+    """
     _check_options(rig, misfit, band_limit_hz, integrator, jacobian)
     if uncertainty not in UNCERTAINTIES:
         raise ValueError(
@@ -411,6 +475,10 @@ def fit_model(
         judge_hit=judge_hit,
         uncertainty=uncertainty,
     )
+    blocks = space.blocks(problem.segments, jacobian)
+    residual0, jacobian0 = None, None
+    if start is not None:
+        residual0, jacobian0 = start[0], BlockJacobian(blocks, start[1])
     solution = levenberg_marquardt(
         problem,
         space.start,
@@ -418,11 +486,16 @@ def fit_model(
         space.upper,
         space.typical,
         problem.size,
-        blocks=space.blocks(problem.segments, jacobian),
+        blocks=blocks,
+        residual0=residual0,
+        jacobian0=jacobian0,
     )
     chain = _VelocityChain(remove_mains_hum, fit_velocity_drift, mains_hz)
-    problem, solution, nuisances = chain.fit(problem, solution, space, jacobian)
-    fit = _model_fit(space, problem, solution, nuisances, fit_velocity_drift)
+    problem, solution, nuisances, projected = chain.fit(problem, solution, space, jacobian)
+    # Or rows handed in from a fit that took its drift off them, still the last Jacobian.
+    projected = projected or (jacobian0 is not None and solution.jacobian is jacobian0)
+    drift = fit_velocity_drift or drift_estimated
+    fit = _model_fit(space, problem, solution, nuisances, drift, projected)
     _require_explained(fit, solution, conditioned)
     if 'mu' in fit.at_bounds:
         raise FitError(
@@ -432,7 +505,7 @@ def fit_model(
             'record(s) (no friction, or far more than the rig can show)',
             joined_sources(conditioned),
         )
-    return fit
+    return _Fitted(fit, space, problem, solution)
 
 
 @dataclass(frozen=True)
@@ -443,9 +516,10 @@ class _VelocityChain:
     modelled velocity (`chain.estimate_nuisance`) and taken off the measured velocity, and
     the model refitted from where it was, until the nuisance's change would move no
     parameter by more than `CHAIN_TOLERANCE` of its white-noise standard error (predicted
-    from the last Jacobian, so a last refit that would change nothing is not run). The hum
-    is orthogonal to the model's few-Hz motion and an offset nearly so: one refit, rarely
-    two.
+    from the last Jacobian, so a last refit that would change nothing is not run). Both
+    estimates are linear in the residual, so each round estimates what is left in the
+    current residual and adds it. The hum is orthogonal to the model's few-Hz motion and an
+    offset nearly so: one refit (one Gauss-Newton step from the last Jacobian), rarely two.
     """
 
     hum: bool
@@ -454,41 +528,69 @@ class _VelocityChain:
 
     def fit(
         self, problem: OutputError, solution: LsqSolution, space: _Space, jacobian: str
-    ) -> tuple[OutputError, LsqSolution, tuple[VelocityNuisance, ...]]:
-        raw = problem.impacts
-        nuisances = tuple(VelocityNuisance.none(i.velocity_m_s.size) for i in raw)
+    ) -> tuple[OutputError, LsqSolution, tuple[VelocityNuisance, ...], bool]:
+        """The fit with the nuisance taken off.
+
+        Returns the problem with the cleaned velocities, its solution, the nuisances, and
+        whether the solution's Jacobian rows already have the drift projected out.
+        """
+        nuisances = tuple(
+            VelocityNuisance(i.velocity_m_s.size, i.sample_rate_hz) for i in problem.impacts
+        )
         if not (self.hum or self.drift):
-            return problem, solution, nuisances
+            return problem, solution, nuisances, False
+        time_misfit = problem.misfit == 'time'
+        projected = None  # the Jacobian whose rows have the drift projected out
         for _ in range(CHAIN_ROUNDS):
-            residuals = _time_residuals(problem, solution)
-            estimates = tuple(
+            increments = tuple(
                 estimate_nuisance(
-                    residual + before.values_m_s,
+                    residual,
                     impact.sample_rate_hz,
                     impact.velocity_noise_std_m_s,
                     hum=self.hum,
                     drift=self.drift,
-                    mains_hz=self.mains_hz,
+                    mains_hz=total.mains_hz or self.mains_hz,  # once found, that one
                 )
-                for residual, before, impact in zip(residuals, nuisances, raw, strict=True)
+                for residual, impact, total in zip(
+                    _time_residuals(problem, solution), problem.impacts, nuisances, strict=True
+                )
             )
-            changes = [
-                after.values_m_s - before.values_m_s
-                for after, before in zip(estimates, nuisances, strict=True)
-            ]
-            nuisances = estimates
-            cleaned = [
-                replace(impact, velocity_m_s=impact.velocity_m_s - nuisance.values_m_s)
-                for impact, nuisance in zip(raw, nuisances, strict=True)
-            ]
-            problem = problem.with_impacts(cleaned)
-            if problem.misfit == 'time' and _negligible(solution, changes):
-                residual = problem.clear_hit_windows(solution.residual - np.concatenate(changes))
-                return (
-                    problem,
-                    replace(solution, residual=residual, cost=inner(residual, residual)),
-                    nuisances,
-                )
+            changes = [increment.values_m_s for increment in increments]
+            if time_misfit and self.drift and solution.jacobian is not projected:
+                # The drift is re-estimated with the parameters (variable projection): the
+                # steps and the stop below use the Jacobian less its part along the drift.
+                _project_drift(solution.jacobian, problem.impacts)
+                solution = replace(solution, block_normals=solution.jacobian.block_normals())
+                projected = solution.jacobian
+            small = all(
+                math.sqrt(inner(change, change) / change.size)
+                < CHAIN_FLOOR * impact.velocity_noise_std_m_s
+                for change, impact in zip(changes, problem.impacts, strict=True)
+            )
+            negligible = time_misfit and _negligible(solution, problem.segments, changes)
+            if negligible and small:  # nothing worth taking off the velocities as they are
+                return problem, solution, nuisances, solution.jacobian is projected
+            nuisances = tuple(
+                total.plus(increment)
+                for total, increment in zip(nuisances, increments, strict=True)
+            )
+            problem = problem.with_impacts(
+                [
+                    replace(impact, velocity_m_s=impact.velocity_m_s - change)
+                    for impact, change in zip(problem.impacts, changes, strict=True)
+                ]
+            )
+            residual0 = None
+            if time_misfit:  # where it was, the residual falls by the changes (in place: the
+                residual0 = solution.residual  # old solution is not used again)
+                for segment, change in zip(problem.segments, changes, strict=True):
+                    residual0[segment] -= change
+                problem.clear_hit_windows(residual0)
+            del changes
+            if negligible:
+                cost = inner(residual0, residual0)
+                solution = replace(solution, residual=residual0, cost=cost)
+                return problem, solution, nuisances, solution.jacobian is projected
             solution = levenberg_marquardt(
                 problem,
                 solution.x,
@@ -497,8 +599,21 @@ class _VelocityChain:
                 space.typical,
                 problem.size,
                 blocks=space.blocks(problem.segments, jacobian),
+                residual0=residual0,
+                jacobian0=solution.jacobian if time_misfit else None,
             )
-        return problem, solution, nuisances
+        return problem, solution, nuisances, solution.jacobian is projected
+
+
+def _project_drift(jacobian: BlockJacobian, impacts: Sequence[ConditionedImpact]) -> None:
+    """Take each block's part along its impact's drift basis off its Jacobian rows, in place."""
+    for rows, impact in zip(jacobian.rows, impacts, strict=True):
+        DriftBasis.of(rows.shape[1], impact.sample_rate_hz).remove(rows)
+
+
+CHAIN_FLOOR = 0.01
+"""A nuisance estimate whose change is below this fraction of the noise (RMS) everywhere,
+and would move no parameter, is not taken off: the velocities are used as they are."""
 
 
 CHAIN_ROUNDS = 3
@@ -517,19 +632,22 @@ def _time_residuals(problem: OutputError, solution: LsqSolution) -> list[np.ndar
     return list(problem.time_residuals(solution.x))
 
 
-def _negligible(solution: LsqSolution, changes: Sequence[np.ndarray]) -> bool:
+def _negligible(
+    solution: LsqSolution, segments: Sequence[slice], changes: Sequence[np.ndarray]
+) -> bool:
     """Whether taking `changes` off the measured velocities would leave the fit where it is.
 
-    The residuals fall by the changes, so Gauss-Newton moves the parameters by
-    (J J^T)^-1 J changes; compared with the white-noise standard errors.
+    The residuals fall by the changes: the Gauss-Newton step from there, (J J^T)^-1 J r with
+    the solution's Jacobian (the drift projected out where it is fitted, so the step is the
+    one the drift's own re-estimate allows), compared with the white-noise standard errors.
     """
     jacobian = solution.jacobian
     gradient = np.zeros(jacobian.blocks.n_parameters)
-    for indices, rows, change in zip(
-        jacobian.blocks.parameters, jacobian.rows, changes, strict=True
+    for indices, rows, segment, change in zip(
+        jacobian.blocks.parameters, jacobian.rows, segments, changes, strict=True
     ):
-        gradient[indices] += inner(rows, change)
-    inverse = normal_inverse(jacobian.normal())
+        gradient[indices] += inner(rows, solution.residual[segment]) - inner(rows, change)
+    inverse = normal_inverse(jacobian.normal(solution.block_normals))
     finite = np.isfinite(np.diag(inverse))
     inverse = np.where(np.isfinite(inverse), inverse, 0.0)
     step = inverse @ gradient
@@ -545,12 +663,13 @@ def _model_fit(
     solution: LsqSolution,
     nuisances: tuple[VelocityNuisance, ...],
     drift: bool,
+    projected: bool,
 ) -> ModelFit:
     uncertainty = fit_uncertainty(
-        solution, problem, force_noise=not space.impulse_scales, drift=drift
+        solution, problem, force_noise=not space.impulse_scales, drift=drift, projected=projected
     )
     model = space.build(solution.x)
-    residuals = problem.time_residuals(solution.x)  # the hit windows too
+    residuals = problem.time_residuals(solution.x, solution.residual)  # the hit windows too
     squares = [inner(r, r) for r in residuals]
     impacts = problem.impacts
     n_samples = sum(r.size for r in residuals)
@@ -713,13 +832,38 @@ class FrictionFit:
         return self.joint.error('damping_n_s_per_m')
 
 
-def _own_start(joint: ModelFit, index: int) -> dict[str, float]:
-    """Start values of impact `index`'s own fit: its start position and scale in the joint."""
-    own = {}
-    for name in (f'initial_position_m[{index}]', f'impulse_scale[{index}]'):
-        if name in joint.names:
-            own[name.replace(f'[{index}]', '[0]')] = joint.value(name)
-    return own
+def _own_fit(joint: _Fitted, index: int, options: dict) -> ModelFit:
+    """Impact `index` fitted alone: mu (c and terms held at the joint values), its start, scale.
+
+    It continues from the joint solution, where this impact's residual and its Jacobian rows
+    for mu, start and scale are already known (its own block of the joint Jacobian), on the
+    velocity the joint fit cleaned (its hum and drift are not estimated again; its errors
+    count the drift's degrees of freedom): usually one Gauss-Newton step, one model run.
+    """
+    solution = joint.solution
+    block = solution.jacobian.blocks.parameters[index]
+    wanted = ['mu'] + [
+        name
+        for name in (f'initial_position_m[{index}]', f'impulse_scale[{index}]')
+        if name in joint.space.names
+    ]
+    rows = [int(np.flatnonzero(block == joint.space.names.index(name))[0]) for name in wanted]
+    residual = solution.residual[joint.problem.segments[index]]  # taken over by the fit
+    own = dict(options, remove_mains_hum=False, fit_velocity_drift=False)
+    return _fit(
+        [joint.problem.impacts[index]],
+        rig=joint.fit.rig,
+        mu0=joint.fit.mu,
+        fit_damping=False,
+        terms=(),
+        fixed_effects=joint.fit.effects,
+        start_values={
+            name.replace(f'[{index}]', '[0]'): joint.fit.value(name) for name in wanted[1:]
+        },
+        start=(residual, (solution.jacobian.rows[index][rows],)),
+        drift_estimated=options['fit_velocity_drift'],
+        **own,
+    ).fit
 
 
 def fit_friction(
@@ -744,9 +888,9 @@ def fit_friction(
 
     The records as a data acquisition delivers them: by default each hit's impulse scale is
     fitted and mains hum, velocity offset and drift are taken off (options as in
-    `fit_model`); each impact's own fit starts from the joint fit's cleaned velocity, start
-    and scale. Raises ValueError for bad input and FitError (naming the impact) for any
-    impact, or the set, that friction cannot explain.
+    `fit_model`); each impact's own fit continues from the joint solution (`_own_fit`).
+    Raises ValueError for bad input and FitError (naming the impact) for any impact, or the
+    set, that friction cannot explain.
     """
     conditioned = _conditioned_list(impacts)
     options = dict(
@@ -763,24 +907,21 @@ def fit_friction(
         judge_hit=judge_hit,
         uncertainty=uncertainty,
     )
-    joint = fit_model(conditioned, rig=rig, fit_damping=fit_damping, **options)
-    if len(conditioned) == 1:
-        per_impact = (
-            (joint,)
-            if not fit_damping
-            else (fit_model(joint.impacts, rig=joint.rig, mu0=joint.mu, **options),)
-        )
-    else:  # each from the joint fit's cleaned velocity and values: only refined
-        per_impact = tuple(
-            fit_model(
-                [impact],
-                rig=joint.rig,
-                mu0=joint.mu,
-                start_values=_own_start(joint, index),
-                **options,
-            )
-            for index, impact in enumerate(joint.impacts)
-        )
+    fitted = _fit(
+        conditioned,
+        rig=rig,
+        mu0=None,
+        fit_damping=fit_damping,
+        terms=(),
+        fixed_effects=(),
+        start_values=None,
+        **options,
+    )
+    joint = fitted.fit
+    if len(conditioned) == 1 and not fit_damping:
+        per_impact = (joint,)
+    else:
+        per_impact = tuple(_own_fit(fitted, index, options) for index in range(len(conditioned)))
     mus = np.array([fit.mu for fit in per_impact])
     errors = np.array([fit.mu_stderr for fit in per_impact])
     chi2 = float(np.sum(((mus - joint.mu) / errors) ** 2))

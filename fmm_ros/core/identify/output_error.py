@@ -30,7 +30,6 @@ import scipy.stats
 from fmm_ros.core.identify.chain import DriftBasis
 from fmm_ros.core.identify.conditioning import ConditionedImpact, source_prefix
 from fmm_ros.core.identify.lsq import (
-    BlockJacobian,
     Infeasible,
     LsqSolution,
     inner,
@@ -212,14 +211,20 @@ class OutputError:
         return self.force_buffer[: impact.force_n.size]
 
     def simulate(
-        self, index: int, model: BuiltModel, force_n: np.ndarray | None = None
+        self, index: int, model: BuiltModel, force_n: np.ndarray | None = None, samples: int = 0
     ) -> Simulation:
-        """Run one impact (or force_n in its place) through the model into the shared buffer."""
+        """Run one impact (or force_n in its place) through the model into the shared buffer.
+
+        samples: run only the first this many (the model is causal: they are the whole
+        run's); 0 for all.
+        """
         impact = self.impacts[index]
-        n = impact.force_n.size
+        n = samples or impact.force_n.size
+        if force_n is None:
+            force_n = self.drive(index, model.impulse_scale(index))
         try:
             return simulate(
-                self.drive(index, model.impulse_scale(index)) if force_n is None else force_n,
+                force_n[:n],
                 impact.sample_rate_hz,
                 rig=model.rig,
                 mu=model.mu,
@@ -239,16 +244,29 @@ class OutputError:
             _clear_hit_windows(impact, residual[segment])
         return residual
 
-    def time_residuals(self, theta: np.ndarray) -> tuple[np.ndarray, ...]:
+    def time_residuals(
+        self, theta: np.ndarray, residual: np.ndarray | None = None
+    ) -> tuple[np.ndarray, ...]:
         """Measured minus simulated velocity of every impact at theta, every sample [m/s].
 
-        Fresh arrays, the hit windows included (which the time misfit leaves out).
+        Fresh arrays, the hit windows included (which the time misfit leaves out). residual:
+        the time misfit's own stacked residual at theta, if at hand; then only the start of
+        each record, up to its last hit window, is run again to fill the windows.
         """
         model = self.model(theta)
-        return tuple(
-            impact.velocity_m_s - self.simulate(index, model).velocity_m_s
-            for index, impact in enumerate(self.impacts)
-        )
+        residuals = []
+        for index, impact in enumerate(self.impacts):
+            if residual is None or self.misfit != 'time':
+                run = self.simulate(index, model).velocity_m_s
+                residuals.append(impact.velocity_m_s - run)
+                continue
+            own = residual[self.segments[index]].copy()
+            windows = impact.hit_windows
+            run = self.simulate(index, model, samples=windows[-1][1]).velocity_m_s
+            for start, stop in windows:
+                own[start:stop] = impact.velocity_m_s[start:stop] - run[start:stop]
+            residuals.append(own)
+        return tuple(residuals)
 
     def scores(self, solution: LsqSolution) -> list[np.ndarray]:
         """Each block's score covariance at a solution (`sandwich_uncertainty`).
@@ -258,17 +276,14 @@ class OutputError:
         or f_n/4 of bins (`block_score`).
         """
         scores = []
-        for index, (segment, rows) in enumerate(
-            zip(self.segments, solution.jacobian.rows, strict=True)
+        for index, (segment, rows, normal) in enumerate(
+            zip(self.segments, solution.jacobian.rows, solution.block_normals, strict=True)
         ):
             residual = solution.residual[segment]
             if self.misfit == 'time' and self.uncertainty == 'spectral':
                 impact = self.impacts[index]
-                scores.append(
-                    spectral_score(
-                        rows, residual, impact.velocity_noise_std_m_s**2, impact.sample_rate_hz
-                    )
-                )
+                white = impact.velocity_noise_std_m_s**2
+                scores.append(spectral_score(rows, residual, white, impact.sample_rate_hz, normal))
             else:
                 scores.append(block_score(rows, residual, self.block_lengths[index]))
         return scores
@@ -322,7 +337,11 @@ def block_score(rows: np.ndarray, residual: np.ndarray, block: int) -> np.ndarra
 
 
 def spectral_score(
-    rows: np.ndarray, residual: np.ndarray, white_variance: float, sample_rate_hz: float
+    rows: np.ndarray,
+    residual: np.ndarray,
+    white_variance: float,
+    sample_rate_hz: float,
+    normal: np.ndarray | None = None,
 ) -> np.ndarray:
     """Covariance of the score J r for stationary noise of the residual's own spectrum, (p, p).
 
@@ -333,11 +352,12 @@ def spectral_score(
     the few seconds of motion scatter by tens of per cent. Done on `SPECTRAL_RATE_HZ` block
     means (J's content is the rig's few Hz and its harmonics), plus the white noise's share of
     what the block means smooth away (J's variation inside a block: the hit's fast edge).
+    normal: rows @ rows.T where at hand.
     """
     p, n = rows.shape
     factor = max(1, int(sample_rate_hz // SPECTRAL_RATE_HZ))
     m = n // factor
-    total = white_variance * inner(rows, rows)
+    total = white_variance * (inner(rows, rows) if normal is None else normal)
     segment = 1 << max(4, math.ceil(math.log2(SPECTRAL_SEGMENT_S * sample_rate_hz / factor)))
     if m < 2 * segment:
         return total
@@ -383,7 +403,7 @@ def sandwich_uncertainty(
     jacobian, residual = solution.jacobian, solution.residual
     blocks = jacobian.blocks
     p = blocks.n_parameters
-    inverse = normal_inverse(jacobian.normal())
+    inverse = normal_inverse(jacobian.normal(solution.block_normals))
     white = solution.cost / max(residual.size - p, 1) * inverse
     # A parameter the residuals do not depend on has infinite variance (normal_inverse); the
     # products below run on the finite part (inf x 0 would make its row and column NaN) and
@@ -415,7 +435,11 @@ def sandwich_uncertainty(
 
 
 def fit_uncertainty(
-    solution: LsqSolution, problem: OutputError, force_noise: bool = True, drift: bool = False
+    solution: LsqSolution,
+    problem: OutputError,
+    force_noise: bool = True,
+    drift: bool = False,
+    projected: bool = False,
 ) -> Uncertainty:
     """`sandwich_uncertainty` of an output-error fit, force noise included unless told not to.
 
@@ -423,18 +447,13 @@ def fit_uncertainty(
     effect on the impulse is then part of what the fit estimates, not an error beside it.
     drift: each impact's velocity drift was estimated too (`chain.DriftBasis`), so the
     Jacobian's part along its basis carries no information: it is projected out first (time
-    misfit), as a joint fit of the drift would.
+    misfit), as a joint fit of the drift would, in the solution's own Jacobian rows (their
+    last use; 2.6 MB a row and impact are not copied); projected: they already were.
     """
-    if drift and problem.misfit == 'time':
-        jacobian = solution.jacobian
-        projected = BlockJacobian(
-            jacobian.blocks,
-            tuple(
-                DriftBasis.of(rows.shape[1], impact.sample_rate_hz).remove(rows)
-                for rows, impact in zip(jacobian.rows, problem.impacts, strict=True)
-            ),
-        )
-        solution = replace(solution, jacobian=projected)
+    if drift and not projected and problem.misfit == 'time':  # in place: the rows' last use
+        for rows, impact in zip(solution.jacobian.rows, problem.impacts, strict=True):
+            DriftBasis.of(rows.shape[1], impact.sample_rate_hz).remove(rows)
+        solution = replace(solution, block_normals=solution.jacobian.block_normals())
     scores = problem.scores(solution)
     if not force_noise:
         return sandwich_uncertainty(solution, scores)
