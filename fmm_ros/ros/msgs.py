@@ -40,9 +40,7 @@ def sample_batch(
     full_scale: float = 0.0,
 ) -> SampleBatch:
     """A SampleBatch message of one channel (`fmm_ros.constants.FORCE` or `VELOCITY`)."""
-    msg = SampleBatch()
-    msg.header.stamp = stamp
-    msg.header.frame_id = frame_id
+    msg = _stamped(SampleBatch(), stamp, frame_id)
     msg.quantity, msg.unit = quantity
     msg.sample_rate_hz = float(sample_rate_hz)
     msg.first_sample_index = int(first_sample_index)
@@ -56,6 +54,13 @@ def batch_samples(msg: SampleBatch) -> np.ndarray:
     return field_array(msg.samples)
 
 
+def _stamped(msg: object, stamp: Time, frame_id: str) -> object:
+    """The message with its header's stamp and frame_id set (returned)."""
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    return msg
+
+
 def _set_complex(msg: object, name: str, values: np.ndarray) -> None:
     """Set the `<name>_real` / `<name>_imag` float64[] pair of msg from a complex array."""
     setattr(msg, f'{name}_real', float64_field(values.real))
@@ -66,9 +71,7 @@ def impact_result_msg(
     result: analysis.ImpactResult, *, stamp: Time, frame_id: str = 'fmm'
 ) -> ImpactResult:
     """An ImpactResult message from the signal core's result (same field names)."""
-    msg = ImpactResult()
-    msg.header.stamp = stamp
-    msg.header.frame_id = frame_id
+    msg = _stamped(ImpactResult(), stamp, frame_id)
     msg.impact_id = int(result.impact_id)
     msg.trigger_sample_index = int(result.trigger_sample_index)
     msg.record_start_sample_index = int(result.record_start_sample_index)
@@ -98,9 +101,7 @@ def frf_summary_msg(
     level: analysis.LevelSummary, linearity: frf.LinearFit, *, stamp: Time, frame_id: str = 'fmm'
 ) -> FrfSummary:
     """A FrfSummary message: one level's averages plus the linearity fit over all levels."""
-    msg = FrfSummary()
-    msg.header.stamp = stamp
-    msg.header.frame_id = frame_id
+    msg = _stamped(FrfSummary(), stamp, frame_id)
     msg.level = level.level
     msg.count = int(level.count)
     msg.impact_ids = [int(i) for i in level.impact_ids]
@@ -130,9 +131,7 @@ def friction_estimate_msg(
     estimate: RunningEstimate, *, stamp: Time, frame_id: str = 'fmm'
 ) -> FrictionEstimate:
     """A FrictionEstimate message from the running estimate (same field names)."""
-    msg = FrictionEstimate()
-    msg.header.stamp = stamp
-    msg.header.frame_id = frame_id
+    msg = _stamped(FrictionEstimate(), stamp, frame_id)
     msg.impact_id = int(estimate.impact_id)
     msg.count = int(estimate.count)
     for name in (
