@@ -10,7 +10,7 @@ own mu beside it, and a chi^2 test of whether one mu serves them all.
 """
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -555,38 +555,40 @@ class _VelocityChain:
                     _time_residuals(problem, solution), problem.impacts, nuisances, strict=True
                 )
             )
-            changes = [increment.values_m_s for increment in increments]
             if time_misfit and self.drift and solution.jacobian is not projected:
                 # The drift is re-estimated with the parameters (variable projection): the
                 # steps and the stop below use the Jacobian less its part along the drift.
                 _project_drift(solution.jacobian, problem.impacts)
                 solution = replace(solution, block_normals=solution.jacobian.block_normals())
                 projected = solution.jacobian
+
+            # Each change is made when wanted (30 records' at once would be 80 MB).
+            def changes(increments=increments):
+                return (increment.values_m_s for increment in increments)
+
             small = all(
                 math.sqrt(inner(change, change) / change.size)
                 < CHAIN_FLOOR * impact.velocity_noise_std_m_s
-                for change, impact in zip(changes, problem.impacts, strict=True)
+                for change, impact in zip(changes(), problem.impacts, strict=True)
             )
-            negligible = time_misfit and _negligible(solution, problem.segments, changes)
+            negligible = time_misfit and _negligible(solution, problem.segments, changes())
             if negligible and small:  # nothing worth taking off the velocities as they are
                 return problem, solution, nuisances, solution.jacobian is projected
             nuisances = tuple(
                 total.plus(increment)
                 for total, increment in zip(nuisances, increments, strict=True)
             )
-            problem = problem.with_impacts(
-                [
-                    replace(impact, velocity_m_s=impact.velocity_m_s - change)
-                    for impact, change in zip(problem.impacts, changes, strict=True)
-                ]
-            )
-            residual0 = None
-            if time_misfit:  # where it was, the residual falls by the changes (in place: the
-                residual0 = solution.residual  # old solution is not used again)
-                for segment, change in zip(problem.segments, changes, strict=True):
-                    residual0[segment] -= change
+            residual0 = solution.residual if time_misfit else None
+            cleaned = []
+            for impact, segment, change in zip(
+                problem.impacts, problem.segments, changes(), strict=True
+            ):
+                cleaned.append(replace(impact, velocity_m_s=impact.velocity_m_s - change))
+                if time_misfit:  # where it was, the residual falls by the change (in place:
+                    residual0[segment] -= change  # the old solution is not used again)
+            problem = problem.with_impacts(cleaned)
+            if time_misfit:
                 problem.clear_hit_windows(residual0)
-            del changes
             if negligible:
                 cost = inner(residual0, residual0)
                 solution = replace(solution, residual=residual0, cost=cost)
@@ -633,7 +635,7 @@ def _time_residuals(problem: OutputError, solution: LsqSolution) -> list[np.ndar
 
 
 def _negligible(
-    solution: LsqSolution, segments: Sequence[slice], changes: Sequence[np.ndarray]
+    solution: LsqSolution, segments: Sequence[slice], changes: Iterable[np.ndarray]
 ) -> bool:
     """Whether taking `changes` off the measured velocities would leave the fit where it is.
 
@@ -669,7 +671,8 @@ def _model_fit(
         solution, problem, force_noise=not space.impulse_scales, drift=drift, projected=projected
     )
     model = space.build(solution.x)
-    residuals = problem.time_residuals(solution.x, solution.residual)  # the hit windows too
+    # The hit windows too, in the solution's own residual (its last use as the misfit's).
+    residuals = problem.time_residuals(solution.x, solution.residual)
     squares = [inner(r, r) for r in residuals]
     impacts = problem.impacts
     n_samples = sum(r.size for r in residuals)
@@ -848,7 +851,9 @@ def _own_fit(joint: _Fitted, index: int, options: dict) -> ModelFit:
         if name in joint.space.names
     ]
     rows = [int(np.flatnonzero(block == joint.space.names.index(name))[0]) for name in wanted]
-    residual = solution.residual[joint.problem.segments[index]]  # taken over by the fit
+    residual = solution.residual[joint.problem.segments[index]].copy()  # taken over by the fit
+    for start, stop in joint.problem.impacts[index].hit_windows:  # the misfit's, not the fit's
+        residual[start:stop] = 0.0
     own = dict(options, remove_mains_hum=False, fit_velocity_drift=False)
     return _fit(
         [joint.problem.impacts[index]],
