@@ -58,6 +58,9 @@ MISFIT_BAND_LIMIT_HZ = 20.0
 mode (2.2 Hz) and the odd harmonics friction puts into its response."""
 SETTLE_S = 1.0
 """A motion window runs this long past the model's rest: what residuals are judged over [s]."""
+MU_DRIFT = 'mu_drift'
+"""The effect 'mu changes from hit to hit, trending in hit order' (wear, run-in, temperature):
+what the diagnosis names and the proof data (`fmm_ros.sim.hidden_effects`) hide by this name."""
 
 # -- ROS names (also the topics of bags, which are read and written without ROS) ----------------
 FORCE_TOPIC = '/fmm/force'
@@ -70,3 +73,12 @@ FRICTION_TOPIC = '/fmm/friction'
 """The fitter's running mu (FrictionEstimate), one message after every accepted impact."""
 FIT_SERVICE = '/fmm/fit_friction'
 DIAGNOSE_SERVICE = '/fmm/diagnose_model'
+
+# -- how results are shown to people: CLI text and report pages alike -------------------------
+MM_PER_M = 1e3
+"""Receptance is shown in mm/N and mobility in mm/(N*s), so numbers stay short (JSON, bags
+and messages stay in SI)."""
+RECEPTANCE_DISPLAY_UNIT = 'mm/N'
+MOBILITY_DISPLAY_UNIT = 'mm/(N·s)'
+REPORT_DPI = 110.0
+"""Resolution of report figures [dots per inch]: a 7.5 in figure is 825 px, the page's column."""

@@ -891,7 +891,7 @@ def test_random_damage_covers_every_kind():
 
 
 def test_csv_is_what_the_product_reads(tmp_path, session):
-    from fmm_ros.core.records import read_impact_csv
+    from fmm_ros.core.signal.records import read_impact_csv
 
     # Short records keep the files small; the format does not depend on the length.
     records = session.records(duration_s=2.0)

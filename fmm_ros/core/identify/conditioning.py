@@ -22,7 +22,7 @@ friction cannot explain is a `FitError` (a ValueError too) whose `reason` is one
 """
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -207,6 +207,22 @@ def condition_impact(
         peak_velocity_m_s=peak_velocity,
         source=source,
     )
+
+
+def cropped_impact(impact: ConditionedImpact, stop_index: int) -> ConditionedImpact:
+    """The impact's first stop_index samples, its noise levels, impulse and peaks kept as found.
+
+    A record is at rest for most of its 33 s, and a fit's cost grows with its samples: the
+    diagnosis fits the motion only. The noise estimates stay those of the whole record (more
+    samples pin them better); the stop must lie after the hit's gate.
+    """
+    stop = int(stop_index)
+    if not impact.hit_end_index <= stop <= impact.force_n.size:
+        raise ValueError(
+            f'{source_prefix(impact.source)}cannot crop at sample {stop}: the hit ends at '
+            f'{impact.hit_end_index} and the record has {impact.force_n.size} samples'
+        )
+    return replace(impact, force_n=impact.force_n[:stop], velocity_m_s=impact.velocity_m_s[:stop])
 
 
 def velocity_noise_std(velocity_m_s: np.ndarray) -> float:

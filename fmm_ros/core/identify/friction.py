@@ -10,7 +10,7 @@ own mu beside it, and a chi^2 test of whether one mu serves them all.
 """
 
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -888,15 +888,18 @@ def fit_friction(
     jacobian: str = 'blocks',
     judge_hit: bool = False,
     uncertainty: str = 'spectral',
+    progress: Callable[[str], None] | None = None,
 ) -> FrictionFit:
     """The paper's fit: one mu (and optionally c) over all impacts, plus each impact's own mu.
 
     The records as a data acquisition delivers them: by default each hit's impulse scale is
     fitted and mains hum, velocity offset and drift are taken off (options as in
     `fit_model`); each impact's own fit continues from the joint solution (`_own_fit`).
+    progress, when given, is told of each fit as it starts (a line of text).
     Raises ValueError for bad input and FitError (naming the impact) for any impact, or the
     set, that friction cannot explain.
     """
+    say = progress or (lambda _: None)
     conditioned = _conditioned_list(impacts)
     options = dict(
         mu_bounds=mu_bounds,
@@ -912,6 +915,8 @@ def fit_friction(
         judge_hit=judge_hit,
         uncertainty=uncertainty,
     )
+    count = len(conditioned)
+    say(f'fitting one mu to {count} impact{"s" if count > 1 else ""}')
     fitted = _fit(
         conditioned,
         rig=rig,
@@ -923,10 +928,14 @@ def fit_friction(
         **options,
     )
     joint = fitted.fit
-    if len(conditioned) == 1 and not fit_damping:
+    if count == 1 and not fit_damping:
         per_impact = (joint,)
     else:
-        per_impact = tuple(_own_fit(fitted, index, options) for index in range(len(conditioned)))
+        fits = []
+        for index in range(count):
+            say(f'fitting mu of impact {index + 1}/{count} alone')
+            fits.append(_own_fit(fitted, index, options))
+        per_impact = tuple(fits)
     mus = np.array([fit.mu for fit in per_impact])
     errors = np.array([fit.mu_stderr for fit in per_impact])
     chi2 = float(np.sum(((mus - joint.mu) / errors) ** 2))
