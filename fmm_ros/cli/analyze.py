@@ -152,6 +152,16 @@ def add_analysis_options(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_selection_argument(parser: argparse.ArgumentParser) -> None:
+    """--include-flagged: the subcommands that fit (fit, diagnose, report) take flagged hits too."""
+    parser.add_argument(
+        '--include-flagged',
+        action='store_true',
+        help='also fit hits the quality flags reject (clipped, double hit, dead vibrometer, '
+        '...); they are left out by default and named',
+    )
+
+
 def analysis_configs(args: argparse.Namespace) -> tuple[CaptureConfig, AnalysisConfig]:
     """The capture and analysis configuration of the options add_analysis_options added."""
     capture = CaptureConfig(

@@ -1,6 +1,7 @@
 """`fmm diagnose`: name the effect the base model (Eq. 3) misses in measured impacts.
 
-Same inputs and rig flags as `fmm fit` (CSV files of one impact each, or bags). Exit status:
+Same inputs, rig flags and hit selection as `fmm fit` (CSV files of one impact each, or bags;
+flagged hits left out unless --include-flagged). Exit status:
 0 diagnosed (whatever was named, 'none' included), 1 the base model cannot be fitted at all
 (the reason is printed, as JSON with --json) or a bag was damaged (its problems are printed
 as warnings after the result), 2 bad input or flags.
@@ -18,6 +19,7 @@ from pathlib import Path
 
 from fmm_ros.cli._fitting import fit_and_report
 from fmm_ros.cli._model import add_rig_arguments, rig_from_args
+from fmm_ros.cli.analyze import add_selection_argument
 from fmm_ros.core.diagnose.result import Diagnosis
 from fmm_ros.core.diagnose.workflow import EFFECTS, NONE, diagnose
 from fmm_ros.core.physics.rig import Rig
@@ -53,6 +55,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         'friction); otherwise each starts at x = 0',
     )
     add_rig_arguments(parser)
+    add_selection_argument(parser)
     parser.add_argument('--json', action='store_true', help='print the result as JSON')
     parser.add_argument(
         '--plot',

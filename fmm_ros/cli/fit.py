@@ -3,9 +3,10 @@
 The paper's Sec. 5 step: Eq. 3 driven by each impact's measured force, mu chosen so the
 simulated velocity matches the measured one, one mu for all impacts and each one's own mu
 beside it. Inputs are read as `fmm analyze` reads them (a CSV file is one impact, a bag gives
-every impact its recorded streams hold). Exit status: 0 fitted, 1 the records cannot be
-explained by friction (the reason is printed, as JSON with --json) or a bag was damaged (its
-problems are printed as warnings after the result), 2 bad input or flags.
+every impact its recorded streams hold); hits the quality flags reject are left out and named
+(--include-flagged fits them too). Exit status: 0 fitted, 1 the records cannot be explained
+by friction or none is clean (the reason is printed, as JSON with --json) or a bag was
+damaged (its problems are printed as warnings after the result), 2 bad input or flags.
 """
 
 import argparse
@@ -13,6 +14,7 @@ from pathlib import Path
 
 from fmm_ros.cli._fitting import fit_and_report
 from fmm_ros.cli._model import add_fit_freedom_arguments, add_rig_arguments, rig_from_args
+from fmm_ros.cli.analyze import add_selection_argument
 from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ
 from fmm_ros.core.identify.friction import MU_BOUNDS, FrictionFit, fit_friction
 from fmm_ros.core.identify.output_error import MISFITS
@@ -38,6 +40,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help='one CSV file per impact, or a bag (directory, .mcap or .db3)',
     )
     parser.add_argument('--json', action='store_true', help='print the result as JSON')
+    add_selection_argument(parser)
     add_fit_freedom_arguments(parser)
     add_rig_arguments(parser)
     parser.add_argument(

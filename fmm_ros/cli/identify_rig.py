@@ -52,6 +52,7 @@ def run(args: argparse.Namespace) -> int:
         lambda records: identify_rig(records, mass_kg=args.mass_kg),
         report,
         text_report,
+        select=False,  # free decays hold no hit to judge
     )
 
 

@@ -13,7 +13,12 @@ import sys
 from pathlib import Path
 
 from fmm_ros.cli._model import add_fit_freedom_arguments, add_rig_arguments, rig_from_args
-from fmm_ros.cli.analyze import add_analysis_options, analysis_configs, read_records
+from fmm_ros.cli.analyze import (
+    add_analysis_options,
+    add_selection_argument,
+    analysis_configs,
+    read_records,
+)
 from fmm_ros.cli.progress import report_problems
 from fmm_ros.report import report_session
 from fmm_ros.report.paper import build_paper_report
@@ -70,6 +75,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         'accepted hits: the missing effect, the gap before and after',
     )
     add_rig_arguments(parser)
+    add_selection_argument(parser)
     parser.add_argument('--title', default='Impact session report', help='page title')
     parser.add_argument(
         '--dpi',
@@ -110,6 +116,7 @@ def run(args: argparse.Namespace) -> int:
         fit_damping=args.fit_damping,
         fit_initial_position=args.fit_initial_position,
         diagnose=args.diagnose,
+        include_flagged=args.include_flagged,
         title=args.title,
         inputs=[str(path) for path in args.inputs],
         problems=problems,

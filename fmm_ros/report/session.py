@@ -20,11 +20,11 @@ import numpy as np
 
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.signal.analysis import (
+    DEFAULT_ANALYSIS,
     AnalysisConfig,
     ImpactResult,
     Summary,
     analyze_impact,
-    summarize,
 )
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig
 from fmm_ros.core.signal.records import ImpactRecord
@@ -43,11 +43,10 @@ from fmm_ros.workflows.session import (
     FrictionSummary,
     ModelOverlay,
     SessionDiagnosis,
+    analyse_records,
     diagnose_accepted_impacts,
     fit_accepted_impacts,
 )
-
-DEFAULT_ANALYSIS = AnalysisConfig()
 
 # What each quality flag means, for the legend under the hit table.
 FLAG_MEANINGS: dict[str, str] = {
@@ -96,7 +95,7 @@ def build_report(
     if not records:
         raise ValueError('a report needs at least one impact record')
     if summary is None:
-        summary = _analysed(records, capture, analysis)
+        summary = analyse_records(records, capture, analysis)
     by_id = _records_by_id(records, summary)
     for name, result in (('friction fit', friction), ('diagnosis', diagnosis)):
         unknown = sorted(set(result.impact_ids) - set(by_id)) if result is not None else []
@@ -142,6 +141,7 @@ def report_session(
     fit_damping: bool = False,
     fit_initial_position: bool = False,
     diagnose: bool = False,
+    include_flagged: bool = False,
     title: str = 'Impact session report',
     inputs: Sequence[str] = (),
     problems: Sequence[str] = (),
@@ -151,11 +151,12 @@ def report_session(
 
     What `fmm report` does with its inputs, for callers holding records (the demo, from its
     bag): mu given draws that model instead of fitting; fit=False draws none; diagnose runs
-    the discrepancy workflow over the accepted impacts too. A fit or diagnosis the data
-    refuse does not stop the report: the page and the result say why.
+    the discrepancy workflow over the accepted impacts too. Fit and diagnosis leave flagged
+    hits out (named on the page) unless include_flagged. A fit or diagnosis the data refuse
+    does not stop the report: the page and the result say why.
     """
     records = list(records)
-    summary = _analysed(records, capture, analysis)
+    summary = analyse_records(records, capture, analysis)
     friction, failure = None, ''
     model = ModelOverlay(mu, 'given', rig) if mu is not None else None
     if mu is None and fit:
@@ -166,6 +167,7 @@ def report_session(
                 rig=rig,
                 fit_damping=fit_damping,
                 fit_initial_position=fit_initial_position,
+                include_flagged=include_flagged,
             )
         except ValueError as error:  # FitError is one: the page says why there is no fit
             failure = str(error)
@@ -173,7 +175,11 @@ def report_session(
     if diagnose:
         try:
             diagnosis = diagnose_accepted_impacts(
-                records, summary, rig=rig, fit_initial_position=fit_initial_position
+                records,
+                summary,
+                rig=rig,
+                fit_initial_position=fit_initial_position,
+                include_flagged=include_flagged,
             )
         except ValueError as error:
             diagnosis_failure = str(error)
@@ -194,19 +200,6 @@ def report_session(
         dpi=dpi,
     )
     return SessionReport(page, friction, failure, diagnosis, diagnosis_failure)
-
-
-def _analysed(
-    records: list[ImpactRecord], capture: CaptureConfig, analysis: AnalysisConfig
-) -> Summary:
-    """The signal core's verdict on every record, impact i being record i."""
-    return summarize(
-        [
-            analyze_impact(record, capture, analysis, impact_id=number)
-            for number, record in enumerate(records)
-        ],
-        analysis,
-    )
 
 
 def _records_by_id(records: list[ImpactRecord], summary: Summary) -> dict[int, ImpactRecord]:
@@ -467,6 +460,8 @@ def _friction(page: Page, summary: Summary, friction: FrictionSummary) -> None:
         f'μ = {value_with_error(friction.mu, friction.mu_stderr)} fitted to '
         f'{len(friction.impact_ids)} impacts at once ({damping}){consistency}.'
     )
+    if friction.selection is not None and friction.selection.note:
+        page.text(friction.selection.note, note=True)
     impacts = {impact.impact_id: impact for impact in summary.impacts}
     starts = friction.initial_positions_m or (0.0,) * len(friction.impact_ids)
     page.table(
@@ -626,6 +621,8 @@ def _diagnosis_section(
         f'(velocity noise {result.noise_std_m_s * MM_PER_M:.3g} mm/s from the data).'
     )
     page.text(f'Verdict: {result.verdict}')
+    if found.selection is not None and found.selection.note:
+        page.text(found.selection.note, note=True)
     page.text(f'Where the base model misses: {result.where.summary}.')
     page.table(
         ['parameter of the named model', 'value ± 1σ', 'unit'],

@@ -7,7 +7,9 @@ the fit was judged on. `FrictionSummary` holds the fields of the FitFriction ser
 response plus the model it implies, so the report takes a fit made here
 (`fit_accepted_impacts`, `FrictionSummary.from_fit`) or one a fitter node returned.
 `SessionDiagnosis` is a `Diagnosis` of some of the session's impacts, with their ids
-(`diagnose_accepted_impacts`).
+(`diagnose_accepted_impacts`). Every fit here takes its impacts by the signal core's
+`select_impacts` (flagged ones left out and named unless include_flagged), as the fitter node
+and `fmm fit` do; `select_records` is that rule for callers holding only records.
 """
 
 from __future__ import annotations
@@ -26,7 +28,16 @@ from fmm_ros.core.identify.friction import MU_BOUNDS, FrictionFit, fit_friction
 from fmm_ros.core.physics.model import simulate
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import ModelTerm
-from fmm_ros.core.signal.analysis import Summary
+from fmm_ros.core.signal.analysis import (
+    DEFAULT_ANALYSIS,
+    AnalysisConfig,
+    ImpactSelection,
+    Summary,
+    analyze_impact,
+    select_impacts,
+    summarize,
+)
+from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, with_trigger
 from fmm_ros.core.signal.records import ImpactRecord
 
 
@@ -100,6 +111,8 @@ class FrictionSummary:
     consistency_p_value: float = math.nan
     """Chance of per-impact mus scattering this much if one mu served all (chi^2 test)."""
     residual_rms_m_s: float = math.nan
+    selection: ImpactSelection | None = None
+    """Which of the session's impacts were fitted and which left out (flagged), if known."""
 
     def __post_init__(self) -> None:
         count = len(self.impact_ids)
@@ -113,7 +126,12 @@ class FrictionSummary:
             )
 
     @classmethod
-    def from_fit(cls, fit: FrictionFit, impact_ids: Sequence[int]) -> FrictionSummary:
+    def from_fit(
+        cls,
+        fit: FrictionFit,
+        impact_ids: Sequence[int],
+        selection: ImpactSelection | None = None,
+    ) -> FrictionSummary:
         """The summary of a `fit_friction` result whose impacts were these, in this order."""
         joint = fit.joint
         return cls(
@@ -128,6 +146,7 @@ class FrictionSummary:
             initial_positions_m=joint.initial_positions_m,
             consistency_p_value=fit.consistency_p_value,
             residual_rms_m_s=joint.residual_rms_m_s,
+            selection=selection,
         )
 
     def overlay(self) -> ModelOverlay:
@@ -142,6 +161,48 @@ class FrictionSummary:
         )
 
 
+def analyse_records(
+    records: Sequence[ImpactRecord],
+    capture: CaptureConfig = DEFAULT_CAPTURE,
+    analysis: AnalysisConfig = DEFAULT_ANALYSIS,
+) -> Summary:
+    """The signal core's verdict on every record, impact i being record i."""
+    return summarize(
+        [
+            analyze_impact(record, capture, analysis, impact_id=number)
+            for number, record in enumerate(records)
+        ],
+        analysis,
+    )
+
+
+def select_records(
+    records: Sequence[ImpactRecord],
+    *,
+    capture: CaptureConfig = DEFAULT_CAPTURE,
+    analysis: AnalysisConfig = DEFAULT_ANALYSIS,
+    include_flagged: bool = False,
+    min_clean: int = 1,
+) -> tuple[list[ImpactRecord], ImpactSelection]:
+    """The records a fit takes (`select_impacts` over their analysis), and the selection.
+
+    Raises FitError (reason 'no_hit') for a record without a hit, which has nothing to judge
+    or fit, and `SelectionError` (a ValueError) naming the flagged records when fewer than
+    min_clean are clean.
+    """
+    for record in records:
+        try:
+            with_trigger(record, capture)
+        except ValueError as error:
+            raise FitError('no_hit', f'no hit: {error}', record.source) from None
+    selection = select_impacts(
+        analyse_records(records, capture, analysis),
+        include_flagged=include_flagged,
+        min_clean=min_clean,
+    )
+    return [records[i] for i in selection.chosen], selection
+
+
 def fit_accepted_impacts(
     records: Sequence[ImpactRecord],
     summary: Summary,
@@ -150,21 +211,23 @@ def fit_accepted_impacts(
     fit_damping: bool = False,
     fit_initial_position: bool = False,
     mu_bounds: tuple[float, float] = MU_BOUNDS,
+    include_flagged: bool = False,
 ) -> FrictionSummary:
-    """Fit one mu (and each impact's own) over the accepted impacts, as the fitter node does.
+    """Fit one mu (and each impact's own) over the clean impacts, as the fitter node does.
 
-    records[i] is impact i of the summary. Raises ValueError when no impact is accepted and
-    FitError when friction cannot explain them.
+    records[i] is impact i of the summary. Flagged impacts are left out (named in the
+    result's selection) unless include_flagged. Raises SelectionError (a ValueError) when no
+    impact is clean and FitError when friction cannot explain them.
     """
-    ids = _accepted_ids(summary)
+    selection = select_impacts(summary, include_flagged=include_flagged)
     fit = fit_friction(
-        [records[i] for i in ids],
+        [records[i] for i in selection.chosen],
         rig=rig,
         fit_damping=fit_damping,
         fit_initial_position=fit_initial_position,
         mu_bounds=mu_bounds,
     )
-    return FrictionSummary.from_fit(fit, ids)
+    return FrictionSummary.from_fit(fit, selection.chosen, selection)
 
 
 @dataclass(frozen=True)
@@ -175,6 +238,8 @@ class SessionDiagnosis:
     impact_ids: tuple[int, ...]
     rig: Rig = FMM_RIG
     """The rig constants the diagnosis ran with."""
+    selection: ImpactSelection | None = None
+    """Which of the session's impacts were diagnosed and which left out (flagged), if known."""
 
     def __post_init__(self) -> None:
         if len(self.diagnosis.base_residuals_m_s) != len(self.impact_ids):
@@ -190,23 +255,21 @@ def diagnose_accepted_impacts(
     *,
     rig: Rig = FMM_RIG,
     fit_initial_position: bool = False,
+    include_flagged: bool = False,
 ) -> SessionDiagnosis:
-    """The diagnose workflow over the accepted impacts, as the fitter node runs it.
+    """The diagnose workflow over the clean impacts, as the fitter node runs it.
 
-    Raises ValueError when no impact is accepted and FitError when the base model cannot be
-    fitted at all.
+    Flagged impacts are left out unless include_flagged. Raises SelectionError (a
+    ValueError) when no impact is clean and FitError when the base model cannot be fitted.
     """
-    ids = _accepted_ids(summary)
+    selection = select_impacts(summary, include_flagged=include_flagged)
     return SessionDiagnosis(
-        diagnose([records[i] for i in ids], rig=rig, fit_initial_position=fit_initial_position),
-        tuple(ids),
+        diagnose(
+            [records[i] for i in selection.chosen],
+            rig=rig,
+            fit_initial_position=fit_initial_position,
+        ),
+        selection.chosen,
         rig,
+        selection,
     )
-
-
-def _accepted_ids(summary: Summary) -> list[int]:
-    """Ids of the accepted impacts; ValueError when there is none (nothing to fit)."""
-    ids = [impact.impact_id for impact in summary.impacts if impact.accepted]
-    if not ids:
-        raise ValueError('no accepted impact to fit')
-    return ids

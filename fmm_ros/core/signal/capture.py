@@ -28,14 +28,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from fmm_ros.constants import FORCE, VELOCITY
+from fmm_ros.core.signal import quality
 from fmm_ros.core.signal.frf import first_true
 from fmm_ros.core.signal.records import Gaps, ImpactRecord
 
-# Every quality flag, in the order they are reported. The first six are properties of the
+# Every quality flag, in the order they are reported. All but the last are properties of the
 # record (`quality_flags`); `out_of_tolerance` is set when impacts are grouped into levels.
 FLAGS: tuple[str, ...] = (
     'double_hit',
     'clipped',
+    'saturated',
+    'no_response',
+    'dropout',
     'gap',
     'nan',
     'unsettled',
@@ -208,7 +212,15 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
 
     - double_hit: after the force falls below the re-arm level, it reaches the trigger level
       again within min_spacing_s of the trigger (a hammer bounce: two inputs in one FRF).
-    - clipped: a sample at or beyond a channel's known full-scale range (flat top).
+    - clipped: the force reaches its known full-scale range, or its peak is a flat top no
+      smooth pulse makes (`quality.flat_extreme`: clipping with the range unknown).
+    - saturated: the velocity reaches its known range, or its maximum or minimum is such a
+      flat top (the vibrometer's range exceeded).
+    - no_response: the velocity does not depart from its level before the hit by more than
+      its noise and its own spread there (`quality.responds`): a dead or disconnected
+      vibrometer.
+    - dropout: a noisy channel holds one exact value for longer than chance allows
+      (`quality.stuck_stretch`): samples dropped and filled by zeros or the last value.
     - gap: samples that never arrived inside the record (they are NaN).
     - nan: received samples that are NaN or infinite.
     - unsettled: |velocity| above rest_velocity_m_s in the last rest_time_s of the record, or
@@ -220,24 +232,33 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
     samples = config.samples(record.sample_rate_hz)
     trigger = record.trigger_offset
     flags = set()
+    force_noise = quality.white_noise_std(force)
+    velocity_noise = quality.white_noise_std(velocity)
 
     after_contact = first_true(_below(force[trigger:], config.rearm_level_n))
-    if after_contact >= 0:
-        contact_end = trigger + after_contact
-        bounce = force[contact_end : trigger + samples.min_spacing]
-        if np.any(_reaches(bounce, config.trigger_level_n)):
-            flags.add('double_hit')
-    if _beyond(force, record.force_full_scale_n) or _beyond(
-        velocity, record.velocity_full_scale_m_s
-    ):
+    contact_end = force.size if after_contact < 0 else trigger + after_contact
+    bounce = force[contact_end : trigger + samples.min_spacing]
+    if np.any(_reaches(bounce, config.trigger_level_n)):
+        flags.add('double_hit')
+    if _beyond(force, record.force_full_scale_n) or quality.flat_extreme(force, 1.0, force_noise):
         flags.add('clipped')
+    if _beyond(velocity, record.velocity_full_scale_m_s) or any(
+        quality.flat_extreme(velocity, sign, velocity_noise) for sign in (1.0, -1.0)
+    ):
+        flags.add('saturated')
+    contact_start = contact_start_index(force, trigger, config)
+    if not quality.responds(
+        velocity, contact_start, contact_end, samples.min_spacing, velocity_noise
+    ):
+        flags.add('no_response')
+    if quality.stuck_stretch(force) or quality.stuck_stretch(velocity):
+        flags.add('dropout')
     if record.force_gaps or record.velocity_gaps:
         flags.add('gap')
     if _non_finite_outside(force, record.force_gaps) or _non_finite_outside(
         velocity, record.velocity_gaps
     ):
         flags.add('nan')
-    contact_start = contact_start_index(force, trigger, config)
     tail = velocity[max(trigger + 1, velocity.size - samples.rest) :]
     if np.any(np.abs(velocity[:contact_start]) > config.rest_velocity_m_s) or np.any(
         np.abs(tail) > config.rest_velocity_m_s
