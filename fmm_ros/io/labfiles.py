@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from fmm_ros.io.bags.acquisitions import Acquisition, write_acquisitions
 from fmm_ros.io.bags.writer import DEFAULT_BATCH_SIZE, BagWriter
 
 # SI value of one file unit; lookups ignore case ("MM/S" is mm/s).
@@ -601,6 +602,10 @@ def write_recordings(
 ) -> ImportSummary:
     """One session bag of recordings, concatenated in order on one sample index.
 
+    Each recording is its own acquisition, listed in the bag's metadata
+    (`fmm_ros.io.bags.acquisitions`): replay ends impact records at its last sample instead of
+    running them into the next file or padding them with missing samples.
+
     start_time_ns: acquisition time of the first sample; default the file's own (TDMS),
     else the first file's modification time minus the recorded duration. on_progress gets
     the samples written per batch.
@@ -621,8 +626,10 @@ def write_recordings(
             'recorded duration (the file states none)'
         )
     index = 0
+    acquisitions = []
     with BagWriter(bag, storage=storage, time_origin_ns=start_time_ns) as writer:
         for recording in recordings:
+            acquisitions.append(Acquisition(index, len(recording.force_n), recording.source.name))
             index = writer.write_signals(
                 recording.force_n,
                 recording.velocity_m_s,
@@ -633,6 +640,7 @@ def write_recordings(
                 full_scale_velocity=recording.full_scale_velocity_m_s,
                 on_progress=on_progress,
             )
+        write_acquisitions(writer, acquisitions)
     return ImportSummary(Path(bag), total, rate, report)
 
 

@@ -463,6 +463,30 @@ class ImpactCapture:
             self._declare_missing(channel, stop)
         return self._settle()
 
+    def end_acquisition(self) -> list[ImpactRecord]:
+        """The acquisition ended (one lab file of several, say): its samples stop here.
+
+        Unlike `flush`, which treats the samples an open record still lacks as lost (a gap),
+        here they never existed: each open record ends at the last sample the channels hold,
+        shorter like a record ended at rest (its DFT zero-pads it to the window), judged only
+        by what its samples show (`unsettled` if the rig was still moving). A channel behind
+        the other is declared missing up to it, as by `flush`. The capture then starts afresh:
+        the next batch may start at any sample index, with a new trigger state (at the same
+        sample rate; completed records stay valid and can still be recycled).
+        """
+        if not self._channels:
+            return []
+        stop = max(channel.next_index for channel in self._channels.values())
+        for channel in self._channels.values():
+            self._declare_missing(channel, stop)
+        for impact in self._open:
+            impact.end = min(impact.end, stop - impact.start)
+            impact.end_found = True
+        done = self._settle()
+        self._channels = {}
+        self._detector = None
+        return done
+
     def recycle(self, record: ImpactRecord) -> None:
         """Return a completed record's buffers to the pool; the record is invalid afterwards."""
         force, velocity = record.force_n.base, record.velocity_m_s.base
@@ -530,7 +554,8 @@ class ImpactCapture:
         }
         self._detector = TriggerDetector(self.config, sample_rate_hz)
         # One warm pair of record buffers (page faults now, not on the first impact).
-        self._pool.append((np.zeros(samples.window), np.zeros(samples.window)))
+        if not self._pool:
+            self._pool.append((np.zeros(samples.window), np.zeros(samples.window)))
 
     def _take(self, channel: _Channel, samples: np.ndarray) -> None:
         """Append one block (at most MAX_STEP_SAMPLES) at the channel's watermark."""
