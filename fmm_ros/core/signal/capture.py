@@ -223,8 +223,9 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
       (`quality.stuck_stretch`): samples dropped and filled by zeros or the last value.
     - gap: samples that never arrived inside the record (they are NaN).
     - nan: received samples that are NaN or infinite.
-    - unsettled: |velocity| above rest_velocity_m_s in the last rest_time_s of the record, or
-      before the hammer touched, so the record is not one whole transient and its DFT leaks.
+    - unsettled: |velocity - its level before the hit| (the level removes a vibrometer
+      offset) above rest_velocity_m_s in the last rest_time_s of the record, or before the
+      hammer touched, so the record is not one whole transient and its DFT leaks.
     - overlap: the next impact triggers inside this record.
     """
     record = with_trigger(record, config)
@@ -240,18 +241,20 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
     bounce = force[contact_end : trigger + samples.min_spacing]
     if np.any(_reaches(bounce, config.trigger_level_n)):
         flags.add('double_hit')
-    if _beyond(force, record.force_full_scale_n) or quality.flat_extreme(force, 1.0, force_noise):
+    force_plateaus = _plateaus(force, (1.0,), force_noise)
+    velocity_plateaus = _plateaus(velocity, (1.0, -1.0), velocity_noise)
+    if _beyond(force, record.force_full_scale_n) or force_plateaus:
         flags.add('clipped')
-    if _beyond(velocity, record.velocity_full_scale_m_s) or any(
-        quality.flat_extreme(velocity, sign, velocity_noise) for sign in (1.0, -1.0)
-    ):
+    if _beyond(velocity, record.velocity_full_scale_m_s) or velocity_plateaus:
         flags.add('saturated')
     contact_start = contact_start_index(force, trigger, config)
     if not quality.responds(
         velocity, contact_start, contact_end, samples.min_spacing, velocity_noise
     ):
         flags.add('no_response')
-    if quality.stuck_stretch(force) or quality.stuck_stretch(velocity):
+    if quality.stuck_stretch(force, force_plateaus) or quality.stuck_stretch(
+        velocity, velocity_plateaus
+    ):
         flags.add('dropout')
     if record.force_gaps or record.velocity_gaps:
         flags.add('gap')
@@ -259,9 +262,13 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
         velocity, record.velocity_gaps
     ):
         flags.add('nan')
+    # Motion is judged about the level at rest before the hit: a vibrometer's offset is not.
+    before = velocity[:contact_start]
+    finite_before = before[np.isfinite(before)]
+    rest_level = float(np.median(finite_before)) if finite_before.size else 0.0
     tail = velocity[max(trigger + 1, velocity.size - samples.rest) :]
-    if np.any(np.abs(velocity[:contact_start]) > config.rest_velocity_m_s) or np.any(
-        np.abs(tail) > config.rest_velocity_m_s
+    if np.any(np.abs(before - rest_level) > config.rest_velocity_m_s) or np.any(
+        np.abs(tail - rest_level) > config.rest_velocity_m_s
     ):
         flags.add('unsettled')
     follower = TriggerDetector(config, record.sample_rate_hz, last_trigger=trigger)
@@ -291,6 +298,12 @@ def _reaches(force_n: np.ndarray, level_n: float) -> np.ndarray:
 def _below(force_n: np.ndarray, level_n: float) -> np.ndarray:
     """Finite samples below a level (the re-arm test)."""
     return (force_n < level_n) & (force_n > -np.inf)
+
+
+def _plateaus(samples: np.ndarray, signs: tuple[float, ...], noise_std: float) -> tuple[float, ...]:
+    """Levels of the channel's clipped extremes (`quality.flat_extreme`) on the given sides."""
+    levels = (quality.flat_extreme(samples, sign, noise_std) for sign in signs)
+    return tuple(level for level in levels if level is not None)
 
 
 def _beyond(samples: np.ndarray, full_scale: float) -> bool:

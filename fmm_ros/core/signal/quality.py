@@ -21,9 +21,11 @@ samples themselves.
   value for long. A channel whose consecutive samples are equal with probability p repeats one
   for k samples by chance about n p^(k-1) times in n samples; a run longer than makes that
   `STUCK_FALSE_ALARM` (and at least `STUCK_MIN_SAMPLES`) is samples dropped and filled by the
-  acquisition (zeros, or the last value held). Runs at the channel's extremes are clipping,
-  judged by `flat_extreme`; channels without white noise (simulations, a quantised record
-  quieter than its step) are never judged, since a constant there can be real: a rig at rest.
+  acquisition (zeros, or the last value held). Runs on a plateau `flat_extreme` found are
+  clipping, not counted again. In a channel without white noise (a simulation, a quantised
+  record quieter than its step) a constant can be real, a rig at rest, but the signal then
+  reached it in steps like its others: only a stretch entered and left by a jump (zeros where
+  the channel sat at an offset or moved) counts there.
 - Response (`responds`): a hit moves the rig, so the velocity just after the contact must depart
   from its level just before it by far more than the channel's noise and than its own spread
   before the contact (which holds any hum or drift a disconnected input picks up). A dead or
@@ -62,6 +64,10 @@ STUCK_MIN_SAMPLES = 25
 STUCK_FALSE_ALARM = 1e-4
 """Expected number of chance repeats of the dropout length in a noisy record."""
 
+STUCK_STEPS = 2.0
+"""In a channel without noise, a held stretch must be entered and left by a jump this many
+times the largest step of the samples around it (and of the quantisation step)."""
+
 STUCK_MAX_EQUAL_FRACTION = 0.9
 """A channel whose consecutive samples are equal more often than this has no noise to judge by."""
 
@@ -91,14 +97,17 @@ def white_noise_std(samples: np.ndarray) -> float:
     The MAD deviation of the second differences over sqrt(6) (second differences of white
     noise have variance 6 sigma^2). 0 for a channel without noise, NaN with no finite values.
     """
-    second = np.diff(np.asarray(samples, dtype=float), n=2)
+    with np.errstate(invalid='ignore'):  # inf - inf in a corrupt stretch: NaN, left out
+        second = np.diff(np.asarray(samples, dtype=float), n=2)
     if second.size == 0:
         return 0.0
     return robust_center_and_std(second)[1] / math.sqrt(6.0)
 
 
-def flat_extreme(samples: np.ndarray, sign: float = 1.0, noise_std: float | None = None) -> bool:
-    """Whether the channel's maximum (sign +1) or minimum (sign -1) is a clipped plateau.
+def flat_extreme(
+    samples: np.ndarray, sign: float = 1.0, noise_std: float | None = None
+) -> float | None:
+    """The channel's maximum (sign +1) or minimum (sign -1) if it is a clipped plateau, or None.
 
     See the module docstring for the rule. noise_std: the channel's white-noise deviation, if
     already known. Non-finite samples are never part of a plateau.
@@ -106,7 +115,7 @@ def flat_extreme(samples: np.ndarray, sign: float = 1.0, noise_std: float | None
     values = sign * np.asarray(samples, dtype=float)
     finite = np.isfinite(values)
     if not finite.any():
-        return False
+        return None
     peak_at = int(np.argmax(np.where(finite, values, -np.inf)))
     level = values[peak_at]
     noise = white_noise_std(samples) if noise_std is None else noise_std
@@ -123,25 +132,28 @@ def flat_extreme(samples: np.ndarray, sign: float = 1.0, noise_std: float | None
     start = 0 if before < 0 else peak_at - before + 1
     run = stop - start
     if run < FLAT_MIN_SAMPLES:
-        return False
-    left, right = start - run + 1, stop + run - 2
-    if left < 0 or right >= values.size:
-        return False
+        return None
+    # One stretch-length beyond each end, or the record's first or last sample: nearer the
+    # plateau a smooth peak has dropped less, so the clamp never makes one look clipped.
+    left, right = max(start - run + 1, 0), min(stop + run - 2, values.size - 1)
     drop = min(level - values[left], level - values[right])
-    return bool(drop > FLAT_DROP_FACTOR * tolerance)
+    return float(sign * level) if drop > FLAT_DROP_FACTOR * tolerance else None
 
 
 def has_white_noise(samples: np.ndarray) -> bool:
     """Whether white noise, not the signal, makes most of the sample-to-sample changes.
 
-    For white noise the MAD of second differences is sqrt(3) times that of first differences;
-    for a signal smooth at the sample rate (a noise-free simulation, a quantised slow signal)
-    it is far smaller, or the first differences are mostly zero.
+    For white noise the MAD of second differences is sqrt(3) times that of first differences
+    (quantised noise of about one step: both one step); for a signal smooth at the sample rate
+    (a noise-free simulation, a quantised slow signal) it is far smaller, or the first
+    differences are mostly zero.
     """
-    first = np.diff(np.asarray(samples, dtype=float))
+    with np.errstate(invalid='ignore'):  # inf - inf in a corrupt stretch: NaN, left out
+        first = np.diff(np.asarray(samples, dtype=float))
+        second = np.diff(first)
     spread_first = robust_center_and_std(first)[1]
-    spread_second = robust_center_and_std(np.diff(first))[1]
-    return bool(spread_first > 0 and spread_second > spread_first)
+    spread_second = robust_center_and_std(second)[1]
+    return bool(spread_first > 0 and spread_second >= spread_first)
 
 
 def quantum(samples: np.ndarray) -> float:
@@ -150,15 +162,20 @@ def quantum(samples: np.ndarray) -> float:
     return float(np.min(np.diff(values))) if values.size > 1 else 0.0
 
 
-def stuck_stretch(samples: np.ndarray) -> bool:
-    """Whether a noisy channel repeats one value (not its extreme) for longer than chance allows.
+def stuck_stretch(samples: np.ndarray, plateaus: tuple[float, ...] = ()) -> bool:
+    """Whether a channel holds one value where its samples say it cannot.
 
-    See the module docstring for the rule.
+    See the module docstring for the rule. plateaus: levels already judged clipping
+    (`flat_extreme`), whose runs are not counted again.
     """
     values = np.asarray(samples, dtype=float)
-    if values.size < STUCK_MIN_SAMPLES or not has_white_noise(values):
+    if values.size < STUCK_MIN_SAMPLES:
         return False
-    equal = values[1:] == values[:-1]  # NaN never equals: a gap is not a dropout
+    # NaN never equals; inf does, but a corrupt stretch is the nan flag's: not a dropout.
+    equal = (values[1:] == values[:-1]) & np.isfinite(values[1:])
+    starts, stops = runs(equal)
+    if not has_white_noise(values):
+        return _foreign_stretch(values, starts, stops, plateaus)
     chance = float(np.count_nonzero(equal)) / equal.size
     if chance > STUCK_MAX_EQUAL_FRACTION:
         return False
@@ -167,14 +184,46 @@ def stuck_stretch(samples: np.ndarray) -> bool:
         need = max(
             need, math.ceil(math.log(STUCK_FALSE_ALARM / values.size) / math.log(chance)) + 1
         )
-    starts, stops = runs(equal)
-    long = (stops - starts) >= need - 1
+    held = values[starts[(stops - starts) >= need - 1]]
+    return bool(np.any(~np.isin(held, plateaus)))
+
+
+def _foreign_stretch(
+    values: np.ndarray, starts: np.ndarray, stops: np.ndarray, plateaus: tuple[float, ...]
+) -> bool:
+    """In a channel without noise: a long constant stretch the signal jumped into and out of.
+
+    A quiet channel is constant for real (a rig at rest, a quantised slow signal), but then it
+    came to that value in steps like its others (a decelerating rig, one quantisation step);
+    a stretch filled with zeros is entered and left by a jump of more than `STUCK_STEPS` times
+    the largest step of the samples just before (and after) it.
+    """
+    long = (stops - starts) >= STUCK_MIN_SAMPLES - 1
     if not long.any():
         return False
-    finite = values[np.isfinite(values)]
-    low, high = float(np.min(finite)), float(np.max(finite))
-    held = values[starts[long]]
-    return bool(np.any((held > low) & (held < high)))
+    with np.errstate(invalid='ignore'):  # inf - inf in a corrupt stretch: NaN, left out
+        changes = np.abs(np.diff(values))
+    positive = changes[np.isfinite(changes) & (changes > 0)]
+    step = float(np.min(positive)) if positive.size else 0.0
+
+    def jumped(jump: float, around: np.ndarray) -> bool:
+        around = around[np.isfinite(around)]
+        usual = max(float(np.max(around)) if around.size else 0.0, step)
+        return bool(jump > STUCK_STEPS * usual)
+
+    for start, stop in zip(starts[long], stops[long], strict=True):
+        if values[start] in plateaus:
+            continue
+        # changes[start - 1] enters the stretch, changes[stop] leaves it (if it ends inside).
+        entered = start == 0 or jumped(
+            changes[start - 1], changes[max(0, start - 1 - STUCK_MIN_SAMPLES) : start - 1]
+        )
+        left = stop >= changes.size or jumped(
+            changes[stop], changes[stop + 1 : stop + 1 + STUCK_MIN_SAMPLES]
+        )
+        if entered and left and (start > 0 or stop < changes.size):
+            return True
+    return False
 
 
 def runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
