@@ -14,10 +14,13 @@ Mapping (YAML)::
     time: {name: Time, unit: s}                     # a time column (checked for uniformity)
 """
 
+import contextlib
 import csv
+import io
 import os
+import zipfile
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -239,7 +242,7 @@ class CsvFile(LabFile):
 
     def __init__(self, path: Path) -> None:
         super().__init__(path)
-        with path.open(encoding='utf-8', newline='') as stream:
+        with _reading(path, self.format), path.open(encoding='utf-8', newline='') as stream:
             lines = [line for line in stream if line.strip() and not line.startswith('#')][:2]
         if not lines:
             raise ValueError(f'{path} holds no data')
@@ -262,15 +265,20 @@ class CsvFile(LabFile):
         if name not in self._names:
             raise self._missing(name)
         if self._table is None:
-            self._table = np.loadtxt(
-                self.path,
-                delimiter=None if self._delimiter == ' ' else self._delimiter,
-                comments='#',
-                skiprows=1 if self._has_header else 0,
-                ndmin=2,
-                encoding='utf-8',
-            )
+            with _reading(self.path, self.format):
+                self._table = self._load()
         return self._table[:, self._names.index(name)]
+
+    def _load(self) -> np.ndarray:
+        """The whole table of numbers."""
+        return np.loadtxt(
+            self.path,
+            delimiter=None if self._delimiter == ' ' else self._delimiter,
+            comments='#',
+            skiprows=1 if self._has_header else 0,
+            ndmin=2,
+            encoding='utf-8',
+        )
 
 
 def _is_number(text: str) -> bool:
@@ -288,7 +296,9 @@ class NpzFile(LabFile):
 
     def __init__(self, path: Path) -> None:
         super().__init__(path)
-        with np.load(path, allow_pickle=False) as archive:
+        with _reading(path, self.format), np.load(path, allow_pickle=False) as archive:
+            for name in archive.files:
+                _check_npy_size(path, archive.zip, f'{name}.npy')
             self._arrays = {name: archive[name] for name in archive.files}
 
     def names(self) -> list[str]:
@@ -311,11 +321,9 @@ class MatFile(LabFile):
         super().__init__(path)
         from scipy.io import loadmat
 
-        self._vars = {
-            name: value
-            for name, value in loadmat(path, squeeze_me=True, struct_as_record=False).items()
-            if not name.startswith('__')
-        }
+        with _reading(path, self.format), _BoundedFile(path) as stream:
+            contents = loadmat(stream, squeeze_me=True, struct_as_record=False)
+        self._vars = {name: value for name, value in contents.items() if not name.startswith('__')}
 
     def names(self) -> list[str]:
         """Variables, and fields of struct variables as struct.field."""
@@ -356,7 +364,8 @@ class Mat73File(LabFile):
         import h5py
 
         self._names: list[str] = []
-        with h5py.File(path, 'r') as hdf:  # MATLAB keeps strings and cells under #refs#
+        # MATLAB keeps strings and cells under #refs#
+        with _reading(path, self.format), h5py.File(path, 'r') as hdf:
             hdf.visititems(
                 lambda key, obj: (
                     self._names.append(key.replace('/', '.'))
@@ -375,8 +384,10 @@ class Mat73File(LabFile):
 
         if name not in self._names:
             raise self._missing(name)
-        with h5py.File(self.path, 'r') as hdf:
-            return hdf[name.replace('.', '/')][()]
+        with _reading(self.path, self.format), h5py.File(self.path, 'r') as hdf:
+            dataset = hdf[name.replace('.', '/')]
+            _check_declared_size(self.path, name, dataset.size * dataset.dtype.itemsize)
+            return dataset[()]
 
 
 class TdmsFile(LabFile):
@@ -388,7 +399,14 @@ class TdmsFile(LabFile):
         super().__init__(path)
         from nptdms import TdmsFile as NpTdmsFile
 
-        self._file = NpTdmsFile.read(path)
+        with _reading(path, self.format):
+            with _BoundedFile(path) as stream:
+                for group in NpTdmsFile.read_metadata(stream).groups():
+                    for channel in group.channels():
+                        width = getattr(channel.data_type, 'size', None) or 1
+                        _check_declared_size(path, channel.path, len(channel) * width)
+            with _BoundedFile(path) as stream:
+                self._file = NpTdmsFile.read(stream)
         self._channels = {
             f'{group.name}/{channel.name}': channel
             for group in self._file.groups()
@@ -424,6 +442,73 @@ class TdmsFile(LabFile):
             if start is not None:
                 return int(np.datetime64(start, 'ns').astype(np.int64))
         return None
+
+
+# -- damaged files: a clear error naming the file, never a parser's traceback or a blowup ---------
+
+DECLARED_SIZE_RATIO = 64
+"""A channel may declare at most this many times its file's size in bytes: compression of
+real measurements gains a few times at most, so more is a corrupt length or a zip bomb."""
+
+
+@contextlib.contextmanager
+def _reading(path: Path, kind: str) -> Iterator[None]:
+    """Turn a parsing library's failure on a damaged file into a ValueError naming it.
+
+    The libraries (numpy's zip reader, scipy.io, h5py, nptdms) raise whatever their code meets
+    on bad bytes (OSError, KeyError, struct.error, zipfile.BadZipFile, MemoryError, ...);
+    inside this block every such failure means the file is not what it claims.
+    """
+    try:
+        yield
+    except FileNotFoundError:
+        raise
+    except ValueError as error:  # the library's own words, with the file they are about
+        if str(path) in str(error):
+            raise
+        raise ValueError(f'{path} ({kind}): {error}') from None
+    except Exception as error:  # noqa: BLE001 - the boundary to third-party parsers of bytes
+        detail = str(error) or type(error).__name__
+        raise ValueError(f'{path}: not a readable {kind} file ({detail})') from None
+
+
+class _BoundedFile(io.FileIO):
+    """A file whose read(n) never asks for more than the bytes left in it.
+
+    Parsers read a declared length with read(n), which allocates n bytes first: a corrupt
+    length of 4 GB would reserve 4 GB for a 60 kB file.
+    """
+
+    def read(self, size: int = -1) -> bytes:
+        """At most the bytes left, whatever size was asked."""
+        if size is not None and size > 0:
+            size = min(size, max(0, os.fstat(self.fileno()).st_size - self.tell()))
+        return super().read(size)
+
+
+def _check_declared_size(path: Path, name: str, declared_bytes: int) -> None:
+    """ValueError when a channel declares more bytes than its file can hold."""
+    limit = DECLARED_SIZE_RATIO * os.stat(path).st_size
+    if declared_bytes > limit:
+        raise ValueError(
+            f'{path}: {name!r} declares {declared_bytes} bytes of data, more than '
+            f'{DECLARED_SIZE_RATIO} times the file ({os.stat(path).st_size} bytes): '
+            'a corrupt length, not a measurement'
+        )
+
+
+def _check_npy_size(path: Path, archive: zipfile.ZipFile, member: str) -> None:
+    """Check an .npz member's declared array size (its .npy header) before numpy allocates it."""
+    with archive.open(member) as stream:
+        version = np.lib.format.read_magic(stream)
+        header = (
+            np.lib.format.read_array_header_1_0
+            if version == (1, 0)
+            else np.lib.format.read_array_header_2_0
+        )
+        shape, _, dtype = header(stream)
+    count = int(np.prod(shape, dtype=object)) if shape else 1
+    _check_declared_size(path, member, count * dtype.itemsize)
 
 
 def open_lab_file(path: str | Path) -> LabFile:

@@ -60,8 +60,13 @@ def capture_records(
     """
     impacts = ImpactCapture(capture)
     quantity = {force_topic: FORCE.quantity, velocity_topic: VELOCITY.quantity}
-    joined = bool(read_acquisitions(reader.path))
-    boundaries = [a.first_sample_index for a in read_acquisitions(reader.path)][1:]
+    try:
+        acquisitions = read_acquisitions(reader.path)
+    except ValueError as error:  # damaged metadata: the reader reads the bag by scanning
+        reader.problems.append(f'{error}; read as one acquisition')
+        acquisitions = ()
+    joined = bool(acquisitions)
+    boundaries = [a.first_sample_index for a in acquisitions][1:]
     reached = dict.fromkeys(quantity, 0)  # index after each channel's last sample fed
     held: list[ChannelBatch] = []  # batches of the next acquisition, read early
 

@@ -45,13 +45,14 @@ def read_acquisitions(bag: str | Path) -> tuple[Acquisition, ...]:
     """The acquisitions a bag's metadata.yaml lists, in index order; () when it lists none.
 
     Only a bag directory has metadata.yaml (a lone storage file or a crashed recording is read
-    as one acquisition). A malformed entry is a ValueError naming the bag.
+    as one acquisition). A damaged metadata.yaml or a malformed entry is a ValueError naming
+    the bag.
     """
     metadata = Path(bag) / 'metadata.yaml'
     if not metadata.is_file():
         return ()
     try:
-        info = yaml.safe_load(metadata.read_text(encoding='utf-8')) or {}
+        info = yaml.safe_load(metadata.read_bytes().decode('utf-8')) or {}
         text = ((info.get('rosbag2_bagfile_information') or {}).get('custom_data') or {}).get(
             ACQUISITIONS_KEY
         )
