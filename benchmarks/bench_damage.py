@@ -31,7 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
 from damaged_records import FAULTS, session  # noqa: E402
 
 from fmm_ros.core.identify.friction import fit_friction  # noqa: E402
-from fmm_ros.workflows.session import analyse_records, select_records  # noqa: E402
+from fmm_ros.workflows.session import analyse, select_records  # noqa: E402
 
 # Flags that say the samples are damaged (the others judge the record, not its samples).
 RECORD_FLAGS = ('unsettled', 'overlap', 'out_of_tolerance')
@@ -42,8 +42,8 @@ WRONG_SIGMAS = 3.0
 def fit_session(records, include_flagged=False):
     """('refused', reason) or ('mu', mu, stderr, selection) as `fmm fit` would end."""
     try:
-        chosen, selection = select_records(records, include_flagged=include_flagged)
-        fit = fit_friction(chosen)
+        selection = select_records(records, include_flagged=include_flagged)
+        fit = fit_friction([records[i] for i in selection.chosen])
     except ValueError as error:  # SelectionError, FitError, or samples the fit cannot take
         return ('refused', getattr(error, 'reason', type(error).__name__))
     return ('mu', fit.mu, fit.mu_stderr, selection)
@@ -73,7 +73,7 @@ def run_fault(fault, cases, seed0):
     for case in range(cases):
         hits, mu = session(fault, seed0 + case)
         records = [hit.record for hit in hits]
-        summary = analyse_records(records)
+        summary = analyse(records)
         stats['hits'] += 3
         stats['flagged'] += sum(
             bool(set(impact.flags) - set(RECORD_FLAGS)) for impact in summary.impacts
@@ -101,7 +101,7 @@ def run_clean(sessions, seed0):
     for case in range(sessions):
         hits, mu = session('', seed0 + case, damaged=())
         records = [hit.record for hit in hits]
-        summary = analyse_records(records)
+        summary = analyse(records)
         for impact in summary.impacts:
             stats['hits'] += 1
             damage = set(impact.flags) - set(RECORD_FLAGS)

@@ -60,7 +60,9 @@ def test_clean_lab_records_raise_no_damage_flag():
 @pytest.mark.parametrize('fault', FAULTS)
 def test_a_damaged_hit_is_left_out_by_name_and_mu_comes_from_the_clean_ones(fault):
     hits, mu = session(fault, seed=77, damaged=(1,))
-    chosen, selection = select_records([hit.record for hit in hits])
+    records = [hit.record for hit in hits]
+    selection = select_records(records)
+    chosen = [records[i] for i in selection.chosen]
     assert selection.chosen == (0, 2)
     ((impact_id, flags, source),) = selection.excluded
     assert (impact_id, source) == (1, hits[1].record.source)

@@ -67,7 +67,7 @@ def hostile_session(folder):
             'report',
             *sorted(str(path) for path in folder.glob('*.csv')),
             str(bag),
-            '--out',
+            '-o',
             str(out),
             '--level',
             f'{HOSTILE_LEVEL}=450',

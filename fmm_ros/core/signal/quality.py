@@ -68,6 +68,10 @@ STUCK_STEPS = 2.0
 """In a channel without noise, a held stretch must be entered and left by a jump this many
 times the largest step of the samples around it (and of the quantisation step)."""
 
+STUCK_SPAN_FRACTION = 0.01
+"""... and by more than this fraction of the channel's range: a fill of a moving signal, not a
+rounding-level step of a record ending (a noise-free record's smallest step is tiny)."""
+
 STUCK_MAX_EQUAL_FRACTION = 0.9
 """A channel whose consecutive samples are equal more often than this has no noise to judge by."""
 
@@ -196,7 +200,8 @@ def _foreign_stretch(
     A quiet channel is constant for real (a rig at rest, a quantised slow signal), but then it
     came to that value in steps like its others (a decelerating rig, one quantisation step);
     a stretch filled with zeros is entered and left by a jump of more than `STUCK_STEPS` times
-    the largest step of the samples just before (and after) it.
+    the largest step of the samples just before (and after) it, and of more than
+    `STUCK_SPAN_FRACTION` of the channel's range.
     """
     long = (stops - starts) >= STUCK_MIN_SAMPLES - 1
     if not long.any():
@@ -206,10 +211,13 @@ def _foreign_stretch(
     positive = changes[np.isfinite(changes) & (changes > 0)]
     step = float(np.min(positive)) if positive.size else 0.0
 
+    finite = values[np.isfinite(values)]
+    span = float(np.max(finite) - np.min(finite)) if finite.size else 0.0
+
     def jumped(jump: float, around: np.ndarray) -> bool:
         around = around[np.isfinite(around)]
         usual = max(float(np.max(around)) if around.size else 0.0, step)
-        return bool(jump > STUCK_STEPS * usual)
+        return bool(jump > STUCK_STEPS * usual and jump > STUCK_SPAN_FRACTION * span)
 
     for start, stop in zip(starts[long], stops[long], strict=True):
         if values[start] in plateaus:
