@@ -2,8 +2,10 @@
 
 Run: .venv/bin/python benchmarks/bench_damage.py [--cases N] [--clean N]
 
-Records come from test/damaged_records.py (lab-like hits from the excitation and physics
-pieces, the fault done as the lab suffers it; see its docstring), never from the flag code.
+Records come from test/damaged_records.py, never from the flag code: by default both from the
+independent generator test/worlds (its plant, hits, DAQ chain and damage kinds; each record
+streamed by sample index as live capture and bag replay see it) and from our excitation and
+physics pieces with the fault done as the lab suffers it (see its docstring).
 Each case is a session of three hits (low, medium, high) fitted as `fmm fit` fits it
 (`select_records`, then `fit_friction`):
 
@@ -28,7 +30,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
 
-from damaged_records import FAULTS, session  # noqa: E402
+from damaged_records import FAULTS, session, worlds_session  # noqa: E402
 
 from fmm_ros.core.identify.friction import fit_friction  # noqa: E402
 from fmm_ros.workflows.session import analyse, select_records  # noqa: E402
@@ -66,7 +68,10 @@ def judge(outcome, true_mu):
     }[(wrong_percent, wrong_sigma)], percent
 
 
-def run_fault(fault, cases, seed0):
+GENERATORS = {'worlds': worlds_session, 'excitation': session}
+
+
+def run_fault(fault, cases, seed0, session=session):
     """Counts for one fault over cases sessions of each kind."""
     stats = collections.Counter()
     anyway = []
@@ -93,7 +98,7 @@ def run_fault(fault, cases, seed0):
     return stats, anyway
 
 
-def run_clean(sessions, seed0):
+def run_clean(sessions, seed0, session=session):
     """False flags per hit and the mu errors of clean sessions."""
     stats = collections.Counter()
     flag_names = collections.Counter()
@@ -118,11 +123,24 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--cases', type=int, default=30, help='sessions per fault and kind')
     parser.add_argument('--clean', type=int, default=200, help='clean sessions (3 hits each)')
+    parser.add_argument(
+        '--generator',
+        choices=(*GENERATORS, 'both'),
+        default='both',
+        help='worlds: the independent generator; excitation: ours (default: both)',
+    )
     args = parser.parse_args()
+    for name, generator in GENERATORS.items():
+        if args.generator in (name, 'both'):
+            matrix(name, generator, args.cases, args.clean)
+
+
+def matrix(name, generator, cases, clean):
+    """The fault table and the clean statistics of one generator."""
     began = time.perf_counter()
     print(
-        f'damaged-hit matrix: {args.cases} sessions per fault with all 3 hits damaged, '
-        f'{args.cases} with 1 of 3'
+        f'\n{name}: damaged-hit matrix, {cases} sessions per fault with all 3 hits damaged, '
+        f'{cases} with 1 of 3'
     )
     header = (
         f'{"fault":<16} {"flagged":>9} | {"3 of 3: refused":>15} {"mu ok":>6} {">2%":>4} '
@@ -133,7 +151,7 @@ def main() -> None:
     print('-' * len(header))
     wrong = collections.Counter()
     for number, fault in enumerate(FAULTS):
-        stats, anyway = run_fault(fault, args.cases, 1_000 * (number + 1))
+        stats, anyway = run_fault(fault, cases, 1_000 * (number + 1), generator)
         counts = {}
         for kind in ('all', 'one'):
             counts[kind, '2pc'] = stats[f'{kind}:wrong_2pc'] + stats[f'{kind}:wrong_both']
@@ -159,9 +177,9 @@ def main() -> None:
         f'confident wrong mu over the matrix: {wrong["2pc"]} off by > 2 %, '
         f'{wrong["sigma"]} off by < 2 % but > 3 standard errors'
     )
-    stats, names, errors = run_clean(args.clean, 900_000)
+    stats, names, errors = run_clean(clean, 900_000, generator)
     print(
-        f'\nclean: {args.clean} sessions, {stats["hits"]} hits: damage flags on '
+        f'clean: {clean} sessions, {stats["hits"]} hits: damage flags on '
         f'{stats["damage_flagged"]} ({100 * stats["damage_flagged"] / stats["hits"]:.2f} %)'
         f'{" " + dict(names).__repr__() if names else ""}; unsettled on {stats["unsettled"]} '
         f'({100 * stats["unsettled"] / stats["hits"]:.2f} %)'

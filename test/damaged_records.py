@@ -17,9 +17,13 @@ and sensor offsets. A fault is then done to it as the lab would suffer it:
   held (a DAQ buffer overrun), somewhere in the motion.
 
 `session(fault, seed, damaged)` gives three hits (low, medium, high) with the fault done to
-the hits whose positions are in `damaged`, and the true mu.
+the hits whose positions are in `damaged`, and the true mu. `worlds_session` does the same
+with the independent generator (test/worlds: its plant, hand-swung hits, DAQ chain with
+anti-alias filters, hum, drift and a 16-bit converter, and its own damage kinds), each record
+streamed by sample index as the live capture and bag replay see it.
 """
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -174,3 +178,100 @@ def session(fault: str, seed: int, damaged: tuple[int, ...] = (0, 1, 2)) -> tupl
     return [
         damaged_hit(level, fault if level in damaged else '', rng, mu) for level in range(3)
     ], mu
+
+
+# -- the same faults through the independent generator (test/worlds) ----------------------------
+
+WORLDS_LEVELS = ('low', 'medium', 'high')
+
+
+def worlds_damage(fault: str, rng: np.random.Generator) -> list:
+    """The worlds damage doing `fault` (its own kinds, parameters drawn as ours are)."""
+    import math
+
+    from worlds import (
+        DeadVibrometer,
+        DoubleHit,
+        DroppedSamples,
+        ForceClip,
+        NonFiniteBurst,
+        VibrometerSaturation,
+    )
+
+    if fault == '':
+        return []
+    if fault == 'clipped':
+        return [ForceClip(rng.uniform(0.4, 0.95))]
+    if fault == 'double_hit':
+        return [DoubleHit(rng.uniform(0.1, 0.9), rng.uniform(0.005, 0.3))]
+    if fault == 'dead_sensor':
+        return [DeadVibrometer(None)]
+    if fault == 'disconnected':
+        return [DeadVibrometer(float(rng.uniform(-0.01, 0.01)))]
+    if fault == 'saturation':
+        return [VibrometerSaturation(rng.uniform(0.02, 0.08))]
+    if fault == 'nan_burst':
+        return [
+            NonFiniteBurst(
+                str(rng.choice(['force', 'velocity'])),
+                rng.uniform(0.0, 2.0),
+                int(rng.integers(1, 500)),
+                float(rng.choice([math.nan, math.inf, -math.inf])),
+            )
+        ]
+    if fault == 'dropped_stretch':
+        return [DroppedSamples(rng.uniform(0.0, 2.0), int(rng.integers(1, 2000)))]
+    raise ValueError(f'unknown fault {fault!r}; known: {", ".join(FAULTS)}')
+
+
+def streamed(record, source: str) -> ImpactRecord:
+    """A worlds record as the live capture or a bag replay sees it: samples by their index.
+
+    A dropped stretch is an index jump (the capture's gap), as a DAQ's sample counter shows
+    it; the record ends where the acquisition ends.
+    """
+    from fmm_ros.core.signal.capture import ImpactCapture
+
+    index = np.round(record.time_s * record.sample_rate_hz).astype(np.int64)
+    runs = np.flatnonzero(np.diff(index) != 1) + 1
+    capture = ImpactCapture()
+    found = []
+    for start, stop in zip(np.r_[0, runs], np.r_[runs, index.size], strict=True):
+        found += capture.feed_both(
+            int(index[start]),
+            record.force_n[start:stop],
+            record.velocity_m_s[start:stop],
+            record.sample_rate_hz,
+        )
+    found += capture.end_acquisition()
+    return dataclasses.replace(found[0], source=source)
+
+
+def worlds_session(
+    fault: str, seed: int, damaged: tuple[int, ...] = (0, 1, 2)
+) -> tuple[list[Hit], float]:
+    """session() with the independent generator: worlds' plant, hits, DAQ chain and damage."""
+    from worlds import Coulomb, World, impact_record, random_pulse
+
+    rng = np.random.default_rng(seed)
+    mu = float(PAPER_MU * rng.uniform(0.8, 1.2))
+    world = World(friction=Coulomb(mu))
+    hits = []
+    for level in range(3):
+        kind = fault if level in damaged else ''
+        damage = worlds_damage(kind, rng)
+        record = impact_record(
+            world,
+            rng,
+            pulse=random_pulse(rng, WORLDS_LEVELS[level]),
+            duration_s=DURATION_S,
+            damage=damage,
+        )
+        hits.append(
+            Hit(
+                streamed(record, f'{kind or "clean"}_{level}'),
+                kind,
+                repr(damage[0]) if damage else '',
+            )
+        )
+    return hits, mu

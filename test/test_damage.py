@@ -9,7 +9,7 @@ import json
 
 import numpy as np
 import pytest
-from damaged_records import FAULTS, RATE_HZ, damaged_hit, quantise, session
+from damaged_records import FAULTS, RATE_HZ, damaged_hit, quantise, session, worlds_session
 
 from fmm_ros.cli import main
 from fmm_ros.core.identify.friction import fit_friction
@@ -36,6 +36,8 @@ EXPECTED_FLAG = {
     'dropped_stretch': 'dropout',
 }
 DAMAGE_FLAGS = set(EXPECTED_FLAG.values()) | {'gap'}
+# The independent generator drops samples from the stream (the DAQ's counter jumps): a gap.
+WORLDS_FLAG = EXPECTED_FLAG | {'dropped_stretch': 'gap'}
 
 
 @pytest.mark.parametrize('fault', FAULTS)
@@ -44,6 +46,25 @@ def test_every_fault_raises_its_flag(fault):
         hit = damaged_hit(seed % 3, fault, np.random.default_rng(seed), mu=0.113)
         flags = analyze_impact(hit.record).flags
         assert EXPECTED_FLAG[fault] in flags, (hit.detail, flags)
+
+
+@pytest.mark.parametrize('fault', FAULTS)
+def test_every_fault_of_the_independent_generator_is_flagged_and_left_out(fault):
+    hits, mu = worlds_session(fault, seed=31, damaged=(0, 2))
+    flags = [analyze_impact(hit.record).flags for hit in hits]
+    assert WORLDS_FLAG[fault] in flags[0] and WORLDS_FLAG[fault] in flags[2], flags
+    assert not set(flags[1]) & DAMAGE_FLAGS
+    selection = select_records([hit.record for hit in hits])
+    assert selection.chosen == (1,)
+    assert fit_friction([hits[1].record]).mu == pytest.approx(mu, rel=0.02)
+
+
+def test_clean_records_of_the_independent_generator_raise_no_flag():
+    flagged = []
+    for seed in range(8):
+        hits, _ = worlds_session('', seed=600 + seed, damaged=())
+        flagged += [(seed, analyze_impact(hit.record).flags) for hit in hits]
+    assert [entry for entry in flagged if entry[1]] == []
 
 
 def test_clean_lab_records_raise_no_damage_flag():
