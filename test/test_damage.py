@@ -283,3 +283,31 @@ def test_a_nan_burst_in_a_record_is_flagged_not_a_crash():
     with np.errstate(all='raise'):  # no warning either: a corrupt stretch is data, not a bug
         flags = analyze_impact(record).flags
     assert 'nan' in flags
+
+
+@pytest.mark.ros
+def test_the_fitter_service_leaves_flagged_impacts_out_unless_asked(ros_graph):
+    from rclpy.node import Node
+
+    from fmm_interfaces.srv import FitFriction
+    from fmm_ros.constants import FIT_SERVICE
+    from fmm_ros.ros.nodes.fitter import Fitter, HeldImpact
+
+    hits, mu = session('dead_sensor', seed=41, damaged=(2,))
+    fitter = ros_graph.add(Fitter, parameter_overrides=[])
+    client = ros_graph.add(Node, node_name='caller').create_client(FitFriction, FIT_SERVICE)
+    ros_graph.start()
+    for number, hit in enumerate(hits):  # as if the analyzer had reported them
+        flags = analyze_impact(hit.record).flags
+        fitter.impacts[number] = HeldImpact(number, '', not flags, flags, hit.record)
+    response = ros_graph.call(client, FitFriction.Request(), timeout_s=120.0)
+    assert response.success, response.message
+    assert list(response.impact_ids) == [0, 1]
+    assert response.mu == pytest.approx(mu, rel=0.02)
+    assert 'left out 1 flagged impact(s): impact 2 (no_response)' in response.message
+    response = ros_graph.call(client, FitFriction.Request(include_flagged=True), timeout_s=120.0)
+    assert not response.success  # the dead vibrometer's record shows no motion to fit
+    only_flagged = FitFriction.Request(impact_ids=[2])
+    response = ros_graph.call(client, only_flagged, timeout_s=120.0)
+    assert not response.success
+    assert response.message.startswith('no clean impact to fit: impact 2 (no_response)')
