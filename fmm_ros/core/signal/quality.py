@@ -16,7 +16,9 @@ samples themselves.
   so one stretch-length beyond either end (3h from its middle) it can have dropped by at most
   9t. A clipped signal rose into the rail and falls off it: it has dropped by far more.
   `FLAT_DROP_FACTOR` (16) leaves a margin for noise; clipping shallower than about 2 t is not
-  seen, and does not matter.
+  seen, and does not matter. A plateau of a few samples must also be flat within a few noise
+  deviations: the top of a sharp hammer pulse, or of its tip ringing at kHz, can put three
+  samples inside the wide band and then fall away steeply.
 - Stuck stretch (`stuck_stretch`): a noisy channel (`has_white_noise`) cannot repeat one exact
   value for long. A channel whose consecutive samples are equal with probability p repeats one
   for k samples by chance about n p^(k-1) times in n samples; a run longer than makes that
@@ -53,6 +55,13 @@ FLAT_MIN_SAMPLES = 3
 FLAT_NOISE_WIDTH = 10.0
 """Samples within this many noise deviations of the extreme count as on it (noise added after
 the rail spreads a plateau by a few deviations; the largest of 10^4 samples lies ~4 above it)."""
+
+FLAT_SHORT_SAMPLES = 8
+"""A plateau shorter than this many samples ..."""
+
+FLAT_SHORT_NOISE_WIDTH = 4.0
+"""... must span at most this many noise deviations (three noisy samples of a rail span about
+two; the top of a ringing pulse can span six)."""
 
 FLAT_DROP_FACTOR = 16.0
 """A flat top must fall by more than this many tolerances one stretch-length beyond its ends
@@ -137,6 +146,12 @@ def flat_extreme(
     run = stop - start
     if run < FLAT_MIN_SAMPLES:
         return None
+    if run < FLAT_SHORT_SAMPLES:
+        # A few samples near the top can be a sharp peak's, or its ringing's, within the wide
+        # band: a short plateau must be flat within the noise of a few samples.
+        spread = float(np.ptp(values[start:stop]))
+        if spread > max(0.5 * quantum(near), FLAT_SHORT_NOISE_WIDTH * noise, 1e-12 * abs(level)):
+            return None
     # One stretch-length beyond each end, or the record's first or last sample: nearer the
     # plateau a smooth peak has dropped less, so the clamp never makes one look clipped.
     left, right = max(start - run + 1, 0), min(stop + run - 2, values.size - 1)
