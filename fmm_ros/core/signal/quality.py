@@ -16,9 +16,9 @@ samples themselves.
   so one stretch-length beyond either end (3h from its middle) it can have dropped by at most
   9t. A clipped signal rose into the rail and falls off it: it has dropped by far more.
   `FLAT_DROP_FACTOR` (16) leaves a margin for noise; clipping shallower than about 2 t is not
-  seen, and does not matter. A plateau of a few samples must also be flat within a few noise
-  deviations: the top of a sharp hammer pulse, or of its tip ringing at kHz, can put three
-  samples inside the wide band and then fall away steeply.
+  seen, and does not matter. A plateau of a few samples is judged again in a band of a few
+  noise deviations: the top of a sharp hammer pulse, or of its tip ringing at kHz, can put
+  three samples inside the wide band and then fall away steeply.
 - Stuck stretch (`stuck_stretch`): a noisy channel (`has_white_noise`) cannot repeat one exact
   value for long. A channel whose consecutive samples are equal with probability p repeats one
   for k samples by chance about n p^(k-1) times in n samples; a run longer than makes that
@@ -57,11 +57,11 @@ FLAT_NOISE_WIDTH = 10.0
 the rail spreads a plateau by a few deviations; the largest of 10^4 samples lies ~4 above it)."""
 
 FLAT_SHORT_SAMPLES = 8
-"""A plateau shorter than this many samples ..."""
+"""A plateau shorter than this many samples in the wide band ..."""
 
 FLAT_SHORT_NOISE_WIDTH = 4.0
-"""... must span at most this many noise deviations (three noisy samples of a rail span about
-two; the top of a ringing pulse can span six)."""
+"""... is judged again with samples within this many noise deviations of the extreme (a rail's
+noisy samples lie within about two; the top of a ringing pulse spreads over six)."""
 
 FLAT_DROP_FACTOR = 16.0
 """A flat top must fall by more than this many tolerances one stretch-length beyond its ends
@@ -132,31 +132,35 @@ def flat_extreme(
     peak_at = int(np.argmax(np.where(finite, values, -np.inf)))
     level = values[peak_at]
     noise = white_noise_std(samples) if noise_std is None else noise_std
+    noise = noise if np.isfinite(noise) else 0.0
     near = values[max(0, peak_at - ROBUST_SUBSAMPLE_MIN) : peak_at + ROBUST_SUBSAMPLE_MIN]
-    tolerance = max(
-        0.5 * quantum(near),
-        FLAT_NOISE_WIDTH * (noise if np.isfinite(noise) else 0.0),
-        1e-12 * abs(level),
-    )
-    off = ~(level - values <= tolerance)  # NaN is off the plateau
-    after = first_true(off[peak_at:])
-    stop = values.size if after < 0 else peak_at + after
-    before = first_true(off[peak_at::-1])
-    start = 0 if before < 0 else peak_at - before + 1
+    floor = max(0.5 * quantum(near), 1e-12 * abs(level))
+    tolerance = max(floor, FLAT_NOISE_WIDTH * noise)
+    start, stop = _run_around(values, peak_at, tolerance)
+    if stop - start < FLAT_SHORT_SAMPLES:
+        # A few samples in the wide band can be a sharp peak's top, or its tip's ringing: a
+        # short plateau must hold within the noise of a few samples.
+        tolerance = max(floor, FLAT_SHORT_NOISE_WIDTH * noise)
+        start, stop = _run_around(values, peak_at, tolerance)
     run = stop - start
     if run < FLAT_MIN_SAMPLES:
         return None
-    if run < FLAT_SHORT_SAMPLES:
-        # A few samples near the top can be a sharp peak's, or its ringing's, within the wide
-        # band: a short plateau must be flat within the noise of a few samples.
-        spread = float(np.ptp(values[start:stop]))
-        if spread > max(0.5 * quantum(near), FLAT_SHORT_NOISE_WIDTH * noise, 1e-12 * abs(level)):
-            return None
     # One stretch-length beyond each end, or the record's first or last sample: nearer the
     # plateau a smooth peak has dropped less, so the clamp never makes one look clipped.
     left, right = max(start - run + 1, 0), min(stop + run - 2, values.size - 1)
     drop = min(level - values[left], level - values[right])
     return float(sign * level) if drop > FLAT_DROP_FACTOR * tolerance else None
+
+
+def _run_around(values: np.ndarray, peak_at: int, tolerance: float) -> tuple[int, int]:
+    """[start, stop) of the samples around peak_at within tolerance of it (NaN never is)."""
+    off = ~(values[peak_at] - values <= tolerance)
+    after = first_true(off[peak_at:])
+    before = first_true(off[peak_at::-1])
+    return (
+        0 if before < 0 else peak_at - before + 1,
+        values.size if after < 0 else peak_at + after,
+    )
 
 
 def has_white_noise(samples: np.ndarray) -> bool:
