@@ -390,7 +390,7 @@ class BagReader:
         for topic in topics:
             self.require(topic, SAMPLE_BATCH)
         for message, batch in self._decode_each(self.messages(topics)):
-            yield channel_batch(message, batch)
+            yield channel_batch(message, batch, self.path)
 
     def channel(self, topic: str) -> Iterator[ChannelBatch]:
         """Every SampleBatch of one channel topic, in storage order."""
@@ -410,11 +410,11 @@ class BagReader:
             yield from aligner.add(0 if batch.topic == force_topic else 1, batch)
 
 
-def channel_batch(message: BagMessage, batch) -> ChannelBatch:
+def channel_batch(message: BagMessage, batch, bag: str | Path = '') -> ChannelBatch:
     """A decoded SampleBatch message as a ChannelBatch (samples stay a read-only view).
 
-    BagError when the message lacks a field read here: the bag's embedded definition of the
-    type is not ours (damaged bytes in it decode to other field names).
+    BagError (naming the bag) when the message lacks a field read here: the bag's embedded
+    definition of the type is not ours (damaged bytes in it decode to other field names).
     """
     try:
         samples = batch.samples
@@ -434,8 +434,9 @@ def channel_batch(message: BagMessage, batch) -> ChannelBatch:
         )
     except AttributeError as error:
         raise BagError(
-            f'a {message.msgtype} message on {message.topic} has no field {error.name!r}: '
-            'the bag defines the type differently (a damaged or foreign definition)'
+            f'{f"bag {bag}: " if bag else ""}a {message.msgtype} message on {message.topic} '
+            f'has no field {error.name!r}: the bag defines the type differently (a damaged or '
+            'foreign definition)'
         ) from None
 
 
