@@ -420,12 +420,12 @@ def test_all_rejected_session_still_reports_and_says_why_mu_is_not_fitted(tmp_pa
             ]
         )
     assert code == 1  # the page is written, but mu could not be fitted
-    assert 'cannot fit mu: no accepted impact to fit' in capsys.readouterr().err
+    assert 'cannot fit mu: no clean impact to fit: impact 0 (' in capsys.readouterr().err
     text = (out / 'index.html').read_text(encoding='utf-8')
     _, rows = hit_rows(text)
     assert [(css, row['flags']) for css, row in rows] == [('rejected', 'clipped')]
     assert 'No level has an accepted hit' in text
-    assert 'No friction fit: no accepted impact to fit' in text
+    assert 'No friction fit: no clean impact to fit: impact 0 (' in text
     check_figures(out, text, {'hit_000'})
     assert clipped_figures == []
 

@@ -69,7 +69,7 @@ def build_report(
     _session_section(page, session)
     _hit_table(page, summary, comparison)
     _level_section(page, summary, session.analysis)
-    _model_section(page, summary, comparison, session.friction, session.fit_failure)
+    _model_section(page, session)
     _time_section(page, session, colours)
     _frf_section(page, summary, colours, comparison)
     if session.diagnosis is not None or session.diagnosis_failure:
@@ -227,18 +227,15 @@ def _level_section(page: Page, summary: Summary, analysis) -> None:
     )
 
 
-def _model_section(
-    page: Page,
-    summary: Summary,
-    comparison: ModelComparison | None,
-    friction: FrictionResult | None,
-    fit_failure: str,
-) -> None:
+def _model_section(page: Page, session: SessionResult) -> None:
+    summary, comparison, friction = session.summary, session.comparison, session.friction
     page.section('Friction coefficient and model', 'model')
     if friction is not None:
         _friction(page, summary, friction)
-    elif fit_failure:
-        page.text(f'No friction fit: {fit_failure}', note=True)
+        if session.selection is not None and session.selection.note:
+            page.text(session.selection.note, note=True)
+    elif session.fit_failure:
+        page.text(f'No friction fit: {session.fit_failure}', note=True)
     if comparison is None:
         page.text('No model overlay: no friction coefficient was given or fitted.', note=True)
         return
@@ -449,6 +446,8 @@ def _diagnosis_section(
         f'(velocity noise {result.noise_std_m_s * MM_PER_M:.3g} mm/s from the data).'
     )
     page.text(f'Verdict: {result.verdict}')
+    if session.selection is not None and session.selection.note:
+        page.text(session.selection.note, note=True)
     page.text(f'Where the base model misses: {result.where.summary}.')
     page.table(
         ['parameter of the named model', 'value ± 1σ', 'unit'],

@@ -7,6 +7,8 @@
 - `Diagnosis` (`fmm_ros.core.diagnose`): `diagnosis_dict` is the JSON of `fmm diagnose --json`
   and of a session's summary; the DiagnoseModel response is filled from the same object.
 - `Summary` (`fmm_ros.core.signal.analysis`): `analysis_dict` is the JSON of `fmm analyze`.
+- `ImpactSelection` (`select_impacts`): `selection_dict` names the impacts a fit left out (and
+  flagged ones taken on request), in `fmm fit --json` and a session's JSON.
 
 Undefined numbers (a standard error of something not fitted, R^2 of two levels) are NaN in
 the objects and null in JSON.
@@ -35,7 +37,7 @@ from fmm_ros.core.identify.friction import FrictionFit
 from fmm_ros.core.identify.running import RunningEstimate, running_estimates
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.physics.terms import ModelTerm
-from fmm_ros.core.signal.analysis import Summary
+from fmm_ros.core.signal.analysis import ImpactSelection, Summary
 from fmm_ros.io.frf_files import json_number
 
 
@@ -247,6 +249,23 @@ def analysis_dict(summary: Summary) -> dict:
             },
         }
     )
+
+
+def selection_dict(selection: ImpactSelection | None) -> dict:
+    """JSON keys naming the impacts left out of a fit (and flagged ones taken on request)."""
+    if selection is None:
+        return {}
+
+    def entries(items: tuple) -> list[dict]:
+        return [
+            {'impact_id': impact_id, 'file': source or None, 'flags': list(flags)}
+            for impact_id, flags, source in items
+        ]
+
+    return {
+        'left_out': entries(selection.excluded),
+        'included_flagged': entries(selection.included_flagged),
+    }
 
 
 def diagnosis_dict(diagnosis: Diagnosis) -> dict:

@@ -28,6 +28,7 @@ import numpy as np
 
 from fmm_ros.core._checks import finite_samples, require_positive
 from fmm_ros.core.signal.frf import impulse
+from fmm_ros.core.signal.quality import robust_center_and_std, white_noise_std
 
 HIT_THRESHOLD_SIGMA = 10.0
 """A hit departs from the force baseline by more than this many noise deviations (Gaussian
@@ -59,12 +60,6 @@ FIT_FAILURES = (
     'no_convergence',
     'too_few_cycles',
 )
-
-
-_MAD_TO_STD = 1.482602218505602  # 1 / Phi^-1(3/4): MAD of Gaussian noise -> its deviation
-
-
-_ROBUST_SUBSAMPLE_MIN = 5000
 
 
 class FitError(ValueError):
@@ -163,7 +158,7 @@ def condition_impact(
         raise ValueError(
             f'{source_prefix(source)}a record needs at least 16 samples, got {force.size}'
         )
-    center, noise_n = _robust_center_and_std(force)
+    center, noise_n = robust_center_and_std(force)
     peak = max(float(force.max()) - center, center - float(force.min()))
     if peak <= HIT_THRESHOLD_SIGMA * noise_n or peak == 0.0:
         raise FitError(
@@ -228,25 +223,12 @@ def cropped_impact(impact: ConditionedImpact, stop_index: int) -> ConditionedImp
 def velocity_noise_std(velocity_m_s: np.ndarray) -> float:
     """White-noise deviation of a velocity record [m/s], blind to the motion itself.
 
-    The MAD deviation of the second differences over sqrt(6): the rig's few-Hz motion barely
+    The signal core's `white_noise_std` (MAD deviation of the second differences over sqrt(6)),
+    the same estimate its quality flags judge a record by: the rig's few-Hz motion barely
     changes over two samples at 10 kHz, white noise does, and the median ignores the hit and
     the stops.
     """
-    second = np.diff(np.asarray(velocity_m_s, dtype=float), n=2)
-    if second.size == 0:
-        return 0.0
-    return _robust_center_and_std(second)[1] / math.sqrt(6.0)
-
-
-def _robust_center_and_std(values: np.ndarray) -> tuple[float, float]:
-    """Median and MAD-based deviation (of every 8th sample in long records).
-
-    Eight times cheaper, and 40,000 samples pin a noise level to about half a per cent.
-    """
-    if values.size > 8 * _ROBUST_SUBSAMPLE_MIN:
-        values = values[::8]
-    center = float(np.median(values))
-    return center, _MAD_TO_STD * float(np.median(np.abs(values - center)))
+    return white_noise_std(velocity_m_s)
 
 
 def as_conditioned(impact) -> ConditionedImpact:

@@ -121,6 +121,10 @@ class BagWriter:
             self._open = False
             self._writer.close()
 
+    def set_custom_data(self, key: str, value: str) -> None:
+        """A key and text value for metadata.yaml's custom_data (written when the bag closes)."""
+        self._writer.set_custom_data(key, value)
+
     def add_topic(self, topic: str, msgtype: str, *, qos: Qos | None = None) -> None:
         """Declare topic with msgtype (done on first write otherwise); qos: the offered QoS."""
         if topic in self._connections:
