@@ -12,8 +12,7 @@ from pathlib import Path
 
 from fmm_ros.cli.analyze import add_analysis_options, analysis_configs, report, text_report
 from fmm_ros.cli.progress import add_quiet_flag, progress_bar, report_problems
-from fmm_ros.constants import FORCE_TOPIC, VELOCITY_TOPIC
-from fmm_ros.io.bags import BagReader
+from fmm_ros.io.bags import SAMPLE_BATCH, BagReader
 from fmm_ros.io.frf_files import level_curves, write_frfs
 from fmm_ros.workflows.replay import replay_bag
 
@@ -48,8 +47,7 @@ def run(args: argparse.Namespace) -> int:
     """Replay, then print the analyzer's output and the replay speed."""
     capture, analysis = analysis_configs(args)
     with BagReader(args.bag, strict=False) as reader:  # the batch count, for the progress bar
-        topics = reader.topics
-    total = sum(topics[t].count for t in (FORCE_TOPIC, VELOCITY_TOPIC) if t in topics)
+        total = sum(info.count for info in reader.topics.values() if info.msgtype == SAMPLE_BATCH)
     start = time.perf_counter()
     with progress_bar(total, desc='replaying', unit='batch', quiet=args.quiet) as bar:
         replay = replay_bag(args.bag, capture, analysis, on_batch=lambda _: bar.update())
@@ -66,6 +64,7 @@ def run(args: argparse.Namespace) -> int:
             'wall_s': wall_s,
             'times_real_time': speed,
             'problems': replay.problems,
+            'ledger': {name: ledger.to_dict() for name, ledger in replay.ledger.items()},
         }
         print(json.dumps(document, indent=2, allow_nan=False))
     else:
@@ -74,4 +73,6 @@ def run(args: argparse.Namespace) -> int:
             f'\nreplayed {replay.signal_s:.1f} s of signal ({replay.batches} batches) in '
             f'{wall_s:.2f} s: {speed:.0f}x real time'
         )
+        for ledger in replay.ledger.values():
+            print(f'stream: {ledger.summary()}')
     return report_problems('replay', replay.problems)
