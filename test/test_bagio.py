@@ -20,7 +20,6 @@ from fmm_ros.io.bags import (
     new_message,
 )
 
-
 # A bag holds the names a node in the root namespace resolves the relative topics to.
 FORCE_TOPIC, VELOCITY_TOPIC, IMPACTS_TOPIC, FRF_TOPIC = map(
     resolve_name, (FORCE_TOPIC, VELOCITY_TOPIC, IMPACTS_TOPIC, FRF_TOPIC)

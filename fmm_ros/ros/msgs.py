@@ -14,6 +14,7 @@ from fmm_interfaces.msg import FrfSummary, ImpactResult, SampleBatch
 from fmm_ros.constants import Channel
 from fmm_ros.core import diagnose
 from fmm_ros.core.signal import analysis, frf
+from fmm_ros.core.signal.stream import Batch
 
 
 def float64_field(values: np.ndarray) -> array.array:
@@ -53,6 +54,28 @@ def sample_batch(
 def batch_samples(msg: SampleBatch) -> np.ndarray:
     """The samples of a SampleBatch as a read-only float64 view (no copy)."""
     return field_array(msg.samples)
+
+
+def stamp_ns(stamp: Time) -> int:
+    """A builtin_interfaces/Time as nanoseconds."""
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+def time_msg(nanoseconds: int) -> Time:
+    """Nanoseconds as a builtin_interfaces/Time."""
+    return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
+
+
+def stream_batch(msg: SampleBatch) -> Batch:
+    """A SampleBatch as the signal core's stream takes it (samples viewed, not copied)."""
+    return Batch(
+        msg.first_sample_index,
+        field_array(msg.samples),
+        msg.sample_rate_hz,
+        msg.full_scale,
+        msg.header.frame_id,
+        stamp_ns(msg.header.stamp),
+    )
 
 
 def _set_complex(msg: object, name: str, values: np.ndarray) -> None:

@@ -440,6 +440,10 @@ class ImpactCapture:
             sender,
             int(stamp_ns),
         )
+        return self.feed_batch(quantity, batch)
+
+    def feed_batch(self, quantity: str, batch: Batch) -> list[ImpactRecord]:
+        """`feed` for a batch already in the stream's form (a node's message, a bag's)."""
         self.stream.feed(quantity, batch)
         return self._completed()
 

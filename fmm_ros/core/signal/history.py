@@ -69,14 +69,20 @@ class SampleHistory:
 
         Refusals are counted in `ledger`; ValueError only for malformed input.
         """
-        batch = Batch(
-            int(first_sample_index),
-            np.asarray(samples, dtype=float),
-            sample_rate_hz,
-            float(full_scale),
-            sender,
-            int(stamp_ns),
+        self.feed_batch(
+            quantity,
+            Batch(
+                int(first_sample_index),
+                np.asarray(samples, dtype=float),
+                sample_rate_hz,
+                float(full_scale),
+                sender,
+                int(stamp_ns),
+            ),
         )
+
+    def feed_batch(self, quantity: str, batch: Batch) -> None:
+        """`feed` for a batch already in the stream's form (a node's message)."""
         self.stream.feed(quantity, batch)
 
     # -- the stream's sink ------------------------------------------------------------------------

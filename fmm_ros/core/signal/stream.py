@@ -65,6 +65,7 @@ FAULTS: dict[str, str] = {
     'stray': 'a batch that broke the sequence once and was refused when the next continued it',
     'stale': 'a batch of the previous acquisition after the stream had resynchronised',
     'mismatch': 'a batch at another sample rate than the acquisition the stream follows',
+    'malformed': 'a batch that is no sample batch (rate not positive, wrong shape or channel)',
     'unconfirmed': 'a discontinuous batch at the end of the stream, never confirmed',
     'reset': 'a new acquisition: the index went back',
     'jump': 'a new acquisition: the index jumped far ahead',
@@ -312,7 +313,7 @@ class AlignedStream:
     def feed(self, quantity: str, batch: Batch) -> None:
         """Apply one batch of one channel; its faults go to the ledger, never raise."""
         channel = self._channel(quantity)
-        _check(quantity, batch)
+        check(quantity, batch)
         if channel.held is not None:
             self._resolve_held(channel, batch)
         else:
@@ -332,6 +333,10 @@ class AlignedStream:
             self._skew_deferred = False
         if self.started:
             self._bound_skew()
+
+    def refuse_malformed(self, quantity: str, samples: int) -> None:
+        """Count a batch the caller could not even make a Batch of (see `check` for why)."""
+        self._channel(quantity).ledger._refuse('malformed', samples)
 
     def finish(self) -> None:
         """End of stream: a batch still held was never confirmed, so it is refused."""
@@ -515,7 +520,27 @@ class AlignedStream:
                 self._missing(channel, lead - self._max_skew, 'skew')
 
 
-def _check(quantity: str, batch: Batch) -> None:
+class LedgerOnly:
+    """A sink that keeps no samples: a stream run for its ledger alone.
+
+    The recorder stores every batch as it came (a recording must not drop what a consumer
+    would refuse); its ledger is the stream's account of what it recorded.
+    """
+
+    def begin(self, sample_rate_hz: float, first_index: int) -> None:
+        """Nothing to size."""
+
+    def end(self, reason: str) -> None:
+        """Nothing to close."""
+
+    def take(self, quantity: str, first_index: int, samples: np.ndarray, full_scale: float) -> None:
+        """Nothing to keep."""
+
+    def missing(self, quantity: str, start: int, stop: int) -> None:
+        """Nothing to mark."""
+
+
+def check(quantity: str, batch: Batch) -> None:
     """Malformed input is a caller's mistake, not a fault of the stream: ValueError."""
     if batch.samples.ndim != 1:
         raise ValueError(

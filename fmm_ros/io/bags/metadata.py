@@ -9,6 +9,7 @@ import functools
 import importlib.metadata
 import json
 import os
+from pathlib import Path
 
 import yaml
 from rosbags.interfaces import Qos
@@ -138,3 +139,18 @@ def custom_ledger(custom_data: dict[str, str] | None) -> dict[str, ChannelLedger
         return {topic: ChannelLedger.from_dict(entry) for topic, entry in data.items()}
     except (ValueError, TypeError, AttributeError) as error:
         raise ValueError(f'custom_data {LEDGER_KEY} is not a ledger: {error}') from None
+
+
+def read_information(bag: Path) -> dict:
+    """A bag directory's `rosbag2_bagfile_information` (empty without a readable metadata.yaml)."""
+    path = Path(bag) / 'metadata.yaml'
+    if not path.is_file():
+        return {}
+    try:
+        document = yaml.safe_load(path.read_text(encoding='utf-8'))
+    except (yaml.YAMLError, UnicodeDecodeError):
+        return {}
+    information = (
+        document.get('rosbag2_bagfile_information') if isinstance(document, dict) else None
+    )
+    return information if isinstance(information, dict) else {}

@@ -41,6 +41,7 @@ from fmm_ros.io.bags.definitions import (
 )
 from fmm_ros.io.bags.errors import BagDamagedError, BagError, MessageTypeError, MissingTopicError
 from fmm_ros.io.bags.mcapscan import Damage, McapScan
+from fmm_ros.io.bags.metadata import custom_ledger, read_information
 from fmm_ros.io.bags.sqlitescan import SqliteScan
 
 
@@ -129,6 +130,11 @@ class BagReader:
         self.typestore = fmm_typestore()
         # What batches() counted per channel (taken, missing, refused): filled as it reads.
         self.ledger: dict[str, ChannelLedger] = {}
+        # From metadata.yaml: rosbag2's custom_data, the ROS distribution, and the ledger the
+        # recorder wrote into custom_data (what the bag says of its own completeness).
+        self.custom_data: dict[str, str] = {}
+        self.ros_distro = ''
+        self.recorded_ledger: dict[str, ChannelLedger] = {}
 
     def __enter__(self) -> 'BagReader':
         self.open()
@@ -142,6 +148,14 @@ class BagReader:
     def open(self) -> None:
         """Open the bag: through rosbags when it is intact, else by scanning its MCAP file."""
         target = self._storage_target()
+        if self.path.is_dir():
+            information = read_information(self.path)
+            self.custom_data = dict(information.get('custom_data') or {})
+            self.ros_distro = str(information.get('ros_distro') or '')
+            try:
+                self.recorded_ledger = custom_ledger(self.custom_data)
+            except ValueError as error:
+                self._note(str(error))
         if self.storage == 'sqlite3':
             _roll_back_unfinished_transaction(target)
         try:

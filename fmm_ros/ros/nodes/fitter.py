@@ -1,11 +1,13 @@
-"""fitter: the /fmm/fit_friction and /fmm/diagnose_model services over the analyzer's impacts.
+"""fitter: the fmm/fit_friction and fmm/diagnose_model services over the analyzer's impacts.
 
-The fitter keeps the recent force and velocity streams itself (`SampleHistory`) and cuts each
-impact the analyzer reports on /fmm/impacts out of them by sample index, keeping the last
-`keep_last_impacts`. So no record travels over a service, a bag played into the graph is
-fitted like a live session, and the analyzer stays a pure stream processor. A request that
-cannot be answered (no impacts yet, unknown ids, a record friction cannot explain) gets
-success = false and the reason, never a number.
+The fitter keeps the recent force and velocity streams itself (`SampleHistory`, sized from the
+batches' own rate, under the same stream rules as the analyzer) and cuts each impact the
+analyzer reports on fmm/impacts out of them by sample index, keeping the last
+`keep_last_impacts`; an impact stamped with another acquisition's clock (the source restarted
+in between) is not cut from this one's samples. So no record travels over a service, a bag
+played into the graph is fitted like a live session, and the analyzer stays a pure stream
+processor. A request that cannot be answered (no impacts yet, unknown ids, a record friction
+cannot explain) gets success = false and the reason, never a number.
 
 Service callbacks run in their own callback group, so under `ros2 run` (a multi-threaded
 executor) the streams keep flowing while a fit runs.
@@ -18,23 +20,19 @@ from dataclasses import dataclass
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
 
-from fmm_interfaces.msg import ImpactResult, SampleBatch
+from fmm_interfaces.msg import ImpactResult
 from fmm_interfaces.srv import DiagnoseModel, FitFriction
-from fmm_ros.constants import (
-    DIAGNOSE_SERVICE,
-    FIT_SERVICE,
-    FORCE_TOPIC,
-    IMPACTS_TOPIC,
-    SAMPLE_RATE_HZ,
-    VELOCITY_TOPIC,
-)
+from fmm_ros.constants import DIAGNOSE_SERVICE, FIT_SERVICE, IMPACTS_TOPIC
 from fmm_ros.core.diagnose.workflow import diagnose
 from fmm_ros.core.identify.conditioning import FitError
 from fmm_ros.core.identify.friction import MU_BOUNDS, fit_friction
 from fmm_ros.core.signal.history import SampleHistory
 from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.core.signal.stream import Batch
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import RESULT_QOS, RIG_PARAMS, SAMPLE_QOS, rig_from_parameters, run_node
+from fmm_ros.ros.common import RESULT_QOS, RIG_PARAMS, rig_from_parameters, run_node
+from fmm_ros.ros.health import OK, Health
+from fmm_ros.ros.inputs import SampleInputs
 from fmm_ros.ros.params import Param, declare_parameters
 
 PARAMS = (
@@ -60,13 +58,6 @@ PARAMS = (
         limits=(1.0, 3600.0),
         read_only=True,
     ),
-    Param(
-        'sample_rate_hz',
-        SAMPLE_RATE_HZ,
-        'Expected sample rate, sizes the history [Hz]',
-        limits=(1.0, 1e7),
-        read_only=True,
-    ),
 )
 
 
@@ -89,15 +80,18 @@ class Fitter(Node):
         self.config = declare_parameters(self, PARAMS)
         cfg = self.config
         self.rig = rig_from_parameters(cfg)
-        self.history = SampleHistory(int(cfg['history_s'] * cfg['sample_rate_hz']))
+        self.history = SampleHistory(cfg['history_s'])
         self.impacts: OrderedDict[int, HeldImpact] = OrderedDict()
         self._waiting: list[ImpactResult] = []
+        self._acquisition = 0
+        self.last_fit = ''
         self._lock = threading.Lock()  # impacts: written by the stream group, read by services
         streams = MutuallyExclusiveCallbackGroup()
-        for topic in (FORCE_TOPIC, VELOCITY_TOPIC):
-            self.create_subscription(
-                SampleBatch, topic, self._on_batch, SAMPLE_QOS, callback_group=streams
-            )
+        health = Health(self)
+        self.inputs = SampleInputs(
+            self, self.history.stream, self._on_batch, health, callback_group=streams
+        )
+        health.add('fits', self._fits_status)
         self.create_subscription(
             ImpactResult, IMPACTS_TOPIC, self._on_impact, RESULT_QOS, callback_group=streams
         )
@@ -114,26 +108,48 @@ class Fitter(Node):
 
     # -- streams ----------------------------------------------------------------------------
 
-    def _on_batch(self, msg: SampleBatch) -> None:
-        try:
-            self.history.feed(
-                msg.quantity,
-                msg.first_sample_index,
-                msgs.batch_samples(msg),
-                msg.sample_rate_hz,
-                msg.full_scale,
-            )
-        except ValueError as error:
-            self.get_logger().error(
-                f'{msg.quantity} batch {msg.first_sample_index} refused: {error}',
-                throttle_duration_sec=5.0,
-            )
-            return
+    def _on_batch(self, quantity: str, batch: Batch) -> None:
+        self.history.feed_batch(quantity, batch)
+        if self.history.acquisitions != self._acquisition:
+            self._acquisition = self.history.acquisitions
+            if self._waiting:
+                self.get_logger().warning(
+                    f'a new acquisition began: impacts {[m.impact_id for m in self._waiting]} '
+                    'of the previous one cannot be cut any more'
+                )
+                self._waiting.clear()
         self._cut_waiting()
 
     def _on_impact(self, msg: ImpactResult) -> None:
+        origin = self.history.origin_s
+        if origin is not None and msg.sample_rate_hz > 0:
+            impact_origin = msgs.stamp_ns(msg.header.stamp) / 1e9 - (
+                msg.trigger_sample_index / msg.sample_rate_hz
+            )
+            if abs(impact_origin - origin) > self.history.stream.rules.clock_tolerance_s:
+                self.get_logger().warning(
+                    f'impact {msg.impact_id} belongs to another acquisition than the samples '
+                    'held (its clock differs): not held'
+                )
+                return
         self._waiting.append(msg)
         self._cut_waiting()
+
+    def _fits_status(self) -> tuple:
+        with self._lock:
+            held = list(self.impacts.values())
+        return (
+            OK,
+            f'{len(held)} impacts held ({sum(i.accepted for i in held)} accepted); '
+            + (self.last_fit or 'no fit yet'),
+            {
+                'impacts held': len(held),
+                'accepted held': sum(i.accepted for i in held),
+                'impacts waiting for samples': len(self._waiting),
+                'history s': self.history.history_s,
+                'last fit': self.last_fit or 'none',
+            },
+        )
 
     def _cut_waiting(self) -> None:
         """Cut the records of reported impacts whose samples have all arrived."""
@@ -220,6 +236,7 @@ class Fitter(Node):
             f'mu = {fit.mu:.5f} +- {fit.mu_stderr:.2g} over {len(impacts)} '
             f'impacts; one mu serves all: p = {fit.consistency_p_value:.3g}'
         )
+        self.last_fit = response.message
         self.get_logger().info(response.message)
         return response
 
@@ -248,9 +265,9 @@ def _refused(response: object, reason: str) -> object:
     return response
 
 
-def main(args: list[str] | None = None) -> None:
+def main(args: list[str] | None = None) -> int:
     """`ros2 run fmm_ros fitter`: two threads, so fits do not stall the streams."""
-    run_node(Fitter, args, threads=2)
+    return run_node(Fitter, args, threads=2)
 
 
 if __name__ == '__main__':
