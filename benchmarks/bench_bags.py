@@ -71,7 +71,7 @@ def write_raw(path: Path, _force, _velocity, raw) -> None:
 
 
 def write_rosbags(path: Path, _force, _velocity, raw) -> None:
-    """The rosbags library's own rosbag2 writer, as the core writer used it before (no chunk CRCs)."""
+    """The rosbags library's own rosbag2 writer, as the core writer used it (no chunk CRCs)."""
     store = fmm_typestore()
     with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
         connections = {}

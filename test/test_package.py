@@ -20,10 +20,12 @@ OPTIONAL_IMPORTS = {'nidaqmx': 'fmm_ros/ros/nodes/daq.py'}
 ROSDEP_KEYS = {
     'ament_index_python': 'ament_index_python',
     'builtin_interfaces': 'builtin_interfaces',
+    'diagnostic_msgs': 'diagnostic_msgs',
     'fmm_interfaces': 'fmm_interfaces',
     'h5py': 'python3-h5py',
     'lz4': 'python3-lz4',
     'matplotlib': 'python3-matplotlib',
+    'mcap': 'python3-mcap-pip',
     'nptdms': 'python3-nptdms-pip',
     'numba': 'python3-numba',
     'numpy': 'python3-numpy',

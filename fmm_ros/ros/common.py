@@ -75,6 +75,10 @@ RESULT_QOS = QoSProfile(
 # The signals a process manager sends a node: Ctrl-C, systemd / docker stop / ros2 launch's
 # escalation, and a closed terminal or a launcher's reload.
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+# A consumer asked to stop first takes the batches already queued for it: until none came
+# for DRAIN_QUIET_S, at most DRAIN_MAX_S [s]. (The launcher stops the sources first.)
+DRAIN_QUIET_S = 0.1
+DRAIN_MAX_S = 1.0
 
 
 def run_node(
@@ -90,8 +94,9 @@ def run_node(
     node's subscriptions still exist and the middleware still delivers to them; the recorder,
     closing its bag in that window, crashed in a middleware thread about one run in ten. Here
     a signal only asks the spin loop to stop (checked every `stop_poll_s` when idle; a
-    callback under way finishes), and the node goes before the context, so a node stopped by
-    any of STOP_SIGNALS closes what it holds (the recorder its bag) and exits 0. The handlers
+    callback under way finishes), a consumer of batches takes what is already queued for it
+    (`_drain`), and the node goes before the context, so a node stopped by any of
+    STOP_SIGNALS closes what it holds (the recorder its bag) and exits 0. The handlers
     replace whatever was inherited, also SIG_IGN (a script's background job ignores SIGINT).
     A source whose consumers never appeared (`SourceStartTimeout`) exits 1 with the reason.
     threads > 1 spins a MultiThreadedExecutor, for nodes whose callback groups let a long
@@ -114,6 +119,7 @@ def run_node(
         executor.add_node(node)
         while not stop_requested.is_set() and rclpy.ok():
             executor.spin_once(timeout_sec=stop_poll_s)
+        _drain(executor, node)
     except ExternalShutdownException:
         pass
     except SourceStartTimeout as error:
@@ -127,6 +133,17 @@ def run_node(
             node.destroy_node()
         rclpy.try_shutdown()
     return status
+
+
+def _drain(executor, node: Node) -> None:
+    """Take what is queued for a consumer of batches (`last_batch_at` set) before it stops."""
+    if getattr(node, 'last_batch_at', None) is None:
+        return
+    deadline = time.monotonic() + DRAIN_MAX_S
+    while rclpy.ok() and time.monotonic() < deadline:
+        if time.monotonic() - node.last_batch_at > DRAIN_QUIET_S:
+            return
+        executor.spin_once(timeout_sec=DRAIN_QUIET_S / 2)
 
 
 def message_class(msgtype: str) -> type:

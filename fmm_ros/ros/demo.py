@@ -13,6 +13,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -21,14 +22,18 @@ from fmm_interfaces.msg import FrfSummary, ImpactResult
 from fmm_interfaces.srv import DiagnoseModel, FitFriction
 from fmm_ros.constants import (
     DIAGNOSE_SERVICE,
+    DIAGNOSTICS_TOPIC,
     FIT_SERVICE,
     FRF_TOPIC,
     IMPACTS_TOPIC,
     SAMPLE_RATE_HZ,
 )
+from fmm_ros.io.bags.reader import BagReader
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import RESULT_QOS
 from fmm_ros.ros.graph import InProcessGraph
+from fmm_ros.ros.health import DIAGNOSTICS_QOS, LEVEL_NAMES
+from fmm_ros.ros.nodes import CONSUMERS
 from fmm_ros.ros.nodes.analyzer import Analyzer
 from fmm_ros.ros.nodes.fitter import Fitter
 from fmm_ros.ros.nodes.hammer_sim import HammerSim
@@ -98,6 +103,10 @@ class SessionResult:
     fit_s: float
     diagnose_s: float
     impacts: list[dict] = field(default_factory=list)
+    health: list[dict] = field(default_factory=list)
+    """Each node part's last status on /diagnostics: name, level, message."""
+    ledger: dict[str, str] = field(default_factory=dict)
+    """The recorder's ledger from the bag's metadata, one line a channel."""
 
     def as_json(self) -> dict:
         """The JSON summary `fmm demo --json` prints and writes to summary.json."""
@@ -115,6 +124,10 @@ class _Results(Node):
         self._on_impact = on_impact
         self.create_subscription(ImpactResult, IMPACTS_TOPIC, self._impact, RESULT_QOS)
         self.create_subscription(FrfSummary, FRF_TOPIC, self._level, RESULT_QOS)
+        self.health: dict[str, dict] = {}
+        self.create_subscription(
+            DiagnosticArray, DIAGNOSTICS_TOPIC, self._diagnostics, DIAGNOSTICS_QOS
+        )
         self.fit = self.create_client(FitFriction, FIT_SERVICE)
         self.diagnose = self.create_client(DiagnoseModel, DIAGNOSE_SERVICE)
 
@@ -125,6 +138,14 @@ class _Results(Node):
     def _level(self, msg: FrfSummary) -> None:
         self.levels[msg.level] = msg
         self.latest = msg
+
+    def _diagnostics(self, msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            self.health[status.name] = {
+                'name': status.name,
+                'level': LEVEL_NAMES.get(status.level, str(status.level)),
+                'message': status.message,
+            }
 
 
 def run_session(
@@ -150,13 +171,17 @@ def run_session(
                 rate_factor=config.rate_factor,
                 batch_size=batch,
                 seed=config.seed,
+                wait_for_consumers=list(CONSUMERS['hammer_sim']),
             ),
         )
         graph.add(
             RigSim,
             cli_args=cli_args,
             parameter_overrides=overrides(
-                mu=config.plant_mu, effects=list(config.plant_effects) or [''], seed=config.seed + 1
+                mu=config.plant_mu,
+                effects=list(config.plant_effects) or [''],
+                seed=config.seed + 1,
+                wait_for_consumers=list(CONSUMERS['rig_sim']),
             ),
         )
         analyzer = graph.add(Analyzer, cli_args=cli_args)
@@ -195,7 +220,10 @@ def run_session(
         signal_s = hammer.next_index / hammer.config['sample_rate_hz']
         impacts, levels, latest = list(results.impacts), dict(results.levels), results.latest
         hits_sent = hammer.hits_sent
+        health = sorted(results.health.values(), key=lambda status: status['name'])
         capture, analysis = analyzer.capture_config, analyzer.analysis_config
+    with BagReader(bag, strict=False) as reader:  # closed with the graph: its ledger is in
+        ledger = {topic: entry.summary() for topic, entry in reader.recorded_ledger.items()}
     page = ''
     if config.report:  # after the graph: the recorder has closed the bag
         progress(f'writing the session report to {config.out_dir / "report"}')
@@ -244,6 +272,8 @@ def run_session(
             }
             for m in impacts
         ],
+        health=health,
+        ledger=ledger,
     )
 
 

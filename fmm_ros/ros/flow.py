@@ -26,6 +26,7 @@ holds its start; its device buffer absorbs what its consumers lag.
 import time
 from collections.abc import Callable, Sequence
 
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -51,10 +52,13 @@ PROGRESS_LISTEN_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
-# A consumer reports at most this often while batches flow [s], and its last progress at
-# least this often after they stop (the tail of a burst) [s].
-REPORT_MIN_PERIOD_S = 0.02
-REPORT_TAIL_PERIOD_S = 0.1
+# A consumer reports at most once in this time while batches flow [s]; progress held back
+# goes out when the time is up (a one-shot timer, idle otherwise).
+REPORT_MIN_PERIOD_S = 0.01
+# The flow-control topics are the package's own: no QoS event handlers in the wait sets
+# (rclpy's executor rebuilds them every cycle, and they cost more than the messages).
+QUIET_PUBLISHER = PublisherEventCallbacks(use_default_callbacks=False)
+QUIET_SUBSCRIPTION = SubscriptionEventCallbacks(use_default_callbacks=False)
 # How often a source looks which consumers are still in the graph [s], and how long one may
 # be missing from it before it stops counting [s] (discovery can blink).
 GRAPH_CHECK_PERIOD_S = 1.0
@@ -81,9 +85,10 @@ class ProgressReporter:
         self._announced = False
         self._last_report = 0.0
         self._changed = False
+        self._tail = node.create_timer(REPORT_MIN_PERIOD_S, self._on_timer)
+        self._tail.cancel()
         if announce:
             self.announce()
-        node.create_timer(REPORT_TAIL_PERIOD_S, self._on_timer)
 
     @property
     def announced(self) -> bool:
@@ -98,18 +103,25 @@ class ProgressReporter:
     def add(self, topic: str) -> None:
         """Report on one more topic (a resolved name) from now on."""
         self._next.setdefault(topic, -1)
-        self._changed = True
+        self._soon()
 
     def update(self, topic: str, next_index: int) -> None:
         """The node has taken (or given up) every sample of topic below next_index."""
         if self._next.get(topic) == next_index:
             return
         self._next[topic] = int(next_index)
+        self._soon()
+
+    def _soon(self) -> None:
+        """Report now, or when REPORT_MIN_PERIOD_S since the last report is up."""
         self._changed = True
         if time.monotonic() - self._last_report >= REPORT_MIN_PERIOD_S:
             self._report()
+        elif self._tail.is_canceled():
+            self._tail.reset()
 
     def _on_timer(self) -> None:
+        self._tail.cancel()
         if self._changed:
             self._report()
 
@@ -158,7 +170,11 @@ class FlowGate:
         self.holding_for = ''  # the slowest consumer while the window is full ('' otherwise)
         self._on_progress_hook = on_progress
         node.create_subscription(
-            StreamProgress, STREAM_PROGRESS_TOPIC, self._on_progress, PROGRESS_LISTEN_QOS
+            StreamProgress,
+            STREAM_PROGRESS_TOPIC,
+            self._on_progress,
+            PROGRESS_LISTEN_QOS,
+            event_callbacks=QUIET_SUBSCRIPTION,
         )
 
     def _on_progress(self, message: StreamProgress) -> None:
@@ -296,9 +312,9 @@ SOURCE_PARAMS = (
     ),
     Param(
         'flow_window_s',
-        2.0,
+        4.0,
         'Signal a consumer may lag behind before the source holds back [s] (also capped at '
-        'half the sample QoS depth in batches; kept under the analyzer max_skew_s)',
+        'half the sample QoS depth in batches; keep it under the analyzer max_skew_s)',
         limits=(0.01, 600.0),
         read_only=True,
     ),
@@ -338,9 +354,13 @@ class PacedSource:
 
     @staticmethod
     def window_samples(config: dict, sample_rate_hz: float, batch_size: int) -> int:
-        """The flow window: flow_window_s of signal, at most half the QoS depth in batches."""
+        """The flow window [samples]: flow_window_s of signal, within bounds.
+
+        At most half the QoS depth in batches, at least two batches (one in flight while the
+        next is taken).
+        """
         by_time = int(config['flow_window_s'] * sample_rate_hz)
-        return max(batch_size, min(by_time, SAMPLE_QOS.depth // 2 * batch_size))
+        return max(2 * batch_size, min(by_time, SAMPLE_QOS.depth // 2 * batch_size))
 
     def ready(self) -> bool:
         """Whether the first sample may go (logs whom it waits for every 5 s)."""

@@ -15,6 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
@@ -37,7 +38,12 @@ class Health:
         self._node = node
         self._name = node.get_fully_qualified_name()
         self._checks: list[tuple[str, Check]] = []
-        self._publisher = node.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, DIAGNOSTICS_QOS)
+        self._publisher = node.create_publisher(
+            DiagnosticArray,
+            DIAGNOSTICS_TOPIC,
+            DIAGNOSTICS_QOS,
+            event_callbacks=PublisherEventCallbacks(use_default_callbacks=False),
+        )
         node.create_timer(period_s, self.publish)
 
     def add(self, part: str, check: Check) -> None:

@@ -7,6 +7,7 @@ the log once per kind. The topic a batch arrives on says which channel it is; a 
 own `quantity` disagrees, or that is no sample batch at all, is refused and counted.
 """
 
+import time
 from collections.abc import Callable
 
 from rclpy.callback_groups import CallbackGroup
@@ -33,8 +34,10 @@ class SampleInputs:
         *,
         callback_group: CallbackGroup | None = None,
     ) -> None:
+        self._node = node
         self._stream = stream
         self._take = take
+        node.last_batch_at = 0.0  # a consumer of batches: drained before it stops
         self._rates: dict[str, ChannelRate] = {}
         self._faults = FaultLog(node)
         self.topics: dict[str, str] = {}
@@ -51,6 +54,7 @@ class SampleInputs:
         health.add('stream', lambda: stream_status(stream.ledger, self._rates))
 
     def _on_batch(self, quantity: str, msg: SampleBatch) -> None:
+        self._node.last_batch_at = time.monotonic()
         batch = msgs.stream_batch(msg)
         if msg.quantity != quantity:
             self._stream.refuse_malformed(quantity, len(batch.samples))

@@ -35,9 +35,12 @@ from fmm_ros.ros.nodes import CONSUMERS, node_class
 
 SIMULATED_RIG = ('hammer_sim', 'rig_sim', 'analyzer', 'fitter', 'recorder')
 REAL_RIG = ('daq', 'analyzer', 'fitter', 'recorder')
-# Escalation after the forwarded signal, as ros2 launch's defaults [s].
+# Escalation after the forwarded signal, as ros2 launch's defaults [s] (kept under 10 s in
+# all: what a process manager waits before it kills); each stage of the ordered stop may
+# take STAGE_TIMEOUT_S of the first.
 SIGTERM_TIMEOUT_S = 5.0
-SIGKILL_TIMEOUT_S = 5.0
+SIGKILL_TIMEOUT_S = 4.0
+STAGE_TIMEOUT_S = 1.5
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
@@ -188,30 +191,62 @@ def start_processes(
     return processes
 
 
+def stop_order(nodes: Sequence[str]) -> list[list[int]]:
+    """Positions of nodes in the order they stop: sources first, then what they feed.
+
+    A consumer stopped after its sources has taken everything they published, so the bag
+    ends where the acquisition ended (CONSUMERS says who feeds whom).
+    """
+    left = set(range(len(nodes)))
+    stages = []
+    while left:
+        fed = {n for k in left if nodes[k] in CONSUMERS for n in CONSUMERS[nodes[k]]}
+        stage = sorted(k for k in left if nodes[k] not in fed) or sorted(left)
+        stages.append(stage)
+        left -= set(stage)
+    return stages
+
+
 def stop_processes(
     processes: Sequence[subprocess.Popen],
     signum: int = signal.SIGINT,
     sigterm_timeout_s: float = SIGTERM_TIMEOUT_S,
     sigkill_timeout_s: float = SIGKILL_TIMEOUT_S,
+    nodes: Sequence[str] | None = None,
 ) -> list[int]:
-    """Send every node signum, then SIGTERM, then SIGKILL to those still running; exit codes."""
-    for escalation, timeout_s in (
-        (signum, sigterm_timeout_s),
-        (signal.SIGTERM, sigkill_timeout_s),
-        (signal.SIGKILL, None),
-    ):
+    """Stop the nodes; their exit codes.
+
+    signum goes to the sources first, then (each stage given up to STAGE_TIMEOUT_S) to what
+    they feed, when the node names are known; SIGTERM then goes to those still running after
+    sigterm_timeout_s, SIGKILL after sigkill_timeout_s more, as ros2 launch escalates.
+    """
+    stages = stop_order(nodes) if nodes else [list(range(len(processes)))]
+    for stage in stages:
+        running = [processes[k] for k in stage if processes[k].poll() is None]
+        for process in running:
+            process.send_signal(signum)
+        _wait_all(running, STAGE_TIMEOUT_S if len(stages) > 1 else sigterm_timeout_s)
+    for escalation, timeout_s in ((signal.SIGTERM, sigkill_timeout_s), (signal.SIGKILL, 10.0)):
         running = [process for process in processes if process.poll() is None]
+        if not running:
+            break
+        if escalation == signal.SIGTERM and len(stages) > 1:
+            _wait_all(running, sigterm_timeout_s - STAGE_TIMEOUT_S * (len(stages) - 1))
+            running = [process for process in running if process.poll() is None]
         for process in running:
             process.send_signal(escalation)
-        deadline = time.monotonic() + (timeout_s or 10.0)
-        for process in running:
-            try:
-                process.wait(max(0.01, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                pass
-        if all(process.poll() is not None for process in processes):
-            break
+        _wait_all(running, timeout_s)
     return [process.wait() for process in processes]
+
+
+def _wait_all(processes: Sequence[subprocess.Popen], timeout_s: float) -> None:
+    """Wait until each process ended or timeout_s passed."""
+    deadline = time.monotonic() + max(0.0, timeout_s)
+    for process in processes:
+        try:
+            process.wait(max(0.01, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            pass
 
 
 def run_processes(
@@ -228,7 +263,7 @@ def run_processes(
                     f'{name} exited with status {process.returncode}: stopping the rig',
                     file=sys.stderr,
                 )
-        codes = stop_processes(processes, signals.received or signal.SIGINT)
+        codes = stop_processes(processes, signals.received or signal.SIGINT, nodes=nodes)
     clean = (0, -signal.SIGINT, -signal.SIGTERM)
     return 0 if all(code in clean for code in codes) else 1
 

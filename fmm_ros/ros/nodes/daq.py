@@ -169,8 +169,12 @@ class Daq(Node):
         self.batches_published += 1
 
     def destroy_node(self) -> None:
-        """Stop the acquisition before the node goes."""
+        """Stop the acquisition before the node goes; say what went out."""
         self.backend.close()
+        self.get_logger().info(
+            f'stopped: samples 0..{self.backend.next_index} published on '
+            f'{self._force_pub.topic_name} and {self._velocity_pub.topic_name}'
+        )
         super().destroy_node()
 
 

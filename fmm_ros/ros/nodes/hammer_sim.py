@@ -210,6 +210,14 @@ class HammerSim(Node):
         if self.next_index >= self.stream.end_index > first:
             self.get_logger().info(f'session complete: {len(self.schedule)} hits sent')
 
+    def destroy_node(self) -> None:
+        """Say what went out, so a recording can be checked against it."""
+        self.get_logger().info(
+            f'stopped: samples 0..{self.next_index} published on {self._measured_pub.topic_name} '
+            f'({self.hits_sent} of {len(self.schedule)} hits)'
+        )
+        super().destroy_node()
+
 
 def main(args: list[str] | None = None) -> int:
     """`ros2 run fmm_ros hammer_sim`."""

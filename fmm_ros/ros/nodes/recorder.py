@@ -108,6 +108,7 @@ class Recorder(Node):
         self._streams: dict[str, AlignedStream] = {}
         self._rates: dict[str, ChannelRate] = {}
         self.reporter = ProgressReporter(self, [])
+        self.last_batch_at = 0.0  # a consumer of batches: drained before it stops
         self._faults = FaultLog(self)
         health = Health(self)
         health.add('stream', lambda: stream_status(self.ledger, self._rates))
@@ -208,6 +209,7 @@ class Recorder(Node):
 
     def _store_batch(self, topic: str, msgtype: str, data: bytes) -> None:
         """Store a SampleBatch as it came; account for it by the stream rules."""
+        self.last_batch_at = time.monotonic()
         self._store(topic, msgtype, data)
         stream = self._streams[topic]
         batch = msgs.stream_batch(deserialize_message(data, SampleBatch))

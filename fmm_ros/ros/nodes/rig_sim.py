@@ -14,6 +14,8 @@ on the applied force no further than its own velocity consumers have got (ros/fl
 only once they are there, so the hammer's hold-back reaches through it.
 """
 
+import time
+
 import numpy as np
 from rclpy.node import Node
 
@@ -109,6 +111,7 @@ class RigSim(Node):
         # Reports on the applied force only once its own consumers are there.
         self.reporter = ProgressReporter(self, [self._input], announce=False)
         self._waiting = self.create_timer(0.1, self._await_consumers)
+        self.last_batch_at = 0.0  # a consumer of batches: drained before it stops
         self._rates: dict[str, ChannelRate] = {}
         self._faults = FaultLog(self)
         Health(self).add('stream', lambda: stream_status(self.stream.ledger, self._rates))
@@ -131,6 +134,7 @@ class RigSim(Node):
             self.reporter.update(self._input, min(taken, self.gate.slowest_index(self._output)))
 
     def _on_force(self, msg: SampleBatch) -> None:
+        self.last_batch_at = time.monotonic()
         batch = msgs.stream_batch(msg)
         try:
             self.stream.feed(FORCE.quantity, batch)
