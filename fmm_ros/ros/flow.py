@@ -26,6 +26,7 @@ holds its start; its device buffer absorbs what its consumers lag.
 import time
 from collections.abc import Callable, Sequence
 
+from rclpy.duration import Duration
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.publisher import Publisher
@@ -63,6 +64,20 @@ QUIET_SUBSCRIPTION = SubscriptionEventCallbacks(use_default_callbacks=False)
 # be missing from it before it stops counting [s] (discovery can blink).
 GRAPH_CHECK_PERIOD_S = 1.0
 LEFT_AFTER_S = 3.0
+
+
+# How long a source waits, when it stops, for its last batches to be acknowledged [s].
+LAST_BATCHES_TIMEOUT_S = 2.0
+
+
+def deliver_last_batches(publishers: Sequence[Publisher]) -> None:
+    """Wait until every matched subscriber has the batches published (a source stopping).
+
+    A reliable writer may still hold the last batches when its process exits; without this
+    the bag of a rig stopped in order lacked the source's last batch.
+    """
+    for publisher in publishers:
+        publisher.wait_for_all_acked(Duration(seconds=LAST_BATCHES_TIMEOUT_S))
 
 
 class SourceStartTimeout(RuntimeError):
@@ -403,6 +418,10 @@ class PacedSource:
         """One batch, ending at end_index, went out."""
         self.pacer.release()
         self.gate.sent(end_index)
+
+    def finish(self) -> None:
+        """The source stops: its last batches reach every matched consumer first."""
+        deliver_last_batches(list(self.gate._publishers.values()))
 
     def status(self, sample_rate_hz: float, batch_size: int, asked: float) -> tuple:
         """The source part of /diagnostics: pace achieved against asked, consumer lags."""

@@ -53,6 +53,11 @@ class SampleInputs:
         self.reporter = ProgressReporter(node, list(self.topics.values()))
         health.add('stream', lambda: stream_status(stream.ledger, self._rates))
 
+    def log_ledger(self) -> None:
+        """Log each channel's ledger (a node does on stopping: its final account)."""
+        for ledger in self._stream.ledger.values():
+            self._node.get_logger().info(f'stopped: {ledger.summary()}')
+
     def _on_batch(self, quantity: str, msg: SampleBatch) -> None:
         self._node.last_batch_at = time.monotonic()
         batch = msgs.stream_batch(msg)

@@ -166,11 +166,15 @@ def _parent_death_signal() -> Callable[[], None] | None:
 
 
 def start_processes(
-    nodes: Sequence[str], params_file: Path | None, overrides: dict[str, list[Parameter]]
+    nodes: Sequence[str],
+    params_file: Path | None,
+    overrides: dict[str, list[Parameter]],
+    log_dir: Path | None = None,
 ) -> list[subprocess.Popen]:
     """One process per node, each given the params file and its overrides.
 
-    Each in a session of its own, and (Linux) terminated when the launcher dies.
+    Each in a session of its own, and (Linux) terminated when the launcher dies. log_dir:
+    each node's output goes to <log_dir>/<node>.log instead of this process's.
     """
     preexec = _parent_death_signal()
     processes = []
@@ -183,11 +187,18 @@ def start_processes(
                 '-p',
                 f'{parameter.name}:={yaml.safe_dump(parameter.value).strip()}'.replace('\n...', ''),
             ]
+        log = (log_dir / f'{name}.log').open('ab') if log_dir else None
         processes.append(
             subprocess.Popen(
-                node_command(name) + ros_args, start_new_session=True, preexec_fn=preexec
+                node_command(name) + ros_args,
+                start_new_session=True,
+                preexec_fn=preexec,
+                stdout=log,
+                stderr=subprocess.STDOUT if log else None,
             )
         )
+        if log:
+            log.close()  # the child holds its own descriptor
     return processes
 
 

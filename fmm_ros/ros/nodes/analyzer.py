@@ -287,6 +287,11 @@ class Analyzer(Node):
             f'at {judged.natural_frequency_hz:.2f} Hz, {verdict}'
         )
 
+    def destroy_node(self) -> None:
+        """Log the final ledger of its inputs before the node goes."""
+        self.inputs.log_ledger()
+        super().destroy_node()
+
 
 def _trigger_stamp(record: ImpactRecord, origin_s: float | None, batch: Batch) -> Time:
     """Acquisition time of the trigger sample by its acquisition's clock (else the batch's).

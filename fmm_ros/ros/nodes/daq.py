@@ -29,7 +29,7 @@ from fmm_ros.constants import FORCE, FORCE_TOPIC, SAMPLE_RATE_HZ, VELOCITY, VELO
 from fmm_ros.io.labfiles import ChannelMapping, ImportMapping, load_mapping, read_lab_file
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import SAMPLE_QOS, run_node
-from fmm_ros.ros.flow import SOURCE_PARAMS, PacedSource
+from fmm_ros.ros.flow import SOURCE_PARAMS, PacedSource, deliver_last_batches
 from fmm_ros.ros.health import Health
 from fmm_ros.ros.params import Param, declare_parameters
 
@@ -169,8 +169,9 @@ class Daq(Node):
         self.batches_published += 1
 
     def destroy_node(self) -> None:
-        """Stop the acquisition before the node goes; say what went out."""
+        """Stop the acquisition, deliver its last batches, say what went out."""
         self.backend.close()
+        deliver_last_batches(self.publishers_of_samples)
         self.get_logger().info(
             f'stopped: samples 0..{self.backend.next_index} published on '
             f'{self._force_pub.topic_name} and {self._velocity_pub.topic_name}'

@@ -258,6 +258,11 @@ class Fitter(Node):
         self.get_logger().info(f'diagnosis of {len(impacts)} impacts: {result.verdict}')
         return msgs.fill_diagnose_response(response, result)
 
+    def destroy_node(self) -> None:
+        """Log the final ledger of its inputs before the node goes."""
+        self.inputs.log_ledger()
+        super().destroy_node()
+
 
 def _refused(response: object, reason: str) -> object:
     response.success = False

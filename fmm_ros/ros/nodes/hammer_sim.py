@@ -211,7 +211,8 @@ class HammerSim(Node):
             self.get_logger().info(f'session complete: {len(self.schedule)} hits sent')
 
     def destroy_node(self) -> None:
-        """Say what went out, so a recording can be checked against it."""
+        """Deliver the last batches, say what went out (a recording is checked against it)."""
+        self.source.finish()
         self.get_logger().info(
             f'stopped: samples 0..{self.next_index} published on {self._measured_pub.topic_name} '
             f'({self.hits_sent} of {len(self.schedule)} hits)'

@@ -163,7 +163,8 @@ class Player(Node):
         return True
 
     def destroy_node(self) -> None:
-        """Close the bag before the node goes."""
+        """Deliver the last batches and close the bag before the node goes."""
+        self.source.finish()
         self.reader.close()
         super().destroy_node()
 

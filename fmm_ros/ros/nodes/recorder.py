@@ -226,6 +226,8 @@ class Recorder(Node):
         for stream in self._streams.values():
             stream.finish()
         self.writer.set_custom_data(LEDGER_KEY, ledger_text(self.ledger))
+        for ledger in self.ledger.values():
+            self.get_logger().info(f'stopped: {ledger.summary()}')
         self.writer.set_custom_data(
             'fmm.recorder',
             json.dumps(

@@ -26,7 +26,7 @@ from fmm_ros.core.physics.terms import parse_model_term
 from fmm_ros.core.signal.stream import AlignedStream
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import RIG_PARAMS, SAMPLE_QOS, rig_from_parameters, run_node
-from fmm_ros.ros.flow import SOURCE_PARAMS, FlowGate, ProgressReporter
+from fmm_ros.ros.flow import SOURCE_PARAMS, FlowGate, ProgressReporter, deliver_last_batches
 from fmm_ros.ros.health import ChannelRate, FaultLog, Health, stream_status
 from fmm_ros.ros.params import Param, declare_parameters
 from fmm_ros.sim.hammer import add_indexed_noise
@@ -160,6 +160,13 @@ class RigSim(Node):
         self._runs = []
         self._report()
         self._faults.check(self.stream.ledger, f'last at {msg.first_sample_index}')
+
+    def destroy_node(self) -> None:
+        """Deliver the last velocity, log the final ledger of its input."""
+        deliver_last_batches([self._publisher])
+        for ledger in self.stream.ledger.values():
+            self.get_logger().info(f'stopped: {ledger.summary()}')
+        super().destroy_node()
 
     # -- the stream's sink: the plant -----------------------------------------------------------
 
