@@ -64,6 +64,18 @@ def test_the_recorded_bag_holds_every_topic_and_is_closed(recorded_session):
         assert (force.missing_samples, force.refused_batches, force.resyncs) == (0, 0, 0)
 
 
+def test_bag_info_shows_the_ledger_and_the_health_the_bag_holds(recorded_session, capsys):
+    from fmm_ros.cli import main
+
+    bag, _, _ = recorded_session
+    assert main(['bag-info', str(bag), '-q']) == 0
+    out = capsys.readouterr().out
+    assert 'ros:       jazzy' in out
+    assert '/fmm/force 0..' in out and ', 0 missing, 0 batches (0 samples) refused' in out
+    assert 'health:    last status on /diagnostics' in out
+    assert '/analyzer: stream' in out and '/recorder: recorder' in out
+
+
 def test_offline_analysis_of_the_bag_equals_the_live_run(recorded_session):
     bag, live, config = recorded_session
     capture, analysis = configs_from_parameters(config)
