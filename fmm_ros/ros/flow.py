@@ -61,9 +61,12 @@ REPORT_MIN_PERIOD_S = 0.01
 QUIET_PUBLISHER = PublisherEventCallbacks(use_default_callbacks=False)
 QUIET_SUBSCRIPTION = SubscriptionEventCallbacks(use_default_callbacks=False)
 # How often a source looks which consumers are still in the graph [s], and how long one may
-# be missing from it before it stops counting [s] (discovery can blink).
+# be missing from it before it stops counting [s] (discovery can blink). A consumer killed
+# outright stays in the graph until its DDS lease runs out (20 s for Fast DDS): one that holds
+# the source back and has not reported for SILENT_AFTER_S stops counting too, until it reports.
 GRAPH_CHECK_PERIOD_S = 1.0
 LEFT_AFTER_S = 3.0
+SILENT_AFTER_S = 5.0
 
 
 # How long a source waits, when it stops, for its last batches to be acknowledged [s].
@@ -178,6 +181,8 @@ class FlowGate:
         # node -> topic -> next index it expects; when a node was last seen in the graph.
         self._progress: dict[str, dict[str, int]] = {}
         self._seen: dict[str, float] = {}
+        self._heard: dict[str, float] = {}  # when each last reported
+        self._silent: dict[str, bool] = {}  # consumers not waited for while silent
         self._graph_checked = 0.0
         self.first_index = 0  # where the source's current acquisition began
         self.published_end = 0  # index after the last sample published
@@ -200,7 +205,9 @@ class FlowGate:
         }
         if mine:
             self._progress[message.node] = mine
-            self._seen[message.node] = time.monotonic()
+            self._seen[message.node] = self._heard[message.node] = time.monotonic()
+            if self._silent.pop(message.node, None):
+                self._node.get_logger().warning(f'consumer {message.node} reports again')
             if self._on_progress_hook:
                 self._on_progress_hook()
 
@@ -259,14 +266,33 @@ class FlowGate:
         self.published_end = max(self.published_end, int(end_index))
 
     def lag(self, topic: str | None = None) -> dict[str, int]:
-        """Samples each consumer (of topic, or any) is behind what was published."""
+        """Samples each consumer (of topic, or any) is behind what was published.
+
+        A consumer that lags and has been silent for SILENT_AFTER_S is left out (logged once).
+        """
         self._forget_departed()
+        now = time.monotonic()
         lags = {}
         for name, topics in self._progress.items():
-            for candidate, index in topics.items():
-                if topic is None or candidate == topic:
-                    behind = self.published_end - self._effective(index)
-                    lags[name] = max(lags.get(name, 0), behind)
+            behind = max(
+                (
+                    self.published_end - self._effective(index)
+                    for candidate, index in topics.items()
+                    if topic is None or candidate == topic
+                ),
+                default=None,
+            )
+            if behind is None:
+                continue
+            if behind > 0 and now - self._heard.get(name, now) > SILENT_AFTER_S:
+                if not self._silent.get(name):
+                    self._silent[name] = True
+                    self._node.get_logger().error(
+                        f'consumer {name} has said nothing for {SILENT_AFTER_S:g} s with '
+                        f'{behind} samples outstanding: no longer waited for'
+                    )
+                continue
+            lags[name] = behind
         return lags
 
     def allows(self, end_index: int, window: int) -> bool:
