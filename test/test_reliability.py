@@ -11,6 +11,7 @@ import signal
 import subprocess
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -127,38 +128,37 @@ class StraySource(Node):
         )
 
 
+@contextmanager
+def hammer_and_plant(domain):
+    """hammer_sim and rig_sim in a graph of their own: leaving it ends them (a restart)."""
+    with InProcessGraph(domain_id=domain) as rig:
+        consumers = ['analyzer', 'fitter']
+        rig.add(
+            HammerSim,
+            parameter_overrides=params(
+                **dict(FAST_HAMMER, rate_factor=20.0), wait_for_consumers=['rig_sim', *consumers]
+            ),
+        )
+        rig.add(RigSim, parameter_overrides=params(wait_for_consumers=consumers))
+        rig.start()
+        yield rig
+
+
 def test_a_stray_batch_and_a_restarted_source_are_recovered_over_dds(domain):
     """The analyzer used to refuse every batch after either, for good (issue 19)."""
-    hammer = dict(FAST_HAMMER, rate_factor=20.0)
     with InProcessGraph(domain_id=domain) as graph:
         analyzer = graph.add(Analyzer, parameter_overrides=params(**FAST_ANALYZER))
         fitter = graph.add(Fitter)
         listener = graph.add(Listener)
         stray = graph.add(StraySource)
         graph.start()
-        with InProcessGraph(domain_id=domain) as rig:
-            rig.add(
-                HammerSim,
-                parameter_overrides=params(
-                    **hammer, wait_for_consumers=['rig_sim', 'analyzer', 'fitter']
-                ),
-            )
-            rig.add(RigSim, parameter_overrides=params(wait_for_consumers=['analyzer', 'fitter']))
-            rig.start()
+        with hammer_and_plant(domain):
             assert wait_for(lambda: len(listener.impacts) >= 1)
             stray.send()
             assert wait_for(lambda: len(listener.impacts) >= 2)
         # The hammer and the plant restart (index 0 again, a later clock), mid-session.
         before = len(listener.impacts)
-        with InProcessGraph(domain_id=domain) as rig:
-            rig.add(
-                HammerSim,
-                parameter_overrides=params(
-                    **hammer, wait_for_consumers=['rig_sim', 'analyzer', 'fitter']
-                ),
-            )
-            rig.add(RigSim, parameter_overrides=params(wait_for_consumers=['analyzer', 'fitter']))
-            rig.start()
+        with hammer_and_plant(domain):
             assert wait_for(lambda: len(listener.impacts) >= before + 3)
         force = analyzer.ledger['force']
         fitted = fitter.history.acquisitions

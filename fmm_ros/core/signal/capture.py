@@ -432,14 +432,7 @@ class ImpactCapture:
         in `ledger`; ValueError only for malformed input (unknown quantity, a sample array
         that is not one-dimensional, a rate that is not positive), with no state changed.
         """
-        batch = Batch(
-            int(first_sample_index),
-            np.asarray(samples, dtype=float),
-            sample_rate_hz,
-            float(full_scale),
-            sender,
-            int(stamp_ns),
-        )
+        batch = Batch.of(first_sample_index, samples, sample_rate_hz, full_scale, sender, stamp_ns)
         return self.feed_batch(quantity, batch)
 
     def feed_batch(self, quantity: str, batch: Batch) -> list[ImpactRecord]:

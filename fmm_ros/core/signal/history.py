@@ -69,17 +69,8 @@ class SampleHistory:
 
         Refusals are counted in `ledger`; ValueError only for malformed input.
         """
-        self.feed_batch(
-            quantity,
-            Batch(
-                int(first_sample_index),
-                np.asarray(samples, dtype=float),
-                sample_rate_hz,
-                float(full_scale),
-                sender,
-                int(stamp_ns),
-            ),
-        )
+        batch = Batch.of(first_sample_index, samples, sample_rate_hz, full_scale, sender, stamp_ns)
+        self.feed_batch(quantity, batch)
 
     def feed_batch(self, quantity: str, batch: Batch) -> None:
         """`feed` for a batch already in the stream's form (a node's message)."""

@@ -111,6 +111,26 @@ class Batch:
     sender: str = ''
     stamp_ns: int = 0
 
+    @classmethod
+    def of(
+        cls,
+        first_sample_index: int,
+        samples: np.ndarray,
+        sample_rate_hz: float,
+        full_scale: float = 0.0,
+        sender: str = '',
+        stamp_ns: int = 0,
+    ) -> Batch:
+        """A batch from loose values (indices of any integer type, samples as floats)."""
+        return cls(
+            int(first_sample_index),
+            np.asarray(samples, dtype=float),
+            sample_rate_hz,
+            float(full_scale),
+            sender,
+            int(stamp_ns),
+        )
+
     @property
     def end_index(self) -> int:
         """Index one past the last sample."""
