@@ -3,9 +3,10 @@
 Run: .venv/bin/python benchmarks/bench_report.py [--repeats R] [--dpi D] [--out DIR]
 
 A simulated session of ten hits at each of the paper's three levels, one every 33 s as
-`fmm demo` records them, is cut into impact records; build_report analyses them and writes
-the page with a given mu (the model of Eq. 3 drawn over every hit and FRF; fitting is timed
-by bench_fit). Then the same report the naive way, in the same run: matplotlib's
+`fmm demo` records them, is cut into impact records; run_session analyses them and runs the
+model with a given mu (Eq. 3 over every hit and FRF; fitting is timed by bench_fit), and
+build_report draws the page: both are timed together, as the report's time. Then the same
+report the naive way, in the same run: matplotlib's
 constrained layout for every figure (a layout pass, the ticks frozen, savefig), and a fresh
 Figure for every hit. Last, what each figure type costs both ways (build and render, per
 figure), and what the report spends outside its figures (analysis, model, page).
@@ -25,10 +26,11 @@ from pathlib import Path
 from fmm_ros.constants import PAPER_MU
 from fmm_ros.core.signal.analysis import AnalysisConfig, paper_levels
 from fmm_ros.core.signal.capture import capture_impacts
-from fmm_ros.report import ModelOverlay, build_report, session_figures
+from fmm_ros.report import build_report, session_figures
 from fmm_ros.report import html as report_html
 from fmm_ros.report.plotting import DEFAULT_DPI, freeze_ticks
 from fmm_ros.sim.session import simulated_session
+from fmm_ros.workflows.session import SessionOptions, run_session
 
 TARGET_S = 6.0
 HIT_FIGURES = session_figures.HitFigures
@@ -39,6 +41,7 @@ FIGURE_TYPES = (
     'level_magnitude_figure',
     'level_trials_figure',
     'frf_trials_figure',
+    'coherence_figure',
     'frf_overlay_figure',
     'harmonics_figure',
     'friction_figure',
@@ -115,12 +118,13 @@ def _patched():
             setattr(owner, name, value)
 
 
-def run(records, model, out: Path, dpi: float, naive: bool):
-    """One build_report: its time [s] and the cost of each figure type."""
+def run(records, out: Path, dpi: float, naive: bool):
+    """One report (run_session, build_report): its time [s] and each figure type's cost."""
     shutil.rmtree(out, ignore_errors=True)
     with instrumented(naive) as cost:
         start = time.perf_counter()
-        build_report(records, out, analysis=ANALYSIS, model=model, dpi=dpi)
+        session = run_session(records, SessionOptions(analysis=ANALYSIS, mu=PAPER_MU))
+        build_report(session, out, dpi=dpi)
         seconds = time.perf_counter() - start
     return seconds, dict(cost)
 
@@ -134,14 +138,13 @@ def main() -> int:
 
     session = simulated_session(10)
     records = capture_impacts(session.force_n, session.velocity_m_s, session.sample_rate_hz)
-    model = ModelOverlay(PAPER_MU, 'given')
     work = Path(tempfile.mkdtemp(prefix='bench_report_'))
     out = args.out or work / 'report'
     try:
-        run(records[:3], model, work / 'warm', args.dpi, naive=False)  # imports, font cache
+        run(records[:3], work / 'warm', args.dpi, naive=False)  # imports, font cache
         runs = {
             naive: [
-                run(records, model, out if not naive else work / 'naive', args.dpi, naive)
+                run(records, out if not naive else work / 'naive', args.dpi, naive)
                 for _ in range(args.repeats)
             ]
             for naive in (False, True)

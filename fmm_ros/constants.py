@@ -83,3 +83,13 @@ def resolve_name(name: str, namespace: str = '/') -> str:
     if name.startswith('/'):
         return name
     return namespace.rstrip('/') + '/' + name
+
+
+# -- how results are shown to people: CLI text and report pages alike -------------------------
+MM_PER_M = 1e3
+"""Receptance is shown in mm/N and mobility in mm/(N*s), so numbers stay short (JSON, bags
+and messages stay in SI)."""
+RECEPTANCE_DISPLAY_UNIT = 'mm/N'
+MOBILITY_DISPLAY_UNIT = 'mm/(N·s)'
+REPORT_DPI = 110.0
+"""Resolution of report figures [dots per inch]: a 7.5 in figure is 825 px, the page's column."""

@@ -92,7 +92,15 @@ if ! is_current fmm_ros "$pkg_key"; then
   mark_current fmm_ros "$pkg_key"
 fi
 
-# 5. Chromium, for the test that opens the HTML report in a real browser
+# 5. `source .venv/bin/activate` makes the venv a ROS 2 prefix too (AMENT_PREFIX_PATH and
+#    friends, as `fmm env` prints them), so get_package_prefix('fmm_ros') and the node
+#    executables in lib/fmm_ros work as after sourcing a workspace's setup.bash. The lines
+#    only prepend what is missing; `deactivate` leaves them set.
+if ! grep -qF '# fmm_ros: this venv as a ROS 2 prefix' "$VENV/bin/activate"; then
+  { echo; "$VENV/bin/fmm" env; } >>"$VENV/bin/activate"
+fi
+
+# 6. Chromium, for the test that opens the HTML report in a real browser
 #    (test/test_report_browser.py; Playwright in the venv drives it): a Debian package, so
 #    it is not in the venv. Skipped when present (a re-run costs one `command -v`); the
 #    first install (apt's lists updated, then 25 packages, 113 MB, without the recommended

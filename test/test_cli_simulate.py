@@ -41,7 +41,7 @@ def write_force_csv(path, time_s, force_n):
 
 
 def test_json_summary_of_the_paper_free_vibration(capsys):
-    summary = run_json(capsys, '--x0-mm', '3', *FIG2, '--duration-s', '1')
+    summary = run_json(capsys, '--x0-m', '0.003', *FIG2, '--duration-s', '1')
     assert set(summary) == {
         'final_position_m',
         'rest_time_s',
@@ -57,8 +57,8 @@ def test_json_summary_of_the_paper_free_vibration(capsys):
     assert summary['peak_velocity_m_s'] == pytest.approx(omega * (3e-3 - 0.1962e-3), rel=1e-4)
     euler = run_json(
         capsys,
-        '--x0-mm',
-        '3',
+        '--x0-m',
+        '0.003',
         *FIG2,
         '--duration-s',
         '1',
@@ -95,7 +95,7 @@ def test_force_record_in_response_record_out(tmp_path, capsys):
     write_force_csv(tmp_path / 'hit.csv', time_s, force)
     out = tmp_path / 'response.csv'
     summary = run_json(
-        capsys, '--force-csv', str(tmp_path / 'hit.csv'), '--out', str(out), '--duration-s', '5'
+        capsys, '--force-csv', str(tmp_path / 'hit.csv'), '-o', str(out), '--duration-s', '5'
     )
     with open(out, encoding='utf-8') as stream:
         assert stream.readline().strip() == 'time_s,force_n,displacement_m,velocity_m_s'
@@ -166,7 +166,7 @@ def test_bad_force_records_exit_2_with_a_one_line_error(tmp_path, capsys, rows, 
         (['--mu', '-0.1'], 'mu must not be negative'),
         (['--sample-rate-hz', '20'], 'time step too coarse'),
         (['--duration-s', '0'], 'duration_s must be positive'),
-        (['--x0-mm', 'inf'], 'x0_m must be finite'),
+        (['--x0-m', 'inf'], 'x0_m must be finite'),
         (['--force-csv', '/nonexistent/hit.csv'], 'No such file'),
     ],
 )

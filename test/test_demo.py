@@ -6,6 +6,7 @@ import pytest
 
 from fmm_ros.cli import main
 from fmm_ros.io.bags.reader import BagReader
+from fmm_ros.report.plotting import value_with_error
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -30,7 +31,12 @@ def test_demo_json_reports_the_session_and_fits_the_plant_mu(tmp_path, capsys):
         assert reader.topics['/fmm/impacts'].count == 3
     page = out / 'report' / 'index.html'
     assert summary['report'] == str(page) and page.is_file()
-    assert page.read_text().count('<img') >= 10
+    text = page.read_text()
+    assert text.count('<img') >= 10
+    # The page shows the fit service's answer (not a fit of its own): its mu and errors.
+    shown = f'μ = {value_with_error(summary["mu"], summary["mu_stderr"])} fitted to 3 impacts'
+    assert shown in text
+    assert [entry['impact_id'] for entry in summary['per_file']] == [0, 1, 2]
 
 
 def test_demo_refuses_to_overwrite_a_bag(tmp_path, capsys):

@@ -16,6 +16,7 @@ from fmm_ros.core.diagnose.workflow import EFFECTS, NONE, VOCABULARY, diagnose
 from fmm_ros.core.identify.conditioning import FitError
 from fmm_ros.sim.excitation import impact_record
 from fmm_ros.sim.hidden_effects import HIDDEN_EFFECTS, hidden_effect_case
+from fmm_ros.workflows.results import diagnosis_dict
 
 pytestmark = pytest.mark.slow
 
@@ -113,8 +114,8 @@ def test_where_points_at_the_signature_of_the_effect(diagnoses):
     assert sum(r.share for r in regions.values()) == pytest.approx(1.0)
 
 
-def test_to_dict_has_the_issues_keys_and_is_json(diagnoses):
-    payload = diagnoses['stribeck'][1].to_dict()
+def test_json_has_the_issues_keys_and_is_json(diagnoses):
+    payload = diagnosis_dict(diagnoses['stribeck'][1])
     for key in (
         'missing_effect',
         'parameters',

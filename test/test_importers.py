@@ -1,5 +1,7 @@
 """Importers (issue 7): lab files made with their own libraries become SI session bags."""
 
+import zipfile
+
 import h5py
 import numpy as np
 import pytest
@@ -262,6 +264,8 @@ def test_inconsistent_files_are_refused(tmp_path):
         )
     with pytest.raises(ValueError, match='unknown mapping keys: rate'):
         ImportMapping.from_dict({**mapping, 'rate': 1})
-    (tmp_path / 'x.xlsx').write_bytes(b'')
-    with pytest.raises(ValueError, match="unknown format '.xlsx'"):
+    # Readers are chosen by content: an Excel workbook is a zip without NumPy arrays.
+    with zipfile.ZipFile(tmp_path / 'x.xlsx', 'w') as workbook:
+        workbook.writestr('xl/workbook.xml', '<workbook/>')
+    with pytest.raises(ValueError, match="unknown format '.xlsx': an Excel workbook"):
         open_lab_file(tmp_path / 'x.xlsx')

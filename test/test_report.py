@@ -20,7 +20,7 @@ from fmm_ros.core.physics.model import simulate
 from fmm_ros.core.signal.analysis import analyze_impact
 from fmm_ros.core.signal.records import ImpactRecord, write_impact_csv
 from fmm_ros.io.bags import BagWriter
-from fmm_ros.report import FrictionSummary, ModelOverlay, build_report
+from fmm_ros.report import build_report
 from fmm_ros.report import html as report_html
 from fmm_ros.report.paper import build_paper_report
 from fmm_ros.report.plotting import (
@@ -35,6 +35,7 @@ from fmm_ros.report.session_figures import HitFigures
 from fmm_ros.sim.excitation import hammer_pulse, impact_record
 from fmm_ros.sim.hidden_effects import hidden_effect_case
 from fmm_ros.sim.session import simulated_session
+from fmm_ros.workflows import FrictionResult, ModelOverlay, SessionOptions, overlay_of, run_session
 
 pytestmark = pytest.mark.slow
 
@@ -199,12 +200,44 @@ def test_report_from_csv_session_has_every_figure(csv_session):
         'friction',
         *(
             f'{kind}_{level}'
-            for kind in ('trials', 'mobility', 'receptance', 'model_mobility')
+            for kind in ('trials', 'mobility', 'receptance', 'coherence', 'model_mobility')
             for level in levels
         ),
         *(f'hit_{number:03d}' for number in range(len(csv_session['inputs']))),
     }
     check_figures(csv_session['out'], csv_session['page'], expected)
+
+
+def test_f_n_and_units_are_the_same_in_every_table_figure_and_the_cli(csv_session, capsys):
+    """One f_n per level (the analysis's) in the level table and the harmonics figure; the
+    receptance in mm/N in the report's tables and in fmm analyze's text alike."""
+    page = csv_session['page']
+    table = dict(
+        re.findall(
+            r'<tr><td class="text">(low|medium|high)</td>(?:<td>[^<]*</td>){3}<td>([0-9.]+)</td>',
+            page,
+        )
+    )
+    alt = re.search(r'<figure id="fig-harmonics"><img [^>]*alt="([^"]+)"', page)[1]
+    drawn = re.findall(r'f_n = ([0-9.]+) Hz', alt)
+    assert len(table) == 3 and drawn == [table[level] for level in ('low', 'medium', 'high')]
+    assert main(['analyze', *csv_session['inputs'], '--paper-levels']) == 0
+    text = capsys.readouterr().out
+    assert '|X/F| mm/N' in text
+    cli_levels = {
+        line.split()[0]: (line.split()[3], line.split()[4])
+        for line in text.splitlines()
+        if line.split()[:1] in (['low'], ['medium'], ['high']) and len(line.split()) == 5
+    }
+    report_levels = dict(
+        re.findall(
+            r'<tr><td class="text">(low|medium|high)</td>(?:<td>[^<]*</td>){4}<td>([0-9.]+)</td>',
+            page,
+        )
+    )
+    for level, (receptance_mm_n, natural_hz) in cli_levels.items():
+        assert float(receptance_mm_n) == pytest.approx(float(report_levels[level]), rel=1e-3)
+        assert natural_hz == table[level]
 
 
 def test_nothing_in_a_figure_is_clipped(csv_session):
@@ -312,7 +345,7 @@ def test_report_from_a_recorded_session_bag_shows_the_hit_over_a_lost_batch(tmp_
             'harmonics',
             *(
                 f'{kind}_{level}'
-                for kind in ('trials', 'mobility', 'receptance', 'model_mobility')
+                for kind in ('trials', 'mobility', 'receptance', 'coherence', 'model_mobility')
                 for level in ('low', 'medium')
             ),
             'hit_000',
@@ -395,13 +428,14 @@ def test_all_rejected_session_still_reports_and_says_why_mu_is_not_fitted(tmp_pa
     assert clipped_figures == []
 
 
-def test_build_report_analyses_records_itself_and_draws_a_given_model(tmp_path):
-    """The entry point fmm demo calls: records only (no summary), a given mu."""
+def test_a_session_of_records_with_a_given_mu_is_analysed_and_drawn(tmp_path):
+    """Records in hand (as the demo holds them), a given mu: run_session, then the page."""
     hit = impact_record(1000.0, rng=3, duration_s=DURATION_S)
     record = ImpactRecord(
         hit.force_n, hit.velocity_m_s, RATE_HZ, force_full_scale_n=900.0, source='clipped.csv'
     )
-    page = build_report([record], tmp_path, model=ModelOverlay(0.113, 'given'), dpi=TEST_DPI)
+    session = run_session([record], SessionOptions(mu=0.113))
+    page = build_report(session, tmp_path, dpi=TEST_DPI)
     text = page.read_text(encoding='utf-8')
     header, rows = hit_rows(text)
     assert [(css, row['flags']) for css, row in rows] == [('rejected', 'clipped')]
@@ -419,7 +453,7 @@ def test_model_overlay_is_the_noise_free_plant_driven_by_the_conditioned_force()
     # Only the force noise inside the hit (0.05 N over ~20 samples) separates them.
     assert np.max(np.abs(given.velocity_m_s(record, 0) - truth)) < 1e-3 * np.max(np.abs(truth))
     # A fitted start position moves the model; other impacts still start at 0.
-    summary = FrictionSummary(
+    summary = FrictionResult(
         0.113,
         1e-5,
         given.rig,
@@ -428,7 +462,7 @@ def test_model_overlay_is_the_noise_free_plant_driven_by_the_conditioned_force()
         (1e-5, 1e-5),
         initial_positions_m=(2e-4, 0.0),
     )
-    moved = summary.overlay()
+    moved = overlay_of(summary)
     assert moved.source == 'fitted'
     assert np.max(np.abs(moved.velocity_m_s(record, 0) - truth)) > 1e-3
     np.testing.assert_array_equal(moved.velocity_m_s(record, 1), given.velocity_m_s(record, 0))
@@ -440,7 +474,7 @@ def test_model_overlay_is_the_noise_free_plant_driven_by_the_conditioned_force()
     )
     assert given.velocity_m_s(gapped, 0) is None
     with pytest.raises(ValueError, match='one value per impact'):
-        FrictionSummary(0.113, 1e-5, given.rig, (0, 1), (0.113,), (1e-5,))
+        FrictionResult(0.113, 1e-5, given.rig, (0, 1), (0.113,), (1e-5,))
 
 
 def test_paper_report_reproduces_figs_2_to_10(tmp_path):

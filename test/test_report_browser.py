@@ -25,8 +25,9 @@ ALT_WORDS = {
     'harmonics': ('|mobility|', 'against frequency', 'odd harmonics'),
     'trials': ('force [N]', 'velocity [mm/s]', 'against time'),
     'hit': ('force [N]', 'velocity [mm/s]', 'measured − model'),
-    'mobility': ('mobility', 'real', 'imaginary', 'against frequency'),
-    'receptance': ('receptance', 'real', 'imaginary', 'against frequency'),
+    'mobility': ('mobility', 'real', 'imaginary', 'magnitude', 'phase', 'against frequency'),
+    'receptance': ('receptance', 'real', 'imaginary', 'magnitude', 'phase', 'against frequency'),
+    'coherence': ('coherence γ²', '|mobility|', 'hits (min to max', 'against frequency'),
     'model_mobility': ('mobility', 'measured and model', 'against frequency'),
 }
 HOSTILE_TITLE = '<script>alert(1)</script>'
@@ -75,7 +76,7 @@ def test_the_report_renders_without_a_complaint(session):
 def test_every_figure_loads_at_the_size_of_its_png_file(session):
     report, seen = session
     pngs = {path.stem: path for path in report['out'].glob('*.png')}
-    assert len(pngs) == 25  # the figures test_report expects of this session
+    assert len(pngs) == 28  # the figures test_report expects of this session
     assert sorted(image.figure_id for image in seen.images) == sorted(
         f'fig-{name}' for name in pngs
     )

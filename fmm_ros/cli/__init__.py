@@ -6,6 +6,7 @@ parser and sets `func(args) -> int` as the parser default.
 
 import argparse
 import importlib
+import os
 import sys
 
 from fmm_ros import __version__
@@ -24,6 +25,8 @@ SUBCOMMANDS: tuple[str, ...] = (
     'fit',
     'identify_rig',
     'diagnose',
+    'env',
+    'ros',
 )
 
 
@@ -41,6 +44,11 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+# Exit status when the reader of stdout went away (`fmm ... | head`): that of a process ended
+# by SIGPIPE, as other Unix tools end then.
+CLOSED_PIPE_STATUS = 128 + 13
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of `fmm`: parse, dispatch, and turn bad input into a one-line error."""
     parser = build_parser()
@@ -49,7 +57,13 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return args.func(args)
+        status = args.func(args)
+        sys.stdout.flush()  # here, so a closed pipe is caught below and not at exit
+        return status
+    except BrokenPipeError:
+        # Point stdout at /dev/null, or Python's own flush at exit fails again and prints.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return CLOSED_PIPE_STATUS
     except (ValueError, FileNotFoundError) as error:
         print(f'fmm {args.command}: error: {error}', file=sys.stderr)
         return 2

@@ -3,7 +3,8 @@
 import argparse
 import json
 
-from fmm_ros.cli.progress import add_quiet_flag, progress_bar, report_problems
+from fmm_ros.cli import options
+from fmm_ros.cli.progress import progress_bar, report_problems
 from fmm_ros.io.bags import BagReader
 from fmm_ros.io.bags.summary import format_summary, summarize_bag
 
@@ -19,8 +20,8 @@ def register(subparsers) -> None:
         'damaged or was not closed.',
     )
     parser.add_argument('bag', help='bag directory, or a .mcap / .db3 file')
-    parser.add_argument('--json', action='store_true', help='print one JSON object')
-    add_quiet_flag(parser)
+    options.add_json(parser, 'one object')
+    options.add_quiet(parser)
     parser.set_defaults(func=run)
 
 

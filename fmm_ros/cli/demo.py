@@ -2,11 +2,11 @@
 
 import argparse
 import json
-import math
 import sys
 from datetime import datetime
 from pathlib import Path
 
+from fmm_ros.cli import options
 from fmm_ros.constants import PAPER_MU
 
 
@@ -27,10 +27,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=100.0,
         help='speed-up against real time (default 100; the graph runs x500 if asked)',
     )
-    parser.add_argument(
-        '--out', type=Path, default=None, help='output folder (default runs/demo_<date>_<time>)'
+    options.add_output(
+        parser,
+        'output folder (default runs/demo_<date>_<time>)',
+        metavar='DIR',
+        aliases=('--out',),
     )
-    parser.add_argument('--json', action='store_true', help='print one JSON object')
+    options.add_json(parser, 'one object')
     parser.add_argument(
         '--plant-mu',
         type=float,
@@ -67,9 +70,9 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f'--hits-per-level must be at least 1, got {args.hits_per_level}')
     if not 0.01 <= args.rate_factor <= 1000:
         raise ValueError(f'--rate-factor must be in [0.01, 1000], got {args.rate_factor}')
-    out = args.out or Path('runs') / datetime.now().strftime('demo_%Y%m%d_%H%M%S')
+    out = args.output or Path('runs') / datetime.now().strftime('demo_%Y%m%d_%H%M%S')
     if (out / 'bag').exists():
-        raise ValueError(f'{out / "bag"} exists: choose another --out (nothing is overwritten)')
+        raise ValueError(f'{out / "bag"} exists: choose another --output (nothing is overwritten)')
     config = SessionConfig(
         out_dir=out,
         hits_per_level=args.hits_per_level,
@@ -110,9 +113,9 @@ def _text(result, out: Path) -> str:
         f'hits: {result.hits_sent} sent, {result.hits_reported} reported, '
         f'{result.hits_accepted} accepted',
         (
-            f'mu: {result.mu:.4f} +- {result.mu_stderr:.2g} fitted, {result.plant_mu:.4f} in the '
-            f'plant ({error:+.2f} %)'
-            if not math.isnan(result.mu)
+            f'mu: {result.mu:.4f} +- {result.friction.mu_stderr:.2g} fitted, '
+            f'{result.plant_mu:.4f} in the plant ({error:+.2f} %)'
+            if result.friction
             else f'mu: not fitted ({result.fit_message})'
         ),
         f'model diagnosis: {result.missing_effect or "-"} ({result.diagnosis})',

@@ -10,6 +10,7 @@ printed) or a bag was damaged (warnings), 2 bad input or flags.
 import argparse
 from pathlib import Path
 
+from fmm_ros.cli import options
 from fmm_ros.cli._fitting import fit_and_report
 from fmm_ros.core.identify.rig import RigIdentification, identify_rig
 from fmm_ros.core.physics.rig import FMM_RIG
@@ -22,18 +23,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         'identify-rig',
         help='mass, damping and stiffness of the rig from mu = 0 records',
         description='Identify m, c, k (and f_n, zeta) of the rig with the friction contact '
-        'lifted: from impacts (CSV files time_s,force_n,velocity_m_s with a hit, '
-        'or bags) by output error with the measured force driving the model, or '
-        'from free decays (files without a hit) with the mass given.',
+        'lifted: from impacts (lab files with a hit, or bags) by output error with the '
+        'measured force driving the model, or from free decays (files without a hit) with '
+        'the mass given.',
     )
-    parser.add_argument(
-        'inputs',
-        nargs='+',
-        type=Path,
-        metavar='INPUT',
-        help='one CSV file per record, or a bag of impacts',
-    )
-    parser.add_argument('--json', action='store_true', help='print the result as JSON')
+    options.add_inputs(parser, what='record')
+    options.add_json(parser)
+    options.add_quiet(parser)
     parser.add_argument(
         '--mass-kg',
         type=float,
@@ -49,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     return fit_and_report(
         'identify-rig',
         args,
-        lambda records: identify_rig(records, mass_kg=args.mass_kg),
+        lambda records, ids, _: identify_rig([records[i] for i in ids], mass_kg=args.mass_kg),
         report,
         text_report,
     )

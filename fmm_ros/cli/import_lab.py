@@ -3,12 +3,11 @@
 import argparse
 from datetime import datetime
 
-from fmm_ros.cli.progress import add_quiet_flag, progress_bar
+from fmm_ros.cli import options
+from fmm_ros.cli.progress import progress_bar
 from fmm_ros.io.labfiles import (
     FORCE_UNITS,
     VELOCITY_UNITS,
-    ImportMapping,
-    load_mapping,
     open_lab_file,
     read_lab_files,
     write_recordings,
@@ -23,6 +22,11 @@ mapping file (flags override its entries):
   velocity: {{name: Vibrometer, unit: V, scale: 0.125}}   # 125 mm/s per V
   sample_rate_hz: 10000          # or a variable name, or leave out and give:
   time:     {{name: Time, unit: s}}
+
+Without a mapping, a file that states its units (a units row under a text header, "Hammer
+[lbf]" in a header, TDMS unit strings, the names time_s, force_n, velocity_m_s) has its one
+channel in force units taken as force, and likewise velocity and time; what was taken is
+printed.
 """
 
 
@@ -33,43 +37,29 @@ def register(subparsers) -> None:
         help='lab files (CSV, NPZ, MATLAB .mat, NI TDMS) into a session bag',
         description='Convert lab measurements to the session bag the recorder writes: force '
         'in N and velocity in m/s on one sample index, in 500-sample batches. '
-        'Which channel is which, their units and the sample rate are stated, '
-        'never guessed. Several files are joined in order.',
+        'Which channel is which, their units and the sample rate are stated (or stated '
+        'by the file), never guessed. Several files are joined in order.',
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument('files', nargs='+', help='.csv/.txt/.tsv, .npz, .mat, .tdms files')
-    parser.add_argument('-o', '--output', help='bag directory to create')
+    parser.add_argument(
+        'files', nargs='+', help='lab files: delimited text, .npz, .mat (v4-v7.3), .tdms'
+    )
+    options.add_output(parser, 'bag directory to create', metavar='BAG')
     parser.add_argument(
         '--list', action='store_true', help='list the channels each file holds, and stop'
     )
-    parser.add_argument('-m', '--mapping', help='YAML mapping file (see below)')
-    for quantity in ('force', 'velocity'):
-        parser.add_argument(
-            f'--{quantity}',
-            metavar='NAME',
-            help=f'{quantity} column, variable (struct.field) or TDMS group/channel',
-        )
-        parser.add_argument(f'--{quantity}-unit', metavar='UNIT', help=f'unit of {quantity}')
-        parser.add_argument(
-            f'--{quantity}-scale',
-            type=float,
-            metavar='SI_PER_UNIT',
-            help=f'SI units per file unit, for a sensor unit of {quantity}',
-        )
-        parser.add_argument(
+    group = parser.add_argument_group('the channels (flags override the mapping file)')
+    options.add_mapping_flags(group)
+    options.add_full_scale_flags(group)
+    for quantity, unit in (('force', 'N'), ('velocity', 'm/s')):
+        options.add_alias(
+            parser,
             f'--{quantity}-full-scale',
+            f'{quantity}_full_scale',
+            f'{options.FULL_SCALE_FLAGS[quantity]} (in {unit}; this one is in file units)',
             type=float,
-            metavar='VALUE',
-            help=f'sensor range of {quantity} in file units (clipping check)',
         )
-    parser.add_argument(
-        '--sample-rate-hz',
-        metavar='HZ_OR_VARIABLE',
-        help='sample rate, or the name of the variable holding it',
-    )
-    parser.add_argument('--time', metavar='NAME', help='a time column to take the rate from')
-    parser.add_argument('--time-unit', default=None, metavar='UNIT', help='s, ms or us')
     parser.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap')
     parser.add_argument('--batch-size', type=int, default=500, metavar='SAMPLES')
     parser.add_argument(
@@ -78,39 +68,16 @@ def register(subparsers) -> None:
         help="acquisition time of the first sample (default: the file's own, "
         'else its modification time minus its duration)',
     )
-    add_quiet_flag(parser)
+    options.add_quiet(parser)
     parser.set_defaults(func=run)
-
-
-def mapping_from_args(args: argparse.Namespace) -> ImportMapping:
-    """The mapping file's entries with the flags laid over them."""
-    spec = load_mapping(args.mapping) if args.mapping else {}
-    for quantity in ('force', 'velocity', 'time'):
-        entry = spec.get(quantity)
-        entry = {'name': entry} if isinstance(entry, str) else dict(entry or {})
-        flags = {
-            'name': getattr(args, quantity),
-            'unit': getattr(args, f'{quantity}_unit'),
-            'scale': getattr(args, f'{quantity}_scale', None),
-            'full_scale': getattr(args, f'{quantity}_full_scale', None),
-        }
-        entry.update({key: value for key, value in flags.items() if value is not None})
-        if entry:
-            spec[quantity] = entry
-    if args.sample_rate_hz is not None:
-        try:
-            spec['sample_rate_hz'] = float(args.sample_rate_hz)
-        except ValueError:
-            spec['sample_rate_hz'] = args.sample_rate_hz
-    return ImportMapping.from_dict(spec)
 
 
 def run(args: argparse.Namespace) -> int:
     """List the files' channels, or import them into a bag."""
     if args.list:
         for path in args.files:
-            lab = open_lab_file(path)
-            print(f'{path} ({lab.format}):')
+            lab = open_lab_file(path, options.text_format(args))
+            print(f'{path} ({lab.format}{", " + lab.layout() if lab.layout() else ""}):')
             for name in lab.names():
                 unit = lab.channel_unit(name)
                 increment = lab.channel_increment_s(name)
@@ -121,11 +88,10 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if not args.output:
         raise ValueError('give the bag to write with -o BAG (or --list to see the channels)')
-    mapping = mapping_from_args(args)
     start_ns = None
     if args.start_time:
         start_ns = round(datetime.fromisoformat(args.start_time).timestamp() * 1e9)
-    recordings = read_lab_files(args.files, mapping)
+    recordings = read_lab_files(args.files, options.mapping_spec(args), options.text_format(args))
     total = sum(len(r.force_n) for r in recordings)
     with progress_bar(total, desc='writing', unit='sample', quiet=args.quiet) as bar:
         summary = write_recordings(

@@ -10,11 +10,13 @@ import json
 import time
 from pathlib import Path
 
-from fmm_ros.cli.analyze import add_analysis_options, analysis_configs, report, text_report
-from fmm_ros.cli.progress import add_quiet_flag, progress_bar, report_problems
+from fmm_ros.cli import options
+from fmm_ros.cli.formats import analysis_text
+from fmm_ros.cli.progress import progress_bar, report_problems
 from fmm_ros.io.bags import SAMPLE_BATCH, BagReader
 from fmm_ros.io.frf_files import level_curves, write_frfs
 from fmm_ros.workflows.replay import replay_bag
+from fmm_ros.workflows.results import analysis_dict
 
 
 def register(subparsers) -> None:
@@ -29,34 +31,24 @@ def register(subparsers) -> None:
         'faster than real time it ran. Exit status 1 when the bag is damaged.',
     )
     parser.add_argument('bag', type=Path, help='bag directory, or a .mcap / .db3 file')
-    parser.add_argument('--json', action='store_true', help='print one JSON object')
-    add_analysis_options(parser)
-    parser.add_argument(
-        '--export',
-        action='append',
-        default=[],
-        type=Path,
-        metavar='PATH',
-        help='write the level FRFs to PATH: .uff/.unv (UFF 58), .csv or .json (repeatable)',
-    )
-    add_quiet_flag(parser)
+    options.add_analysis(parser)
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Replay, then print the analyzer's output and the replay speed."""
-    capture, analysis = analysis_configs(args)
+    capture, analysis = options.analysis_configs(args)
     with BagReader(args.bag, strict=False) as reader:  # the batch count, for the progress bar
         total = sum(info.count for info in reader.topics.values() if info.msgtype == SAMPLE_BATCH)
     start = time.perf_counter()
     with progress_bar(total, desc='replaying', unit='batch', quiet=args.quiet) as bar:
         replay = replay_bag(args.bag, capture, analysis, on_batch=lambda _: bar.update())
     wall_s = time.perf_counter() - start
-    for path in args.export:
+    for path in args.output:
         write_frfs(path, level_curves(replay.summary))
     speed = replay.signal_s / wall_s if wall_s > 0 else float('inf')
     if args.json:
-        document = report(replay.summary)
+        document = analysis_dict(replay.summary)
         document['replay'] = {
             'bag': str(args.bag),
             'signal_s': replay.signal_s,
@@ -68,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
         }
         print(json.dumps(document, indent=2, allow_nan=False))
     else:
-        print(text_report(replay.summary))
+        print(analysis_text(replay.summary))
         print(
             f'\nreplayed {replay.signal_s:.1f} s of signal ({replay.batches} batches) in '
             f'{wall_s:.2f} s: {speed:.0f}x real time'

@@ -1,23 +1,21 @@
 """`fmm report`: the HTML page and PNG figures of a session, or of the paper's simulations.
 
-`fmm report INPUT... --out DIR` analyses the impacts exactly as `fmm analyze` does (same
-options), fits mu over the accepted ones as `fmm fit` does, and writes DIR/index.html with
-every figure embedded plus DIR/<figure>.png.
-`fmm report --paper --out DIR` reproduces the paper's Figs. 2-10 from the physics core.
+`fmm report INPUT... -o DIR` reads the impacts as `fmm analyze` does (same options), fits mu
+over the accepted ones as `fmm fit` does, optionally diagnoses them
+(`fmm_ros.workflows.session.process_session`), and writes DIR/index.html with every figure
+embedded plus DIR/<figure>.png (`fmm_ros.report.build_report`).
+`fmm report --paper -o DIR` reproduces the paper's Figs. 2-10 from the physics core.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
-from fmm_ros.cli._model import add_fit_freedom_arguments, add_rig_arguments, rig_from_args
-from fmm_ros.cli.analyze import add_analysis_options, analysis_configs, read_records
-from fmm_ros.cli.progress import report_problems
-from fmm_ros.report import report_session
-from fmm_ros.report.paper import build_paper_report
-from fmm_ros.report.plotting import DEFAULT_DPI
+from fmm_ros.cli import options
+from fmm_ros.cli.progress import StatusLine, report_problems
+from fmm_ros.constants import REPORT_DPI
+from fmm_ros.workflows.session import SessionOptions, process_session
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -27,27 +25,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help='HTML page and PNG figures of a session (or of the paper)',
         description='Write DIR/index.html (figures embedded, every hit in a table with its '
         'quality flags) and each figure as DIR/<name>.png: force pulses and '
-        'velocity decays, mobility and receptance per level with trials and mean, '
-        'levels compared, odd harmonics of f_n, impulses, and the linearity of '
-        'peak receptance in impulse. mu is fitted over the accepted hits (as fmm '
-        'fit does) and the fitted model (Eq. 3) driven by each measured force is '
-        "drawn over the measurement. --paper draws the paper's Figs. 2-10 from the "
-        'physics core instead.',
+        'velocity decays, mobility and receptance per level with trials and mean (real and '
+        'imaginary, magnitude and phase), coherence, levels compared, odd harmonics of f_n, '
+        'impulses, and the linearity of peak receptance in impulse. mu is fitted over the '
+        'accepted hits (as fmm fit does) and the fitted model (Eq. 3) driven by each '
+        "measured force is drawn over the measurement. --paper draws the paper's Figs. 2-10 "
+        'from the physics core instead.',
     )
-    parser.add_argument(
-        'inputs',
-        nargs='*',
-        type=Path,
-        metavar='INPUT',
-        help='one CSV file per impact (time_s,force_n,velocity_m_s), or a bag '
-        '(directory, .mcap or .db3) whose every impact is reported',
-    )
-    parser.add_argument(
-        '--out',
-        type=Path,
-        required=True,
+    options.add_inputs(parser, nargs='*')
+    options.add_output(
+        parser,
+        'directory for index.html and the PNG files (created)',
         metavar='DIR',
-        help='directory for index.html and the PNG files (created)',
+        aliases=('--out',),
     )
     parser.add_argument(
         '--paper',
@@ -62,65 +52,64 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help='draw the model with this friction coefficient instead of fitting',
     )
     model.add_argument('--no-fit', action='store_true', help='neither fit mu nor draw a model')
-    add_fit_freedom_arguments(parser)
     parser.add_argument(
         '--diagnose',
         action='store_true',
         help='also run the discrepancy workflow (fmm diagnose) over the '
         'accepted hits: the missing effect, the gap before and after',
     )
-    add_rig_arguments(parser)
     parser.add_argument('--title', default='Impact session report', help='page title')
     parser.add_argument(
         '--dpi',
         type=float,
-        default=DEFAULT_DPI,
-        help=f'PNG resolution [dots per inch] (default {DEFAULT_DPI:g})',
+        default=REPORT_DPI,
+        help=f'PNG resolution [dots per inch] (default {REPORT_DPI:g})',
     )
-    add_analysis_options(parser)
+    options.add_model(parser)
+    options.add_hit_selection(parser)
+    options.add_frf_options(parser)
+    options.add_quiet(parser)
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Write the page and print where it is; 1 if a bag was damaged or a fit was refused."""
-    if args.dpi <= 0:
-        raise ValueError(f'--dpi must be positive, got {args.dpi:g}')
+    from fmm_ros.report import build_report  # matplotlib: only once the flags are good
+    from fmm_ros.report.paper import build_paper_report
+
+    dpi = args.dpi
+    if dpi <= 0:
+        raise ValueError(f'--dpi must be positive, got {dpi:g}')
+    if args.output is None:
+        raise ValueError('give the directory to write the report to with -o DIR')
     if args.paper:
         if args.inputs:
             raise ValueError('--paper draws the simulations of the paper and takes no INPUT')
         print(
-            f'wrote {build_paper_report(args.out, dpi=args.dpi)} (figures embedded, and as '
+            f'wrote {build_paper_report(args.output, dpi=dpi)} (figures embedded, and as '
             'PNG files beside it)'
         )
         return 0
     if not args.inputs:
         raise ValueError('give the impact files or bags to report on, or --paper')
-    capture, analysis = analysis_configs(args)
-    records, problems = read_records(
-        args.inputs, args.force_full_scale_n, args.velocity_full_scale_m_s, capture
-    )
-    result = report_session(
-        records,
-        args.out,
-        capture=capture,
+    capture, analysis = options.analysis_configs(args)
+    session_options = SessionOptions(
+        inputs=options.input_options(args, capture),
         analysis=analysis,
-        rig=rig_from_args(args),
+        model=options.fit_options(args),
         mu=args.mu,
         fit=not args.no_fit,
-        fit_damping=args.fit_damping,
-        fit_initial_position=args.fit_initial_position,
         diagnose=args.diagnose,
-        title=args.title,
-        inputs=[str(path) for path in args.inputs],
-        problems=problems,
-        dpi=args.dpi,
     )
+    with StatusLine(quiet=args.quiet) as progress:
+        session = process_session(args.inputs, session_options, progress=progress)
+        page = build_report(session, args.output, title=args.title, dpi=dpi, progress=progress)
     failures = [
         f'cannot {what}: {why}'
-        for what, why in (('fit mu', result.fit_failure), ('diagnose', result.diagnosis_failure))
+        for what, why in (('fit mu', session.fit_failure), ('diagnose', session.diagnosis_failure))
         if why
     ]
     for failure in failures:
         print(f'fmm report: {failure}', file=sys.stderr)
-    print(f'wrote {result.page} (figures embedded, and as PNG files beside it)')
-    return max(report_problems('report', problems), 1 if failures else 0)
+    print(f'wrote {page} (figures embedded, and as PNG files beside it)')
+    return max(report_problems('report', session.problems), 1 if failures else 0)

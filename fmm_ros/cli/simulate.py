@@ -1,9 +1,9 @@
 """`fmm simulate`: run the friction oscillator from an initial condition or a force record.
 
 Examples (the paper's Fig. 2 oscillator; an FMM response to a recorded hit):
-    fmm simulate --x0-mm 3 --mu 0.1 --mass-kg 1 --stiffness-n-per-m 5000
+    fmm simulate --x0-m 0.003 --mu 0.1 --mass-kg 1 --stiffness-n-per-m 5000
                  --damping-n-s-per-m 0 --normal-force-n 9.81 --duration-s 1 --json
-    fmm simulate --force-csv hit.csv --out response.csv
+    fmm simulate --force-csv hit.csv -o response.csv
 """
 
 import argparse
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fmm_ros.cli._model import add_rig_arguments, rig_from_args
+from fmm_ros.cli import options
 from fmm_ros.constants import PAPER_MU, SAMPLE_RATE_HZ
 from fmm_ros.core._checks import sample_rate_from_times
 from fmm_ros.core.physics.model import record_length, simulate
@@ -32,7 +32,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         'from an initial displacement/velocity and/or a measured force record '
         '(linear between samples). Rig flags default to the FMM.',
     )
-    parser.add_argument('--x0-mm', type=float, default=0.0, help='initial displacement [mm]')
+    parser.add_argument('--x0-m', type=float, default=0.0, help='initial displacement [m]')
+    options.add_alias(parser, '--x0-mm', 'x0_m', '--x0-m (in m)', type=float, scale=1e-3)
     parser.add_argument('--v0-m-s', type=float, default=0.0, help='initial velocity [m/s]')
     parser.add_argument(
         '--force-csv',
@@ -47,7 +48,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=PAPER_MU,
         help=f'Coulomb friction coefficient (default {PAPER_MU})',
     )
-    add_rig_arguments(parser)
+    options.add_rig(parser)
     parser.add_argument(
         '--duration-s',
         type=float,
@@ -67,9 +68,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help='exact (default): exact between located stick/slip events; '
         "euler: the paper's fixed-step reference",
     )
-    parser.add_argument('--json', action='store_true', help='print the summary as JSON')
-    parser.add_argument(
-        '--out', type=Path, metavar='CSV', help='write time_s,force_n,displacement_m,velocity_m_s'
+    options.add_json(parser, 'the summary')
+    options.add_output(
+        parser,
+        'write time_s,force_n,displacement_m,velocity_m_s to this CSV file',
+        metavar='CSV',
+        aliases=('--out',),
     )
     parser.set_defaults(func=run)
 
@@ -93,7 +97,7 @@ def read_force_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
 
 def run(args: argparse.Namespace) -> int:
     """Simulate as the flags say, print the summary, optionally write the record."""
-    rig = rig_from_args(args)
+    rig = options.rig_from_args(args)
     start_s = 0.0
     if args.force_csv is not None:
         time_s, force = read_force_csv(args.force_csv)
@@ -118,7 +122,7 @@ def run(args: argparse.Namespace) -> int:
         rate,
         rig=rig,
         mu=args.mu,
-        x0_m=args.x0_mm * 1e-3,
+        x0_m=args.x0_m,
         v0_m_s=args.v0_m_s,
         integrator=args.integrator,
     )
@@ -129,10 +133,15 @@ def run(args: argparse.Namespace) -> int:
         'damping_ratio': rig.damping_ratio,
         'peak_velocity_m_s': float(np.max(np.abs(sim.velocity_m_s))),
     }
-    if args.out is not None:
+    if args.output is not None:
         table = np.column_stack((start_s + sim.time_s, force, sim.displacement_m, sim.velocity_m_s))
         np.savetxt(
-            args.out, table, delimiter=',', header=','.join(OUT_COLUMNS), comments='', fmt='%.10g'
+            args.output,
+            table,
+            delimiter=',',
+            header=','.join(OUT_COLUMNS),
+            comments='',
+            fmt='%.10g',
         )
     if args.json:
         print(json.dumps(summary))
@@ -148,6 +157,6 @@ def run(args: argparse.Namespace) -> int:
         )
         print(f'final position    {1e3 * summary["final_position_m"]:.6f} mm ({rest})')
         print(f'peak velocity     {summary["peak_velocity_m_s"]:.6g} m/s')
-        if args.out is not None:
-            print(f'wrote {force.size} samples to {args.out}')
+        if args.output is not None:
+            print(f'wrote {force.size} samples to {args.output}')
     return 0

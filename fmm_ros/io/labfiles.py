@@ -1,10 +1,19 @@
-"""Lab measurements (CSV, NPZ, MATLAB .mat v5 and v7.3, NI TDMS) into session bags.
+"""Lab measurements (delimited text, NPZ, MATLAB .mat v4-v7.3, NI TDMS): channels by name, in SI.
 
-Nothing is guessed: which channel is force and which velocity, the unit of each, and the
-sample rate come from an explicit mapping (a small YAML file or command-line flags).
-Values are converted to SI (force in N, velocity in m/s) by a table of known units, or by a
-stated scale for sensor units such as volts (e.g. 0.125 m/s per V). The result is the bag
-the recorder would have written: both channels on one sample index, 500-sample batches.
+Which channel is force and which velocity, the unit of each, and the sample rate come from an
+explicit mapping (a small YAML file or command-line flags) or from what the file itself states,
+never from a guess: a unit written in the file (a units row under a text header, `Hammer [lbf]`
+in a header, a TDMS `unit_string`, the names `time_s`, `force_n`, `velocity_m_s`) names the
+quantity of its channel, so a file with exactly one channel in force units and one in velocity
+units needs no mapping (`mapping_for` says which it took and why). Values are converted to SI
+(force in N, velocity in m/s) by a table of known units, or by a stated scale for sensor units
+such as volts (e.g. 0.125 m/s per V). `fmm import` writes the result as the bag the recorder
+would have written; `fmm_ros.workflows.inputs` hands it to the analysis as impact records.
+
+The reader is chosen by the file's content (`fmm_ros.io.sniff`), not its name. Text files are
+read as labs write them: the encoding (a BOM, UTF-8, else chardet's guess), the delimiter
+(clevercsv), a decimal comma, a header row, a units row and a preamble to skip are detected,
+and each can be stated instead (`TextFormat`).
 
 Mapping (YAML)::
 
@@ -14,8 +23,8 @@ Mapping (YAML)::
     time: {name: Time, unit: s}                     # a time column (checked for uniformity)
 """
 
-import csv
 import os
+import re
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -24,7 +33,11 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from fmm_ros.core._checks import sample_rate_from_times
+from fmm_ros.core.signal.records import CSV_COLUMNS
+from fmm_ros.io import sniff
 from fmm_ros.io.bags.writer import DEFAULT_BATCH_SIZE, BagWriter
+from fmm_ros.io.textfiles import DETECT, TextFormat, read_table
 
 # SI value of one file unit; lookups ignore case ("MM/S" is mm/s).
 FORCE_UNITS = {'N': 1.0, 'kN': 1e3, 'mN': 1e-3, 'lbf': 4.4482216152605, 'kgf': 9.80665}
@@ -40,19 +53,16 @@ VELOCITY_UNITS = {
 TIME_UNITS = {'s': 1.0, 'ms': 1e-3, 'us': 1e-6, 'µs': 1e-6}
 QUANTITY_UNITS = {'force': FORCE_UNITS, 'velocity': VELOCITY_UNITS, 'time': TIME_UNITS}
 SI_UNITS = {'force': 'N', 'velocity': 'm/s', 'time': 's'}
+CANONICAL_NAMES = dict(zip(('time', 'force', 'velocity'), CSV_COLUMNS, strict=True))
+"""Names that state their quantity and SI unit: the per-impact CSV columns fmm writes."""
+_CANONICAL_UNITS = {name: SI_UNITS[quantity] for quantity, name in CANONICAL_NAMES.items()}
+SAMPLE_RATE_NAME = 'sample_rate_hz'
+"""A scalar variable of this name (NPZ, MATLAB) is the sample rate when none is stated."""
 
-# Relative spread of time steps a time column may have and still count as uniform.
+# Relative spread of time steps a time column may have and still count as uniform. A dropped
+# sample is a step twice as long; 1 % leaves room for time stamps printed with few digits at
+# rates that are not a power of ten (12.8 kHz in steps of 78.125 us, printed to 1 us).
 UNIFORM_TIME_TOLERANCE = 0.01
-
-FORMATS = {
-    '.csv': 'CSV',
-    '.txt': 'CSV',
-    '.tsv': 'CSV',
-    '.dat': 'CSV',
-    '.npz': 'NPZ',
-    '.mat': 'MATLAB',
-    '.tdms': 'TDMS',
-}
 
 
 @dataclass(frozen=True)
@@ -62,13 +72,19 @@ class ChannelMapping:
     name: column header (or 0-based column number), variable name (dots reach into MATLAB
     structs) or TDMS "group/channel". unit: unit of the numbers in the file. scale: SI units
     per file unit, for units the table does not know (V, counts); not with a known unit.
-    full_scale: sensor range in file units (0: unknown).
+    full_scale: sensor range in file units (0: unknown). full_scale_si: the same in SI units
+    (N, m/s), which wins over full_scale when given (the command-line flags are in SI).
     """
 
     name: str
     unit: str | None = None
     scale: float | None = None
     full_scale: float = 0.0
+    full_scale_si: float | None = None
+
+    def full_scale_in_si(self, factor: float) -> float:
+        """The sensor range in SI units, given the channel's SI units per file unit."""
+        return self.full_scale_si if self.full_scale_si is not None else self.full_scale * factor
 
     def factor(self, quantity: str, file_unit: str | None = None) -> tuple[float, str]:
         """SI units per file unit, and how that was decided (for the import report)."""
@@ -146,21 +162,25 @@ class ImportMapping:
         )
 
 
+CHANNEL_KEYS = ('name', 'unit', 'scale', 'full_scale', 'full_scale_si')
+
+
 def _channel(spec, key: str) -> ChannelMapping:
     """One channel entry of a mapping: {name, unit, scale, full_scale} or just a name."""
     if isinstance(spec, str | int):
         return ChannelMapping(str(spec))
     if not isinstance(spec, dict) or 'name' not in spec:
         raise ValueError(f'mapping entry {key} needs a name: {key}: {{name: ..., unit: ...}}')
-    unknown = set(spec) - {'name', 'unit', 'scale', 'full_scale'}
+    unknown = set(spec) - set(CHANNEL_KEYS)
     if unknown:
         raise ValueError(f'unknown keys in mapping entry {key}: {", ".join(sorted(unknown))}')
-    scale = spec.get('scale')
+    scale, full_scale_si = spec.get('scale'), spec.get('full_scale_si')
     return ChannelMapping(
         str(spec['name']),
         spec.get('unit'),
         None if scale is None else float(scale),
         float(spec.get('full_scale', 0.0)),
+        None if full_scale_si is None else float(full_scale_si),
     )
 
 
@@ -191,8 +211,12 @@ class LabFile(ABC):
         """The values of one channel or variable, as stored."""
 
     def channel_unit(self, name: str) -> str | None:
-        """The unit the file itself states for a channel (TDMS only)."""
-        return None
+        """The unit the file itself states for a channel: here, only by a canonical name."""
+        return _CANONICAL_UNITS.get(name)
+
+    def layout(self) -> str:
+        """How the file was read, when the format leaves a choice (text files)."""
+        return ''
 
     def channel_increment_s(self, name: str) -> float | None:
         """The sample interval the file itself states for a channel (TDMS only)."""
@@ -232,58 +256,64 @@ class LabFile(ABC):
 
 
 class CsvFile(LabFile):
-    """Delimited text: a header row of names (else columns are named 0, 1, ...), '#' comments."""
+    """Delimited text (`fmm_ros.io.textfiles`): columns by header name, else by number.
 
-    format = 'CSV'
+    A header cell may carry its unit (`Hammer [lbf]`, `Hammer (lbf)`), and a units row under
+    the header gives each column's; a column is found by its header as written or by its
+    name without the unit.
+    """
 
-    def __init__(self, path: Path) -> None:
+    format = sniff.CSV
+
+    def __init__(self, path: Path, text_format: TextFormat = DETECT) -> None:
         super().__init__(path)
-        with path.open(encoding='utf-8', newline='') as stream:
-            lines = [line for line in stream if line.strip() and not line.startswith('#')][:2]
-        if not lines:
-            raise ValueError(f'{path} holds no data')
-        try:
-            self._delimiter = csv.Sniffer().sniff(lines[-1], delimiters=',;\t ').delimiter
-        except csv.Error:
-            self._delimiter = ','
-        first = next(csv.reader([lines[0]], delimiter=self._delimiter, skipinitialspace=True))
-        first = [cell.strip() for cell in first if self._delimiter != ' ' or cell]
-        self._has_header = not all(_is_number(cell) for cell in first)
-        self._names = first if self._has_header else [str(i) for i in range(len(first))]
-        self._table: np.ndarray | None = None
+        self.table = read_table(path, text_format)
+        self._values: np.ndarray | None = None
 
     def names(self) -> list[str]:
         """Column names from the header row, or column numbers."""
-        return list(self._names)
+        return list(self.table.names)
+
+    def _column(self, name: str) -> int:
+        names = self.table.names
+        if name in names:
+            return names.index(name)
+        bare = [index for index, header in enumerate(names) if _split_unit(header)[0] == name]
+        if len(bare) != 1:
+            raise self._missing(name)
+        return bare[0]
 
     def array(self, name: str) -> np.ndarray:
         """One column."""
-        if name not in self._names:
-            raise self._missing(name)
-        if self._table is None:
-            self._table = np.loadtxt(
-                self.path,
-                delimiter=None if self._delimiter == ' ' else self._delimiter,
-                comments='#',
-                skiprows=1 if self._has_header else 0,
-                ndmin=2,
-                encoding='utf-8',
-            )
-        return self._table[:, self._names.index(name)]
+        column = self._column(name)
+        if self._values is None:
+            self._values = self.table.values()
+        return self._values[:, column]
+
+    def channel_unit(self, name: str) -> str | None:
+        """The column's cell in the units row, else the unit in its header, else its name's."""
+        column = self._column(name)
+        header = self.table.names[column]
+        return self.table.units[column] or _split_unit(header)[1] or super().channel_unit(header)
+
+    def layout(self) -> str:
+        """How the text was read (delimiter, decimal, units row, encoding)."""
+        return self.table.describe()
 
 
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
+_HEADER_UNIT = re.compile(r'^(.*?)\s*[\[(]([^\[\]()]+)[\])]\s*$')
+
+
+def _split_unit(header: str) -> tuple[str, str | None]:
+    """'Hammer [lbf]' -> ('Hammer', 'lbf'); a header without a bracketed unit -> (header, None)."""
+    match = _HEADER_UNIT.match(header)
+    return (match[1], match[2].strip()) if match and match[1] else (header, None)
 
 
 class NpzFile(LabFile):
     """numpy .npz: one array per channel."""
 
-    format = 'NPZ'
+    format = sniff.NPZ
 
     def __init__(self, path: Path) -> None:
         super().__init__(path)
@@ -304,7 +334,7 @@ class NpzFile(LabFile):
 class MatFile(LabFile):
     """MATLAB .mat up to v7 (scipy.io); dotted names reach into structs (data.force)."""
 
-    format = 'MATLAB'
+    format = sniff.MATLAB
 
     def __init__(self, path: Path) -> None:
         super().__init__(path)
@@ -348,7 +378,7 @@ class MatFile(LabFile):
 class Mat73File(LabFile):
     """MATLAB .mat v7.3 (HDF5, h5py); dotted names reach into structs (data.force)."""
 
-    format = 'MATLAB v7.3'
+    format = sniff.MATLAB_73
 
     def __init__(self, path: Path) -> None:
         super().__init__(path)
@@ -381,7 +411,7 @@ class Mat73File(LabFile):
 class TdmsFile(LabFile):
     """NI TDMS (nptdms): channels as group/channel, with unit, increment and start time."""
 
-    format = 'TDMS'
+    format = sniff.TDMS
 
     def __init__(self, path: Path) -> None:
         super().__init__(path)
@@ -408,8 +438,9 @@ class TdmsFile(LabFile):
         return self._channel(name)[:]
 
     def channel_unit(self, name: str) -> str | None:
-        """The channel's unit_string property."""
-        return self._channel(name).properties.get('unit_string') or None
+        """The channel's unit_string property (else what its name states)."""
+        unit = self._channel(name).properties.get('unit_string')
+        return unit or super().channel_unit(name.rsplit('/', 1)[-1])
 
     def channel_increment_s(self, name: str) -> float | None:
         """The channel's wf_increment property [s]."""
@@ -425,25 +456,22 @@ class TdmsFile(LabFile):
         return None
 
 
-def open_lab_file(path: str | Path) -> LabFile:
-    """The reader for a lab file, chosen by its extension."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f'{path} does not exist')
-    kind = FORMATS.get(path.suffix.lower())
-    if kind is None:
-        raise ValueError(
-            f'{path}: unknown format {path.suffix!r}; supported: {", ".join(sorted(FORMATS))}'
-        )
-    if kind == 'CSV':
-        return CsvFile(path)
-    if kind == 'NPZ':
-        return NpzFile(path)
-    if kind == 'TDMS':
-        return TdmsFile(path)
-    import h5py
+def open_lab_file(path: str | Path, text_format: TextFormat = DETECT) -> LabFile:
+    """The reader for a lab file, chosen by its content (`fmm_ros.io.sniff.file_kind`).
 
-    return Mat73File(path) if h5py.is_hdf5(path) else MatFile(path)
+    text_format applies to text files (delimiter, decimal, rows to skip, encoding).
+    """
+    path = Path(path)
+    kind = sniff.file_kind(path)
+    if kind == sniff.BAG:
+        raise ValueError(f'{path} is a bag, not a lab file: give it to fmm analyze/fit/report')
+    if kind == sniff.CSV:
+        return CsvFile(path, text_format)
+    if kind == sniff.NPZ:
+        return NpzFile(path)
+    if kind == sniff.TDMS:
+        return TdmsFile(path)
+    return Mat73File(path) if kind == sniff.MATLAB_73 else MatFile(path)
 
 
 # -- conversion -----------------------------------------------------------------------------------
@@ -461,6 +489,8 @@ class LabRecording:
     start_time_ns: int | None
     source: Path
     report: list[str] = field(default_factory=list)
+    channel_names: dict[str, str] = field(default_factory=dict)
+    """The file's name of each quantity's channel ('force', 'velocity')."""
 
     @property
     def duration_s(self) -> float:
@@ -468,15 +498,26 @@ class LabRecording:
         return len(self.force_n) / self.sample_rate_hz
 
 
-def read_lab_file(path: str | Path, mapping: ImportMapping) -> LabRecording:
-    """Force and velocity of one lab file in SI, with the sample rate the mapping says."""
-    lab = open_lab_file(path)
+def read_lab_file(
+    path: str | Path,
+    mapping: ImportMapping | dict,
+    text_format: TextFormat = DETECT,
+) -> LabRecording:
+    """Force and velocity of one lab file in SI, with the sample rate the mapping says.
+
+    mapping: an ImportMapping, or its YAML form with any part left out that the file states
+    itself (`mapping_for`).
+    """
+    lab = open_lab_file(path, text_format)
+    report = [f'{lab.path} ({lab.format}{", " + lab.layout() if lab.layout() else ""})']
+    if not isinstance(mapping, ImportMapping):
+        mapping, notes = mapping_for(lab, mapping)
+        report += [f'  {note}' for note in notes]
     channels = {}
-    report = [f'{lab.path} ({lab.format})']
     for quantity, spec in (('force', mapping.force), ('velocity', mapping.velocity)):
         values = lab.vector(spec.name)
         factor, how = spec.factor(quantity, lab.channel_unit(spec.name))
-        channels[quantity] = (values * factor, spec.full_scale * factor)
+        channels[quantity] = (values * factor, spec.full_scale_in_si(factor))
         report.append(
             f'  {quantity}: {spec.name!r} {how} -> {SI_UNITS[quantity]}, {len(values)} samples'
         )
@@ -502,7 +543,60 @@ def read_lab_file(path: str | Path, mapping: ImportMapping) -> LabRecording:
         lab.start_time_ns(),
         lab.path,
         report,
+        {'force': mapping.force.name, 'velocity': mapping.velocity.name},
     )
+
+
+def mapping_for(lab: LabFile, spec: dict) -> tuple[ImportMapping, list[str]]:
+    """A mapping's YAML form completed from what the file states, and what was taken so.
+
+    A channel the spec does not name is the file's one channel whose unit (stated in the
+    file, `LabFile.channel_unit`) is a unit of that quantity; several or none is an error
+    that lists the channels. Without a stated rate, the one channel in time units becomes
+    the time channel, else a scalar variable `sample_rate_hz`, else TDMS's own increments.
+    """
+    spec = dict(spec)
+    notes = []
+    stated = {name: lab.channel_unit(name) for name in lab.names()}
+
+    def channels_of(quantity: str) -> list[str]:
+        """The channel of the canonical name, else every channel in that quantity's units."""
+        canonical = CANONICAL_NAMES[quantity]
+        if canonical in stated:
+            return [canonical]
+        units = QUANTITY_UNITS[quantity]
+        return [name for name, unit in stated.items() if _lookup_unit(units, unit)]
+
+    listing = ', '.join(f'{name} [{unit}]' if unit else name for name, unit in stated.items())
+    for quantity in ('force', 'velocity'):
+        entry = spec.get(quantity)
+        entry = {'name': entry} if isinstance(entry, str | int) else dict(entry or {})
+        if 'name' in entry:
+            spec[quantity] = entry
+            continue
+        found = channels_of(quantity)
+        if len(found) != 1:
+            problem = (
+                f'missing column(s) {CANONICAL_NAMES[quantity]}, and no channel is in '
+                f'{quantity} units'
+                if not found
+                else f'{len(found)} channels are in {quantity} units ({", ".join(found)})'
+            )
+            raise ValueError(
+                f'{lab.path} ({lab.format}): which channel is the {quantity}? {problem}; '
+                f'name it with --{quantity} NAME (and --{quantity}-unit UNIT), or in a mapping '
+                f'file (-m); the file has: {listing or "nothing"}'
+            )
+        spec[quantity] = {**entry, 'name': found[0]}
+        notes.append(f'{quantity}: {found[0]!r}, the one channel in {quantity} units')
+    if spec.get('sample_rate_hz') is None and not spec.get('time'):
+        times = channels_of('time')
+        if len(times) == 1:
+            spec['time'] = {'name': times[0]}
+            notes.append(f'time: {times[0]!r}, the one channel in time units')
+        elif SAMPLE_RATE_NAME in stated:
+            spec['sample_rate_hz'] = SAMPLE_RATE_NAME
+    return ImportMapping.from_dict(spec), notes
 
 
 def _sample_rate(lab: LabFile, mapping: ImportMapping, length: int) -> tuple[float, str]:
@@ -514,30 +608,29 @@ def _sample_rate(lab: LabFile, mapping: ImportMapping, length: int) -> tuple[flo
     elif stated is not None:
         rate, how = float(stated), 'stated'
     if mapping.time is not None:
-        time_s = lab.vector(mapping.time.name) * mapping.time.factor('time')[0]
+        name = mapping.time.name
+        time_s = lab.vector(name) * mapping.time.factor('time', lab.channel_unit(name))[0]
         if len(time_s) != length:
             raise ValueError(
-                f'{lab.path}: time {mapping.time.name!r} has {len(time_s)} '
-                f'samples, the channels {length}'
+                f'{lab.path}: time {name!r} has {len(time_s)} samples, the channels {length}'
             )
-        steps = np.diff(time_s)
-        step = float(np.median(steps)) if len(steps) else 0.0
-        if step <= 0 or np.max(np.abs(steps - step)) > UNIFORM_TIME_TOLERANCE * step:
+        try:
+            # Over the whole span, so the rounding of each printed time stamp averages out.
+            from_time = sample_rate_from_times(time_s, rtol=UNIFORM_TIME_TOLERANCE)
+        except ValueError as error:
             raise ValueError(
-                f'{lab.path}: time {mapping.time.name!r} is not uniformly '
-                'increasing; the importer needs a constant sample rate'
-            )
-        # Over the whole span, so the rounding of each printed time stamp averages out;
-        # within a millionth of a whole number of Hz (what DAQs run at), that number.
-        from_time = (len(time_s) - 1) / float(time_s[-1] - time_s[0])
+                f'{lab.path}: time {name!r} is not uniformly increasing ({error}; a dropped '
+                'or repeated sample?): the analysis needs a constant sample rate'
+            ) from None
+        # Within a millionth of a whole number of Hz (what DAQs run at), that number.
         if abs(from_time - round(from_time)) < 1e-6 * from_time:
             from_time = float(round(from_time))
         if rate is None:
-            rate, how = from_time, f'time channel {mapping.time.name!r}'
+            rate, how = from_time, f'time channel {name!r}'
         elif abs(from_time - rate) > UNIFORM_TIME_TOLERANCE * rate:
             raise ValueError(
                 f'{lab.path}: sample rate {rate:g} Hz ({how}) disagrees with '
-                f'time channel {mapping.time.name!r} ({from_time:g} Hz)'
+                f'time channel {name!r} ({from_time:g} Hz)'
             )
     if rate is None:
         increments = {
@@ -575,11 +668,15 @@ class ImportSummary:
         return self.samples / self.sample_rate_hz
 
 
-def read_lab_files(paths: Sequence[str | Path], mapping: ImportMapping) -> list[LabRecording]:
-    """Every file read with one mapping; they must share one sample rate."""
+def read_lab_files(
+    paths: Sequence[str | Path],
+    mapping: ImportMapping | dict,
+    text_format: TextFormat = DETECT,
+) -> list[LabRecording]:
+    """Every file read with one mapping (see `read_lab_file`); they must share one rate."""
     if not paths:
         raise ValueError('no input files')
-    recordings = [read_lab_file(path, mapping) for path in paths]
+    recordings = [read_lab_file(path, mapping, text_format) for path in paths]
     rate = recordings[0].sample_rate_hz
     for recording in recordings[1:]:
         if abs(recording.sample_rate_hz - rate) > 1e-9 * rate:
@@ -637,7 +734,7 @@ def write_recordings(
 
 
 def import_to_bag(
-    paths: Sequence[str | Path], bag: str | Path, mapping: ImportMapping, **options
+    paths: Sequence[str | Path], bag: str | Path, mapping: ImportMapping | dict, **options
 ) -> ImportSummary:
     """Lab files into one session bag: read_lab_files, then write_recordings(**options)."""
     return write_recordings(read_lab_files(paths, mapping), bag, **options)

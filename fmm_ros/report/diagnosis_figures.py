@@ -14,13 +14,13 @@ from collections.abc import Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
+from fmm_ros.constants import MM_PER_M
 from fmm_ros.core.diagnose.gaps import motion_window
 from fmm_ros.core.diagnose.result import Diagnosis
 from fmm_ros.core.diagnose.workflow import NONE
 from fmm_ros.core.signal import frf
 from fmm_ros.report.plotting import (
     FREQUENCY_LABEL,
-    MM_PER_M,
     MOBILITY_UNIT,
     MODEL_COLOUR,
     new_figure,

@@ -10,7 +10,7 @@ from __future__ import annotations
 import base64
 import html
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -123,11 +123,19 @@ class Page:
     """An HTML report being assembled in `out_dir`; `write()` saves index.html.
 
     Figures are rendered and saved as PNG as soon as they are added, then cleared, so a long
-    report holds no more figures than it reuses.
+    report holds no more figures than it reuses. progress, when given, is told of each.
     """
 
-    def __init__(self, out_dir: str | Path, title: str, *, dpi: float = DEFAULT_DPI) -> None:
+    def __init__(
+        self,
+        out_dir: str | Path,
+        title: str,
+        *,
+        dpi: float = DEFAULT_DPI,
+        progress: Callable[[str], None] | None = None,
+    ) -> None:
         self.out_dir = Path(out_dir)
+        self._progress = progress
         self.out_dir.mkdir(parents=True, exist_ok=True)
         self.title = title
         self.dpi = dpi
@@ -194,6 +202,8 @@ class Page:
         """
         if not _NAME.match(name):
             raise ValueError(f'figure name {name!r} must be letters, digits, _ . - only')
+        if self._progress:
+            self._progress(f'drawing figure {len(self.figures) + 1}: {name}')
         path = self.out_dir / f'{name}.png'
         if path in self.figures:
             raise ValueError(f'figure {name!r} is already on the page')

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from fmm_ros.constants import SAMPLE_RATE_HZ
+from fmm_ros.constants import MM_PER_M, SAMPLE_RATE_HZ
 from fmm_ros.core.physics.model import Simulation, free_vibration, simulate
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.signal import frf
@@ -25,7 +25,6 @@ from fmm_ros.report.html import Page
 from fmm_ros.report.plotting import (
     DEFAULT_DPI,
     FREQUENCY_LABEL,
-    MM_PER_M,
     MS_PER_S,
     RECEPTANCE_UNIT,
     level_colour,

@@ -1,53 +1,37 @@
 """The report of one impact session: every hit with its flags, the paper's figures, the model.
 
-`build_report(records, out_dir)` is what `fmm report`, the demo and anything else that holds a
-session's impact records call: it analyses them with the signal core (or takes a `Summary`
-already made from them), draws the figures of `session_figures`, and writes one HTML page with
-the figures embedded plus each figure as a PNG. With a friction fit (`FrictionSummary`) or a
-given `ModelOverlay`, the model (Eq. 3 at that mu) is driven by each hit's measured force, as
-in the paper's Sec. 5, and drawn over the measured velocity and mobility.
+`build_report(session, out_dir)` draws a `SessionResult` (`fmm_ros.workflows.session`): the
+analysis, the friction fit (made by `fmm report`, or the fitter service's answer in the demo),
+the diagnosis and the model run for every hit, all computed there. It writes one HTML page
+with the figures embedded plus each figure as a PNG, and computes nothing itself.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import re
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
 
-from fmm_ros.core.physics.rig import FMM_RIG, Rig
-from fmm_ros.core.signal.analysis import (
-    AnalysisConfig,
-    ImpactResult,
-    Summary,
-    analyze_impact,
-    summarize,
-)
-from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig
-from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.constants import MM_PER_M
+from fmm_ros.core.signal.analysis import ImpactResult, Summary
 from fmm_ros.report import diagnosis_figures
 from fmm_ros.report import session_figures as figures
 from fmm_ros.report.html import Markup, Page, escape, link
 from fmm_ros.report.plotting import (
     DEFAULT_DPI,
-    MM_PER_M,
     MS_PER_S,
     REJECTED_COLOUR,
     level_colour,
     value_with_error,
 )
-from fmm_ros.workflows.session import (
-    FrictionSummary,
-    ModelOverlay,
-    SessionDiagnosis,
-    diagnose_accepted_impacts,
-    fit_accepted_impacts,
-)
+from fmm_ros.workflows.model import ModelComparison
+from fmm_ros.workflows.results import FrictionResult
+from fmm_ros.workflows.session import SessionDiagnosis, SessionResult
 
-DEFAULT_ANALYSIS = AnalysisConfig()
+# Lines of the lab files' import report shown on the page (a session of 30 files has 150).
+NOTE_LINES = 12
 
 # What each quality flag means, for the legend under the hit table.
 FLAG_MEANINGS: dict[str, str] = {
@@ -64,235 +48,47 @@ FLAG_MEANINGS: dict[str, str] = {
 
 
 def build_report(
-    records: Sequence[ImpactRecord],
+    session: SessionResult,
     out_dir: str | Path,
     *,
-    summary: Summary | None = None,
-    capture: CaptureConfig = DEFAULT_CAPTURE,
-    analysis: AnalysisConfig = DEFAULT_ANALYSIS,
-    friction: FrictionSummary | None = None,
-    fit_failure: str = '',
-    diagnosis: SessionDiagnosis | None = None,
-    diagnosis_failure: str = '',
-    model: ModelOverlay | None = None,
     title: str = 'Impact session report',
-    inputs: Sequence[str] = (),
-    problems: Sequence[str] = (),
     dpi: float = DEFAULT_DPI,
+    progress: Callable[[str], None] | None = None,
 ) -> Path:
-    """Write the session report into out_dir (index.html and one PNG per figure); its path.
+    """Write the session's report into out_dir (index.html and one PNG per figure); its path.
 
-    records: the session's impact records, record i being impact i. summary: their analysis
-    (`summarize` of `analyze_impact` results with impact_id = position), made here with
-    capture and analysis when not given. friction: a fit of mu over (some of) the impacts,
-    shown per impact and overall; its model is drawn over each hit and each level's FRF unless
-    another model is given. fit_failure: why there is no fit, if one was tried. diagnosis: the
-    diagnose workflow's verdict on (some of) the impacts, with the residual and mobility gap
-    before and after; diagnosis_failure: why there is none, if it was tried. inputs: where
-    the records came from (files, bag), listed on the page. problems: what went wrong reading
-    them (a damaged bag), shown at the top so no one misses it.
+    Every hit is in the table and has its figure; a friction fit is shown per impact and
+    overall, and its model (or a given one) is drawn over each hit and each level's FRF; a
+    diagnosis (or why there is none) has its section; problems reading the inputs (a damaged
+    bag) are shown at the top so no one misses them. progress is told of each figure.
     """
-    records = list(records)
-    if not records:
-        raise ValueError('a report needs at least one impact record')
-    if summary is None:
-        summary = _analysed(records, capture, analysis)
-    by_id = _records_by_id(records, summary)
-    for name, result in (('friction fit', friction), ('diagnosis', diagnosis)):
-        unknown = sorted(set(result.impact_ids) - set(by_id)) if result is not None else []
-        if unknown:
-            raise ValueError(f'the {name} names impact(s) {unknown} the session lacks')
-    if friction is not None and model is None:
-        model = friction.overlay()
-    page = Page(out_dir, title, dpi=dpi)
+    summary = session.summary
+    page = Page(out_dir, title, dpi=dpi, progress=progress)
     colours = {level.level: level_colour(index) for index, level in enumerate(summary.levels)}
-    model_hits = _model_hits(by_id, summary, model, capture, analysis)
-
-    _session_section(page, summary, records, analysis, model, inputs, problems)
-    _hit_table(page, summary, model_hits)
-    _level_section(page, summary, analysis)
-    _model_section(page, summary, model, model_hits, friction, fit_failure)
-    _time_section(page, summary, by_id, colours, model, capture)
-    _frf_section(page, summary, colours, model, model_hits)
-    if diagnosis is not None or diagnosis_failure:
-        _diagnosis_section(page, summary, by_id, diagnosis, diagnosis_failure)
+    comparison = session.comparison
+    _session_section(page, session)
+    _hit_table(page, summary, comparison)
+    _level_section(page, summary, session.analysis)
+    _model_section(page, summary, comparison, session.friction, session.fit_failure)
+    _time_section(page, session, colours)
+    _frf_section(page, summary, colours, comparison)
+    if session.diagnosis is not None or session.diagnosis_failure:
+        _diagnosis_section(page, session, session.diagnosis, session.diagnosis_failure)
     return page.write()
 
 
-@dataclass(frozen=True)
-class SessionReport:
-    """What `report_session` wrote, and the fit it made (or why it could not)."""
-
-    page: Path
-    friction: FrictionSummary | None
-    fit_failure: str
-    diagnosis: SessionDiagnosis | None = None
-    diagnosis_failure: str = ''
-
-
-def report_session(
-    records: Sequence[ImpactRecord],
-    out_dir: str | Path,
-    *,
-    capture: CaptureConfig = DEFAULT_CAPTURE,
-    analysis: AnalysisConfig = DEFAULT_ANALYSIS,
-    rig: Rig = FMM_RIG,
-    mu: float | None = None,
-    fit: bool = True,
-    fit_damping: bool = False,
-    fit_initial_position: bool = False,
-    diagnose: bool = False,
-    title: str = 'Impact session report',
-    inputs: Sequence[str] = (),
-    problems: Sequence[str] = (),
-    dpi: float = DEFAULT_DPI,
-) -> SessionReport:
-    """Analyse a session's records, fit mu over the accepted ones, and write the report.
-
-    What `fmm report` does with its inputs, for callers holding records (the demo, from its
-    bag): mu given draws that model instead of fitting; fit=False draws none; diagnose runs
-    the discrepancy workflow over the accepted impacts too. A fit or diagnosis the data
-    refuse does not stop the report: the page and the result say why.
-    """
-    records = list(records)
-    summary = _analysed(records, capture, analysis)
-    friction, failure = None, ''
-    model = ModelOverlay(mu, 'given', rig) if mu is not None else None
-    if mu is None and fit:
-        try:
-            friction = fit_accepted_impacts(
-                records,
-                summary,
-                rig=rig,
-                fit_damping=fit_damping,
-                fit_initial_position=fit_initial_position,
-            )
-        except ValueError as error:  # FitError is one: the page says why there is no fit
-            failure = str(error)
-    diagnosis, diagnosis_failure = None, ''
-    if diagnose:
-        try:
-            diagnosis = diagnose_accepted_impacts(
-                records, summary, rig=rig, fit_initial_position=fit_initial_position
-            )
-        except ValueError as error:
-            diagnosis_failure = str(error)
-    page = build_report(
-        records,
-        out_dir,
-        summary=summary,
-        capture=capture,
-        analysis=analysis,
-        friction=friction,
-        fit_failure=failure,
-        diagnosis=diagnosis,
-        diagnosis_failure=diagnosis_failure,
-        model=model,
-        title=title,
-        inputs=inputs,
-        problems=problems,
-        dpi=dpi,
+def _session_section(page: Page, session: SessionResult) -> None:
+    summary, records, analysis, model = (
+        session.summary,
+        session.records,
+        session.analysis,
+        session.model,
     )
-    return SessionReport(page, friction, failure, diagnosis, diagnosis_failure)
-
-
-def _analysed(
-    records: list[ImpactRecord], capture: CaptureConfig, analysis: AnalysisConfig
-) -> Summary:
-    """The signal core's verdict on every record, impact i being record i."""
-    return summarize(
-        [
-            analyze_impact(record, capture, analysis, impact_id=number)
-            for number, record in enumerate(records)
-        ],
-        analysis,
-    )
-
-
-def _records_by_id(records: list[ImpactRecord], summary: Summary) -> dict[int, ImpactRecord]:
-    """Each impact's record, checked to be there."""
-    missing = [
-        impact.impact_id for impact in summary.impacts if not 0 <= impact.impact_id < len(records)
-    ]
-    if missing:
-        raise ValueError(
-            f'the summary names impact(s) {missing} but only {len(records)} '
-            'record(s) were given (impact_id must be the record position)'
-        )
-    return {impact.impact_id: records[impact.impact_id] for impact in summary.impacts}
-
-
-@dataclass(frozen=True, eq=False)
-class _ModelHit:
-    """One hit with the model's velocity in place of the measured one."""
-
-    # Analysed by the same pipeline (windows, band, trigger) as the measurement, so the FRFs
-    # compare bin for bin.
-    result: ImpactResult
-    # RMS of measured minus model velocity from the trigger until both are at rest, over
-    # the samples that arrived [m/s].
-    residual_rms_m_s: float
-
-
-def _model_hits(
-    by_id: dict[int, ImpactRecord],
-    summary: Summary,
-    model: ModelOverlay | None,
-    capture: CaptureConfig,
-    analysis: AnalysisConfig,
-) -> dict[int, _ModelHit]:
-    """Every hit whose force can drive the model (no gaps), simulated and analysed."""
-    if model is None:
-        return {}
-    hits = {}
-    for impact in summary.impacts:
-        record = by_id[impact.impact_id]
-        velocity = model.velocity_m_s(record, impact.impact_id)
-        if velocity is None:
-            continue
-        simulated = dataclasses.replace(
-            record,
-            velocity_m_s=velocity,
-            trigger_sample_index=impact.trigger_sample_index,
-            record_start_sample_index=impact.record_start_sample_index,
-        )
-        trigger = figures.trigger_offset(impact)
-        end = (
-            trigger
-            + int(
-                figures.decay_end_s(
-                    [record.velocity_m_s, velocity],
-                    trigger,
-                    record.sample_rate_hz,
-                    capture.rest_velocity_m_s,
-                )
-                * record.sample_rate_hz
-            )
-            + 1
-        )
-        residual = record.velocity_m_s[trigger:end] - velocity[trigger:end]
-        received = residual[np.isfinite(residual)]  # velocity samples lost in a gap are NaN
-        hits[impact.impact_id] = _ModelHit(
-            analyze_impact(simulated, capture, analysis, impact_id=impact.impact_id),
-            float(np.sqrt(np.mean(received**2))) if received.size else float('nan'),
-        )
-    return hits
-
-
-def _session_section(
-    page: Page,
-    summary: Summary,
-    records: list[ImpactRecord],
-    analysis: AnalysisConfig,
-    model: ModelOverlay | None,
-    inputs: Sequence[str],
-    problems: Sequence[str],
-) -> None:
     accepted = sum(impact.accepted for impact in summary.impacts)
     page.section('Session', 'session')
-    if problems:
+    if session.problems:
         page.text('Problems reading the inputs (what was readable is reported):')
-        page.items(problems)
+        page.items(session.problems)
     rate = records[0].sample_rate_hz
     lines = [
         f'{len(summary.impacts)} hit(s): {accepted} accepted, '
@@ -322,14 +118,20 @@ def _session_section(
             + ''.join(f', {term.name}' for term in model.effects)
         )
     page.items(lines)
+    inputs = session.inputs
     if inputs:
         shown = list(inputs[:12]) + (
             [f'... and {len(inputs) - 12} more'] if len(inputs) > 12 else []
         )
         page.text('inputs: ' + ', '.join(shown))
+    if session.notes:
+        shown = session.notes[:NOTE_LINES]
+        more = len(session.notes) - len(shown)
+        page.text('How the lab files were read:')
+        page.items(shown + ([f'... and {more} more lines like these'] if more else []))
 
 
-def _hit_table(page: Page, summary: Summary, model_hits: dict[int, _ModelHit]) -> None:
+def _hit_table(page: Page, summary: Summary, comparison: ModelComparison | None) -> None:
     """Every hit, accepted or rejected, with its flags and numbers (rejected rows shaded)."""
     page.section('Hits', 'hits')
     headers = [
@@ -344,7 +146,8 @@ def _hit_table(page: Page, summary: Summary, model_hits: dict[int, _ModelHit]) -
         'f_n [Hz]',
         'peak |X/F| [mm/N]',
     ]
-    if model_hits:
+    model_hits = comparison.hits if comparison else {}
+    if comparison:
         headers.append('rms(measured − model) [mm/s]')
     rows, classes = [], []
     for impact in summary.impacts:
@@ -360,7 +163,7 @@ def _hit_table(page: Page, summary: Summary, model_hits: dict[int, _ModelHit]) -
             _number(impact.natural_frequency_hz, '.4f'),
             _number(impact.peak_receptance_m_per_n * MM_PER_M, '.4g'),
         ]
-        if model_hits:
+        if comparison:
             hit = model_hits.get(impact.impact_id)
             row.append('-' if hit is None else _number(hit.residual_rms_m_s * MM_PER_M, '.3g'))
         rows.append(row)
@@ -377,7 +180,7 @@ def _hit_table(page: Page, summary: Summary, model_hits: dict[int, _ModelHit]) -
         page.text('No hit raised a quality flag.', note=True)
 
 
-def _level_section(page: Page, summary: Summary, analysis: AnalysisConfig) -> None:
+def _level_section(page: Page, summary: Summary, analysis) -> None:
     page.section('Force levels, impulse and linearity', 'levels')
     if not summary.levels:
         page.text('No level has an accepted hit: nothing to average.', note=True)
@@ -427,9 +230,8 @@ def _level_section(page: Page, summary: Summary, analysis: AnalysisConfig) -> No
 def _model_section(
     page: Page,
     summary: Summary,
-    model: ModelOverlay | None,
-    model_hits: dict[int, _ModelHit],
-    friction: FrictionSummary | None,
+    comparison: ModelComparison | None,
+    friction: FrictionResult | None,
     fit_failure: str,
 ) -> None:
     page.section('Friction coefficient and model', 'model')
@@ -437,19 +239,20 @@ def _model_section(
         _friction(page, summary, friction)
     elif fit_failure:
         page.text(f'No friction fit: {fit_failure}', note=True)
-    if model is None:
+    if comparison is None:
         page.text('No model overlay: no friction coefficient was given or fitted.', note=True)
         return
+    model = comparison.model
     page.text(
         f'The model of Eq. 3 with {model.source} μ = {model.mu:.4g} is driven by each '
         "hit's measured force (baseline removed, zero outside the hit, as the fitter "
         "drives it; the paper's Sec. 5) and drawn over the measured velocity and "
-        f'mobility. {len(model_hits)} of {len(summary.impacts)} hits could drive it (a '
+        f'mobility. {len(comparison.hits)} of {len(summary.impacts)} hits could drive it (a '
         'record with gaps cannot).'
     )
 
 
-def _friction(page: Page, summary: Summary, friction: FrictionSummary) -> None:
+def _friction(page: Page, summary: Summary, friction: FrictionResult) -> None:
     """The fitted mu overall and per impact: text, table and figure."""
     rig = friction.rig
     damping = (
@@ -505,14 +308,13 @@ def _friction(page: Page, summary: Summary, friction: FrictionSummary) -> None:
     )
 
 
-def _time_section(
-    page: Page,
-    summary: Summary,
-    by_id: dict[int, ImpactRecord],
-    colours: dict[str, str],
-    model: ModelOverlay | None,
-    capture: CaptureConfig,
-) -> None:
+def _time_section(page: Page, session: SessionResult, colours: dict[str, str]) -> None:
+    summary, records, model, capture = (
+        session.summary,
+        session.records,
+        session.model,
+        session.capture,
+    )
     page.section('Force and velocity', 'time')
     for level in summary.levels:
         members = [
@@ -522,7 +324,7 @@ def _time_section(
             f'trials_{_safe(level.level)}',
             figures.level_trials_figure(
                 level.level,
-                [by_id[impact.impact_id] for impact in members],
+                [records[impact.impact_id] for impact in members],
                 members,
                 colour=colours[level.level],
                 capture=capture,
@@ -533,7 +335,7 @@ def _time_section(
     page.subsection('Every hit')
     hit_figures = figures.HitFigures()
     for impact in summary.impacts:
-        record = by_id[impact.impact_id]
+        record = records[impact.impact_id]
         velocity = model.velocity_m_s(record, impact.impact_id) if model is not None else None
         page.figure(
             _hit_name(impact),
@@ -562,14 +364,14 @@ def _frf_section(
     page: Page,
     summary: Summary,
     colours: dict[str, str],
-    model: ModelOverlay | None,
-    model_hits: dict[int, _ModelHit],
+    comparison: ModelComparison | None,
 ) -> None:
     page.section('Frequency response functions', 'frf')
     if not summary.levels:
         page.text('No level has an accepted hit: no FRF to show.', note=True)
         return
-    model_mobility = _model_level_mobility(summary, model_hits)
+    model = comparison.model if comparison else None
+    model_mobility = comparison.level_mobility if comparison else {}
     for level in summary.levels:
         page.subsection(f'level {level.level}')
         members = [
@@ -579,9 +381,17 @@ def _frf_section(
             page.figure(
                 f'{quantity}_{_safe(level.level)}',
                 figures.frf_trials_figure(level, members, quantity, colour=colours[level.level]),
-                f'Fig. {number}: real and imaginary {quantity} of the {level.count} accepted '
-                f'hits of level {level.level} and their mean.',
+                f'Fig. {number}: {quantity} of the {level.count} accepted hits of level '
+                f"{level.level} and their mean, as real and imaginary parts (the paper's view) "
+                'and as magnitude and phase.',
             )
+        page.figure(
+            f'coherence_{_safe(level.level)}',
+            figures.coherence_figure(level, members, colour=colours[level.level]),
+            f'Coherence of force and velocity over the {level.count} hits of level '
+            f'{level.level} (1: every hit saw the same linear FRF), and the spread of their '
+            '|mobility| about the mean: where the hits disagree, the mean is less certain.',
+        )
         if level.level in model_mobility:
             page.figure(
                 f'model_mobility_{_safe(level.level)}',
@@ -607,8 +417,7 @@ def _frf_section(
 
 def _diagnosis_section(
     page: Page,
-    summary: Summary,
-    by_id: dict[int, ImpactRecord],
+    session: SessionResult,
     found: SessionDiagnosis | None,
     failure: str,
 ) -> None:
@@ -654,7 +463,8 @@ def _diagnosis_section(
         '(BIC lower than the base model by 10 plus three times what the force noise '
         'alone explains) and it at least halves the gap.'
     )
-    records = [by_id[i] for i in found.impact_ids]
+    summary = session.summary
+    records = [session.records[i] for i in found.impact_ids]
     rows = _one_per_level(summary, found.impact_ids)
     shown = ', '.join(str(found.impact_ids[row]) for row in rows)
     if len(rows) < len(found.impact_ids):
@@ -684,18 +494,6 @@ def _one_per_level(summary: Summary, impact_ids: Sequence[int]) -> list[int]:
     for position, impact_id in enumerate(impact_ids):
         first.setdefault(level[impact_id], position)
     return sorted(first.values())
-
-
-def _model_level_mobility(
-    summary: Summary, model_hits: dict[int, _ModelHit]
-) -> dict[str, np.ndarray]:
-    """Each level's plain-mean model mobility over the hits its measured mean used."""
-    mobility = {}
-    for level in summary.levels:
-        members = [model_hits[i].result for i in level.impact_ids if i in model_hits]
-        if len(members) == level.count:
-            mobility[level.level] = np.mean([result.mobility for result in members], axis=0)
-    return mobility
 
 
 def _hit_name(impact: ImpactResult) -> str:

@@ -13,14 +13,13 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
-from fmm_ros.core.signal import frf
+from fmm_ros.constants import MM_PER_M
 from fmm_ros.core.signal.analysis import ImpactResult, LevelSummary, NominalLevel, Summary
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.report.plotting import (
     FREQUENCY_LABEL,
     MEAN_COLOUR,
-    MM_PER_M,
     MOBILITY_UNIT,
     MODEL_COLOUR,
     MS_PER_S,
@@ -34,11 +33,8 @@ from fmm_ros.report.plotting import (
     thaw_ticks,
     value_with_error,
 )
+from fmm_ros.workflows.model import decay_end_s, trigger_offset
 
-# The decay plot runs this much past the last sample above the rest velocity (fraction of
-# the motion), and at least MIN_DECAY_S after the trigger.
-DECAY_MARGIN = 0.15
-MIN_DECAY_S = 0.5
 # The force zoom shows this long before the contact and after the last pulse [s].
 FORCE_MARGIN_S = 1e-3
 # How far past f_n the resonance figures (Figs. 14-16, 19/21/23) run.
@@ -46,11 +42,6 @@ RESONANCE_SPAN = 2.5
 # The paper's Fig. 24 runs to 20 Hz.
 HARMONICS_TOP_HZ = 20.0
 VELOCITY_LABEL = 'velocity [mm/s]'
-
-
-def trigger_offset(result: ImpactResult) -> int:
-    """The trigger's position inside its record [samples]."""
-    return result.trigger_sample_index - result.record_start_sample_index
 
 
 def hit_figure(
@@ -217,41 +208,93 @@ def frf_trials_figure(
     colour: str = 'tab:blue',
     top_hz: float | None = None,
 ) -> Figure:
-    """Real and imaginary parts of one level's trials and their mean (Figs. 14, 15).
+    """One level's trials and their mean (Figs. 14, 15): real/imaginary and magnitude/phase.
 
-    quantity: 'mobility' or 'receptance'; the mean is the level's plain frequency-domain
+    Real and imaginary parts on the left (the paper's view), magnitude and phase on the
+    right. quantity: 'mobility' or 'receptance'; the mean is the level's plain frequency-domain
     average (the paper's).
     """
     unit = _frf_unit(quantity)
     top_hz = top_hz or resonance_top_hz(level.natural_frequency_hz)
     figure, axes = new_figure(
         2,
-        1,
+        2,
         sharex=True,
         title=f'{quantity}, level {level.level}: {len(trials)} trial(s) and their mean',
     )
     band = level.frequency_hz <= top_hz
     frequency = level.frequency_hz[band]
-    for ax, part in zip(axes, (np.real, np.imag), strict=True):
+    views = (
+        (axes[0], lambda h: np.real(h) * MM_PER_M, f'real [{unit}]'),
+        (axes[2], lambda h: np.imag(h) * MM_PER_M, f'imaginary [{unit}]'),
+        (axes[1], lambda h: np.abs(h) * MM_PER_M, f'magnitude [{unit}]'),
+        (axes[3], lambda h: np.angle(h, deg=True), 'phase [°]'),
+    )
+    for ax, view, label in views:
         for number, trial in enumerate(trials):
             ax.plot(
                 frequency,
-                part(getattr(trial, quantity)[band]) * MM_PER_M,
+                view(getattr(trial, quantity)[band]),
                 color=colour,
                 linewidth=0.6,
                 alpha=0.6,
                 label='trials' if number == 0 else None,
             )
-        ax.plot(
-            frequency,
-            part(getattr(level, quantity)[band]) * MM_PER_M,
-            color=MEAN_COLOUR,
-            linewidth=1.4,
-            label='mean',
-        )
-    axes[0].set_ylabel(f'real [{unit}]')
-    axes[1].set_ylabel(f'imaginary [{unit}]')
+        ax.plot(frequency, view(getattr(level, quantity)[band]), color=MEAN_COLOUR, linewidth=1.4)
+        ax.lines[-1].set_label('mean')
+        ax.set_ylabel(label)
+    axes[3].set_yticks([-180, -90, 0, 90, 180])
     axes[0].legend(loc='upper right', fontsize='small')
+    for ax in axes[2:]:
+        ax.set_xlabel(FREQUENCY_LABEL)
+    axes[2].set_xlim(0, top_hz)
+    return figure
+
+
+def coherence_figure(
+    level: LevelSummary,
+    trials: Sequence[ImpactResult],
+    *,
+    colour: str = 'tab:blue',
+    top_hz: float | None = None,
+) -> Figure:
+    """How well one level's hits agree: their coherence, and the spread of their mobility.
+
+    Top: the ordinary coherence of force and velocity over the level's trials (1 where every
+    hit saw the same linear FRF; friction, noise and leakage lower it). Bottom: |mobility| of
+    the mean, with the band from the smallest to the largest of the hits at each frequency.
+    """
+    top_hz = top_hz or resonance_top_hz(level.natural_frequency_hz)
+    figure, axes = new_figure(
+        2,
+        1,
+        sharex=True,
+        title=f'coherence and spread, level {level.level}: {len(trials)} trial(s)',
+    )
+    band = level.frequency_hz <= top_hz
+    frequency = level.frequency_hz[band]
+    axes[0].plot(frequency, level.coherence[band], color=colour, linewidth=1.2, label='γ²')
+    axes[0].set_ylim(-0.05, 1.05)
+    axes[0].set_ylabel('coherence γ² [-]')
+    magnitudes = np.abs([trial.mobility[band] for trial in trials]) * MM_PER_M
+    axes[1].fill_between(
+        frequency,
+        magnitudes.min(axis=0),
+        magnitudes.max(axis=0),
+        color=colour,
+        alpha=0.3,
+        linewidth=0,
+        label=f'hits (min to max of {len(trials)})',
+    )
+    axes[1].plot(
+        frequency,
+        np.abs(level.mobility[band]) * MM_PER_M,
+        color=MEAN_COLOUR,
+        linewidth=1.2,
+        label='mean',
+    )
+    axes[1].set_ylabel(f'|mobility| [{MOBILITY_UNIT}]')
+    axes[1].legend(loc='upper right', fontsize='small')
     axes[1].set_xlabel(FREQUENCY_LABEL)
     axes[1].set_xlim(0, top_hz)
     return figure
@@ -395,9 +438,8 @@ def harmonics_figure(
     """Log |mobility| to 20 Hz per level, odd multiples of f_n marked (Fig. 24).
 
     The friction contact puts response at 3, 5, 7, ... f_n; a second structural mode would
-    sit elsewhere. f_n here is the mobility peak (the oscillation frequency between
-    reversals), which the harmonics are multiples of. With a model, its mobility is drawn
-    over the measured one.
+    sit elsewhere. f_n is the level's, as the analysis gives it (the same number as in every
+    table). With a model, its mobility is drawn over the measured one.
     """
     model_mobility = model_mobility or {}
     figure, axes = new_figure(
@@ -423,7 +465,7 @@ def harmonics_figure(
                 linestyle='--',
                 label=model_label,
             )
-        natural_hz = mobility_peak_hz(level)
+        natural_hz = level.natural_frequency_hz
         for n, harmonic_hz in odd_harmonics(natural_hz, top_hz):
             ax.axvline(harmonic_hz, color='0.4', linewidth=0.6, linestyle=':')
             left = harmonic_hz > 0.9 * top_hz
@@ -439,32 +481,10 @@ def harmonics_figure(
             )
         ax.set_ylabel(f'|mobility|\n[{MOBILITY_UNIT}]')
         ax.legend(loc='lower left', fontsize='x-small')
-        ax.set_title(f'mobility peak f_n = {natural_hz:.3f} Hz', fontsize='small', loc='right')
+        ax.set_title(f'f_n = {natural_hz:.4f} Hz', fontsize='small', loc='right')
     axes[-1].set_xlim(0, top_hz)
     axes[-1].set_xlabel(FREQUENCY_LABEL)
     return figure
-
-
-def mobility_peak_hz(level: LevelSummary) -> float:
-    """Frequency of the mean |mobility| peak near the level's receptance peak [Hz].
-
-    Friction shifts the receptance peak below f_n (it divides by omega); the mobility peaks
-    at the frequency the rig oscillates at between reversals. A parabola through the peak bin
-    and its neighbours places it between bins (the 1/33 Hz grid would put 9 f_n up to
-    0.14 Hz off).
-    """
-    guess = level.natural_frequency_hz
-    if not np.isfinite(guess):
-        return float('nan')
-    frequency = level.frequency_hz
-    peak_hz = frf.peak_magnitude(level.mobility, frequency, (0.5 * guess, 1.5 * guess))[1]
-    k = int(np.searchsorted(frequency, peak_hz))
-    if not 0 < k < frequency.size - 1:
-        return peak_hz
-    a, b, c = np.abs(level.mobility[k - 1 : k + 2])
-    curvature = a - 2 * b + c
-    shift = 0.5 * (a - c) / curvature if curvature < 0 else 0.0
-    return float(peak_hz + shift * (frequency[1] - frequency[0]))
 
 
 def frf_overlay_figure(
@@ -564,28 +584,6 @@ def resonance_top_hz(natural_frequency_hz: float) -> float:
     if not np.isfinite(natural_frequency_hz) or natural_frequency_hz <= 0:
         return 5.0
     return RESONANCE_SPAN * natural_frequency_hz
-
-
-def decay_end_s(
-    velocities: Sequence[np.ndarray],
-    triggers: Sequence[int] | int,
-    sample_rate_hz: float,
-    rest_velocity_m_s: float,
-) -> float:
-    """Where a decay plot ends [s after the trigger]: past the last motion of any trace.
-
-    The last sample above the rest velocity, plus DECAY_MARGIN of the motion, at least
-    MIN_DECAY_S, at most the end of the longest record.
-    """
-    if isinstance(triggers, int):
-        triggers = [triggers] * len(velocities)
-    last_s, record_end_s = MIN_DECAY_S, 0.0
-    for velocity, trigger in zip(velocities, triggers, strict=True):
-        moving = np.flatnonzero(np.abs(velocity[trigger:]) > rest_velocity_m_s)
-        if moving.size:
-            last_s = max(last_s, moving[-1] / sample_rate_hz * (1 + DECAY_MARGIN))
-        record_end_s = max(record_end_s, (velocity.size - 1 - trigger) / sample_rate_hz)
-    return min(last_s, record_end_s)
 
 
 def _force_zoom(

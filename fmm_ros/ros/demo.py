@@ -3,8 +3,8 @@
 hammer_sim -> rig_sim -> analyzer -> fitter, with the recorder writing everything to a bag:
 the session's hits go through the same topics, QoS and services a lab uses, and its results
 are taken from what the graph publishes (/fmm/impacts, /fmm/frf) and answers
-(/fmm/fit_friction), never from inside the nodes. `fmm demo` and
-launch_scripts/sim_rig.py run it.
+(/fmm/fit_friction), never from inside the nodes: its report draws the fit service's answer
+(`msgs.friction_result`), not a second fit. `fmm demo` and launch_scripts/sim_rig.py run it.
 """
 
 import math
@@ -39,6 +39,7 @@ from fmm_ros.ros.nodes.fitter import Fitter
 from fmm_ros.ros.nodes.hammer_sim import HammerSim
 from fmm_ros.ros.nodes.recorder import Recorder
 from fmm_ros.ros.nodes.rig_sim import RigSim
+from fmm_ros.workflows.results import FrictionResult, json_safe
 
 # A session stops waiting when no new sample has gone out for this long (wall time) [s].
 STALL_TIMEOUT_S = 60.0
@@ -78,7 +79,7 @@ class SessionConfig:
 
 
 @dataclass
-class SessionResult:
+class DemoResult:
     """What the graph reported: per-impact results, level averages, the fit, the bag."""
 
     plant_mu: float
@@ -87,11 +88,9 @@ class SessionResult:
     hits_accepted: int
     levels: list[dict]
     r2: float
-    mu: float
-    mu_stderr: float
-    fit_success: bool
+    friction: FrictionResult | None
+    """The fit service's answer, None when it refused (fit_message says why)."""
     fit_message: str
-    per_impact_mu: list[float]
     missing_effect: str
     diagnosis: str
     bag: str
@@ -108,9 +107,25 @@ class SessionResult:
     ledger: dict[str, str] = field(default_factory=dict)
     """The recorder's ledger from the bag's metadata, one line a channel."""
 
+    @property
+    def fit_success(self) -> bool:
+        """Whether the fit service answered with a fit."""
+        return self.friction is not None
+
+    @property
+    def mu(self) -> float:
+        """The fitted mu, NaN without a fit."""
+        return self.friction.mu if self.friction else math.nan
+
     def as_json(self) -> dict:
-        """The JSON summary `fmm demo --json` prints and writes to summary.json."""
-        return asdict(self)
+        """The JSON summary `fmm demo --json` prints and writes to summary.json.
+
+        The session's fields, then the fit as `FrictionResult.to_dict` gives it (mu, mu_stderr,
+        per_file, ...; mu null when the service refused).
+        """
+        fields = {name: value for name, value in asdict(self).items() if name != 'friction'}
+        fit = self.friction.to_dict() if self.friction else {'mu': None, 'mu_stderr': None}
+        return json_safe({**fields, 'fit_success': self.fit_success, **fit})
 
 
 class _Results(Node):
@@ -150,7 +165,7 @@ class _Results(Node):
 
 def run_session(
     config: SessionConfig, progress: Callable[[str], None] = lambda _: None
-) -> SessionResult:
+) -> DemoResult:
     """Run the session to its last impact, fit mu over it, close the bag; return the results."""
     config.out_dir.mkdir(parents=True, exist_ok=True)
     bag = config.out_dir / 'bag'
@@ -224,12 +239,15 @@ def run_session(
         capture, analysis = analyzer.capture_config, analyzer.analysis_config
     with BagReader(bag, strict=False) as reader:  # closed with the graph: its ledger is in
         ledger = {topic: entry.summary() for topic, entry in reader.recorded_ledger.items()}
+    friction = msgs.friction_result(fit) if fit.success else None
     page = ''
     if config.report:  # after the graph: the recorder has closed the bag
         progress(f'writing the session report to {config.out_dir / "report"}')
-        page = str(_report(bag, config.out_dir / 'report', capture, analysis, config))
+        page = str(
+            _report(bag, config.out_dir / 'report', capture, analysis, config, friction, fit)
+        )
     ordered = sorted(levels.values(), key=lambda summary: summary.mean_impulse_n_s)
-    return SessionResult(
+    return DemoResult(
         plant_mu=config.plant_mu,
         hits_sent=hits_sent,
         hits_reported=len(impacts),
@@ -246,11 +264,8 @@ def run_session(
             for s in ordered
         ],
         r2=latest.linearity_r2 if latest else math.nan,
-        mu=fit.mu if fit.success else math.nan,
-        mu_stderr=fit.mu_stderr if fit.success else math.nan,
-        fit_success=fit.success,
+        friction=friction,
         fit_message=fit.message,
-        per_impact_mu=msgs.field_array(fit.per_impact_mu).tolist(),
         missing_effect=diagnosis.missing_effect if diagnosis.success else '',
         diagnosis=diagnosis.verdict if diagnosis.success else diagnosis.message,
         bag=str(bag),
@@ -277,22 +292,35 @@ def run_session(
     )
 
 
-def _report(bag: Path, out_dir: Path, capture, analysis, config: SessionConfig) -> Path:
-    """The session report from the bag, analysed and fitted as the graph did (offline)."""
-    from fmm_ros.report.session import report_session
+def _report(
+    bag: Path,
+    out_dir: Path,
+    capture,
+    analysis,
+    config: SessionConfig,
+    friction: FrictionResult | None,
+    fit: FitFriction.Response,
+) -> Path:
+    """The session report from the bag: analysed as the analyzer did, the fit service's mu."""
+    from fmm_ros.report import build_report  # matplotlib: only when a report is asked for
+    from fmm_ros.workflows.inputs import InputOptions
     from fmm_ros.workflows.replay import bag_impact_records
+    from fmm_ros.workflows.session import SessionOptions, run_session
 
     records, problems = bag_impact_records(bag, capture)
-    return report_session(
+    session = run_session(
         records,
-        out_dir,
-        capture=capture,
-        analysis=analysis,
-        fit_initial_position=True,
+        SessionOptions(inputs=InputOptions(capture=capture), analysis=analysis),
+        friction=friction,
+        fit_failure='' if friction else f'the fit service refused: {fit.message}',
         inputs=[str(bag)],
         problems=problems,
+    )
+    return build_report(
+        session,
+        out_dir,
         title=f'fmm demo: {config.hits_per_level} hits a level, plant mu {config.plant_mu}',
-    ).page
+    )
 
 
 def _one_accepted_per_level(impacts: list[ImpactResult]) -> list[int]:

@@ -6,6 +6,7 @@ Python lists cost orders of magnitude more.
 """
 
 import array
+import math
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -13,8 +14,10 @@ from builtin_interfaces.msg import Time
 from fmm_interfaces.msg import FrfSummary, ImpactResult, SampleBatch
 from fmm_ros.constants import Channel
 from fmm_ros.core import diagnose
+from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.signal import analysis, frf
 from fmm_ros.core.signal.stream import Batch
+from fmm_ros.workflows.results import FrictionResult
 
 
 def float64_field(values: np.ndarray) -> array.array:
@@ -179,3 +182,132 @@ def fill_diagnose_response(response: object, result: diagnose.Diagnosis) -> obje
     response.required_score = result.required_score
     response.verdict = result.verdict
     return response
+
+
+def fill_fit_response(response: object, result: FrictionResult) -> object:
+    """Copy a FrictionResult into a FitFriction response (success = True); returns it."""
+    response.success = True
+    response.message = (
+        f'mu = {result.mu:.5f} +- {result.mu_stderr:.2g} over {len(result.impact_ids)} '
+        f'impacts; one mu serves all: p = {result.consistency_p_value:.3g}'
+    )
+    response.mu, response.mu_stderr = result.mu, result.mu_stderr
+    response.damping_n_s_per_m = result.damping_n_s_per_m
+    response.damping_stderr_n_s_per_m = (
+        result.damping_stderr_n_s_per_m if result.damping_fitted else 0.0
+    )
+    response.damping_fitted = result.damping_fitted
+    response.mass_kg = result.rig.mass_kg
+    response.stiffness_n_per_m = result.rig.stiffness_n_per_m
+    response.normal_force_n = result.rig.normal_force_n
+    response.residual_rms_m_s = result.residual_rms_m_s
+    response.residual_normalized = result.normalised_residual
+    response.noise_std_m_s = result.noise_std_m_s
+    response.consistency_chi2 = result.consistency_chi2
+    response.consistency_p_value = result.consistency_p_value
+    response.misfit = result.misfit
+    response.impact_ids = [int(i) for i in result.impact_ids]
+    response.per_impact_mu = float64_field(result.per_impact_mu)
+    response.per_impact_mu_stderr = float64_field(result.per_impact_mu_stderr)
+    response.per_impact_impulse_n_s = float64_field(result.impulses_n_s)
+    response.per_impact_residual_rms_m_s = float64_field(result.per_impact_residual_rms_m_s)
+    response.per_impact_residual_normalized = float64_field(result.per_impact_normalised_residual)
+    response.per_impact_initial_position_m = float64_field(result.initial_positions_m)
+    return response
+
+
+def friction_result(response: object) -> FrictionResult:
+    """The FrictionResult a successful FitFriction response carries (ValueError if refused)."""
+    if not response.success:
+        raise ValueError(f'the fit was refused: {response.message}')
+    ids = tuple(int(i) for i in response.impact_ids)
+    return FrictionResult(
+        mu=response.mu,
+        mu_stderr=response.mu_stderr,
+        rig=Rig(
+            mass_kg=response.mass_kg,
+            stiffness_n_per_m=response.stiffness_n_per_m,
+            damping_n_s_per_m=response.damping_n_s_per_m,
+            normal_force_n=response.normal_force_n,
+        ),
+        impact_ids=ids,
+        per_impact_mu=tuple(field_array(response.per_impact_mu).tolist()),
+        per_impact_mu_stderr=tuple(field_array(response.per_impact_mu_stderr).tolist()),
+        initial_positions_m=tuple(field_array(response.per_impact_initial_position_m).tolist()),
+        sources=tuple(f'impact {i}' for i in ids),
+        impulses_n_s=tuple(field_array(response.per_impact_impulse_n_s).tolist()),
+        per_impact_residual_rms_m_s=tuple(
+            field_array(response.per_impact_residual_rms_m_s).tolist()
+        ),
+        per_impact_normalised_residual=tuple(
+            field_array(response.per_impact_residual_normalized).tolist()
+        ),
+        damping_fitted=response.damping_fitted,
+        damping_stderr_n_s_per_m=(
+            response.damping_stderr_n_s_per_m if response.damping_fitted else math.nan
+        ),
+        residual_rms_m_s=response.residual_rms_m_s,
+        normalised_residual=response.residual_normalized,
+        noise_std_m_s=response.noise_std_m_s,
+        consistency_chi2=response.consistency_chi2,
+        consistency_p_value=response.consistency_p_value,
+        misfit=response.misfit or 'time',
+    )
+
+
+def diagnose_response_dict(response: object) -> dict:
+    """A DiagnoseModel response as the JSON keys of `fmm diagnose --json` it carries."""
+    if not response.success:
+        raise ValueError(f'the diagnosis was refused: {response.message}')
+    counts = list(response.candidate_parameter_counts)
+    names, values = (
+        response.candidate_parameter_names,
+        field_array(response.candidate_parameter_values),
+    )
+    starts = np.concatenate(([0], np.cumsum(counts))).astype(int)
+    return {
+        'missing_effect': response.missing_effect,
+        'parameters': dict(
+            zip(
+                response.parameter_names,
+                field_array(response.parameter_values).tolist(),
+                strict=True,
+            )
+        ),
+        'parameter_units': dict(
+            zip(response.parameter_names, response.parameter_units, strict=True)
+        ),
+        'parameter_stderr': dict(
+            zip(
+                response.parameter_names,
+                field_array(response.parameter_stderr).tolist(),
+                strict=True,
+            )
+        ),
+        'mu': response.mu,
+        'mu_stderr': response.mu_stderr,
+        'gap_before': response.gap_before,
+        'gap_after': response.gap_after,
+        'frf_gap_before': response.frf_gap_before,
+        'frf_gap_after': response.frf_gap_after,
+        'where': {'summary': response.where},
+        'candidates': [
+            {
+                'effect': effect,
+                'score': score,
+                'gap_after': gap_after,
+                'parameters': dict(zip(names[start:end], values[start:end].tolist(), strict=True)),
+            }
+            for effect, score, gap_after, start, end in zip(
+                response.candidate_effects,
+                field_array(response.candidate_scores).tolist(),
+                field_array(response.candidate_gap_after).tolist(),
+                starts[:-1],
+                starts[1:],
+                strict=True,
+            )
+        ],
+        'noise_std_m_s': response.noise_std_m_s,
+        'required_score': response.required_score,
+        'verdict': response.verdict,
+    }

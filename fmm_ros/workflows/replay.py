@@ -29,14 +29,6 @@ from fmm_ros.io.bags.definitions import SAMPLE_BATCH
 from fmm_ros.io.bags.reader import BagReader, ChannelBatch
 
 
-def is_bag(path: str | Path) -> bool:
-    """Whether path looks like a bag: a directory with .mcap/.db3 in it, or such a file."""
-    path = Path(path)
-    if path.is_dir():
-        return any(path.glob('*.mcap')) or any(path.glob('*.db3'))
-    return path.suffix in ('.mcap', '.db3')
-
-
 def capture_records(
     reader: BagReader,
     capture: CaptureConfig | ImpactCapture = DEFAULT_CAPTURE,

@@ -1,170 +1,65 @@
-"""The model a report draws over a session, and the fit and diagnosis it shows.
+"""One session's inputs through analysis, the friction fit and the diagnosis: the pipeline.
 
-`ModelOverlay` is Eq. 3 (and any extra terms) with a given or fitted mu, driven by each hit's
-measured force conditioned exactly as the fitter conditions it (baseline removed, force
-outside the hit zeroed: `fmm_ros.core.identify.condition_impact`), so the overlay is the curve
-the fit was judged on. `FrictionSummary` holds the fields of the FitFriction service's
-response plus the model it implies, so the report takes a fit made here
-(`fit_accepted_impacts`, `FrictionSummary.from_fit`) or one a fitter node returned.
-`SessionDiagnosis` is a `Diagnosis` of some of the session's impacts, with their ids
-(`diagnose_accepted_impacts`).
+`process_session(paths, options)` is everything `fmm report` computes (and `fmm campaign`
+runs per session): read the inputs (`fmm_ros.workflows.inputs`), analyse every impact
+(impulse, flags, FRFs, levels, linearity), fit mu over the accepted impacts as the fitter node
+picks them, optionally diagnose them, and run the resulting model for every hit. Its
+`SessionResult` holds the records and every result, and `to_dict()` is its JSON. The report
+(`fmm_ros.report`) draws a SessionResult and computes nothing. `run_session` does the same for
+records already in hand (the demo, from its bag) and takes a fit made elsewhere (the fitter
+service's answer) instead of fitting again.
+
+A fit or diagnosis the data refuse does not stop the pipeline: the result says why.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
-import numpy as np
-
-from fmm_ros.core._checks import require_non_negative
+from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ
 from fmm_ros.core.diagnose.result import Diagnosis
 from fmm_ros.core.diagnose.workflow import diagnose
-from fmm_ros.core.identify.conditioning import FitError, condition_impact
-from fmm_ros.core.identify.friction import MU_BOUNDS, FrictionFit, fit_friction
-from fmm_ros.core.physics.model import simulate
+from fmm_ros.core.identify.friction import MU_BOUNDS, fit_friction
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
-from fmm_ros.core.physics.terms import ModelTerm
-from fmm_ros.core.signal.analysis import Summary
+from fmm_ros.core.signal.analysis import AnalysisConfig, Summary, analyze_impact, summarize
+from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig
 from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.workflows.inputs import DEFAULT_INPUTS, InputOptions, Progress, read_inputs
+from fmm_ros.workflows.model import ModelComparison, ModelOverlay, compare_model
+from fmm_ros.workflows.results import FrictionResult, analysis_dict, diagnosis_dict, json_safe
 
 
 @dataclass(frozen=True)
-class ModelOverlay:
-    """The model drawn over the measurement: Eq. 3 with this mu, rig and any extra terms.
+class FitOptions:
+    """The model a friction fit (and a diagnosis) uses, and what it frees besides mu."""
 
-    `source` says where mu came from ('fitted', 'given', ...) and appears in every legend.
-    `initial_positions_m`: where the model starts for an impact id [m] (a fit of the rest
-    position the previous hit left); 0 for any other.
-    """
-
-    mu: float
-    source: str
     rig: Rig = FMM_RIG
-    effects: tuple[ModelTerm, ...] = ()
-    initial_positions_m: Mapping[int, float] = field(default_factory=dict)
+    fit_damping: bool = False
+    fit_initial_position: bool = False
+    mu_bounds: tuple[float, float] = MU_BOUNDS
+    misfit: str = 'time'
+    band_limit_hz: float = MISFIT_BAND_LIMIT_HZ
 
-    def __post_init__(self) -> None:
-        require_non_negative('mu', self.mu)
 
-    @property
-    def label(self) -> str:
-        """Legend text: 'model, fitted μ = 0.1131'."""
-        terms = ''.join(f' + {term.name}' for term in self.effects)
-        return f'model, {self.source} μ = {self.mu:.4g}{terms}'
-
-    def velocity_m_s(self, record: ImpactRecord, impact_id: int) -> np.ndarray | None:
-        """The model's velocity driven by the record's conditioned force.
-
-        None when the record cannot drive it: samples missing (a gap), or no hit or no
-        motion above the noise (what the fitter would refuse too).
-        """
-        if not (np.isfinite(record.force_n).all() and np.isfinite(record.velocity_m_s).all()):
-            return None
-        try:
-            conditioned = condition_impact(
-                record.force_n, record.velocity_m_s, record.sample_rate_hz, source=record.source
-            )
-        except FitError:
-            return None
-        return simulate(
-            conditioned.force_n,
-            record.sample_rate_hz,
-            rig=self.rig,
-            mu=self.mu,
-            effects=self.effects,
-            x0_m=self.initial_positions_m.get(impact_id, 0.0),
-        ).velocity_m_s
+DEFAULT_FIT = FitOptions()
 
 
 @dataclass(frozen=True)
-class FrictionSummary:
-    """A friction fit as the report shows it: FitFriction.srv's response plus the model.
+class SessionOptions:
+    """How a session is processed: inputs, analysis, fit, diagnosis.
 
-    Per-impact tuples are in `impact_ids` order. Standard errors and the consistency p-value
-    are NaN where unknown (damping not fitted, a single impact).
+    mu: draw the model with this mu instead of fitting one; fit=False: neither fit nor draw.
     """
 
-    mu: float
-    mu_stderr: float
-    rig: Rig
-    """The fitted model's rig constants, damping included."""
-    impact_ids: tuple[int, ...]
-    per_impact_mu: tuple[float, ...]
-    per_impact_mu_stderr: tuple[float, ...]
-    damping_stderr_n_s_per_m: float = math.nan
-    effects: tuple[ModelTerm, ...] = ()
-    initial_positions_m: tuple[float, ...] = ()
-    """Where each impact's model started in the joint fit [m]; empty: all at 0."""
-    consistency_p_value: float = math.nan
-    """Chance of per-impact mus scattering this much if one mu served all (chi^2 test)."""
-    residual_rms_m_s: float = math.nan
-
-    def __post_init__(self) -> None:
-        count = len(self.impact_ids)
-        lengths = {len(self.per_impact_mu), len(self.per_impact_mu_stderr)}
-        if self.initial_positions_m:
-            lengths.add(len(self.initial_positions_m))
-        if lengths != {count}:
-            raise ValueError(
-                f'a friction summary needs one value per impact: {count} impact '
-                f'ids but per-impact lengths {sorted(lengths)}'
-            )
-
-    @classmethod
-    def from_fit(cls, fit: FrictionFit, impact_ids: Sequence[int]) -> FrictionSummary:
-        """The summary of a `fit_friction` result whose impacts were these, in this order."""
-        joint = fit.joint
-        return cls(
-            mu=fit.mu,
-            mu_stderr=fit.mu_stderr,
-            rig=joint.rig,
-            impact_ids=tuple(int(i) for i in impact_ids),
-            per_impact_mu=tuple(f.mu for f in fit.per_impact),
-            per_impact_mu_stderr=tuple(f.mu_stderr for f in fit.per_impact),
-            damping_stderr_n_s_per_m=fit.damping_stderr_n_s_per_m,
-            effects=joint.effects,
-            initial_positions_m=joint.initial_positions_m,
-            consistency_p_value=fit.consistency_p_value,
-            residual_rms_m_s=joint.residual_rms_m_s,
-        )
-
-    def overlay(self) -> ModelOverlay:
-        """The fitted model, each impact started where the fit started it."""
-        starts = self.initial_positions_m or (0.0,) * len(self.impact_ids)
-        return ModelOverlay(
-            self.mu,
-            'fitted',
-            self.rig,
-            self.effects,
-            dict(zip(self.impact_ids, starts, strict=True)),
-        )
-
-
-def fit_accepted_impacts(
-    records: Sequence[ImpactRecord],
-    summary: Summary,
-    *,
-    rig: Rig = FMM_RIG,
-    fit_damping: bool = False,
-    fit_initial_position: bool = False,
-    mu_bounds: tuple[float, float] = MU_BOUNDS,
-) -> FrictionSummary:
-    """Fit one mu (and each impact's own) over the accepted impacts, as the fitter node does.
-
-    records[i] is impact i of the summary. Raises ValueError when no impact is accepted and
-    FitError when friction cannot explain them.
-    """
-    ids = _accepted_ids(summary)
-    fit = fit_friction(
-        [records[i] for i in ids],
-        rig=rig,
-        fit_damping=fit_damping,
-        fit_initial_position=fit_initial_position,
-        mu_bounds=mu_bounds,
-    )
-    return FrictionSummary.from_fit(fit, ids)
+    inputs: InputOptions = DEFAULT_INPUTS
+    analysis: AnalysisConfig = field(default_factory=AnalysisConfig)
+    model: FitOptions = DEFAULT_FIT
+    mu: float | None = None
+    fit: bool = True
+    diagnose: bool = False
 
 
 @dataclass(frozen=True)
@@ -183,30 +78,242 @@ class SessionDiagnosis:
                 f'impacts but {len(self.impact_ids)} impact ids were given'
             )
 
+    def to_dict(self) -> dict:
+        """`diagnosis_dict` and the impacts it covers."""
+        return {**diagnosis_dict(self.diagnosis), 'impact_ids': list(self.impact_ids)}
 
-def diagnose_accepted_impacts(
-    records: Sequence[ImpactRecord],
-    summary: Summary,
-    *,
-    rig: Rig = FMM_RIG,
-    fit_initial_position: bool = False,
-) -> SessionDiagnosis:
-    """The diagnose workflow over the accepted impacts, as the fitter node runs it.
 
-    Raises ValueError when no impact is accepted and FitError when the base model cannot be
-    fitted at all.
+@dataclass(frozen=True, eq=False)
+class SessionResult:
+    """A session processed: its records and everything computed from them.
+
+    records[i] is impact i of summary. friction/diagnosis are None when not tried or refused
+    (then fit_failure/diagnosis_failure say why). comparison: the model (fitted or given) run
+    for every hit, None without a model.
     """
-    ids = _accepted_ids(summary)
-    return SessionDiagnosis(
-        diagnose([records[i] for i in ids], rig=rig, fit_initial_position=fit_initial_position),
-        tuple(ids),
-        rig,
-    )
+
+    records: list[ImpactRecord]
+    summary: Summary
+    capture: CaptureConfig
+    analysis: AnalysisConfig
+    friction: FrictionResult | None = None
+    fit_failure: str = ''
+    diagnosis: SessionDiagnosis | None = None
+    diagnosis_failure: str = ''
+    comparison: ModelComparison | None = None
+    inputs: list[str] = field(default_factory=list)
+    problems: list[str] = field(default_factory=list)
+    """What went wrong reading the inputs (a damaged bag): shown, never dropped."""
+    notes: list[str] = field(default_factory=list)
+    """How each lab file was read (format, channels, units, rate)."""
+
+    def __post_init__(self) -> None:
+        missing = [
+            impact.impact_id
+            for impact in self.summary.impacts
+            if not 0 <= impact.impact_id < len(self.records)
+        ]
+        if missing:
+            raise ValueError(
+                f'the summary names impact(s) {missing} but only {len(self.records)} '
+                'record(s) were given (impact_id must be the record position)'
+            )
+        known = {impact.impact_id for impact in self.summary.impacts}
+        for name, result in (('friction fit', self.friction), ('diagnosis', self.diagnosis)):
+            unknown = sorted(set(result.impact_ids) - known) if result is not None else []
+            if unknown:
+                raise ValueError(f'the {name} names impact(s) {unknown} the session lacks')
+
+    @property
+    def model(self) -> ModelOverlay | None:
+        """The model drawn over the measurement, if any."""
+        return self.comparison.model if self.comparison else None
+
+    def to_dict(self) -> dict:
+        """The session as JSON: inputs, problems, analysis, fit and diagnosis (or why not)."""
+        model = self.model
+        return json_safe(
+            {
+                'inputs': self.inputs,
+                'problems': self.problems,
+                **analysis_dict(self.summary),
+                'fit': self.friction.to_dict() if self.friction else None,
+                'fit_failure': self.fit_failure or None,
+                'diagnosis': self.diagnosis.to_dict() if self.diagnosis else None,
+                'diagnosis_failure': self.diagnosis_failure or None,
+                'model': {'mu': model.mu, 'source': model.source} if model else None,
+                'residual_rms_m_s': {
+                    str(i): hit.residual_rms_m_s for i, hit in self.comparison.hits.items()
+                }
+                if self.comparison
+                else {},
+            }
+        )
 
 
-def _accepted_ids(summary: Summary) -> list[int]:
+def analyse(
+    records: Sequence[ImpactRecord],
+    capture: CaptureConfig = DEFAULT_CAPTURE,
+    analysis: AnalysisConfig | None = None,
+    *,
+    progress: Progress | None = None,
+) -> Summary:
+    """The signal core's verdict on every record, impact i being record i."""
+    analysis = analysis or AnalysisConfig()
+    results = []
+    for number, record in enumerate(records):
+        if progress:
+            progress(f'analysing hit {number + 1}/{len(records)}')
+        results.append(analyze_impact(record, capture, analysis, impact_id=number))
+    return summarize(results, analysis)
+
+
+def accepted_ids(summary: Summary) -> list[int]:
     """Ids of the accepted impacts; ValueError when there is none (nothing to fit)."""
     ids = [impact.impact_id for impact in summary.impacts if impact.accepted]
     if not ids:
         raise ValueError('no accepted impact to fit')
     return ids
+
+
+def fit_impacts(
+    records: Sequence[ImpactRecord],
+    impact_ids: Sequence[int],
+    options: FitOptions = DEFAULT_FIT,
+    *,
+    progress: Progress | None = None,
+) -> FrictionResult:
+    """One mu (and each impact's own) over records[i] for i in impact_ids, as the fitter does.
+
+    Raises FitError (a ValueError) when friction cannot explain them.
+    """
+    fit = fit_friction(
+        [records[i] for i in impact_ids],
+        rig=options.rig,
+        fit_damping=options.fit_damping,
+        fit_initial_position=options.fit_initial_position,
+        mu_bounds=options.mu_bounds,
+        misfit=options.misfit,
+        band_limit_hz=options.band_limit_hz,
+        progress=progress,
+    )
+    return FrictionResult.from_fit(fit, impact_ids)
+
+
+def diagnose_impacts(
+    records: Sequence[ImpactRecord],
+    impact_ids: Sequence[int],
+    options: FitOptions = DEFAULT_FIT,
+    *,
+    progress: Progress | None = None,
+) -> SessionDiagnosis:
+    """The diagnose workflow over records[i] for i in impact_ids, as the fitter node runs it.
+
+    Raises FitError (a ValueError) when the base model cannot be fitted at all.
+    """
+    if progress:
+        progress(f'diagnosing {len(impact_ids)} impacts (base fit, then each candidate effect)')
+    return SessionDiagnosis(
+        diagnose(
+            [records[i] for i in impact_ids],
+            rig=options.rig,
+            fit_initial_position=options.fit_initial_position,
+        ),
+        tuple(impact_ids),
+        options.rig,
+    )
+
+
+def run_session(
+    records: Sequence[ImpactRecord],
+    options: SessionOptions | None = None,
+    *,
+    friction: FrictionResult | None = None,
+    fit_failure: str = '',
+    inputs: Sequence[str] = (),
+    problems: Sequence[str] = (),
+    notes: Sequence[str] = (),
+    progress: Progress | None = None,
+) -> SessionResult:
+    """Analyse records, fit mu over the accepted ones (or take the fit given), diagnose.
+
+    friction: a fit made elsewhere (the fitter service's answer), drawn as it is instead of
+    fitting; fit_failure: why that fit was refused. options.mu draws a given mu instead;
+    options.fit = False draws no model.
+    """
+    options = options or SessionOptions()
+    records = list(records)
+    if not records:
+        raise ValueError('a session needs at least one impact record')
+    capture = options.inputs.capture
+    summary = analyse(records, capture, options.analysis, progress=progress)
+    if friction is None and not fit_failure and options.mu is None and options.fit:
+        try:
+            friction = fit_impacts(records, accepted_ids(summary), options.model, progress=progress)
+        except ValueError as error:  # FitError is one: the result says why there is no fit
+            fit_failure = str(error)
+    diagnosis, diagnosis_failure = None, ''
+    if options.diagnose:
+        try:
+            diagnosis = diagnose_impacts(
+                records, accepted_ids(summary), options.model, progress=progress
+            )
+        except ValueError as error:
+            diagnosis_failure = str(error)
+    model = (
+        ModelOverlay(options.mu, 'given', options.model.rig)
+        if options.mu is not None
+        else overlay_of(friction)
+    )
+    comparison = (
+        compare_model(records, summary, model, capture, options.analysis, progress=progress)
+        if model is not None
+        else None
+    )
+    return SessionResult(
+        records,
+        summary,
+        capture,
+        options.analysis,
+        friction,
+        fit_failure,
+        diagnosis,
+        diagnosis_failure,
+        comparison,
+        list(inputs),
+        list(problems),
+        list(notes),
+    )
+
+
+def process_session(
+    paths: Sequence[str | Path],
+    options: SessionOptions | None = None,
+    *,
+    progress: Progress | None = None,
+) -> SessionResult:
+    """One session's input files (lab files, bags) through `run_session`."""
+    options = options or SessionOptions()
+    read = read_inputs(paths, options.inputs, progress=progress)
+    return run_session(
+        read.records,
+        options,
+        inputs=read.paths,
+        problems=read.problems,
+        notes=read.notes,
+        progress=progress,
+    )
+
+
+def overlay_of(friction: FrictionResult | None) -> ModelOverlay | None:
+    """The fitted model, each impact started where the fit started it."""
+    if friction is None or not math.isfinite(friction.mu):
+        return None
+    starts = friction.initial_positions_m or (0.0,) * len(friction.impact_ids)
+    return ModelOverlay(
+        friction.mu,
+        'fitted',
+        friction.rig,
+        friction.effects,
+        dict(zip(friction.impact_ids, starts, strict=True)),
+    )

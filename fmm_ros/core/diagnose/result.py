@@ -1,7 +1,8 @@
 """What a diagnosis returns: the named effect, its parameters, every candidate, where, the gaps.
 
-`Diagnosis.to_dict()` is the JSON of `fmm diagnose --json`; the DiagnoseModel service response
-is filled from the same object (`fmm_ros.ros.msgs.fill_diagnose_response`).
+`fmm_ros.workflows.results.diagnosis_dict` is the JSON of `fmm diagnose --json`; the
+DiagnoseModel service response is filled from the same object
+(`fmm_ros.ros.msgs.fill_diagnose_response`).
 """
 
 from dataclasses import dataclass, field
@@ -9,7 +10,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fmm_ros.core.diagnose import signatures as discrepancy
-from fmm_ros.io.frf_files import json_number
 
 
 @dataclass(frozen=True)
@@ -92,82 +92,3 @@ class Diagnosis:
     """Measured minus base-model velocity per impact [m/s] (for figures)."""
     named_residuals_m_s: tuple[np.ndarray, ...] = field(repr=False)
     """Measured minus named-model velocity per impact [m/s] (base again for 'none')."""
-
-    def to_dict(self) -> dict:
-        """JSON-ready (undefined numbers are None): the keys of `fmm diagnose --json`."""
-        return _json_safe(
-            {
-                'missing_effect': self.missing_effect,
-                'parameters': {p.name: p.value for p in self.parameters},
-                'parameter_units': {p.name: p.unit for p in self.parameters},
-                'parameter_stderr': {p.name: p.stderr for p in self.parameters},
-                'mu': self.mu,
-                'mu_stderr': self.mu_stderr,
-                'gap_before': self.gap_before,
-                'gap_after': self.gap_after,
-                'frf_gap_before': self.frf_gap_before,
-                'frf_gap_after': self.frf_gap_after,
-                'where': _where_dict(self.where),
-                'candidates': [
-                    {
-                        'effect': c.effect,
-                        'score': c.score,
-                        'aic_score': c.aic_score,
-                        'gap_after': c.gap_after,
-                        'frf_gap_after': c.frf_gap_after,
-                        'parameters': {p.name: p.value for p in c.parameters},
-                        'parameter_stderr': {p.name: p.stderr for p in c.parameters},
-                        **({'message': c.message} if c.message else {}),
-                    }
-                    for c in self.candidates
-                ],
-                'noise_std_m_s': self.noise_std_m_s,
-                'force_noise_std_n': self.force_noise_std_n,
-                'input_noise_allowance': self.input_noise_allowance,
-                'required_score': self.required_score,
-                'verdict': self.verdict,
-            }
-        )
-
-
-def _json_safe(value):
-    """Plain floats all the way down, NaN and infinities as None (JSON has neither)."""
-    if isinstance(value, dict):
-        return {key: _json_safe(item) for key, item in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_safe(item) for item in value]
-    if isinstance(value, (float, np.floating)):
-        return json_number(value)
-    return value
-
-
-def _where_dict(where: Where) -> dict:
-    return {
-        'summary': where.summary,
-        'time': [
-            {
-                'region': r.name,
-                'share': r.share,
-                'excess_rms_m_s': r.excess_rms_m_s,
-                'mean_m_s': r.mean_m_s,
-                'samples': r.samples,
-            }
-            for r in where.time
-        ],
-        'frequency': [
-            {'band': b.name, 'low_hz': b.low_hz, 'high_hz': b.high_hz, 'share': b.share}
-            for b in where.frequency
-        ],
-        'non_harmonic_peaks_hz': [p.frequency_hz for p in where.peaks],
-        'rest_velocity_m_s': where.rest_velocity_m_s,
-        'rest_velocity_stderr_m_s': where.rest_velocity_stderr_m_s,
-        'phase_delay_s': where.phase_delay_s,
-        'signatures': [
-            {'measured': _signature_dict(m), 'model': _signature_dict(s)}
-            for m, s in zip(where.measured, where.model, strict=True)
-        ],
-    }
-
-
-def _signature_dict(signature: discrepancy.DecaySignatures) -> dict:
-    return dict(vars(signature))

@@ -10,7 +10,7 @@ own mu beside it, and a chi^2 test of whether one mu serves them all.
 """
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -531,13 +531,16 @@ def fit_friction(
     band_limit_hz: float = MISFIT_BAND_LIMIT_HZ,
     integrator: str = 'exact',
     jacobian: str = 'blocks',
+    progress: Callable[[str], None] | None = None,
 ) -> FrictionFit:
     """The paper's fit: one mu (and optionally c) over all impacts, plus each impact's own mu.
 
     fit_initial_position and jacobian as in `fit_model` (each impact's own fit then refits its
-    own start). Raises ValueError for bad input and FitError (naming the impact) for any
-    impact, or the set, that friction cannot explain.
+    own start). progress, when given, is told of each fit as it starts (a line of text).
+    Raises ValueError for bad input and FitError (naming the impact) for any impact, or the
+    set, that friction cannot explain.
     """
+    say = progress or (lambda _: None)
     conditioned = _conditioned_list(impacts)
     options = dict(
         mu_bounds=mu_bounds,
@@ -547,17 +550,17 @@ def fit_friction(
         integrator=integrator,
         jacobian=jacobian,
     )
+    count = len(conditioned)
+    say(f'fitting one mu to {count} impact{"s" if count > 1 else ""}')
     joint = fit_model(conditioned, rig=rig, fit_damping=fit_damping, **options)
-    if len(conditioned) == 1:
-        per_impact = (
-            (joint,)
-            if not fit_damping
-            else (fit_model(conditioned, rig=joint.rig, mu0=joint.mu, **options),)
-        )
+    if count == 1 and not fit_damping:
+        per_impact = (joint,)
     else:
-        per_impact = tuple(
-            fit_model([impact], rig=joint.rig, mu0=joint.mu, **options) for impact in conditioned
-        )
+        fits = []
+        for number, impact in enumerate(conditioned, 1):
+            say(f'fitting mu of impact {number}/{count} alone')
+            fits.append(fit_model([impact], rig=joint.rig, mu0=joint.mu, **options))
+        per_impact = tuple(fits)
     mus = np.array([fit.mu for fit in per_impact])
     errors = np.array([fit.mu_stderr for fit in per_impact])
     chi2 = float(np.sum(((mus - joint.mu) / errors) ** 2))

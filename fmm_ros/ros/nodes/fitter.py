@@ -34,6 +34,7 @@ from fmm_ros.ros.common import RESULT_QOS, RIG_PARAMS, rig_from_parameters, run_
 from fmm_ros.ros.health import OK, Health
 from fmm_ros.ros.inputs import SampleInputs
 from fmm_ros.ros.params import Param, declare_parameters
+from fmm_ros.workflows.results import FrictionResult
 
 PARAMS = (
     *RIG_PARAMS,
@@ -218,24 +219,8 @@ class Fitter(Node):
             return _refused(response, f'{error.reason}: {error}')
         except ValueError as error:
             return _refused(response, str(error))
-        joint = fit.joint
-        response.success = True
-        response.mu, response.mu_stderr = fit.mu, fit.mu_stderr
-        response.damping_n_s_per_m = fit.damping_n_s_per_m
-        response.damping_stderr_n_s_per_m = (
-            fit.damping_stderr_n_s_per_m if request.fit_damping else 0.0
-        )
-        response.residual_rms_m_s = joint.residual_rms_m_s
-        response.residual_normalized = joint.normalised_residual
-        response.impact_ids = [impact.impact_id for impact in impacts]
-        response.per_impact_mu = msgs.float64_field([f.mu for f in fit.per_impact])
-        response.per_impact_mu_stderr = msgs.float64_field([f.mu_stderr for f in fit.per_impact])
-        response.per_impact_impulse_n_s = msgs.float64_field(fit.impulses_n_s)
-        response.per_impact_residual_rms_m_s = msgs.float64_field(joint.impact_residual_rms_m_s)
-        response.message = (
-            f'mu = {fit.mu:.5f} +- {fit.mu_stderr:.2g} over {len(impacts)} '
-            f'impacts; one mu serves all: p = {fit.consistency_p_value:.3g}'
-        )
+        result = FrictionResult.from_fit(fit, [impact.impact_id for impact in impacts])
+        msgs.fill_fit_response(response, result)
         self.last_fit = response.message
         self.get_logger().info(response.message)
         return response

@@ -1,0 +1,152 @@
+"""How results read as text: the tables `fmm` prints, one function per result type.
+
+Shared by the subcommands that print the same result: analyze and replay (an analysis),
+fit and `fmm ros call fit` (a `FrictionResult`), diagnose and `fmm ros call diagnose` (a
+diagnosis as `diagnosis_dict` gives it, or the service's response in the same keys). Receptance
+is shown in mm/N as in the report; JSON stays in SI.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from fmm_ros.constants import MM_PER_M, RECEPTANCE_DISPLAY_UNIT
+from fmm_ros.core.diagnose.workflow import NONE
+from fmm_ros.core.signal.analysis import Summary
+from fmm_ros.workflows.results import FrictionResult
+
+
+def analysis_text(summary: Summary) -> str:
+    """A table of impacts, one of levels, and the regression line (|X/F| in mm/N)."""
+    unit = RECEPTANCE_DISPLAY_UNIT
+    lines = [
+        f'{"impact":<28} {"level":<8} {"ok":<3} {"impulse N*s":>11} {"peak N":>8} '
+        f'{"|X/F| " + unit:>11} {"f_n Hz":>7}  flags'
+    ]
+    for result in summary.impacts:
+        lines.append(
+            f'{Path(result.source).name:<28.28} {result.level or "-":<8} '
+            f'{"yes" if result.accepted else "no":<3} {result.impulse_n_s:>11.4g} '
+            f'{result.peak_force_n:>8.4g} {result.peak_receptance_m_per_n * MM_PER_M:>11.4g} '
+            f'{result.natural_frequency_hz:>7.4f}  {",".join(result.flags) or "-"}'
+        )
+    lines += [
+        '',
+        f'{"level":<8} {"count":>5} {"mean impulse N*s":>16} {"|X/F| " + unit:>11} {"f_n Hz":>7}',
+    ]
+    for level in summary.levels:
+        lines.append(
+            f'{level.level:<8} {level.count:>5} {level.mean_impulse_n_s:>16.4g} '
+            f'{level.peak_receptance_m_per_n * MM_PER_M:>11.4g} '
+            f'{level.natural_frequency_hz:>7.4f}'
+        )
+    if not summary.levels:
+        lines.append('(no level has an accepted impact)')
+    fit = summary.linearity
+    lines.append('')
+    if np.isnan(fit.slope):
+        lines.append('linearity: needs accepted impacts at 2 or more levels')
+    else:
+        lines.append(
+            f'linearity: |X/F| peak = {fit.slope * MM_PER_M:.4g} mm/(N^2*s) * impulse + '
+            f'{fit.intercept * MM_PER_M:.4g} {unit} over {fit.count} levels, '
+            f'R^2 = {fit.r2:.4f}'
+        )
+    return '\n'.join(lines)
+
+
+def friction_text(result: FrictionResult) -> str:
+    """A few lines for a person: the common mu, c, the residual, then one line per impact."""
+    count = len(result.impact_ids)
+    lines = [
+        f'mu = {result.mu:.5f} +- {result.mu_stderr:.2g}  (one mu for {count} '
+        f'impact{"s" if count > 1 else ""}, {result.misfit} misfit)'
+    ]
+    if result.damping_fitted:
+        lines.append(
+            f'c  = {result.damping_n_s_per_m:.4f} +- '
+            f'{result.damping_stderr_n_s_per_m:.2g} N*s/m (fitted)'
+        )
+    else:
+        lines.append(f'c  = {result.damping_n_s_per_m:.4f} N*s/m (rig constant)')
+    lines.append(
+        f'residual {result.residual_rms_m_s:.3e} m/s RMS = '
+        f'{100 * result.normalised_residual:.3f} % of the peak velocity '
+        f'(velocity noise {result.noise_std_m_s:.3e} m/s)'
+    )
+    if count > 1:
+        verdict = (
+            'serves all impacts'
+            if result.consistency_p_value >= 0.01
+            else 'does NOT serve all impacts'
+        )
+        lines.append(
+            f'one mu {verdict}: chi^2 {result.consistency_chi2:.3g} over {count - 1} '
+            f'degree{"s" if count > 2 else ""} of freedom, p = '
+            f'{result.consistency_p_value:.3g}'
+        )
+    lines += [
+        '',
+        f'{"impact":<28} {"impulse N*s":>11} {"mu alone":>9} {"+-":>8} '
+        f'{"residual m/s":>12}  (at the common mu)',
+    ]
+    for entry in result.per_impact():
+        lines.append(
+            f'{Path(entry["file"]).name:<28.28} {entry["impulse_n_s"]:>11.4f} '
+            f'{entry["mu"]:>9.5f} {entry["mu_stderr"]:>8.2g} {entry["residual_rms_m_s"]:>12.3e}'
+        )
+    return '\n'.join(lines)
+
+
+def diagnosis_text(payload: dict, impacts: int, figures: Sequence[Path] = ()) -> str:
+    """The short table a person reads in ten seconds, from `diagnosis_dict` (or a service's)."""
+    result = payload
+    lines = [
+        f'{impacts} impact(s); velocity noise {result["noise_std_m_s"]:.3g} m/s (from the '
+        f'data); base fit mu = {_value(result["mu"], result["mu_stderr"], "1")}'
+    ]
+    if result['missing_effect'] == NONE:
+        lines.append(
+            f'missing effect: none   gap {result["gap_before"]:.3g} '
+            f'(FRF {result["frf_gap_before"]:.3g})'
+        )
+    else:
+        lines.append(
+            f'missing effect: {result["missing_effect"]}   gap {result["gap_before"]:.3g} -> '
+            f'{result["gap_after"]:.3g}   FRF gap {result["frf_gap_before"]:.3g} -> '
+            f'{result["frf_gap_after"]:.3g}'
+        )
+        for name, value in result['parameters'].items():
+            error, unit = result['parameter_stderr'][name], result['parameter_units'][name]
+            lines.append(f'  {name:<40} {_value(value, error, unit)}')
+    lines.append(f'where: {result["where"]["summary"]}')
+    lines.append('')
+    lines.append(f'{"candidate":<22}{"score (dBIC)":>14}{"gap after":>12}')
+    for candidate in result['candidates']:
+        mark = '  <- named' if candidate['effect'] == result['missing_effect'] else ''
+        score = _finite(candidate['score'])
+        score = f'{score:.0f}' if math.isfinite(score) else 'failed'
+        gap = _finite(candidate['gap_after'])
+        lines.append(f'{candidate["effect"]:<22}{score:>14}{gap:>12.3g}{mark}')
+    lines.append(f'(named when dBIC <= {result["required_score"]:.0f} and the gap at least halves)')
+    lines.append(result['verdict'])
+    lines += [f'wrote {path}' for path in figures]
+    return '\n'.join(lines)
+
+
+def _finite(value: float | None) -> float:
+    """A JSON number back as a float (null: NaN)."""
+    return math.nan if value is None else float(value)
+
+
+def _value(value: float, error: float | None, unit: str) -> str:
+    """Value +- error unit, the error left out when unknown."""
+    error = _finite(error)
+    unit = '' if unit == '1' else f' {unit}'
+    if math.isfinite(error) and error > 0.0:
+        return f'{value:.4g} +- {error:.2g}{unit}'
+    return f'{value:.4g}{unit}'

@@ -1,0 +1,489 @@
+"""The option groups the subcommands share, so every one spells a thing the same way.
+
+- `add_inputs`: INPUTs (lab files and bags, `fmm_ros.workflows.inputs`) with the channel
+  mapping of `fmm import` (`-m/--mapping`, `--force NAME`, `--force-unit`, ...) and the text
+  layout (`--delimiter`, `--decimal`, `--skip-rows`, `--encoding`);
+- `add_hit_selection`: how hits are cut, grouped and judged (`--paper-levels`, `--level`,
+  `--window-s`, `--reject`, ...), the same on analyze, fit, diagnose, report and replay;
+- `add_model`: the rig constants and what a friction fit frees besides mu;
+- `add_output`: `-o/--output`, where results go;
+- `add_quiet`, `add_json`.
+
+Units are SI and named in every flag (`--force-full-scale-n`). Spellings that an earlier
+release used stay for one release as hidden aliases (`argparse.SUPPRESS`) that still work and
+say, on stderr, what replaces them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from fmm_ros.core.physics.rig import FMM_RIG, Rig
+from fmm_ros.core.signal.analysis import AnalysisConfig, NominalLevel, paper_levels
+from fmm_ros.core.signal.capture import FLAGS, CaptureConfig
+from fmm_ros.io.labfiles import CHANNEL_KEYS, load_mapping
+from fmm_ros.io.textfiles import DECIMALS, TextFormat, delimiter_from_name
+from fmm_ros.workflows.inputs import InputOptions
+from fmm_ros.workflows.session import FitOptions
+
+QUANTITIES = ('force', 'velocity')
+FULL_SCALE_FLAGS = {'force': '--force-full-scale-n', 'velocity': '--velocity-full-scale-m-s'}
+FULL_SCALE_DESTS = {'force': 'force_full_scale_n', 'velocity': 'velocity_full_scale_m_s'}
+
+
+class DeprecatedAlias(argparse.Action):
+    """An old spelling: hidden from --help, still works, and says what replaces it.
+
+    scale converts the old unit to the new one (`--x0-mm 3` -> x0_m = 0.003).
+    """
+
+    def __init__(self, option_strings, dest, *, use: str, scale: float | None = None, **kwargs):
+        self.use, self.scale = use, scale
+        super().__init__(option_strings, dest, help=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        """Warn on stderr, then store the value (converted) where the new spelling does."""
+        print(
+            f'{parser.prog}: warning: {option_string} is deprecated and will be removed; '
+            f'use {self.use}',
+            file=sys.stderr,
+        )
+        if self.nargs == 0:
+            values = self.const
+        elif self.scale is not None:
+            values = values * self.scale
+        if isinstance(getattr(namespace, self.dest, None), list) and not isinstance(values, list):
+            getattr(namespace, self.dest).append(values)
+        else:
+            setattr(namespace, self.dest, values)
+
+
+def add_alias(parser, old: str, dest: str, use: str, **kwargs) -> None:
+    """A hidden old spelling of the option stored in dest (see DeprecatedAlias)."""
+    parser.add_argument(old, dest=dest, action=DeprecatedAlias, use=use, **kwargs)
+
+
+# -- inputs ------------------------------------------------------------------------------------
+
+
+def add_inputs(parser: argparse.ArgumentParser, *, nargs: str = '+', what: str = 'impact') -> None:
+    """INPUTs and how lab files among them are read (mapping, text layout, full scales)."""
+    parser.add_argument(
+        'inputs',
+        nargs=nargs,
+        type=Path,
+        metavar='INPUT',
+        help=f'lab files (CSV/TSV/TXT, NPZ, MATLAB .mat, TDMS), one {what} each, or bags '
+        '(directory, .mcap or .db3) of every impact recorded; told apart by content',
+    )
+    group = parser.add_argument_group(
+        'reading lab files',
+        'Which channel is force, velocity and time, in which unit, at which rate: stated here '
+        'or in a mapping file (as fmm import), else taken from the file where it says so '
+        '(names time_s, force_n, velocity_m_s; a units row; "Hammer [lbf]"; TDMS units).',
+    )
+    add_mapping_flags(group)
+    add_full_scale_flags(group)
+    group.add_argument(
+        '--continuous',
+        action='store_true',
+        help='each lab file is one recording of several hits: cut every impact as from a bag '
+        '(default: a lab file is one impact record)',
+    )
+
+
+def add_mapping_flags(group) -> None:
+    """-m/--mapping, the channel flags, the rate and the text layout (shared with import)."""
+    group.add_argument('-m', '--mapping', type=Path, help='YAML mapping file (see fmm import -h)')
+    for quantity in (*QUANTITIES, 'time'):
+        group.add_argument(
+            f'--{quantity}',
+            metavar='NAME',
+            help=f'{quantity} column, variable (struct.field) or TDMS group/channel',
+        )
+        group.add_argument(
+            f'--{quantity}-unit', metavar='UNIT', help=f'unit of {quantity} in the file'
+        )
+    for quantity in QUANTITIES:
+        group.add_argument(
+            f'--{quantity}-scale',
+            type=float,
+            metavar='SI_PER_UNIT',
+            help=f'SI units per file unit, for a sensor unit of {quantity} (V, counts)',
+        )
+    group.add_argument(
+        '--sample-rate-hz',
+        metavar='HZ_OR_VARIABLE',
+        help='sample rate, or the name of the variable holding it (default: from a time '
+        'channel, a sample_rate_hz variable or the TDMS increments)',
+    )
+    group.add_argument(
+        '--delimiter',
+        type=_delimiter,
+        help='text column delimiter: , ; | tab space (default: detected)',
+    )
+    group.add_argument(
+        '--decimal', choices=DECIMALS, help='decimal separator of text files (default: detected)'
+    )
+    group.add_argument(
+        '--skip-rows',
+        type=int,
+        default=0,
+        metavar='N',
+        help='lines before the header of a text file (default: found from the first row of '
+        'numbers)',
+    )
+    group.add_argument('--encoding', help='text encoding (default: BOM, UTF-8, else detected)')
+
+
+def add_full_scale_flags(group) -> None:
+    """--force-full-scale-n and --velocity-full-scale-m-s (SI), for the clipped flag."""
+    group.add_argument(
+        FULL_SCALE_FLAGS['force'],
+        type=float,
+        default=0.0,
+        metavar='N',
+        help='force sensor range [N], for the clipped flag (default: as recorded, or unknown)',
+    )
+    group.add_argument(
+        FULL_SCALE_FLAGS['velocity'],
+        type=float,
+        default=0.0,
+        metavar='M_S',
+        help='vibrometer range [m/s], for the clipped flag (default: as recorded, or unknown)',
+    )
+
+
+def mapping_spec(args: argparse.Namespace) -> dict:
+    """The mapping file's entries with the flags laid over them (flags win), in YAML form."""
+    spec = load_mapping(args.mapping) if getattr(args, 'mapping', None) else {}
+    for quantity in (*QUANTITIES, 'time'):
+        entry = spec.get(quantity)
+        entry = {'name': entry} if isinstance(entry, str | int) else dict(entry or {})
+        flags = {
+            'name': getattr(args, quantity, None),
+            'unit': getattr(args, f'{quantity}_unit', None),
+            'scale': getattr(args, f'{quantity}_scale', None),
+            'full_scale': getattr(args, f'{quantity}_full_scale', None),
+            'full_scale_si': getattr(args, FULL_SCALE_DESTS.get(quantity, ''), None) or None,
+        }
+        entry.update({key: value for key, value in flags.items() if value is not None})
+        if entry:
+            spec[quantity] = {key: entry[key] for key in CHANNEL_KEYS if key in entry}
+    rate = getattr(args, 'sample_rate_hz', None)
+    if rate is not None:
+        try:
+            spec['sample_rate_hz'] = float(rate)
+        except ValueError:
+            spec['sample_rate_hz'] = rate
+    return spec
+
+
+def text_format(args: argparse.Namespace) -> TextFormat:
+    """How text files are laid out, as far as the flags say."""
+    return TextFormat(args.delimiter, args.decimal, args.skip_rows, args.encoding)
+
+
+def input_options(args: argparse.Namespace, capture: CaptureConfig | None = None) -> InputOptions:
+    """The InputOptions of the flags add_inputs added (and the capture of the hit options)."""
+    return InputOptions(
+        mapping=mapping_spec(args),
+        text_format=text_format(args),
+        capture=capture or CaptureConfig(),
+        force_full_scale_n=args.force_full_scale_n,
+        velocity_full_scale_m_s=args.velocity_full_scale_m_s,
+        continuous=args.continuous,
+    )
+
+
+# -- hit selection -------------------------------------------------------------------------------
+
+
+def add_hit_selection(parser: argparse.ArgumentParser, *, optional: bool = False) -> None:
+    """How hits are cut from recordings, grouped into levels and judged.
+
+    optional: the command (fit, diagnose) uses every record unless a selection option
+    (--paper-levels, --level, --reject) is given; then only the accepted hits.
+    """
+    defaults = CaptureConfig()
+    group = parser.add_argument_group(
+        'hit selection',
+        'How impacts are cut from recordings, grouped into force levels and judged'
+        + (
+            '. Without --paper-levels, --level or --reject every record is used; with any of '
+            'them only the accepted hits, as fmm report uses them.'
+            if optional
+            else '.'
+        ),
+    )
+    levels = group.add_mutually_exclusive_group()
+    levels.add_argument(
+        '--level',
+        action='append',
+        default=[],
+        metavar='NAME=FORCE_N',
+        type=_nominal_level,
+        help='a nominal force level (repeatable); without levels, peak forces are clustered',
+    )
+    levels.add_argument(
+        '--paper-levels',
+        action='store_true',
+        help="the paper's levels: low=450, medium=1000, high=1450 N",
+    )
+    group.add_argument(
+        '--tolerance-n',
+        type=float,
+        default=50.0,
+        help='accepted distance from a nominal peak force [N] (default 50)',
+    )
+    group.add_argument(
+        '--trigger-n',
+        type=float,
+        default=defaults.trigger_level_n,
+        help=f'trigger level [N] (default {defaults.trigger_level_n:g})',
+    )
+    group.add_argument(
+        '--rearm-n',
+        type=float,
+        default=defaults.rearm_level_n,
+        help=f're-arm / contact threshold [N] (default {defaults.rearm_level_n:g})',
+    )
+    group.add_argument(
+        '--window-s',
+        type=float,
+        default=defaults.window_s,
+        help='record length cut from a bag or continuous file [s] '
+        f'(default {defaults.window_s:g}, as in the paper)',
+    )
+    group.add_argument(
+        '--rest-velocity-m-s',
+        type=float,
+        default=defaults.rest_velocity_m_s,
+        help=f'|velocity| counted as rest [m/s] (default {defaults.rest_velocity_m_s:g})',
+    )
+    group.add_argument(
+        '--reject',
+        type=_flag_list,
+        default=None,
+        metavar='FLAG,...',
+        help=f'flags that reject an impact, or "none" (default: all of {",".join(FLAGS)})',
+    )
+
+
+def add_frf_options(parser: argparse.ArgumentParser) -> None:
+    """The FRFs' band and windows (analyze, replay, report)."""
+    analysis = AnalysisConfig()
+    group = parser.add_argument_group('frequency response functions')
+    group.add_argument(
+        '--band-limit-hz',
+        type=float,
+        default=analysis.band_limit_hz,
+        help=f'highest FRF frequency kept [Hz] (default {analysis.band_limit_hz:g})',
+    )
+    group.add_argument(
+        '--force-window-s',
+        type=float,
+        default=None,
+        help='force window length after the trigger [s] (default: none)',
+    )
+    group.add_argument(
+        '--exponential-decay-s',
+        type=float,
+        default=None,
+        help='exponential window decay time [s] (default: none)',
+    )
+
+
+def add_analysis(parser: argparse.ArgumentParser) -> None:
+    """What analyze and replay share: --json, -o for the level FRFs, hits, FRFs, --quiet."""
+    add_json(parser, 'one object')
+    add_output(
+        parser,
+        'write the level FRFs to PATH: .uff/.unv (UFF 58), .csv or .json (repeatable)',
+        repeat=True,
+        aliases=('--export',),
+    )
+    add_hit_selection(parser)
+    add_frf_options(parser)
+    add_quiet(parser)
+
+
+def selects_hits(args: argparse.Namespace) -> bool:
+    """Whether a hit-selection option was given (for commands where selection is optional)."""
+    return bool(args.paper_levels or args.level or args.reject is not None)
+
+
+def analysis_configs(args: argparse.Namespace) -> tuple[CaptureConfig, AnalysisConfig]:
+    """The capture and analysis configuration of add_hit_selection's (and add_frf_options')."""
+    capture = CaptureConfig(
+        trigger_level_n=args.trigger_n,
+        rearm_level_n=args.rearm_n,
+        rest_velocity_m_s=args.rest_velocity_m_s,
+        window_s=args.window_s,
+    )
+    levels = (
+        paper_levels(args.tolerance_n)
+        if args.paper_levels
+        else tuple(dataclasses.replace(level, tolerance_n=args.tolerance_n) for level in args.level)
+    )
+    frf = AnalysisConfig()
+    analysis = AnalysisConfig(
+        band_limit_hz=getattr(args, 'band_limit_hz', frf.band_limit_hz),
+        force_window_s=getattr(args, 'force_window_s', None),
+        exponential_decay_s=getattr(args, 'exponential_decay_s', None),
+        levels=levels,
+        reject_flags=FLAGS if args.reject is None else args.reject,
+    )
+    return capture, analysis
+
+
+def _nominal_level(text: str) -> NominalLevel:
+    """NAME=FORCE_N from the command line."""
+    name, _, force = text.partition('=')
+    try:
+        value = float(force)
+    except ValueError:
+        value = float('nan')
+    if not name.strip() or not np.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(
+            f'expected NAME=FORCE_N with a positive force, got {text!r}'
+        )
+    return NominalLevel(name.strip(), value)
+
+
+def _flag_list(text: str) -> tuple[str, ...]:
+    """A comma-separated flag list, or "none"."""
+    if text.strip().lower() == 'none':
+        return ()
+    flags = tuple(flag.strip() for flag in text.split(',') if flag.strip())
+    unknown = [flag for flag in flags if flag not in FLAGS]
+    if unknown:
+        raise argparse.ArgumentTypeError(
+            f'unknown flag(s) {", ".join(unknown)}; known: {", ".join(FLAGS)}'
+        )
+    return flags
+
+
+def _delimiter(text: str) -> str:
+    try:
+        return delimiter_from_name(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
+# -- the model -----------------------------------------------------------------------------------
+
+
+def add_rig(parser: argparse.ArgumentParser) -> None:
+    """--mass-kg, --stiffness-n-per-m, --damping-n-s-per-m, --normal-force-n (FMM defaults)."""
+    group = parser.add_argument_group('rig constants (default: the FMM)')
+    group.add_argument(
+        '--mass-kg',
+        type=float,
+        default=FMM_RIG.mass_kg,
+        help=f'moving mass m [kg] (default {FMM_RIG.mass_kg})',
+    )
+    group.add_argument(
+        '--stiffness-n-per-m',
+        type=float,
+        default=FMM_RIG.stiffness_n_per_m,
+        help=f'spring constant k [N/m] (default {FMM_RIG.stiffness_n_per_m:g})',
+    )
+    group.add_argument(
+        '--damping-n-s-per-m',
+        type=float,
+        default=FMM_RIG.damping_n_s_per_m,
+        help=f'viscous damping c [N*s/m] (default {FMM_RIG.damping_n_s_per_m})',
+    )
+    group.add_argument(
+        '--normal-force-n',
+        type=float,
+        default=FMM_RIG.normal_force_n,
+        help=f'normal force N [N] (default 0.680 kg x 9.81 m/s^2 = {FMM_RIG.normal_force_n:.4f})',
+    )
+
+
+def add_model(parser: argparse.ArgumentParser, *, damping: bool = True) -> None:
+    """The rig constants and what a friction fit frees besides mu."""
+    add_rig(parser)
+    group = parser.add_argument_group('what the fit frees besides mu')
+    if damping:
+        group.add_argument(
+            '--fit-damping',
+            action='store_true',
+            help='fit the viscous damping c too (otherwise c is the rig constant)',
+        )
+    group.add_argument(
+        '--fit-initial-position',
+        action='store_true',
+        help='fit where the rig rested before each hit (friction leaves it off '
+        'centre after the previous one; otherwise each starts at x = 0)',
+    )
+
+
+def rig_from_args(args: argparse.Namespace) -> Rig:
+    """The Rig the rig flags describe (ValueError naming a bad constant)."""
+    return Rig(
+        mass_kg=args.mass_kg,
+        stiffness_n_per_m=args.stiffness_n_per_m,
+        damping_n_s_per_m=args.damping_n_s_per_m,
+        normal_force_n=args.normal_force_n,
+    )
+
+
+def fit_options(args: argparse.Namespace) -> FitOptions:
+    """The FitOptions of the model flags (and fmm fit's own, where present)."""
+    extra = {}
+    if hasattr(args, 'mu_min'):
+        extra = {
+            'mu_bounds': (args.mu_min, args.mu_max),
+            'misfit': args.misfit,
+            'band_limit_hz': args.misfit_band_limit_hz,
+        }
+    return FitOptions(
+        rig=rig_from_args(args),
+        fit_damping=getattr(args, 'fit_damping', False),
+        fit_initial_position=args.fit_initial_position,
+        **extra,
+    )
+
+
+# -- output --------------------------------------------------------------------------------------
+
+
+def add_output(
+    parser: argparse.ArgumentParser,
+    help: str,
+    *,
+    metavar: str = 'PATH',
+    repeat: bool = False,
+    aliases: tuple[str, ...] = (),
+    **kwargs,
+) -> None:
+    """-o/--output (repeatable if repeat), with hidden old spellings in aliases."""
+    options = {'action': 'append', 'default': []} if repeat else {'default': None}
+    parser.add_argument(
+        '-o', '--output', type=Path, metavar=metavar, help=help, **options, **kwargs
+    )
+    for alias in aliases:
+        add_alias(parser, alias, 'output', '-o/--output', type=Path, metavar=metavar)
+
+
+def add_json(parser: argparse.ArgumentParser, what: str = 'the result') -> None:
+    """--json: print one JSON document on stdout instead of text."""
+    parser.add_argument('--json', action='store_true', help=f'print {what} as JSON')
+
+
+def add_quiet(parser: argparse.ArgumentParser) -> None:
+    """-q/--quiet: no progress display (there is none anyway when stderr is not a terminal)."""
+    parser.add_argument(
+        '-q',
+        '--quiet',
+        action='store_true',
+        help='no progress display (there is none anyway when stderr is not a terminal)',
+    )

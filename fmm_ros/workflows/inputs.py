@@ -1,0 +1,187 @@
+"""What a lab hands the offline tools, as impact records: the one input layer.
+
+`fmm analyze`, `fit`, `diagnose`, `identify-rig` and `report` (and `fmm campaign`) read their
+INPUTs here, and only here. Each path is told apart by its content (`fmm_ros.io.sniff`):
+
+- a bag (directory, .mcap or .db3): every impact the analyzer's own capture finds in its
+  recorded streams (`fmm_ros.workflows.replay.bag_impact_records`); damage does not stop it,
+  and is returned as problems;
+- a lab file (delimited text, NPZ, MATLAB v4-v7.3, TDMS): read by `fmm_ros.io.labfiles` with
+  the channel mapping semantics of `fmm import` (a mapping file and flags, else what the file
+  states: canonical names `time_s,force_n,velocity_m_s`, a units row, bracketed units, TDMS
+  unit strings), converted to N and m/s. The whole file is one impact record, as the
+  per-impact CSV files fmm writes, or with `continuous` one recording of several hits, cut as
+  a bag's streams are.
+
+All records share one sample rate (their FRFs are averaged on one grid) and are zero-padded to
+the longest window. A full scale given here replaces a recorded one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, capture_impacts
+from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.io import sniff
+from fmm_ros.io.labfiles import LabRecording, read_lab_file
+from fmm_ros.io.textfiles import DETECT, TextFormat
+from fmm_ros.workflows.replay import bag_impact_records
+
+RATE_TOLERANCE = 1e-6
+"""Relative difference in sample rate beyond which two inputs are not one measurement series."""
+
+Progress = Callable[[str], None]
+"""Told each step of a long job in words ('analysing hit 3/30'); the CLI shows them."""
+
+
+@dataclass(frozen=True)
+class InputOptions:
+    """How the inputs are read.
+
+    mapping: the channel mapping in its YAML form (`fmm_ros.io.labfiles`), any part left out
+    that the files state themselves. text_format: delimiter, decimal, rows to skip, encoding
+    of text files (detected when not given). capture: how impacts are cut from bags (and from
+    continuous lab files). force_full_scale_n, velocity_full_scale_m_s: sensor ranges in SI
+    (0: as recorded, or unknown). continuous: each lab file is one recording of several hits.
+    """
+
+    mapping: dict = field(default_factory=dict)
+    text_format: TextFormat = DETECT
+    capture: CaptureConfig = DEFAULT_CAPTURE
+    force_full_scale_n: float = 0.0
+    velocity_full_scale_m_s: float = 0.0
+    continuous: bool = False
+
+
+DEFAULT_INPUTS = InputOptions()
+
+
+@dataclass(frozen=True)
+class SessionInputs:
+    """The records of a session's inputs, in input order, and what reading them found."""
+
+    records: list[ImpactRecord]
+    problems: list[str]
+    """What went wrong reading a damaged bag (what was readable is in records)."""
+    notes: list[str]
+    """How each lab file was read: format, channels, units, rate (the import report)."""
+    paths: list[str]
+
+
+def read_inputs(
+    paths: Sequence[str | Path],
+    options: InputOptions = DEFAULT_INPUTS,
+    *,
+    progress: Progress | None = None,
+) -> SessionInputs:
+    """Every input as impact records on one frequency grid (see the module doc).
+
+    Raises ValueError naming the file for input that cannot be read as stated (no channel
+    mapping, a non-uniform time column, a non-finite sample of a one-impact file), a bag or
+    continuous file without an impact, and inputs of different sample rates.
+    """
+    if not paths:
+        raise ValueError('no inputs given')
+    records: list[ImpactRecord] = []
+    problems: list[str] = []
+    notes: list[str] = []
+    for number, path in enumerate(map(Path, paths), 1):
+        if progress:
+            progress(f'reading {path.name} ({number}/{len(paths)})')
+        if sniff.file_kind(path) == sniff.BAG:
+            found, damage = bag_impact_records(path, options.capture)
+            problems += [f'{path}: {problem}' for problem in damage]
+            records += _some(found, path, options.capture)
+            continue
+        recording = read_lab_file(path, options.mapping, options.text_format)
+        notes += recording.report
+        if options.continuous:
+            records += _some(_cut(recording, options.capture), path, options.capture)
+        else:
+            records.append(_one_impact(recording))
+    return SessionInputs(_on_one_grid(records, options), problems, notes, [str(p) for p in paths])
+
+
+def _one_impact(recording: LabRecording) -> ImpactRecord:
+    """A lab file as one impact record; a non-finite sample is refused, naming its channel."""
+    channels = (
+        ('force', recording.force_n),
+        ('velocity', recording.velocity_m_s),
+    )
+    for quantity, values in channels:
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            raise ValueError(
+                f'{recording.source}: {recording.channel_names[quantity]} is not finite '
+                f'({values[bad[0]]}) at data row {bad[0] + 1} and {bad.size - 1} more row(s): '
+                'a record with missing samples has no FRF (fmm import keeps them in a bag, '
+                'where the impact over them is flagged)'
+            )
+    return ImpactRecord(
+        force_n=recording.force_n,
+        velocity_m_s=recording.velocity_m_s,
+        sample_rate_hz=recording.sample_rate_hz,
+        force_full_scale_n=recording.full_scale_force_n,
+        velocity_full_scale_m_s=recording.full_scale_velocity_m_s,
+        source=str(recording.source),
+    )
+
+
+def _cut(recording: LabRecording, capture: CaptureConfig) -> list[ImpactRecord]:
+    """Every impact of a continuous lab recording, tagged file@trigger as a bag's are."""
+    return [
+        dataclasses.replace(record, source=f'{recording.source.name}@{record.trigger_sample_index}')
+        for record in capture_impacts(
+            recording.force_n,
+            recording.velocity_m_s,
+            recording.sample_rate_hz,
+            capture,
+            force_full_scale_n=recording.full_scale_force_n,
+            velocity_full_scale_m_s=recording.full_scale_velocity_m_s,
+        )
+    ]
+
+
+def _some(records: list[ImpactRecord], path: Path, capture: CaptureConfig) -> list[ImpactRecord]:
+    """The records of a recording of several hits, which must hold one at least."""
+    if not records:
+        raise ValueError(
+            f'{path}: no impact in the recorded streams (the force never reaches the trigger '
+            f'level {capture.trigger_level_n:g} N)'
+        )
+    return records
+
+
+def _on_one_grid(records: list[ImpactRecord], options: InputOptions) -> list[ImpactRecord]:
+    """The records zero-padded to the longest window, full scales replaced where given.
+
+    Raises ValueError when the inputs do not share one sample rate: their FRFs could not be
+    averaged, and a mixed-up file is the likely cause.
+    """
+    rate = records[0].sample_rate_hz
+    odd = [
+        record for record in records if abs(record.sample_rate_hz - rate) > RATE_TOLERANCE * rate
+    ]
+    if odd:
+        raise ValueError(
+            f'mismatched sample rates: {records[0].source} is sampled at {rate:.6g} '
+            f'Hz but {odd[0].source} at {odd[0].sample_rate_hz:.6g} Hz'
+        )
+    window = max(record.window_samples for record in records)
+    return [
+        dataclasses.replace(
+            record,
+            window_samples=window,
+            force_full_scale_n=options.force_full_scale_n or record.force_full_scale_n,
+            velocity_full_scale_m_s=(
+                options.velocity_full_scale_m_s or record.velocity_full_scale_m_s
+            ),
+        )
+        for record in records
+    ]

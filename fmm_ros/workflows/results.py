@@ -1,0 +1,289 @@
+"""One result type per concept, and the one place results become JSON.
+
+- `FrictionResult`: a friction fit, whoever made it. `fmm fit --json` prints its `to_dict()`,
+  the report draws it, the fitter node fills its FitFriction response from it and the demo
+  turns that response back into one (`fmm_ros.ros.msgs.fill_fit_response`, `friction_result`),
+  so the page of a demo shows the service's answer, not a second fit.
+- `Diagnosis` (`fmm_ros.core.diagnose`): `diagnosis_dict` is the JSON of `fmm diagnose --json`
+  and of a session's summary; the DiagnoseModel response is filled from the same object.
+- `Summary` (`fmm_ros.core.signal.analysis`): `analysis_dict` is the JSON of `fmm analyze`.
+
+Undefined numbers (a standard error of something not fitted, R^2 of two levels) are NaN in
+the objects and null in JSON.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from fmm_ros.core.diagnose import signatures
+from fmm_ros.core.diagnose.result import Diagnosis, Where
+from fmm_ros.core.identify.friction import FrictionFit
+from fmm_ros.core.physics.rig import Rig
+from fmm_ros.core.physics.terms import ModelTerm
+from fmm_ros.core.signal.analysis import Summary
+from fmm_ros.io.frf_files import json_number
+
+
+@dataclass(frozen=True)
+class FrictionResult:
+    """One mu for all the fitted impacts and each impact's own, with the model they imply.
+
+    Per-impact tuples follow `impact_ids` (the session's impact numbers). Values not known
+    to whoever made the result (a service response has no noise estimate of each record) are
+    NaN, or empty tuples for per-impact values.
+    """
+
+    mu: float
+    mu_stderr: float
+    rig: Rig
+    """The fitted model's rig constants, its damping fitted or as given."""
+    impact_ids: tuple[int, ...]
+    per_impact_mu: tuple[float, ...]
+    per_impact_mu_stderr: tuple[float, ...]
+    initial_positions_m: tuple[float, ...] = ()
+    """Where each impact's model started in the joint fit [m]; empty: all at x = 0."""
+    sources: tuple[str, ...] = ()
+    """Each impact's file (or bag@trigger, or 'impact <id>' for a service)."""
+    impulses_n_s: tuple[float, ...] = ()
+    per_impact_residual_rms_m_s: tuple[float, ...] = ()
+    """RMS velocity residual of each impact at the common mu [m/s]."""
+    per_impact_normalised_residual: tuple[float, ...] = ()
+    damping_fitted: bool = False
+    damping_stderr_n_s_per_m: float = math.nan
+    residual_rms_m_s: float = math.nan
+    normalised_residual: float = math.nan
+    """residual_rms_m_s over the largest measured |velocity| [-]."""
+    noise_std_m_s: float = math.nan
+    consistency_chi2: float = math.nan
+    consistency_p_value: float = math.nan
+    """Chance of per-impact mus scattering this much if one mu served all (chi^2 test)."""
+    misfit: str = 'time'
+    effects: tuple[ModelTerm, ...] = ()
+
+    def __post_init__(self) -> None:
+        count = len(self.impact_ids)
+        lengths = {len(self.per_impact_mu), len(self.per_impact_mu_stderr)}
+        for name in (
+            'initial_positions_m',
+            'sources',
+            'impulses_n_s',
+            'per_impact_residual_rms_m_s',
+            'per_impact_normalised_residual',
+        ):
+            if getattr(self, name):
+                lengths.add(len(getattr(self, name)))
+        if lengths != {count}:
+            raise ValueError(
+                f'a friction result needs one value per impact: {count} impact '
+                f'ids but per-impact lengths {sorted(lengths)}'
+            )
+
+    @classmethod
+    def from_fit(cls, fit: FrictionFit, impact_ids: Sequence[int]) -> FrictionResult:
+        """The result of a `fit_friction` whose impacts were these, in this order."""
+        joint = fit.joint
+        return cls(
+            mu=fit.mu,
+            mu_stderr=fit.mu_stderr,
+            rig=joint.rig,
+            impact_ids=tuple(int(i) for i in impact_ids),
+            per_impact_mu=tuple(f.mu for f in fit.per_impact),
+            per_impact_mu_stderr=tuple(f.mu_stderr for f in fit.per_impact),
+            initial_positions_m=tuple(joint.initial_positions_m),
+            sources=tuple(joint.sources),
+            impulses_n_s=tuple(fit.impulses_n_s),
+            per_impact_residual_rms_m_s=tuple(joint.impact_residual_rms_m_s),
+            per_impact_normalised_residual=tuple(joint.impact_normalised_residual),
+            damping_fitted='damping_n_s_per_m' in joint.names,
+            damping_stderr_n_s_per_m=fit.damping_stderr_n_s_per_m,
+            residual_rms_m_s=joint.residual_rms_m_s,
+            normalised_residual=joint.normalised_residual,
+            noise_std_m_s=joint.noise_std_m_s,
+            consistency_chi2=fit.consistency_chi2,
+            consistency_p_value=fit.consistency_p_value,
+            misfit=joint.misfit,
+            effects=joint.effects,
+        )
+
+    @property
+    def damping_n_s_per_m(self) -> float:
+        """Viscous damping of the model, fitted or as given [N*s/m]."""
+        return self.rig.damping_n_s_per_m
+
+    def per_impact(self) -> list[dict]:
+        """One entry per impact: id, file, mu alone, impulse, residual, start."""
+        count = len(self.impact_ids)
+
+        def column(values: tuple, default: object = math.nan) -> tuple:
+            return values or (default,) * count
+
+        return [
+            {
+                'impact_id': impact_id,
+                'file': source,
+                'mu': mu,
+                'impulse_n_s': impulse,
+                'residual_rms_m_s': rms,
+                'mu_stderr': stderr,
+                'normalised_residual': normalised,
+                'initial_position_m': start,
+            }
+            for impact_id, source, mu, impulse, rms, stderr, normalised, start in zip(
+                self.impact_ids,
+                column(self.sources, ''),
+                self.per_impact_mu,
+                column(self.impulses_n_s),
+                column(self.per_impact_residual_rms_m_s),
+                self.per_impact_mu_stderr,
+                column(self.per_impact_normalised_residual),
+                column(self.initial_positions_m, 0.0),
+                strict=True,
+            )
+        ]
+
+    def to_dict(self) -> dict:
+        """The JSON of `fmm fit --json`: the issue's keys first, then errors and the test."""
+        return json_safe(
+            {
+                'mu': self.mu,
+                'mu_stderr': self.mu_stderr,
+                'damping_n_s_per_m': self.damping_n_s_per_m,
+                'residual_rms_m_s': self.residual_rms_m_s,
+                'per_file': self.per_impact(),
+                'damping_stderr_n_s_per_m': self.damping_stderr_n_s_per_m,
+                'damping_fitted': self.damping_fitted,
+                'normalised_residual': self.normalised_residual,
+                'noise_std_m_s': self.noise_std_m_s,
+                'mu_consistency_chi2': self.consistency_chi2,
+                'mu_consistency_p_value': self.consistency_p_value,
+                'misfit': self.misfit,
+                'rig': {
+                    'mass_kg': self.rig.mass_kg,
+                    'stiffness_n_per_m': self.rig.stiffness_n_per_m,
+                    'damping_n_s_per_m': self.rig.damping_n_s_per_m,
+                    'normal_force_n': self.rig.normal_force_n,
+                },
+                'effects': [term.name for term in self.effects],
+            }
+        )
+
+
+def analysis_dict(summary: Summary) -> dict:
+    """The JSON of `fmm analyze`: impacts, levels and linearity (undefined numbers as null)."""
+    return json_safe(
+        {
+            'impacts': [
+                {
+                    'file': result.source,
+                    'accepted': result.accepted,
+                    'flags': list(result.flags),
+                    'impulse_n_s': result.impulse_n_s,
+                    'peak_force_n': result.peak_force_n,
+                    'peak_receptance_m_per_n': result.peak_receptance_m_per_n,
+                    'natural_frequency_hz': result.natural_frequency_hz,
+                }
+                for result in summary.impacts
+            ],
+            'levels': [
+                {
+                    'name': level.level,
+                    'count': level.count,
+                    'mean_impulse_n_s': level.mean_impulse_n_s,
+                    'peak_receptance_m_per_n': level.peak_receptance_m_per_n,
+                }
+                for level in summary.levels
+            ],
+            'linearity': {
+                'slope': summary.linearity.slope,
+                'intercept': summary.linearity.intercept,
+                'r2': summary.linearity.r2,
+            },
+        }
+    )
+
+
+def diagnosis_dict(diagnosis: Diagnosis) -> dict:
+    """The JSON of `fmm diagnose --json` (undefined numbers as null)."""
+    return json_safe(
+        {
+            'missing_effect': diagnosis.missing_effect,
+            'parameters': {p.name: p.value for p in diagnosis.parameters},
+            'parameter_units': {p.name: p.unit for p in diagnosis.parameters},
+            'parameter_stderr': {p.name: p.stderr for p in diagnosis.parameters},
+            'mu': diagnosis.mu,
+            'mu_stderr': diagnosis.mu_stderr,
+            'gap_before': diagnosis.gap_before,
+            'gap_after': diagnosis.gap_after,
+            'frf_gap_before': diagnosis.frf_gap_before,
+            'frf_gap_after': diagnosis.frf_gap_after,
+            'where': _where_dict(diagnosis.where),
+            'candidates': [
+                {
+                    'effect': c.effect,
+                    'score': c.score,
+                    'aic_score': c.aic_score,
+                    'gap_after': c.gap_after,
+                    'frf_gap_after': c.frf_gap_after,
+                    'parameters': {p.name: p.value for p in c.parameters},
+                    'parameter_stderr': {p.name: p.stderr for p in c.parameters},
+                    **({'message': c.message} if c.message else {}),
+                }
+                for c in diagnosis.candidates
+            ],
+            'noise_std_m_s': diagnosis.noise_std_m_s,
+            'force_noise_std_n': diagnosis.force_noise_std_n,
+            'input_noise_allowance': diagnosis.input_noise_allowance,
+            'required_score': diagnosis.required_score,
+            'verdict': diagnosis.verdict,
+        }
+    )
+
+
+def json_safe(value: object) -> object:
+    """Plain floats all the way down, NaN and infinities as None (JSON has neither)."""
+    if isinstance(value, dict):
+        return {key: json_safe(item) for key, item in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(item) for item in value]
+    if isinstance(value, float | np.floating):
+        return json_number(value)
+    if isinstance(value, np.integer):
+        return int(value)
+    return value
+
+
+def _where_dict(where: Where) -> dict:
+    return {
+        'summary': where.summary,
+        'time': [
+            {
+                'region': r.name,
+                'share': r.share,
+                'excess_rms_m_s': r.excess_rms_m_s,
+                'mean_m_s': r.mean_m_s,
+                'samples': r.samples,
+            }
+            for r in where.time
+        ],
+        'frequency': [
+            {'band': b.name, 'low_hz': b.low_hz, 'high_hz': b.high_hz, 'share': b.share}
+            for b in where.frequency
+        ],
+        'non_harmonic_peaks_hz': [p.frequency_hz for p in where.peaks],
+        'rest_velocity_m_s': where.rest_velocity_m_s,
+        'rest_velocity_stderr_m_s': where.rest_velocity_stderr_m_s,
+        'phase_delay_s': where.phase_delay_s,
+        'signatures': [
+            {'measured': _signature_dict(m), 'model': _signature_dict(s)}
+            for m, s in zip(where.measured, where.model, strict=True)
+        ],
+    }
+
+
+def _signature_dict(signature: signatures.DecaySignatures) -> dict:
+    return dict(vars(signature))

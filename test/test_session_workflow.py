@@ -1,0 +1,77 @@
+"""The session pipeline (issue 16): workflows compute, the report draws, and a fit made
+elsewhere (the fitter service's answer, in the demo) is drawn as it is, never refitted."""
+
+import json
+
+import pytest
+from fit_records import lab_levels
+
+from fmm_ros.core.physics.rig import FMM_RIG
+from fmm_ros.core.signal.analysis import AnalysisConfig, paper_levels
+from fmm_ros.core.signal.capture import CaptureConfig
+from fmm_ros.core.signal.records import ImpactRecord, write_impact_csv
+from fmm_ros.workflows import session as workflow
+from fmm_ros.workflows.inputs import InputOptions
+from fmm_ros.workflows.results import FrictionResult
+
+CAPTURE = CaptureConfig(rest_velocity_m_s=1e-3)
+
+
+@pytest.fixture(scope='module')
+def records():
+    return [
+        ImpactRecord(hit.force_n, hit.velocity_m_s, hit.sample_rate_hz, source=f'hit {number}')
+        for number, hit in enumerate(lab_levels(21, mu=0.113, duration_s=6.0))
+    ]
+
+
+def options(**values):
+    return workflow.SessionOptions(
+        inputs=InputOptions(capture=CAPTURE),
+        analysis=AnalysisConfig(levels=paper_levels(tolerance_n=120.0)),  # a hand's scatter
+        **values,
+    )
+
+
+def test_a_fit_made_elsewhere_is_drawn_as_given_and_not_made_again(records, monkeypatch):
+    given = FrictionResult(
+        0.1234, 1e-5, FMM_RIG, (0, 1, 2), (0.1234,) * 3, (1e-5,) * 3, (0.0, 1e-4, -1e-4)
+    )
+
+    def refit(*_, **__):
+        raise AssertionError('the session fitted again')
+
+    monkeypatch.setattr(workflow, 'fit_friction', refit)
+    session = workflow.run_session(records, options(), friction=given)
+    assert session.friction is given
+    assert session.model.mu == 0.1234 and session.model.source == 'fitted'
+    assert session.model.initial_positions_m == {0: 0.0, 1: 1e-4, 2: -1e-4}
+    assert set(session.comparison.hits) == {0, 1, 2}
+    with pytest.raises(ValueError, match=r'names impact\(s\) \[5\] the session lacks'):
+        workflow.run_session(
+            records,
+            options(),
+            friction=FrictionResult(0.1, 1e-5, FMM_RIG, (5,), (0.1,), (1e-5,)),
+        )
+
+
+def test_one_session_from_files_to_a_json_summary(records, tmp_path):
+    """process_session: what fmm report (and fmm campaign) run per session."""
+    paths = []
+    for number, record in enumerate(records):
+        paths.append(tmp_path / f'{number}.csv')
+        write_impact_csv(paths[-1], record.force_n, record.velocity_m_s, record.sample_rate_hz)
+    steps = []
+    session = workflow.process_session(paths, options(), progress=steps.append)
+    summary = json.loads(json.dumps(session.to_dict(), allow_nan=False))
+    assert summary['inputs'] == [str(path) for path in paths]
+    assert [impact['accepted'] for impact in summary['impacts']] == [True] * 3
+    assert summary['fit']['mu'] == pytest.approx(0.113, rel=0.01)
+    assert [entry['impact_id'] for entry in summary['fit']['per_file']] == [0, 1, 2]
+    assert summary['diagnosis'] is None and summary['fit_failure'] is None
+    assert all(rms < 2e-4 for rms in summary['residual_rms_m_s'].values())
+    assert 'analysing hit 3/3' in steps and 'fitting mu of impact 3/3 alone' in steps
+    refused = workflow.run_session(records[:1], options(model=workflow.FitOptions(rig=FMM_RIG)))
+    assert refused.friction is not None  # one accepted impact is enough to fit
+    none = workflow.run_session(records, options(fit=False))
+    assert none.friction is None and none.comparison is None and none.fit_failure == ''
