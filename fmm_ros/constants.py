@@ -76,6 +76,8 @@ DIAGNOSTICS_TOPIC = '/diagnostics'
 has it (rqt_robot_monitor and Foxglove read it); statuses carry the node's full name."""
 FIT_SERVICE = 'fmm/fit_friction'
 DIAGNOSE_SERVICE = 'fmm/diagnose_model'
+RECORDED_TOPICS = (FORCE_TOPIC, VELOCITY_TOPIC, IMPACTS_TOPIC, FRF_TOPIC, DIAGNOSTICS_TOPIC)
+"""What the recorder (and `fmm record`) records unless told otherwise."""
 
 
 def resolve_name(name: str, namespace: str = '/') -> str:

@@ -53,9 +53,15 @@ PROGRESS_LISTEN_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
-# A consumer reports at most once in this time while batches flow [s]; progress held back
-# goes out when the time is up (a one-shot timer, idle otherwise).
+# A consumer reports once it has taken REPORT_SIGNAL_S of signal since its last report
+# (a sixteenth of the default window: the source never waits on the report's granularity),
+# at most once in REPORT_MIN_PERIOD_S [s] (a report held back by that goes out when it is
+# up), and what it took since goes out REPORT_TAIL_S later anyway (the end of a burst); both
+# are one-shot timers, idle otherwise. Measured: the analyzer at real-time pace with a report
+# per batch cost twice the CPU it costs without flow control.
+REPORT_SIGNAL_S = 0.25
 REPORT_MIN_PERIOD_S = 0.01
+REPORT_TAIL_S = 0.1
 # The flow-control topics are the package's own: no QoS event handlers in the wait sets
 # (rclpy's executor rebuilds them every cycle, and they cost more than the messages).
 QUIET_PUBLISHER = PublisherEventCallbacks(use_default_callbacks=False)
@@ -99,11 +105,14 @@ class ProgressReporter:
         self._node = node
         self._name = node.get_fully_qualified_name()
         self._next = dict.fromkeys(topics, -1)
+        self._reported: dict[str, int] = {}
         self._publisher = node.create_publisher(StreamProgress, STREAM_PROGRESS_TOPIC, PROGRESS_QOS)
         self._announced = False
         self._last_report = 0.0
         self._changed = False
-        self._tail = node.create_timer(REPORT_MIN_PERIOD_S, self._on_timer)
+        self._due = node.create_timer(REPORT_MIN_PERIOD_S, lambda: self._on_timer(self._due))
+        self._tail = node.create_timer(REPORT_TAIL_S, lambda: self._on_timer(self._tail))
+        self._due.cancel()
         self._tail.cancel()
         if announce:
             self.announce()
@@ -121,27 +130,37 @@ class ProgressReporter:
     def add(self, topic: str) -> None:
         """Report on one more topic (a resolved name) from now on."""
         self._next.setdefault(topic, -1)
-        self._soon()
+        self._soon(now=True)
 
-    def update(self, topic: str, next_index: int) -> None:
-        """The node has taken (or given up) every sample of topic below next_index."""
+    def update(self, topic: str, next_index: int, sample_rate_hz: float | None = None) -> None:
+        """The node has taken (or given up) every sample of topic below next_index.
+
+        With the rate known, reported once REPORT_SIGNAL_S of signal went by (else soon).
+        """
         if self._next.get(topic) == next_index:
             return
         self._next[topic] = int(next_index)
-        self._soon()
+        moved = abs(next_index - self._reported.get(topic, -1))
+        self._soon(now=not sample_rate_hz or moved >= REPORT_SIGNAL_S * sample_rate_hz)
 
-    def _soon(self) -> None:
-        """Report now, or when REPORT_MIN_PERIOD_S since the last report is up."""
+    def _soon(self, now: bool) -> None:
+        """Report now if due and REPORT_MIN_PERIOD_S has passed, else a little later."""
         self._changed = True
-        if time.monotonic() - self._last_report >= REPORT_MIN_PERIOD_S:
+        if not now:
+            if self._tail.is_canceled():
+                self._tail.reset()
+        elif time.monotonic() - self._last_report >= REPORT_MIN_PERIOD_S:
             self._report()
-        elif self._tail.is_canceled():
-            self._tail.reset()
+        elif self._due.is_canceled():
+            self._due.reset()
 
-    def _on_timer(self) -> None:
-        self._tail.cancel()
+    def _on_timer(self, timer) -> None:
+        # A timer cancels only itself, here: one cancelled elsewhere while the executor had
+        # it ready raises when the executor calls it ("timer is canceled").
         if self._changed:
             self._report()
+        else:
+            timer.cancel()
 
     def _report(self) -> None:
         if not self._announced:
@@ -151,6 +170,7 @@ class ProgressReporter:
         message.topics = list(self._next)
         message.next_sample_indices = list(self._next.values())
         self._publisher.publish(message)
+        self._reported = dict(self._next)
         self._last_report = time.monotonic()
         self._changed = False
 
@@ -378,13 +398,21 @@ class PacedSource:
         batches_per_s: float,
         window_samples: int,
         pace_label: str,
+        release: Callable[[], None] | None = None,
     ) -> None:
+        """Pace a source's publishers under its config (SOURCE_PARAMS values).
+
+        release: the source's own release step (its timer callback), also run when a report
+        arrives while the window held it back, so it need not wait for its next tick.
+        """
         self._node = node
+        self._release = release
         self.gate = FlowGate(
             node,
             publishers,
             wait_for=config['wait_for_consumers'],
             start_timeout_s=config['start_timeout_s'],
+            on_progress=self._on_progress,
         )
         self.pacer = BatchPacer(batches_per_s)
         self.window = int(window_samples)
@@ -392,6 +420,10 @@ class PacedSource:
         self._waiting_logged = 0.0
         self._began = time.monotonic()
         self._released_at_start = 0
+
+    def _on_progress(self) -> None:
+        if self._release is not None and self.gate.holding_for:
+            self._release()
 
     @staticmethod
     def window_samples(config: dict, sample_rate_hz: float, batch_size: int) -> int:

@@ -72,7 +72,7 @@ class SampleInputs:
                 self._rates.setdefault(quantity, ChannelRate()).newest_stamp_ns = batch.stamp_ns
         next_index = self._stream.next_index(quantity)
         if next_index is not None:
-            self.reporter.update(self.topics[quantity], next_index)
+            self.reporter.update(self.topics[quantity], next_index, self._stream.sample_rate_hz)
         self._faults.check(
             self._stream.ledger, f'last from {msg.header.frame_id!r} at {msg.first_sample_index}'
         )

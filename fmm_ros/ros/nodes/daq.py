@@ -306,6 +306,7 @@ class FileBackend:
             batches_per_s=batches_per_s,
             window_samples=PacedSource.window_samples(cfg, self.sample_rate_hz, self._batch),
             pace_label=f'x{cfg["rate_factor"]:g} the file rate',
+            release=self._on_tick,
         )
         node.health.add(
             'source',

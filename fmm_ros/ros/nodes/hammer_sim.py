@@ -145,6 +145,7 @@ class HammerSim(Node):
             batches_per_s=1.0,
             window_samples=PacedSource.window_samples(self.config, rate, batch),
             pace_label=f'x{self.config["rate_factor"]:g} real time',
+            release=self._on_tick,
         )
         self._pace(self.config['rate_factor'])
         self.add_post_set_parameters_callback(self._on_parameters)

@@ -91,6 +91,7 @@ class Player(Node):
             batches_per_s=1.0,  # paced by log time below; the source gives start and window
             window_samples=1,
             pace_label=f'x{self.config["rate_factor"]:g}',
+            release=self._on_tick,
         )
         self._messages = self.reader.messages(wanted)
         self._next = next(self._messages, None)

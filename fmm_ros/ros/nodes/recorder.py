@@ -31,6 +31,7 @@ from fmm_ros.constants import (
     FORCE_TOPIC,
     FRF_TOPIC,
     IMPACTS_TOPIC,
+    RECORDED_TOPICS,
     VELOCITY_TOPIC,
 )
 from fmm_ros.core.signal.stream import AlignedStream, LedgerOnly
@@ -54,7 +55,7 @@ from fmm_ros.ros.params import Param, declare_parameters
 PARAMS = (
     Param(
         'topics',
-        [FORCE_TOPIC, VELOCITY_TOPIC, IMPACTS_TOPIC, FRF_TOPIC, DIAGNOSTICS_TOPIC],
+        list(RECORDED_TOPICS),
         'Topics to record (relative names resolve in the node namespace)',
         read_only=True,
     ),
@@ -218,7 +219,7 @@ class Recorder(Node):
         except ValueError:
             stream.refuse_malformed(topic, len(batch.samples))
         self._rates.setdefault(topic, ChannelRate()).newest_stamp_ns = batch.stamp_ns
-        self.reporter.update(topic, stream.next_index(topic))
+        self.reporter.update(topic, stream.next_index(topic), stream.sample_rate_hz)
         self._faults.check(stream.ledger, f'at {batch.first_sample_index}')
 
     def destroy_node(self) -> None:

@@ -131,7 +131,11 @@ class RigSim(Node):
         """Report on the applied force up to where the velocity consumers have got."""
         if self.stream.started:
             taken = self.stream.next_index(FORCE.quantity)
-            self.reporter.update(self._input, min(taken, self.gate.slowest_index(self._output)))
+            self.reporter.update(
+                self._input,
+                min(taken, self.gate.slowest_index(self._output)),
+                self.stream.sample_rate_hz,
+            )
 
     def _on_force(self, msg: SampleBatch) -> None:
         self.last_batch_at = time.monotonic()
