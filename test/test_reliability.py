@@ -144,6 +144,7 @@ def hammer_and_plant(domain):
         yield rig
 
 
+@pytest.mark.slow
 def test_a_stray_batch_and_a_restarted_source_are_recovered_over_dds(domain):
     """The analyzer used to refuse every batch after either, for good (issue 19)."""
     with InProcessGraph(domain_id=domain) as graph:
@@ -212,6 +213,7 @@ def test_the_launcher_stops_its_nodes_however_it_is_stopped(tmp_path, domain, ho
         assert not reader.recovered and reader.recorded_ledger['/fmm/force'].missing_samples == 0
 
 
+@pytest.mark.slow
 def test_two_rigs_in_one_graph_under_namespaces_do_not_cross_talk(tmp_path):
     """Relative names: /rig1 and /rig2 each run their own session, fit their own plant."""
     bag = tmp_path / 'rig2'

@@ -201,7 +201,9 @@ def run_session(
         )
         analyzer = graph.add(Analyzer, cli_args=cli_args)
         graph.add(Fitter, cli_args=cli_args)
-        graph.add(Recorder, cli_args=cli_args, parameter_overrides=overrides(bag_path=str(bag)))
+        recorder = graph.add(
+            Recorder, cli_args=cli_args, parameter_overrides=overrides(bag_path=str(bag))
+        )
         total = len(hammer.schedule)
         results = graph.add(
             _Results,
@@ -223,6 +225,9 @@ def run_session(
         graph.start()
         _wait(lambda: len(results.impacts) >= total, lambda: hammer.next_index)
         wall_s = time.monotonic() - start
+        # The session is over: the hammer stops, and what it sent reaches the bag.
+        hammer.hold()
+        _wait(lambda: _recorded(recorder) >= hammer.next_index, lambda: _recorded(recorder))
         progress('session complete; fitting mu over the accepted impacts')
         fit = graph.call(results.fit, FitFriction.Request(), timeout_s=600.0)
         fit_s = time.monotonic() - start - wall_s
@@ -321,6 +326,12 @@ def _report(
         out_dir,
         title=f'fmm demo: {config.hits_per_level} hits a level, plant mu {config.plant_mu}',
     )
+
+
+def _recorded(recorder: Recorder) -> int:
+    """The sample index both channels have reached in the recorder's ledger."""
+    spans = [ledger.span for ledger in recorder.ledger.values()]
+    return min((span[1] for span in spans if span), default=0) if len(spans) == 2 else 0
 
 
 def _one_accepted_per_level(impacts: list[ImpactResult]) -> list[int]:

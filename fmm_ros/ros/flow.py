@@ -268,6 +268,11 @@ class FlowGate:
         return text
 
     @property
+    def publishers(self) -> list[Publisher]:
+        """The source's SampleBatch publishers."""
+        return list(self._publishers.values())
+
+    @property
     def consumers(self) -> list[str]:
         """The nodes that have reported on the source's topics."""
         return sorted(self._progress)
@@ -479,7 +484,7 @@ class PacedSource:
 
     def finish(self) -> None:
         """The source stops: its last batches reach every matched consumer first."""
-        deliver_last_batches(list(self.gate._publishers.values()))
+        deliver_last_batches(self.gate.publishers)
 
     def status(self, sample_rate_hz: float, batch_size: int, asked: float) -> tuple:
         """The source part of /diagnostics: pace achieved against asked, consumer lags."""

@@ -234,11 +234,10 @@ class StreamSink(Protocol):
 
 @dataclass(frozen=True)
 class _Acquisition:
-    """What the stream follows: rate, origin [s] or None, and the index it began at."""
+    """What the stream follows: its rate, and its origin [s] (None without a clock)."""
 
     sample_rate_hz: float
     origin_s: float | None
-    first_index: int
 
 
 class _Channel:
@@ -468,7 +467,7 @@ class AlignedStream:
         first, rate = batch.first_sample_index, batch.sample_rate_hz
         if self._acquisition is not None:
             self.sink.end(reason)
-        self._acquisition = _Acquisition(rate, batch.origin_s, first)
+        self._acquisition = _Acquisition(rate, batch.origin_s)
         self.acquisitions += 1
         self._max_skew = int(round(self.rules.max_skew_s * rate))
         self._max_gap = int(round(self.rules.max_gap_s * rate))

@@ -112,6 +112,8 @@ class BagWriter:
         """time.time_ns() of the last flush (0: none yet)."""
         self.messages_written = 0
         self.bytes_written = 0
+        self.unflushed = 0
+        """Messages written since the last flush (what a crash now would lose)."""
 
     def __enter__(self) -> 'BagWriter':
         self.open()
@@ -210,9 +212,19 @@ class BagWriter:
         self._start_ns = min(self._start_ns, log_time_ns)
         self._end_ns = max(self._end_ns, log_time_ns)
         self.messages_written += 1
+        self.unflushed += 1
         self.bytes_written += len(data)
+        self.flush_if_due()
+
+    def flush_if_due(self) -> None:
+        """Flush if messages have waited flush_interval_s since the last flush.
+
+        Writing calls it; a writer that may sit idle (a recorder between sessions) should call
+        it periodically too, or its last messages wait for the next write or the close.
+        """
         if (
-            self.flush_interval_s is not None
+            self.unflushed
+            and self.flush_interval_s is not None
             and time.monotonic() - self._last_flush >= self.flush_interval_s
         ):
             self.flush()
@@ -322,5 +334,6 @@ class BagWriter:
         if self._file is None:
             return
         self._file.flush()
+        self.unflushed = 0
         self._last_flush = time.monotonic()
         self.last_flush_wall_ns = time.time_ns()

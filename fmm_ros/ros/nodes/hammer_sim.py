@@ -138,6 +138,7 @@ class HammerSim(Node):
         self._measured = np.empty(batch)
         self._start_stamp = self.get_clock().now()
         self._timer = None
+        self._held = False
         self.source = PacedSource(
             self,
             [self._measured_pub, self._applied_pub],
@@ -184,8 +185,12 @@ class HammerSim(Node):
             if parameter.name == 'rate_factor':
                 self._pace(parameter.value)
 
+    def hold(self) -> None:
+        """Publish nothing more (a session driven from outside is over)."""
+        self._held = True
+
     def _on_tick(self) -> None:
-        if not self.source.ready():
+        if self._held or not self.source.ready():
             return
         for _ in range(self.source.due(self._batch)):
             self._publish_batch()

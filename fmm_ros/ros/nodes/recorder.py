@@ -5,7 +5,7 @@ came, so recording costs no decode/encode. The fmm topics are subscribed at once
 known types and QoS (nothing is missed while the graph is discovered); any other topic's
 type is read from the graph when a publisher appears, with the subscription QoS following
 what the publishers offer, as `ros2 bag record` does. The writer flushes every
-`flush_interval_s`, so a crash loses at most that much.
+`flush_interval_s` (also when the topics go quiet), so a crash loses at most that much.
 
 Every SampleBatch topic also runs through the stream rules for its ledger alone (samples
 received, missing, out of sequence, resynchronisations; every message is stored as it came
@@ -140,7 +140,7 @@ class Recorder(Node):
             else 0.0
         )
         interval = self.writer.flush_interval_s
-        late = interval is not None and since_flush > 3 * interval
+        late = interval is not None and self.writer.unflushed and since_flush > 3 * interval
         return (
             WARN if late else OK,
             f'{self.writer.messages_written} messages, {self.writer.bytes_written / 1e6:.1f} MB '
@@ -150,6 +150,7 @@ class Recorder(Node):
                 'messages written': self.writer.messages_written,
                 'bytes written': self.writer.bytes_written,
                 'seconds since last flush': since_flush,
+                'messages not flushed yet': self.writer.unflushed,
                 'topics recorded': len(self._raw_subscriptions),
                 'topics waited for': ', '.join(self._pending) or 'none',
             },
@@ -161,7 +162,8 @@ class Recorder(Node):
         return list(self._pending)
 
     def _discover(self) -> None:
-        """Subscribe to every pending topic that now has a publisher."""
+        """Subscribe to every pending topic that now has a publisher; flush what waited."""
+        self.writer.flush_if_due()
         for topic in list(self._pending):
             publishers = self.get_publishers_info_by_topic(topic)
             types = {info.topic_type for info in publishers}
