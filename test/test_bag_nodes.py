@@ -32,7 +32,9 @@ def recorded_session(tmp_path_factory):
         recorder = graph.add(Recorder, parameter_overrides=params(bag_path=str(bag)))
         graph.start()
         assert wait_for(lambda: len(listener.impacts) == 3)
-        time.sleep(0.3)  # the results' last messages reach the recorder too
+        # The results' last messages reach the recorder too, and every node's health (once a
+        # second) is recorded at least once.
+        time.sleep(1.2)
         live = list(listener.impacts)
         config = analyzer.config
     assert recorder.messages_recorded > 0
