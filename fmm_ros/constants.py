@@ -58,6 +58,9 @@ MISFIT_BAND_LIMIT_HZ = 20.0
 mode (2.2 Hz) and the odd harmonics friction puts into its response."""
 SETTLE_S = 1.0
 """A motion window runs this long past the model's rest: what residuals are judged over [s]."""
+MU_DRIFT = 'mu_drift'
+"""The effect 'mu changes from hit to hit, trending in hit order' (wear, run-in, temperature):
+what the diagnosis names and the proof data (`fmm_ros.sim.hidden_effects`) hide by this name."""
 
 # -- ROS names (also the topics of bags, which are read and written without ROS) ----------------
 # Relative, so a node resolves them in its namespace: `fmm/force` is /fmm/force in the root

@@ -1,4 +1,4 @@
-"""`fmm diagnose`: CSV files in; the issue's JSON keys, a short table, two figures out."""
+"""`fmm diagnose`: CSV files in; the issues' JSON keys, a short table, three figures out."""
 
 import json
 
@@ -44,6 +44,18 @@ def test_json_names_the_effect_with_the_issues_keys(offset_files, capsys, tmp_pa
     ):
         assert key in payload
     assert payload['missing_effect'] == 'velocity_offset'
+    assert [named['effect'] for named in payload['missing_effects']] == ['velocity_offset']
+    named = payload['missing_effects'][0]
+    assert named['parameters']['velocity_offset.offset_m_s'] == pytest.approx(
+        case.term.offset_m_s, rel=0.05
+    )
+    assert named['score'] <= payload['required_score'] and named['partial'] is False
+    speed = payload['friction_map']['speed']
+    assert len(speed['speed_m_s']) == len(speed['mu']) == len(speed['mu_stderr']) > 3
+    # the offset is taken off before the friction is read: the map is the hidden Coulomb mu
+    assert np.average(speed['mu'], weights=np.power(speed['mu_stderr'], -2.0)) == pytest.approx(
+        case.mu, rel=0.02
+    )
     assert payload['parameters']['velocity_offset.offset_m_s'] == pytest.approx(
         case.term.offset_m_s, rel=0.05
     )
@@ -52,7 +64,7 @@ def test_json_names_the_effect_with_the_issues_keys(offset_files, capsys, tmp_pa
     assert len(payload['candidates']) == 7
     assert payload['candidates'][0]['effect'] == 'velocity_offset'
     assert 'velocity at rest' in payload['where']['summary']
-    for name in ('residual_before_after.png', 'frf_overlay.png'):
+    for name in ('residual_before_after.png', 'frf_overlay.png', 'friction_map.png'):
         figure = tmp_path / name
         assert str(figure) in payload['figures']
         assert figure.read_bytes()[:8] == PNG_MAGIC and figure.stat().st_size > 10_000
@@ -63,10 +75,11 @@ def test_text_is_a_short_table(offset_files, capsys):
     assert main(['diagnose', *paths]) == 0
     out = capsys.readouterr().out
     lines = out.splitlines()
-    assert lines[1].startswith('missing effect: velocity_offset')
+    assert lines[1].startswith('missing effects: velocity_offset   gap')
     assert any(line.startswith('velocity_offset') and '<- named' in line for line in lines)
-    assert any(line.startswith('where:') for line in lines)
-    assert len(lines) < 25
+    assert any(line.startswith('where (base model):') for line in lines)
+    assert any(line.startswith('friction map: mu') for line in lines)
+    assert len(lines) < 30
 
 
 def test_rig_flags_reach_the_model(offset_files, capsys):

@@ -154,7 +154,13 @@ def test_records_friction_cannot_explain_exit_1_with_the_reason(capsys, files):
     failure = json.loads(out)
     assert failure['error'] == 'no_hit' and failure['file'] == str(files['noise'])
     assert 'no hit' in failure['message']
+    # Without friction the rig still rings at the end of the record: flagged unsettled, so
+    # left out by default, and fitted on request (where friction cannot explain it).
     code, out, err = run(capsys, 'fit', files['lifted'])
+    assert code == 1 and out == ''
+    assert err.startswith('fmm fit: cannot fit (no_clean_impact): no clean impact to fit: ')
+    assert 'lifted.csv: unsettled' in err
+    code, out, err = run(capsys, 'fit', files['lifted'], '--include-flagged')
     assert code == 1 and out == ''
     assert err.startswith('fmm fit: cannot fit (mu_at_bound): ')
 

@@ -6,7 +6,7 @@ from rig_graph import FAST_ANALYZER, FAST_HAMMER, params, wait_for
 
 from fmm_interfaces.srv import DiagnoseModel
 from fmm_ros.constants import DIAGNOSE_SERVICE
-from fmm_ros.core.diagnose.workflow import EFFECTS
+from fmm_ros.core.diagnose.workflow import EFFECTS, MU_DRIFT
 from fmm_ros.ros import msgs
 from fmm_ros.ros.nodes.analyzer import Analyzer
 from fmm_ros.ros.nodes.fitter import Fitter
@@ -36,7 +36,15 @@ def test_an_offset_in_the_rig_is_named_over_the_service(ros_graph):
     assert values['velocity_offset.offset_m_s'] == pytest.approx(OFFSET_M_S, rel=0.05)
     assert dict(zip(names, response.parameter_units, strict=True))['mu'] == '1'
     assert response.gap_after <= 0.5 * response.gap_before
-    assert set(response.candidate_effects) == set(EFFECTS)
+    assert set(response.candidate_effects) == set(EFFECTS) - {MU_DRIFT}  # 3 hits: no trend
+    assert list(response.missing_effects) == ['velocity_offset'] and not response.unexplained
+    counts = list(response.missing_effect_parameter_counts)
+    assert counts == [1] and list(response.missing_effect_parameter_names) == [
+        'velocity_offset.offset_m_s'
+    ]
+    assert len(response.friction_speed_mu) == len(response.friction_speed_m_s) > 3
+    assert len(response.friction_position_mu_stderr) == len(response.friction_position_m) > 3
+    assert list(response.mu_per_hit) == [] and list(response.selection)
     counts = list(response.candidate_parameter_counts)
     assert (
         sum(counts)
@@ -51,6 +59,6 @@ def test_a_diagnosis_without_impacts_is_refused_with_the_reason(ros_graph):
     client = ros_graph.add(Node, node_name='caller').create_client(DiagnoseModel, DIAGNOSE_SERVICE)
     ros_graph.start()
     response = ros_graph.call(client, DiagnoseModel.Request())
-    assert not response.success and 'no accepted impact held yet' in response.message
+    assert not response.success and 'no impact held yet' in response.message
     response = ros_graph.call(client, DiagnoseModel.Request(impact_ids=[2]))
     assert not response.success and 'impacts [2] are not held' in response.message

@@ -47,7 +47,7 @@ def test_requests_without_data_are_answered_with_the_reason(ros_graph):
     response = ros_graph.call(client, FitFriction.Request())
     assert (response.success, response.message) == (
         False,
-        'no accepted impact held yet (0 held, 0 still arriving)',
+        'no impact held yet (0 still arriving)',
     )
     response = ros_graph.call(client, FitFriction.Request(impact_ids=[4, 7]))
     assert not response.success and 'impacts [4, 7] are not held' in response.message

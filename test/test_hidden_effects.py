@@ -16,6 +16,7 @@ from fmm_ros.sim.hidden_effects import (
     RATIO_RANGE,
     base_fit_discrepancy,
     hidden_effect_case,
+    hidden_session,
     motion_window,
 )
 
@@ -99,3 +100,42 @@ def test_bad_arguments_are_refused():
         hidden_effect_case('none', 1, n_impacts=0)
     with pytest.raises(ValueError, match='velocity_noise_std_m_s'):
         hidden_effect_case('none', 1, velocity_noise_std_m_s=0.0)
+
+
+@pytest.mark.parametrize(
+    'effects',
+    [('stribeck', 'sensor_delay'), ('mu_drift',), ('speed_regimes',), ('wear_track', 'stribeck')],
+)
+def test_a_session_hides_each_effect_at_its_own_size(effects):
+    session = hidden_session(
+        effects, 21, n_impacts=4, ratio_range=(2.5, 2.5), duration_s=8.0, force_noise_std_n=0.0
+    )
+    assert set(session.ratios) == set(effects)
+    for effect in effects:
+        assert session.ratios[effect] == pytest.approx(2.5, rel=0.1), effect
+    if len(effects) > 1:  # several at once are more than one
+        assert base_fit_discrepancy(session.records, session.mu_per_hit[0], session.rig) > 3e-4
+    assert {term.name for term in session.terms} == set(effects) & set(MODEL_TERMS)
+    steps = np.diff(session.mu_per_hit)
+    if 'mu_drift' in effects:
+        assert np.all(np.abs(steps) > 0.0) and np.allclose(steps, steps[0])
+    else:
+        assert np.all(steps == 0.0)
+    law = session.law
+    if 'speed_regimes' in effects:
+        assert law.kind == 'speed' and law.factor > 1.0 and 0.02 <= law.threshold <= 0.06
+    if 'wear_track' in effects:
+        assert law.kind == 'position' and law.factor != 1.0 and 1e-3 <= law.threshold <= 3e-3
+
+
+def test_a_session_refuses_what_it_cannot_make():
+    with pytest.raises(ValueError, match='distinct names'):
+        hidden_session(('stribeck', 'stribeck'), 1)
+    with pytest.raises(ValueError, match='distinct names'):
+        hidden_session(('gravity',), 1)
+    with pytest.raises(ValueError, match='at most one friction law'):
+        hidden_session(('speed_regimes', 'wear_track'), 1)
+    with pytest.raises(ValueError, match='at most one friction law, and only with'):
+        hidden_session(('wear_track', 'sensor_delay'), 1)
+    with pytest.raises(ValueError, match='n_impacts must be at least 2'):
+        hidden_session(('mu_drift',), 1, n_impacts=1)

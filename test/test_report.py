@@ -388,14 +388,14 @@ def test_diagnosis_names_the_hidden_effect_and_shows_the_gap_shrink(tmp_path):
         )
     page = (out / 'index.html').read_text(encoding='utf-8')
     assert clipped == []
-    named = re.search(r'Missing effect: (\w+)\. Gap .*? ([0-9.e-]+) → ([0-9.e-]+);', page)
+    named = re.search(r'Missing effects: (\w+)\. Gap .*? ([0-9.e-]+) → ([0-9.e-]+);', page)
     assert named is not None and named[1] == 'stribeck'
     assert float(named[3]) <= 0.5 * float(named[2])
     table = page[page.index('<th class="text">candidate effect</th>') :]
     candidates = re.findall(r'<tr><td class="text">(\w+)</td>', table[: table.index('</table>')])
     assert len(candidates) == 7 and candidates[0] == 'stribeck'
     assert 'stribeck.mu_static_excess' in page
-    for name in ('diagnosis_residuals', 'diagnosis_mobility'):
+    for name in ('diagnosis_residuals', 'diagnosis_mobility', 'diagnosis_friction_map'):
         assert (out / f'{name}.png').read_bytes().startswith(PNG_SIGNATURE)
         assert f'href="{name}.png"' in page
 
@@ -418,12 +418,12 @@ def test_all_rejected_session_still_reports_and_says_why_mu_is_not_fitted(tmp_pa
             ]
         )
     assert code == 1  # the page is written, but mu could not be fitted
-    assert 'cannot fit mu: no accepted impact to fit' in capsys.readouterr().err
+    assert 'cannot fit mu: no clean impact to fit: impact 0 (' in capsys.readouterr().err
     text = (out / 'index.html').read_text(encoding='utf-8')
     _, rows = hit_rows(text)
     assert [(css, row['flags']) for css, row in rows] == [('rejected', 'clipped')]
     assert 'No level has an accepted hit' in text
-    assert 'No friction fit: no accepted impact to fit' in text
+    assert 'No friction fit: no clean impact to fit: impact 0 (' in text
     check_figures(out, text, {'hit_000'})
     assert clipped_figures == []
 

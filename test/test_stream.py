@@ -240,3 +240,11 @@ def test_the_history_holds_only_the_acquisition_it_follows():
     assert history.record(0, 1000).force_n.tolist() == [2.0] * 1000
     with pytest.raises(ValueError, match='not all arrived'):
         history.record(1000, 1000)
+
+
+def test_every_quality_flag_has_its_meaning_on_the_report_page():
+    """A record flagged `interrupted` (or any flag) must not break the report's legend."""
+    from fmm_ros.core.signal.capture import FLAGS
+    from fmm_ros.report import FLAG_MEANINGS
+
+    assert list(FLAG_MEANINGS) == list(FLAGS)

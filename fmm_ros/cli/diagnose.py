@@ -1,10 +1,12 @@
-"""`fmm diagnose`: name the effect the base model (Eq. 3) misses in measured impacts.
+"""`fmm diagnose`: name the effects the base model (Eq. 3) misses, or say none explains them.
+
+It also bins the friction the records show against sliding speed and position.
 
 Same inputs, hit selection and rig flags as `fmm fit` (lab files of one impact each, or
-bags). Exit status:
-0 diagnosed (whatever was named, 'none' included), 1 the base model cannot be fitted at all
-(the reason is printed, as JSON with --json) or a bag was damaged (its problems are printed
-as warnings after the result), 2 bad input or flags.
+bags; flagged hits left out and named unless --include-flagged). Exit status: 0 diagnosed
+(whatever was named, 'none' and 'unexplained' included), 1 the base model cannot be fitted at
+all or no hit is clean (the reason is printed, as JSON with --json) or a bag was damaged (its
+problems are printed as warnings after the result), 2 bad input or flags.
 
 Examples:
     fmm diagnose low_*.csv medium_*.csv high_*.csv
@@ -33,23 +35,26 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the `diagnose` subcommand."""
     parser = subparsers.add_parser(
         'diagnose',
-        help='find where the model and the measurement disagree and name the missing effect',
+        help='find where the model and the measurement disagree and name the missing effects',
         description='Fit the base model (Eq. 3, mu fitted) to every impact at once, locate its '
-        'misfit in time and frequency, refit it with each candidate effect ('
+        'misfit in time and frequency, add candidate effects ('
         + ', '.join(EFFECTS)
-        + ') and name the one that is clearly better by the '
-        'Bayesian information criterion, or none.',
+        + ') one at a time while the Bayesian information criterion improves clearly and '
+        'the gap shrinks, check each still earns its place, and say "unexplained" where the '
+        'residual stays structured. Also bins the friction the records show against sliding '
+        'speed and position.',
     )
     options.add_inputs(parser)
     options.add_json(parser)
     options.add_output(
         parser,
-        'write the figures residual_before_after.png and frf_overlay.png into DIR',
+        'write the figures residual_before_after.png, frf_overlay.png and friction_map.png '
+        'into DIR',
         metavar='DIR',
         aliases=('--plot',),
     )
     options.add_model(parser, damping=False)
-    options.add_hit_selection(parser, optional=True)
+    options.add_hit_selection(parser, fits=True)
     options.add_quiet(parser)
     parser.set_defaults(func=run)
 
@@ -92,20 +97,26 @@ def report(run_result: _Run) -> dict:
 
 
 def plot_diagnosis(result: Diagnosis, records: list, rig: Rig, directory: Path) -> list[Path]:
-    """Write residual_before_after.png and frf_overlay.png into directory; return the paths.
+    """Write residual_before_after.png, frf_overlay.png and friction_map.png; return the paths.
 
-    The figures of the report's diagnosis section (`fmm_ros.report.diagnosis_figures`), one
-    row per impact: residuals of the base and the named model over the motion, and
-    |mobility| of measurement and models to 20 Hz beside |measured - model|.
+    The figures of the report's diagnosis section (`fmm_ros.report.diagnosis_figures`): one
+    row per impact, residuals of the base and the final model over the motion, and |mobility|
+    of measurement and models to 20 Hz beside |measured - model|; and mu against sliding
+    speed and against position.
     """
     from fmm_ros.report import diagnosis_figures  # matplotlib: only when figures are asked for
     from fmm_ros.report.plotting import png_bytes
 
     directory.mkdir(parents=True, exist_ok=True)
-    paths = [directory / 'residual_before_after.png', directory / 'frf_overlay.png']
+    paths = [
+        directory / 'residual_before_after.png',
+        directory / 'frf_overlay.png',
+        directory / 'friction_map.png',
+    ]
     figures = (
         diagnosis_figures.residual_figure(result, records),
         diagnosis_figures.mobility_gap_figure(result, records, rig.natural_frequency_hz),
+        diagnosis_figures.friction_map_figure(result),
     )
     for path, figure in zip(paths, figures, strict=True):
         path.write_bytes(png_bytes(figure, PLOT_DPI))

@@ -103,39 +103,75 @@ def friction_text(result: FrictionResult) -> str:
 
 
 def diagnosis_text(payload: dict, impacts: int, figures: Sequence[Path] = ()) -> str:
-    """The short table a person reads in ten seconds, from `diagnosis_dict` (or a service's)."""
+    """The short tables a person reads in half a minute, from `diagnosis_dict` (or a service's)."""
     result = payload
     lines = [
         f'{impacts} impact(s); velocity noise {result["noise_std_m_s"]:.3g} m/s (from the '
         f'data); base fit mu = {_value(result["mu"], result["mu_stderr"], "1")}'
     ]
-    if result['missing_effect'] == NONE:
+    named = result['missing_effects']
+    lines.append(
+        f'missing effects: {", ".join(n["effect"] for n in named) or NONE}   gap '
+        f'{result["gap_before"]:.3g} -> {_finite(result["gap_after"]):.3g}   FRF gap '
+        f'{_finite(result["frf_gap_before"]):.3g} -> {_finite(result["frf_gap_after"]):.3g}'
+    )
+    for entry in named:
+        if 'where' in entry:
+            lines.append(f'  {entry["effect"]}: {entry["where"]["summary"]}')
+            continue
+        partial = ', a partial description only' if entry['partial'] else ''
         lines.append(
-            f'missing effect: none   gap {result["gap_before"]:.3g} '
-            f'(FRF {result["frf_gap_before"]:.3g})'
+            f'  {entry["effect"]}: score {_finite(entry["score"]):.0f}, dropping it again '
+            f'would cost {_finite(entry["drop_score"]):.0f}{partial}'
         )
-    else:
-        lines.append(
-            f'missing effect: {result["missing_effect"]}   gap {result["gap_before"]:.3g} -> '
-            f'{result["gap_after"]:.3g}   FRF gap {result["frf_gap_before"]:.3g} -> '
-            f'{result["frf_gap_after"]:.3g}'
-        )
-        for name, value in result['parameters'].items():
-            error, unit = result['parameter_stderr'][name], result['parameter_units'][name]
-            lines.append(f'  {name:<40} {_value(value, error, unit)}')
-    lines.append(f'where: {result["where"]["summary"]}')
+        if 'slope_per_hit' in entry:
+            mus = entry['mu_per_hit']
+            lines.append(
+                f'    mu per hit {mus[0]:.4f} ... {mus[-1]:.4f}, slope '
+                f'{_value(entry["slope_per_hit"], entry["slope_stderr"], "1")} per hit '
+                f'(p = {_finite(entry["trend_p_value"]):.2g})'
+            )
+            continue
+        for name, value in entry['parameters'].items():
+            error, unit = entry['parameter_stderr'][name], entry['parameter_units'][name]
+            lines.append(f'    {name:<38} {_value(value, error, unit)}')
+    lines.append(f'where (base model): {result["where"]["summary"]}')
     lines.append('')
-    lines.append(f'{"candidate":<22}{"score (dBIC)":>14}{"gap after":>12}')
+    lines.append(f'{"candidate (step 1)":<22}{"score (dBIC)":>14}{"gap after":>12}')
+    names = {entry['effect'] for entry in named}
     for candidate in result['candidates']:
-        mark = '  <- named' if candidate['effect'] == result['missing_effect'] else ''
+        mark = '  <- named' if candidate['effect'] in names else ''
+        if candidate.get('message', '').startswith('screened'):
+            mark += '  (screened)'
         score = _finite(candidate['score'])
         score = f'{score:.0f}' if math.isfinite(score) else 'failed'
         gap = _finite(candidate['gap_after'])
         lines.append(f'{candidate["effect"]:<22}{score:>14}{gap:>12.3g}{mark}')
-    lines.append(f'(named when dBIC <= {result["required_score"]:.0f} and the gap at least halves)')
+    lines.append(
+        f'(an effect is added when dBIC <= {result["required_score"]:.0f} and it removes a '
+        'quarter of the squared gap left; the named set must halve the gap)'
+    )
+    lines += result['selection']
+    lines.append(_friction_line(result['friction_map']))
     lines.append(result['verdict'])
     lines += [f'wrote {path}' for path in figures]
     return '\n'.join(lines)
+
+
+def _friction_line(friction_map: dict) -> str:
+    """Friction at the slowest and fastest speed bins, and its range over position."""
+    speed, position = friction_map['speed'], friction_map['position']
+    if not speed['mu']:
+        return 'friction map: no sliding above the noise'
+    text = (
+        f'friction map: mu {_value(speed["mu"][0], speed["mu_stderr"][0], "1")} at '
+        f'{1e3 * speed["speed_m_s"][0]:.3g} mm/s, '
+        f'{_value(speed["mu"][-1], speed["mu_stderr"][-1], "1")} at '
+        f'{1e3 * speed["speed_m_s"][-1]:.3g} mm/s'
+    )
+    if position['mu']:
+        text += f'; {min(position["mu"]):.4f} to {max(position["mu"]):.4f} over position'
+    return text
 
 
 def _finite(value: float | None) -> float:

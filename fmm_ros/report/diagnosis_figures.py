@@ -1,10 +1,11 @@
-"""Figures of a model diagnosis (`fmm_ros.core.diagnose`): the gap before and after.
+"""Figures of a model diagnosis (`fmm_ros.core.diagnose`): the gap, and the friction law.
 
 One row per impact. The residual figure shows measured minus model velocity over the motion
-for the base model (Eq. 3) and for the model with the named effect; the mobility figure
+for the base model (Eq. 3) and for the model with the named effects; the mobility figure
 shows |mobility| of the measurement and both models to 20 Hz, and beside it |measured -
-model|, where the gap shows, with f_n and its odd harmonics marked. Used by the report's
-diagnosis section and by `fmm diagnose --plot`.
+model|, where the gap shows, with f_n and its odd harmonics marked. The friction map shows
+mu against sliding speed and against position, with its standard errors. Used by the
+report's diagnosis section and by `fmm diagnose --plot`.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from matplotlib.figure import Figure
 from fmm_ros.constants import MM_PER_M
 from fmm_ros.core.diagnose.gaps import motion_window
 from fmm_ros.core.diagnose.result import Diagnosis
-from fmm_ros.core.diagnose.workflow import NONE
+from fmm_ros.core.diagnose.workflow import UNEXPLAINED
 from fmm_ros.core.signal import frf
 from fmm_ros.report.plotting import (
     FREQUENCY_LABEL,
@@ -31,9 +32,15 @@ from fmm_ros.report.session_figures import HARMONICS_TOP_HZ, source_name
 BASE_COLOUR = '0.55'
 
 
+def model_effects(diagnosis: Diagnosis) -> tuple[str, ...]:
+    """The effects in the final model (none: it is the base model)."""
+    return tuple(e for e in diagnosis.named_effects if e != UNEXPLAINED)
+
+
 def named_label(diagnosis: Diagnosis) -> str:
-    """Legend text of the named model."""
-    return 'base model' if diagnosis.missing_effect == NONE else f'with {diagnosis.missing_effect}'
+    """Legend text of the final model."""
+    effects = model_effects(diagnosis)
+    return f'with {" + ".join(effects)}' if effects else 'base model'
 
 
 def residual_figure(
@@ -51,7 +58,7 @@ def residual_figure(
         sharex=True,
         title=(
             f'measured minus model velocity: gap {diagnosis.gap_before:.3g} → '
-            f'{diagnosis.gap_after:.3g} ({diagnosis.missing_effect})'
+            f'{diagnosis.gap_after:.3g} ({", ".join(diagnosis.named_effects) or "none"})'
         ),
     )
     for ax, row in zip(axes, rows, strict=True):
@@ -68,7 +75,7 @@ def residual_figure(
             linewidth=0.6,
             label='base model',
         )
-        if diagnosis.missing_effect != NONE:
+        if model_effects(diagnosis):
             plot_trace(
                 ax,
                 time_s[:end],
@@ -99,7 +106,7 @@ def mobility_gap_figure(
         sharex=True,
         title=(
             f'mobility: misfit {diagnosis.frf_gap_before:.3g} → {diagnosis.frf_gap_after:.3g} '
-            f'({diagnosis.missing_effect}); dotted: f_n and its odd harmonics'
+            f'({", ".join(diagnosis.named_effects) or "none"}); dotted: f_n and its odd harmonics'
         ),
     )
     axes = axes.reshape(len(rows), 2)
@@ -110,7 +117,7 @@ def mobility_gap_figure(
         band = (frequency > 0.0) & (frequency <= top_hz)
         measured = frf.mobility(*frf.spectra(record.force_n, record.velocity_m_s))[band]
         curves = [('base model', before, BASE_COLOUR)]
-        if diagnosis.missing_effect != NONE:
+        if model_effects(diagnosis):
             curves.append(
                 (named_label(diagnosis), diagnosis.named_residuals_m_s[row], MODEL_COLOUR)
             )
@@ -148,6 +155,42 @@ def mobility_gap_figure(
     for ax in axes[-1]:
         ax.set_xlabel(FREQUENCY_LABEL)
         ax.set_xlim(0, top_hz)
+    return figure
+
+
+def friction_map_figure(diagnosis: Diagnosis) -> Figure:
+    """Friction against sliding speed (log axis) and against position, +-1 sigma error bars.
+
+    The dashed line is the base fit's single mu: a Coulomb contact's map lies on it.
+    """
+    figure, (by_speed, by_position) = new_figure(
+        1,
+        2,
+        title='friction the records show (inverse dynamics, all hits): mu ± 1σ; dashed: base fit',
+    )
+    curves = (
+        (by_speed, diagnosis.friction_map.speed, 'sliding speed [mm/s]'),
+        (by_position, diagnosis.friction_map.position, 'position [mm]'),
+    )
+    for ax, curve, label in curves:
+        if curve.mu:
+            ax.errorbar(
+                np.asarray(curve.centres) * MM_PER_M,
+                curve.mu,
+                yerr=curve.mu_stderr,
+                color=MODEL_COLOUR,
+                marker='o',
+                markersize=3,
+                linewidth=0.8,
+                capsize=2,
+            )
+        else:
+            ax.text(0.5, 0.5, 'no sliding above the noise', ha='center', transform=ax.transAxes)
+        ax.axhline(diagnosis.mu, color=BASE_COLOUR, linestyle='--', linewidth=0.8)
+        ax.set_xlabel(label)
+        ax.set_ylabel('μ [-]')
+    if diagnosis.friction_map.speed.mu:
+        by_speed.set_xscale('log')
     return figure
 
 

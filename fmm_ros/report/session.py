@@ -37,8 +37,13 @@ NOTE_LINES = 12
 FLAG_MEANINGS: dict[str, str] = {
     'double_hit': 'the force reached the trigger level again shortly after the contact '
     '(a hammer bounce): two inputs in one FRF',
-    'clipped': "a sample reached a sensor's full-scale range: peak and spectrum are wrong",
+    'clipped': "the force reached its sensor's full-scale range or has a flat top: peak "
+    'and spectrum are wrong',
+    'saturated': "the velocity reached the vibrometer's range or has a flat top",
+    'no_response': 'the velocity does not respond to the hit: a dead or disconnected vibrometer',
+    'dropout': 'a channel holds one exact value too long: samples dropped and filled',
     'gap': 'samples never arrived (lost batch, end of stream): the DFT is undefined',
+    'interrupted': 'the acquisition restarted before the record was complete (its tail is a gap)',
     'nan': 'a received sample is NaN or infinite',
     'unsettled': 'the rig moved before the hit or had not come to rest at the end of the '
     'record: not one whole transient, the DFT leaks',
@@ -69,7 +74,7 @@ def build_report(
     _session_section(page, session)
     _hit_table(page, summary, comparison)
     _level_section(page, summary, session.analysis)
-    _model_section(page, summary, comparison, session.friction, session.fit_failure)
+    _model_section(page, session)
     _time_section(page, session, colours)
     _frf_section(page, summary, colours, comparison)
     if session.diagnosis is not None or session.diagnosis_failure:
@@ -227,18 +232,15 @@ def _level_section(page: Page, summary: Summary, analysis) -> None:
     )
 
 
-def _model_section(
-    page: Page,
-    summary: Summary,
-    comparison: ModelComparison | None,
-    friction: FrictionResult | None,
-    fit_failure: str,
-) -> None:
+def _model_section(page: Page, session: SessionResult) -> None:
+    summary, comparison, friction = session.summary, session.comparison, session.friction
     page.section('Friction coefficient and model', 'model')
     if friction is not None:
         _friction(page, summary, friction)
-    elif fit_failure:
-        page.text(f'No friction fit: {fit_failure}', note=True)
+        if session.selection is not None and session.selection.note:
+            page.text(session.selection.note, note=True)
+    elif session.fit_failure:
+        page.text(f'No friction fit: {session.fit_failure}', note=True)
     if comparison is None:
         page.text('No model overlay: no friction coefficient was given or fitted.', note=True)
         return
@@ -421,20 +423,23 @@ def _diagnosis_section(
     found: SessionDiagnosis | None,
     failure: str,
 ) -> None:
-    """The named effect, the gap before and after, every candidate, and the two figures."""
+    """The named effects, the gap before and after, every candidate, and the figures."""
     page.section('Model diagnosis', 'diagnosis')
     if found is None:
         page.text(f'No diagnosis: {failure}', note=True)
         return
     result = found.diagnosis
     page.text(
-        f'Missing effect: {result.missing_effect}. Gap (RMS velocity residual beyond the '
-        f'noise over the motion, over the peak speed) {result.gap_before:.3g} → '
+        f'Missing effects: {", ".join(result.named_effects) or "none"}. Gap (RMS velocity '
+        'residual beyond the noise over the motion, over the peak speed) '
+        f'{result.gap_before:.3g} → '
         f'{result.gap_after:.3g}; mobility misfit {result.frf_gap_before:.3g} → '
         f'{result.frf_gap_after:.3g}, over {len(found.impact_ids)} accepted hits '
         f'(velocity noise {result.noise_std_m_s * MM_PER_M:.3g} mm/s from the data).'
     )
     page.text(f'Verdict: {result.verdict}')
+    if session.selection is not None and session.selection.note:
+        page.text(session.selection.note, note=True)
     page.text(f'Where the base model misses: {result.where.summary}.')
     page.table(
         ['parameter of the named model', 'value ± 1σ', 'unit'],
@@ -452,16 +457,17 @@ def _diagnosis_section(
                 _number(c.score, '.0f'),
                 _number(c.gap_after, '.3g'),
                 _number(c.frf_gap_after, '.3g'),
-                'named' if c.effect == result.missing_effect else c.message or '-',
+                'named' if c.effect in result.named_effects else c.message or '-',
             ]
             for c in result.candidates
         ],
         text_columns=(0, 4),
     )
     page.text(
-        f'A candidate is named when its score is at most {result.required_score:.0f} '
-        '(BIC lower than the base model by 10 plus three times what the force noise '
-        'alone explains) and it at least halves the gap.'
+        f'Effects are added one at a time while the best scores at most '
+        f'{result.required_score:.0f} (BIC lower by 10 plus three times what the force noise '
+        'alone explains) and removes a quarter of the squared gap left; together they must '
+        'halve the gap. "unexplained" means what is left stays well above the noise.'
     )
     summary = session.summary
     records = [session.records[i] for i in found.impact_ids]
@@ -482,6 +488,14 @@ def _diagnosis_section(
         ),
         f'|mobility| of measurement and models to 20 Hz for hits {shown}, and beside it '
         '|measured − model|: where the gap is, and whether the named effect closes it.',
+    )
+    page.figure(
+        'diagnosis_friction_map',
+        diagnosis_figures.friction_map_figure(result),
+        'μ the records show against sliding speed and position over every diagnosed hit, '
+        'from the equation of motion integrated over short runs (inverse dynamics): a '
+        'Coulomb contact lies on the dashed line, a Stribeck contact rises towards low speed, '
+        'a wear track varies with position.',
     )
 
 

@@ -17,7 +17,7 @@ from fmm_ros.core import diagnose
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.signal import analysis, frf
 from fmm_ros.core.signal.stream import Batch
-from fmm_ros.workflows.results import FrictionResult
+from fmm_ros.workflows.results import FrictionResult, json_safe
 
 
 def float64_field(values: np.ndarray) -> array.array:
@@ -181,6 +181,35 @@ def fill_diagnose_response(response: object, result: diagnose.Diagnosis) -> obje
     response.noise_std_m_s = result.noise_std_m_s
     response.required_score = result.required_score
     response.verdict = result.verdict
+    named = result.missing_effects
+    response.missing_effects = [n.effect for n in named]
+    response.missing_effect_scores = float64_field([n.score for n in named])
+    response.missing_effect_drop_scores = float64_field([n.drop_score for n in named])
+    response.missing_effect_parameter_counts = [len(n.parameters) for n in named]
+    response.missing_effect_parameter_names = [p.name for n in named for p in n.parameters]
+    response.missing_effect_parameter_values = float64_field(
+        [p.value for n in named for p in n.parameters]
+    )
+    response.missing_effect_parameter_stderr = float64_field(
+        [p.stderr for n in named for p in n.parameters]
+    )
+    unexplained = [n for n in named if n.where is not None]
+    response.unexplained = bool(unexplained)
+    response.unexplained_where = unexplained[0].where.summary if unexplained else ''
+    trend = result.mu_trend
+    response.mu_per_hit = float64_field(trend.mu if trend else ())
+    response.mu_per_hit_stderr = float64_field(trend.mu_stderr if trend else ())
+    response.mu_slope_per_hit = trend.slope_per_hit if trend else math.nan
+    response.mu_slope_stderr = trend.slope_stderr if trend else math.nan
+    response.mu_trend_p_value = trend.p_value if trend else math.nan
+    speed, position = result.friction_map.speed, result.friction_map.position
+    response.friction_speed_m_s = float64_field(speed.centres)
+    response.friction_speed_mu = float64_field(speed.mu)
+    response.friction_speed_mu_stderr = float64_field(speed.mu_stderr)
+    response.friction_position_m = float64_field(position.centres)
+    response.friction_position_mu = float64_field(position.mu)
+    response.friction_position_mu_stderr = float64_field(position.mu_stderr)
+    response.selection = list(result.selection)
     return response
 
 
@@ -256,7 +285,11 @@ def friction_result(response: object) -> FrictionResult:
 
 
 def diagnose_response_dict(response: object) -> dict:
-    """A DiagnoseModel response as the JSON keys of `fmm diagnose --json` it carries."""
+    """A DiagnoseModel response as the JSON keys of `fmm diagnose --json` it carries.
+
+    JSON-ready as `diagnosis_dict` is: undefined numbers (an 'unexplained' entry's score, the
+    trend of fewer than four hits) are None.
+    """
     if not response.success:
         raise ValueError(f'the diagnosis was refused: {response.message}')
     counts = list(response.candidate_parameter_counts)
@@ -265,49 +298,112 @@ def diagnose_response_dict(response: object) -> dict:
         field_array(response.candidate_parameter_values),
     )
     starts = np.concatenate(([0], np.cumsum(counts))).astype(int)
+    return json_safe(
+        {
+            'missing_effect': response.missing_effect,
+            'parameters': dict(
+                zip(
+                    response.parameter_names,
+                    field_array(response.parameter_values).tolist(),
+                    strict=True,
+                )
+            ),
+            'parameter_units': dict(
+                zip(response.parameter_names, response.parameter_units, strict=True)
+            ),
+            'parameter_stderr': dict(
+                zip(
+                    response.parameter_names,
+                    field_array(response.parameter_stderr).tolist(),
+                    strict=True,
+                )
+            ),
+            'mu': response.mu,
+            'mu_stderr': response.mu_stderr,
+            'gap_before': response.gap_before,
+            'gap_after': response.gap_after,
+            'frf_gap_before': response.frf_gap_before,
+            'frf_gap_after': response.frf_gap_after,
+            'where': {'summary': response.where},
+            'candidates': [
+                {
+                    'effect': effect,
+                    'score': score,
+                    'gap_after': gap_after,
+                    'parameters': dict(
+                        zip(names[start:end], values[start:end].tolist(), strict=True)
+                    ),
+                }
+                for effect, score, gap_after, start, end in zip(
+                    response.candidate_effects,
+                    field_array(response.candidate_scores).tolist(),
+                    field_array(response.candidate_gap_after).tolist(),
+                    starts[:-1],
+                    starts[1:],
+                    strict=True,
+                )
+            ],
+            'noise_std_m_s': response.noise_std_m_s,
+            'required_score': response.required_score,
+            'verdict': response.verdict,
+            **_open_world_dict(response),
+        }
+    )
+
+
+def _open_world_dict(response: object) -> dict:
+    """The list of effects, the trend and the friction map of a DiagnoseModel response."""
+    counts = list(response.missing_effect_parameter_counts)
+    starts = np.concatenate(([0], np.cumsum(counts))).astype(int)
+    names = list(response.missing_effect_parameter_names)
+    values = field_array(response.missing_effect_parameter_values).tolist()
+    errors = field_array(response.missing_effect_parameter_stderr).tolist()
+    units = dict(zip(response.parameter_names, response.parameter_units, strict=True))
+    trend = {
+        'mu_per_hit': field_array(response.mu_per_hit).tolist(),
+        'mu_per_hit_stderr': field_array(response.mu_per_hit_stderr).tolist(),
+        'slope_per_hit': response.mu_slope_per_hit,
+        'slope_stderr': response.mu_slope_stderr,
+        'trend_p_value': response.mu_trend_p_value,
+    }
+    effects = list(response.missing_effects)
+    named = []
+    for effect, score, drop, start, end in zip(
+        effects,
+        field_array(response.missing_effect_scores).tolist(),
+        field_array(response.missing_effect_drop_scores).tolist(),
+        starts[:-1],
+        starts[1:],
+        strict=True,
+    ):
+        entry = {
+            'effect': effect,
+            'score': score,
+            'drop_score': drop,
+            'partial': response.unexplained and effect != diagnose.UNEXPLAINED,
+            'parameters': dict(zip(names[start:end], values[start:end], strict=True)),
+            'parameter_stderr': dict(zip(names[start:end], errors[start:end], strict=True)),
+            'parameter_units': {name: units.get(name, '') for name in names[start:end]},
+        }
+        if effect == diagnose.MU_DRIFT:
+            entry.update(trend)
+        if effect == diagnose.UNEXPLAINED:
+            entry['where'] = {'summary': response.unexplained_where}
+        named.append(entry)
     return {
-        'missing_effect': response.missing_effect,
-        'parameters': dict(
-            zip(
-                response.parameter_names,
-                field_array(response.parameter_values).tolist(),
-                strict=True,
-            )
-        ),
-        'parameter_units': dict(
-            zip(response.parameter_names, response.parameter_units, strict=True)
-        ),
-        'parameter_stderr': dict(
-            zip(
-                response.parameter_names,
-                field_array(response.parameter_stderr).tolist(),
-                strict=True,
-            )
-        ),
-        'mu': response.mu,
-        'mu_stderr': response.mu_stderr,
-        'gap_before': response.gap_before,
-        'gap_after': response.gap_after,
-        'frf_gap_before': response.frf_gap_before,
-        'frf_gap_after': response.frf_gap_after,
-        'where': {'summary': response.where},
-        'candidates': [
-            {
-                'effect': effect,
-                'score': score,
-                'gap_after': gap_after,
-                'parameters': dict(zip(names[start:end], values[start:end].tolist(), strict=True)),
-            }
-            for effect, score, gap_after, start, end in zip(
-                response.candidate_effects,
-                field_array(response.candidate_scores).tolist(),
-                field_array(response.candidate_gap_after).tolist(),
-                starts[:-1],
-                starts[1:],
-                strict=True,
-            )
-        ],
-        'noise_std_m_s': response.noise_std_m_s,
-        'required_score': response.required_score,
-        'verdict': response.verdict,
+        'missing_effects': named,
+        'selection': list(response.selection),
+        'mu_trend': trend if trend['mu_per_hit'] else None,
+        'friction_map': {
+            'speed': {
+                'speed_m_s': field_array(response.friction_speed_m_s).tolist(),
+                'mu': field_array(response.friction_speed_mu).tolist(),
+                'mu_stderr': field_array(response.friction_speed_mu_stderr).tolist(),
+            },
+            'position': {
+                'position_m': field_array(response.friction_position_m).tolist(),
+                'mu': field_array(response.friction_position_mu).tolist(),
+                'mu_stderr': field_array(response.friction_position_mu_stderr).tolist(),
+            },
+        },
     }

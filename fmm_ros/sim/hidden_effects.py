@@ -18,15 +18,15 @@ damping, signs) are drawn at random from plausible ranges.
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from fmm_ros.constants import PAPER_LEVELS, SETTLE_S
+from fmm_ros.constants import MU_DRIFT, PAPER_LEVELS, SETTLE_S
 from fmm_ros.core._checks import require_non_negative, require_positive
-from fmm_ros.core.physics.model import simulate
+from fmm_ros.core.physics.model import Simulation, simulate
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
-from fmm_ros.core.physics.terms import MODEL_TERMS, ModelTerm, model_term
+from fmm_ros.core.physics.terms import EFFECT_SIZE, MODEL_TERMS, ModelTerm, model_term
 from fmm_ros.sim.excitation import SimulatedImpact, impact_record, level_peak_force_n
 
 NO_EFFECT = 'none'
@@ -40,16 +40,16 @@ MU_RANGE = (0.08, 0.16)
 FORCE_NOISE_STD_N = 0.2
 VELOCITY_NOISE_STD_M_S = 1e-4
 
-# The parameter scaled to set the size, and a starting value of it near the middle of the
-# range the calibration lands in (the calibration is linear in it, so only its sign matters).
-_SIZE_PARAMETER = {
-    'viscous_damping': ('damping_n_s_per_m', 0.2),
-    'stribeck': ('mu_static_excess', 0.05),
-    'asymmetric_friction': ('mu_difference', 0.02),
-    'cubic_stiffness': ('cubic_stiffness_n_per_m3', 3e4),
-    'velocity_offset': ('offset_m_s', 2e-4),
-    'sensor_delay': ('delay_s', 1.5e-4),
-    'second_mode': ('modal_mass_kg', 1000.0),  # the mode's velocity scales as 1 / mass
+# A starting value of each term's size parameter (`EFFECT_SIZE`) near the middle of the range
+# the calibration lands in (the calibration is linear in it, so only its sign matters).
+_SIZE_START = {
+    'viscous_damping': 0.2,
+    'stribeck': 0.05,
+    'asymmetric_friction': 0.02,
+    'cubic_stiffness': 3e4,
+    'velocity_offset': 2e-4,
+    'sensor_delay': 1.5e-4,
+    'second_mode': 1000.0,  # the mode's velocity scales as 1 / mass
 }
 _SIGNED = ('asymmetric_friction', 'cubic_stiffness', 'velocity_offset')
 
@@ -140,22 +140,31 @@ def _sized_term(
     clipped to the plausible bounds the fitter searches (so the truth is always reachable).
     Returns the term and its realised discrepancy [m/s].
     """
-    name, size = _SIZE_PARAMETER[effect]
+    name, inverse = EFFECT_SIZE[effect]
+    size = _SIZE_START[effect]
     sign = shape.pop('sign', 1.0)
     index = [p.name for p in MODEL_TERMS[effect].parameters].index(name)
     lower, upper = (float(bound[index]) for bound in MODEL_TERMS[effect].bounds())
     limit_high = upper if sign > 0.0 else -lower  # the bound on the side of the drawn sign
     limit_low = max(lower if sign > 0.0 else -upper, 1e-6 * limit_high)
-    inverse = name == 'modal_mass_kg'  # a heavier mode is a smaller effect
 
     def realised(size):
         term = model_term(effect, **shape, **{name: sign * size})
         return term, base_fit_discrepancy(clean_records(term), mu, rig)
 
-    bracket = [limit_low, limit_high]
+    return _sized(realised, size, target_m_s, limit_low, limit_high, inverse)
+
+
+def _sized(realised, size: float, target_m_s: float, low: float, high: float, inverse: bool):
+    """(what, discrepancy) of the size in [low, high] whose discrepancy is target_m_s.
+
+    realised(size) -> (what, discrepancy [m/s]). Secant steps in log(size), kept inside a
+    bracket once one is found; inverse: the discrepancy falls as the size grows.
+    """
+    bracket = [low, high]
     for _ in range(12):
-        size = min(max(size, limit_low), limit_high)
-        term, value = realised(size)
+        size = min(max(size, low), high)
+        what, value = realised(size)
         error = math.log(value / target_m_s) if value > 0.0 else -math.inf
         if abs(error) < 0.02:
             break
@@ -173,7 +182,7 @@ def _sized_term(
         if step == size:
             break
         size = step
-    return term, value
+    return what, value
 
 
 def base_fit_discrepancy(
@@ -224,3 +233,252 @@ def _draw_shape(effect: str, rng: np.random.Generator) -> dict[str, float]:
         shape['frequency_hz'] = float(math.exp(rng.uniform(math.log(15.0), math.log(300.0))))
         shape['damping_ratio'] = float(math.exp(rng.uniform(math.log(3e-3), math.log(3e-2))))
     return shape
+
+
+OUT_OF_VOCABULARY: tuple[str, ...] = ('speed_regimes', 'wear_track')
+"""Effects no term of the diagnosis expresses, made for the proof only (`RegimeLaw`)."""
+
+
+SESSION_EFFECTS: tuple[str, ...] = (*MODEL_TERMS, MU_DRIFT, *OUT_OF_VOCABULARY)
+"""What `hidden_session` can hide, any several at once (at most one friction law)."""
+
+
+_MECHANICAL = ('viscous_damping', 'stribeck', 'asymmetric_friction', 'cubic_stiffness')
+"""Terms of the oscillator itself, which a friction law restarted at its regime changes keeps."""
+
+
+MAX_DRIFT = 0.5
+"""Largest relative change of mu over a session that mu_drift is sized within [-]."""
+
+
+MAX_REGIME_CHANGE = 0.5
+"""Largest relative step of mu between a friction law's two regimes [-]."""
+
+
+@dataclass(frozen=True)
+class RegimeLaw:
+    """Friction with two regimes, mu in the first and factor x mu in the second.
+
+    kind 'speed': the second regime is sliding at |v| >= threshold (a lubricated contact that
+    stiffens, velocity strengthening, above a transition speed): the Stribeck term can only
+    raise friction towards rest, and smoothly. kind 'position': the second is |x - centre_m| <
+    threshold (a worn groove in the counterface where the pin has slid most); no term depends
+    on where the pin is. Static friction is the regime's at rest.
+    """
+
+    kind: str
+    threshold: float
+    """Transition speed [m/s] or the groove's half width [m]."""
+    factor: float
+    centre_m: float = 0.0
+
+    def second(self, displacement_m: np.ndarray, velocity_m_s: np.ndarray) -> np.ndarray:
+        """Where the second regime holds (boolean per sample)."""
+        if self.kind == 'speed':
+            return np.abs(velocity_m_s) >= self.threshold
+        return np.abs(displacement_m - self.centre_m) < self.threshold
+
+
+def regime_simulation(
+    force_n: np.ndarray,
+    sample_rate_hz: float,
+    law: RegimeLaw,
+    *,
+    rig: Rig = FMM_RIG,
+    mu: float,
+    effects: tuple[ModelTerm, ...] = (),
+    x0_m: float = 0.0,
+) -> Simulation:
+    """The oscillator under a two-regime friction law, by the product's `simulate` restarted.
+
+    Each run goes on with one regime's mu until the first sample where the regime changes,
+    and the next starts there from that sample's state: the change is placed to within one
+    sample (0.1 ms at 10 kHz, an impulse error of ~1e-5 N s). Only terms of the oscillator
+    itself (`_MECHANICAL`) compose with it.
+    """
+    extra = [term.name for term in effects if term.name not in _MECHANICAL]
+    if extra:
+        raise ValueError(f'a friction law composes only with {", ".join(_MECHANICAL)}: {extra}')
+    n = force_n.size
+    displacement, velocity = np.empty(n), np.empty(n)
+    start, x, v = 0, float(x0_m), 0.0
+    while True:
+        second = bool(law.second(np.array([x]), np.array([v]))[0])
+        run = simulate(
+            force_n[start:],
+            sample_rate_hz,
+            rig=rig,
+            mu=mu * (law.factor if second else 1.0),
+            effects=effects,
+            x0_m=x,
+            v0_m_s=v,
+        )
+        changes = np.flatnonzero(law.second(run.displacement_m, run.velocity_m_s)[1:] != second)
+        stop = n - start if not changes.size else int(changes[0]) + 1
+        displacement[start : start + stop] = run.displacement_m[:stop]
+        velocity[start : start + stop] = run.velocity_m_s[:stop]
+        if not changes.size:
+            rest_time = run.rest_time_s + start / sample_rate_hz
+            return Simulation(
+                displacement, velocity, sample_rate_hz, run.rest_position_m, rest_time
+            )
+        start += stop
+        x, v = float(run.displacement_m[stop]), float(run.velocity_m_s[stop])
+
+
+@dataclass(frozen=True)
+class HiddenSession:
+    """A simulated session with several effects hidden, and the truth behind it."""
+
+    effects: tuple[str, ...]
+    """What was hidden (empty: a clean session)."""
+    terms: tuple[ModelTerm, ...]
+    mu_per_hit: tuple[float, ...]
+    """Each hit's friction coefficient (all equal without mu_drift) [-]."""
+    law: RegimeLaw | None
+    rig: Rig
+    ratios: dict[str, float]
+    """Per effect, its noise-free discrepancy after the base fit, hidden alone, in velocity
+    noise units."""
+    records: tuple[SimulatedImpact, ...]
+
+
+def hidden_session(
+    effects: tuple[str, ...] | list[str],
+    rng: np.random.Generator | int,
+    *,
+    n_impacts: int = 3,
+    rig: Rig = FMM_RIG,
+    ratio_range: tuple[float, float] = RATIO_RANGE,
+    force_noise_std_n: float = FORCE_NOISE_STD_N,
+    velocity_noise_std_m_s: float = VELOCITY_NOISE_STD_M_S,
+    duration_s: float = 33.0,
+) -> HiddenSession:
+    """n_impacts random-level hits with every effect of `effects` hidden, each sized alone.
+
+    Each effect is sized as `hidden_effect_case` sizes one (its discrepancy after the base fit,
+    with the others absent, drawn from ratio_range in velocity noise units), then all act
+    together. mu_drift changes mu linearly over the hits, up or down by up to MAX_DRIFT;
+    'speed_regimes' and 'wear_track' are `RegimeLaw`s with a random transition (20-60 mm/s,
+    friction up above it) or groove (half width 1-3 mm, centre within 1 mm of the start,
+    friction up or down in it).
+    """
+    effects = tuple(effects)
+    unknown = [e for e in effects if e not in SESSION_EFFECTS]
+    if unknown or len(set(effects)) != len(effects):
+        raise ValueError(
+            f'effects must be distinct names of {", ".join(SESSION_EFFECTS)}; got {effects}'
+        )
+    laws = [e for e in effects if e in OUT_OF_VOCABULARY]
+    if len(laws) > 1 or (laws and any(e in MODEL_TERMS and e not in _MECHANICAL for e in effects)):
+        raise ValueError(
+            f'at most one friction law, and only with {", ".join(_MECHANICAL)}; got {effects}'
+        )
+    if n_impacts < (2 if MU_DRIFT in effects else 1):
+        raise ValueError(f'n_impacts must be at least {2 if MU_DRIFT in effects else 1}')
+    require_positive('velocity_noise_std_m_s', velocity_noise_std_m_s)
+    require_non_negative('force_noise_std_n', force_noise_std_n)
+    rng = np.random.default_rng(rng)
+    mu = float(rng.uniform(*MU_RANGE))
+    levels = rng.choice([level.name for level in PAPER_LEVELS], size=n_impacts)
+    peaks = [level_peak_force_n(str(level), rng) for level in levels]
+    seeds = [int(seed) for seed in rng.integers(0, 2**63, size=n_impacts)]
+    noise = velocity_noise_std_m_s
+    clean = [
+        impact_record(
+            peak,
+            seed,
+            rig=rig,
+            mu=mu,
+            force_noise_std_n=0.0,
+            velocity_noise_std_m_s=0.0,
+            duration_s=duration_s,
+        )
+        for peak, seed in zip(peaks, seeds, strict=True)
+    ]
+    noisy = [
+        impact_record(
+            peak,
+            seed,
+            rig=rig,
+            mu=mu,
+            force_noise_std_n=force_noise_std_n,
+            velocity_noise_std_m_s=noise,
+            duration_s=duration_s,
+        )
+        for peak, seed in zip(peaks, seeds, strict=True)
+    ]
+
+    def records(terms, mus, law, with_noise):
+        made = []
+        for index, (quiet, loud) in enumerate(zip(clean, noisy, strict=True)):
+            force = quiet.force_n
+            if law is None:
+                truth = simulate(force, quiet.sample_rate_hz, rig=rig, mu=mus[index], effects=terms)
+            else:
+                truth = regime_simulation(
+                    force, quiet.sample_rate_hz, law, rig=rig, mu=mus[index], effects=terms
+                )
+            made.append(
+                replace(
+                    quiet,
+                    force_n=loud.force_n if with_noise else force,
+                    velocity_m_s=truth.velocity_m_s
+                    + ((loud.velocity_m_s - loud.simulation.velocity_m_s) if with_noise else 0.0),
+                    simulation=truth,
+                )
+            )
+        return tuple(made)
+
+    flat = [mu] * n_impacts
+    terms, mus, law, ratios = [], flat, None, {}
+    for effect in effects:
+        target = float(rng.uniform(*ratio_range)) * noise
+        if effect in MODEL_TERMS:
+            shape = _draw_shape(effect, rng)
+            term, value = _sized_term(
+                effect, shape, target, lambda t: records((t,), flat, None, False), mu, rig
+            )
+            terms.append(term)
+        elif effect == MU_DRIFT:
+            sign = float(rng.choice((-1.0, 1.0)))
+
+            def drifting(size, sign=sign):
+                values = [
+                    mu * (1.0 + sign * size * (i / (n_impacts - 1) - 0.5)) for i in range(n_impacts)
+                ]
+                return values, base_fit_discrepancy(records((), values, None, False), mu, rig)
+
+            mus, value = _sized(drifting, 0.05, target, 1e-4, MAX_DRIFT, False)
+        else:
+            law_shape, sign = _draw_law(effect, rng)
+
+            def changed(size, law_shape=law_shape, sign=sign):
+                candidate = replace(law_shape, factor=1.0 + sign * size)
+                return candidate, base_fit_discrepancy(records((), flat, candidate, False), mu, rig)
+
+            law, value = _sized(changed, 0.1, target, 1e-3, MAX_REGIME_CHANGE, False)
+        ratios[effect] = value / noise
+    return HiddenSession(
+        effects=effects,
+        terms=tuple(terms),
+        mu_per_hit=tuple(float(m) for m in mus),
+        law=law,
+        rig=rig,
+        ratios=ratios,
+        records=records(tuple(terms), mus, law, True),
+    )
+
+
+def _draw_law(effect: str, rng: np.random.Generator) -> tuple[RegimeLaw, float]:
+    """A friction law's shape at factor 1, and the sign of its step (its size is found later).
+
+    The speed law always stiffens above its transition: a step down is friction falling with
+    speed, which the Stribeck term (v_s up to 50 mm/s) partly expresses.
+    """
+    if effect == 'speed_regimes':
+        return RegimeLaw('speed', float(rng.uniform(0.02, 0.06)), 1.0), 1.0
+    law = RegimeLaw(
+        'position', float(rng.uniform(1e-3, 3e-3)), 1.0, centre_m=float(rng.uniform(-1e-3, 1e-3))
+    )
+    return law, float(rng.choice((-1.0, 1.0)))

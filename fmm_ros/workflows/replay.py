@@ -25,6 +25,7 @@ from fmm_ros.core.signal.analysis import (
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, ImpactCapture
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.core.signal.stream import ChannelLedger
+from fmm_ros.io.bags.acquisitions import read_acquisitions
 from fmm_ros.io.bags.definitions import SAMPLE_BATCH
 from fmm_ros.io.bags.reader import BagReader, ChannelBatch
 
@@ -45,12 +46,25 @@ def capture_records(
     are tagged with their source (bag name @ trigger index). reuse_buffers: a record is valid
     only until the next one is asked for, its memory then reused (as the analyzer node does;
     a long session then runs in warm memory). on_batch sees every recorded batch as it is fed.
+    A bag joined from several recordings (`fmm import`) lists them as acquisitions: the
+    capture's acquisition ends at each one's last sample (`ImpactCapture.end_acquisition`),
+    and at the bag's end, so no record runs into the next file or is padded with samples that
+    were never taken. (A restart the bag does not state is found by the stream rules.)
     """
     impacts = capture if isinstance(capture, ImpactCapture) else ImpactCapture(capture)
     quantity = {
         reader.find(force_topic, SAMPLE_BATCH): FORCE.quantity,
         reader.find(velocity_topic, SAMPLE_BATCH): VELOCITY.quantity,
     }
+    try:
+        acquisitions = read_acquisitions(reader.path)
+    except ValueError as error:  # damaged metadata: the reader reads the bag by scanning
+        reader.problems.append(f'{error}; read as one acquisition')
+        acquisitions = ()
+    joined = bool(acquisitions)
+    boundaries = [a.first_sample_index for a in acquisitions][1:]
+    reached = dict.fromkeys(quantity, 0)  # index after each channel's last sample fed
+    held: list[ChannelBatch] = []  # batches of the next acquisition, read early
 
     def tagged(records: list[ImpactRecord]) -> Iterator[ImpactRecord]:
         for record in records:
@@ -60,7 +74,12 @@ def capture_records(
             if reuse_buffers:
                 impacts.recycle(record)
 
-    for batch in reader.sample_batches(list(quantity)):
+    def take(batch: ChannelBatch) -> Iterator[ImpactRecord]:
+        """Feed a batch, or hold it while another channel is still in the acquisition before."""
+        if boundaries and batch.first_sample_index >= boundaries[0]:
+            held.append(batch)
+            return
+        reached[batch.topic] = batch.first_sample_index + len(batch.samples)
         yield from tagged(
             impacts.feed(
                 quantity[batch.topic],
@@ -72,9 +91,29 @@ def capture_records(
                 stamp_ns=batch.stamp_ns,
             )
         )
+
+    def next_acquisition() -> Iterator[ImpactRecord]:
+        """End the acquisition, then feed what was held for the next one."""
+        yield from tagged(impacts.end_acquisition())
+        boundaries.pop(0)
+        early = held.copy()
+        held.clear()
+        for batch in early:
+            yield from take(batch)
+
+    for batch in reader.sample_batches(list(quantity)):
+        yield from take(batch)
         if on_batch:
             on_batch(batch)
-    yield from tagged(impacts.flush())
+        # Every channel done with this acquisition (or already into the next): end it.
+        while held and all(
+            reached[topic] >= boundaries[0] or any(b.topic == topic for b in held)
+            for topic in quantity
+        ):
+            yield from next_acquisition()
+    while held:
+        yield from next_acquisition()
+    yield from tagged(impacts.end_acquisition() if joined else impacts.flush())
 
 
 def stream_problems(ledger: dict[str, ChannelLedger]) -> list[str]:

@@ -7,6 +7,8 @@
 - `Diagnosis` (`fmm_ros.core.diagnose`): `diagnosis_dict` is the JSON of `fmm diagnose --json`
   and of a session's summary; the DiagnoseModel response is filled from the same object.
 - `Summary` (`fmm_ros.core.signal.analysis`): `analysis_dict` is the JSON of `fmm analyze`.
+- `ImpactSelection` (`select_impacts`): `selection_dict` names the impacts a fit left out (and
+  flagged ones taken on request), in `fmm fit --json` and a session's JSON.
 
 Undefined numbers (a standard error of something not fitted, R^2 of two levels) are NaN in
 the objects and null in JSON.
@@ -21,11 +23,19 @@ from dataclasses import dataclass
 import numpy as np
 
 from fmm_ros.core.diagnose import signatures
-from fmm_ros.core.diagnose.result import Diagnosis, Where
+from fmm_ros.core.diagnose.drift import MuTrend
+from fmm_ros.core.diagnose.friction_map import FrictionCurve, FrictionMap
+from fmm_ros.core.diagnose.result import (
+    Diagnosis,
+    NamedEffect,
+    ParameterEstimate,
+    ResidualLocation,
+    Where,
+)
 from fmm_ros.core.identify.friction import FrictionFit
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.physics.terms import ModelTerm
-from fmm_ros.core.signal.analysis import Summary
+from fmm_ros.core.signal.analysis import ImpactSelection, Summary
 from fmm_ros.io.frf_files import json_number
 
 
@@ -207,11 +217,29 @@ def analysis_dict(summary: Summary) -> dict:
     )
 
 
+def selection_dict(selection: ImpactSelection | None) -> dict:
+    """JSON keys naming the impacts left out of a fit (and flagged ones taken on request)."""
+    if selection is None:
+        return {}
+
+    def entries(items: tuple) -> list[dict]:
+        return [
+            {'impact_id': impact_id, 'file': source or None, 'flags': list(flags)}
+            for impact_id, flags, source in items
+        ]
+
+    return {
+        'left_out': entries(selection.excluded),
+        'included_flagged': entries(selection.included_flagged),
+    }
+
+
 def diagnosis_dict(diagnosis: Diagnosis) -> dict:
     """The JSON of `fmm diagnose --json` (undefined numbers as null)."""
     return json_safe(
         {
             'missing_effect': diagnosis.missing_effect,
+            'missing_effects': [_named_dict(named) for named in diagnosis.missing_effects],
             'parameters': {p.name: p.value for p in diagnosis.parameters},
             'parameter_units': {p.name: p.unit for p in diagnosis.parameters},
             'parameter_stderr': {p.name: p.stderr for p in diagnosis.parameters},
@@ -240,8 +268,95 @@ def diagnosis_dict(diagnosis: Diagnosis) -> dict:
             'input_noise_allowance': diagnosis.input_noise_allowance,
             'required_score': diagnosis.required_score,
             'verdict': diagnosis.verdict,
+            'selection': list(diagnosis.selection),
+            'residual_where': _location_dict(diagnosis.residual_where),
+            'mu_trend': None if diagnosis.mu_trend is None else _trend_dict(diagnosis.mu_trend),
+            'friction_map': friction_map_dict(diagnosis.friction_map),
         }
     )
+
+
+def friction_map_dict(friction_map: FrictionMap) -> dict:
+    """The `friction_map` of `fmm diagnose --json`: bin centres, mu, its error, runs."""
+
+    def curve(values: FrictionCurve, key: str) -> dict:
+        return {
+            key: list(values.centres),
+            'mu': list(values.mu),
+            'mu_stderr': list(values.mu_stderr),
+            'runs': list(values.runs),
+        }
+
+    return {
+        'speed': curve(friction_map.speed, 'speed_m_s'),
+        'position': curve(friction_map.position, 'position_m'),
+    }
+
+
+def _estimates_dict(parameters: tuple[ParameterEstimate, ...]) -> dict:
+    return {
+        'parameters': {p.name: p.value for p in parameters},
+        'parameter_stderr': {p.name: p.stderr for p in parameters},
+        'parameter_units': {p.name: p.unit for p in parameters},
+    }
+
+
+def _named_dict(named: NamedEffect) -> dict:
+    entry = {
+        'effect': named.effect,
+        'score': named.score,
+        'drop_score': named.drop_score,
+        'gap_after': named.gap_after,
+        'partial': named.partial,
+        **_estimates_dict(named.parameters),
+    }
+    if named.trend is not None:
+        entry.update(_trend_dict(named.trend))
+    if named.where is not None:
+        entry['where'] = _location_dict(named.where)
+    return entry
+
+
+def _trend_dict(trend: MuTrend) -> dict:
+    return {
+        'mu_per_hit': list(trend.mu),
+        'mu_per_hit_stderr': list(trend.mu_stderr),
+        'mu_per_hit_refitted': trend.refitted,
+        'slope_per_hit': trend.slope_per_hit,
+        'slope_stderr': trend.slope_stderr,
+        'trend_p_value': trend.p_value,
+        'consistency_chi2': trend.consistency_chi2,
+        'consistency_p_value': trend.consistency_p_value,
+    }
+
+
+def _location_dict(location: ResidualLocation) -> dict:
+    def bins(values: Sequence[signatures.BinMisfit], unit: str) -> list[dict]:
+        return [
+            {
+                f'low_{unit}': b.low,
+                f'high_{unit}': b.high,
+                'samples': b.samples,
+                'excess_rms_m_s': b.excess_rms_m_s,
+                'share': b.share,
+            }
+            for b in values
+        ]
+
+    return {
+        'summary': location.summary,
+        'excess_to_noise': location.excess_to_noise,
+        'time': [
+            {'region': r.name, 'share': r.share, 'excess_rms_m_s': r.excess_rms_m_s}
+            for r in location.time
+        ],
+        'frequency': [
+            {'band': b.name, 'low_hz': b.low_hz, 'high_hz': b.high_hz, 'share': b.share}
+            for b in location.frequency
+        ],
+        'speed': bins(location.speed, 'm_s'),
+        'position': bins(location.position, 'm'),
+    }
 
 
 def json_safe(value: object) -> object:

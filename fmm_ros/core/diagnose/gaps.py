@@ -5,18 +5,22 @@ motion (hit to the model's rest + `SETTLE_S`) of every impact, divided by the la
 speed; and the mobility misfit beyond the noise over f_n/2 to `MISFIT_BAND_LIMIT_HZ`. The raw
 RMS could not halve for effects the size of the noise; the excess can, and reaches the noise
 floor when the effect is captured. `input_noise_allowance` is what the force noise alone puts
-into a residual, which no model term may claim as evidence.
+into a residual, which no model term may claim as evidence. `measured_motion_stop` is where a
+record's motion (and SETTLE_S after it) ends, read off the measured velocity: the diagnosis
+fits the records up to there only.
 """
 
 import math
 from collections.abc import Sequence
 
 import numpy as np
+import scipy.fft
 
 from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ, SETTLE_S
 from fmm_ros.core.diagnose import signatures as discrepancy
 from fmm_ros.core.identify.conditioning import ConditionedImpact
 from fmm_ros.core.identify.friction import ModelFit
+from fmm_ros.core.identify.lsq import inner
 from fmm_ros.core.physics.model import simulate
 from fmm_ros.core.signal import frf
 
@@ -26,6 +30,50 @@ def motion_window(model_m_s: np.ndarray, hit_index: int, sample_rate_hz: float) 
     moving = np.flatnonzero(model_m_s[hit_index:] != 0.0)
     last = hit_index + (int(moving[-1]) if moving.size else 0)
     return slice(hit_index, min(model_m_s.size, last + 1 + round(SETTLE_S * sample_rate_hz)))
+
+
+STOP_MARGIN_S = 0.5
+"""Kept beyond the measured motion and SETTLE_S, so that a candidate whose motion lasts a
+little longer than the measured one is still seen whole [s]."""
+
+
+MOVING_SIGMAS = 6.0
+"""A block of samples is moving when its mean or variance departs from those at rest by this
+many of their standard errors."""
+
+
+def measured_motion_stop(impact: ConditionedImpact, natural_frequency_hz: float) -> int:
+    """Samples up to the end of the measured motion, plus SETTLE_S and STOP_MARGIN_S.
+
+    At most the record's length.
+    The velocity is cut into quarter-period blocks; the last quarter of the record, where the
+    rig rests, gives the level at rest (an offset included) and the variance there (noise,
+    hum and all). The motion ends with the last block whose mean or variance departs from
+    them by MOVING_SIGMAS standard errors. A record still moving at its end (its last quarter
+    louder than twice the second-difference noise) is kept whole.
+    """
+    velocity = impact.velocity_m_s
+    rate = impact.sample_rate_hz
+    size = max(2, round(0.25 * rate / natural_frequency_hz))
+    count = velocity.size // size
+    if count < 8:
+        return velocity.size
+    blocks = velocity[: count * size].reshape(count, size)
+    means = blocks.mean(axis=1)
+    variances = blocks.var(axis=1)
+    tail = slice(count - max(2, count // 4), count)
+    rest_mean = float(np.median(means[tail]))
+    rest_variance = float(np.median(variances[tail]))
+    if rest_variance > 4.0 * impact.velocity_noise_std_m_s**2:
+        return velocity.size
+    moving = (np.abs(means - rest_mean) > MOVING_SIGMAS * math.sqrt(rest_variance / size)) | (
+        variances > rest_variance * (1.0 + MOVING_SIGMAS * math.sqrt(2.0 / size))
+    )
+    moving[: impact.hit_end_index // size + 1] = True
+    last = int(np.flatnonzero(moving)[-1]) + 1
+    stop = last * size + round((SETTLE_S + STOP_MARGIN_S) * rate)
+    # A length with small prime factors: the spectra of the gaps and the signatures are DFTs.
+    return min(velocity.size, scipy.fft.next_fast_len(stop, real=True))
 
 
 def gap(
@@ -89,5 +137,5 @@ def input_noise_allowance(
             x0_m=base.initial_positions_m[index],
         ).velocity_m_s
         sensitivity = (scaled - base.simulate(index).velocity_m_s) / step
-        total += float(sensitivity @ sensitivity) * relative**2
+        total += inner(sensitivity, sensitivity) * relative**2
     return total / noise_std_m_s**2

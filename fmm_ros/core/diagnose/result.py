@@ -1,4 +1,4 @@
-"""What a diagnosis returns: the named effect, its parameters, every candidate, where, the gaps.
+"""What a diagnosis returns: the named effects, their parameters, candidates, where, the gaps.
 
 `fmm_ros.workflows.results.diagnosis_dict` is the JSON of `fmm diagnose --json`; the
 DiagnoseModel service response is filled from the same object
@@ -10,6 +10,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fmm_ros.core.diagnose import signatures as discrepancy
+from fmm_ros.core.diagnose.drift import MuTrend
+from fmm_ros.core.diagnose.friction_map import FrictionMap
 
 
 @dataclass(frozen=True)
@@ -24,19 +26,61 @@ class ParameterEstimate:
 
 @dataclass(frozen=True)
 class Candidate:
-    """One augmented model, refitted: its score against the base model and its gap."""
+    """One candidate at the first selection step: its score against the base model, its gap."""
 
     effect: str
     score: float
-    """BIC of this model minus the base model's: negative is better [-]."""
+    """BIC of the base model plus this effect minus the base model's: negative is better [-].
+    Refitted, or predicted by the screen (see `message`)."""
     aic_score: float
     """The same with the AIC penalty 2k instead of k ln n [-]."""
     gap_after: float
+    """Gap of the refitted model, or the screen's prediction of it [-]."""
     frf_gap_after: float
+    """Mobility misfit of the refitted model (NaN when only screened) [-]."""
     parameters: tuple[ParameterEstimate, ...]
-    """The augmented model's fitted parameters (mu first)."""
+    """The refitted model's parameters (mu first), or the screen's start of the effect's."""
     message: str = ''
-    """Why the refit failed, if it did (score and gaps are then inf / NaN)."""
+    """'screened: ...' when not refitted, or why the refit failed (score inf, gaps NaN)."""
+
+
+@dataclass(frozen=True)
+class ResidualLocation:
+    """Where a residual sits beyond the noise: decay regions, bands, the model's speed, position."""
+
+    summary: str
+    excess_to_noise: float
+    """RMS of the residual beyond the noise over the motion, over the noise RMS [-]."""
+    time: tuple[discrepancy.RegionMisfit, ...]
+    frequency: tuple[discrepancy.BandMisfit, ...]
+    speed: tuple[discrepancy.BinMisfit, ...]
+    """By the model's speed [m/s]: where friction's speed dependence would show."""
+    position: tuple[discrepancy.BinMisfit, ...]
+    """By the model's position [m]: where a wear track would show."""
+
+
+@dataclass(frozen=True)
+class NamedEffect:
+    """One missing effect the diagnosis names, in the order forward selection added it."""
+
+    effect: str
+    """A term of the vocabulary, 'mu_drift', or 'unexplained'."""
+    score: float
+    """BIC change when it was added (negative: better); NaN for 'unexplained' [-]."""
+    drop_score: float
+    """BIC change if it were taken out of the final model again (positive: it earns its
+    place); NaN for 'unexplained' [-]."""
+    gap_after: float
+    """Gap once it was added [-] (the final gap for 'unexplained')."""
+    parameters: tuple[ParameterEstimate, ...]
+    """Its own parameters in the final model (mu_drift: each hit's mu)."""
+    trend: MuTrend | None = None
+    """mu_drift: the per-hit mu, their slope in hit order and its significance."""
+    where: ResidualLocation | None = None
+    """'unexplained': where the residual the vocabulary leaves sits."""
+    partial: bool = False
+    """Named after 'unexplained': the vocabulary's best partial description of data it does
+    not explain, not a finding on its own."""
 
 
 @dataclass(frozen=True)
@@ -61,34 +105,52 @@ class Where:
 
 @dataclass(frozen=True)
 class Diagnosis:
-    """What `diagnose` found: the named effect (or 'none'), the gap before and after, why."""
+    """What `diagnose` found: the named effects (or 'none'), the gap before and after, why."""
 
     missing_effect: str
+    """The first of missing_effects, or 'none' (what single-answer callers read)."""
+    missing_effects: tuple[NamedEffect, ...]
+    """Every effect named, in the order added; 'unexplained' first when the best model leaves
+    a structured residual or does not halve the gap (the names after it are then only the
+    vocabulary's best partial description)."""
     parameters: tuple[ParameterEstimate, ...]
-    """The named model's fitted parameters (the base model's when 'none')."""
+    """The final model's fitted parameters (the base model's when nothing is named)."""
     mu: float
     """Friction coefficient of the base fit [-]."""
     mu_stderr: float
     gap_before: float
     """Normalised RMS velocity residual beyond the noise, base model [-]."""
     gap_after: float
-    """The same with the named effect added (= gap_before for 'none') [-]."""
+    """The same with every named effect added (= gap_before when none is) [-]."""
     frf_gap_before: float
     """Normalised mobility misfit beyond the noise, base model [-]."""
     frf_gap_after: float
     where: Where
     candidates: tuple[Candidate, ...]
-    """Every candidate, best score first."""
+    """Every candidate at the first selection step (against the base model), best first."""
+    selection: tuple[str, ...]
+    """What each step of the forward selection and the backward check did, in words."""
+    residual_where: ResidualLocation
+    """Where the final model's residual sits."""
+    mu_trend: MuTrend | None
+    """Each hit's mu and its trend in hit order (None for fewer than 4 hits)."""
+    friction_map: FrictionMap
+    """mu against sliding speed and position, from the records by inverse dynamics."""
     noise_std_m_s: float
     """Velocity noise estimated from the data [m/s]."""
     force_noise_std_n: float
     input_noise_allowance: float
     """Expected chi^2 the force noise alone puts into the base residual [-]."""
     required_score: float
-    """A candidate is named only with a score at or below this (and the gap halved) [-]."""
+    """An effect is added only with a score at or below this [-]."""
     verdict: str
     """One sentence: what was named and why, or why nothing was."""
     base_residuals_m_s: tuple[np.ndarray, ...] = field(repr=False)
     """Measured minus base-model velocity per impact [m/s] (for figures)."""
     named_residuals_m_s: tuple[np.ndarray, ...] = field(repr=False)
-    """Measured minus named-model velocity per impact [m/s] (base again for 'none')."""
+    """Measured minus final-model velocity per impact [m/s] (base again when none is named)."""
+
+    @property
+    def named_effects(self) -> tuple[str, ...]:
+        """The named effects, 'unexplained' included, in order."""
+        return tuple(named.effect for named in self.missing_effects)

@@ -1,36 +1,105 @@
-"""Where each candidate's refit starts: from the signature that points at its effect.
+"""Where each candidate is probed and refitted from: the signature that points at its effect.
 
 Added damping from the peak-map slope, asymmetry from the centre shift, k3 from the period
-slope, offset from the rest velocity, delay from the phase slope, Stribeck at 0.03 / 2 mm/s;
-the second mode at the strongest residual peak, its modal mass by linear least squares (which
-doubles as a score test that can skip the full refit).
+slope, offset from the rest velocity, delay from the phase slope; Stribeck at three speeds
+v_s; the second mode at the strongest residual peak with three damping ratios. These are
+probes: the screen (`screen`) scales each by regression on the residual, and the best,
+scaled, is where a refit starts.
 """
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import replace
 
 import numpy as np
 
 from fmm_ros.core.diagnose import signatures as discrepancy
 from fmm_ros.core.diagnose.result import Where
-from fmm_ros.core.diagnose.where import base_models
 from fmm_ros.core.identify.conditioning import ConditionedImpact
-from fmm_ros.core.identify.friction import ModelFit
-from fmm_ros.core.physics.model import simulate
 from fmm_ros.core.physics.rig import Rig
-from fmm_ros.core.physics.terms import MODEL_TERMS, ModelTerm, model_term
+from fmm_ros.core.physics.terms import EFFECT_SIZE, MODEL_TERMS, ModelTerm, model_term
+
+STRIBECK_PROBE_SPEEDS_M_S = (1e-3, 3e-3, 1e-2)
+"""Stribeck speeds v_s probed: the plausible range (0.1-50 mm/s) where a decay of a few
+hundred mm/s down to rest can tell them apart."""
+
+
+STRIBECK_PROBE_EXCESS = 0.02
+"""Static friction excess of the Stribeck probes [-] (the screen scales it)."""
+
+
+SECOND_MODE_DAMPING_RATIOS = (3e-3, 1e-2, 3e-2)
+"""Damping ratios probed for the second mode (its modal mass is what the screen scales)."""
+
+
+MODE_PEAK_SIGMAS = 8.0
+"""A residual peak must stand this many noise deviations out for a second mode to be probed
+there (the significance the base model's `where` reports peaks at)."""
+
+
+MODE_PEAKS = 3
+"""The second mode is probed at this many of the strongest peaks: mains hum (50 Hz and its
+harmonics) can stand out more than a weak mode, and no mode reproduces a steady tone."""
+
+
+def probes(
+    effect: str,
+    impacts: Sequence[ConditionedImpact],
+    residuals: Sequence[np.ndarray],
+    noise_std_m_s: float,
+    where: Where,
+    rig: Rig,
+) -> tuple[ModelTerm, ...]:
+    """The shapes of one candidate to screen, each at a size that moves the response.
+
+    Stribeck at each of STRIBECK_PROBE_SPEEDS_M_S; the second mode at each of the MODE_PEAKS
+    strongest peaks of the residual above 1.5 f_n, inside the term's frequency bounds,
+    standing MODE_PEAK_SIGMAS noise deviations out of it (none
+    without one: a mode rings narrow-band), with each damping ratio and 1 kg; every
+    other term at its start from the signatures (`start_term`), or at its default size where
+    the signature points at none.
+    """
+    cls = MODEL_TERMS[effect]
+    if effect == 'stribeck':
+        return tuple(
+            cls(mu_static_excess=STRIBECK_PROBE_EXCESS, stribeck_velocity_m_s=speed)
+            for speed in STRIBECK_PROBE_SPEEDS_M_S
+        )
+    if effect == 'second_mode':
+        low, high = cls.bounds()
+        peaks = discrepancy.non_harmonic_peaks(
+            residuals,
+            impacts[0].sample_rate_hz,
+            rig.natural_frequency_hz,
+            noise_std_m_s,
+            lowest_hz=max(1.5 * rig.natural_frequency_hz, float(low[0])),
+            highest_hz=min(float(high[0]), 0.45 * impacts[0].sample_rate_hz),
+            count=MODE_PEAKS,
+            threshold=MODE_PEAK_SIGMAS,
+            skip_harmonics=False,
+        )
+        return tuple(
+            model_term(
+                effect, frequency_hz=peak.frequency_hz, damping_ratio=zeta, modal_mass_kg=1.0
+            )
+            for peak in peaks
+            for zeta in SECOND_MODE_DAMPING_RATIOS
+        )
+    start = start_term(effect, impacts, where, rig)
+    name, _ = EFFECT_SIZE[effect]
+    if getattr(start, name) == 0.0:
+        default = next(p.default for p in cls.parameters if p.name == name)
+        start = replace(start, **{name: default})
+    return (start,)
 
 
 def start_term(
-    effect: str, impacts: Sequence[ConditionedImpact], base: ModelFit, where: Where, rig: Rig
+    effect: str, impacts: Sequence[ConditionedImpact], where: Where, rig: Rig
 ) -> ModelTerm:
-    """Where to start the refit of one candidate: from the signature that points at it.
+    """One candidate term at the size its signature points at (not the second mode's).
 
     Each is a rough estimate from the measured-minus-model signatures, clipped into the term's
-    plausible bounds; the refit does the rest. The second mode, whose misfit is many-valleyed
-    in frequency, starts from the strongest residual peak with its damping ratio and modal
-    mass chosen by linear least squares over a few damping ratios.
+    plausible bounds; the screen and the refit do the rest.
     """
     cls = MODEL_TERMS[effect]
     lower, upper = cls.bounds()
@@ -61,8 +130,6 @@ def start_term(
         )
         added = 2.0 * zeta * math.sqrt(stiffness * mass)
         return clipped(added if math.isfinite(added) and added > 0.01 else 0.2)
-    if effect == 'stribeck':
-        return clipped(0.03, 2e-3)
     if effect == 'asymmetric_friction':
         # Centres alternate between -mu+ N / k and +mu- N / k: their mean is -d N / (2k).
         shift = difference('centre_m')
@@ -82,78 +149,4 @@ def start_term(
         return clipped(
             delay if math.isfinite(delay) and delay > 0.0 else 1.0 / impacts[0].sample_rate_hz
         )
-    if effect == 'second_mode':
-        return second_mode_start(impacts, base, rig).term
     raise ValueError(f'no start rule for {effect!r}')
-
-
-SECOND_MODE_DAMPING_RATIOS = (3e-3, 1e-2, 3e-2)
-"""Damping ratios tried for the second mode's start (its modal mass solved for each)."""
-
-
-@dataclass(frozen=True)
-class _ModeStart:
-    term: ModelTerm
-    chi2_gain: float
-    """Fall of the residual chi^2 the start mode alone gives, mu held (a score test) [-]."""
-    residuals_m_s: tuple[np.ndarray, ...]
-    """The base residuals less that mode's response."""
-
-
-def second_mode_start(impacts: Sequence[ConditionedImpact], base: ModelFit, rig: Rig) -> _ModeStart:
-    """Start at the strongest residual peak above 1.5 f_n, with zeta and m2 by least squares.
-
-    The mode is linear and decoupled from the friction contact, so its velocity is the base
-    model's with the mode minus the base model's, and scales as 1 / m2: for each trial zeta,
-    one simulation per impact with m2 = 1 kg and a one-parameter regression of the residual.
-    Without a peak, or where no trial lowers the residual, the start is the mode at its
-    heaviest and the gain zero.
-    """
-    cls = MODEL_TERMS['second_mode']
-    noise = base.noise_std_m_s
-    rate = impacts[0].sample_rate_hz
-    peaks = discrepancy.non_harmonic_peaks(
-        base.residuals_m_s,
-        rate,
-        rig.natural_frequency_hz,
-        noise,
-        count=1,
-        threshold=0.0,
-        skip_harmonics=False,
-    )
-    lower, upper = cls.bounds()
-    frequency = peaks[0].frequency_hz if peaks else cls.parameters[0].default
-    best = _ModeStart(cls(frequency_hz=frequency, modal_mass_kg=upper[2]), 0.0, base.residuals_m_s)
-    if not peaks:
-        return best
-    models = base_models(impacts, base)
-    for zeta in SECOND_MODE_DAMPING_RATIOS:
-        unit = model_term(
-            'second_mode', frequency_hz=frequency, damping_ratio=zeta, modal_mass_kg=1.0
-        )
-        shapes = [
-            simulate(
-                impact.force_n,
-                rate,
-                rig=base.rig,
-                mu=base.mu,
-                effects=(*base.effects, unit),
-                x0_m=base.initial_positions_m[index],
-            ).velocity_m_s
-            - model
-            for index, (impact, model) in enumerate(zip(impacts, models, strict=True))
-        ]
-        numerator = sum(float(s @ r) for s, r in zip(shapes, base.residuals_m_s, strict=True))
-        denominator = sum(float(s @ s) for s in shapes)
-        if numerator <= 0.0 or denominator == 0.0:
-            continue
-        mass = float(np.clip(denominator / numerator, lower[2], upper[2]))  # 1 / scale
-        residuals = tuple(r - s / mass for r, s in zip(base.residuals_m_s, shapes, strict=True))
-        gain = (
-            sum(float(r @ r) for r in base.residuals_m_s) - sum(float(r @ r) for r in residuals)
-        ) / noise**2
-        if gain > best.chi2_gain:
-            best = _ModeStart(
-                cls(frequency_hz=frequency, damping_ratio=zeta, modal_mass_kg=mass), gain, residuals
-            )
-    return best

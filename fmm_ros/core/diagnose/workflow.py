@@ -1,46 +1,99 @@
-"""The discrepancy workflow: fit the base model, find where it misses, name the missing effect.
+"""The discrepancy workflow: what the base model misses, named effect by effect, or 'unexplained'.
 
-1. Fit the base model (Eq. 3, mu fitted, rig constants given) to every impact at once, with
-   the fitter of `fmm_ros.core.identify`. Its default model fits neither a channel delay nor a
-   velocity offset (the velocity is left as measured), so `sensor_delay` and
-   `velocity_offset` stay visible to the diagnosis.
-2. Find where it disagrees: the residual beyond the noise by region of the decay and by band,
-   and the signatures that point at causes (`fmm_ros.core.diagnose.signatures`), measured
-   beside the base model's own (`where`).
-3. Refit the model once per candidate effect (`EFFECTS`, the names of `MODEL_TERMS`), each
-   started where its signature points (`starts`), and score each with the Bayesian
-   information criterion BIC = RSS / s^2 + k ln n, s the velocity noise estimated from the data
-   (second differences), k the fitted parameters, n the samples.
-4. Name the best candidate only when it is clearly better than the base model: its BIC is
-   lower by at least `BIC_EVIDENCE` plus `INPUT_NOISE_FACTOR` times what the force noise
-   alone could buy (`input_noise_allowance`), and it removes at least `EXPLAINED_GAP` of the
-   gap. Otherwise the answer is 'none'.
-5. The gap is the same measure before and after (`gaps`).
+1. Check and condition the records; crop every one to the measured motion (the longest
+   record's, `measured_motion_stop`): the rest of a 33 s record is the rig at rest, which
+   every model predicts alike, and fitting it cost most of the time.
+2. Fit the base model (Eq. 3, mu fitted, rig constants given) to every impact at once with
+   `fit_model`. Its default model fits neither a channel delay nor a velocity offset, so
+   `sensor_delay` and `velocity_offset` stay visible to the diagnosis.
+3. Where it disagrees (`where`), and the signatures that start the candidates (`starts`).
+4. Forward selection. At the current model every remaining candidate (`EFFECTS`: the model
+   terms, and `mu_drift`, one mu per hit) is screened (`screen`: the chi^2 one linearised
+   step could remove); the best `MAX_REFITS` whose screen reaches `SCREEN_FRACTION` of the
+   required gain are refitted in full, and the best refit is added when it is clearly better
+   (BIC lower by `BIC_EVIDENCE` plus `INPUT_NOISE_FACTOR` times what the force noise alone
+   explains, the required score), removes at least `MIN_STEP_SHARE` of the squared gap left
+   at that step, accounts for at least `MIN_EXCESS` of the noise RMS (sqrt of the fall of
+   the squared excess over the motion), and, for `mu_drift`, the refitted per-hit mu trend
+   in hit order (p < `DRIFT_P_VALUE`). Repeat until no candidate qualifies.
+5. Backward check: with two or more named, each is taken out in turn (the rest refitted);
+   one whose removal costs less than the required score is dropped, and the check repeats.
+6. Verdict. The named set must at least halve the gap (`EXPLAINED_GAP`), or no vocabulary
+   name is given. The data are 'unexplained' when what is left, by the named model or by
+   the base model when nothing is named, is still `MIN_EXCESS` times the noise RMS
+   beyond the noise over the motion; with names that halve the gap, 'unexplained' comes
+   first and the names are marked partial. Where the residual sits (regions, bands, speed,
+   position) is reported either way.
+7. The friction law the records show (`friction_map`), the per-hit mu trend (`drift`), and
+   the residuals of the base and final models over the whole records.
 """
 
 import math
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from fmm_ros.core.diagnose.gaps import frf_gap, gap, input_noise_allowance, motion_window
-from fmm_ros.core.diagnose.result import Candidate, Diagnosis, ParameterEstimate, Where
-from fmm_ros.core.diagnose.starts import second_mode_start, start_term
-from fmm_ros.core.diagnose.where import locate_misfit
-from fmm_ros.core.identify.conditioning import ConditionedImpact, FitError, as_conditioned
-from fmm_ros.core.identify.friction import ModelFit, fit_model
+from fmm_ros.constants import MU_DRIFT
+from fmm_ros.core.diagnose.drift import MIN_DRIFT_HITS, MuTrend, mu_trend
+from fmm_ros.core.diagnose.friction_map import (
+    HIT_GUARD_S,
+    FrictionMap,
+    MapRecord,
+    friction_map,
+)
+from fmm_ros.core.diagnose.gaps import (
+    frf_gap,
+    gap,
+    input_noise_allowance,
+    measured_motion_stop,
+    motion_window,
+)
+from fmm_ros.core.diagnose.result import (
+    Candidate,
+    Diagnosis,
+    NamedEffect,
+    ParameterEstimate,
+    Where,
+)
+from fmm_ros.core.diagnose.screen import (
+    Linearisation,
+    Screen,
+    screen_drift,
+    screen_term,
+    screened_hits,
+)
+from fmm_ros.core.diagnose.session_model import (
+    SessionModel,
+    with_mu_per_hit,
+    with_terms,
+    without,
+)
+from fmm_ros.core.diagnose.starts import probes
+from fmm_ros.core.diagnose.where import locate_misfit, locate_residual
+from fmm_ros.core.identify.conditioning import (
+    ConditionedImpact,
+    FitError,
+    as_conditioned,
+    cropped_impact,
+    source_prefix,
+)
+from fmm_ros.core.identify.friction import fit_model
+from fmm_ros.core.identify.lsq import inner
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import MODEL_TERMS
 
-EFFECTS: tuple[str, ...] = tuple(MODEL_TERMS)
-"""Candidate effects, by the names of the model terms."""
+EFFECTS: tuple[str, ...] = (*MODEL_TERMS, MU_DRIFT)
+"""Candidate effects: the model terms by name, and mu drifting from hit to hit."""
 
 
 NONE = 'none'
 
 
-VOCABULARY: tuple[str, ...] = (*EFFECTS, NONE)
+UNEXPLAINED = 'unexplained'
+
+
+VOCABULARY: tuple[str, ...] = (*EFFECTS, NONE, UNEXPLAINED)
 
 
 BIC_EVIDENCE = 10.0
@@ -52,207 +105,628 @@ INPUT_NOISE_FACTOR = 3.0
 
 
 EXPLAINED_GAP = 0.5
-"""A named effect must at least halve the gap: gap_after <= (1 - this) x gap_before."""
+"""The named effects together must at least halve the gap: gap_after <= (1 - this) x before."""
 
 
-SCREEN_SECOND_MODE = True
-"""Screen the second mode with a score test before its full refit (see `_refit`)."""
+MIN_STEP_SHARE = 0.25
+"""Each effect added removes at least this share of the squared gap left at its step: the gap
+shrinks clearly. Of the step's gap, not the base model's: of two effects whose signatures
+overlap, the first added takes most of the other's share too, and once the first is in, most
+of what is left is the second's; a term that only trims a law outside the vocabulary removes
+much less."""
+
+
+MIN_EXCESS = 0.5
+"""The smallest misfit the diagnosis speaks of, as RMS beyond the noise over the motion in
+units of the noise RMS: an effect is named only if it accounts for this much, and what the
+best model leaves is 'unexplained' from this much. (A worlds vibrometer whose zero drifts by
+0.2 of the noise over a session is real, and BIC over 40,000 samples a hit finds it, but it
+is not what a diagnosis of the rig is for; a right answer leaves 0.0-0.15.)"""
+
+
+DRIFT_P_VALUE = 1e-3
+"""mu_drift is named only when the per-hit mu trend in hit order at least this significantly."""
+
+
+SCREEN_FRACTION = 0.5
+"""A candidate is refitted only when its screen predicts at least this share of the required
+BIC gain (a refit finds more than the linear step, rarely twice as much)."""
+
+
+MAX_REFITS = 2
+"""Candidates refitted in full per selection step, best screens first."""
+
+
+RUNNER_UP_FRACTION = 0.3
+"""A candidate after the best screen is refitted only if its screen reaches this fraction of
+the best's: the screen ranks well, and a refit with little to find wanders longest."""
+
+
+MIN_DECAY_PERIODS = 3.0
+"""A record must run this many natural periods after its hit for a decay to be seen."""
+
+
+Progress = Callable[[str], None]
 
 
 def diagnose(
     impacts: Sequence,
     *,
     rig: Rig = FMM_RIG,
-    candidates: Sequence[str] = EFFECTS,
+    candidates: Sequence[str] | None = None,
     fit_initial_position: bool = False,
+    progress: Progress | None = None,
 ) -> Diagnosis:
-    """Find the effect the base model (Eq. 3, mu fitted) misses in these impacts, if any.
+    """Find the effects the base model (Eq. 3, mu fitted) misses in these impacts, if any.
 
     impacts: records with force_n, velocity_m_s and sample_rate_hz (CSV or simulated impact
-    records) or ConditionedImpacts; every one is fitted at once. fit_initial_position: every
-    model, base and candidates alike, also fits where each impact starts (a hit that found
-    the rig held off centre by friction), as `fmm fit --fit-initial-position` does. Raises
-    ValueError for bad input or a candidate outside EFFECTS, and FitError (a ValueError)
-    when the base model cannot be fitted at all.
+    records) or ConditionedImpacts, in hit order (mu_drift looks for a trend in it); every
+    one is fitted at once. candidates: effects to consider (default: every one of EFFECTS,
+    mu_drift only from MIN_DRIFT_HITS hits). fit_initial_position: every model also fits
+    where each impact starts (a hit that found the rig held off centre by friction), as
+    `fmm fit --fit-initial-position` does. progress: called with a line of text after each
+    screen, refit and selection step. Raises ValueError naming the problem for bad input
+    (no impacts, a non-finite sample, a record too short to show a decay, mixed sample rates,
+    an unknown candidate, mu_drift with too few hits), and FitError (a ValueError) when the
+    base model cannot be fitted at all.
     """
+    say = progress or _silent
+    conditioned = _checked_impacts(impacts, rig)
+    candidates = _checked_candidates(candidates, len(conditioned))
+    stop = max(measured_motion_stop(impact, rig.natural_frequency_hz) for impact in conditioned)
+    cropped = [cropped_impact(impact, stop) for impact in conditioned]
+    base = SessionModel((), fit_model(cropped, rig=rig, fit_initial_position=fit_initial_position))
+    say(
+        f'base model fitted to {len(cropped)} impact(s), {stop / cropped[0].sample_rate_hz:.1f} s '
+        f'each: mu = {base.joint.mu:.5f}'
+    )
+    session = _Session(cropped, base, rig, fit_initial_position, say)
+    selection = session.select(candidates)
+    return session.conclude(conditioned, selection, MU_DRIFT in candidates)
+
+
+def _silent(_message: str) -> None:
+    """The default progress callback: nothing."""
+
+
+def _checked_impacts(impacts: Sequence, rig: Rig) -> list[ConditionedImpact]:
+    if isinstance(impacts, ConditionedImpact) or hasattr(impacts, 'force_n'):
+        impacts = [impacts]
+    conditioned = [as_conditioned(impact) for impact in impacts]
+    if not conditioned:
+        raise ValueError('no impacts to diagnose')
+    rates = {impact.sample_rate_hz for impact in conditioned}
+    if len(rates) > 1:
+        raise ValueError(
+            f'the impacts have different sample rates ({", ".join(f"{r:g}" for r in rates)} '
+            'Hz): diagnose records of one rate together'
+        )
+    need_s = MIN_DECAY_PERIODS / rig.natural_frequency_hz
+    for impact in conditioned:
+        after_s = (impact.force_n.size - impact.hit_end_index) / impact.sample_rate_hz
+        if after_s < need_s:
+            raise ValueError(
+                f'{source_prefix(impact.source)}the record runs only {after_s:.3g} s after '
+                f'the hit: too short to see a decay (need {need_s:.3g} s, '
+                f'{MIN_DECAY_PERIODS:g} natural periods of the rig)'
+            )
+    return conditioned
+
+
+def _checked_candidates(candidates: Sequence[str] | None, hits: int) -> tuple[str, ...]:
+    if candidates is None:
+        return tuple(e for e in EFFECTS if e != MU_DRIFT or hits >= MIN_DRIFT_HITS)
+    if isinstance(candidates, str):
+        candidates = (candidates,)
     unknown = [name for name in candidates if name not in EFFECTS]
     if unknown:
         raise ValueError(
             f'unknown candidate effect(s) {", ".join(map(repr, unknown))}; '
             f'known: {", ".join(EFFECTS)}'
         )
-    if isinstance(impacts, ConditionedImpact) or hasattr(impacts, 'force_n'):
-        impacts = [impacts]
-    conditioned = [as_conditioned(impact) for impact in impacts]
-    if not conditioned:
-        raise ValueError('no impacts to diagnose')
-    base = fit_model(conditioned, rig=rig, fit_initial_position=fit_initial_position)
-    noise = base.noise_std_m_s
-    models = [
-        impact.velocity_m_s - residual
-        for impact, residual in zip(conditioned, base.residuals_m_s, strict=True)
-    ]
-    hits = [impact.gate[0][0] for impact in conditioned]
-    windows = [
-        motion_window(model, hit, impact.sample_rate_hz)
-        for model, hit, impact in zip(models, hits, conditioned, strict=True)
-    ]
-    peak_speed = max(impact.peak_velocity_m_s for impact in conditioned)
-    where = locate_misfit(conditioned, base, models, hits, rig)
-    allowance = input_noise_allowance(conditioned, base, noise)
-    required = -(BIC_EVIDENCE + INPUT_NOISE_FACTOR * allowance)
-
-    def gaps(residuals):
-        return (
-            gap(residuals, windows, noise, peak_speed),
-            frf_gap(conditioned, residuals, noise, rig.natural_frequency_hz),
+    if MU_DRIFT in candidates and hits < MIN_DRIFT_HITS:
+        raise ValueError(
+            f'{MU_DRIFT} needs at least {MIN_DRIFT_HITS} impacts to see a trend in hit '
+            f'order, got {hits}'
         )
-
-    gap_before, frf_gap_before = gaps(base.residuals_m_s)
-    base_bic, base_aic = _criteria(base.residuals_m_s, noise, len(base.names), base.n_samples)
-    tried, fits = [], {}
-    for effect in candidates:
-        refit, message = _refit(effect, conditioned, base, where, rig, fit_initial_position)
-        if refit is None:
-            tried.append(Candidate(effect, math.inf, math.inf, math.nan, math.nan, (), message))
-            continue
-        if isinstance(refit, ModelFit):
-            fits[effect] = refit
-        bic, aic = _criteria(refit.residuals_m_s, noise, len(refit.names), base.n_samples)
-        tried.append(
-            Candidate(
-                effect,
-                bic - base_bic,
-                aic - base_aic,
-                *gaps(refit.residuals_m_s),
-                _estimates(refit),
-                message,
-            )
-        )
-    tried.sort(key=lambda c: c.score)
-    named, verdict = _decide(tried, gap_before, required)
-    chosen = fits[named] if named != NONE else base
-    winner = next((c for c in tried if c.effect == named), None)
-    return Diagnosis(
-        missing_effect=named,
-        parameters=_estimates(chosen),
-        mu=base.mu,
-        mu_stderr=base.mu_stderr,
-        gap_before=gap_before,
-        gap_after=winner.gap_after if winner else gap_before,
-        frf_gap_before=frf_gap_before,
-        frf_gap_after=winner.frf_gap_after if winner else frf_gap_before,
-        where=where,
-        candidates=tuple(tried),
-        noise_std_m_s=noise,
-        force_noise_std_n=_pooled_force_noise(conditioned),
-        input_noise_allowance=allowance,
-        required_score=required,
-        verdict=verdict,
-        base_residuals_m_s=base.residuals_m_s,
-        named_residuals_m_s=chosen.residuals_m_s,
-    )
-
-
-def _decide(candidates: Sequence[Candidate], gap_before: float, required: float) -> tuple[str, str]:
-    """(name, verdict): the best candidate if clearly better than the base model, else none."""
-    usable = [c for c in candidates if math.isfinite(c.score)]
-    if not usable:
-        return NONE, 'no candidate could be refitted; the base model stands'
-    best = usable[0]
-    if best.score > required:
-        return NONE, (
-            f'no candidate beats the base model clearly (best: {best.effect}, score '
-            f'{best.score:.1f} > required {required:.1f}): the base model explains '
-            'the data within the noise'
-        )
-    if best.gap_after > (1.0 - EXPLAINED_GAP) * gap_before:
-        return NONE, (
-            f'{best.effect} scores best ({best.score:.1f}) but removes only '
-            f'{100 * (1 - best.gap_after / gap_before):.0f} % of the gap; no single '
-            'effect of the vocabulary explains the discrepancy'
-        )
-    runner = usable[1] if len(usable) > 1 else None
-    margin = f', {runner.score - best.score:.0f} ahead of {runner.effect}' if runner else ''
-    return best.effect, (
-        f'{best.effect}: score {best.score:.0f} (required <= {required:.1f}'
-        f'{margin}); gap {gap_before:.3g} -> {best.gap_after:.3g}'
-    )
+    return tuple(dict.fromkeys(candidates))
 
 
 @dataclass(frozen=True)
-class _Screened:
-    """A candidate scored by its linearised start instead of a full refit (see `_refit`)."""
+class _Step:
+    """One effect added by forward selection."""
 
-    names: tuple[str, ...]
-    units: tuple[str, ...]
-    values: np.ndarray
-    stderr: np.ndarray
-    residuals_m_s: tuple[np.ndarray, ...]
-
-
-def _refit(
-    effect: str,
-    impacts: Sequence[ConditionedImpact],
-    base: ModelFit,
-    where: Where,
-    rig: Rig,
-    fit_initial_position: bool,
-) -> tuple[ModelFit | _Screened | None, str]:
-    """(fit, note): the base model plus one effect, refitted from its start.
-
-    The second mode is screened first by a score test: its best start (the strongest residual
-    peak, zeta and m2 by linear least squares, mu held) is the one-step estimate of the refit.
-    Where that lowers chi^2 by less than the BIC penalty of the mode's three parameters, a
-    full refit (many-valleyed in frequency, slow where there is no mode to find) could not
-    make it a clear winner, so the candidate is scored at that start: residuals of the base
-    model less the regressed mode, all four parameters counted, standard errors NaN. A refit
-    the fitter refuses is reported with its reason, never named.
-    """
-    try:
-        if effect == 'second_mode' and SCREEN_SECOND_MODE:
-            screen = second_mode_start(impacts, base, rig)
-            penalty = len(screen.term.parameters) * math.log(base.n_samples)
-            if screen.chi2_gain < penalty:
-                term = screen.term
-                return _Screened(
-                    names=(*base.names, *(f'{term.name}.{p.name}' for p in term.parameters)),
-                    units=(*base.units, *(p.unit for p in term.parameters)),
-                    values=np.concatenate((base.values, term.to_vector())),
-                    stderr=np.concatenate((base.stderr, np.full(len(term.parameters), math.nan))),
-                    residuals_m_s=screen.residuals_m_s,
-                ), (
-                    f'screened: its best start lowers chi^2 by {screen.chi2_gain:.1f}, less '
-                    f'than the BIC penalty {penalty:.1f} of its parameters; not refitted'
-                )
-            start = screen.term
-        else:
-            start = start_term(effect, impacts, base, where, rig)
-        return fit_model(
-            impacts, rig=rig, mu0=base.mu, terms=(start,), fit_initial_position=fit_initial_position
-        ), ''
-    except FitError as error:
-        return None, f'refit failed: {error}'
+    effect: str
+    model: SessionModel
+    score: float
+    gap_after: float
 
 
-def _criteria(
-    residuals: Sequence[np.ndarray], noise_std_m_s: float, k: int, n: int
-) -> tuple[float, float]:
-    """(BIC, AIC) of a time-domain fit of k parameters over n samples, noise level given.
+@dataclass(frozen=True)
+class _Selection:
+    """What forward selection and the backward check left."""
 
-    Both up to a constant common to every model of the same records.
-    """
-    chi2 = sum(float(r @ r) for r in residuals) / noise_std_m_s**2
-    return chi2 + k * math.log(n), chi2 + 2.0 * k
+    model: SessionModel
+    steps: tuple[_Step, ...]
+    candidates: tuple[Candidate, ...]
+    log: tuple[str, ...]
+    best_partial: str
+    """The best named combination when it fails to halve the gap, in words ('' otherwise)."""
 
 
-def _estimates(fit: ModelFit | _Screened) -> tuple[ParameterEstimate, ...]:
-    return tuple(
-        ParameterEstimate(name, float(value), unit, float(error))
-        for name, value, unit, error in zip(
-            fit.names, fit.values, fit.units, fit.stderr, strict=True
+class _Session:
+    """The cropped impacts, the base model and what every step measures against."""
+
+    def __init__(
+        self,
+        impacts: list[ConditionedImpact],
+        base: SessionModel,
+        rig: Rig,
+        fit_initial_position: bool,
+        say: Progress,
+    ) -> None:
+        self.impacts = impacts
+        self.base = base
+        self.rig = rig
+        self.fit_initial_position = fit_initial_position
+        self.say = say
+        self.noise = base.joint.noise_std_m_s
+        self.n_samples = base.joint.n_samples
+        self.rate = impacts[0].sample_rate_hz
+        self.models = [i.velocity_m_s - r for i, r in zip(impacts, base.residuals_m_s, strict=True)]
+        self.hits = [impact.gate[0][0] for impact in impacts]
+        self.windows = [
+            motion_window(model, hit, self.rate)
+            for model, hit in zip(self.models, self.hits, strict=True)
+        ]
+        self.motion_samples = sum(w.stop - w.start for w in self.windows)
+        self.peak = max(impact.peak_velocity_m_s for impact in impacts)
+        self.where: Where = locate_misfit(
+            impacts, base.residuals_m_s, self.models, self.hits, rig, self.noise
         )
-    )
+        self.allowance = input_noise_allowance(impacts, base.joint, self.noise)
+        self.required = -(BIC_EVIDENCE + INPUT_NOISE_FACTOR * self.allowance)
+        self.gap_before = self.gap(base.residuals_m_s)
+        self.cache: dict[frozenset, SessionModel] = {frozenset(): base}
+        self.drift_screens: dict[frozenset, Screen] = {}
+
+    def gap(self, residuals: Sequence[np.ndarray]) -> float:
+        """Normalised RMS residual beyond the noise over the motion windows [-]."""
+        return gap(residuals, self.windows, self.noise, self.peak)
+
+    def frf_gap(self, residuals: Sequence[np.ndarray]) -> float:
+        """Normalised mobility misfit beyond the noise [-]."""
+        return frf_gap(self.impacts, residuals, self.noise, self.rig.natural_frequency_hz)
+
+    def score(self, model: SessionModel, reference: SessionModel) -> tuple[float, float]:
+        """(BIC, AIC) of model minus reference [-]."""
+        return (
+            model.bic(self.noise, self.n_samples) - reference.bic(self.noise, self.n_samples),
+            model.aic(self.noise) - reference.aic(self.noise),
+        )
+
+    @staticmethod
+    def share(before: float, after: float) -> float:
+        """Share of the squared gap removed going from gap before to after [-]."""
+        return (before**2 - after**2) / before**2 if before > 0.0 else 0.0
+
+    def predicted_gap(self, residuals: Sequence[np.ndarray], chi2_gain: float) -> float:
+        """The gap once chi2_gain is removed from inside the motion windows [-]."""
+        inside = sum(inner(r[w], r[w]) for r, w in zip(residuals, self.windows, strict=True))
+        mean = (inside - chi2_gain * self.noise**2) / self.motion_samples
+        return math.sqrt(max(mean - self.noise**2, 0.0)) / self.peak
+
+    # Forward selection and backward check
+
+    def select(self, candidates: Sequence[str]) -> _Selection:
+        """Forward selection, then the backward check (module doc, steps 4 and 5)."""
+        current, steps, log, table = self.base, [], [], None
+        best_partial = ''
+        while True:
+            remaining = [e for e in candidates if e not in current.effects]
+            if not remaining:
+                break
+            number = len(steps) + 1
+            tried = self._step(number, current, remaining)
+            if table is None:
+                table = tuple(sorted((c for c, _ in tried), key=lambda c: c.score))
+            chosen, reason = self._choose(current, tried)
+            if chosen is None:
+                log.append(f'step {number}: {reason}')
+                self.say(log[-1])
+                break
+            candidate, model = chosen
+            steps.append(_Step(candidate.effect, model, candidate.score, candidate.gap_after))
+            log.append(
+                f'step {number}: added {candidate.effect} (score {candidate.score:.0f}, gap '
+                f'{self.gap(current.residuals_m_s):.3g} -> {candidate.gap_after:.3g})'
+            )
+            self.say(log[-1])
+            current = model
+        current, steps = self._backward(current, steps, log)
+        if steps and self.gap(current.residuals_m_s) > (1.0 - EXPLAINED_GAP) * self.gap_before:
+            best_partial = (
+                f'{" + ".join(current.effects)} removes only '
+                f'{100 * self.share(self.gap_before, self.gap(current.residuals_m_s)):.0f} % of '
+                'the squared gap'
+            )
+        return _Selection(current, tuple(steps), table or (), tuple(log), best_partial)
+
+    def _step(
+        self, number: int, current: SessionModel, remaining: Sequence[str]
+    ) -> list[tuple[Candidate, SessionModel | None]]:
+        """Screen every remaining candidate at the current model; refit the best few."""
+        hits = screened_hits(len(self.impacts))
+        linear = Linearisation(self.impacts, current, self.fit_initial_position, hits)
+        screens = []
+        for effect in remaining:
+            if effect == MU_DRIFT:
+                every = (
+                    linear
+                    if linear.scale == 1.0
+                    else Linearisation(self.impacts, current, self.fit_initial_position)
+                )
+                screen = screen_drift(every, self.noise)
+                self.drift_screens[frozenset(current.effects)] = screen
+            else:
+                shapes = probes(
+                    effect, linear.impacts, linear.residuals, self.noise, self.where, self.rig
+                )
+                screen = screen_term(effect, shapes, linear, self.noise)
+            self.say(f'step {number}: screened {effect}: chi^2 could fall {screen.chi2_gain:.0f}')
+            screens.append(screen)
+        screens.sort(key=lambda s: -s.chi2_gain)
+        threshold = max(SCREEN_FRACTION * -self.required, RUNNER_UP_FRACTION * screens[0].chi2_gain)
+        tried = []
+        for rank, screen in enumerate(screens):
+            if rank < MAX_REFITS and screen.chi2_gain >= threshold:
+                tried.append(self._refit(number, current, screen))
+            else:
+                tried.append((self._screened(current, screen, threshold), None))
+        return tried
+
+    def _screened(self, current: SessionModel, screen: Screen, threshold: float) -> Candidate:
+        """A candidate scored by its screen alone: predicted chi^2 fall, parameters counted."""
+        gain, k = screen.chi2_gain, screen.added_parameters
+        parameters = current.estimates()
+        if screen.start is not None:
+            parameters += tuple(
+                ParameterEstimate(f'{screen.effect}.{p.name}', float(v), p.unit, math.nan)
+                for p, v in zip(screen.start.parameters, screen.start.to_vector(), strict=True)
+            )
+        elif screen.mu_per_hit is not None:
+            parameters += tuple(
+                ParameterEstimate(f'{MU_DRIFT}.mu[{i}]', float(mu), '1', float(error))
+                for i, (mu, error) in enumerate(
+                    zip(screen.mu_per_hit, screen.mu_per_hit_stderr, strict=True)
+                )
+            )
+        why = (
+            f'below {threshold:.0f} (half the required gain, 30 % of the best screen)'
+            if gain < threshold
+            else f'not among the {MAX_REFITS} best screens'
+        )
+        note = f'screened: chi^2 could fall {gain:.0f}, {why}; not refitted'
+        if screen.note:
+            note += f' ({screen.note})'
+        return Candidate(
+            screen.effect,
+            -gain + k * math.log(self.n_samples),
+            -gain + 2.0 * k,
+            self.predicted_gap(current.residuals_m_s, gain),
+            math.nan,
+            parameters,
+            note,
+        )
+
+    def _refit(
+        self, number: int, current: SessionModel, screen: Screen
+    ) -> tuple[Candidate, SessionModel | None]:
+        """The current model plus the screened effect, refitted in full (cached by effects)."""
+        key = frozenset((*current.effects, screen.effect))
+        try:
+            if key in self.cache:
+                model = self.cache[key]
+            elif screen.effect == MU_DRIFT:
+                model = with_mu_per_hit(
+                    self.impacts, current, screen.mu_per_hit, self.fit_initial_position
+                )
+            else:
+                model = with_terms(
+                    self.impacts,
+                    current,
+                    screen.effect,
+                    screen.start,
+                    self.fit_initial_position,
+                    mu0=current.joint.mu + screen.mu_shift,
+                )
+        except FitError as error:
+            self.say(f'step {number}: refit of {screen.effect} failed: {error}')
+            return Candidate(
+                screen.effect, math.inf, math.inf, math.nan, math.nan, (), f'refit failed: {error}'
+            ), None
+        self.cache[key] = model
+        bic, aic = self.score(model, current)
+        self.say(f'step {number}: refitted {screen.effect}: score {bic:.0f}')
+        return Candidate(
+            screen.effect,
+            bic,
+            aic,
+            self.gap(model.residuals_m_s),
+            self.frf_gap(model.residuals_m_s),
+            model.estimates(),
+        ), model
+
+    def _choose(
+        self, current: SessionModel, tried: list[tuple[Candidate, SessionModel | None]]
+    ) -> tuple[tuple[Candidate, SessionModel] | None, str]:
+        """The best refit that qualifies (module doc, step 4), or None and why none does."""
+        gap_now = self.gap(current.residuals_m_s)
+        refits = sorted(
+            ((c, m) for c, m in tried if m is not None and math.isfinite(c.score)),
+            key=lambda item: item[0].score,
+        )
+        if not refits:
+            best = min((c for c, _ in tried), key=lambda c: c.score, default=None)
+            if best is None:
+                return None, 'no candidate left'
+            return None, (
+                f'no candidate screens near the required score {self.required:.1f} (best: '
+                f'{best.effect}, predicted {best.score:.0f}); the model explains the data '
+                'within the noise'
+                if not current.effects
+                else f'no further candidate screens near the required score (best: '
+                f'{best.effect}, predicted {best.score:.0f})'
+            )
+        reasons = []
+        for candidate, model in refits:
+            share = self.share(gap_now, candidate.gap_after)
+            size = self.peak * math.sqrt(max(gap_now**2 - candidate.gap_after**2, 0.0))
+            size /= self.noise
+            if candidate.score > self.required:
+                reasons.append(
+                    f'{candidate.effect} scores {candidate.score:.0f} > required '
+                    f'{self.required:.1f}'
+                )
+            elif share < MIN_STEP_SHARE:
+                reasons.append(
+                    f'{candidate.effect} scores {candidate.score:.0f} but removes only '
+                    f'{100 * share:.1f} % of the squared gap'
+                )
+            elif size < MIN_EXCESS:
+                reasons.append(
+                    f'{candidate.effect} scores {candidate.score:.0f} but accounts for only '
+                    f'{size:.2f}x the noise RMS'
+                )
+            elif candidate.effect == MU_DRIFT and (trend := _trend(model)).p_value >= DRIFT_P_VALUE:
+                reasons.append(
+                    f'one mu does not serve every hit (score {candidate.score:.0f}), but the '
+                    f'per-hit mu show no trend in hit order (p = {trend.p_value:.2g})'
+                )
+            else:
+                return (candidate, model), ''
+        return None, 'nothing more qualifies: ' + '; '.join(reasons)
+
+    def _backward(
+        self, current: SessionModel, steps: list[_Step], log: list[str]
+    ) -> tuple[SessionModel, list[_Step]]:
+        """Drop any named effect whose removal costs less than the required score."""
+        while len(current.effects) >= 2:
+            drops = []
+            for effect in current.effects:
+                reduced = self._without(current, effect)
+                if reduced is not None:
+                    drops.append((self.score(reduced, current)[0], effect, reduced))
+            if not drops:
+                break
+            cost, effect, reduced = min(drops, key=lambda item: item[0])
+            if cost >= -self.required:
+                log.append(
+                    'backward check: every named effect earns its place (the cheapest to '
+                    f'drop, {effect}, would cost {cost:.0f})'
+                )
+                self.say(log[-1])
+                break
+            log.append(f'backward check: dropped {effect} (removing it costs only {cost:.0f})')
+            self.say(log[-1])
+            current = reduced
+            steps = [step for step in steps if step.effect != effect]
+        return current, steps
+
+    def _without(self, model: SessionModel, effect: str) -> SessionModel | None:
+        key = frozenset(model.effects) - {effect}
+        if key not in self.cache:
+            try:
+                self.cache[key] = without(self.impacts, model, effect, self.fit_initial_position)
+            except FitError:
+                return None
+        return self.cache[key]
+
+    # The verdict
+
+    def conclude(
+        self, records: Sequence[ConditionedImpact], selection: _Selection, drift_asked: bool
+    ) -> Diagnosis:
+        """The verdict (module doc, step 6) and everything reported beside it."""
+        final = selection.model
+        gap_final = self.gap(final.residuals_m_s)
+        halved = gap_final <= (1.0 - EXPLAINED_GAP) * self.gap_before
+        explained = final if (final.effects and halved) else self.base
+        final_models = [
+            i.velocity_m_s - r for i, r in zip(self.impacts, explained.residuals_m_s, strict=True)
+        ]
+        location = locate_residual(
+            self.impacts,
+            explained.residuals_m_s,
+            final_models,
+            explained.positions_m,
+            self.windows,
+            self.hits,
+            self.rig,
+            self.noise,
+        )
+        unexplained = location.excess_to_noise >= MIN_EXCESS
+        named = []
+        if unexplained:
+            named.append(
+                NamedEffect(
+                    UNEXPLAINED,
+                    math.nan,
+                    math.nan,
+                    self.gap(explained.residuals_m_s),
+                    (),
+                    where=location,
+                )
+            )
+        for step in selection.steps if explained is final else ():
+            drop = math.nan
+            reduced = self._without(final, step.effect) if len(final.effects) > 1 else self.base
+            if reduced is not None:
+                drop = self.score(reduced, final)[0]
+            named.append(
+                NamedEffect(
+                    step.effect,
+                    step.score,
+                    drop,
+                    step.gap_after,
+                    _own_parameters(final, step.effect),
+                    _trend(final) if step.effect == MU_DRIFT else None,
+                    partial=unexplained,
+                )
+            )
+        verdict = self._verdict(named, selection, explained, location)
+        self.say(verdict)
+        trend = None
+        if drift_asked:
+            trend = (
+                _trend(explained)
+                if MU_DRIFT in explained.effects
+                else self._linear_trend(explained)
+            )
+        base_full = self._full_residuals(records, self.base)
+        final_full = (
+            base_full if explained is self.base else self._full_residuals(records, explained)
+        )
+        return Diagnosis(
+            missing_effect=named[0].effect if named else NONE,
+            missing_effects=tuple(named),
+            parameters=explained.estimates(),
+            mu=self.base.joint.mu,
+            mu_stderr=self.base.joint.mu_stderr,
+            gap_before=self.gap_before,
+            gap_after=self.gap(explained.residuals_m_s),
+            frf_gap_before=self.frf_gap(self.base.residuals_m_s),
+            frf_gap_after=self.frf_gap(explained.residuals_m_s),
+            where=self.where,
+            candidates=selection.candidates,
+            selection=selection.log,
+            residual_where=location,
+            mu_trend=trend,
+            friction_map=self._friction_map(explained),
+            noise_std_m_s=self.noise,
+            force_noise_std_n=_pooled_force_noise(self.impacts),
+            input_noise_allowance=self.allowance,
+            required_score=self.required,
+            verdict=verdict,
+            base_residuals_m_s=base_full,
+            named_residuals_m_s=final_full,
+        )
+
+    def _verdict(self, named, selection, explained, location) -> str:
+        if not named and selection.best_partial:
+            return (
+                f'none: {selection.best_partial}, which does not halve the gap, and the misfit '
+                f'is only {location.excess_to_noise:.2f}x the noise beyond it'
+            )
+        if not named:
+            reason = selection.log[-1].split(': ', 1)[-1] if selection.log else ''
+            return f'none: {reason}'
+        names = [n.effect for n in named if n.effect != UNEXPLAINED]
+        gap_after = self.gap(explained.residuals_m_s)
+        shrink = (
+            f'gap {self.gap_before:.3g} -> {gap_after:.3g} '
+            f'({100 * (1 - gap_after / self.gap_before):.0f} % smaller)'
+        )
+        if named[0].effect != UNEXPLAINED:
+            return f'{" + ".join(names)}: {shrink}'
+        if names:
+            why = (
+                f'{" + ".join(names)} describe part of it ({shrink}), and what is left is '
+                f'still {location.excess_to_noise:.1f}x the noise beyond it'
+            )
+        elif selection.best_partial:
+            why = f'{selection.best_partial}, which does not halve the gap'
+        else:
+            why = (
+                f'the residual stays {location.excess_to_noise:.1f}x the noise beyond it and '
+                'no candidate of the vocabulary clears the required score'
+            )
+        return f'unexplained: {why}; the residual sits at {location.summary}'
+
+    def _linear_trend(self, model: SessionModel) -> MuTrend | None:
+        """Each hit's mu by one linearised step from the model, and its trend."""
+        if len(self.impacts) < MIN_DRIFT_HITS:
+            return None
+        screen = self.drift_screens.get(frozenset(model.effects))
+        if screen is None:
+            every = Linearisation(self.impacts, model, self.fit_initial_position)
+            screen = screen_drift(every, self.noise)
+        return mu_trend(screen.mu_per_hit, screen.mu_per_hit_stderr, refitted=False)
+
+    def _full_residuals(
+        self, records: Sequence[ConditionedImpact], model: SessionModel
+    ) -> tuple[np.ndarray, ...]:
+        """Measured minus model velocity over each whole record [m/s]."""
+        return tuple(
+            record.velocity_m_s - model.velocity(index, record.force_n, record.sample_rate_hz)
+            for index, record in enumerate(records)
+        )
+
+    def _friction_map(self, model: SessionModel) -> FrictionMap:
+        """The friction map, the model's non-friction terms taken off the velocity first."""
+        terms = {term.name: term for term in model.terms}
+        records = []
+        for index, impact in enumerate(self.impacts):
+            velocity = impact.velocity_m_s
+            if 'velocity_offset' in terms:
+                velocity = velocity - terms['velocity_offset'].offset_m_s
+            if 'second_mode' in terms:
+                velocity = velocity - (
+                    model.velocity(
+                        index, impact.force_n, self.rate, effects=(terms['second_mode'],)
+                    )
+                    - model.velocity(index, impact.force_n, self.rate, effects=())
+                )
+            records.append(
+                MapRecord(
+                    impact.force_n,
+                    velocity,
+                    model.positions_m[index],
+                    impact.hit_end_index + round(HIT_GUARD_S * self.rate),
+                )
+            )
+        rig = model.rig
+        if 'viscous_damping' in terms:
+            rig = replace(
+                rig,
+                damping_n_s_per_m=rig.damping_n_s_per_m
+                + terms['viscous_damping'].damping_n_s_per_m,
+            )
+        cubic = (
+            terms['cubic_stiffness'].cubic_stiffness_n_per_m3 if 'cubic_stiffness' in terms else 0.0
+        )
+        return friction_map(records, self.rate, self.noise, rig, cubic)
+
+
+def _trend(model: SessionModel) -> MuTrend:
+    """The refitted per-hit mu of a model with mu_drift, and their trend."""
+    return mu_trend(model.mus, model.mu_stderrs, refitted=True)
+
+
+def _own_parameters(model: SessionModel, effect: str) -> tuple[ParameterEstimate, ...]:
+    """One effect's parameters in a model: its term's, or each hit's mu for mu_drift."""
+    prefix = f'{effect}.'
+    return tuple(p for p in model.estimates() if p.name.startswith(prefix))
 
 
 def _pooled_force_noise(impacts: Sequence[ConditionedImpact]) -> float:

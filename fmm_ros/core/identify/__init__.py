@@ -12,6 +12,7 @@ from fmm_ros.core.identify.conditioning import (
     FitError,
     as_conditioned,
     condition_impact,
+    cropped_impact,
     velocity_noise_std,
 )
 from fmm_ros.core.identify.friction import (
@@ -40,6 +41,7 @@ __all__ = [
     'RigIdentification',
     'as_conditioned',
     'condition_impact',
+    'cropped_impact',
     'energy_balance_mu',
     'fit_free_decay',
     'fit_friction',

@@ -22,12 +22,13 @@ friction cannot explain is a `FitError` (a ValueError too) whose `reason` is one
 """
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from fmm_ros.core._checks import finite_samples, require_positive
 from fmm_ros.core.signal.frf import impulse
+from fmm_ros.core.signal.quality import robust_center_and_std, white_noise_std
 
 HIT_THRESHOLD_SIGMA = 10.0
 """A hit departs from the force baseline by more than this many noise deviations (Gaussian
@@ -55,12 +56,6 @@ FIT_FAILURES = (
     'no_convergence',
     'too_few_cycles',
 )
-
-
-_MAD_TO_STD = 1.482602218505602  # 1 / Phi^-1(3/4): MAD of Gaussian noise -> its deviation
-
-
-_ROBUST_SUBSAMPLE_MIN = 5000
 
 
 class FitError(ValueError):
@@ -144,7 +139,7 @@ def condition_impact(
         raise ValueError(
             f'{source_prefix(source)}a record needs at least 16 samples, got {force.size}'
         )
-    center, noise_n = _robust_center_and_std(force)
+    center, noise_n = robust_center_and_std(force)
     peak = max(float(force.max()) - center, center - float(force.min()))
     if peak <= HIT_THRESHOLD_SIGMA * noise_n or peak == 0.0:
         raise FitError(
@@ -190,28 +185,31 @@ def condition_impact(
     )
 
 
+def cropped_impact(impact: ConditionedImpact, stop_index: int) -> ConditionedImpact:
+    """The impact's first stop_index samples, its noise levels, impulse and peaks kept as found.
+
+    A record is at rest for most of its 33 s, and a fit's cost grows with its samples: the
+    diagnosis fits the motion only. The noise estimates stay those of the whole record (more
+    samples pin them better); the stop must lie after the hit's gate.
+    """
+    stop = int(stop_index)
+    if not impact.hit_end_index <= stop <= impact.force_n.size:
+        raise ValueError(
+            f'{source_prefix(impact.source)}cannot crop at sample {stop}: the hit ends at '
+            f'{impact.hit_end_index} and the record has {impact.force_n.size} samples'
+        )
+    return replace(impact, force_n=impact.force_n[:stop], velocity_m_s=impact.velocity_m_s[:stop])
+
+
 def velocity_noise_std(velocity_m_s: np.ndarray) -> float:
     """White-noise deviation of a velocity record [m/s], blind to the motion itself.
 
-    The MAD deviation of the second differences over sqrt(6): the rig's few-Hz motion barely
+    The signal core's `white_noise_std` (MAD deviation of the second differences over sqrt(6)),
+    the same estimate its quality flags judge a record by: the rig's few-Hz motion barely
     changes over two samples at 10 kHz, white noise does, and the median ignores the hit and
     the stops.
     """
-    second = np.diff(np.asarray(velocity_m_s, dtype=float), n=2)
-    if second.size == 0:
-        return 0.0
-    return _robust_center_and_std(second)[1] / math.sqrt(6.0)
-
-
-def _robust_center_and_std(values: np.ndarray) -> tuple[float, float]:
-    """Median and MAD-based deviation (of every 8th sample in long records).
-
-    Eight times cheaper, and 40,000 samples pin a noise level to about half a per cent.
-    """
-    if values.size > 8 * _ROBUST_SUBSAMPLE_MIN:
-        values = values[::8]
-    center = float(np.median(values))
-    return center, _MAD_TO_STD * float(np.median(np.abs(values - center)))
+    return white_noise_std(velocity_m_s)
 
 
 def as_conditioned(impact) -> ConditionedImpact:

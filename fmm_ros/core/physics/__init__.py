@@ -11,6 +11,7 @@ from fmm_ros.core.physics.model import (
 )
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import (
+    EFFECT_SIZE,
     MODEL_TERMS,
     ModelTerm,
     Parameter,
@@ -19,6 +20,7 @@ from fmm_ros.core.physics.terms import (
 )
 
 __all__ = [
+    'EFFECT_SIZE',
     'FMM_RIG',
     'INTEGRATORS',
     'MODEL_TERMS',

@@ -246,6 +246,19 @@ class SensorDelay(ModelTerm):
         spec.delay_s += self.delay_s
 
 
+EFFECT_SIZE: dict[str, tuple[str, bool]] = {
+    'viscous_damping': ('damping_n_s_per_m', False),
+    'stribeck': ('mu_static_excess', False),
+    'asymmetric_friction': ('mu_difference', False),
+    'cubic_stiffness': ('cubic_stiffness_n_per_m3', False),
+    'second_mode': ('modal_mass_kg', True),
+    'velocity_offset': ('offset_m_s', False),
+    'sensor_delay': ('delay_s', False),
+}
+"""Per term, (the parameter that sets how large its effect is, whether the effect falls as it
+grows): zero size is no effect, and the second mode's response scales as 1 / its mass."""
+
+
 def model_term(name: str, values: Sequence[float] | None = None, **parameters: float) -> ModelTerm:
     """Build a term by name: from a parameter vector, from keywords, or with its defaults."""
     if name not in MODEL_TERMS:

@@ -4,7 +4,9 @@ This is the pipeline the analyzer node, `fmm analyze` and the fitter share: `ana
 turns one `ImpactRecord` into an `ImpactResult` (flags, impulse, peak force, contact duration,
 band-limited mobility and receptance), and `summarize` groups results into force levels,
 averages each level (the paper's plain mean, H1, H2, coherence) and fits peak |receptance|
-against impulse (the paper's Fig. 17). `ImpactResult` and `LevelSummary` carry the fields of
+against impulse (the paper's Fig. 17). `select_impacts` is the one rule every fit and
+diagnosis (CLI, workflows, fitter node) takes its impacts by: the flagged ones are left out
+and named, unless asked for. `ImpactResult` and `LevelSummary` carry the fields of
 `fmm_interfaces/ImpactResult.msg` and `FrfSummary.msg` under the same names (complex arrays
 split into `_real`/`_imag` there), so the ROS shell converts them field by field.
 """
@@ -12,8 +14,9 @@ split into `_real`/`_imag` there), so the ROS shell converts them field by field
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -97,6 +100,9 @@ class AnalysisConfig:
             raise ValueError(f'level names must be unique and non-empty, got {names}')
 
 
+DEFAULT_ANALYSIS = AnalysisConfig()
+
+
 @dataclass(frozen=True, eq=False)
 class ImpactResult:
     """One impact analysed: the fields of ImpactResult.msg plus the spectra averaging needs."""
@@ -172,7 +178,7 @@ class Summary:
 def analyze_impact(
     record: ImpactRecord,
     capture: CaptureConfig = DEFAULT_CAPTURE,
-    analysis: AnalysisConfig = AnalysisConfig(),
+    analysis: AnalysisConfig = DEFAULT_ANALYSIS,
     *,
     impact_id: int = 0,
 ) -> ImpactResult:
@@ -250,7 +256,7 @@ def analyze_impact(
 
 
 def summarize(
-    results: Sequence[ImpactResult], analysis: AnalysisConfig = AnalysisConfig()
+    results: Sequence[ImpactResult], analysis: AnalysisConfig = DEFAULT_ANALYSIS
 ) -> Summary:
     """Assign levels, judge every impact, average each level and fit |receptance| vs impulse.
 
@@ -352,3 +358,98 @@ def _peak_band(
     low, high = analysis.peak_band_hz
     usable = frf.excitation_bandwidth(force_spectrum, frequency_hz, analysis.excitation_drop_db)
     return low, high if np.isnan(usable) else min(high, usable)
+
+
+class JudgedImpact(Protocol):
+    """What selection needs of an impact: an `ImpactResult`, or the fitter's held impact."""
+
+    impact_id: int
+    accepted: bool
+    flags: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class ImpactSelection:
+    """The impacts a fit takes and those it leaves out, each with its flags and source."""
+
+    chosen: tuple[int, ...]
+    # (impact id, flags, source) of every impact left out, in the order given.
+    excluded: tuple[tuple[int, tuple[str, ...], str], ...]
+    # (impact id, flags, source) of flagged impacts taken because include_flagged was set.
+    included_flagged: tuple[tuple[int, tuple[str, ...], str], ...] = ()
+
+    @property
+    def note(self) -> str:
+        """One line naming what was left out or taken despite its flags ('' when neither)."""
+        parts = []
+        if self.excluded:
+            parts.append(
+                f'left out {len(self.excluded)} flagged impact(s): {_named(self.excluded)} '
+                '(--include-flagged takes them)'
+            )
+        if self.included_flagged:
+            parts.append(
+                f'WARNING: {len(self.included_flagged)} flagged impact(s) included on '
+                f'request: {_named(self.included_flagged)}'
+            )
+        return '; '.join(parts)
+
+
+class SelectionError(ValueError):
+    """Too few clean impacts for what was asked; `selection` says which were left out."""
+
+    def __init__(self, message: str, selection: ImpactSelection) -> None:
+        super().__init__(message)
+        self.selection = selection
+
+
+def select_impacts(
+    impacts: Summary | Iterable[JudgedImpact],
+    *,
+    include_flagged: bool = False,
+    min_clean: int = 1,
+) -> ImpactSelection:
+    """The impacts a fit or diagnosis takes: the accepted ones, or all with include_flagged.
+
+    An impact is left out when its flags rejected it (`AnalysisConfig.reject_flags`, every flag
+    by default; the analyzer node's `reject_flags` for its messages): a clipped force, a double
+    hit, a dead vibrometer or a gap gives a confident wrong mu, so it never enters a fit
+    silently. include_flagged takes every impact (and the selection says which were flagged).
+    Raises SelectionError naming the impacts left out and their flags when fewer than
+    min_clean remain.
+    """
+    if isinstance(impacts, Summary):
+        impacts = impacts.impacts
+    chosen, excluded, included = [], [], []
+    for impact in impacts:
+        entry = (int(impact.impact_id), tuple(impact.flags), getattr(impact, 'source', ''))
+        if impact.accepted:
+            chosen.append(entry[0])
+        elif include_flagged:
+            chosen.append(entry[0])
+            included.append(entry)
+        else:
+            excluded.append(entry)
+    selection = ImpactSelection(tuple(chosen), tuple(excluded), tuple(included))
+    if len(chosen) < min_clean:
+        total = len(chosen) + len(excluded)
+        if total == 0:
+            raise SelectionError('no impact to fit', selection)
+        count = (
+            'no clean impact to fit'
+            if not chosen
+            else f'{len(chosen)} clean impact(s) of {total}, {min_clean} needed'
+        )
+        raise SelectionError(
+            f'{count}: {_named(excluded)} flagged (--include-flagged takes them anyway)',
+            selection,
+        )
+    return selection
+
+
+def _named(entries: Sequence[tuple[int, tuple[str, ...], str]]) -> str:
+    """'impact 3 (hit3.csv: double_hit), impact 5 (clipped, no_response)'."""
+    return ', '.join(
+        f'impact {impact_id} ({f"{source}: " if source else ""}{", ".join(flags) or "rejected"})'
+        for impact_id, flags, source in entries
+    )

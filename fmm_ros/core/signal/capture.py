@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fmm_ros.constants import FORCE, VELOCITY
+from fmm_ros.core.signal import quality
 from fmm_ros.core.signal.frf import first_true
 from fmm_ros.core.signal.records import Gaps, ImpactRecord
 from fmm_ros.core.signal.stream import (
@@ -39,11 +40,14 @@ from fmm_ros.core.signal.stream import (
     StreamRules,
 )
 
-# Every quality flag, in the order they are reported. The first six are properties of the
+# Every quality flag, in the order they are reported. All but the last are properties of the
 # record (`quality_flags`); `out_of_tolerance` is set when impacts are grouped into levels.
 FLAGS: tuple[str, ...] = (
     'double_hit',
     'clipped',
+    'saturated',
+    'no_response',
+    'dropout',
     'gap',
     'interrupted',
     'nan',
@@ -225,12 +229,21 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
 
     - double_hit: after the force falls below the re-arm level, it reaches the trigger level
       again within min_spacing_s of the trigger (a hammer bounce: two inputs in one FRF).
-    - clipped: a sample at or beyond a channel's known full-scale range (flat top).
+    - clipped: the force reaches its known full-scale range, or its peak is a flat top no
+      smooth pulse makes (`quality.flat_extreme`: clipping with the range unknown).
+    - saturated: the velocity reaches its known range, or its maximum or minimum is such a
+      flat top (the vibrometer's range exceeded).
+    - no_response: the velocity does not depart from its level before the hit by more than
+      its noise and its own spread there (`quality.responds`): a dead or disconnected
+      vibrometer.
+    - dropout: a noisy channel holds one exact value for longer than chance allows
+      (`quality.stuck_stretch`): samples dropped and filled by zeros or the last value.
     - gap: samples that never arrived inside the record (they are NaN).
     - interrupted: a new acquisition began before the record was complete (its tail is a gap).
     - nan: received samples that are NaN or infinite.
-    - unsettled: |velocity| above rest_velocity_m_s in the last rest_time_s of the record, or
-      before the hammer touched, so the record is not one whole transient and its DFT leaks.
+    - unsettled: |velocity - its level before the hit| (the level removes a vibrometer
+      offset) above rest_velocity_m_s in the last rest_time_s of the record, or before the
+      hammer touched, so the record is not one whole transient and its DFT leaks.
     - overlap: the next impact triggers inside this record.
     """
     record = with_trigger(record, config)
@@ -238,17 +251,29 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
     samples = config.samples(record.sample_rate_hz)
     trigger = record.trigger_offset
     flags = set()
+    force_noise = quality.white_noise_std(force)
+    velocity_noise = quality.white_noise_std(velocity)
 
     after_contact = first_true(_below(force[trigger:], config.rearm_level_n))
-    if after_contact >= 0:
-        contact_end = trigger + after_contact
-        bounce = force[contact_end : trigger + samples.min_spacing]
-        if np.any(_reaches(bounce, config.trigger_level_n)):
-            flags.add('double_hit')
-    if _beyond(force, record.force_full_scale_n) or _beyond(
-        velocity, record.velocity_full_scale_m_s
-    ):
+    contact_end = force.size if after_contact < 0 else trigger + after_contact
+    bounce = force[contact_end : trigger + samples.min_spacing]
+    if np.any(_reaches(bounce, config.trigger_level_n)):
+        flags.add('double_hit')
+    force_plateaus = _plateaus(force, (1.0,), force_noise)
+    velocity_plateaus = _plateaus(velocity, (1.0, -1.0), velocity_noise)
+    if _beyond(force, record.force_full_scale_n) or force_plateaus:
         flags.add('clipped')
+    if _beyond(velocity, record.velocity_full_scale_m_s) or velocity_plateaus:
+        flags.add('saturated')
+    contact_start = contact_start_index(force, trigger, config)
+    if not quality.responds(
+        velocity, contact_start, contact_end, samples.min_spacing, velocity_noise
+    ):
+        flags.add('no_response')
+    if quality.stuck_stretch(force, force_plateaus) or quality.stuck_stretch(
+        velocity, velocity_plateaus
+    ):
+        flags.add('dropout')
     if record.force_gaps or record.velocity_gaps:
         flags.add('gap')
     if record.interrupted:
@@ -257,10 +282,13 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
         velocity, record.velocity_gaps
     ):
         flags.add('nan')
-    contact_start = contact_start_index(force, trigger, config)
+    # Motion is judged about the level at rest before the hit: a vibrometer's offset is not.
+    before = velocity[:contact_start]
+    finite_before = before[np.isfinite(before)]
+    rest_level = float(np.median(finite_before)) if finite_before.size else 0.0
     tail = velocity[max(trigger + 1, velocity.size - samples.rest) :]
-    if np.any(np.abs(velocity[:contact_start]) > config.rest_velocity_m_s) or np.any(
-        np.abs(tail) > config.rest_velocity_m_s
+    if np.any(np.abs(before - rest_level) > config.rest_velocity_m_s) or np.any(
+        np.abs(tail - rest_level) > config.rest_velocity_m_s
     ):
         flags.add('unsettled')
     follower = TriggerDetector(config, record.sample_rate_hz, last_trigger=trigger)
@@ -290,6 +318,12 @@ def _reaches(force_n: np.ndarray, level_n: float) -> np.ndarray:
 def _below(force_n: np.ndarray, level_n: float) -> np.ndarray:
     """Finite samples below a level (the re-arm test)."""
     return (force_n < level_n) & (force_n > -np.inf)
+
+
+def _plateaus(samples: np.ndarray, signs: tuple[float, ...], noise_std: float) -> tuple[float, ...]:
+    """Levels of the channel's clipped extremes (`quality.flat_extreme`) on the given sides."""
+    levels = (quality.flat_extreme(samples, sign, noise_std) for sign in signs)
+    return tuple(level for level in levels if level is not None)
 
 
 def _beyond(samples: np.ndarray, full_scale: float) -> bool:
@@ -490,6 +524,30 @@ class ImpactCapture:
                 self.stream.declare_missing(quantity, stop)
         return self._completed()
 
+    def end_acquisition(self) -> list[ImpactRecord]:
+        """The acquisition ended (one lab file of several, say): its samples stop here.
+
+        Unlike `flush`, which treats the samples an open record still lacks as lost (a gap),
+        here they never existed: each open record ends at the last sample the channels hold,
+        shorter like a record ended at rest (its DFT zero-pads it to the window), judged only
+        by what its samples show (`unsettled` if the rig was still moving). A channel behind
+        the other is declared missing up to it, as by `flush`. The capture then starts afresh:
+        the next batch may start at any sample index, with a new trigger state (completed
+        records stay valid and can still be recycled). An end stated, not inferred: the
+        stream does not count it as a resynchronisation.
+        """
+        if not self.stream.started:
+            return []
+        stop = max(channel.next_index for channel in self._channels.values())
+        for quantity in self._channels:
+            self.stream.declare_missing(quantity, stop)
+        for impact in self._open:
+            impact.end = min(impact.end, stop - impact.start)
+            impact.end_found = True
+        self._settle()
+        self.stream.end_acquisition()
+        return self._completed()
+
     def recycle(self, record: ImpactRecord) -> None:
         """Return a completed record's buffers to the pool; the record is invalid afterwards."""
         force, velocity = record.force_n.base, record.velocity_m_s.base
@@ -522,6 +580,10 @@ class ImpactCapture:
             name: _Ring(name, capacity, first_index) for name in (FORCE.quantity, VELOCITY.quantity)
         }
         self._detector = TriggerDetector(self.config, self.sample_rate_hz)
+        # One warm pair of record buffers (page faults now, not on the first impact).
+        if not self._pool:
+            window = self._samples.window
+            self._pool.append((np.zeros(window), np.zeros(window)))
 
     def end(self, reason: str) -> None:
         """A new acquisition was recognised: open records end here, their tails a gap."""

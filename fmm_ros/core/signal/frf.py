@@ -61,12 +61,13 @@ def pulse_impulse(
     if interval is None:
         return float('nan')
     start, stop = interval
-    baseline = float(np.mean(force_n[:start])) if start else 0.0
-    before = first_true(force_n[start - 1 :: -1] - baseline <= 0.0) if start else -1
-    low = start - 1 - before if before >= 0 else 0
-    after = first_true(force_n[stop:] - baseline <= 0.0)
-    high = stop + after + 1 if after >= 0 else force_n.size
-    return impulse(force_n[low:high] - baseline, sample_rate_hz)
+    with np.errstate(invalid='ignore'):  # an infinite sample makes the impulse NaN, quietly
+        baseline = float(np.mean(force_n[:start])) if start else 0.0
+        before = first_true(force_n[start - 1 :: -1] - baseline <= 0.0) if start else -1
+        low = start - 1 - before if before >= 0 else 0
+        after = first_true(force_n[stop:] - baseline <= 0.0)
+        high = stop + after + 1 if after >= 0 else force_n.size
+        return impulse(force_n[low:high] - baseline, sample_rate_hz)
 
 
 def contact_interval(

@@ -364,6 +364,19 @@ class AlignedStream:
                 channel.ledger._refuse('unconfirmed', len(channel.held.samples))
                 channel.held = None
 
+    def end_acquisition(self) -> None:
+        """The acquisition ended by statement (one recording of several joined).
+
+        The next batch begins a new one at whatever index, with nothing to confirm and no
+        resync counted. A batch still held is refused as unconfirmed.
+        """
+        self.finish()
+        self._acquisition = None
+        for channel in self._channels.values():
+            channel.joined = False
+            channel.first_acquisition = True
+            channel.old_next = None
+
     def declare_missing(self, quantity: str, stop: int) -> None:
         """Samples of a channel from its watermark to `stop` will never come (end of stream)."""
         if self.started:

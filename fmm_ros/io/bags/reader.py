@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 from rosbags.interfaces import MessageDefinitionFormat
-from rosbags.rosbag2 import Reader, ReaderError
+from rosbags.rosbag2 import Reader
 from rosbags.typesys import TypesysError, get_types_from_msg, get_typestore
 
 from fmm_ros.constants import FORCE, FORCE_TOPIC, FRF_TOPIC, IMPACTS_TOPIC, VELOCITY, VELOCITY_TOPIC
@@ -43,6 +43,12 @@ from fmm_ros.io.bags.errors import BagDamagedError, BagError, MessageTypeError, 
 from fmm_ros.io.bags.mcapscan import Damage, McapScan
 from fmm_ros.io.bags.metadata import custom_ledger, read_information
 from fmm_ros.io.bags.sqlitescan import SqliteScan
+
+# What rosbags raises on a damaged bag: its own ReaderError, or whatever its parsers meet on
+# bad bytes (a KeyError from a corrupt QoS string, apsw.CorruptError from a damaged database
+# page, MemoryError or OverflowError when a corrupt length asks for gigabytes). Each means
+# the same: the file is read on by scanning, which checks every length against the file.
+_ROSBAGS_FAILURES = (Exception,)
 
 
 @dataclass(frozen=True)
@@ -161,10 +167,11 @@ class BagReader:
         try:
             self._reader = Reader(target)
             self._reader.open()
-        except ReaderError as error:
+        except _ROSBAGS_FAILURES as error:
             self._reader = None
             self._note(
-                f'rosbags cannot open it ({error}): read by scanning the {self.storage} file'
+                f'rosbags cannot open it ({error or type(error).__name__}): read by scanning '
+                f'the {self.storage} file'
             )
             self._start_scan()
         else:
@@ -336,8 +343,11 @@ class BagReader:
                     self._messages_read += 1
                     yield BagMessage(conn.topic, conn.msgtype, log_time, data)
                 return
-            except ReaderError as error:
-                self._note(f'rosbags stopped reading it ({error}): read on by scanning')
+            except _ROSBAGS_FAILURES as error:
+                self._note(
+                    f'rosbags stopped reading it ({error or type(error).__name__}): '
+                    'read on by scanning'
+                )
             # Scan the file for what rosbags could not read, past what it delivered.
             self._scan = self._new_scan()
         yield from self._scanned(wanted, delivered)
@@ -430,7 +440,7 @@ class BagReader:
         """
         topics = [self.find(topic, SAMPLE_BATCH) for topic in topics]
         for message, batch in self._decode_each(self.messages(topics)):
-            yield channel_batch(message, batch)
+            yield channel_batch(message, batch, self.path)
 
     def channel(self, topic: str) -> Iterator[ChannelBatch]:
         """Every SampleBatch of one channel topic, in storage order."""
@@ -459,23 +469,34 @@ class BagReader:
         aligner.finish()
 
 
-def channel_batch(message: BagMessage, batch) -> ChannelBatch:
-    """A decoded SampleBatch message as a ChannelBatch (samples stay a read-only view)."""
-    samples = batch.samples
-    samples.flags.writeable = False
-    stamp = batch.header.stamp
-    return ChannelBatch(
-        message.topic,
-        int(batch.first_sample_index),
-        samples,
-        float(batch.sample_rate_hz),
-        batch.quantity,
-        batch.unit,
-        float(batch.full_scale),
-        batch.header.frame_id,
-        stamp.sec * 10**9 + stamp.nanosec,
-        message.log_time_ns,
-    )
+def channel_batch(message: BagMessage, batch, bag: str | Path = '') -> ChannelBatch:
+    """A decoded SampleBatch message as a ChannelBatch (samples stay a read-only view).
+
+    BagError (naming the bag) when the message lacks a field read here: the bag's embedded
+    definition of the type is not ours (damaged bytes in it decode to other field names).
+    """
+    try:
+        samples = batch.samples
+        samples.flags.writeable = False
+        stamp = batch.header.stamp
+        return ChannelBatch(
+            message.topic,
+            int(batch.first_sample_index),
+            samples,
+            float(batch.sample_rate_hz),
+            batch.quantity,
+            batch.unit,
+            float(batch.full_scale),
+            batch.header.frame_id,
+            stamp.sec * 10**9 + stamp.nanosec,
+            message.log_time_ns,
+        )
+    except AttributeError as error:
+        raise BagError(
+            f'{f"bag {bag}: " if bag else ""}a {message.msgtype} message on {message.topic} '
+            f'has no field {error.name!r}: the bag defines the type differently (a damaged or '
+            'foreign definition)'
+        ) from None
 
 
 class BatchAligner:

@@ -131,7 +131,7 @@ def summarize_bag(
             reader.problems.append(str(error))
             continue
         if message.msgtype == SAMPLE_BATCH:
-            batch = channel_batch(message, decoded)
+            batch = channel_batch(message, decoded, reader.path)
             channel = channels.setdefault(
                 message.topic, ChannelSummary(message.topic, batch.quantity, batch.unit)
             )

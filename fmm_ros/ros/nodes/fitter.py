@@ -6,8 +6,11 @@ analyzer reports on fmm/impacts out of them by sample index, keeping the last
 `keep_last_impacts`; an impact stamped with another acquisition's clock (the source restarted
 in between) is not cut from this one's samples. So no record travels over a service, a bag
 played into the graph is fitted like a live session, and the analyzer stays a pure stream
-processor. A request that cannot be answered (no impacts yet, unknown ids, a record friction
-cannot explain) gets success = false and the reason, never a number.
+processor. Impacts are taken by the signal core's `select_impacts`: those the analyzer
+flagged and rejected are left out and named in the response's message unless the request
+sets include_flagged. A request that cannot be answered (no impacts yet, unknown ids, no
+clean impact, a record friction cannot explain) gets success = false and the reason, never
+a number.
 
 Service callbacks run in their own callback group, so under `ros2 run` (a multi-threaded
 executor) the streams keep flowing while a fit runs.
@@ -26,6 +29,7 @@ from fmm_ros.constants import DIAGNOSE_SERVICE, FIT_SERVICE, IMPACTS_TOPIC
 from fmm_ros.core.diagnose.workflow import diagnose
 from fmm_ros.core.identify.conditioning import FitError
 from fmm_ros.core.identify.friction import MU_BOUNDS, fit_friction
+from fmm_ros.core.signal.analysis import ImpactSelection, select_impacts
 from fmm_ros.core.signal.history import SampleHistory
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.core.signal.stream import Batch
@@ -179,12 +183,18 @@ class Fitter(Node):
 
     # -- services ---------------------------------------------------------------------------
 
-    def selected(self, impact_ids: list[int]) -> list[HeldImpact]:
-        """The impacts a request names, or every accepted one held; ValueError says why not."""
+    def selected(
+        self, impact_ids: list[int], include_flagged: bool = False
+    ) -> tuple[list[HeldImpact], ImpactSelection]:
+        """The impacts a request takes, by `select_impacts` over those it names (empty: all held).
+
+        ValueError says why none can be taken: an id not held, or no clean impact (naming the
+        flagged ones).
+        """
         with self._lock:
             held = list(self.impacts.values())
+        by_id = {impact.impact_id: impact for impact in held}
         if impact_ids:
-            by_id = {impact.impact_id: impact for impact in held}
             missing = [i for i in impact_ids if i not in by_id]
             if missing:
                 raise ValueError(
@@ -192,20 +202,17 @@ class Fitter(Node):
                     f'{sorted(by_id) or "none"}; the fitter keeps the last '
                     f'{self.config["keep_last_impacts"]})'
                 )
-            return [by_id[i] for i in impact_ids]
-        chosen = [impact for impact in held if impact.accepted]
-        if not chosen:
-            raise ValueError(
-                f'no accepted impact held yet ({len(held)} held, '
-                f'{len(self._waiting)} still arriving)'
-            )
-        return chosen
+            held = [by_id[i] for i in impact_ids]
+        elif not held:
+            raise ValueError(f'no impact held yet ({len(self._waiting)} still arriving)')
+        selection = select_impacts(held, include_flagged=include_flagged)
+        return [by_id[i] for i in selection.chosen], selection
 
     def _on_fit(
         self, request: FitFriction.Request, response: FitFriction.Response
     ) -> FitFriction.Response:
         try:
-            impacts = self.selected(list(request.impact_ids))
+            impacts, selection = self.selected(list(request.impact_ids), request.include_flagged)
             bounds = (request.mu_min, request.mu_max) if request.mu_max > 0 else MU_BOUNDS
             fit = fit_friction(
                 [impact.record for impact in impacts],
@@ -221,6 +228,8 @@ class Fitter(Node):
             return _refused(response, str(error))
         result = FrictionResult.from_fit(fit, [impact.impact_id for impact in impacts])
         msgs.fill_fit_response(response, result)
+        if selection.note:
+            response.message = f'{response.message}; {selection.note}'
         self.last_fit = response.message
         self.get_logger().info(response.message)
         return response
@@ -230,7 +239,7 @@ class Fitter(Node):
     ) -> DiagnoseModel.Response:
         """Name the effect the base model misses in the requested impacts (issue 8)."""
         try:
-            impacts = self.selected(list(request.impact_ids))
+            impacts, selection = self.selected(list(request.impact_ids), request.include_flagged)
             result = diagnose(
                 [impact.record for impact in impacts],
                 rig=self.rig,
@@ -241,7 +250,10 @@ class Fitter(Node):
         except ValueError as error:
             return _refused(response, str(error))
         self.get_logger().info(f'diagnosis of {len(impacts)} impacts: {result.verdict}')
-        return msgs.fill_diagnose_response(response, result)
+        response = msgs.fill_diagnose_response(response, result)
+        if selection.note:
+            response.message = f'{response.message}; {selection.note}'
+        return response
 
     def destroy_node(self) -> None:
         """Log the final ledger of its inputs before the node goes."""

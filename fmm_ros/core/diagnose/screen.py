@@ -1,0 +1,276 @@
+"""Screening: how far each candidate could lower chi^2, from one linearised step, before a refit.
+
+A refit costs tens of model runs per hit (hundreds on the RK4 path of a Stribeck or cubic
+term); most candidates have nothing to find. Each is first screened at the current model:
+
+- the candidate's response shape, d_i = v_i(model + term at a probe size) - v_i(model), one
+  model run per hit per probe (the Stribeck term at three speeds v_s, the second mode at the
+  strongest residual peak with three damping ratios);
+- the nuisance directions the refit would also move: d v_i / d mu (one mu for all hits, or
+  each hit's own once mu drifts) and d v_i / d x0_i (each hit's start, when fitted), by
+  forward differences, one run per hit each;
+- least squares of the residual on them, the starts eliminated hit by hit (Schur complement):
+  the fall of chi^2 that adding the candidate's direction buys beyond the nuisance ones is
+  the score statistic of the candidate (the Gauss-Newton step's predicted gain), and its
+  coefficient scales the probe into the refit's start.
+
+`mu_drift` is screened the same way with no extra model run: the gain of one mu per hit over
+one mu for all, and the linearised per-hit mu it gives.
+
+With more than SCREEN_HITS hits the terms are screened on SCREEN_HITS of them spread over the
+session, and the gain scaled by the hits' count over theirs (a term acts on every hit): the
+screen only ranks and gates refits, and each probe of a nonlinear term costs a run on the RK4
+path per hit. mu_drift, which is about every hit, is screened on all.
+"""
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from fmm_ros.constants import MU_DRIFT
+from fmm_ros.core.diagnose.session_model import SessionModel
+from fmm_ros.core.identify.conditioning import ConditionedImpact
+from fmm_ros.core.identify.lsq import inner
+from fmm_ros.core.physics.terms import EFFECT_SIZE, MODEL_TERMS, ModelTerm
+
+RELATIVE_STEP = 1e-4
+"""Forward-difference step of mu and of a start position, relative to their scale."""
+
+
+SCREEN_HITS = 8
+"""Terms are screened on at most this many hits, spread over the session."""
+
+
+def screened_hits(count: int, limit: int = SCREEN_HITS) -> tuple[int, ...]:
+    """Indices of at most `limit` hits spread evenly over `count`, first and last included."""
+    if count <= limit:
+        return tuple(range(count))
+    return tuple(int(i) for i in np.unique(np.round(np.linspace(0, count - 1, limit))))
+
+
+@dataclass(frozen=True)
+class Screen:
+    """One candidate screened at a model: the chi^2 it could remove, and where to refit it."""
+
+    effect: str
+    chi2_gain: float
+    """Predicted fall of chi^2 from adding the candidate (>= 0) [-]."""
+    added_parameters: int
+    start: ModelTerm | None
+    """The refit's start: the probe scaled by the regression (None: mu_drift, or no probe)."""
+    mu_shift: float = 0.0
+    """The change of the common mu the regression makes with it [-]."""
+    mu_per_hit: np.ndarray | None = None
+    """mu_drift: each hit's linearised mu [-]."""
+    mu_per_hit_stderr: np.ndarray | None = None
+    """Their white-noise standard errors [-]."""
+    note: str = ''
+
+
+class Linearisation:
+    """A model's residuals and its nuisance directions on some of the cropped impacts.
+
+    Built once per model (two model runs per hit, one without fitted starts) and shared by
+    every candidate screened at it. hits: which impacts (default all); `scale` is the count
+    of all impacts over theirs.
+    """
+
+    def __init__(
+        self,
+        impacts: Sequence[ConditionedImpact],
+        model: SessionModel,
+        fit_initial_position: bool,
+        hits: Sequence[int] | None = None,
+    ) -> None:
+        self.hits = tuple(range(len(impacts)) if hits is None else hits)
+        self.scale = len(impacts) / len(self.hits)
+        self.impacts = tuple(impacts[i] for i in self.hits)
+        self.model = model
+        self.residuals = tuple(model.residuals_m_s[i] for i in self.hits)
+        self.velocities = [
+            impact.velocity_m_s - residual
+            for impact, residual in zip(self.impacts, self.residuals, strict=True)
+        ]
+        mus = model.mus
+        rig = model.rig
+        position_scale = max(float(np.mean(mus)), 0.01) * rig.normal_force_n
+        position_scale /= rig.stiffness_n_per_m
+        self.mu_columns, self.position_columns = [], []
+        for place, hit in enumerate(self.hits):
+            step = RELATIVE_STEP * mus[hit]
+            self.mu_columns.append(self._difference(place, step, mu=mus[hit] + step))
+            if fit_initial_position:
+                x0 = model.positions_m[hit]
+                step = RELATIVE_STEP * max(abs(x0), position_scale)
+                self.position_columns.append([self._difference(place, step, x0_m=x0 + step)])
+            else:
+                self.position_columns.append([])
+
+    def _difference(self, place: int, step: float, **change) -> np.ndarray:
+        impact = self.impacts[place]
+        moved = self.model.velocity(
+            self.hits[place], impact.force_n, impact.sample_rate_hz, **change
+        )
+        return (moved - self.velocities[place]) / step
+
+    def response(self, place: int, term: ModelTerm) -> np.ndarray:
+        """Change of the velocity of the place-th screened hit when the term is added [m/s].
+
+        An offset adds itself. A second mode is linear and decoupled from the friction
+        oscillator, so its share of the vibrometer's reading is the same whatever the
+        oscillator does: it is found with the oscillator's plain linear model (the exact
+        path, however nonlinear the current model is), delayed as the model delays it.
+        """
+        impact = self.impacts[place]
+        if term.name == 'velocity_offset':
+            return np.full(impact.force_n.size, term.offset_m_s)
+        index = self.hits[place]
+        if term.name == 'second_mode':
+            outputs = tuple(t for t in self.model.terms if t.name == 'sensor_delay')
+            plain = (
+                self.model.velocity(index, impact.force_n, impact.sample_rate_hz, effects=e)
+                for e in ((*outputs, term), outputs)
+            )
+            return next(plain) - next(plain)
+        moved = self.model.velocity(
+            index, impact.force_n, impact.sample_rate_hz, effects=(*self.model.terms, term)
+        )
+        return moved - self.velocities[place]
+
+    def nuisance(self) -> tuple[list[list[np.ndarray]], list[list[np.ndarray]]]:
+        """(global, local) columns of each hit: mu global unless mu already drifts."""
+        if MU_DRIFT in self.model.effects:
+            return [[] for _ in self.impacts], [
+                [mu, *positions]
+                for mu, positions in zip(self.mu_columns, self.position_columns, strict=True)
+            ]
+        return [[mu] for mu in self.mu_columns], self.position_columns
+
+
+def chi2_fall(
+    residuals: Sequence[np.ndarray],
+    global_columns: Sequence[Sequence[np.ndarray]],
+    local_columns: Sequence[Sequence[np.ndarray]],
+) -> tuple[float, np.ndarray, list[np.ndarray]]:
+    """Least squares of each r_i on sum_g a_g G_gi + sum_l c_il L_il: (fall of sum |r|^2, a, c).
+
+    G: per hit, the columns of the parameters shared by every hit (the same count each); L:
+    per hit, its own. The local parameters are eliminated hit by hit, the global ones solved
+    from the summed reduced normal equations; the fall is r^T C (C^T C)^-1 C^T r, summed.
+    """
+    p = len(global_columns[0]) if global_columns else 0
+    reduced = np.zeros((p, p))
+    right = np.zeros(p)
+    fall = 0.0
+    kept = []
+    for residual, shared, own in zip(residuals, global_columns, local_columns, strict=True):
+        columns = np.array([*shared, *own]) if (shared or own) else np.empty((0, residual.size))
+        if columns.shape[0] == 0:
+            kept.append(None)
+            continue
+        gram = np.atleast_2d(inner(columns, columns))
+        rhs = np.atleast_1d(inner(columns, residual))
+        local_gram, local_rhs = gram[p:, p:], rhs[p:]
+        cross = gram[p:, :p]
+        inverse = _psd_inverse(local_gram) if local_gram.size else np.zeros((0, 0))
+        reduced += gram[:p, :p] - cross.T @ inverse @ cross
+        right += rhs[:p] - cross.T @ inverse @ local_rhs
+        fall += float(local_rhs @ inverse @ local_rhs)
+        kept.append((inverse, cross, local_rhs))
+    shared_solution = _psd_inverse(reduced) @ right if p else np.zeros(0)
+    fall += float(right @ shared_solution)
+    local_solution = [
+        np.zeros(0) if item is None else item[0] @ (item[2] - item[1] @ shared_solution)
+        for item in kept
+    ]
+    return fall, shared_solution, local_solution
+
+
+def _psd_inverse(matrix: np.ndarray) -> np.ndarray:
+    """Pseudo-inverse of a positive semi-definite matrix in unit-diagonal scaling.
+
+    The columns differ by many orders of magnitude (a velocity per unit mu against one per
+    metre of start), so the matrix is scaled to unit diagonal first; a zero column stays out.
+    """
+    diagonal = np.sqrt(np.clip(np.diag(matrix), 0.0, None))
+    scale = np.where(diagonal > 0.0, diagonal, 1.0)
+    inverse = np.linalg.pinv(matrix / np.outer(scale, scale), hermitian=True)
+    return inverse / np.outer(scale, scale)
+
+
+def screen_term(
+    effect: str, probes: Sequence[ModelTerm], linear: Linearisation, noise_std_m_s: float
+) -> Screen:
+    """The best of the probes of one term: its predicted chi^2 gain and the refit's start.
+
+    The probe's size parameter (`EFFECT_SIZE`) is scaled by the regression coefficient (the
+    second mode's mass divided by it), and clipped into the term's bounds. A coefficient of
+    the wrong sign for a non-negative size is no gain: the data ask for the opposite effect,
+    which the term does not express.
+    """
+    cls = MODEL_TERMS[effect]
+    shared, own = linear.nuisance()
+    before, _, _ = chi2_fall(linear.residuals, shared, own)
+    best = Screen(effect, 0.0, len(cls.parameters), None, note='no probe')
+    for probe in probes:
+        responses = [linear.response(index, probe) for index in range(len(linear.impacts))]
+        if not any(np.any(response) for response in responses):
+            continue
+        fall, solution, _ = chi2_fall(
+            linear.residuals,
+            [[response, *columns] for response, columns in zip(responses, shared, strict=True)],
+            own,
+        )
+        gain = linear.scale * max(fall - before, 0.0) / noise_std_m_s**2
+        start, note = _scaled(probe, float(solution[0]))
+        if start is None:
+            gain = 0.0
+        shift = float(solution[1]) if solution.size > 1 else 0.0
+        if gain > best.chi2_gain or best.start is None:
+            best = Screen(effect, gain, len(cls.parameters), start or probe, shift, note=note)
+    return best
+
+
+def _scaled(probe: ModelTerm, coefficient: float) -> tuple[ModelTerm | None, str]:
+    """The probe with its size scaled by the coefficient, in bounds; None if it cannot be."""
+    name, inverse = EFFECT_SIZE[probe.name]
+    index = [p.name for p in probe.parameters].index(name)
+    parameter = probe.parameters[index]
+    size = getattr(probe, name)
+    if inverse:
+        if coefficient <= 0.0:
+            return None, f'the residual asks for a negative {name}'
+        value = size / coefficient
+    else:
+        value = size * coefficient
+    if parameter.domain != 'real' and value <= 0.0:
+        return None, f'the residual asks for {name} < 0, which the term does not express'
+    low, high = probe.bounds()
+    return replace(probe, **{name: float(np.clip(value, low[index], high[index]))}), ''
+
+
+def screen_drift(linear: Linearisation, noise_std_m_s: float) -> Screen:
+    """mu_drift: the chi^2 gain of one mu per hit over one for all, and the per-hit mu.
+
+    The linearisation must hold every hit.
+    """
+    if linear.scale != 1.0:
+        raise ValueError('mu_drift is screened on every hit')
+    shared, own = linear.nuisance()
+    before, _, _ = chi2_fall(linear.residuals, shared, own)
+    per_hit = [
+        [mu, *positions]
+        for mu, positions in zip(linear.mu_columns, linear.position_columns, strict=True)
+    ]
+    fall, _, local = chi2_fall(linear.residuals, [[] for _ in per_hit], per_hit)
+    mus = linear.model.mus + np.array([solution[0] for solution in local])
+    errors = np.array(
+        [
+            noise_std_m_s / math.sqrt(max(inner(column, column), np.finfo(float).tiny))
+            for column in linear.mu_columns
+        ]
+    )
+    gain = max(fall - before, 0.0) / noise_std_m_s**2
+    return Screen(MU_DRIFT, gain, len(per_hit) - 1, None, mu_per_hit=mus, mu_per_hit_stderr=errors)

@@ -1,0 +1,201 @@
+"""A model of every impact of a session, as the diagnosis grows it: terms, and mu per hit or not.
+
+`SessionModel` is one step of the forward selection: the base model (Eq. 3, one mu) plus the
+terms named so far, fitted jointly by `fit_model`, and, once `mu_drift` is named, each hit's
+own mu refitted with the terms held (`with_mu_per_hit`, as `fit_friction` does for its
+per-impact mu). Its residuals are on the cropped records the diagnosis fits, and its
+information criteria count every fitted parameter, start positions included.
+"""
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from fmm_ros.constants import MU_DRIFT
+from fmm_ros.core.diagnose.result import ParameterEstimate
+from fmm_ros.core.identify.conditioning import ConditionedImpact
+from fmm_ros.core.identify.friction import ModelFit, fit_model
+from fmm_ros.core.identify.lsq import inner
+from fmm_ros.core.physics.model import simulate
+from fmm_ros.core.physics.rig import Rig
+from fmm_ros.core.physics.terms import ModelTerm
+
+
+@dataclass(frozen=True)
+class SessionModel:
+    """The joint fit of some terms, and each hit's own mu on top of it when mu drifts."""
+
+    effects: tuple[str, ...]
+    """Effects named in this model, in the order they were added."""
+    joint: ModelFit
+    """One mu for every hit, the terms' parameters, start positions if fitted."""
+    per_hit: tuple[ModelFit, ...] = ()
+    """With mu_drift: each hit alone, its mu (and start) refitted, the terms held at joint's."""
+
+    @property
+    def terms(self) -> tuple[ModelTerm, ...]:
+        """The fitted model terms."""
+        return self.joint.effects
+
+    @property
+    def rig(self) -> Rig:
+        """The rig constants of the fitted model."""
+        return self.joint.rig
+
+    @property
+    def mus(self) -> np.ndarray:
+        """Each hit's friction coefficient (all the joint one without mu_drift) [-]."""
+        if self.per_hit:
+            return np.array([fit.mu for fit in self.per_hit])
+        return np.full(len(self.joint.impacts), self.joint.mu)
+
+    @property
+    def mu_stderrs(self) -> np.ndarray:
+        """Their standard errors [-]."""
+        if self.per_hit:
+            return np.array([fit.mu_stderr for fit in self.per_hit])
+        return np.full(len(self.joint.impacts), self.joint.mu_stderr)
+
+    @property
+    def positions_m(self) -> tuple[float, ...]:
+        """Where each hit's model starts [m]."""
+        if self.per_hit:
+            return tuple(fit.initial_positions_m[0] for fit in self.per_hit)
+        return self.joint.initial_positions_m
+
+    @property
+    def residuals_m_s(self) -> tuple[np.ndarray, ...]:
+        """Measured minus model velocity of each cropped impact [m/s]."""
+        if self.per_hit:
+            return tuple(fit.residuals_m_s[0] for fit in self.per_hit)
+        return self.joint.residuals_m_s
+
+    @property
+    def n_parameters(self) -> int:
+        """Fitted parameters: the joint fit's, plus one mu per hit beyond the first."""
+        return len(self.joint.names) + max(len(self.per_hit) - 1, 0)
+
+    def chi2(self, noise_std_m_s: float) -> float:
+        """Residual sum of squares over the noise variance [-]."""
+        return sum(inner(r, r) for r in self.residuals_m_s) / noise_std_m_s**2
+
+    def bic(self, noise_std_m_s: float, n_samples: int) -> float:
+        """chi^2 + k ln n, up to a constant common to every model of the same records."""
+        return self.chi2(noise_std_m_s) + self.n_parameters * math.log(n_samples)
+
+    def aic(self, noise_std_m_s: float) -> float:
+        """chi^2 + 2k, likewise."""
+        return self.chi2(noise_std_m_s) + 2.0 * self.n_parameters
+
+    def velocity(
+        self,
+        index: int,
+        force_n: np.ndarray,
+        sample_rate_hz: float,
+        effects: Sequence[ModelTerm] | None = None,
+        mu: float | None = None,
+        x0_m: float | None = None,
+    ) -> np.ndarray:
+        """The model's velocity for hit `index` driven by force_n (any length) [m/s].
+
+        effects, mu and x0_m replace the model's own (a candidate's response, a derivative).
+        """
+        return simulate(
+            force_n,
+            sample_rate_hz,
+            rig=self.rig,
+            mu=float(self.mus[index]) if mu is None else mu,
+            effects=self.terms if effects is None else tuple(effects),
+            x0_m=self.positions_m[index] if x0_m is None else x0_m,
+        ).velocity_m_s
+
+    def estimates(self) -> tuple[ParameterEstimate, ...]:
+        """Fitted parameters: the joint fit's (mu, terms, starts), then each hit's mu."""
+        joint = self.joint
+        values = [
+            ParameterEstimate(name, float(value), unit, float(error))
+            for name, value, unit, error in zip(
+                joint.names, joint.values, joint.units, joint.stderr, strict=True
+            )
+        ]
+        for index, fit in enumerate(self.per_hit):
+            values.append(ParameterEstimate(f'{MU_DRIFT}.mu[{index}]', fit.mu, '1', fit.mu_stderr))
+        return tuple(values)
+
+
+def with_terms(
+    impacts: Sequence[ConditionedImpact],
+    model: SessionModel,
+    effect: str,
+    start: ModelTerm,
+    fit_initial_position: bool,
+    mu0: float | None = None,
+) -> SessionModel:
+    """The model with one more term: every term refitted jointly from where it stands.
+
+    mu0: where mu starts (default the model's). A model with mu_drift gets each hit's mu
+    refitted again on top of the new joint fit. Raises FitError when the fitter refuses.
+    """
+    joint = fit_model(
+        impacts,
+        rig=model.rig,
+        mu0=model.joint.mu if mu0 is None else mu0,
+        terms=(*model.terms, start),
+        fit_initial_position=fit_initial_position,
+    )
+    refitted = SessionModel((*model.effects, effect), joint)
+    if MU_DRIFT in model.effects:
+        return with_mu_per_hit(impacts, refitted, model.mus, fit_initial_position, add=False)
+    return refitted
+
+
+def with_mu_per_hit(
+    impacts: Sequence[ConditionedImpact],
+    model: SessionModel,
+    mu_starts: Sequence[float],
+    fit_initial_position: bool,
+    *,
+    add: bool = True,
+) -> SessionModel:
+    """Each hit's mu (and start) refitted alone, the joint fit's terms and rig held.
+
+    add: name mu_drift as the newest effect (False: it is named already). Raises FitError when
+    the fitter refuses a hit.
+    """
+    per_hit = tuple(
+        fit_model(
+            [impact],
+            rig=model.rig,
+            mu0=float(mu0),
+            fixed_effects=model.terms,
+            fit_initial_position=fit_initial_position,
+        )
+        for impact, mu0 in zip(impacts, mu_starts, strict=True)
+    )
+    effects = (*model.effects, MU_DRIFT) if add else model.effects
+    return SessionModel(effects, model.joint, per_hit)
+
+
+def without(
+    impacts: Sequence[ConditionedImpact],
+    model: SessionModel,
+    effect: str,
+    fit_initial_position: bool,
+) -> SessionModel:
+    """The model with one named effect taken out, the rest refitted (the backward check)."""
+    kept = tuple(name for name in model.effects if name != effect)
+    if effect == MU_DRIFT:
+        return SessionModel(kept, model.joint)
+    joint = fit_model(
+        impacts,
+        rig=model.rig,
+        mu0=model.joint.mu,
+        terms=tuple(term for term in model.terms if term.name != effect),
+        fit_initial_position=fit_initial_position,
+    )
+    reduced = SessionModel(kept, joint)
+    if MU_DRIFT in kept:
+        return with_mu_per_hit(impacts, reduced, model.mus, fit_initial_position, add=False)
+    return reduced
