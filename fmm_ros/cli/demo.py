@@ -124,6 +124,12 @@ def _text(result, out: Path) -> str:
         f'(x{result.signal_s / result.wall_s:.0f} real time); fit {result.fit_s:.1f} s, '
         f'diagnosis {result.diagnose_s:.1f} s',
         f'bag: {result.bag}',
+        *(f'  {line}' for line in result.ledger.values()),
+        'health (/diagnostics):',
+        *(
+            f'  {status["level"]:<5} {status["name"]}: {status["message"]}'
+            for status in result.health
+        ),
         f'summary: {out / "summary.json"}',
     ]
     if result.report:

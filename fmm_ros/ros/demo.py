@@ -14,6 +14,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -22,6 +23,7 @@ from fmm_interfaces.msg import FrfSummary, FrictionEstimate, ImpactResult
 from fmm_interfaces.srv import DiagnoseModel, FitFriction
 from fmm_ros.constants import (
     DIAGNOSE_SERVICE,
+    DIAGNOSTICS_TOPIC,
     FIT_SERVICE,
     FRF_TOPIC,
     FRICTION_TOPIC,
@@ -29,9 +31,12 @@ from fmm_ros.constants import (
     SAMPLE_RATE_HZ,
 )
 from fmm_ros.core.identify.running import RunningEstimate
+from fmm_ros.io.bags.reader import BagReader
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import RESULT_QOS
 from fmm_ros.ros.graph import InProcessGraph
+from fmm_ros.ros.health import DIAGNOSTICS_QOS, LEVEL_NAMES
+from fmm_ros.ros.nodes import CONSUMERS
 from fmm_ros.ros.nodes.analyzer import Analyzer
 from fmm_ros.ros.nodes.fitter import Fitter
 from fmm_ros.ros.nodes.hammer_sim import HammerSim
@@ -102,6 +107,10 @@ class DemoResult:
     impacts: list[dict] = field(default_factory=list)
     running_mu: list[dict] = field(default_factory=list)
     """The fitter's live estimate after each accepted hit, as published on /fmm/friction."""
+    health: list[dict] = field(default_factory=list)
+    """Each node part's last status on /diagnostics: name, level, message."""
+    ledger: dict[str, str] = field(default_factory=dict)
+    """The recorder's ledger from the bag's metadata, one line a channel."""
 
     @property
     def fit_success(self) -> bool:
@@ -143,6 +152,10 @@ class _Results(Node):
         self.create_subscription(ImpactResult, IMPACTS_TOPIC, self._impact, RESULT_QOS)
         self.create_subscription(FrfSummary, FRF_TOPIC, self._level, RESULT_QOS)
         self.create_subscription(FrictionEstimate, FRICTION_TOPIC, self._estimate, RESULT_QOS)
+        self.health: dict[str, dict] = {}
+        self.create_subscription(
+            DiagnosticArray, DIAGNOSTICS_TOPIC, self._diagnostics, DIAGNOSTICS_QOS
+        )
         self.fit = self.create_client(FitFriction, FIT_SERVICE)
         self.diagnose = self.create_client(DiagnoseModel, DIAGNOSE_SERVICE)
 
@@ -158,6 +171,14 @@ class _Results(Node):
         estimate = msgs.running_estimate(msg)
         self.estimates.append(estimate)
         self._on_estimate(estimate)
+
+    def _diagnostics(self, msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            self.health[status.name] = {
+                'name': status.name,
+                'level': LEVEL_NAMES.get(status.level, str(status.level)),
+                'message': status.message,
+            }
 
 
 def run_session(
@@ -183,18 +204,24 @@ def run_session(
                 rate_factor=config.rate_factor,
                 batch_size=batch,
                 seed=config.seed,
+                wait_for_consumers=list(CONSUMERS['hammer_sim']),
             ),
         )
         graph.add(
             RigSim,
             cli_args=cli_args,
             parameter_overrides=overrides(
-                mu=config.plant_mu, effects=list(config.plant_effects) or [''], seed=config.seed + 1
+                mu=config.plant_mu,
+                effects=list(config.plant_effects) or [''],
+                seed=config.seed + 1,
+                wait_for_consumers=list(CONSUMERS['rig_sim']),
             ),
         )
         analyzer = graph.add(Analyzer, cli_args=cli_args)
         graph.add(Fitter, cli_args=cli_args)
-        graph.add(Recorder, cli_args=cli_args, parameter_overrides=overrides(bag_path=str(bag)))
+        recorder = graph.add(
+            Recorder, cli_args=cli_args, parameter_overrides=overrides(bag_path=str(bag))
+        )
         total = len(hammer.schedule)
         results = graph.add(
             _Results,
@@ -222,6 +249,9 @@ def run_session(
         wall_s = time.monotonic() - start
         accepted = sum(msg.accepted for msg in results.impacts)
         _settle(lambda: len(results.estimates) >= accepted, lambda: len(results.estimates))
+        # The session is over: the hammer stops, and what it sent reaches the bag.
+        hammer.hold()
+        _wait(lambda: _recorded(recorder) >= hammer.next_index, lambda: _recorded(recorder))
         progress('session complete; fitting mu over the accepted impacts')
         fit = graph.call(results.fit, FitFriction.Request(), timeout_s=600.0)
         fit_s = time.monotonic() - start - wall_s
@@ -235,7 +265,10 @@ def run_session(
         impacts, levels, latest = list(results.impacts), dict(results.levels), results.latest
         estimates = list(results.estimates)
         hits_sent = hammer.hits_sent
+        health = sorted(results.health.values(), key=lambda status: status['name'])
         capture, analysis = analyzer.capture_config, analyzer.analysis_config
+    with BagReader(bag, strict=False) as reader:  # closed with the graph: its ledger is in
+        ledger = {topic: entry.summary() for topic, entry in reader.recorded_ledger.items()}
     friction = msgs.friction_result(fit) if fit.success else None
     page = ''
     if config.report:  # after the graph: the recorder has closed the bag
@@ -295,6 +328,8 @@ def run_session(
             }
             for e in estimates
         ],
+        health=health,
+        ledger=ledger,
     )
 
 
@@ -341,6 +376,12 @@ def _settle(done: Callable[[], bool], count: Callable[[], int]) -> None:
         time.sleep(0.05)
         if count() != last:
             last, moved = count(), time.monotonic()
+
+
+def _recorded(recorder: Recorder) -> int:
+    """The sample index both channels have reached in the recorder's ledger."""
+    spans = [ledger.span for ledger in recorder.ledger.values()]
+    return min((span[1] for span in spans if span), default=0) if len(spans) == 2 else 0
 
 
 def _one_accepted_per_level(impacts: list[ImpactResult]) -> list[int]:

@@ -17,6 +17,7 @@ from fmm_ros.core import diagnose
 from fmm_ros.core.identify.running import LevelEstimate, RunningEstimate
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.signal import analysis, frf
+from fmm_ros.core.signal.stream import Batch
 from fmm_ros.workflows.results import FrictionResult, json_safe
 
 
@@ -62,6 +63,28 @@ def _stamped(msg: object, stamp: Time, frame_id: str) -> object:
     msg.header.stamp = stamp
     msg.header.frame_id = frame_id
     return msg
+
+
+def stamp_ns(stamp: Time) -> int:
+    """A builtin_interfaces/Time as nanoseconds."""
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+def time_msg(nanoseconds: int) -> Time:
+    """Nanoseconds as a builtin_interfaces/Time."""
+    return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
+
+
+def stream_batch(msg: SampleBatch) -> Batch:
+    """A SampleBatch as the signal core's stream takes it (samples viewed, not copied)."""
+    return Batch(
+        msg.first_sample_index,
+        field_array(msg.samples),
+        msg.sample_rate_hz,
+        msg.full_scale,
+        msg.header.frame_id,
+        stamp_ns(msg.header.stamp),
+    )
 
 
 def _set_complex(msg: object, name: str, values: np.ndarray) -> None:

@@ -1,16 +1,19 @@
-"""fitter: the /fmm/fit_friction and /fmm/diagnose_model services over the analyzer's impacts.
+"""fitter: the fmm/fit_friction and fmm/diagnose_model services over the analyzer's impacts.
 
-The fitter keeps the recent force and velocity streams itself (`SampleHistory`) and cuts each
-impact the analyzer reports on /fmm/impacts out of them by sample index, keeping the last
-`keep_last_impacts`. So no record travels over a service, a bag played into the graph is
-fitted like a live session, and the analyzer stays a pure stream processor. Impacts are taken
-by the signal core's `select_impacts`: those the analyzer flagged and rejected are left out
-and named in the response's message unless the request sets include_flagged. A request that
-cannot be answered (no impacts yet, unknown ids, no clean impact, a record friction cannot
-explain) gets success = false and the reason, never a number.
+The fitter keeps the recent force and velocity streams itself (`SampleHistory`, sized from the
+batches' own rate, under the same stream rules as the analyzer) and cuts each impact the
+analyzer reports on fmm/impacts out of them by sample index, keeping the last
+`keep_last_impacts`; an impact stamped with another acquisition's clock (the source restarted
+in between) is not cut from this one's samples. So no record travels over a service, a bag
+played into the graph is fitted like a live session, and the analyzer stays a pure stream
+processor. Impacts are taken by the signal core's `select_impacts`: those the analyzer
+flagged and rejected are left out and named in the response's message unless the request
+sets include_flagged. A request that cannot be answered (no impacts yet, unknown ids, no
+clean impact, a record friction cannot explain) gets success = false and the reason, never
+a number.
 
 After every accepted impact it also fits that impact alone and publishes the running mu (the
-impacts' own mus, inverse-variance weighted: `core.identify.running`) on /fmm/friction, so the
+impacts' own mus, inverse-variance weighted: `core.identify.running`) on fmm/friction, so the
 lab sees mu converge while the session runs.
 
 Service callbacks run in their own callback group, so under `ros2 run` (a multi-threaded
@@ -25,17 +28,9 @@ from dataclasses import dataclass
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
 
-from fmm_interfaces.msg import FrictionEstimate, ImpactResult, SampleBatch
+from fmm_interfaces.msg import FrictionEstimate, ImpactResult
 from fmm_interfaces.srv import DiagnoseModel, FitFriction
-from fmm_ros.constants import (
-    DIAGNOSE_SERVICE,
-    FIT_SERVICE,
-    FORCE_TOPIC,
-    FRICTION_TOPIC,
-    IMPACTS_TOPIC,
-    SAMPLE_RATE_HZ,
-    VELOCITY_TOPIC,
-)
+from fmm_ros.constants import DIAGNOSE_SERVICE, FIT_SERVICE, FRICTION_TOPIC, IMPACTS_TOPIC
 from fmm_ros.core.diagnose.workflow import diagnose
 from fmm_ros.core.identify.conditioning import FitError
 from fmm_ros.core.identify.friction import MU_BOUNDS, fit_friction
@@ -43,8 +38,11 @@ from fmm_ros.core.identify.running import RunningFriction
 from fmm_ros.core.signal.analysis import ImpactSelection, select_impacts
 from fmm_ros.core.signal.history import SampleHistory
 from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.core.signal.stream import Batch
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import RESULT_QOS, RIG_PARAMS, SAMPLE_QOS, rig_from_parameters, run_node
+from fmm_ros.ros.common import RESULT_QOS, RIG_PARAMS, rig_from_parameters, run_node
+from fmm_ros.ros.health import OK, Health
+from fmm_ros.ros.inputs import SampleInputs
 from fmm_ros.ros.params import Param, declare_parameters
 from fmm_ros.workflows.results import FrictionResult
 
@@ -78,13 +76,6 @@ PARAMS = (
         limits=(1.0, 3600.0),
         read_only=True,
     ),
-    Param(
-        'sample_rate_hz',
-        SAMPLE_RATE_HZ,
-        'Expected sample rate, sizes the history [Hz]',
-        limits=(1.0, 1e7),
-        read_only=True,
-    ),
 )
 
 
@@ -107,15 +98,19 @@ class Fitter(Node):
         self.config = declare_parameters(self, PARAMS)
         cfg = self.config
         self.rig = rig_from_parameters(cfg)
-        self.history = SampleHistory(int(cfg['history_s'] * cfg['sample_rate_hz']))
+        self.history = SampleHistory(cfg['history_s'])
         self.impacts: OrderedDict[int, HeldImpact] = OrderedDict()
         self._waiting: list[ImpactResult] = []
+        self._acquisition = 0
+        self.last_fit = ''
+        self.live_mu = ''
         self._lock = threading.Lock()  # impacts: written by the stream group, read by services
         streams = MutuallyExclusiveCallbackGroup()
-        for topic in (FORCE_TOPIC, VELOCITY_TOPIC):
-            self.create_subscription(
-                SampleBatch, topic, self._on_batch, SAMPLE_QOS, callback_group=streams
-            )
+        health = Health(self)
+        self.inputs = SampleInputs(
+            self, self.history.stream, self._on_batch, health, callback_group=streams
+        )
+        health.add('fits', self._fits_status)
         self.create_subscription(
             ImpactResult, IMPACTS_TOPIC, self._on_impact, RESULT_QOS, callback_group=streams
         )
@@ -139,26 +134,49 @@ class Fitter(Node):
 
     # -- streams ----------------------------------------------------------------------------
 
-    def _on_batch(self, msg: SampleBatch) -> None:
-        try:
-            self.history.feed(
-                msg.quantity,
-                msg.first_sample_index,
-                msgs.batch_samples(msg),
-                msg.sample_rate_hz,
-                msg.full_scale,
-            )
-        except ValueError as error:
-            self.get_logger().error(
-                f'{msg.quantity} batch {msg.first_sample_index} refused: {error}',
-                throttle_duration_sec=5.0,
-            )
-            return
+    def _on_batch(self, quantity: str, batch: Batch) -> None:
+        self.history.feed_batch(quantity, batch)
+        if self.history.acquisitions != self._acquisition:
+            self._acquisition = self.history.acquisitions
+            if self._waiting:
+                self.get_logger().warning(
+                    f'a new acquisition began: impacts {[m.impact_id for m in self._waiting]} '
+                    'of the previous one cannot be cut any more'
+                )
+                self._waiting.clear()
         self._cut_waiting()
 
     def _on_impact(self, msg: ImpactResult) -> None:
+        origin = self.history.origin_s
+        if origin is not None and msg.sample_rate_hz > 0:
+            impact_origin = msgs.stamp_ns(msg.header.stamp) / 1e9 - (
+                msg.trigger_sample_index / msg.sample_rate_hz
+            )
+            if abs(impact_origin - origin) > self.history.stream.rules.clock_tolerance_s:
+                self.get_logger().warning(
+                    f'impact {msg.impact_id} belongs to another acquisition than the samples '
+                    'held (its clock differs): not held'
+                )
+                return
         self._waiting.append(msg)
         self._cut_waiting()
+
+    def _fits_status(self) -> tuple:
+        with self._lock:
+            held = list(self.impacts.values())
+        return (
+            OK,
+            f'{len(held)} impacts held ({sum(i.accepted for i in held)} accepted); '
+            + (self.last_fit or 'no fit yet'),
+            {
+                'impacts held': len(held),
+                'accepted held': sum(i.accepted for i in held),
+                'impacts waiting for samples': len(self._waiting),
+                'history s': self.history.history_s,
+                'last fit': self.last_fit or 'none',
+                'live mu': self.live_mu or 'none',
+            },
+        )
 
     def _cut_waiting(self) -> None:
         """Cut the records of reported impacts whose samples have all arrived."""
@@ -202,6 +220,10 @@ class Fitter(Node):
                     fit_initial_position=self.config['fit_initial_position'],
                 )
                 estimate = self._running.add(held.impact_id, held.level, fit.mu, fit.mu_stderr)
+            self.live_mu = (
+                f'live mu {estimate.mu:.5f} +- {estimate.mu_stderr:.2g} over {estimate.count} '
+                f'impacts, one mu p = {estimate.consistency_p_value:.3g}'
+            )
             except ValueError as error:  # FitError included: the impact adds nothing
                 self.get_logger().warning(f'live mu: impact {held.impact_id} not used: {error}')
                 continue
@@ -215,11 +237,12 @@ class Fitter(Node):
             )
 
     def destroy_node(self) -> None:
-        """Stop the live-mu worker (after the fit it is in), then the node."""
+        """Stop the live-mu worker (after the fit it is in), log the inputs' final ledger."""
         if self._worker is not None:
             self._to_fit.put(None)
             self._worker.join()
             self._worker = None
+        self.inputs.log_ledger()
         super().destroy_node()
 
     # -- services ---------------------------------------------------------------------------
@@ -271,6 +294,7 @@ class Fitter(Node):
         msgs.fill_fit_response(response, result)
         if selection.note:
             response.message = f'{response.message}; {selection.note}'
+        self.last_fit = response.message
         self.get_logger().info(response.message)
         return response
 
@@ -295,16 +319,15 @@ class Fitter(Node):
             response.message = f'{response.message}; {selection.note}'
         return response
 
-
 def _refused(response: object, reason: str) -> object:
     response.success = False
     response.message = reason
     return response
 
 
-def main(args: list[str] | None = None) -> None:
+def main(args: list[str] | None = None) -> int:
     """`ros2 run fmm_ros fitter`: two threads, so fits do not stall the streams."""
-    run_node(Fitter, args, threads=2)
+    return run_node(Fitter, args, threads=2)
 
 
 if __name__ == '__main__':
