@@ -220,13 +220,13 @@ class Fitter(Node):
                     fit_initial_position=self.config['fit_initial_position'],
                 )
                 estimate = self._running.add(held.impact_id, held.level, fit.mu, fit.mu_stderr)
+            except ValueError as error:  # FitError included: the impact adds nothing
+                self.get_logger().warning(f'live mu: impact {held.impact_id} not used: {error}')
+                continue
             self.live_mu = (
                 f'live mu {estimate.mu:.5f} +- {estimate.mu_stderr:.2g} over {estimate.count} '
                 f'impacts, one mu p = {estimate.consistency_p_value:.3g}'
             )
-            except ValueError as error:  # FitError included: the impact adds nothing
-                self.get_logger().warning(f'live mu: impact {held.impact_id} not used: {error}')
-                continue
             self._friction_pub.publish(
                 msgs.friction_estimate_msg(estimate, stamp=self.get_clock().now().to_msg())
             )
@@ -318,6 +318,7 @@ class Fitter(Node):
         if selection.note:
             response.message = f'{response.message}; {selection.note}'
         return response
+
 
 def _refused(response: object, reason: str) -> object:
     response.success = False
