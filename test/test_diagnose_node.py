@@ -59,6 +59,6 @@ def test_a_diagnosis_without_impacts_is_refused_with_the_reason(ros_graph):
     client = ros_graph.add(Node, node_name='caller').create_client(DiagnoseModel, DIAGNOSE_SERVICE)
     ros_graph.start()
     response = ros_graph.call(client, DiagnoseModel.Request())
-    assert not response.success and 'no accepted impact held yet' in response.message
+    assert not response.success and 'no impact held yet' in response.message
     response = ros_graph.call(client, DiagnoseModel.Request(impact_ids=[2]))
     assert not response.success and 'impacts [2] are not held' in response.message

@@ -198,6 +198,7 @@ def test_report_from_csv_session_has_every_figure(csv_session):
         'levels_receptance',
         'harmonics',
         'friction',
+        'running_mu',
         *(
             f'{kind}_{level}'
             for kind in ('trials', 'mobility', 'receptance', 'coherence', 'model_mobility')
@@ -352,6 +353,7 @@ def test_report_from_a_recorded_session_bag_shows_the_hit_over_a_lost_batch(tmp_
             'hit_001',
             'hit_002',
             'friction',
+            'running_mu',
         },
     )
     assert clipped == []
@@ -418,12 +420,12 @@ def test_all_rejected_session_still_reports_and_says_why_mu_is_not_fitted(tmp_pa
             ]
         )
     assert code == 1  # the page is written, but mu could not be fitted
-    assert 'cannot fit mu: no accepted impact to fit' in capsys.readouterr().err
+    assert 'cannot fit mu: no clean impact to fit: impact 0 (' in capsys.readouterr().err
     text = (out / 'index.html').read_text(encoding='utf-8')
     _, rows = hit_rows(text)
     assert [(css, row['flags']) for css, row in rows] == [('rejected', 'clipped')]
     assert 'No level has an accepted hit' in text
-    assert 'No friction fit: no accepted impact to fit' in text
+    assert 'No friction fit: no clean impact to fit: impact 0 (' in text
     check_figures(out, text, {'hit_000'})
     assert clipped_figures == []
 

@@ -1,10 +1,12 @@
 """The report in a real browser (issue: check the page in headless Chromium): it renders with
 no console message, script error or failed load, every figure decodes, every figure's alt text
-says what it shows, and text from the inputs (title, file names) is shown, never run."""
+says what it shows, and text from the inputs (title, file names, level names, a damaged bag's
+problems) is shown, never run."""
 
 import re
 
 import pytest
+import test_report_escaping as escaping
 from browser import visit
 from PIL import Image
 from test_report import DURATION_S, RATE_HZ, TEST_DPI, write_csv_session
@@ -132,3 +134,17 @@ def test_a_hostile_title_and_file_name_are_shown_as_text_never_run(tmp_path):
     assert all(image.figure_id for image in seen.images)
     hit_alt = next(image.alt for image in seen.images if image.figure_id == 'fig-hit_000')
     assert f'{HOSTILE_NAME}.csv' in hit_alt
+
+
+def test_level_names_flagged_files_and_a_damaged_bag_with_markup_stay_text(tmp_path):
+    """The page of test_report_escaping (markup in level names, in the name of a file whose
+    hit the fit leaves out, in a damaged bag's name and problems) in a real browser."""
+    code, out = escaping.hostile_session(tmp_path)
+    assert code == 1
+    seen = visit(out / 'index.html')
+    assert_nothing_complained(seen)
+    assert seen.tag_counts.get('script', 0) == 0 and seen.title == escaping.HOSTILE
+    assert seen.tag_counts['img'] == len(list(out.glob('*.png')))
+    name = escaping.HOSTILE_NAME
+    for text in (escaping.HOSTILE_LEVEL, f'{name}2.csv: clipped', f'{name}bag'):
+        assert text in seen.body_text

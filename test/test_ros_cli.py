@@ -84,7 +84,7 @@ def test_fmm_ros_lists_the_graph_describes_parameters_and_calls_the_fit(
     assert 'read-only' in described
     # A real answer of the real service: nothing is held yet, so it says why.
     assert main(['ros', 'call', 'fit', '--json', *slow]) == 1
-    assert 'no accepted impact held' in json.loads(capsys.readouterr().out)['error']
+    assert 'no impact held yet' in json.loads(capsys.readouterr().out)['error']
 
 
 def test_a_friction_result_crosses_the_service_unchanged():

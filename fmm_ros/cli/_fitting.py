@@ -1,10 +1,11 @@
 """The run of a fitting subcommand (fit, identify-rig, and diagnose): inputs in, verdict out.
 
 Inputs are read by the one input layer (`fmm_ros.workflows.inputs`: lab files of one impact,
-bags of many); with a hit-selection option only the accepted hits are fitted. A fit the data
-refuse (`FitError`) exits 1 with its reason, as JSON with --json, kept apart from bad input or
-flags (2, from the `fmm` entry point); a damaged bag's problems are warnings after the
-result, and also exit 1, as in `fmm analyze`.
+bags of many); fit and diagnose take only the hits the quality flags accept, naming the
+others (`select_impacts`; --include-flagged takes them too). A fit the data refuse
+(`FitError`, or no clean hit) exits 1 with its reason, as JSON with --json, kept apart from
+bad input or flags (2, from the `fmm` entry point); a damaged bag's problems are warnings
+after the result, and also exit 1, as in `fmm analyze`.
 """
 
 import argparse
@@ -16,10 +17,12 @@ from typing import Any
 from fmm_ros.cli import options
 from fmm_ros.cli.progress import StatusLine, report_problems
 from fmm_ros.core.identify.conditioning import FitError
+from fmm_ros.core.signal.analysis import SelectionError
 from fmm_ros.core.signal.capture import CaptureConfig
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.workflows.inputs import read_inputs
-from fmm_ros.workflows.session import accepted_ids, analyse
+from fmm_ros.workflows.results import selection_dict
+from fmm_ros.workflows.session import select_records
 
 Fit = Callable[[list[ImpactRecord], Sequence[int], Callable[[str], None]], Any]
 
@@ -33,37 +36,50 @@ def fit_and_report(
 ) -> int:
     """Read args.inputs, pick the hits, fit them, print the result (or why there is none).
 
-    fit(records, impact_ids, progress) fits records[i] for i in impact_ids.
+    fit(records, impact_ids, progress) fits records[i] for i in impact_ids. A command with
+    the hit-selection options (fit, diagnose) takes the hits `select_impacts` takes (the
+    accepted ones; all with --include-flagged) and names the others after the result; one
+    without (identify-rig: free decays hold no hit) takes every record.
     """
-    selecting = hasattr(args, 'paper_levels') and options.selects_hits(args)
-    capture, analysis = (
-        options.analysis_configs(args) if hasattr(args, 'trigger_n') else (CaptureConfig(), None)
-    )
+    selecting = hasattr(args, 'include_flagged')
+    capture, analysis = options.analysis_configs(args) if selecting else (CaptureConfig(), None)
+    selection = None
     with StatusLine(quiet=args.quiet) as progress:
         read = read_inputs(args.inputs, options.input_options(args, capture), progress=progress)
         records = read.records
-        ids = (
-            accepted_ids(analyse(records, capture, analysis, progress=progress))
-            if selecting
-            else list(range(len(records)))
-        )
         try:
+            if selecting:
+                selection = select_records(
+                    records,
+                    capture,
+                    analysis,
+                    include_flagged=args.include_flagged,
+                    progress=progress,
+                )
+            ids = selection.chosen if selection else tuple(range(len(records)))
             result = fit(records, ids, progress)
-        except FitError as failure:
+        except (FitError, SelectionError) as failure:
             result = failure
-    if isinstance(result, FitError):
+    if isinstance(result, FitError | SelectionError):
         report_problems(command, read.problems)
+        if isinstance(result, SelectionError):
+            reason, source, selection = 'no_clean_impact', None, result.selection
+        else:
+            reason, source = result.reason, result.source or None
         if args.json:
             print(
                 json.dumps(
-                    {'error': result.reason, 'message': str(result), 'file': result.source or None}
+                    {'error': reason, 'message': str(result), 'file': source}
+                    | selection_dict(selection)
                 )
             )
         else:
-            print(f'fmm {command}: cannot fit ({result.reason}): {result}', file=sys.stderr)
+            print(f'fmm {command}: cannot fit ({reason}): {result}', file=sys.stderr)
         return 1
     if args.json:
-        print(json.dumps(report(result), indent=2, allow_nan=False))
+        print(json.dumps(report(result) | selection_dict(selection), indent=2, allow_nan=False))
     else:
         print(text_report(result))
+        if selection is not None and selection.note:
+            print(selection.note)
     return report_problems(command, read.problems)

@@ -121,7 +121,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     options.add_json(parser, 'the campaign (also written as DIR/campaign.json)')
     options.add_quiet(parser)
-    options.add_hit_selection(parser)
+    options.add_hit_selection(parser, fits=True)
     options.add_frf_options(parser)
     options.add_lab_file_reading(parser)
     parser.set_defaults(func=run)
@@ -138,6 +138,7 @@ def run(args: argparse.Namespace) -> int:
         analysis=analysis,
         model=options.fit_options(args),
         diagnose=args.diagnose,
+        include_flagged=args.include_flagged,
     )
     output = args.output or args.table.with_name(f'{args.table.stem}_results')
     cache = None if args.no_cache else (args.cache or output / 'cache')

@@ -3,9 +3,10 @@
 It also bins the friction the records show against sliding speed and position.
 
 Same inputs, hit selection and rig flags as `fmm fit` (lab files of one impact each, or
-bags). Exit status: 0 diagnosed (whatever was named, 'none' and 'unexplained' included), 1 the
-base model cannot be fitted at all (the reason is printed, as JSON with --json) or a bag was
-damaged (its problems are printed as warnings after the result), 2 bad input or flags.
+bags; flagged hits left out and named unless --include-flagged). Exit status: 0 diagnosed
+(whatever was named, 'none' and 'unexplained' included), 1 the base model cannot be fitted at
+all or no hit is clean (the reason is printed, as JSON with --json) or a bag was damaged (its
+problems are printed as warnings after the result), 2 bad input or flags.
 
 Examples:
     fmm diagnose low_*.csv medium_*.csv high_*.csv
@@ -53,7 +54,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         aliases=('--plot',),
     )
     options.add_model(parser, damping=False)
-    options.add_hit_selection(parser, optional=True)
+    options.add_hit_selection(parser, fits=True)
     options.add_quiet(parser)
     parser.set_defaults(func=run)
 

@@ -3,10 +3,11 @@
 The paper's Sec. 5 step: Eq. 3 driven by each impact's measured force, mu chosen so the
 simulated velocity matches the measured one, one mu for all impacts and each one's own mu
 beside it. Inputs are read as `fmm analyze` reads them (a lab file is one impact, a bag gives
-every impact its recorded streams hold); with a hit-selection option only the accepted ones
-are fitted. Exit status: 0 fitted, 1 the records cannot be
-explained by friction (the reason is printed, as JSON with --json) or a bag was damaged (its
-problems are printed as warnings after the result), 2 bad input or flags.
+every impact its recorded streams hold); only the hits the quality flags accept are fitted,
+the others named (--include-flagged fits them too). Exit status: 0 fitted, 1 the records
+cannot be explained by friction or none is clean (the reason is printed, as JSON with
+--json) or a bag was damaged (its problems are printed as warnings after the result), 2 bad
+input or flags.
 """
 
 import argparse
@@ -64,7 +65,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=MU_BOUNDS[1],
         help=f'upper end of the mu search (default {MU_BOUNDS[1]:g})',
     )
-    options.add_hit_selection(parser, optional=True)
+    options.add_hit_selection(parser, fits=True)
     options.add_quiet(parser)
     parser.set_defaults(func=run)
 

@@ -209,20 +209,20 @@ def input_options(args: argparse.Namespace, capture: CaptureConfig | None = None
 # -- hit selection -------------------------------------------------------------------------------
 
 
-def add_hit_selection(parser: argparse.ArgumentParser, *, optional: bool = False) -> None:
+def add_hit_selection(parser: argparse.ArgumentParser, *, fits: bool = False) -> None:
     """How hits are cut from recordings, grouped into levels and judged.
 
-    optional: the command (fit, diagnose) uses every record unless a selection option
-    (--paper-levels, --level, --reject) is given; then only the accepted hits.
+    fits: the command fits or diagnoses the hits (fit, diagnose, report): only the accepted
+    ones, the others named, unless --include-flagged (`select_impacts`).
     """
     defaults = CaptureConfig()
     group = parser.add_argument_group(
         'hit selection',
         'How impacts are cut from recordings, grouped into force levels and judged'
         + (
-            '. Without --paper-levels, --level or --reject every record is used; with any of '
-            'them only the accepted hits, as fmm report uses them.'
-            if optional
+            '. Only the accepted hits are fitted; the others are left out and named '
+            '(--include-flagged takes them too).'
+            if fits
             else '.'
         ),
     )
@@ -278,6 +278,13 @@ def add_hit_selection(parser: argparse.ArgumentParser, *, optional: bool = False
         metavar='FLAG,...',
         help=f'flags that reject an impact, or "none" (default: all of {",".join(FLAGS)})',
     )
+    if fits:
+        group.add_argument(
+            '--include-flagged',
+            action='store_true',
+            help='also fit the hits the flags reject (clipped, double hit, dead vibrometer, '
+            '...), with a warning; by default they are left out and named',
+        )
 
 
 def add_frf_options(parser: argparse.ArgumentParser) -> None:
@@ -316,11 +323,6 @@ def add_analysis(parser: argparse.ArgumentParser) -> None:
     add_hit_selection(parser)
     add_frf_options(parser)
     add_quiet(parser)
-
-
-def selects_hits(args: argparse.Namespace) -> bool:
-    """Whether a hit-selection option was given (for commands where selection is optional)."""
-    return bool(args.paper_levels or args.level or args.reject is not None)
 
 
 def analysis_configs(args: argparse.Namespace) -> tuple[CaptureConfig, AnalysisConfig]:
@@ -425,9 +427,10 @@ def add_model(parser: argparse.ArgumentParser, *, damping: bool = True) -> None:
         )
     group.add_argument(
         '--fit-initial-position',
-        action='store_true',
-        help='fit where the rig rested before each hit (friction leaves it off '
-        'centre after the previous one; otherwise each starts at x = 0)',
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help='fit where the rig rested before each hit (default: friction leaves it off '
+        'centre after the previous one); --no-fit-initial-position starts each at x = 0',
     )
 
 

@@ -66,7 +66,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help=f'PNG resolution [dots per inch] (default {REPORT_DPI:g})',
     )
     options.add_model(parser)
-    options.add_hit_selection(parser)
+    options.add_hit_selection(parser, fits=True)
     options.add_frf_options(parser)
     options.add_quiet(parser)
     parser.set_defaults(func=run)
@@ -100,6 +100,7 @@ def run(args: argparse.Namespace) -> int:
         mu=args.mu,
         fit=not args.no_fit,
         diagnose=args.diagnose,
+        include_flagged=args.include_flagged,
     )
     with StatusLine(quiet=args.quiet) as progress:
         session = process_session(args.inputs, session_options, progress=progress)

@@ -23,10 +23,13 @@ Mapping (YAML)::
     time: {name: Time, unit: s}                     # a time column (checked for uniformity)
 """
 
+import contextlib
+import io
 import os
 import re
+import zipfile
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -36,6 +39,7 @@ import yaml
 from fmm_ros.core._checks import sample_rate_from_times
 from fmm_ros.core.signal.records import CSV_COLUMNS
 from fmm_ros.io import sniff
+from fmm_ros.io.bags.acquisitions import Acquisition, write_acquisitions
 from fmm_ros.io.bags.writer import DEFAULT_BATCH_SIZE, BagWriter
 from fmm_ros.io.textfiles import DETECT, TextFormat, read_table
 
@@ -267,7 +271,8 @@ class CsvFile(LabFile):
 
     def __init__(self, path: Path, text_format: TextFormat = DETECT) -> None:
         super().__init__(path)
-        self.table = read_table(path, text_format)
+        with _reading(path, self.format):
+            self.table = read_table(path, text_format)
         self._values: np.ndarray | None = None
 
     def names(self) -> list[str]:
@@ -287,7 +292,8 @@ class CsvFile(LabFile):
         """One column."""
         column = self._column(name)
         if self._values is None:
-            self._values = self.table.values()
+            with _reading(self.path, self.format):
+                self._values = self.table.values()
         return self._values[:, column]
 
     def channel_unit(self, name: str) -> str | None:
@@ -317,7 +323,9 @@ class NpzFile(LabFile):
 
     def __init__(self, path: Path) -> None:
         super().__init__(path)
-        with np.load(path, allow_pickle=False) as archive:
+        with _reading(path, self.format), np.load(path, allow_pickle=False) as archive:
+            for name in archive.files:
+                _check_npy_size(path, archive.zip, f'{name}.npy')
             self._arrays = {name: archive[name] for name in archive.files}
 
     def names(self) -> list[str]:
@@ -340,11 +348,9 @@ class MatFile(LabFile):
         super().__init__(path)
         from scipy.io import loadmat
 
-        self._vars = {
-            name: value
-            for name, value in loadmat(path, squeeze_me=True, struct_as_record=False).items()
-            if not name.startswith('__')
-        }
+        with _reading(path, self.format), _BoundedFile(path) as stream:
+            contents = loadmat(stream, squeeze_me=True, struct_as_record=False)
+        self._vars = {name: value for name, value in contents.items() if not name.startswith('__')}
 
     def names(self) -> list[str]:
         """Variables, and fields of struct variables as struct.field."""
@@ -385,7 +391,8 @@ class Mat73File(LabFile):
         import h5py
 
         self._names: list[str] = []
-        with h5py.File(path, 'r') as hdf:  # MATLAB keeps strings and cells under #refs#
+        # MATLAB keeps strings and cells under #refs#
+        with _reading(path, self.format), h5py.File(path, 'r') as hdf:
             hdf.visititems(
                 lambda key, obj: (
                     self._names.append(key.replace('/', '.'))
@@ -404,8 +411,10 @@ class Mat73File(LabFile):
 
         if name not in self._names:
             raise self._missing(name)
-        with h5py.File(self.path, 'r') as hdf:
-            return hdf[name.replace('.', '/')][()]
+        with _reading(self.path, self.format), h5py.File(self.path, 'r') as hdf:
+            dataset = hdf[name.replace('.', '/')]
+            _check_declared_size(self.path, name, dataset.size * dataset.dtype.itemsize)
+            return dataset[()]
 
 
 class TdmsFile(LabFile):
@@ -417,7 +426,14 @@ class TdmsFile(LabFile):
         super().__init__(path)
         from nptdms import TdmsFile as NpTdmsFile
 
-        self._file = NpTdmsFile.read(path)
+        with _reading(path, self.format):
+            with _BoundedFile(path) as stream:
+                for group in NpTdmsFile.read_metadata(stream).groups():
+                    for channel in group.channels():
+                        width = getattr(channel.data_type, 'size', None) or 1
+                        _check_declared_size(path, channel.path, len(channel) * width)
+            with _BoundedFile(path) as stream:
+                self._file = NpTdmsFile.read(stream)
         self._channels = {
             f'{group.name}/{channel.name}': channel
             for group in self._file.groups()
@@ -454,6 +470,73 @@ class TdmsFile(LabFile):
             if start is not None:
                 return int(np.datetime64(start, 'ns').astype(np.int64))
         return None
+
+
+# -- damaged files: a clear error naming the file, never a parser's traceback or a blowup ---------
+
+DECLARED_SIZE_RATIO = 64
+"""A channel may declare at most this many times its file's size in bytes: compression of
+real measurements gains a few times at most, so more is a corrupt length or a zip bomb."""
+
+
+@contextlib.contextmanager
+def _reading(path: Path, kind: str) -> Iterator[None]:
+    """Turn a parsing library's failure on a damaged file into a ValueError naming it.
+
+    The libraries (numpy's zip reader, scipy.io, h5py, nptdms) raise whatever their code meets
+    on bad bytes (OSError, KeyError, struct.error, zipfile.BadZipFile, MemoryError, ...);
+    inside this block every such failure means the file is not what it claims.
+    """
+    try:
+        yield
+    except FileNotFoundError:
+        raise
+    except ValueError as error:  # the library's own words, with the file they are about
+        if str(path) in str(error):
+            raise
+        raise ValueError(f'{path} ({kind}): {error}') from None
+    except Exception as error:  # noqa: BLE001 - the boundary to third-party parsers of bytes
+        detail = str(error) or type(error).__name__
+        raise ValueError(f'{path}: not a readable {kind} file ({detail})') from None
+
+
+class _BoundedFile(io.FileIO):
+    """A file whose read(n) never asks for more than the bytes left in it.
+
+    Parsers read a declared length with read(n), which allocates n bytes first: a corrupt
+    length of 4 GB would reserve 4 GB for a 60 kB file.
+    """
+
+    def read(self, size: int = -1) -> bytes:
+        """At most the bytes left, whatever size was asked."""
+        if size is not None and size > 0:
+            size = min(size, max(0, os.fstat(self.fileno()).st_size - self.tell()))
+        return super().read(size)
+
+
+def _check_declared_size(path: Path, name: str, declared_bytes: int) -> None:
+    """ValueError when a channel declares more bytes than its file can hold."""
+    size = os.stat(path).st_size
+    if declared_bytes > DECLARED_SIZE_RATIO * size:
+        raise ValueError(
+            f'{path}: {name!r} declares {declared_bytes} bytes of data, more than '
+            f'{DECLARED_SIZE_RATIO} times the file ({size} bytes): a corrupt length, not a '
+            'measurement'
+        )
+
+
+def _check_npy_size(path: Path, archive: zipfile.ZipFile, member: str) -> None:
+    """Check an .npz member's declared array size (its .npy header) before numpy allocates it."""
+    with archive.open(member) as stream:
+        version = np.lib.format.read_magic(stream)
+        header = (
+            np.lib.format.read_array_header_1_0
+            if version == (1, 0)
+            else np.lib.format.read_array_header_2_0
+        )
+        shape, _, dtype = header(stream)
+    count = int(np.prod(shape, dtype=object)) if shape else 1
+    _check_declared_size(path, member, count * dtype.itemsize)
 
 
 def open_lab_file(path: str | Path, text_format: TextFormat = DETECT) -> LabFile:
@@ -698,6 +781,10 @@ def write_recordings(
 ) -> ImportSummary:
     """One session bag of recordings, concatenated in order on one sample index.
 
+    Each recording is its own acquisition, listed in the bag's metadata
+    (`fmm_ros.io.bags.acquisitions`): replay ends impact records at its last sample instead of
+    running them into the next file or padding them with missing samples.
+
     start_time_ns: acquisition time of the first sample; default the file's own (TDMS),
     else the first file's modification time minus the recorded duration. on_progress gets
     the samples written per batch.
@@ -718,8 +805,10 @@ def write_recordings(
             'recorded duration (the file states none)'
         )
     index = 0
+    acquisitions = []
     with BagWriter(bag, storage=storage, time_origin_ns=start_time_ns) as writer:
         for recording in recordings:
+            acquisitions.append(Acquisition(index, len(recording.force_n), recording.source.name))
             index = writer.write_signals(
                 recording.force_n,
                 recording.velocity_m_s,
@@ -730,6 +819,7 @@ def write_recordings(
                 full_scale_velocity=recording.full_scale_velocity_m_s,
                 on_progress=on_progress,
             )
+        write_acquisitions(writer, acquisitions)
     return ImportSummary(Path(bag), total, rate, report)
 
 

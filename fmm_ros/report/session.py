@@ -37,8 +37,13 @@ NOTE_LINES = 12
 FLAG_MEANINGS: dict[str, str] = {
     'double_hit': 'the force reached the trigger level again shortly after the contact '
     '(a hammer bounce): two inputs in one FRF',
-    'clipped': "a sample reached a sensor's full-scale range: peak and spectrum are wrong",
+    'clipped': "the force reached its sensor's full-scale range or has a flat top: peak "
+    'and spectrum are wrong',
+    'saturated': "the velocity reached the vibrometer's range or has a flat top",
+    'no_response': 'the velocity does not respond to the hit: a dead or disconnected vibrometer',
+    'dropout': 'a channel holds one exact value too long: samples dropped and filled',
     'gap': 'samples never arrived (lost batch, end of stream): the DFT is undefined',
+    'interrupted': 'the acquisition restarted before the record was complete (its tail is a gap)',
     'nan': 'a received sample is NaN or infinite',
     'unsettled': 'the rig moved before the hit or had not come to rest at the end of the '
     'record: not one whole transient, the DFT leaks',
@@ -69,7 +74,7 @@ def build_report(
     _session_section(page, session)
     _hit_table(page, summary, comparison)
     _level_section(page, summary, session.analysis)
-    _model_section(page, summary, comparison, session.friction, session.fit_failure)
+    _model_section(page, session)
     _time_section(page, session, colours)
     _frf_section(page, summary, colours, comparison)
     if session.diagnosis is not None or session.diagnosis_failure:
@@ -227,18 +232,15 @@ def _level_section(page: Page, summary: Summary, analysis) -> None:
     )
 
 
-def _model_section(
-    page: Page,
-    summary: Summary,
-    comparison: ModelComparison | None,
-    friction: FrictionResult | None,
-    fit_failure: str,
-) -> None:
+def _model_section(page: Page, session: SessionResult) -> None:
+    summary, comparison, friction = session.summary, session.comparison, session.friction
     page.section('Friction coefficient and model', 'model')
     if friction is not None:
         _friction(page, summary, friction)
-    elif fit_failure:
-        page.text(f'No friction fit: {fit_failure}', note=True)
+        if session.selection is not None and session.selection.note:
+            page.text(session.selection.note, note=True)
+    elif session.fit_failure:
+        page.text(f'No friction fit: {session.fit_failure}', note=True)
     if comparison is None:
         page.text('No model overlay: no friction coefficient was given or fitted.', note=True)
         return
@@ -291,6 +293,19 @@ def _friction(page: Page, summary: Summary, friction: FrictionResult) -> None:
             )
         ],
         text_columns=(1,),
+    )
+    running = friction.running([impacts[i].level for i in friction.impact_ids])
+    page.figure(
+        'running_mu',
+        figures.running_mu_figure(
+            [e.mu for e in running],
+            [e.mu_stderr for e in running],
+            friction.per_impact_mu,
+            friction.per_impact_mu_stderr,
+        ),
+        "The running μ after each accepted hit, in the order they came (the hits' own μ, "
+        'inverse-variance weighted, as the fitter node publishes it live): it settles as the '
+        'hits add up, and a hit that disagrees stands out beside it.',
     )
     page.figure(
         'friction',
@@ -436,6 +451,8 @@ def _diagnosis_section(
         f'(velocity noise {result.noise_std_m_s * MM_PER_M:.3g} mm/s from the data).'
     )
     page.text(f'Verdict: {result.verdict}')
+    if session.selection is not None and session.selection.note:
+        page.text(session.selection.note, note=True)
     page.text(f'Where the base model misses: {result.where.summary}.')
     page.table(
         ['parameter of the named model', 'value ± 1σ', 'unit'],

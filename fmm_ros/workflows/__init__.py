@@ -10,19 +10,24 @@ result.
 from fmm_ros.workflows.inputs import InputOptions, SessionInputs, read_inputs
 from fmm_ros.workflows.model import ModelComparison, ModelOverlay, compare_model
 from fmm_ros.workflows.replay import bag_impact_records, replay_bag
-from fmm_ros.workflows.results import FrictionResult, analysis_dict, diagnosis_dict
+from fmm_ros.workflows.results import (
+    FrictionResult,
+    analysis_dict,
+    diagnosis_dict,
+    selection_dict,
+)
 from fmm_ros.workflows.session import (
     FitOptions,
     SessionDiagnosis,
     SessionOptions,
     SessionResult,
-    accepted_ids,
     analyse,
     diagnose_impacts,
     fit_impacts,
     overlay_of,
     process_session,
     run_session,
+    select_records,
 )
 
 __all__ = [
@@ -35,7 +40,6 @@ __all__ = [
     'SessionInputs',
     'SessionOptions',
     'SessionResult',
-    'accepted_ids',
     'analyse',
     'analysis_dict',
     'bag_impact_records',
@@ -48,4 +52,6 @@ __all__ = [
     'read_inputs',
     'replay_bag',
     'run_session',
+    'select_records',
+    'selection_dict',
 ]

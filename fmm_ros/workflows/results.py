@@ -7,6 +7,8 @@
 - `Diagnosis` (`fmm_ros.core.diagnose`): `diagnosis_dict` is the JSON of `fmm diagnose --json`
   and of a session's summary; the DiagnoseModel response is filled from the same object.
 - `Summary` (`fmm_ros.core.signal.analysis`): `analysis_dict` is the JSON of `fmm analyze`.
+- `ImpactSelection` (`select_impacts`): `selection_dict` names the impacts a fit left out (and
+  flagged ones taken on request), in `fmm fit --json` and a session's JSON.
 
 Undefined numbers (a standard error of something not fitted, R^2 of two levels) are NaN in
 the objects and null in JSON.
@@ -30,10 +32,12 @@ from fmm_ros.core.diagnose.result import (
     ResidualLocation,
     Where,
 )
+from fmm_ros.core.identify.chain import VelocityNuisance
 from fmm_ros.core.identify.friction import FrictionFit
+from fmm_ros.core.identify.running import RunningEstimate, running_estimates
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.physics.terms import ModelTerm
-from fmm_ros.core.signal.analysis import Summary
+from fmm_ros.core.signal.analysis import ImpactSelection, Summary
 from fmm_ros.io.frf_files import json_number
 
 
@@ -72,6 +76,11 @@ class FrictionResult:
     """Chance of per-impact mus scattering this much if one mu served all (chi^2 test)."""
     misfit: str = 'time'
     effects: tuple[ModelTerm, ...] = ()
+    impulse_scales: tuple[float, ...] = ()
+    """The factor the joint fit put on each impact's measured hit [-]; empty: all 1."""
+    velocity_nuisance: tuple[VelocityNuisance, ...] = ()
+    """What the joint fit took off each impact's velocity (hum, offset, drift); empty where
+    not known (a service's answer)."""
 
     def __post_init__(self) -> None:
         count = len(self.impact_ids)
@@ -82,6 +91,8 @@ class FrictionResult:
             'impulses_n_s',
             'per_impact_residual_rms_m_s',
             'per_impact_normalised_residual',
+            'impulse_scales',
+            'velocity_nuisance',
         ):
             if getattr(self, name):
                 lengths.add(len(getattr(self, name)))
@@ -116,6 +127,8 @@ class FrictionResult:
             consistency_p_value=fit.consistency_p_value,
             misfit=joint.misfit,
             effects=joint.effects,
+            impulse_scales=tuple(joint.impulse_scales),
+            velocity_nuisance=tuple(joint.velocity_nuisance),
         )
 
     @property
@@ -123,15 +136,40 @@ class FrictionResult:
         """Viscous damping of the model, fitted or as given [N*s/m]."""
         return self.rig.damping_n_s_per_m
 
+    def running(self, levels: Sequence[str]) -> tuple[RunningEstimate, ...]:
+        """The running estimate after each impact in turn, as the fitter node publishes it.
+
+        levels: each impact's level (`core.identify.running`).
+        """
+        return running_estimates(
+            list(self.impact_ids),
+            list(levels),
+            list(self.per_impact_mu),
+            list(self.per_impact_mu_stderr),
+        )
+
     def per_impact(self) -> list[dict]:
-        """One entry per impact: id, file, mu alone, impulse, residual, start."""
+        """One entry per impact: id, file, mu alone, impulse, residual, start, scale, chain."""
         count = len(self.impact_ids)
 
         def column(values: tuple, default: object = math.nan) -> tuple:
             return values or (default,) * count
 
-        return [
-            {
+        entries = []
+        for impact_id, source, mu, impulse, rms, stderr, normalised, start, scale, chain in zip(
+            self.impact_ids,
+            column(self.sources, ''),
+            self.per_impact_mu,
+            column(self.impulses_n_s),
+            column(self.per_impact_residual_rms_m_s),
+            self.per_impact_mu_stderr,
+            column(self.per_impact_normalised_residual),
+            column(self.initial_positions_m, 0.0),
+            column(self.impulse_scales, 1.0),
+            column(self.velocity_nuisance, None),
+            strict=True,
+        ):
+            entry = {
                 'impact_id': impact_id,
                 'file': source,
                 'mu': mu,
@@ -140,19 +178,17 @@ class FrictionResult:
                 'mu_stderr': stderr,
                 'normalised_residual': normalised,
                 'initial_position_m': start,
+                'impulse_scale': scale,
             }
-            for impact_id, source, mu, impulse, rms, stderr, normalised, start in zip(
-                self.impact_ids,
-                column(self.sources, ''),
-                self.per_impact_mu,
-                column(self.impulses_n_s),
-                column(self.per_impact_residual_rms_m_s),
-                self.per_impact_mu_stderr,
-                column(self.per_impact_normalised_residual),
-                column(self.initial_positions_m, 0.0),
-                strict=True,
-            )
-        ]
+            if chain is not None:
+                entry.update(
+                    mains_hum_hz=chain.mains_hz or None,
+                    hum_rms_m_s=chain.hum_rms_m_s,
+                    velocity_offset_m_s=chain.offset_m_s,
+                    velocity_drift_m_s2=chain.drift_m_s2,
+                )
+            entries.append(entry)
+        return entries
 
     def to_dict(self) -> dict:
         """The JSON of `fmm fit --json`: the issue's keys first, then errors and the test."""
@@ -213,6 +249,23 @@ def analysis_dict(summary: Summary) -> dict:
             },
         }
     )
+
+
+def selection_dict(selection: ImpactSelection | None) -> dict:
+    """JSON keys naming the impacts left out of a fit (and flagged ones taken on request)."""
+    if selection is None:
+        return {}
+
+    def entries(items: tuple) -> list[dict]:
+        return [
+            {'impact_id': impact_id, 'file': source or None, 'flags': list(flags)}
+            for impact_id, flags, source in items
+        ]
+
+    return {
+        'left_out': entries(selection.excluded),
+        'included_flagged': entries(selection.included_flagged),
+    }
 
 
 def diagnosis_dict(diagnosis: Diagnosis) -> dict:

@@ -2,8 +2,10 @@
 
 `process_session(paths, options)` is everything `fmm report` computes (and `fmm campaign`
 runs per session): read the inputs (`fmm_ros.workflows.inputs`), analyse every impact
-(impulse, flags, FRFs, levels, linearity), fit mu over the accepted impacts as the fitter node
-picks them, optionally diagnose them, and run the resulting model for every hit. Its
+(impulse, flags, FRFs, levels, linearity), fit mu over the impacts the signal core's
+`select_impacts` takes (the accepted ones, flagged ones left out and named, unless
+include_flagged), as the fitter node and `fmm fit` take them, optionally diagnose them, and
+run the resulting model for every hit. Its
 `SessionResult` holds the records and every result, and `to_dict()` is its JSON. The report
 (`fmm_ros.report`) draws a SessionResult and computes nothing. `run_session` does the same for
 records already in hand (the demo, from its bag) and takes a fit made elsewhere (the fitter
@@ -22,14 +24,29 @@ from pathlib import Path
 from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ
 from fmm_ros.core.diagnose.result import Diagnosis
 from fmm_ros.core.diagnose.workflow import diagnose
+from fmm_ros.core.identify.conditioning import FitError
 from fmm_ros.core.identify.friction import MU_BOUNDS, fit_friction
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
-from fmm_ros.core.signal.analysis import AnalysisConfig, Summary, analyze_impact, summarize
-from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig
+from fmm_ros.core.signal.analysis import (
+    AnalysisConfig,
+    ImpactSelection,
+    SelectionError,
+    Summary,
+    analyze_impact,
+    select_impacts,
+    summarize,
+)
+from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, with_trigger
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.workflows.inputs import DEFAULT_INPUTS, InputOptions, Progress, read_inputs
 from fmm_ros.workflows.model import ModelComparison, ModelOverlay, compare_model
-from fmm_ros.workflows.results import FrictionResult, analysis_dict, diagnosis_dict, json_safe
+from fmm_ros.workflows.results import (
+    FrictionResult,
+    analysis_dict,
+    diagnosis_dict,
+    json_safe,
+    selection_dict,
+)
 
 
 @dataclass(frozen=True)
@@ -38,7 +55,8 @@ class FitOptions:
 
     rig: Rig = FMM_RIG
     fit_damping: bool = False
-    fit_initial_position: bool = False
+    fit_initial_position: bool = True
+    """Fit each record's start (in a session a hit finds the rig where friction left it)."""
     mu_bounds: tuple[float, float] = MU_BOUNDS
     misfit: str = 'time'
     band_limit_hz: float = MISFIT_BAND_LIMIT_HZ
@@ -54,6 +72,7 @@ class SessionOptions:
     mu: draw the model with this mu instead of fitting one; fit=False: neither fit nor draw.
     compare: run the model for every hit and analyse its velocity as the measurement's (what
     the report draws; a fifth of a session's work, which `fmm campaign` draws none of).
+    include_flagged: fit and diagnose the impacts the flags reject too (`select_impacts`).
     """
 
     inputs: InputOptions = DEFAULT_INPUTS
@@ -63,6 +82,7 @@ class SessionOptions:
     fit: bool = True
     diagnose: bool = False
     compare: bool = True
+    include_flagged: bool = False
 
 
 @dataclass(frozen=True)
@@ -104,6 +124,8 @@ class SessionResult:
     diagnosis: SessionDiagnosis | None = None
     diagnosis_failure: str = ''
     comparison: ModelComparison | None = None
+    selection: ImpactSelection | None = None
+    """Which impacts the fit and diagnosis took, and which they left out (flagged)."""
     inputs: list[str] = field(default_factory=list)
     problems: list[str] = field(default_factory=list)
     """What went wrong reading the inputs (a damaged bag): shown, never dropped."""
@@ -144,6 +166,7 @@ class SessionResult:
                 'fit_failure': self.fit_failure or None,
                 'diagnosis': self.diagnosis.to_dict() if self.diagnosis else None,
                 'diagnosis_failure': self.diagnosis_failure or None,
+                **selection_dict(self.selection),
                 'model': {'mu': model.mu, 'source': model.source} if model else None,
                 'residual_rms_m_s': {
                     str(i): hit.residual_rms_m_s for i, hit in self.comparison.hits.items()
@@ -171,12 +194,26 @@ def analyse(
     return summarize(results, analysis)
 
 
-def accepted_ids(summary: Summary) -> list[int]:
-    """Ids of the accepted impacts; ValueError when there is none (nothing to fit)."""
-    ids = [impact.impact_id for impact in summary.impacts if impact.accepted]
-    if not ids:
-        raise ValueError('no accepted impact to fit')
-    return ids
+def select_records(
+    records: Sequence[ImpactRecord],
+    capture: CaptureConfig = DEFAULT_CAPTURE,
+    analysis: AnalysisConfig | None = None,
+    *,
+    include_flagged: bool = False,
+    progress: Progress | None = None,
+) -> ImpactSelection:
+    """The impacts of records a fit takes: `select_impacts` over their analysis.
+
+    Raises FitError (reason 'no_hit') for a record without a hit, which has nothing to judge
+    or fit, and `SelectionError` (a ValueError) naming the flagged records when none is clean.
+    """
+    for record in records:
+        try:
+            with_trigger(record, capture)
+        except ValueError as error:
+            raise FitError('no_hit', f'no hit: {error}', record.source) from None
+    summary = analyse(records, capture, analysis, progress=progress)
+    return select_impacts(summary, include_flagged=include_flagged)
 
 
 def fit_impacts(
@@ -243,7 +280,8 @@ def run_session(
 
     friction: a fit made elsewhere (the fitter service's answer), drawn as it is instead of
     fitting; fit_failure: why that fit was refused. options.mu draws a given mu instead;
-    options.fit = False draws no model.
+    options.fit = False draws no model. Fit and diagnosis take the impacts `select_impacts`
+    takes (options.include_flagged), and the result's selection names those left out.
     """
     options = options or SessionOptions()
     records = list(records)
@@ -251,16 +289,22 @@ def run_session(
         raise ValueError('a session needs at least one impact record')
     capture = options.inputs.capture
     summary = analyse(records, capture, options.analysis, progress=progress)
+    try:
+        selection, refusal = select_impacts(summary, include_flagged=options.include_flagged), ''
+    except SelectionError as error:  # the result says why there is no fit, naming the hits
+        selection, refusal = error.selection, str(error)
     if friction is None and not fit_failure and options.mu is None and options.fit:
         try:
-            friction = fit_impacts(records, accepted_ids(summary), options.model, progress=progress)
+            friction = fit_impacts(
+                records, _chosen(selection, refusal), options.model, progress=progress
+            )
         except ValueError as error:  # FitError is one: the result says why there is no fit
             fit_failure = str(error)
     diagnosis, diagnosis_failure = None, ''
     if options.diagnose:
         try:
             diagnosis = diagnose_impacts(
-                records, accepted_ids(summary), options.model, progress=progress
+                records, _chosen(selection, refusal), options.model, progress=progress
             )
         except ValueError as error:
             diagnosis_failure = str(error)
@@ -284,6 +328,7 @@ def run_session(
         diagnosis,
         diagnosis_failure,
         comparison,
+        selection,
         list(inputs),
         list(problems),
         list(notes),
@@ -309,15 +354,24 @@ def process_session(
     )
 
 
+def _chosen(selection: ImpactSelection, refusal: str) -> tuple[int, ...]:
+    """The impacts to fit, or the SelectionError that said none is clean."""
+    if refusal:
+        raise SelectionError(refusal, selection)
+    return selection.chosen
+
+
 def overlay_of(friction: FrictionResult | None) -> ModelOverlay | None:
-    """The fitted model, each impact started where the fit started it."""
+    """The fitted model, each impact started where the fit started it and driven as scaled."""
     if friction is None or not math.isfinite(friction.mu):
         return None
     starts = friction.initial_positions_m or (0.0,) * len(friction.impact_ids)
+    scales = friction.impulse_scales or (1.0,) * len(friction.impact_ids)
     return ModelOverlay(
         friction.mu,
         'fitted',
         friction.rig,
         friction.effects,
         dict(zip(friction.impact_ids, starts, strict=True)),
+        dict(zip(friction.impact_ids, scales, strict=True)),
     )

@@ -28,6 +28,7 @@ import numpy as np
 
 from fmm_ros.core._checks import finite_samples, require_positive
 from fmm_ros.core.signal.frf import impulse
+from fmm_ros.core.signal.quality import robust_center_and_std, white_noise_std
 
 HIT_THRESHOLD_SIGMA = 10.0
 """A hit departs from the force baseline by more than this many noise deviations (Gaussian
@@ -40,6 +41,10 @@ GATE_MARGIN_FRACTION = 0.25
 GATE_MIN_MARGIN_S = 0.5e-3
 """Each run above the hit threshold is widened by this fraction of its length, and at least
 this long, on both sides: the pulse's feet lie below the threshold."""
+
+
+HIT_SETTLE_S = 1e-3
+"""The velocity is not judged inside a gate and this long after it (see `hit_windows`)."""
 
 
 MOTION_THRESHOLD_SIGMA = 10.0
@@ -55,12 +60,6 @@ FIT_FAILURES = (
     'no_convergence',
     'too_few_cycles',
 )
-
-
-_MAD_TO_STD = 1.482602218505602  # 1 / Phi^-1(3/4): MAD of Gaussian noise -> its deviation
-
-
-_ROBUST_SUBSAMPLE_MIN = 5000
 
 
 class FitError(ValueError):
@@ -106,6 +105,21 @@ class ConditionedImpact:
         return self.gate[-1][1]
 
     @property
+    def hit_windows(self) -> tuple[tuple[int, int], ...]:
+        """[start, stop) sample ranges where the fit does not judge the velocity.
+
+        Each gate and `HIT_SETTLE_S` after it: while the hammer acts, the velocity follows
+        the force's shape between its samples, which the samples do not pin down (a pulse
+        rising in 0.2 ms is two samples at 10 kHz, one at 5 kHz), and anti-alias filters
+        smear that shape for a few of their time constants more. The motion after it depends
+        on the hit only through its impulse and timing, which the fit's impulse scale and
+        start position take up. These few milliseconds carry nothing about friction.
+        """
+        settle = math.ceil(HIT_SETTLE_S * self.sample_rate_hz)
+        n = self.velocity_m_s.size
+        return tuple((start, min(stop + settle, n)) for start, stop in self.gate)
+
+    @property
     def impulse_std_n_s(self) -> float:
         """Standard deviation the force noise gives the impulse that moves the rig [N*s].
 
@@ -144,7 +158,7 @@ def condition_impact(
         raise ValueError(
             f'{source_prefix(source)}a record needs at least 16 samples, got {force.size}'
         )
-    center, noise_n = _robust_center_and_std(force)
+    center, noise_n = robust_center_and_std(force)
     peak = max(float(force.max()) - center, center - float(force.min()))
     if peak <= HIT_THRESHOLD_SIGMA * noise_n or peak == 0.0:
         raise FitError(
@@ -209,25 +223,12 @@ def cropped_impact(impact: ConditionedImpact, stop_index: int) -> ConditionedImp
 def velocity_noise_std(velocity_m_s: np.ndarray) -> float:
     """White-noise deviation of a velocity record [m/s], blind to the motion itself.
 
-    The MAD deviation of the second differences over sqrt(6): the rig's few-Hz motion barely
+    The signal core's `white_noise_std` (MAD deviation of the second differences over sqrt(6)),
+    the same estimate its quality flags judge a record by: the rig's few-Hz motion barely
     changes over two samples at 10 kHz, white noise does, and the median ignores the hit and
     the stops.
     """
-    second = np.diff(np.asarray(velocity_m_s, dtype=float), n=2)
-    if second.size == 0:
-        return 0.0
-    return _robust_center_and_std(second)[1] / math.sqrt(6.0)
-
-
-def _robust_center_and_std(values: np.ndarray) -> tuple[float, float]:
-    """Median and MAD-based deviation (of every 8th sample in long records).
-
-    Eight times cheaper, and 40,000 samples pin a noise level to about half a per cent.
-    """
-    if values.size > 8 * _ROBUST_SUBSAMPLE_MIN:
-        values = values[::8]
-    center = float(np.median(values))
-    return center, _MAD_TO_STD * float(np.median(np.abs(values - center)))
+    return white_noise_std(velocity_m_s)
 
 
 def as_conditioned(impact) -> ConditionedImpact:

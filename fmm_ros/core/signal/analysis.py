@@ -4,7 +4,9 @@ This is the pipeline the analyzer node, `fmm analyze` and the fitter share: `ana
 turns one `ImpactRecord` into an `ImpactResult` (flags, impulse, peak force, contact duration,
 band-limited mobility and receptance), and `summarize` groups results into force levels,
 averages each level (the paper's plain mean, H1, H2, coherence) and fits peak |receptance|
-against impulse (the paper's Fig. 17). `ImpactResult` and `LevelSummary` carry the fields of
+against impulse (the paper's Fig. 17). `select_impacts` is the one rule every fit and
+diagnosis (CLI, workflows, fitter node) takes its impacts by: the flagged ones are left out
+and named, unless asked for. `ImpactResult` and `LevelSummary` carry the fields of
 `fmm_interfaces/ImpactResult.msg` and `FrfSummary.msg` under the same names (complex arrays
 split into `_real`/`_imag` there), so the ROS shell converts them field by field.
 """
@@ -12,8 +14,9 @@ split into `_real`/`_imag` there), so the ROS shell converts them field by field
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -53,7 +56,7 @@ class AnalysisConfig:
     # FRF arrays in results stop at this frequency [Hz] (None: Nyquist). The FMM's mode is at
     # 2.2 Hz and its odd harmonics matter up to ~20 Hz; 100 Hz keeps results small.
     band_limit_hz: float | None = 100.0
-    # Where the peak |receptance| (and so the natural frequency) is searched [Hz]. Its lower
+    # Where the peak |receptance| is searched [Hz]. Its lower
     # end keeps out the lowest bins, where the rest offset friction leaves in the displacement
     # (x_final != 0) makes |mobility / (i omega)| large. Its upper end is lowered further to
     # where the force spectrum has dropped by excitation_drop_db (`frf.excitation_bandwidth`).
@@ -97,6 +100,9 @@ class AnalysisConfig:
             raise ValueError(f'level names must be unique and non-empty, got {names}')
 
 
+DEFAULT_ANALYSIS = AnalysisConfig()
+
+
 @dataclass(frozen=True, eq=False)
 class ImpactResult:
     """One impact analysed: the fields of ImpactResult.msg plus the spectra averaging needs."""
@@ -112,6 +118,7 @@ class ImpactResult:
     contact_duration_s: float
     record_duration_s: float
     sample_rate_hz: float
+    # From the period between velocity reversals (`frf.natural_frequency`); NaN if too few.
     natural_frequency_hz: float
     peak_receptance_m_per_n: float
     frequency_step_hz: float
@@ -147,6 +154,7 @@ class LevelSummary:
     std_impulse_n_s: float
     mean_peak_force_n: float
     peak_receptance_m_per_n: float
+    # Mean of the level's impacts' natural frequencies (one method everywhere).
     natural_frequency_hz: float
     frequency_step_hz: float
     frequency_hz: np.ndarray
@@ -172,7 +180,7 @@ class Summary:
 def analyze_impact(
     record: ImpactRecord,
     capture: CaptureConfig = DEFAULT_CAPTURE,
-    analysis: AnalysisConfig = AnalysisConfig(),
+    analysis: AnalysisConfig = DEFAULT_ANALYSIS,
     *,
     impact_id: int = 0,
 ) -> ImpactResult:
@@ -218,9 +226,10 @@ def analyze_impact(
     frequency = frf.frequency_axis(n_fft, rate)[:bins]
     mobility = frf.mobility(force_spectrum, velocity_spectrum)
     receptance = frf.receptance_from_mobility(mobility, frequency)
-    peak_receptance, natural_frequency = frf.peak_magnitude(
+    peak_receptance, _ = frf.peak_magnitude(
         receptance, frequency, _peak_band(force_spectrum, frequency, analysis)
     )
+    natural_frequency = frf.natural_frequency(record.velocity_m_s, rate)
     return ImpactResult(
         impact_id=impact_id,
         trigger_sample_index=record.trigger_sample_index,
@@ -250,7 +259,7 @@ def analyze_impact(
 
 
 def summarize(
-    results: Sequence[ImpactResult], analysis: AnalysisConfig = AnalysisConfig()
+    results: Sequence[ImpactResult], analysis: AnalysisConfig = DEFAULT_ANALYSIS
 ) -> Summary:
     """Assign levels, judge every impact, average each level and fit |receptance| vs impulse.
 
@@ -316,13 +325,15 @@ def _level_summary(
         np.stack([result.velocity_spectrum for result in members]),
     )
     receptance = frf.receptance_from_mobility(average.mean_mobility, first.frequency_hz)
-    peak, natural_frequency = frf.peak_magnitude(
+    peak, _ = frf.peak_magnitude(
         receptance,
         first.frequency_hz,
         _peak_band(
             np.stack([result.force_spectrum for result in members]), first.frequency_hz, analysis
         ),
     )
+    frequencies = [m.natural_frequency_hz for m in members if np.isfinite(m.natural_frequency_hz)]
+    natural_frequency = float(np.mean(frequencies)) if frequencies else float('nan')
     impulses = np.array([result.impulse_n_s for result in members])
     return LevelSummary(
         level=name,
@@ -352,3 +363,98 @@ def _peak_band(
     low, high = analysis.peak_band_hz
     usable = frf.excitation_bandwidth(force_spectrum, frequency_hz, analysis.excitation_drop_db)
     return low, high if np.isnan(usable) else min(high, usable)
+
+
+class JudgedImpact(Protocol):
+    """What selection needs of an impact: an `ImpactResult`, or the fitter's held impact."""
+
+    impact_id: int
+    accepted: bool
+    flags: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class ImpactSelection:
+    """The impacts a fit takes and those it leaves out, each with its flags and source."""
+
+    chosen: tuple[int, ...]
+    # (impact id, flags, source) of every impact left out, in the order given.
+    excluded: tuple[tuple[int, tuple[str, ...], str], ...]
+    # (impact id, flags, source) of flagged impacts taken because include_flagged was set.
+    included_flagged: tuple[tuple[int, tuple[str, ...], str], ...] = ()
+
+    @property
+    def note(self) -> str:
+        """One line naming what was left out or taken despite its flags ('' when neither)."""
+        parts = []
+        if self.excluded:
+            parts.append(
+                f'left out {len(self.excluded)} flagged impact(s): {_named(self.excluded)} '
+                '(--include-flagged takes them)'
+            )
+        if self.included_flagged:
+            parts.append(
+                f'WARNING: {len(self.included_flagged)} flagged impact(s) included on '
+                f'request: {_named(self.included_flagged)}'
+            )
+        return '; '.join(parts)
+
+
+class SelectionError(ValueError):
+    """Too few clean impacts for what was asked; `selection` says which were left out."""
+
+    def __init__(self, message: str, selection: ImpactSelection) -> None:
+        super().__init__(message)
+        self.selection = selection
+
+
+def select_impacts(
+    impacts: Summary | Iterable[JudgedImpact],
+    *,
+    include_flagged: bool = False,
+    min_clean: int = 1,
+) -> ImpactSelection:
+    """The impacts a fit or diagnosis takes: the accepted ones, or all with include_flagged.
+
+    An impact is left out when its flags rejected it (`AnalysisConfig.reject_flags`, every flag
+    by default; the analyzer node's `reject_flags` for its messages): a clipped force, a double
+    hit, a dead vibrometer or a gap gives a confident wrong mu, so it never enters a fit
+    silently. include_flagged takes every impact (and the selection says which were flagged).
+    Raises SelectionError naming the impacts left out and their flags when fewer than
+    min_clean remain.
+    """
+    if isinstance(impacts, Summary):
+        impacts = impacts.impacts
+    chosen, excluded, included = [], [], []
+    for impact in impacts:
+        entry = (int(impact.impact_id), tuple(impact.flags), getattr(impact, 'source', ''))
+        if impact.accepted:
+            chosen.append(entry[0])
+        elif include_flagged:
+            chosen.append(entry[0])
+            included.append(entry)
+        else:
+            excluded.append(entry)
+    selection = ImpactSelection(tuple(chosen), tuple(excluded), tuple(included))
+    if len(chosen) < min_clean:
+        total = len(chosen) + len(excluded)
+        if total == 0:
+            raise SelectionError('no impact to fit', selection)
+        count = (
+            'no clean impact to fit'
+            if not chosen
+            else f'{len(chosen)} clean impact(s) of {total}, {min_clean} needed'
+        )
+        raise SelectionError(
+            f'{count}: {_named(excluded)} flagged (--include-flagged takes them anyway)',
+            selection,
+        )
+    return selection
+
+
+def _named(entries: Sequence[tuple[int, tuple[str, ...], str]]) -> str:
+    """'impact 3 (hit3.csv: double_hit), impact 5 (clipped, no_response)'."""
+    return ', '.join(
+        f'impact {impact_id} ({f"{source}: " if source else ""}{", ".join(flags) or "rejected"})'
+        for impact_id, flags, source in entries
+    )

@@ -23,6 +23,9 @@ CSV_COLUMNS: tuple[str, str, str] = ('time_s', 'force_n', 'velocity_m_s')
 # uniformly sampled (a dropped sample shows up as a step of 2, far beyond it).
 TIME_STEP_TOLERANCE = 1e-3
 
+# A header longer than this is not one (a damaged file: its cells would all be held in memory).
+MAX_HEADER_CHARS = 65_536
+
 Gaps = tuple[tuple[int, int], ...]
 
 
@@ -51,6 +54,9 @@ class ImpactRecord:
     velocity_gaps: Gaps = field(default=())
     # File name or other origin, for reports.
     source: str = ''
+    # The acquisition was restarted (a new one recognised) before the record was complete:
+    # its tail never came and is listed as a gap.
+    interrupted: bool = False
 
     def __post_init__(self) -> None:
         force = np.asarray(self.force_n, dtype=float)
@@ -98,8 +104,17 @@ def read_impact_csv(path: str | Path) -> ImpactRecord:
     so a bad file is refused instead of turning into a wrong FRF.
     """
     path = Path(path)
-    with path.open(newline='') as handle:
-        header = next(csv.reader(handle), None)
+    try:
+        with path.open(newline='', encoding='utf-8') as handle:
+            line = handle.readline(MAX_HEADER_CHARS + 1)
+        header = next(csv.reader([line]), None) if line else None
+    except (UnicodeDecodeError, csv.Error) as error:
+        raise ValueError(f'{path}: not a text CSV file ({error})') from None
+    if len(line) > MAX_HEADER_CHARS:
+        raise ValueError(
+            f'{path}: the first line is longer than {MAX_HEADER_CHARS} characters: not the '
+            f'header {",".join(CSV_COLUMNS)}'
+        )
     if header is None:
         raise ValueError(f'{path}: empty file, expected a header {",".join(CSV_COLUMNS)}')
     names = [name.strip() for name in header]

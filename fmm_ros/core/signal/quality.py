@@ -1,0 +1,291 @@
+"""Signs of damaged samples in one channel: a flat top, a stuck stretch, no response to a hit.
+
+Plain functions on arrays, used by `capture.quality_flags` (so the analyzer node, `fmm analyze`,
+bag replay and every fit see the same verdict). None of them needs to know the sensor: a
+full-scale range, a quantisation step or a noise level, where they matter, are read from the
+samples themselves.
+
+- Noise: the white-noise deviation of a channel is the MAD deviation of its second differences
+  over sqrt(6) (`white_noise_std`): a few-Hz motion barely changes over two samples at 10 kHz,
+  white noise does, and the median ignores the hit and the stops.
+- Flat top (`flat_extreme`): a clipped or saturated channel holds its extreme for a stretch of
+  samples, equal within a tolerance (half the quantisation step, or `FLAT_NOISE_WIDTH` noise
+  deviations when noise rides on the rail). A smooth peak does that too when quantised coarsely
+  or very noisy, so the stretch also has to be one no smooth peak can make: a peak that stays
+  within the tolerance t for the 2h samples of the stretch has a curvature of at most 2t/h^2,
+  so one stretch-length beyond either end (3h from its middle) it can have dropped by at most
+  9t. A clipped signal rose into the rail and falls off it: it has dropped by far more.
+  `FLAT_DROP_FACTOR` (16) leaves a margin for noise; clipping shallower than about 2 t is not
+  seen, and does not matter. A plateau of a few samples is judged again in a band of a few
+  noise deviations: the top of a sharp hammer pulse, or of its tip ringing at kHz, can put
+  three samples inside the wide band and then fall away steeply.
+- Stuck stretch (`stuck_stretch`): a noisy channel (`has_white_noise`) cannot repeat one exact
+  value for long. A channel whose consecutive samples are equal with probability p repeats one
+  for k samples by chance about n p^(k-1) times in n samples; a run longer than makes that
+  `STUCK_FALSE_ALARM` (and at least `STUCK_MIN_SAMPLES`) is samples dropped and filled by the
+  acquisition (zeros, or the last value held). Runs on a plateau `flat_extreme` found are
+  clipping, not counted again. In a channel without white noise (a simulation, a quantised
+  record quieter than its step) a constant can be real, a rig at rest, but the signal then
+  reached it in steps like its others: only a stretch entered and left by a jump (zeros where
+  the channel sat at an offset or moved) counts there.
+- Response (`responds`): a hit moves the rig, so the velocity just after the contact must depart
+  from its level just before it by far more than the channel's noise and than its own spread
+  before the contact (which holds any hum or drift a disconnected input picks up). A dead or
+  disconnected vibrometer shows noise, hum or a constant: the same spread on both sides.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from fmm_ros.core.signal.frf import first_true
+
+MAD_TO_STD = 1.482602218505602
+"""1 / Phi^-1(3/4): the MAD of Gaussian noise times this is its standard deviation."""
+
+ROBUST_SUBSAMPLE_MIN = 5000
+"""Above 8 times this many values, robust statistics use every 8th (40,000 values pin a noise
+level to about half a per cent; eight times cheaper on a 33 s record)."""
+
+FLAT_MIN_SAMPLES = 3
+"""A flat top is at least this many consecutive samples at the extreme."""
+
+FLAT_NOISE_WIDTH = 10.0
+"""Samples within this many noise deviations of the extreme count as on it (noise added after
+the rail spreads a plateau by a few deviations; the largest of 10^4 samples lies ~4 above it)."""
+
+FLAT_SHORT_SAMPLES = 8
+"""A plateau shorter than this many samples in the wide band ..."""
+
+FLAT_SHORT_NOISE_WIDTH = 4.0
+"""... is judged again with samples within this many noise deviations of the extreme (a rail's
+noisy samples lie within about two; the top of a ringing pulse spreads over six)."""
+
+FLAT_DROP_FACTOR = 16.0
+"""A flat top must fall by more than this many tolerances one stretch-length beyond its ends
+(a smooth peak falls by at most 9; see the module docstring)."""
+
+STUCK_MIN_SAMPLES = 25
+"""Shortest stretch of one repeated value counted as a dropout [samples]."""
+
+STUCK_FALSE_ALARM = 1e-4
+"""Expected number of chance repeats of the dropout length in a noisy record."""
+
+STUCK_STEPS = 2.0
+"""In a channel without noise, a held stretch must be entered and left by a jump this many
+times the largest step of the samples around it (and of the quantisation step)."""
+
+STUCK_SPAN_FRACTION = 0.01
+"""... and by more than this fraction of the channel's range: a fill of a moving signal, not a
+rounding-level step of a record ending (a noise-free record's smallest step is tiny)."""
+
+STUCK_MAX_EQUAL_FRACTION = 0.9
+"""A channel whose consecutive samples are equal more often than this has no noise to judge by."""
+
+RESPONSE_RATIO = 5.0
+"""The velocity after a hit must depart from its level by this many times the noise and the
+quiet tail's spread."""
+
+RESPONSE_PERCENTILE = 90.0
+"""The departure after a hit is this percentile of |velocity - level| (robust to a spike)."""
+
+
+def robust_center_and_std(values: np.ndarray) -> tuple[float, float]:
+    """Median and MAD-based deviation of the finite values (every 8th in long arrays)."""
+    values = np.asarray(values, dtype=float)
+    if values.size > 8 * ROBUST_SUBSAMPLE_MIN:
+        values = values[::8]
+    values = values[np.isfinite(values)]
+    if values.size == 0:
+        return math.nan, math.nan
+    center = float(np.median(values))
+    return center, MAD_TO_STD * float(np.median(np.abs(values - center)))
+
+
+def white_noise_std(samples: np.ndarray) -> float:
+    """White-noise deviation of a channel, blind to slow motion and to a few pulses.
+
+    The MAD deviation of the second differences over sqrt(6) (second differences of white
+    noise have variance 6 sigma^2). 0 for a channel without noise, NaN with no finite values.
+    """
+    with np.errstate(invalid='ignore'):  # inf - inf in a corrupt stretch: NaN, left out
+        second = np.diff(np.asarray(samples, dtype=float), n=2)
+    if second.size == 0:
+        return 0.0
+    return robust_center_and_std(second)[1] / math.sqrt(6.0)
+
+
+def flat_extreme(
+    samples: np.ndarray, sign: float = 1.0, noise_std: float | None = None
+) -> float | None:
+    """The channel's maximum (sign +1) or minimum (sign -1) if it is a clipped plateau, or None.
+
+    See the module docstring for the rule. noise_std: the channel's white-noise deviation, if
+    already known. Non-finite samples are never part of a plateau.
+    """
+    values = sign * np.asarray(samples, dtype=float)
+    finite = np.isfinite(values)
+    if not finite.any():
+        return None
+    peak_at = int(np.argmax(np.where(finite, values, -np.inf)))
+    level = values[peak_at]
+    noise = white_noise_std(samples) if noise_std is None else noise_std
+    noise = noise if np.isfinite(noise) else 0.0
+    near = values[max(0, peak_at - ROBUST_SUBSAMPLE_MIN) : peak_at + ROBUST_SUBSAMPLE_MIN]
+    floor = max(0.5 * quantum(near), 1e-12 * abs(level))
+    tolerance = max(floor, FLAT_NOISE_WIDTH * noise)
+    start, stop = _run_around(values, peak_at, tolerance)
+    if stop - start < FLAT_SHORT_SAMPLES:
+        # A few samples in the wide band can be a sharp peak's top, or its tip's ringing: a
+        # short plateau must hold within the noise of a few samples.
+        tolerance = max(floor, FLAT_SHORT_NOISE_WIDTH * noise)
+        start, stop = _run_around(values, peak_at, tolerance)
+    run = stop - start
+    if run < FLAT_MIN_SAMPLES:
+        return None
+    # One stretch-length beyond each end, or the record's first or last sample: nearer the
+    # plateau a smooth peak has dropped less, so the clamp never makes one look clipped.
+    left, right = max(start - run + 1, 0), min(stop + run - 2, values.size - 1)
+    drop = min(level - values[left], level - values[right])
+    return float(sign * level) if drop > FLAT_DROP_FACTOR * tolerance else None
+
+
+def _run_around(values: np.ndarray, peak_at: int, tolerance: float) -> tuple[int, int]:
+    """[start, stop) of the samples around peak_at within tolerance of it (NaN never is)."""
+    off = ~(values[peak_at] - values <= tolerance)
+    after = first_true(off[peak_at:])
+    before = first_true(off[peak_at::-1])
+    return (
+        0 if before < 0 else peak_at - before + 1,
+        values.size if after < 0 else peak_at + after,
+    )
+
+
+def has_white_noise(samples: np.ndarray) -> bool:
+    """Whether white noise, not the signal, makes most of the sample-to-sample changes.
+
+    For white noise the MAD of second differences is sqrt(3) times that of first differences
+    (quantised noise of about one step: both one step); for a signal smooth at the sample rate
+    (a noise-free simulation, a quantised slow signal) it is far smaller, or the first
+    differences are mostly zero.
+    """
+    with np.errstate(invalid='ignore'):  # inf - inf in a corrupt stretch: NaN, left out
+        first = np.diff(np.asarray(samples, dtype=float))
+        second = np.diff(first)
+    spread_first = robust_center_and_std(first)[1]
+    spread_second = robust_center_and_std(second)[1]
+    return bool(spread_first > 0 and spread_second >= spread_first)
+
+
+def quantum(samples: np.ndarray) -> float:
+    """Smallest step between distinct finite values (the quantisation step, if any); 0 if none."""
+    values = np.unique(np.asarray(samples, dtype=float)[np.isfinite(samples)])
+    return float(np.min(np.diff(values))) if values.size > 1 else 0.0
+
+
+def stuck_stretch(samples: np.ndarray, plateaus: tuple[float, ...] = ()) -> bool:
+    """Whether a channel holds one value where its samples say it cannot.
+
+    See the module docstring for the rule. plateaus: levels already judged clipping
+    (`flat_extreme`), whose runs are not counted again.
+    """
+    values = np.asarray(samples, dtype=float)
+    if values.size < STUCK_MIN_SAMPLES:
+        return False
+    # NaN never equals; inf does, but a corrupt stretch is the nan flag's: not a dropout.
+    equal = (values[1:] == values[:-1]) & np.isfinite(values[1:])
+    starts, stops = runs(equal)
+    if not has_white_noise(values):
+        return _foreign_stretch(values, starts, stops, plateaus)
+    chance = float(np.count_nonzero(equal)) / equal.size
+    if chance > STUCK_MAX_EQUAL_FRACTION:
+        return False
+    need = STUCK_MIN_SAMPLES
+    if chance > 0:
+        need = max(
+            need, math.ceil(math.log(STUCK_FALSE_ALARM / values.size) / math.log(chance)) + 1
+        )
+    held = values[starts[(stops - starts) >= need - 1]]
+    return bool(np.any(~np.isin(held, plateaus)))
+
+
+def _foreign_stretch(
+    values: np.ndarray, starts: np.ndarray, stops: np.ndarray, plateaus: tuple[float, ...]
+) -> bool:
+    """In a channel without noise: a long constant stretch the signal jumped into and out of.
+
+    A quiet channel is constant for real (a rig at rest, a quantised slow signal), but then it
+    came to that value in steps like its others (a decelerating rig, one quantisation step);
+    a stretch filled with zeros is entered and left by a jump of more than `STUCK_STEPS` times
+    the largest step of the samples just before (and after) it, and of more than
+    `STUCK_SPAN_FRACTION` of the channel's range.
+    """
+    long = (stops - starts) >= STUCK_MIN_SAMPLES - 1
+    if not long.any():
+        return False
+    with np.errstate(invalid='ignore'):  # inf - inf in a corrupt stretch: NaN, left out
+        changes = np.abs(np.diff(values))
+    positive = changes[np.isfinite(changes) & (changes > 0)]
+    step = float(np.min(positive)) if positive.size else 0.0
+
+    finite = values[np.isfinite(values)]
+    span = float(np.max(finite) - np.min(finite)) if finite.size else 0.0
+
+    def jumped(jump: float, around: np.ndarray) -> bool:
+        around = around[np.isfinite(around)]
+        usual = max(float(np.max(around)) if around.size else 0.0, step)
+        return bool(jump > STUCK_STEPS * usual and jump > STUCK_SPAN_FRACTION * span)
+
+    for start, stop in zip(starts[long], stops[long], strict=True):
+        if values[start] in plateaus:
+            continue
+        # changes[start - 1] enters the stretch, changes[stop] leaves it (if it ends inside).
+        entered = start == 0 or jumped(
+            changes[start - 1], changes[max(0, start - 1 - STUCK_MIN_SAMPLES) : start - 1]
+        )
+        left = stop >= changes.size or jumped(
+            changes[stop], changes[stop + 1 : stop + 1 + STUCK_MIN_SAMPLES]
+        )
+        if entered and left and (start > 0 or stop < changes.size):
+            return True
+    return False
+
+
+def runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """[start, stop) of every run of True in a boolean array."""
+    edges = np.diff(np.concatenate(([False], mask, [False])).astype(np.int8))
+    return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+
+
+def responds(
+    velocity: np.ndarray,
+    contact_start: int,
+    contact_end: int,
+    window_samples: int,
+    noise_std: float | None = None,
+) -> bool:
+    """Whether the velocity responds to a hit whose contact spans [contact_start, contact_end).
+
+    The same number m of samples (the pre-contact samples, at most window_samples) is taken
+    before the contact and after it. The departure is the `RESPONSE_PERCENTILE` of
+    |velocity - level| after the contact, the level being the median before it; it must exceed
+    `RESPONSE_RATIO` times the white noise and times the same percentile of the samples before
+    (which holds any hum or drift a disconnected input picks up: stationary interference shows
+    the same spread on both sides of the hit, a response does not). True when too few finite
+    samples allow no verdict: missing samples are the gap and nan flags' business.
+    """
+    velocity = np.asarray(velocity, dtype=float)
+    count = min(contact_start, window_samples)
+    before = velocity[contact_start - count : contact_start]
+    before = before[np.isfinite(before)]
+    after = velocity[contact_end : contact_end + count]
+    after = after[np.isfinite(after)]
+    if before.size < FLAT_MIN_SAMPLES or after.size < FLAT_MIN_SAMPLES:
+        return True
+    level = float(np.median(before))
+    departure = float(np.percentile(np.abs(after - level), RESPONSE_PERCENTILE))
+    spread = float(np.percentile(np.abs(before - level), RESPONSE_PERCENTILE))
+    noise = white_noise_std(velocity) if noise_std is None else noise_std
+    return departure > RESPONSE_RATIO * max(spread, noise if np.isfinite(noise) else 0.0)
