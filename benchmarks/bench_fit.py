@@ -9,8 +9,9 @@ Python (bench_physics.euler_in_python, the loop one would first write), plus sci
 least_squares on the same residuals (what the fitter's own Levenberg-Marquardt replaces).
 Then a continuous session (hits 33 s apart, each starting where friction left the last) cut
 into 33 s records and fitted as the fitter service and the session report do:
-fit_friction(records, fit_initial_position=True), time and tracemalloc peak, with the
-Jacobian by blocks (default) and dense (jacobian='dense', the plain way, one run).
+fit_friction(records, fit_initial_position=True), time and tracemalloc peak, now (impulse
+scales, hum and drift) and as before issue 14 in the same run, the latter also with the
+Jacobian dense (jacobian='dense', the plain way, one run).
 """
 
 import argparse
@@ -107,10 +108,21 @@ def traced_run(function):
     return seconds, peak_mb, result
 
 
-def session_fits(hits_per_level: int, repeats: int) -> tuple[float, float]:
-    """fit_friction of a whole session with start positions, blocks against dense.
+BEFORE_ISSUE_14 = dict(
+    fit_impulse_scale=False,
+    remove_mains_hum=False,
+    fit_velocity_drift=False,
+    judge_hit=True,
+    uncertainty='blocks',
+)
+"""fit_friction's options that reproduce the fit before issue 14 (measured impulse as exact,
+velocity as measured, the hit judged, block-sum errors)."""
 
-    Returns the blocks' (median seconds, peak MB).
+
+def session_fits(hits_per_level: int, repeats: int) -> tuple[float, float]:
+    """fit_friction of a whole session with start positions: now, before issue 14, dense.
+
+    Returns the current fit's (median seconds, peak MB).
     """
     session = simulated_session(
         hits_per_level, seed=3, force_noise_std_n=0.2, velocity_noise_std_m_s=1e-4
@@ -120,36 +132,40 @@ def session_fits(hits_per_level: int, repeats: int) -> tuple[float, float]:
     samples = sum(record.force_n.size for record in records)
     print(
         f'\nA session of {len(records)} hits, 33 s records ({samples / 1e6:.1f} M samples a '
-        f'channel): fit_friction(records, fit_initial_position=True), {len(records) + 1} '
-        'parameters jointly, then each impact alone'
+        f'channel): fit_friction(records, fit_initial_position=True), jointly (mu, each '
+        "impact's start and impulse scale, hum and drift), then each impact alone"
     )
 
-    def run(jacobian):
-        return fit_friction(records, fit_initial_position=True, jacobian=jacobian)
+    def run(jacobian='blocks', **options):
+        return fit_friction(records, fit_initial_position=True, jacobian=jacobian, **options)
 
-    blocks_s = median_s(lambda: run('blocks'), repeats)
-    _, blocks_mb, blocks = traced_run(lambda: run('blocks'))
-    dense_s, dense_mb, dense = traced_run(lambda: run('dense'))
-    joint, plain = blocks.joint, dense.joint
-    print(f'  {"Jacobian":<44} {"time":>8} {"peak":>9}   mu +- stderr, joint model runs')
+    now_s = median_s(run, repeats)
+    _, now_mb, now = traced_run(run)
+    before_s = median_s(lambda: run(**BEFORE_ISSUE_14), repeats)
+    _, before_mb, before = traced_run(lambda: run(**BEFORE_ISSUE_14))
+    dense_s, dense_mb, dense = traced_run(lambda: run('dense', **BEFORE_ISSUE_14))
+    print(f'  {"fit":<52} {"time":>8} {"peak":>9}   mu +- stderr')
     for label, seconds, mb, fitted in (
-        (f'by blocks (median of {repeats})', blocks_s, blocks_mb, joint),
-        ('dense, the plain way (one run, traced)', dense_s, dense_mb, plain),
+        (f'now, Jacobian by blocks (median of {repeats})', now_s, now_mb, now),
+        (f'before issue 14, by blocks (median of {repeats})', before_s, before_mb, before),
+        ('before issue 14, dense (one run, traced)', dense_s, dense_mb, dense),
     ):
         print(
-            f'  {label:<44} {seconds:7.2f}s {mb:6.0f} MB   {fitted.mu:.6f} +- '
-            f'{fitted.mu_stderr:.2g}, {fitted.evaluations}'
+            f'  {label:<52} {seconds:7.2f}s {mb:6.0f} MB   {fitted.mu:.6f} +- '
+            f'{fitted.mu_stderr:.2g}'
         )
+    joint, plain = before.joint, dense.joint
     worst = max(
         abs(a - b) / e for a, b, e in zip(joint.values, plain.values, plain.stderr, strict=True)
     )
     error_ratio = max(abs(a / b - 1.0) for a, b in zip(joint.stderr, plain.stderr, strict=True))
     print(
-        f'  blocks {dense_s / blocks_s:.0f}x faster, {dense_mb / blocks_mb:.1f}x less memory; '
-        f'largest difference {worst:.2g} standard errors in a value, {100 * error_ratio:.2g} % '
-        'in a standard error'
+        f'  now {now_s / before_s:.2f}x the time of the fit before issue 14; blocks '
+        f'{dense_s / before_s:.0f}x faster than dense, {dense_mb / before_mb:.1f}x less memory '
+        f'(largest difference {worst:.2g} standard errors in a value, {100 * error_ratio:.2g} % '
+        'in a standard error)'
     )
-    return blocks_s, blocks_mb
+    return now_s, now_mb
 
 
 def main() -> None:

@@ -77,9 +77,9 @@ def analyzer_share(batch_size: int, seconds: float = 20.0) -> float:
             Parameter('batch_size', value=batch_size),
             Parameter('first_hit_s', value=1.0),
             Parameter('hit_spacing_s', value=8.0),
-            Parameter('wait_for_subscribers', value=1),
+            Parameter('wait_for_consumers', value=['rig_sim', 'analyzer']),
         ],
-        'rig_sim': [],
+        'rig_sim': [Parameter('wait_for_consumers', value=['analyzer'])],
         'analyzer': [],
     }
     processes = start_processes(['analyzer'], None, overrides)

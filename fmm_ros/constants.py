@@ -63,14 +63,41 @@ MU_DRIFT = 'mu_drift'
 what the diagnosis names and the proof data (`fmm_ros.sim.hidden_effects`) hide by this name."""
 
 # -- ROS names (also the topics of bags, which are read and written without ROS) ----------------
-FORCE_TOPIC = '/fmm/force'
-VELOCITY_TOPIC = '/fmm/velocity'
-APPLIED_FORCE_TOPIC = '/fmm/sim/applied_force'
+# Relative, so a node resolves them in its namespace: `fmm/force` is /fmm/force in the root
+# namespace and /rig2/fmm/force under `--ros-args -r __ns:=/rig2`, and two rigs share one graph
+# without cross-talk. Bags hold the resolved names; readers find a channel by its name's tail.
+FORCE_TOPIC = 'fmm/force'
+VELOCITY_TOPIC = 'fmm/velocity'
+APPLIED_FORCE_TOPIC = 'fmm/sim/applied_force'
 """Simulation only: the force the hammer applies (noise-free), which drives rig_sim."""
-IMPACTS_TOPIC = '/fmm/impacts'
-FRF_TOPIC = '/fmm/frf'
-FIT_SERVICE = '/fmm/fit_friction'
-DIAGNOSE_SERVICE = '/fmm/diagnose_model'
+IMPACTS_TOPIC = 'fmm/impacts'
+FRF_TOPIC = 'fmm/frf'
+FRICTION_TOPIC = 'fmm/friction'
+"""The fitter's running mu (FrictionEstimate), one message after every accepted impact."""
+STREAM_PROGRESS_TOPIC = 'fmm/stream_progress'
+"""Where consumers of sample batches say how far they have got (flow control of the sources)."""
+DIAGNOSTICS_TOPIC = '/diagnostics'
+"""Health of every node (diagnostic_msgs/DiagnosticArray): absolute, as the ROS convention
+has it (rqt_robot_monitor and Foxglove read it); statuses carry the node's full name."""
+FIT_SERVICE = 'fmm/fit_friction'
+DIAGNOSE_SERVICE = 'fmm/diagnose_model'
+RECORDED_TOPICS = (
+    FORCE_TOPIC,
+    VELOCITY_TOPIC,
+    IMPACTS_TOPIC,
+    FRF_TOPIC,
+    FRICTION_TOPIC,
+    DIAGNOSTICS_TOPIC,
+)
+"""What the recorder (and `fmm record`) records unless told otherwise."""
+
+
+def resolve_name(name: str, namespace: str = '/') -> str:
+    """The full name a relative topic or service name has in namespace (absolute: itself)."""
+    if name.startswith('/'):
+        return name
+    return namespace.rstrip('/') + '/' + name
+
 
 # -- how results are shown to people: CLI text and report pages alike -------------------------
 MM_PER_M = 1e3

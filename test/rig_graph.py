@@ -5,8 +5,8 @@ import time
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from fmm_interfaces.msg import FrfSummary, ImpactResult, SampleBatch
-from fmm_ros.constants import FRF_TOPIC, IMPACTS_TOPIC, VELOCITY_TOPIC
+from fmm_interfaces.msg import FrfSummary, FrictionEstimate, ImpactResult, SampleBatch
+from fmm_ros.constants import FRF_TOPIC, FRICTION_TOPIC, IMPACTS_TOPIC, VELOCITY_TOPIC
 from fmm_ros.ros.common import RESULT_QOS, SAMPLE_QOS
 
 
@@ -22,14 +22,16 @@ FAST_ANALYZER = dict(window_s=6.0)
 
 
 class Listener(Node):
-    """Collects what the analyzer publishes."""
+    """Collects what the analyzer and the fitter publish."""
 
     def __init__(self, **kwargs):
         super().__init__('listener', **kwargs)
         self.impacts: list[ImpactResult] = []
         self.summaries: list[FrfSummary] = []
+        self.friction: list[FrictionEstimate] = []
         self.create_subscription(ImpactResult, IMPACTS_TOPIC, self.impacts.append, RESULT_QOS)
         self.create_subscription(FrfSummary, FRF_TOPIC, self.summaries.append, RESULT_QOS)
+        self.create_subscription(FrictionEstimate, FRICTION_TOPIC, self.friction.append, RESULT_QOS)
 
 
 class LossyLink(Node):

@@ -32,7 +32,9 @@ def recorded_session(tmp_path_factory):
         recorder = graph.add(Recorder, parameter_overrides=params(bag_path=str(bag)))
         graph.start()
         assert wait_for(lambda: len(listener.impacts) == 3)
-        time.sleep(0.3)  # the results' last messages reach the recorder too
+        # The results' last messages reach the recorder too, and every node's health (once a
+        # second) is recorded at least once.
+        time.sleep(1.2)
         live = list(listener.impacts)
         config = analyzer.config
     assert recorder.messages_recorded > 0
@@ -43,11 +45,38 @@ def test_the_recorded_bag_holds_every_topic_and_is_closed(recorded_session):
     bag, live, _ = recorded_session
     assert (bag / 'metadata.yaml').is_file()
     with BagReader(bag) as reader:
-        assert set(reader.topics) == {'/fmm/force', '/fmm/velocity', '/fmm/impacts', '/fmm/frf'}
+        assert set(reader.topics) == {
+            '/fmm/force',
+            '/fmm/velocity',
+            '/fmm/impacts',
+            '/fmm/frf',
+            '/fmm/friction',
+            '/diagnostics',
+        }
         assert reader.topics['/fmm/impacts'].count == len(live) == 3
         assert not reader.problems
         indices = [batch.first_sample_index for batch in reader.channel('/fmm/force')]
         assert indices == list(range(0, 1000 * len(indices), 1000))
+        # The bag states its own completeness: the recorder's ledger, in its metadata.
+        assert reader.ros_distro == 'jazzy'
+        ledger = reader.recorded_ledger
+        assert set(ledger) == {'/fmm/force', '/fmm/velocity'}
+        force = ledger['/fmm/force']
+        assert force.acquisitions == [[0, 1000 * len(indices)]]
+        assert force.received_samples == 1000 * len(indices)
+        assert (force.missing_samples, force.refused_batches, force.resyncs) == (0, 0, 0)
+
+
+def test_bag_info_shows_the_ledger_and_the_health_the_bag_holds(recorded_session, capsys):
+    from fmm_ros.cli import main
+
+    bag, _, _ = recorded_session
+    assert main(['bag-info', str(bag), '-q']) == 0
+    out = capsys.readouterr().out
+    assert 'ros:       jazzy' in out
+    assert '/fmm/force 0..' in out and ', 0 missing, 0 batches (0 samples) refused' in out
+    assert 'health:    last status on /diagnostics' in out
+    assert '/analyzer: stream' in out and '/recorder: recorder' in out
 
 
 def test_offline_analysis_of_the_bag_equals_the_live_run(recorded_session):
@@ -89,7 +118,9 @@ def test_the_player_replays_the_session_into_a_live_analyzer(recorded_session):
 
 def test_player_names_what_a_bag_lacks(recorded_session, ros_graph):
     bag, _, _ = recorded_session
-    with pytest.raises(ValueError, match='has no topic /fmm/torque; it has /fmm/force'):
+    with pytest.raises(
+        ValueError, match='has no topic /fmm/torque; it has /diagnostics, /fmm/force'
+    ):
         ros_graph.add(Player, parameter_overrides=params(bag_path=str(bag), topics=['/fmm/torque']))
     with pytest.raises(ValueError, match='set the bag_path parameter'):
         ros_graph.add(Player)
@@ -132,7 +163,10 @@ def test_fmm_record_records_live_topics_until_interrupted(tmp_path, signum):
         ['hammer_sim', 'rig_sim'],
         None,
         parse_overrides(
-            ['hammer_sim.rate_factor=10', 'hammer_sim.wait_for_subscribers=1'],
+            [
+                'hammer_sim.rate_factor=10',
+                "hammer_sim.wait_for_consumers=['recorder', 'rig_sim']",
+            ],
             ['hammer_sim', 'rig_sim'],
         ),
     )

@@ -9,7 +9,7 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.rosbag2 import Reader
 
-from fmm_ros.constants import FORCE_TOPIC, FRF_TOPIC, IMPACTS_TOPIC, VELOCITY_TOPIC
+from fmm_ros.constants import FORCE_TOPIC, FRF_TOPIC, IMPACTS_TOPIC, VELOCITY_TOPIC, resolve_name
 from fmm_ros.io.bags import (
     FRF_SUMMARY,
     IMPACT_RESULT,
@@ -18,6 +18,11 @@ from fmm_ros.io.bags import (
     BagWriter,
     fmm_typestore,
     new_message,
+)
+
+# A bag holds the names a node in the root namespace resolves the relative topics to.
+FORCE_TOPIC, VELOCITY_TOPIC, IMPACTS_TOPIC, FRF_TOPIC = map(
+    resolve_name, (FORCE_TOPIC, VELOCITY_TOPIC, IMPACTS_TOPIC, FRF_TOPIC)
 )
 
 FS = 10_000.0

@@ -10,7 +10,15 @@ from bag_helpers import random_message
 
 from fmm_ros.cli import main
 from fmm_ros.cli.progress import progress_bar
-from fmm_ros.constants import FORCE, FORCE_TOPIC, FRF_TOPIC, IMPACTS_TOPIC, VELOCITY, VELOCITY_TOPIC
+from fmm_ros.constants import (
+    FORCE,
+    FORCE_TOPIC,
+    FRF_TOPIC,
+    IMPACTS_TOPIC,
+    VELOCITY,
+    VELOCITY_TOPIC,
+    resolve_name,
+)
 from fmm_ros.io.bags import FRF_SUMMARY, IMPACT_RESULT, BagWriter, fmm_typestore
 from fmm_ros.io.bags.tables import table_columns
 
@@ -64,8 +72,8 @@ def test_import_lists_channels_then_writes_a_bag_that_bag_info_describes(tmp_pat
 
     assert main(['bag-info', str(bag), '--json']) == 0
     info = json.loads(capsys.readouterr().out)
-    assert info['topics'][FORCE_TOPIC]['count'] == 24
-    assert info['channels'][VELOCITY_TOPIC]['sample_rate_hz'] == [FS]
+    assert info['topics'][resolve_name(FORCE_TOPIC)]['count'] == 24
+    assert info['channels'][resolve_name(VELOCITY_TOPIC)]['sample_rate_hz'] == [FS]
     assert info['problems'] == []
 
 

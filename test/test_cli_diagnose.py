@@ -101,9 +101,9 @@ def test_bad_input_is_a_one_line_error(tmp_path, capsys):
     assert main(['diagnose', str(tmp_path / 'missing.csv')]) == 2
 
 
-def test_initial_positions_are_fitted_in_every_model_on_request(offset_files, capsys):
+def test_initial_positions_are_fitted_in_every_model_by_default(offset_files, capsys):
     _, paths = offset_files
-    assert main(['diagnose', *paths, '--json', '--fit-initial-position']) == 0
+    assert main(['diagnose', *paths, '--json']) == 0
     payload = json.loads(capsys.readouterr().out)
     assert payload['missing_effect'] == 'velocity_offset'
     # the hits started at rest at x = 0: the fitted starts are well inside the friction band
@@ -115,3 +115,11 @@ def test_initial_positions_are_fitted_in_every_model_on_request(offset_files, ca
     assert len(starts) == 3 and all(abs(x) < 1e-4 for x in starts)
     for candidate in payload['candidates']:
         assert sum(name.startswith('initial_position_m') for name in candidate['parameters']) == 3
+
+
+def test_initial_positions_at_zero_on_request(offset_files, capsys):
+    _, paths = offset_files
+    assert main(['diagnose', *paths, '--json', '--no-fit-initial-position']) == 0
+    payload = json.loads(capsys.readouterr().out)
+    assert payload['missing_effect'] == 'velocity_offset'
+    assert not any(name.startswith('initial_position_m') for name in payload['parameters'])

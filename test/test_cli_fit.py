@@ -97,7 +97,12 @@ def test_fit_json_has_the_issues_keys_and_one_mu(capsys, files):
         assert entry['mu'] == pytest.approx(0.113, rel=0.01)
         assert 0.8 < entry['impulse_n_s'] < 2.0
     assert result['mu_consistency_p_value'] > 1e-3 and result['misfit'] == 'time'
-    assert all(entry['initial_position_m'] == 0.0 for entry in result['per_file'])
+    # Each hit's start is fitted by default; these records start at rest at x = 0.
+    assert all(abs(entry['initial_position_m']) < 5e-6 for entry in result['per_file'])
+    # So is each hit's impulse scale; these noisy lab records hold no hum, and no offset.
+    for entry in result['per_file']:
+        assert entry['impulse_scale'] == pytest.approx(1.0, abs=2e-3)
+        assert entry['mains_hum_hz'] is None and abs(entry['velocity_offset_m_s']) < 5e-6
 
 
 def test_fit_damping_and_the_frf_misfit(capsys, files):
@@ -111,18 +116,17 @@ def test_fit_damping_and_the_frf_misfit(capsys, files):
     assert result['damping_stderr_n_s_per_m'] > 0.0
 
 
-def test_initial_positions_are_fitted_on_request(capsys, files):
-    code, out, _ = run(capsys, 'fit', *files['levels'], '--json', '--fit-initial-position')
+def test_initial_positions_at_zero_on_request(capsys, files):
+    code, out, _ = run(capsys, 'fit', *files['levels'], '--json', '--no-fit-initial-position')
     result = json.loads(out)
     assert code == 0 and result['mu'] == pytest.approx(0.113, rel=0.01)
-    # These records start at rest at x = 0: the fitted starts are that, within microns.
-    assert all(abs(entry['initial_position_m']) < 5e-6 for entry in result['per_file'])
+    assert all(entry['initial_position_m'] == 0.0 for entry in result['per_file'])
 
 
 def test_a_bag_gives_every_recorded_impact(capsys, tmp_path):
     session = simulated_session(1, seed=74, force_noise_std_n=0.2, velocity_noise_std_m_s=1e-4)
     bag = write_session_bag(tmp_path / 'session.mcap', session)
-    code, out, _ = run(capsys, 'fit', bag, '--json', '--fit-initial-position')
+    code, out, _ = run(capsys, 'fit', bag, '--json')
     result = json.loads(out)
     assert code == 0 and len(result['per_file']) == 3
     assert all(entry['file'].startswith('session.mcap@') for entry in result['per_file'])

@@ -46,9 +46,11 @@ def test_the_params_file_shows_ranges_choices_and_replaced_defaults():
         'cheap); 1 to 1000000\n' in text
     )
     assert '# Physics integrator; one of exact, rk4, euler\n' in text
-    assert 'wait_for_subscribers: 1  #' in text and text.count('node default 0') == 1
+    # In a rig the sources wait for the rig's consumers; the nodes alone wait for none.
+    assert "wait_for_consumers: ['rig_sim', 'analyzer', 'fitter', 'recorder']  #" in text
+    assert text.count("node default ['']") == 3
     assert 'settable live' in text.split('rate_factor: 1.0', 1)[1].split('\n', 1)[0]
-    assert yaml.safe_load(text)['recorder']['ros__parameters']['topics'][0] == '/fmm/force'
+    assert yaml.safe_load(text)['recorder']['ros__parameters']['topics'][0] == 'fmm/force'
 
 
 @pytest.mark.parametrize(

@@ -27,12 +27,18 @@ def test_demo_json_reports_the_session_and_fits_the_plant_mu(tmp_path, capsys):
     assert summary['r2'] > 0.99
     assert summary['missing_effect'] == 'none', summary['diagnosis']
     assert json.loads((out / 'summary.json').read_text()) == summary
+    # The live mu after each accepted hit, as the fitter published (and the recorder kept) it.
+    running = summary['running_mu']
+    assert [e['count'] for e in running] == [1, 2, 3]
+    assert running[-1]['mu'] == pytest.approx(summary['mu'], abs=0.5 * summary['mu_stderr'])
+    assert set(running[-1]['levels']) == {'low', 'medium', 'high'}
     with BagReader(summary['bag']) as reader:
         assert reader.topics['/fmm/impacts'].count == 3
+        assert reader.topics['/fmm/friction'].count == 3
     page = out / 'report' / 'index.html'
     assert summary['report'] == str(page) and page.is_file()
     text = page.read_text()
-    assert text.count('<img') >= 10
+    assert text.count('<img') >= 10 and (out / 'report' / 'running_mu.png').is_file()
     # The page shows the fit service's answer (not a fit of its own): its mu and errors.
     shown = f'μ = {value_with_error(summary["mu"], summary["mu_stderr"])} fitted to 3 impacts'
     assert shown in text

@@ -16,6 +16,9 @@ from fmm_ros.core.physics.terms import model_term
 from fmm_ros.core.signal.capture import capture_impacts
 from fmm_ros.sim.session import simulated_session
 
+SCALES = tuple(f'impulse_scale[{i}]' for i in range(3))
+"""fit_friction fits each hit's impulse scale."""
+
 
 @pytest.fixture(scope='module')
 def paper_set():
@@ -47,9 +50,9 @@ def test_mu_and_damping_fitted_together(mu, damping, seed):
     assert result.mu == pytest.approx(mu, rel=0.01)
     assert result.damping_n_s_per_m == pytest.approx(damping, rel=0.10)
     assert abs(result.damping_n_s_per_m - damping) < 4.0 * result.damping_stderr_n_s_per_m
-    assert result.joint.names == ('mu', 'damping_n_s_per_m')
+    assert result.joint.names == ('mu', 'damping_n_s_per_m', *SCALES)
     # Each impact's own mu is fitted with c held at the joint value.
-    assert all(single.names == ('mu',) for single in result.per_impact)
+    assert all(single.names == ('mu', 'impulse_scale[0]') for single in result.per_impact)
     assert all(
         single.rig.damping_n_s_per_m == result.damping_n_s_per_m for single in result.per_impact
     )
@@ -72,7 +75,8 @@ def test_euler_integrator_fits_too(paper_set):
     assert euler.mu == pytest.approx(0.113, rel=0.01)
 
 
-def test_standard_error_matches_the_scatter_over_noise_seeds():
+@pytest.mark.parametrize('scale', [False, True], ids=['measured_impulse', 'impulse_scale'])
+def test_standard_error_matches_the_scatter_over_noise_seeds(scale):
     hit = lab_impact(
         1000.0, 7, mu=0.1, force_noise_std_n=0.0, velocity_noise_std_m_s=0.0, duration_s=8.0
     )  # the rig is at rest after 4 s
@@ -81,13 +85,19 @@ def test_standard_error_matches_the_scatter_over_noise_seeds():
     for _ in range(12):
         force = hit.force_n + rng.normal(0.0, FORCE_NOISE_N, hit.force_n.size)
         velocity = hit.velocity_m_s + rng.normal(0.0, VELOCITY_NOISE_M_S, hit.force_n.size)
-        result = fit.fit_model(fit.condition_impact(force, velocity, hit.sample_rate_hz))
+        impact = fit.condition_impact(force, velocity, hit.sample_rate_hz)
+        result = fit.fit_model(impact, fit_impulse_scale=scale)
         errors.append(result.mu - 0.1)
         stderrs.append(result.mu_stderr)
-        # At 0.2 N the hit's impulse noise, not the velocity noise, limits mu.
-        assert result.stderr_force[0] > 3.0 * result.stderr_white[0]
+        if scale:  # the decay alone fixes mu: the force's noise moves only the scale
+            assert result.stderr_force[0] == 0.0
+            assert result.value('impulse_scale[0]') == pytest.approx(1.0, abs=1e-3)
+        else:  # at 0.2 N the hit's impulse noise, not the velocity noise, limits mu
+            assert result.stderr_force[0] > 3.0 * result.stderr_white[0]
     ratio = np.sqrt(np.mean(np.square(errors))) / np.mean(stderrs)
     assert 0.5 < ratio < 1.5
+    if scale:  # several times better than taking the measured impulse as exact
+        assert np.mean(stderrs) < 3e-5 * 0.1
 
 
 def test_model_fit_reports_residuals_noise_and_names(paper_set):
@@ -128,7 +138,7 @@ def test_hits_of_a_session_start_where_the_last_one_left_the_rig():
     assert at_zero.joint.residual_rms_m_s > 1.5 * VELOCITY_NOISE_M_S
     assert result.joint.residual_rms_m_s == pytest.approx(VELOCITY_NOISE_M_S, rel=0.05)
     assert result.mu == pytest.approx(session.mu, rel=0.01)
-    assert result.joint.names[1:] == tuple(f'initial_position_m[{i}]' for i in range(3))
+    assert result.joint.names[1:] == (*(f'initial_position_m[{i}]' for i in range(3)), *SCALES)
     np.testing.assert_allclose(result.joint.initial_positions_m, starts, atol=5e-6)
     assert all(
         single.initial_positions_m[0] == pytest.approx(x, abs=5e-6)
@@ -590,7 +600,7 @@ def test_a_parameter_the_residuals_ignore_gets_infinite_variance_and_spoils_no_o
     import warnings
 
     from fmm_ros.core.identify.lsq import BlockJacobian, Blocks, LsqSolution
-    from fmm_ros.core.identify.output_error import sandwich_uncertainty
+    from fmm_ros.core.identify.output_error import block_score, sandwich_uncertainty
 
     rng = np.random.default_rng(0)
     rows = np.vstack([rng.normal(size=(2, 4000)), np.zeros(4000)])
@@ -603,12 +613,13 @@ def test_a_parameter_the_residuals_ignore_gets_infinite_variance_and_spoils_no_o
         upper=np.ones(3),
         residual=residual,
         jacobian=jacobian,
+        block_normals=jacobian.block_normals(),
         cost=float(residual @ residual),
     )
     solution = LsqSolution(**values, **{name: 0 for name in fields - set(values)})
     with warnings.catch_warnings():
         warnings.simplefilter('error')
-        result = sandwich_uncertainty(solution, [400])
+        result = sandwich_uncertainty(solution, [block_score(rows, residual, 400)])
     assert np.isinf(result.stderr[2])
     assert np.all(np.isfinite(result.stderr[:2])) and np.all(result.stderr[:2] > 0)
     assert np.all(np.isfinite(result.covariance[:2, :2]))

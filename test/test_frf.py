@@ -12,7 +12,9 @@ from signal_records import (
     linear_velocity,
 )
 
+from fmm_ros.core.physics.rig import FMM_RIG
 from fmm_ros.core.signal import frf
+from fmm_ros.sim.excitation import impact_record
 
 RATE_HZ = 10_000.0
 N_SAMPLES = 330_000  # the paper's 33 s at 10 kHz
@@ -212,3 +214,25 @@ def test_linear_fit():
     assert np.isnan(frf.linear_fit(x[:1], x[:1]).slope)
     flat = frf.linear_fit(x, 5e-3 * (1 + np.array([0.0, 1e-15, -1e-15])))
     assert abs(flat.slope) < 1e-15 and np.isnan(flat.r2)
+
+
+@pytest.mark.parametrize('level', [450.0, 1000.0, 1450.0])
+def test_natural_frequency_from_reversals_is_f_n_not_an_fft_bin(level):
+    estimates = [
+        frf.natural_frequency(record.velocity_m_s, record.sample_rate_hz)
+        for record in (impact_record(level, seed, velocity_noise_std_m_s=1e-4) for seed in range(3))
+    ]
+    # Within 2e-4 of the rig's f_n (2.1981 Hz), where the bins are 1/33 Hz (1.4 %) apart.
+    assert estimates == pytest.approx([FMM_RIG.natural_frequency_hz] * 3, rel=2e-4)
+
+
+def test_natural_frequency_of_a_viscous_decay_is_its_damped_frequency():
+    zeta = 0.05
+    force = half_sine(N_SAMPLES, RATE_HZ, 100, 1000.0, 0.004)
+    velocity = linear_velocity(force, RATE_HZ, damping_for_ratio(zeta))
+    f_d = F_N_HZ * np.sqrt(1 - zeta**2)
+    assert frf.natural_frequency(velocity, RATE_HZ) == pytest.approx(f_d, rel=1e-4)
+    # A record that never reverses, and one with a missing sample, have none.
+    assert np.isnan(frf.natural_frequency(np.linspace(0, 1e-3, N_SAMPLES), RATE_HZ))
+    velocity[5000] = np.nan
+    assert np.isnan(frf.natural_frequency(velocity, RATE_HZ))

@@ -14,6 +14,7 @@ from fmm_ros.ros.launch import (
     parse_overrides,
     start_processes,
     stop_processes,
+    with_consumers,
 )
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -30,7 +31,6 @@ def test_the_simulated_rig_runs_as_separate_processes(tmp_path, monkeypatch):
             'hammer_sim.batch_size=2000',
             'hammer_sim.hit_spacing_s=8.0',
             'hammer_sim.first_hit_s=1.0',
-            'hammer_sim.wait_for_subscribers=3',
             'analyzer.window_s=6.0',
             f'recorder.bag_path={tmp_path / "bag"}',
         ],
@@ -40,7 +40,9 @@ def test_the_simulated_rig_runs_as_separate_processes(tmp_path, monkeypatch):
     with InProcessGraph(domain_id=domain) as graph:
         listener = graph.add(Listener)
         graph.start()
-        processes = start_processes(SIMULATED_RIG, default_params_file(), overrides)
+        processes = start_processes(
+            SIMULATED_RIG, default_params_file(), with_consumers(SIMULATED_RIG, overrides)
+        )
         try:
             assert wait_for(lambda: len(listener.impacts) == 3, timeout_s=90.0), (
                 f'{len(listener.impacts)} of 3 impacts from the processes'

@@ -129,3 +129,66 @@ def test_replay_of_a_crashed_recording_analyses_what_was_flushed(session, tmp_pa
     assert len(json.loads(out)['impacts']) == 3
     assert 'fmm replay: warning: the recording was not closed' in err
     writer.close()
+
+
+def _write_batches(bag, session, order, *, origin_ns=1_700_000_000 * 10**9, restart_at=None):
+    """A bag of the session's batches in the given order of batch starts (both channels),
+    logged in that order (as a recorder logs arrivals).
+
+    restart_at: from that batch on, the acquisition restarts at index 0 with a clock 100 s
+    later (a DAQ restarted mid-recording).
+    """
+    rate = session.sample_rate_hz
+    with BagWriter(bag, time_origin_ns=origin_ns) as writer:
+        for position, start in enumerate(order):
+            index, clock = start, origin_ns
+            if restart_at is not None and position >= restart_at:
+                index, clock = start - order[restart_at], origin_ns + 100 * 10**9
+            writer.time_origin_ns = clock
+            for topic, data, quantity in (
+                (FORCE_TOPIC, session.force_n, FORCE),
+                (VELOCITY_TOPIC, session.velocity_m_s, VELOCITY),
+            ):
+                writer.write_sample_batch(
+                    topic,
+                    data[start : start + 500],
+                    quantity=quantity,
+                    sample_rate_hz=rate,
+                    first_sample_index=index,
+                    log_time_ns=origin_ns + position * 50_000_000,
+                )
+
+
+def test_a_bag_with_a_repeated_and_a_reordered_batch_is_read_not_refused(session, tmp_path):
+    """fmm replay used to stop at 'velocity batch starts at sample ... already holds ...'."""
+    starts = list(range(0, len(session.force_n), 500))
+    order = starts[:100] + [starts[50]] + starts[100:]  # a duplicate of batch 50
+    order[200], order[201] = order[201], order[200]  # two batches swapped
+    bag = tmp_path / 'messy'
+    _write_batches(bag, session, order)
+    replay = replay_bag(bag, CAPTURE, ANALYSIS)
+    clean = replay_bag(write_session_bag(tmp_path / 'clean', session), CAPTURE, ANALYSIS)
+    assert len(replay.results) == len(clean.results) == 6
+    force = replay.ledger['force']
+    assert force.faults == {'past': 2, 'gap': 1} and force.refused_batches == 2
+    assert force.missing_samples == 500  # the swapped batch came after its successor
+    assert any('stream: force' in problem for problem in replay.problems)
+    flagged = [k for k, result in enumerate(replay.results) if 'gap' in result.flags]
+    assert all(
+        result.impulse_n_s == reference.impulse_n_s
+        for k, (result, reference) in enumerate(zip(replay.results, clean.results, strict=True))
+        if k not in flagged
+    )
+
+
+def test_a_daq_restarted_inside_one_bag_gives_the_records_of_both_acquisitions(session, tmp_path):
+    starts = list(range(0, len(session.force_n), 500))
+    # The acquisition restarts right after the third hit's record (13 s into a 6 s slot).
+    cut = (int(session.hit_start_indices[2]) // 500 + 12) * 500 // 500
+    bag = tmp_path / 'restarted'
+    _write_batches(bag, session, starts[:cut] + starts[cut:], restart_at=cut)
+    records, problems = bag_impact_records(bag, CAPTURE)
+    assert len(records) == 6
+    firsts = [r.trigger_sample_index for r in records]
+    assert firsts[:3] == sorted(firsts[:3]) and firsts[3] < firsts[2]  # index 0 again
+    assert any('2 acquisitions' in problem for problem in problems)

@@ -198,6 +198,7 @@ def test_report_from_csv_session_has_every_figure(csv_session):
         'levels_receptance',
         'harmonics',
         'friction',
+        'running_mu',
         *(
             f'{kind}_{level}'
             for kind in ('trials', 'mobility', 'receptance', 'coherence', 'model_mobility')
@@ -352,6 +353,7 @@ def test_report_from_a_recorded_session_bag_shows_the_hit_over_a_lost_batch(tmp_
             'hit_001',
             'hit_002',
             'friction',
+            'running_mu',
         },
     )
     assert clipped == []

@@ -118,13 +118,29 @@ def _text(result, out: Path) -> str:
             if result.friction
             else f'mu: not fitted ({result.fit_message})'
         ),
+        _live_mu(result.running_mu),
         f'model diagnosis: {result.missing_effect or "-"} ({result.diagnosis})',
         f'{result.signal_s:.0f} s of signal in {result.wall_s:.1f} s '
         f'(x{result.signal_s / result.wall_s:.0f} real time); fit {result.fit_s:.1f} s, '
         f'diagnosis {result.diagnose_s:.1f} s',
         f'bag: {result.bag}',
+        *(f'  {line}' for line in result.ledger.values()),
+        'health (/diagnostics):',
+        *(
+            f'  {status["level"]:<5} {status["name"]}: {status["message"]}'
+            for status in result.health
+        ),
         f'summary: {out / "summary.json"}',
     ]
     if result.report:
         lines.append(f'report: {result.report}')
     return '\n'.join(lines)
+
+
+def _live_mu(running: list[dict]) -> str:
+    """How the live mu converged: after the first hit, after each level's hits, at the end."""
+    if not running:
+        return 'live mu: none published'
+    shown = [running[0]] + [e for e in running[1:] if e['count'] % 10 == 0 or e is running[-1]]
+    steps = ', '.join(f'{e["mu"]:.5f} +- {e["mu_stderr"]:.1g} ({e["count"]})' for e in shown)
+    return f'live mu (after n hits): {steps}; one mu: p = {running[-1]["consistency_p_value"]:.2g}'

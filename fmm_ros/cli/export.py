@@ -4,7 +4,7 @@ import argparse
 
 from fmm_ros.cli.progress import report_problems
 from fmm_ros.constants import FRF_TOPIC, IMPACTS_TOPIC
-from fmm_ros.io.bags import IMPACT_RESULT, BagReader
+from fmm_ros.io.bags import FRF_SUMMARY, IMPACT_RESULT, BagReader, MissingTopicError
 from fmm_ros.io.bags.tables import FRF_FORMATS, export_results
 
 
@@ -35,11 +35,12 @@ def register(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     """Export what the bag recorded on the two result topics."""
     with BagReader(args.bag, strict=False) as reader:
-        topics = reader.topics
-        if args.impacts_topic not in topics and args.frf_topic not in topics:
-            reader.require(args.impacts_topic, IMPACT_RESULT)  # raises, naming what it has
-        impacts = list(reader.impacts(args.impacts_topic)) if args.impacts_topic in topics else []
-        summaries = list(reader.frf_summaries(args.frf_topic)) if args.frf_topic in topics else []
+        impacts_topic = _found(reader, args.impacts_topic, IMPACT_RESULT)
+        frf_topic = _found(reader, args.frf_topic, FRF_SUMMARY)
+        if impacts_topic is None and frf_topic is None:
+            reader.find(args.impacts_topic, IMPACT_RESULT)  # raises, naming what it has
+        impacts = list(reader.impacts(impacts_topic)) if impacts_topic else []
+        summaries = list(reader.frf_summaries(frf_topic)) if frf_topic else []
         written = export_results(impacts, summaries, args.output, frf_format=args.frf_format)
         problems = reader.problems
     print(
@@ -47,3 +48,11 @@ def run(args: argparse.Namespace) -> int:
         f'{len(written)} files to {args.output}'
     )
     return report_problems('export', problems)
+
+
+def _found(reader: BagReader, topic: str, msgtype: str) -> str | None:
+    """The bag's name for topic (see BagReader.find), or None when it has none."""
+    try:
+        return reader.find(topic, msgtype)
+    except MissingTopicError:
+        return None

@@ -78,6 +78,19 @@ def friction_text(result: FrictionResult) -> str:
         f'{100 * result.normalised_residual:.3f} % of the peak velocity '
         f'(velocity noise {result.noise_std_m_s:.3e} m/s)'
     )
+    if result.velocity_nuisance:
+        hum = sorted({n.mains_hz for n in result.velocity_nuisance if n.mains_hz})
+        offsets = [n.offset_m_s for n in result.velocity_nuisance]
+        lines.append(
+            'velocity chain: '
+            + (f'{"/".join(f"{h:g}" for h in hum)} Hz mains hum' if hum else 'no mains hum')
+            + f' and an offset of {min(offsets):.2g} to {max(offsets):.2g} m/s taken off'
+        )
+    if result.impulse_scales:
+        lines.append(
+            f'hit impulses scaled by {min(result.impulse_scales):.4f} to '
+            f'{max(result.impulse_scales):.4f} (fitted: the sampled force misstates them)'
+        )
     if count > 1:
         verdict = (
             'serves all impacts'

@@ -422,9 +422,10 @@ def add_model(parser: argparse.ArgumentParser, *, damping: bool = True) -> None:
         )
     group.add_argument(
         '--fit-initial-position',
-        action='store_true',
-        help='fit where the rig rested before each hit (friction leaves it off '
-        'centre after the previous one; otherwise each starts at x = 0)',
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help='fit where the rig rested before each hit (default: friction leaves it off '
+        'centre after the previous one); --no-fit-initial-position starts each at x = 0',
     )
 
 

@@ -3,7 +3,7 @@
 import argparse
 from pathlib import Path
 
-from fmm_ros.constants import FORCE_TOPIC, FRF_TOPIC, IMPACTS_TOPIC, VELOCITY_TOPIC
+from fmm_ros.constants import RECORDED_TOPICS
 from fmm_ros.io.bags.writer import STORAGES
 
 
@@ -21,7 +21,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         '--topics',
         nargs='+',
         metavar='TOPIC',
-        default=[FORCE_TOPIC, VELOCITY_TOPIC, IMPACTS_TOPIC, FRF_TOPIC],
+        default=list(RECORDED_TOPICS),
         help='topics to record (default: the fmm topics)',
     )
     parser.add_argument('--storage', choices=tuple(STORAGES), default='mcap')

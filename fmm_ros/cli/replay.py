@@ -13,8 +13,7 @@ from pathlib import Path
 from fmm_ros.cli import options
 from fmm_ros.cli.formats import analysis_text
 from fmm_ros.cli.progress import progress_bar, report_problems
-from fmm_ros.constants import FORCE_TOPIC, VELOCITY_TOPIC
-from fmm_ros.io.bags import BagReader
+from fmm_ros.io.bags import SAMPLE_BATCH, BagReader
 from fmm_ros.io.frf_files import level_curves, write_frfs
 from fmm_ros.workflows.replay import replay_bag
 from fmm_ros.workflows.results import analysis_dict
@@ -40,8 +39,7 @@ def run(args: argparse.Namespace) -> int:
     """Replay, then print the analyzer's output and the replay speed."""
     capture, analysis = options.analysis_configs(args)
     with BagReader(args.bag, strict=False) as reader:  # the batch count, for the progress bar
-        topics = reader.topics
-    total = sum(topics[t].count for t in (FORCE_TOPIC, VELOCITY_TOPIC) if t in topics)
+        total = sum(info.count for info in reader.topics.values() if info.msgtype == SAMPLE_BATCH)
     start = time.perf_counter()
     with progress_bar(total, desc='replaying', unit='batch', quiet=args.quiet) as bar:
         replay = replay_bag(args.bag, capture, analysis, on_batch=lambda _: bar.update())
@@ -58,6 +56,7 @@ def run(args: argparse.Namespace) -> int:
             'wall_s': wall_s,
             'times_real_time': speed,
             'problems': replay.problems,
+            'ledger': {name: ledger.to_dict() for name, ledger in replay.ledger.items()},
         }
         print(json.dumps(document, indent=2, allow_nan=False))
     else:
@@ -66,4 +65,6 @@ def run(args: argparse.Namespace) -> int:
             f'\nreplayed {replay.signal_s:.1f} s of signal ({replay.batches} batches) in '
             f'{wall_s:.2f} s: {speed:.0f}x real time'
         )
+        for ledger in replay.ledger.values():
+            print(f'stream: {ledger.summary()}')
     return report_problems('replay', replay.problems)

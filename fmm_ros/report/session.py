@@ -37,8 +37,13 @@ NOTE_LINES = 12
 FLAG_MEANINGS: dict[str, str] = {
     'double_hit': 'the force reached the trigger level again shortly after the contact '
     '(a hammer bounce): two inputs in one FRF',
-    'clipped': "a sample reached a sensor's full-scale range: peak and spectrum are wrong",
+    'clipped': "the force reached its sensor's full-scale range or has a flat top: peak "
+    'and spectrum are wrong',
+    'saturated': "the velocity reached the vibrometer's range or has a flat top",
+    'no_response': 'the velocity does not respond to the hit: a dead or disconnected vibrometer',
+    'dropout': 'a channel holds one exact value too long: samples dropped and filled',
     'gap': 'samples never arrived (lost batch, end of stream): the DFT is undefined',
+    'interrupted': 'the acquisition restarted before the record was complete (its tail is a gap)',
     'nan': 'a received sample is NaN or infinite',
     'unsettled': 'the rig moved before the hit or had not come to rest at the end of the '
     'record: not one whole transient, the DFT leaks',
@@ -288,6 +293,19 @@ def _friction(page: Page, summary: Summary, friction: FrictionResult) -> None:
             )
         ],
         text_columns=(1,),
+    )
+    running = friction.running([impacts[i].level for i in friction.impact_ids])
+    page.figure(
+        'running_mu',
+        figures.running_mu_figure(
+            [e.mu for e in running],
+            [e.mu_stderr for e in running],
+            friction.per_impact_mu,
+            friction.per_impact_mu_stderr,
+        ),
+        "The running μ after each accepted hit, in the order they came (the hits' own μ, "
+        'inverse-variance weighted, as the fitter node publishes it live): it settles as the '
+        'hits add up, and a hit that disagrees stands out beside it.',
     )
     page.figure(
         'friction',

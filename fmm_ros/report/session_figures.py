@@ -14,6 +14,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from fmm_ros.constants import MM_PER_M
+from fmm_ros.core.signal import frf
 from fmm_ros.core.signal.analysis import ImpactResult, LevelSummary, NominalLevel, Summary
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig
 from fmm_ros.core.signal.records import ImpactRecord
@@ -481,7 +482,11 @@ def harmonics_figure(
             )
         ax.set_ylabel(f'|mobility|\n[{MOBILITY_UNIT}]')
         ax.legend(loc='lower left', fontsize='x-small')
-        ax.set_title(f'f_n = {natural_hz:.4f} Hz', fontsize='small', loc='right')
+        ax.set_title(
+            f'f_n = {natural_hz:.4f} Hz ({frf.NATURAL_FREQUENCY_METHOD})',
+            fontsize='small',
+            loc='right',
+        )
     axes[-1].set_xlim(0, top_hz)
     axes[-1].set_xlabel(FREQUENCY_LABEL)
     return figure
@@ -576,6 +581,43 @@ def friction_figure(
     ax.ticklabel_format(axis='y', style='plain', useOffset=False)
     # Under the axes (the error bars fill them): the layout keeps the axes above it.
     figure.legend(fontsize='small', loc='lower center', ncols=len(names) + 1)
+    return figure
+
+
+def running_mu_figure(
+    mus: Sequence[float],
+    stderrs: Sequence[float],
+    own_mus: Sequence[float],
+    own_stderrs: Sequence[float],
+) -> Figure:
+    """The running mu +- 1 sigma against hit number, as the fitter publishes it live.
+
+    mus, stderrs: the estimate after each accepted hit (the hits' own mus, inverse-variance
+    weighted); own_mus, own_stderrs: each hit's own, drawn beside it, so a level that
+    disagrees shows as it comes.
+    """
+    figure, axes = new_figure(1, 1, height_in=3.2, title='running μ as the hits came in')
+    ax = axes[0]
+    hits = np.arange(1, len(mus) + 1)
+    running, sigma = np.asarray(mus, dtype=float), np.asarray(stderrs, dtype=float)
+    ax.fill_between(hits, running - sigma, running + sigma, color='0.85', step='mid')
+    ax.plot(
+        hits, running, color=MEAN_COLOUR, linewidth=1, drawstyle='steps-mid', label='running μ ± 1σ'
+    )
+    ax.errorbar(
+        hits,
+        own_mus,
+        yerr=own_stderrs,
+        fmt='o',
+        markersize=3,
+        capsize=2,
+        color=level_colour(0),
+        label="the hit's own μ ± 1σ",
+    )
+    ax.set_xlabel('accepted hit [-]')
+    ax.set_ylabel('μ [-]')
+    ax.ticklabel_format(axis='y', style='plain', useOffset=False)
+    ax.legend(fontsize='small', loc='upper right')
     return figure
 
 

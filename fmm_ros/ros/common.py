@@ -18,6 +18,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.ros.params import Param
+from fmm_ros.sim.daq import ChannelChain
 
 _RIG = Rig()
 
@@ -49,6 +50,65 @@ RIG_PARAMS = (
 )
 
 
+def chain_params(channel: str, unit: str, suffix: str, offset_limit: float) -> tuple[Param, ...]:
+    """A simulated channel's data acquisition chain (`sim.daq.ChannelChain`) as parameters.
+
+    channel: what the descriptions call it; unit and suffix: its SI unit and the names' unit
+    suffix ('N' and 'n'); offset_limit: the largest zero error accepted [unit].
+    """
+    return (
+        Param(
+            'anti_alias_order',
+            0,
+            f'Butterworth anti-alias filter of the {channel} channel, order [-] (0: none)',
+            limits=(0, 12),
+            read_only=True,
+        ),
+        Param(
+            'anti_alias_cutoff_hz',
+            4000.0,
+            'Its -3 dB frequency [Hz] (below half the sample rate)',
+            limits=(1.0, 1e6),
+            read_only=True,
+        ),
+        Param(
+            f'offset_{suffix}',
+            0.0,
+            f'Zero error of the {channel} channel [{unit}]',
+            limits=(-offset_limit, offset_limit),
+            read_only=True,
+        ),
+        Param(
+            f'drift_{suffix}_per_sqrt_s',
+            0.0,
+            f'Random-walk drift of that zero: its standard deviation after 1 s [{unit}]',
+            limits=(0.0, offset_limit),
+            read_only=True,
+        ),
+        Param(
+            f'hum_amplitude_{suffix}',
+            0.0,
+            f'Mains hum on the {channel} channel, amplitude of the fundamental [{unit}] '
+            '(harmonics 2, 3, 5 at 1/2, 1/3, 1/5 of it)',
+            limits=(0.0, offset_limit),
+            read_only=True,
+        ),
+        Param('mains_hz', 50.0, 'Mains frequency [Hz]', limits=(10.0, 1000.0), read_only=True),
+    )
+
+
+def chain_from_parameters(config: dict, suffix: str) -> ChannelChain:
+    """The ChannelChain the `chain_params` values of a node's config describe."""
+    return ChannelChain(
+        anti_alias_order=config['anti_alias_order'],
+        anti_alias_cutoff_hz=config['anti_alias_cutoff_hz'],
+        offset=config[f'offset_{suffix}'],
+        drift_per_sqrt_s=config[f'drift_{suffix}_per_sqrt_s'],
+        hum_amplitude=config[f'hum_amplitude_{suffix}'],
+        mains_hz=config['mains_hz'],
+    )
+
+
 def rig_from_parameters(config: dict) -> Rig:
     """The Rig the RIG_PARAMS values of a node's config describe."""
     return Rig(**{param.name: config[param.name] for param in RIG_PARAMS})
@@ -72,30 +132,45 @@ RESULT_QOS = QoSProfile(
 )
 
 
+# The signals a process manager sends a node: Ctrl-C, systemd / docker stop / ros2 launch's
+# escalation, and a closed terminal or a launcher's reload.
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+# A consumer asked to stop first takes the batches already queued for it: until none came
+# for DRAIN_QUIET_S, at most DRAIN_MAX_S [s]. (The launcher stops the sources first.)
+DRAIN_QUIET_S = 0.1
+DRAIN_MAX_S = 1.0
+
+
 def run_node(
     node_factory: Callable[[], Node],
     args: list[str] | None = None,
     *,
     threads: int = 1,
     stop_poll_s: float = 0.1,
-) -> None:
-    """Init, spin until Ctrl-C or SIGTERM, then tear down in order (for ros2 run).
+) -> int:
+    """Init, spin until SIGINT, SIGTERM or SIGHUP, tear down in order; the exit status.
 
     rclpy's own signal handler shuts the context down the moment SIGINT arrives, while the
     node's subscriptions still exist and the middleware still delivers to them; the recorder,
     closing its bag in that window, crashed in a middleware thread about one run in ten. Here
     a signal only asks the spin loop to stop (checked every `stop_poll_s` when idle; a
-    callback under way finishes), and the node goes before the context. threads > 1 spins a
-    MultiThreadedExecutor, for nodes whose callback groups let a long service call run
-    beside their stream callbacks.
+    callback under way finishes), a consumer of batches takes what is already queued for it
+    (`_drain`), and the node goes before the context, so a node stopped by any of
+    STOP_SIGNALS closes what it holds (the recorder its bag) and exits 0. The handlers
+    replace whatever was inherited, also SIG_IGN (a script's background job ignores SIGINT).
+    A source whose consumers never appeared (`SourceStartTimeout`) exits 1 with the reason.
+    threads > 1 spins a MultiThreadedExecutor, for nodes whose callback groups let a long
+    service call run beside their stream callbacks.
     """
+    from fmm_ros.ros.flow import SourceStartTimeout
+
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop_requested = threading.Event()
     handlers = {
-        signum: signal.signal(signum, lambda *_: stop_requested.set())
-        for signum in (signal.SIGINT, signal.SIGTERM)
+        signum: signal.signal(signum, lambda *_: stop_requested.set()) for signum in STOP_SIGNALS
     }
     node = None
+    status = 0
     executor = (
         SingleThreadedExecutor() if threads == 1 else MultiThreadedExecutor(num_threads=threads)
     )
@@ -104,8 +179,12 @@ def run_node(
         executor.add_node(node)
         while not stop_requested.is_set() and rclpy.ok():
             executor.spin_once(timeout_sec=stop_poll_s)
+        _drain(executor, node)
     except ExternalShutdownException:
         pass
+    except SourceStartTimeout as error:
+        node.get_logger().error(f'not started, so no sample is lost: {error}')
+        status = 1
     finally:
         for signum, handler in handlers.items():  # a second Ctrl-C interrupts the teardown
             signal.signal(signum, handler)
@@ -113,6 +192,18 @@ def run_node(
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+    return status
+
+
+def _drain(executor, node: Node) -> None:
+    """Take what is queued for a consumer of batches (`last_batch_at` set) before it stops."""
+    if getattr(node, 'last_batch_at', None) is None:
+        return
+    deadline = time.monotonic() + DRAIN_MAX_S
+    while rclpy.ok() and time.monotonic() < deadline:
+        if time.monotonic() - node.last_batch_at > DRAIN_QUIET_S:
+            return
+        executor.spin_once(timeout_sec=DRAIN_QUIET_S / 2)
 
 
 def message_class(msgtype: str) -> type:
@@ -128,21 +219,23 @@ class BatchPacer:
     publishes more than one batch a tick overruns subscribers spun by the same executor once
     its timer is ready on every cycle (a speed-up the graph cannot keep): seen as queues
     overflowing into gaps at x1000 with two a tick. So one batch a tick; further behind than
-    that, the clock is re-anchored: the source runs slower than asked (`fell_behind` says
-    so) instead of flooding.
+    that (the graph is slow, or the flow window holds the source back), the clock is
+    re-anchored: the source runs slower than asked (`fell_behind` says so) instead of flooding.
     """
 
     def __init__(self, batches_per_s: float, max_per_tick: int = 1) -> None:
         self.max_per_tick = max_per_tick
+        self.fell_behind = False
         self.restart(batches_per_s, 0)
 
     def restart(self, batches_per_s: float, released: int) -> None:
         """Pace at a new rate from the next tick on, `released` batches already out."""
         self._anchor = (None, released, batches_per_s)
+        self.batches_per_s = batches_per_s
         self.released = released
 
     def due(self) -> int:
-        """How many batches to release now; the caller releases them and counts them here.
+        """How many batches the clock lets go now; the caller counts each with `release()`.
 
         The first call after (re)starting anchors the pace, so the time a graph spends on
         discovery before it spins is not counted as lag.
@@ -155,6 +248,8 @@ class BatchPacer:
         self.fell_behind = behind > self.max_per_tick + 1
         if self.fell_behind:
             self._anchor = (now, self.released + self.max_per_tick, rate)
-        count = max(0, min(behind, self.max_per_tick))
-        self.released += count
-        return count
+        return max(0, min(behind, self.max_per_tick))
+
+    def release(self) -> None:
+        """One batch went out."""
+        self.released += 1

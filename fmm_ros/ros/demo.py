@@ -2,7 +2,8 @@
 
 hammer_sim -> rig_sim -> analyzer -> fitter, with the recorder writing everything to a bag:
 the session's hits go through the same topics, QoS and services a lab uses, and its results
-are taken from what the graph publishes (/fmm/impacts, /fmm/frf) and answers
+are taken from what the graph publishes (/fmm/impacts, /fmm/frf, the live mu on
+/fmm/friction) and answers
 (/fmm/fit_friction), never from inside the nodes: its report draws the fit service's answer
 (`msgs.friction_result`), not a second fit. `fmm demo` and launch_scripts/sim_rig.py run it.
 """
@@ -13,22 +14,29 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from fmm_interfaces.msg import FrfSummary, ImpactResult
+from fmm_interfaces.msg import FrfSummary, FrictionEstimate, ImpactResult
 from fmm_interfaces.srv import DiagnoseModel, FitFriction
 from fmm_ros.constants import (
     DIAGNOSE_SERVICE,
+    DIAGNOSTICS_TOPIC,
     FIT_SERVICE,
     FRF_TOPIC,
+    FRICTION_TOPIC,
     IMPACTS_TOPIC,
     SAMPLE_RATE_HZ,
 )
+from fmm_ros.core.identify.running import RunningEstimate
+from fmm_ros.io.bags.reader import BagReader
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import RESULT_QOS
 from fmm_ros.ros.graph import InProcessGraph
+from fmm_ros.ros.health import DIAGNOSTICS_QOS, LEVEL_NAMES
+from fmm_ros.ros.nodes import CONSUMERS
 from fmm_ros.ros.nodes.analyzer import Analyzer
 from fmm_ros.ros.nodes.fitter import Fitter
 from fmm_ros.ros.nodes.hammer_sim import HammerSim
@@ -97,6 +105,12 @@ class DemoResult:
     fit_s: float
     diagnose_s: float
     impacts: list[dict] = field(default_factory=list)
+    running_mu: list[dict] = field(default_factory=list)
+    """The fitter's live estimate after each accepted hit, as published on /fmm/friction."""
+    health: list[dict] = field(default_factory=list)
+    """Each node part's last status on /diagnostics: name, level, message."""
+    ledger: dict[str, str] = field(default_factory=dict)
+    """The recorder's ledger from the bag's metadata, one line a channel."""
 
     @property
     def fit_success(self) -> bool:
@@ -122,14 +136,26 @@ class DemoResult:
 class _Results(Node):
     """Listens to what the analyzer publishes, as any lab client would."""
 
-    def __init__(self, on_impact: Callable[[ImpactResult], None], **kwargs) -> None:
+    def __init__(
+        self,
+        on_impact: Callable[[ImpactResult], None],
+        on_estimate: Callable[[RunningEstimate], None] = lambda _: None,
+        **kwargs,
+    ) -> None:
         super().__init__('session_results', **kwargs)
         self.impacts: list[ImpactResult] = []
         self.levels: dict[str, FrfSummary] = {}
         self.latest: FrfSummary | None = None  # its linearity covers every level so far
+        self.estimates: list[RunningEstimate] = []
         self._on_impact = on_impact
+        self._on_estimate = on_estimate
         self.create_subscription(ImpactResult, IMPACTS_TOPIC, self._impact, RESULT_QOS)
         self.create_subscription(FrfSummary, FRF_TOPIC, self._level, RESULT_QOS)
+        self.create_subscription(FrictionEstimate, FRICTION_TOPIC, self._estimate, RESULT_QOS)
+        self.health: dict[str, dict] = {}
+        self.create_subscription(
+            DiagnosticArray, DIAGNOSTICS_TOPIC, self._diagnostics, DIAGNOSTICS_QOS
+        )
         self.fit = self.create_client(FitFriction, FIT_SERVICE)
         self.diagnose = self.create_client(DiagnoseModel, DIAGNOSE_SERVICE)
 
@@ -140,6 +166,19 @@ class _Results(Node):
     def _level(self, msg: FrfSummary) -> None:
         self.levels[msg.level] = msg
         self.latest = msg
+
+    def _estimate(self, msg: FrictionEstimate) -> None:
+        estimate = msgs.running_estimate(msg)
+        self.estimates.append(estimate)
+        self._on_estimate(estimate)
+
+    def _diagnostics(self, msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            self.health[status.name] = {
+                'name': status.name,
+                'level': LEVEL_NAMES.get(status.level, str(status.level)),
+                'message': status.message,
+            }
 
 
 def run_session(
@@ -165,18 +204,24 @@ def run_session(
                 rate_factor=config.rate_factor,
                 batch_size=batch,
                 seed=config.seed,
+                wait_for_consumers=list(CONSUMERS['hammer_sim']),
             ),
         )
         graph.add(
             RigSim,
             cli_args=cli_args,
             parameter_overrides=overrides(
-                mu=config.plant_mu, effects=list(config.plant_effects) or [''], seed=config.seed + 1
+                mu=config.plant_mu,
+                effects=list(config.plant_effects) or [''],
+                seed=config.seed + 1,
+                wait_for_consumers=list(CONSUMERS['rig_sim']),
             ),
         )
         analyzer = graph.add(Analyzer, cli_args=cli_args)
         graph.add(Fitter, cli_args=cli_args)
-        graph.add(Recorder, cli_args=cli_args, parameter_overrides=overrides(bag_path=str(bag)))
+        recorder = graph.add(
+            Recorder, cli_args=cli_args, parameter_overrides=overrides(bag_path=str(bag))
+        )
         total = len(hammer.schedule)
         results = graph.add(
             _Results,
@@ -186,6 +231,10 @@ def run_session(
                 f'|X/F| {msg.peak_receptance_m_per_n * 1e3:.3f} mm/N at '
                 f'{msg.natural_frequency_hz:.2f} Hz, '
                 + ('accepted' if msg.accepted else f'rejected ({", ".join(msg.flags)})')
+            ),
+            on_estimate=lambda estimate: progress(
+                f'live mu after {estimate.count} accepted: {estimate.mu:.5f} +- '
+                f'{estimate.mu_stderr:.2g} (one mu: p = {estimate.consistency_p_value:.3g})'
             ),
         )
         for node in (hammer, analyzer):
@@ -198,6 +247,11 @@ def run_session(
         graph.start()
         _wait(lambda: len(results.impacts) >= total, lambda: hammer.next_index)
         wall_s = time.monotonic() - start
+        accepted = sum(msg.accepted for msg in results.impacts)
+        _settle(lambda: len(results.estimates) >= accepted, lambda: len(results.estimates))
+        # The session is over: the hammer stops, and what it sent reaches the bag.
+        hammer.hold()
+        _wait(lambda: _recorded(recorder) >= hammer.next_index, lambda: _recorded(recorder))
         progress('session complete; fitting mu over the accepted impacts')
         fit = graph.call(results.fit, FitFriction.Request(), timeout_s=600.0)
         fit_s = time.monotonic() - start - wall_s
@@ -209,8 +263,12 @@ def run_session(
         diagnose_s = time.monotonic() - start - wall_s - fit_s
         signal_s = hammer.next_index / hammer.config['sample_rate_hz']
         impacts, levels, latest = list(results.impacts), dict(results.levels), results.latest
+        estimates = list(results.estimates)
         hits_sent = hammer.hits_sent
+        health = sorted(results.health.values(), key=lambda status: status['name'])
         capture, analysis = analyzer.capture_config, analyzer.analysis_config
+    with BagReader(bag, strict=False) as reader:  # closed with the graph: its ledger is in
+        ledger = {topic: entry.summary() for topic, entry in reader.recorded_ledger.items()}
     friction = msgs.friction_result(fit) if fit.success else None
     page = ''
     if config.report:  # after the graph: the recorder has closed the bag
@@ -259,6 +317,19 @@ def run_session(
             }
             for m in impacts
         ],
+        running_mu=[
+            {
+                'impact_id': e.impact_id,
+                'count': e.count,
+                'mu': e.mu,
+                'mu_stderr': e.mu_stderr,
+                'consistency_p_value': e.consistency_p_value,
+                'levels': {level.level: [level.mu, level.mu_stderr] for level in e.levels},
+            }
+            for e in estimates
+        ],
+        health=health,
+        ledger=ledger,
     )
 
 
@@ -291,6 +362,26 @@ def _report(
         out_dir,
         title=f'fmm demo: {config.hits_per_level} hits a level, plant mu {config.plant_mu}',
     )
+
+
+LIVE_MU_QUIET_S = 10.0
+"""The demo stops waiting for the live mu of the last hits when none came for this long (an
+impact the fitter could not fit alone has none) [s]."""
+
+
+def _settle(done: Callable[[], bool], count: Callable[[], int]) -> None:
+    """Wait until done(), or until count() has not moved for LIVE_MU_QUIET_S."""
+    last, moved = count(), time.monotonic()
+    while not done() and time.monotonic() - moved < LIVE_MU_QUIET_S:
+        time.sleep(0.05)
+        if count() != last:
+            last, moved = count(), time.monotonic()
+
+
+def _recorded(recorder: Recorder) -> int:
+    """The sample index both channels have reached in the recorder's ledger."""
+    spans = [ledger.span for ledger in recorder.ledger.values()]
+    return min((span[1] for span in spans if span), default=0) if len(spans) == 2 else 0
 
 
 def _one_accepted_per_level(impacts: list[ImpactResult]) -> list[int]:

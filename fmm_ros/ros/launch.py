@@ -4,9 +4,21 @@ The PyPI ROS wheels have no launch system, and a lab may not want one for four n
 process the nodes share an executor (cheapest: no serialization between processes' copies of
 the graph); as separate processes each node is the executable `ros2 run` would start, from
 `<prefix>/lib/fmm_ros/`, so this is also how the lab's installed nodes are exercised.
-Parameters come from a params file, plus `node.param=value` overrides.
+Parameters come from a params file, plus `node.param=value` overrides; each source is told
+which of the rig's nodes consume its batches (`wait_for_consumers`), so it holds its first
+sample until they are there.
+
+Signals, as a process manager sends them: SIGINT (Ctrl-C), SIGTERM (systemd, docker stop,
+ros2 launch's escalation) and SIGHUP (a closed terminal) are handled explicitly, also when
+the launcher was started with SIGINT ignored (a script's background job inherits SIG_IGN).
+The signal is forwarded to every node; a node still running after `SIGTERM_TIMEOUT_S` gets
+SIGTERM, after `SIGKILL_TIMEOUT_S` more SIGKILL, as ros2 launch escalates. Each node runs in
+a session of its own (a Ctrl-C reaches it once, through the launcher) with the parent-death
+signal set to SIGTERM (Linux prctl), so even a launcher killed with SIGKILL takes its nodes
+with it: they close their bags and exit.
 """
 
+import ctypes
 import os
 import signal
 import subprocess
@@ -19,10 +31,65 @@ import yaml
 from rclpy.parameter import Parameter
 
 from fmm_ros.ros.graph import InProcessGraph
-from fmm_ros.ros.nodes import node_class
+from fmm_ros.ros.nodes import CONSUMERS, node_class
 
 SIMULATED_RIG = ('hammer_sim', 'rig_sim', 'analyzer', 'fitter', 'recorder')
 REAL_RIG = ('daq', 'analyzer', 'fitter', 'recorder')
+# Escalation after the forwarded signal, as ros2 launch's defaults [s] (kept under 10 s in
+# all: what a process manager waits before it kills); each stage of the ordered stop may
+# take STAGE_TIMEOUT_S of the first.
+SIGTERM_TIMEOUT_S = 5.0
+SIGKILL_TIMEOUT_S = 4.0
+STAGE_TIMEOUT_S = 1.5
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
+
+
+def consumer_overrides(nodes: Sequence[str]) -> dict[str, list[Parameter]]:
+    """`wait_for_consumers` of each source in nodes: the nodes of the rig that take its batches."""
+    return {
+        source: [
+            Parameter(
+                'wait_for_consumers', value=[n for n in CONSUMERS[source] if n in nodes] or ['']
+            )
+        ]
+        for source in nodes
+        if source in CONSUMERS
+    }
+
+
+def with_consumers(
+    nodes: Sequence[str], overrides: dict[str, list[Parameter]]
+) -> dict[str, list[Parameter]]:
+    """The given overrides after the rig's consumer lists (so a `--set` still wins)."""
+    merged = {name: list(params) for name, params in consumer_overrides(nodes).items()}
+    for name, params in overrides.items():
+        merged.setdefault(name, []).extend(params)
+    return merged
+
+
+class StopSignals:
+    """SIGINT, SIGTERM and SIGHUP handled explicitly (SIG_IGN replaced): the first one is kept.
+
+    Use as a context manager; the previous handlers come back on exit.
+    """
+
+    def __init__(self) -> None:
+        self.received: int | None = None
+        self._previous: dict[int, object] = {}
+
+    def __enter__(self) -> 'StopSignals':
+        for signum in STOP_SIGNALS:
+            self._previous[signum] = signal.signal(signum, self._on_signal)
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        for signum, handler in self._previous.items():
+            signal.signal(signum, handler)
+
+    def _on_signal(self, signum: int, frame: object) -> None:
+        if self.received is None:
+            self.received = signum
 
 
 def parse_overrides(items: Sequence[str], nodes: Sequence[str]) -> dict[str, list[Parameter]]:
@@ -47,7 +114,11 @@ def run_in_process(
     overrides: dict[str, list[Parameter]],
     stop: Callable[[], bool] = lambda: False,
 ) -> None:
-    """All nodes on one executor in this process, on ROS_DOMAIN_ID, until Ctrl-C or stop()."""
+    """All nodes on one executor in this process, on ROS_DOMAIN_ID, until stopped.
+
+    A stop signal or stop() ends it; the graph then tears down in order (the recorder closes
+    its bag).
+    """
     cli_args = ['--ros-args', '--params-file', str(params_file)] if params_file else None
     domain_id = int(os.environ.get('ROS_DOMAIN_ID', '0'))
     localhost = os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE', '') == 'LOCALHOST'
@@ -56,12 +127,10 @@ def run_in_process(
             graph.add(
                 node_class(name), cli_args=cli_args, parameter_overrides=overrides.get(name, [])
             )
-        graph.start()
-        try:
-            while not stop():
+        with StopSignals() as signals:
+            graph.start()
+            while not stop() and signals.received is None:
                 time.sleep(0.1)
-        except KeyboardInterrupt:
-            pass
 
 
 def node_command(name: str) -> list[str]:
@@ -78,10 +147,36 @@ def node_command(name: str) -> list[str]:
     return [sys.executable, '-m', f'fmm_ros.ros.nodes.{name}']
 
 
+def _parent_death_signal() -> Callable[[], None] | None:
+    """The preexec function that makes a child die with the launcher (Linux), or None."""
+    try:
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return None
+    launcher = os.getpid()
+
+    def preexec() -> None:
+        for signum in STOP_SIGNALS:  # the node installs its own; nothing inherited ignored
+            signal.signal(signum, signal.SIG_DFL)
+        prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+        if os.getppid() != launcher:  # the launcher died before prctl took effect
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    return preexec
+
+
 def start_processes(
-    nodes: Sequence[str], params_file: Path | None, overrides: dict[str, list[Parameter]]
+    nodes: Sequence[str],
+    params_file: Path | None,
+    overrides: dict[str, list[Parameter]],
+    log_dir: Path | None = None,
 ) -> list[subprocess.Popen]:
-    """One process per node, each given the params file and its overrides."""
+    """One process per node, each given the params file and its overrides.
+
+    Each in a session of its own, and (Linux) terminated when the launcher dies. log_dir:
+    each node's output goes to <log_dir>/<node>.log instead of this process's.
+    """
+    preexec = _parent_death_signal()
     processes = []
     for name in nodes:
         ros_args = ['--ros-args']
@@ -92,37 +187,96 @@ def start_processes(
                 '-p',
                 f'{parameter.name}:={yaml.safe_dump(parameter.value).strip()}'.replace('\n...', ''),
             ]
-        processes.append(subprocess.Popen(node_command(name) + ros_args))
+        log = (log_dir / f'{name}.log').open('ab') if log_dir else None
+        processes.append(
+            subprocess.Popen(
+                node_command(name) + ros_args,
+                start_new_session=True,
+                preexec_fn=preexec,
+                stdout=log,
+                stderr=subprocess.STDOUT if log else None,
+            )
+        )
+        if log:
+            log.close()  # the child holds its own descriptor
     return processes
 
 
-def stop_processes(processes: Sequence[subprocess.Popen], timeout_s: float = 10.0) -> list[int]:
-    """SIGINT every node (as Ctrl-C would), wait, kill what hangs; the exit codes."""
-    for process in processes:
-        if process.poll() is None:
-            process.send_signal(signal.SIGINT)
-    deadline = time.monotonic() + timeout_s
+def stop_order(nodes: Sequence[str]) -> list[list[int]]:
+    """Positions of nodes in the order they stop: sources first, then what they feed.
+
+    A consumer stopped after its sources has taken everything they published, so the bag
+    ends where the acquisition ended (CONSUMERS says who feeds whom).
+    """
+    left = set(range(len(nodes)))
+    stages = []
+    while left:
+        fed = {n for k in left if nodes[k] in CONSUMERS for n in CONSUMERS[nodes[k]]}
+        stage = sorted(k for k in left if nodes[k] not in fed) or sorted(left)
+        stages.append(stage)
+        left -= set(stage)
+    return stages
+
+
+def stop_processes(
+    processes: Sequence[subprocess.Popen],
+    signum: int = signal.SIGINT,
+    sigterm_timeout_s: float = SIGTERM_TIMEOUT_S,
+    sigkill_timeout_s: float = SIGKILL_TIMEOUT_S,
+    nodes: Sequence[str] | None = None,
+) -> list[int]:
+    """Stop the nodes; their exit codes.
+
+    signum goes to the sources first, then (each stage given up to STAGE_TIMEOUT_S) to what
+    they feed, when the node names are known; SIGTERM then goes to those still running after
+    sigterm_timeout_s, SIGKILL after sigkill_timeout_s more, as ros2 launch escalates.
+    """
+    stages = stop_order(nodes) if nodes else [list(range(len(processes)))]
+    for stage in stages:
+        running = [processes[k] for k in stage if processes[k].poll() is None]
+        for process in running:
+            process.send_signal(signum)
+        _wait_all(running, STAGE_TIMEOUT_S if len(stages) > 1 else sigterm_timeout_s)
+    for escalation, timeout_s in ((signal.SIGTERM, sigkill_timeout_s), (signal.SIGKILL, 10.0)):
+        running = [process for process in processes if process.poll() is None]
+        if not running:
+            break
+        if escalation == signal.SIGTERM and len(stages) > 1:
+            _wait_all(running, sigterm_timeout_s - STAGE_TIMEOUT_S * (len(stages) - 1))
+            running = [process for process in running if process.poll() is None]
+        for process in running:
+            process.send_signal(escalation)
+        _wait_all(running, timeout_s)
+    return [process.wait() for process in processes]
+
+
+def _wait_all(processes: Sequence[subprocess.Popen], timeout_s: float) -> None:
+    """Wait until each process ended or timeout_s passed."""
+    deadline = time.monotonic() + max(0.0, timeout_s)
     for process in processes:
         try:
-            process.wait(max(0.1, deadline - time.monotonic()))
+            process.wait(max(0.01, deadline - time.monotonic()))
         except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
-    return [process.returncode for process in processes]
+            pass
 
 
 def run_processes(
     nodes: Sequence[str], params_file: Path | None, overrides: dict[str, list[Parameter]]
 ) -> int:
-    """Separate processes until Ctrl-C or until one of them exits; 0 if all ended cleanly."""
-    processes = start_processes(nodes, params_file, overrides)
-    try:
-        while all(process.poll() is None for process in processes):
+    """Separate processes until a stop signal or until one of them exits; 0 if all ended cleanly."""
+    with StopSignals() as signals:
+        processes = start_processes(nodes, params_file, overrides)
+        while signals.received is None and all(process.poll() is None for process in processes):
             time.sleep(0.2)
-    except KeyboardInterrupt:
-        pass
-    codes = stop_processes(processes)
-    return 0 if all(code in (0, -signal.SIGINT) for code in codes) else 1
+        for name, process in zip(nodes, processes, strict=True):
+            if signals.received is None and process.poll() is not None:
+                print(
+                    f'{name} exited with status {process.returncode}: stopping the rig',
+                    file=sys.stderr,
+                )
+        codes = stop_processes(processes, signals.received or signal.SIGINT, nodes=nodes)
+    clean = (0, -signal.SIGINT, -signal.SIGTERM)
+    return 0 if all(code in clean for code in codes) else 1
 
 
 def default_params_file() -> Path | None:
@@ -174,9 +328,10 @@ def launch_main(nodes: Sequence[str], description: str, argv: Sequence[str] | No
     print(
         f'starting {", ".join(nodes)} '
         + ('as separate processes' if args.processes else 'in one process')
-        + f' with {args.params_file or "node defaults"}; Ctrl-C stops',
+        + f' with {args.params_file or "node defaults"}; Ctrl-C, SIGTERM or SIGHUP stops',
         file=sys.stderr,
     )
+    overrides = with_consumers(nodes, overrides)
     if args.processes:
         return run_processes(nodes, args.params_file, overrides)
     run_in_process(nodes, args.params_file, overrides)

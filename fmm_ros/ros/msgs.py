@@ -11,11 +11,13 @@ import math
 import numpy as np
 from builtin_interfaces.msg import Time
 
-from fmm_interfaces.msg import FrfSummary, ImpactResult, SampleBatch
+from fmm_interfaces.msg import FrfSummary, FrictionEstimate, ImpactResult, SampleBatch
 from fmm_ros.constants import Channel
 from fmm_ros.core import diagnose
+from fmm_ros.core.identify.running import LevelEstimate, RunningEstimate
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.signal import analysis, frf
+from fmm_ros.core.signal.stream import Batch
 from fmm_ros.workflows.results import FrictionResult, json_safe
 
 
@@ -42,9 +44,7 @@ def sample_batch(
     full_scale: float = 0.0,
 ) -> SampleBatch:
     """A SampleBatch message of one channel (`fmm_ros.constants.FORCE` or `VELOCITY`)."""
-    msg = SampleBatch()
-    msg.header.stamp = stamp
-    msg.header.frame_id = frame_id
+    msg = _stamped(SampleBatch(), stamp, frame_id)
     msg.quantity, msg.unit = quantity
     msg.sample_rate_hz = float(sample_rate_hz)
     msg.first_sample_index = int(first_sample_index)
@@ -58,6 +58,35 @@ def batch_samples(msg: SampleBatch) -> np.ndarray:
     return field_array(msg.samples)
 
 
+def _stamped(msg: object, stamp: Time, frame_id: str) -> object:
+    """The message with its header's stamp and frame_id set (returned)."""
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    return msg
+
+
+def stamp_ns(stamp: Time) -> int:
+    """A builtin_interfaces/Time as nanoseconds."""
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+def time_msg(nanoseconds: int) -> Time:
+    """Nanoseconds as a builtin_interfaces/Time."""
+    return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
+
+
+def stream_batch(msg: SampleBatch) -> Batch:
+    """A SampleBatch as the signal core's stream takes it (samples viewed, not copied)."""
+    return Batch(
+        msg.first_sample_index,
+        field_array(msg.samples),
+        msg.sample_rate_hz,
+        msg.full_scale,
+        msg.header.frame_id,
+        stamp_ns(msg.header.stamp),
+    )
+
+
 def _set_complex(msg: object, name: str, values: np.ndarray) -> None:
     """Set the `<name>_real` / `<name>_imag` float64[] pair of msg from a complex array."""
     setattr(msg, f'{name}_real', float64_field(values.real))
@@ -68,9 +97,7 @@ def impact_result_msg(
     result: analysis.ImpactResult, *, stamp: Time, frame_id: str = 'fmm'
 ) -> ImpactResult:
     """An ImpactResult message from the signal core's result (same field names)."""
-    msg = ImpactResult()
-    msg.header.stamp = stamp
-    msg.header.frame_id = frame_id
+    msg = _stamped(ImpactResult(), stamp, frame_id)
     msg.impact_id = int(result.impact_id)
     msg.trigger_sample_index = int(result.trigger_sample_index)
     msg.record_start_sample_index = int(result.record_start_sample_index)
@@ -100,9 +127,7 @@ def frf_summary_msg(
     level: analysis.LevelSummary, linearity: frf.LinearFit, *, stamp: Time, frame_id: str = 'fmm'
 ) -> FrfSummary:
     """A FrfSummary message: one level's averages plus the linearity fit over all levels."""
-    msg = FrfSummary()
-    msg.header.stamp = stamp
-    msg.header.frame_id = frame_id
+    msg = _stamped(FrfSummary(), stamp, frame_id)
     msg.level = level.level
     msg.count = int(level.count)
     msg.impact_ids = [int(i) for i in level.impact_ids]
@@ -126,6 +151,53 @@ def frf_summary_msg(
     msg.linearity_r2 = float(linearity.r2)
     msg.linearity_levels = int(linearity.count)
     return msg
+
+
+def friction_estimate_msg(
+    estimate: RunningEstimate, *, stamp: Time, frame_id: str = 'fmm'
+) -> FrictionEstimate:
+    """A FrictionEstimate message from the running estimate (same field names)."""
+    msg = _stamped(FrictionEstimate(), stamp, frame_id)
+    msg.impact_id = int(estimate.impact_id)
+    msg.count = int(estimate.count)
+    for name in (
+        'mu',
+        'mu_stderr',
+        'consistency_chi2',
+        'consistency_p_value',
+        'impact_mu',
+        'impact_mu_stderr',
+    ):
+        setattr(msg, name, float(getattr(estimate, name)))
+    msg.level_names = [level.level for level in estimate.levels]
+    msg.level_counts = [int(level.count) for level in estimate.levels]
+    msg.level_mu = float64_field([level.mu for level in estimate.levels])
+    msg.level_mu_stderr = float64_field([level.mu_stderr for level in estimate.levels])
+    return msg
+
+
+def running_estimate(msg: FrictionEstimate) -> RunningEstimate:
+    """The running estimate a FrictionEstimate message carries."""
+    return RunningEstimate(
+        impact_id=int(msg.impact_id),
+        impact_mu=msg.impact_mu,
+        impact_mu_stderr=msg.impact_mu_stderr,
+        count=int(msg.count),
+        mu=msg.mu,
+        mu_stderr=msg.mu_stderr,
+        consistency_chi2=msg.consistency_chi2,
+        consistency_p_value=msg.consistency_p_value,
+        levels=tuple(
+            LevelEstimate(name, int(count), float(mu), float(stderr))
+            for name, count, mu, stderr in zip(
+                msg.level_names,
+                msg.level_counts,
+                field_array(msg.level_mu),
+                field_array(msg.level_mu_stderr),
+                strict=True,
+            )
+        ),
+    )
 
 
 def complex_field(msg: object, name: str) -> np.ndarray:
@@ -219,6 +291,7 @@ def fill_fit_response(response: object, result: FrictionResult) -> object:
     response.per_impact_residual_rms_m_s = float64_field(result.per_impact_residual_rms_m_s)
     response.per_impact_residual_normalized = float64_field(result.per_impact_normalised_residual)
     response.per_impact_initial_position_m = float64_field(result.initial_positions_m)
+    response.per_impact_impulse_scale = float64_field(result.impulse_scales)
     return response
 
 
@@ -240,6 +313,7 @@ def friction_result(response: object) -> FrictionResult:
         per_impact_mu=tuple(field_array(response.per_impact_mu).tolist()),
         per_impact_mu_stderr=tuple(field_array(response.per_impact_mu_stderr).tolist()),
         initial_positions_m=tuple(field_array(response.per_impact_initial_position_m).tolist()),
+        impulse_scales=tuple(field_array(response.per_impact_impulse_scale).tolist()),
         sources=tuple(f'impact {i}' for i in ids),
         impulses_n_s=tuple(field_array(response.per_impact_impulse_n_s).tolist()),
         per_impact_residual_rms_m_s=tuple(

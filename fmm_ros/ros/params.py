@@ -141,9 +141,21 @@ PARAMS_FILE_HEADER = """\
 """
 
 
-# Where the package's params file departs from a node's default: run as separate processes,
-# hammer_sim must hold its first hit until the analyzer (in another process) is subscribed.
-PARAMS_FILE_VALUES = {'hammer_sim': {'wait_for_subscribers': 1}}
+def _rig_values() -> dict[str, dict[str, ParamValue]]:
+    """Where the package's params file departs from a node's default.
+
+    In a rig the sources hold their first sample until the rig's other nodes (other
+    processes, discovered later) take their batches, so nothing is lost at start-up.
+    """
+    from fmm_ros.ros.nodes import CONSUMERS
+
+    return {
+        source: {'wait_for_consumers': list(CONSUMERS[source])}
+        for source in ('hammer_sim', 'rig_sim', 'daq')
+    }
+
+
+PARAMS_FILE_VALUES = _rig_values()
 
 
 def params_file_text(

@@ -37,17 +37,20 @@ def session_schedule(
     first_hit_s: float,
     rng: np.random.Generator | int,
     spread_std_n: float = 20.0,
+    contact_scale: float = 1.0,
 ) -> tuple[ScheduledHit, ...]:
     """Hits level by level (as the paper's operator worked), `spacing_s` apart.
 
     levels: (name, nominal peak force [N]) pairs. Each hit's peak is the nominal one plus
     normal scatter of `spread_std_n` (a hand-swung hammer); its contact duration follows the
-    paper's tip; its rise fraction varies around 0.45; its start falls between samples.
+    paper's tip (times `contact_scale`: below 1 a harder tip, sharper hits); its rise
+    fraction varies around 0.45; its start falls between samples.
     """
     require_positive('sample_rate_hz', sample_rate_hz)
     require_positive('spacing_s', spacing_s)
     require_non_negative('first_hit_s', first_hit_s)
     require_non_negative('spread_std_n', spread_std_n)
+    require_positive('contact_scale', contact_scale)
     if hits_per_level < 1:
         raise ValueError(f'hits_per_level must be at least 1, got {hits_per_level}')
     if not levels:
@@ -64,7 +67,7 @@ def session_schedule(
                     level=name,
                     start_index=start_s * sample_rate_hz,
                     peak_force_n=peak,
-                    contact_duration_s=tip_contact_duration_s(peak),
+                    contact_duration_s=contact_scale * tip_contact_duration_s(peak),
                     rise_fraction=float(rng.uniform(0.40, 0.50)),
                 )
             )

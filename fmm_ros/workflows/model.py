@@ -40,7 +40,8 @@ class ModelOverlay:
 
     `source` says where mu came from ('fitted', 'given', ...) and appears in every legend.
     `initial_positions_m`: where the model starts for an impact id [m] (a fit of the rest
-    position the previous hit left); 0 for any other.
+    position the previous hit left); 0 for any other. `impulse_scales`: the factor a fit put
+    on an impact id's measured hit [-]; 1 for any other.
     """
 
     mu: float
@@ -48,6 +49,7 @@ class ModelOverlay:
     rig: Rig = FMM_RIG
     effects: tuple[ModelTerm, ...] = ()
     initial_positions_m: Mapping[int, float] = field(default_factory=dict)
+    impulse_scales: Mapping[int, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         require_non_negative('mu', self.mu)
@@ -73,7 +75,7 @@ class ModelOverlay:
         except FitError:
             return None
         return simulate(
-            conditioned.force_n,
+            conditioned.force_n * self.impulse_scales.get(impact_id, 1.0),
             record.sample_rate_hz,
             rig=self.rig,
             mu=self.mu,

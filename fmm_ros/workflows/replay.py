@@ -3,7 +3,10 @@
 The analyzer node feeds each SampleBatch it receives to one `ImpactCapture` by sample index
 and analyses each record the capture completes. Replay does the same with the batches of a
 bag, in the order they were recorded, so offline and live find the same impacts with the
-same samples, flags and FRFs; only the clock differs (here: as fast as the CPU goes).
+same samples, flags and FRFs; only the clock differs (here: as fast as the CPU goes). A
+repeated, late or stray batch is refused and a restarted acquisition followed by the same
+stream rules as live (`fmm_ros.core.signal.stream`), never a reason to refuse the bag; what
+the stream refused or resynchronised on is returned as a problem, from its ledger.
 """
 
 import dataclasses
@@ -11,6 +14,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+from fmm_ros.constants import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC
 from fmm_ros.core.signal.analysis import (
     AnalysisConfig,
     ImpactResult,
@@ -18,22 +22,17 @@ from fmm_ros.core.signal.analysis import (
     analyze_impact,
     summarize,
 )
-from fmm_ros.core.signal.capture import (
-    DEFAULT_CAPTURE,
-    FORCE,
-    VELOCITY,
-    CaptureConfig,
-    ImpactCapture,
-)
+from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, ImpactCapture
 from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.core.signal.stream import ChannelLedger
 from fmm_ros.io.bags.acquisitions import read_acquisitions
+from fmm_ros.io.bags.definitions import SAMPLE_BATCH
 from fmm_ros.io.bags.reader import BagReader, ChannelBatch
-from fmm_ros.io.bags.writer import FORCE_TOPIC, VELOCITY_TOPIC
 
 
 def capture_records(
     reader: BagReader,
-    capture: CaptureConfig = DEFAULT_CAPTURE,
+    capture: CaptureConfig | ImpactCapture = DEFAULT_CAPTURE,
     *,
     force_topic: str = FORCE_TOPIC,
     velocity_topic: str = VELOCITY_TOPIC,
@@ -42,16 +41,21 @@ def capture_records(
 ) -> Iterator[ImpactRecord]:
     """Each impact record the live capture would complete, in the order it would.
 
-    Records are tagged with their source (bag name @ trigger index). reuse_buffers: a
-    record is valid only until the next one is asked for, its memory then reused (as the
-    analyzer node does; a long session then runs in warm memory). on_batch sees every
-    recorded batch as it is fed. A bag joined from several recordings (`fmm import`) lists
-    them as acquisitions: the capture's acquisition ends at each one's last sample
-    (`ImpactCapture.end_acquisition`), and at the bag's end, so no record runs into the next
-    file or is padded with samples that were never taken.
+    capture: the config of a fresh capture, or a capture to feed (its `ledger` then tells what
+    the stream refused). Topics are found by their name's tail (`BagReader.find`). Records
+    are tagged with their source (bag name @ trigger index). reuse_buffers: a record is valid
+    only until the next one is asked for, its memory then reused (as the analyzer node does;
+    a long session then runs in warm memory). on_batch sees every recorded batch as it is fed.
+    A bag joined from several recordings (`fmm import`) lists them as acquisitions: the
+    capture's acquisition ends at each one's last sample (`ImpactCapture.end_acquisition`),
+    and at the bag's end, so no record runs into the next file or is padded with samples that
+    were never taken. (A restart the bag does not state is found by the stream rules.)
     """
-    impacts = ImpactCapture(capture)
-    quantity = {force_topic: FORCE.quantity, velocity_topic: VELOCITY.quantity}
+    impacts = capture if isinstance(capture, ImpactCapture) else ImpactCapture(capture)
+    quantity = {
+        reader.find(force_topic, SAMPLE_BATCH): FORCE.quantity,
+        reader.find(velocity_topic, SAMPLE_BATCH): VELOCITY.quantity,
+    }
     try:
         acquisitions = read_acquisitions(reader.path)
     except ValueError as error:  # damaged metadata: the reader reads the bag by scanning
@@ -83,6 +87,8 @@ def capture_records(
                 batch.samples,
                 batch.sample_rate_hz,
                 batch.full_scale,
+                sender=batch.frame_id,
+                stamp_ns=batch.stamp_ns,
             )
         )
 
@@ -95,7 +101,7 @@ def capture_records(
         for batch in early:
             yield from take(batch)
 
-    for batch in reader.sample_batches([force_topic, velocity_topic]):
+    for batch in reader.sample_batches(list(quantity)):
         yield from take(batch)
         if on_batch:
             on_batch(batch)
@@ -108,6 +114,15 @@ def capture_records(
     while held:
         yield from next_acquisition()
     yield from tagged(impacts.end_acquisition() if joined else impacts.flush())
+
+
+def stream_problems(ledger: dict[str, ChannelLedger]) -> list[str]:
+    """What a stream refused or restarted on, one line a channel, as problems to report."""
+    return [
+        f'stream: {channel.summary()}'
+        for channel in ledger.values()
+        if channel.refused_batches or channel.refused_samples or channel.resyncs
+    ]
 
 
 def bag_impact_records(
@@ -123,11 +138,12 @@ def bag_impact_records(
     and the impacts over them are flagged), and the problems are returned for the caller
     to report. This is what offline analysis, fitting and diagnosis of a bag start from.
     """
+    impacts = ImpactCapture(capture)
     with BagReader(path, strict=False) as reader:
         records = list(
-            capture_records(reader, capture, force_topic=force_topic, velocity_topic=velocity_topic)
+            capture_records(reader, impacts, force_topic=force_topic, velocity_topic=velocity_topic)
         )
-        return records, list(reader.problems)
+        return records, list(reader.problems) + stream_problems(impacts.ledger)
 
 
 @dataclass(frozen=True)
@@ -139,6 +155,7 @@ class Replay:
     signal_s: float
     batches: int
     problems: list[str]
+    ledger: dict[str, ChannelLedger]
 
 
 def replay_bag(
@@ -156,22 +173,28 @@ def replay_bag(
     """
     analysis = analysis or AnalysisConfig()
     results: list[ImpactResult] = []
-    fed = {'batches': 0, 'samples': 0, 'rate': 0.0}
+    fed = {'batches': 0, 'signal_s': 0.0}
+    impacts = ImpactCapture(capture)
 
     def count(batch: ChannelBatch) -> None:
         fed['batches'] += 1
-        if batch.topic == FORCE_TOPIC:
-            fed['samples'] += len(batch.samples)
-            fed['rate'] = batch.sample_rate_hz
+        if batch.quantity == FORCE.quantity:
+            fed['signal_s'] += len(batch.samples) / batch.sample_rate_hz
         if on_batch:
             on_batch(batch)
 
     with BagReader(path, strict=False) as reader:
-        for record in capture_records(reader, capture, reuse_buffers=True, on_batch=count):
+        for record in capture_records(reader, impacts, reuse_buffers=True, on_batch=count):
             result = analyze_impact(record, capture, analysis, impact_id=len(results))
             results.append(result)
             if on_result:
                 on_result(result)
-        problems = list(reader.problems)
-    signal_s = fed['samples'] / fed['rate'] if fed['rate'] else 0.0
-    return Replay(results, summarize(results, analysis), signal_s, fed['batches'], problems)
+        problems = list(reader.problems) + stream_problems(impacts.ledger)
+    return Replay(
+        results,
+        summarize(results, analysis),
+        fed['signal_s'],
+        fed['batches'],
+        problems,
+        impacts.ledger,
+    )

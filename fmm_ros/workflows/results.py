@@ -32,7 +32,9 @@ from fmm_ros.core.diagnose.result import (
     ResidualLocation,
     Where,
 )
+from fmm_ros.core.identify.chain import VelocityNuisance
 from fmm_ros.core.identify.friction import FrictionFit
+from fmm_ros.core.identify.running import RunningEstimate, running_estimates
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.physics.terms import ModelTerm
 from fmm_ros.core.signal.analysis import ImpactSelection, Summary
@@ -74,6 +76,11 @@ class FrictionResult:
     """Chance of per-impact mus scattering this much if one mu served all (chi^2 test)."""
     misfit: str = 'time'
     effects: tuple[ModelTerm, ...] = ()
+    impulse_scales: tuple[float, ...] = ()
+    """The factor the joint fit put on each impact's measured hit [-]; empty: all 1."""
+    velocity_nuisance: tuple[VelocityNuisance, ...] = ()
+    """What the joint fit took off each impact's velocity (hum, offset, drift); empty where
+    not known (a service's answer)."""
 
     def __post_init__(self) -> None:
         count = len(self.impact_ids)
@@ -84,6 +91,8 @@ class FrictionResult:
             'impulses_n_s',
             'per_impact_residual_rms_m_s',
             'per_impact_normalised_residual',
+            'impulse_scales',
+            'velocity_nuisance',
         ):
             if getattr(self, name):
                 lengths.add(len(getattr(self, name)))
@@ -118,6 +127,8 @@ class FrictionResult:
             consistency_p_value=fit.consistency_p_value,
             misfit=joint.misfit,
             effects=joint.effects,
+            impulse_scales=tuple(joint.impulse_scales),
+            velocity_nuisance=tuple(joint.velocity_nuisance),
         )
 
     @property
@@ -125,15 +136,40 @@ class FrictionResult:
         """Viscous damping of the model, fitted or as given [N*s/m]."""
         return self.rig.damping_n_s_per_m
 
+    def running(self, levels: Sequence[str]) -> tuple[RunningEstimate, ...]:
+        """The running estimate after each impact in turn, as the fitter node publishes it.
+
+        levels: each impact's level (`core.identify.running`).
+        """
+        return running_estimates(
+            list(self.impact_ids),
+            list(levels),
+            list(self.per_impact_mu),
+            list(self.per_impact_mu_stderr),
+        )
+
     def per_impact(self) -> list[dict]:
-        """One entry per impact: id, file, mu alone, impulse, residual, start."""
+        """One entry per impact: id, file, mu alone, impulse, residual, start, scale, chain."""
         count = len(self.impact_ids)
 
         def column(values: tuple, default: object = math.nan) -> tuple:
             return values or (default,) * count
 
-        return [
-            {
+        entries = []
+        for impact_id, source, mu, impulse, rms, stderr, normalised, start, scale, chain in zip(
+            self.impact_ids,
+            column(self.sources, ''),
+            self.per_impact_mu,
+            column(self.impulses_n_s),
+            column(self.per_impact_residual_rms_m_s),
+            self.per_impact_mu_stderr,
+            column(self.per_impact_normalised_residual),
+            column(self.initial_positions_m, 0.0),
+            column(self.impulse_scales, 1.0),
+            column(self.velocity_nuisance, None),
+            strict=True,
+        ):
+            entry = {
                 'impact_id': impact_id,
                 'file': source,
                 'mu': mu,
@@ -142,19 +178,17 @@ class FrictionResult:
                 'mu_stderr': stderr,
                 'normalised_residual': normalised,
                 'initial_position_m': start,
+                'impulse_scale': scale,
             }
-            for impact_id, source, mu, impulse, rms, stderr, normalised, start in zip(
-                self.impact_ids,
-                column(self.sources, ''),
-                self.per_impact_mu,
-                column(self.impulses_n_s),
-                column(self.per_impact_residual_rms_m_s),
-                self.per_impact_mu_stderr,
-                column(self.per_impact_normalised_residual),
-                column(self.initial_positions_m, 0.0),
-                strict=True,
-            )
-        ]
+            if chain is not None:
+                entry.update(
+                    mains_hum_hz=chain.mains_hz or None,
+                    hum_rms_m_s=chain.hum_rms_m_s,
+                    velocity_offset_m_s=chain.offset_m_s,
+                    velocity_drift_m_s2=chain.drift_m_s2,
+                )
+            entries.append(entry)
+        return entries
 
     def to_dict(self) -> dict:
         """The JSON of `fmm fit --json`: the issue's keys first, then errors and the test."""

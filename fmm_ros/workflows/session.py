@@ -55,7 +55,8 @@ class FitOptions:
 
     rig: Rig = FMM_RIG
     fit_damping: bool = False
-    fit_initial_position: bool = False
+    fit_initial_position: bool = True
+    """Fit each record's start (in a session a hit finds the rig where friction left it)."""
     mu_bounds: tuple[float, float] = MU_BOUNDS
     misfit: str = 'time'
     band_limit_hz: float = MISFIT_BAND_LIMIT_HZ
@@ -358,14 +359,16 @@ def _chosen(selection: ImpactSelection, refusal: str) -> tuple[int, ...]:
 
 
 def overlay_of(friction: FrictionResult | None) -> ModelOverlay | None:
-    """The fitted model, each impact started where the fit started it."""
+    """The fitted model, each impact started where the fit started it and driven as scaled."""
     if friction is None or not math.isfinite(friction.mu):
         return None
     starts = friction.initial_positions_m or (0.0,) * len(friction.impact_ids)
+    scales = friction.impulse_scales or (1.0,) * len(friction.impact_ids)
     return ModelOverlay(
         friction.mu,
         'fitted',
         friction.rig,
         friction.effects,
         dict(zip(friction.impact_ids, starts, strict=True)),
+        dict(zip(friction.impact_ids, scales, strict=True)),
     )

@@ -129,7 +129,7 @@ def input_noise_allowance(
     for index, impact in enumerate(impacts):
         relative = impact.impulse_std_n_s / abs(impact.impulse_n_s)
         scaled = simulate(
-            impact.force_n * (1.0 + step),
+            base.force_n(index) * (1.0 + step),
             impact.sample_rate_hz,
             rig=base.rig,
             mu=base.mu,

@@ -43,6 +43,10 @@ GATE_MIN_MARGIN_S = 0.5e-3
 this long, on both sides: the pulse's feet lie below the threshold."""
 
 
+HIT_SETTLE_S = 1e-3
+"""The velocity is not judged inside a gate and this long after it (see `hit_windows`)."""
+
+
 MOTION_THRESHOLD_SIGMA = 10.0
 """The velocity must exceed this many noise deviations somewhere for a record to show motion."""
 
@@ -99,6 +103,21 @@ class ConditionedImpact:
     def hit_end_index(self) -> int:
         """First sample after the last gate: from here on no force acts."""
         return self.gate[-1][1]
+
+    @property
+    def hit_windows(self) -> tuple[tuple[int, int], ...]:
+        """[start, stop) sample ranges where the fit does not judge the velocity.
+
+        Each gate and `HIT_SETTLE_S` after it: while the hammer acts, the velocity follows
+        the force's shape between its samples, which the samples do not pin down (a pulse
+        rising in 0.2 ms is two samples at 10 kHz, one at 5 kHz), and anti-alias filters
+        smear that shape for a few of their time constants more. The motion after it depends
+        on the hit only through its impulse and timing, which the fit's impulse scale and
+        start position take up. These few milliseconds carry nothing about friction.
+        """
+        settle = math.ceil(HIT_SETTLE_S * self.sample_rate_hz)
+        n = self.velocity_m_s.size
+        return tuple((start, min(stop + settle, n)) for start, stop in self.gate)
 
     @property
     def impulse_std_n_s(self) -> float:

@@ -10,7 +10,7 @@ own mu beside it, and a chi^2 test of whether one mu serves them all.
 """
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -19,6 +19,7 @@ import scipy.stats
 
 from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ, PAPER_MU
 from fmm_ros.core._checks import require_positive
+from fmm_ros.core.identify.chain import DriftBasis, VelocityNuisance, estimate_nuisance
 from fmm_ros.core.identify.conditioning import (
     ConditionedImpact,
     FitError,
@@ -26,14 +27,17 @@ from fmm_ros.core.identify.conditioning import (
     source_prefix,
 )
 from fmm_ros.core.identify.lsq import (
+    BlockJacobian,
     Blocks,
     LsqSolution,
     inner,
     levenberg_marquardt,
+    normal_inverse,
 )
 from fmm_ros.core.identify.output_error import (
     JACOBIANS,
     MISFITS,
+    UNCERTAINTIES,
     BuiltModel,
     OutputError,
     fit_uncertainty,
@@ -48,6 +52,12 @@ MU_BOUNDS = (1e-3, 1.0)
 
 DAMPING_BOUNDS_N_S_PER_M = (0.0, 50.0)
 """Search range of the viscous damping c when it is fitted [N*s/m]."""
+
+
+IMPULSE_SCALE_BOUNDS = (0.5, 1.5)
+"""Search range of a hit's impulse scale: the factor between the impulse that moved the rig
+and the one its sampled force shows (sampling, filtering and noise make it a few 1e-3; a
+hammer whose calibration is off by half is not measuring force)."""
 
 
 MIN_EXPLAINED_FRACTION = 0.5
@@ -82,12 +92,20 @@ class ModelFit:
     """Model terms of the fitted model: the fixed ones, then the fitted ones."""
     initial_positions_m: tuple[float, ...]
     """Where each impact's model started [m] (0 unless fit_initial_position)."""
+    impulse_scales: tuple[float, ...]
+    """Per impact, the factor on its measured hit that drove the model [-] (1 unless
+    fit_impulse_scale)."""
+    velocity_nuisance: tuple[VelocityNuisance, ...]
+    """Per impact, the mains hum, offset and drift taken off its measured velocity (zero
+    unless remove_mains_hum or fit_velocity_drift); `impacts` hold the velocity without it."""
     misfit: str
     impacts: tuple[ConditionedImpact, ...]
-    """The conditioned impacts fitted (their force drives `simulate`)."""
+    """The conditioned impacts fitted (their force drives `simulate`; their velocity is the
+    measured one less `velocity_nuisance`)."""
     sources: tuple[str, ...]
     residuals_m_s: tuple[np.ndarray, ...]
-    """Measured minus simulated velocity per impact at the fitted values [m/s]."""
+    """Measured minus simulated velocity per impact at the fitted values, every sample [m/s]
+    (the time misfit leaves each impact's `hit_windows` out; these keep them)."""
     residual_rms_m_s: float
     """RMS of the velocity residual over every sample of every impact [m/s]."""
     normalised_residual: float
@@ -128,11 +146,15 @@ class ModelFit:
         """Standard error of mu [-]."""
         return self.error('mu')
 
+    def force_n(self, index: int) -> np.ndarray:
+        """The force that drove the fitted model in impact `index`: conditioned, scaled [N]."""
+        return self.impacts[index].force_n * self.impulse_scales[index]
+
     def simulate(self, index: int) -> Simulation:
-        """The fitted model's response to impact `index` (its conditioned force, its start)."""
+        """The fitted model's response to impact `index` (its driving force, its start)."""
         impact = self.impacts[index]
         return simulate(
-            impact.force_n,
+            self.force_n(index),
             impact.sample_rate_hz,
             rig=self.rig,
             mu=self.mu,
@@ -150,7 +172,9 @@ class _Space:
     terms: tuple[type[ModelTerm], ...]
     fixed_effects: tuple[ModelTerm, ...]
     initial_positions: int
-    """Impacts whose initial position is fitted (the last entries of theta); 0: none."""
+    """Impacts whose initial position is fitted (after the global entries of theta); 0: none."""
+    impulse_scales: int
+    """Impacts whose impulse scale is fitted (the last entries of theta); 0: none."""
     names: tuple[str, ...]
     units: tuple[str, ...]
     start: np.ndarray
@@ -170,18 +194,30 @@ class _Space:
             effects.append(term.from_vector(theta[position : position + count]))
             position += count
         positions = tuple(float(x) for x in theta[position : position + self.initial_positions])
-        return BuiltModel(rig, float(theta[0]), tuple(effects), positions)
+        position += self.initial_positions
+        scales = tuple(float(s) for s in theta[position : position + self.impulse_scales])
+        return BuiltModel(rig, float(theta[0]), tuple(effects), positions, scales)
+
+    @property
+    def n_global(self) -> int:
+        """Parameters that move every impact: mu, c and the terms."""
+        return self.start.size - self.initial_positions - self.impulse_scales
 
     def blocks(self, segments: Sequence[slice], jacobian: str = 'blocks') -> Blocks:
         """Which parameters move which impact's residual segment (`_lsq.Blocks`).
 
-        mu, c and the terms move every impact, initial_position_m[k] only impact k; with
-        jacobian='dense' every parameter is taken to move every impact.
+        mu, c and the terms move every impact, initial_position_m[k] and impulse_scale[k]
+        only impact k; with jacobian='dense' every parameter is taken to move every impact.
         """
         if jacobian == 'dense':
             return Blocks.shared(segments, self.start.size)
-        n_global = self.start.size - self.initial_positions
-        local = [[n_global + k] for k in range(self.initial_positions)] or [()] * len(segments)
+        n_global = self.n_global
+        scales = n_global + self.initial_positions
+        local = [
+            ([n_global + k] if self.initial_positions else [])
+            + ([scales + k] if self.impulse_scales else [])
+            for k in range(len(segments))
+        ]
         return Blocks.global_and_local(segments, n_global, local)
 
 
@@ -193,6 +229,7 @@ def _space(
     terms: Sequence[str | ModelTerm],
     fixed_effects: Sequence[ModelTerm],
     initial_positions: int,
+    impulse_scales: int,
 ) -> _Space:
     names, units = ['mu'], ['1']
     start, lower, upper = [mu0], [mu_bounds[0]], [mu_bounds[1]]
@@ -241,12 +278,20 @@ def _space(
         lower.append(-band_m)
         upper.append(band_m)
         typical.append(mu0 * rig.normal_force_n / rig.stiffness_n_per_m)
+    for index in range(impulse_scales):
+        names.append(f'impulse_scale[{index}]')
+        units.append('1')
+        start.append(1.0)
+        lower.append(IMPULSE_SCALE_BOUNDS[0])
+        upper.append(IMPULSE_SCALE_BOUNDS[1])
+        typical.append(1.0)
     return _Space(
         rig,
         fit_damping,
         tuple(classes),
         fixed,
         initial_positions,
+        impulse_scales,
         tuple(names),
         tuple(units),
         np.array(start, dtype=float),
@@ -288,10 +333,17 @@ def fit_model(
     terms: Sequence[str | ModelTerm] = (),
     fixed_effects: Sequence[ModelTerm] = (),
     fit_initial_position: bool = False,
+    fit_impulse_scale: bool = False,
+    remove_mains_hum: bool = False,
+    fit_velocity_drift: bool = False,
+    mains_hz: float | None = None,
     misfit: str = 'time',
     band_limit_hz: float = MISFIT_BAND_LIMIT_HZ,
     integrator: str = 'exact',
     jacobian: str = 'blocks',
+    judge_hit: bool = False,
+    uncertainty: str = 'spectral',
+    start_values: Mapping[str, float] | None = None,
 ) -> ModelFit:
     """Fit one mu (and c, and the parameters of `terms`) to every impact at once.
 
@@ -302,13 +354,92 @@ def fit_model(
     mass rested before the hit (a nuisance parameter per impact, `initial_position_m[i]`):
     friction holds the FMM anywhere within +-mu N / k of centre after the previous hit, and
     the velocity alone does not say where; without it every impact starts at x = 0, as in
-    the paper. jacobian: 'blocks' (default) runs each start position's Jacobian column on its
-    own impact only; 'dense' runs every column on every impact (same result, the reference).
+    the paper. fit_impulse_scale: also fit a factor on each hit's measured force
+    (`impulse_scale[i]`, a nuisance parameter): a sampled, filtered, noisy force misstates the
+    impulse by 1e-4 to 1e-2, which the decay, not the force, then decides; mu comes from the
+    decay's shape alone. remove_mains_hum, fit_velocity_drift: estimate the mains hum (50 or
+    60 Hz, or `mains_hz`) and a drifting velocity offset from the residual and take them off
+    the measured velocity, refitting (`chain`); off by default, so that the diagnosis sees an
+    offset as the `velocity_offset` it is. judge_hit: also judge the velocity inside each
+    `ConditionedImpact.hit_windows` (off: it follows the force between its samples).
+    uncertainty: 'spectral' or 'blocks' (`output_error.UNCERTAINTIES`). start_values: start
+    values of fitted parameters by name (e.g. 'initial_position_m[0]'). jacobian: 'blocks'
+    (default) runs each impact's own parameters' Jacobian columns on that impact only;
+    'dense' runs every column on every impact (same result, the reference).
     Raises ValueError for bad arguments and FitError when the fit does not converge, puts mu
     on a bound of mu_bounds, or leaves an impact unexplained.
     """
-    conditioned = _conditioned_list(impacts)
+    return _fit(
+        _conditioned_list(impacts),
+        rig=rig,
+        mu0=mu0,
+        mu_bounds=mu_bounds,
+        fit_damping=fit_damping,
+        terms=terms,
+        fixed_effects=fixed_effects,
+        fit_initial_position=fit_initial_position,
+        fit_impulse_scale=fit_impulse_scale,
+        remove_mains_hum=remove_mains_hum,
+        fit_velocity_drift=fit_velocity_drift,
+        mains_hz=mains_hz,
+        misfit=misfit,
+        band_limit_hz=band_limit_hz,
+        integrator=integrator,
+        jacobian=jacobian,
+        judge_hit=judge_hit,
+        uncertainty=uncertainty,
+        start_values=start_values,
+    ).fit
+
+
+@dataclass(frozen=True)
+class _Fitted:
+    """A fit and what it was solved as: its parameter space, problem and last solution."""
+
+    fit: ModelFit
+    space: _Space
+    problem: OutputError
+    solution: LsqSolution
+
+
+def _fit(
+    conditioned: list[ConditionedImpact],
+    *,
+    rig: Rig,
+    mu0: float | None,
+    mu_bounds: tuple[float, float],
+    fit_damping: bool,
+    terms: Sequence[str | ModelTerm],
+    fixed_effects: Sequence[ModelTerm],
+    fit_initial_position: bool,
+    fit_impulse_scale: bool,
+    remove_mains_hum: bool,
+    fit_velocity_drift: bool,
+    mains_hz: float | None,
+    misfit: str,
+    band_limit_hz: float,
+    integrator: str,
+    jacobian: str,
+    judge_hit: bool,
+    uncertainty: str,
+    start_values: Mapping[str, float] | None,
+    start: tuple[np.ndarray, tuple[np.ndarray, ...]] | None = None,
+    drift_estimated: bool = False,
+) -> _Fitted:
+    """`fit_model` on conditioned impacts.
+
+    start: the residual and each block's Jacobian rows at the start values, where another
+    fit's solution has them (`fit_friction`'s per-impact fits): no model run is spent on them.
+    drift_estimated: the velocities' drift was taken off by an earlier fit (its degrees of
+    freedom count in the errors, as with fit_velocity_drift).
+    """
     _check_options(rig, misfit, band_limit_hz, integrator, jacobian)
+    if uncertainty not in UNCERTAINTIES:
+        raise ValueError(
+            f'unknown uncertainty {uncertainty!r}; choose one of {", ".join(UNCERTAINTIES)}'
+        )
+    if mains_hz is not None and not mains_hz > 0:
+        raise ValueError(f'mains_hz must be > 0 (or None to find it), got {mains_hz}')
     low, high = (float(bound) for bound in mu_bounds)
     if not 0.0 <= low < high or not math.isfinite(high):
         raise ValueError(f'mu_bounds must be 0 <= lower < upper, finite; got {mu_bounds}')
@@ -327,10 +458,27 @@ def fit_model(
         terms,
         fixed_effects,
         len(conditioned) if fit_initial_position else 0,
+        len(conditioned) if fit_impulse_scale else 0,
     )
+    for name, value in (start_values or {}).items():
+        if name not in space.names:
+            raise ValueError(f'start value for {name!r}, which is not fitted: {space.names}')
+        at = space.names.index(name)
+        space.start[at] = min(max(float(value), space.lower[at]), space.upper[at])
     problem = OutputError(
-        conditioned, space.build, misfit, band_limit_hz, integrator, rig.natural_frequency_hz
+        conditioned,
+        space.build,
+        misfit,
+        band_limit_hz,
+        integrator,
+        rig.natural_frequency_hz,
+        judge_hit=judge_hit,
+        uncertainty=uncertainty,
     )
+    blocks = space.blocks(problem.segments, jacobian)
+    residual0, jacobian0 = None, None
+    if start is not None:
+        residual0, jacobian0 = start[0], BlockJacobian(blocks, start[1])
     solution = levenberg_marquardt(
         problem,
         space.start,
@@ -338,9 +486,16 @@ def fit_model(
         space.upper,
         space.typical,
         problem.size,
-        blocks=space.blocks(problem.segments, jacobian),
+        blocks=blocks,
+        residual0=residual0,
+        jacobian0=jacobian0,
     )
-    fit = _model_fit(space, problem, solution)
+    chain = _VelocityChain(remove_mains_hum, fit_velocity_drift, mains_hz)
+    problem, solution, nuisances, projected = chain.fit(problem, solution, space, jacobian)
+    # Or rows handed in from a fit that took its drift off them, still the last Jacobian.
+    projected = projected or (jacobian0 is not None and solution.jacobian is jacobian0)
+    drift = fit_velocity_drift or drift_estimated
+    fit = _model_fit(space, problem, solution, nuisances, drift, projected)
     _require_explained(fit, solution, conditioned)
     if 'mu' in fit.at_bounds:
         raise FitError(
@@ -350,16 +505,174 @@ def fit_model(
             'record(s) (no friction, or far more than the rig can show)',
             joined_sources(conditioned),
         )
-    return fit
+    return _Fitted(fit, space, problem, solution)
 
 
-def _model_fit(space: _Space, problem: OutputError, solution: LsqSolution) -> ModelFit:
-    uncertainty = fit_uncertainty(solution, problem)
-    model = space.build(solution.x)
+@dataclass(frozen=True)
+class _VelocityChain:
+    """What the fit estimates of the velocity channel's chain: mains hum, offset and drift.
+
+    `fit` alternates: the model is fitted, the nuisance estimated from measured minus
+    modelled velocity (`chain.estimate_nuisance`) and taken off the measured velocity, and
+    the model refitted from where it was, until the nuisance's change would move no
+    parameter by more than `CHAIN_TOLERANCE` of its white-noise standard error (predicted
+    from the last Jacobian, so a last refit that would change nothing is not run). Both
+    estimates are linear in the residual, so each round estimates what is left in the
+    current residual and adds it. The hum is orthogonal to the model's few-Hz motion and an
+    offset nearly so: one refit (one Gauss-Newton step from the last Jacobian), rarely two.
+    """
+
+    hum: bool
+    drift: bool
+    mains_hz: float | None
+
+    def fit(
+        self, problem: OutputError, solution: LsqSolution, space: _Space, jacobian: str
+    ) -> tuple[OutputError, LsqSolution, tuple[VelocityNuisance, ...], bool]:
+        """The fit with the nuisance taken off.
+
+        Returns the problem with the cleaned velocities, its solution, the nuisances, and
+        whether the solution's Jacobian rows already have the drift projected out.
+        """
+        nuisances = tuple(
+            VelocityNuisance(i.velocity_m_s.size, i.sample_rate_hz) for i in problem.impacts
+        )
+        if not (self.hum or self.drift):
+            return problem, solution, nuisances, False
+        time_misfit = problem.misfit == 'time'
+        projected = None  # the Jacobian whose rows have the drift projected out
+        for _ in range(CHAIN_ROUNDS):
+            increments = tuple(
+                estimate_nuisance(
+                    residual,
+                    impact.sample_rate_hz,
+                    impact.velocity_noise_std_m_s,
+                    hum=self.hum,
+                    drift=self.drift,
+                    mains_hz=total.mains_hz or self.mains_hz,  # once found, that one
+                )
+                for residual, impact, total in zip(
+                    _time_residuals(problem, solution), problem.impacts, nuisances, strict=True
+                )
+            )
+            if time_misfit and self.drift and solution.jacobian is not projected:
+                # The drift is re-estimated with the parameters (variable projection): the
+                # steps and the stop below use the Jacobian less its part along the drift.
+                _project_drift(solution.jacobian, problem.impacts)
+                solution = replace(solution, block_normals=solution.jacobian.block_normals())
+                projected = solution.jacobian
+
+            # Each change is made when wanted (30 records' at once would be 80 MB).
+            def changes(increments=increments):
+                return (increment.values_m_s for increment in increments)
+
+            small = all(
+                math.sqrt(inner(change, change) / change.size)
+                < CHAIN_FLOOR * impact.velocity_noise_std_m_s
+                for change, impact in zip(changes(), problem.impacts, strict=True)
+            )
+            negligible = time_misfit and _negligible(solution, problem.segments, changes())
+            if negligible and small:  # nothing worth taking off the velocities as they are
+                return problem, solution, nuisances, solution.jacobian is projected
+            nuisances = tuple(
+                total.plus(increment)
+                for total, increment in zip(nuisances, increments, strict=True)
+            )
+            residual0 = solution.residual if time_misfit else None
+            cleaned = []
+            for impact, segment, change in zip(
+                problem.impacts, problem.segments, changes(), strict=True
+            ):
+                cleaned.append(replace(impact, velocity_m_s=impact.velocity_m_s - change))
+                if time_misfit:  # where it was, the residual falls by the change (in place:
+                    residual0[segment] -= change  # the old solution is not used again)
+            problem = problem.with_impacts(cleaned)
+            if time_misfit:
+                problem.clear_hit_windows(residual0)
+            if negligible:
+                cost = inner(residual0, residual0)
+                solution = replace(solution, residual=residual0, cost=cost)
+                return problem, solution, nuisances, solution.jacobian is projected
+            solution = levenberg_marquardt(
+                problem,
+                solution.x,
+                space.lower,
+                space.upper,
+                space.typical,
+                problem.size,
+                blocks=space.blocks(problem.segments, jacobian),
+                residual0=residual0,
+                jacobian0=solution.jacobian if time_misfit else None,
+            )
+        return problem, solution, nuisances, solution.jacobian is projected
+
+
+def _project_drift(jacobian: BlockJacobian, impacts: Sequence[ConditionedImpact]) -> None:
+    """Take each block's part along its impact's drift basis off its Jacobian rows, in place."""
+    for rows, impact in zip(jacobian.rows, impacts, strict=True):
+        DriftBasis.of(rows.shape[1], impact.sample_rate_hz).remove(rows)
+
+
+CHAIN_FLOOR = 0.01
+"""A nuisance estimate whose change is below this fraction of the noise (RMS) everywhere,
+and would move no parameter, is not taken off: the velocities are used as they are."""
+
+
+CHAIN_ROUNDS = 3
+"""Most refits `_VelocityChain` runs after the first fit."""
+
+
+CHAIN_TOLERANCE = 0.05
+"""A nuisance change that would move no parameter by this much of its white-noise standard
+error is taken without refitting."""
+
+
+def _time_residuals(problem: OutputError, solution: LsqSolution) -> list[np.ndarray]:
+    """Measured minus modelled velocity per impact at a solution."""
     if problem.misfit == 'time':
-        residuals = tuple(solution.residual[segment].copy() for segment in problem.segments)
-    else:
-        residuals = problem.time_residuals(solution.x)
+        return [solution.residual[segment] for segment in problem.segments]
+    return list(problem.time_residuals(solution.x))
+
+
+def _negligible(
+    solution: LsqSolution, segments: Sequence[slice], changes: Iterable[np.ndarray]
+) -> bool:
+    """Whether taking `changes` off the measured velocities would leave the fit where it is.
+
+    The residuals fall by the changes: the Gauss-Newton step from there, (J J^T)^-1 J r with
+    the solution's Jacobian (the drift projected out where it is fitted, so the step is the
+    one the drift's own re-estimate allows), compared with the white-noise standard errors.
+    """
+    jacobian = solution.jacobian
+    gradient = np.zeros(jacobian.blocks.n_parameters)
+    for indices, rows, segment, change in zip(
+        jacobian.blocks.parameters, jacobian.rows, segments, changes, strict=True
+    ):
+        gradient[indices] += inner(rows, solution.residual[segment]) - inner(rows, change)
+    inverse = normal_inverse(jacobian.normal(solution.block_normals))
+    finite = np.isfinite(np.diag(inverse))
+    inverse = np.where(np.isfinite(inverse), inverse, 0.0)
+    step = inverse @ gradient
+    variance = solution.cost / max(solution.residual.size - step.size, 1) * np.diag(inverse)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        moved = np.abs(step[finite]) / np.sqrt(variance[finite])
+    return bool(np.all(np.nan_to_num(moved, nan=0.0) < CHAIN_TOLERANCE))
+
+
+def _model_fit(
+    space: _Space,
+    problem: OutputError,
+    solution: LsqSolution,
+    nuisances: tuple[VelocityNuisance, ...],
+    drift: bool,
+    projected: bool,
+) -> ModelFit:
+    uncertainty = fit_uncertainty(
+        solution, problem, force_noise=not space.impulse_scales, drift=drift, projected=projected
+    )
+    model = space.build(solution.x)
+    # The hit windows too, in the solution's own residual (its last use as the misfit's).
+    residuals = problem.time_residuals(solution.x, solution.residual)
     squares = [inner(r, r) for r in residuals]
     impacts = problem.impacts
     n_samples = sum(r.size for r in residuals)
@@ -393,6 +706,8 @@ def _model_fit(space: _Space, problem: OutputError, solution: LsqSolution) -> Mo
         mu=model.mu,
         effects=model.effects,
         initial_positions_m=tuple(model.initial_position_m(index) for index in range(len(impacts))),
+        impulse_scales=tuple(model.impulse_scale(index) for index in range(len(impacts))),
+        velocity_nuisance=nuisances,
         misfit=problem.misfit,
         impacts=impacts,
         sources=tuple(i.source for i in impacts),
@@ -520,23 +835,67 @@ class FrictionFit:
         return self.joint.error('damping_n_s_per_m')
 
 
+def _own_fit(joint: _Fitted, index: int, options: dict) -> ModelFit:
+    """Impact `index` fitted alone: mu (c and terms held at the joint values), its start, scale.
+
+    It continues from the joint solution, where this impact's residual and its Jacobian rows
+    for mu, start and scale are already known (its own block of the joint Jacobian), on the
+    velocity the joint fit cleaned (its hum and drift are not estimated again; its errors
+    count the drift's degrees of freedom): usually one Gauss-Newton step, one model run.
+    """
+    solution = joint.solution
+    block = solution.jacobian.blocks.parameters[index]
+    wanted = ['mu'] + [
+        name
+        for name in (f'initial_position_m[{index}]', f'impulse_scale[{index}]')
+        if name in joint.space.names
+    ]
+    rows = [int(np.flatnonzero(block == joint.space.names.index(name))[0]) for name in wanted]
+    residual = solution.residual[joint.problem.segments[index]].copy()  # taken over by the fit
+    for start, stop in joint.problem.impacts[index].hit_windows:  # the misfit's, not the fit's
+        residual[start:stop] = 0.0
+    own = dict(options, remove_mains_hum=False, fit_velocity_drift=False)
+    return _fit(
+        [joint.problem.impacts[index]],
+        rig=joint.fit.rig,
+        mu0=joint.fit.mu,
+        fit_damping=False,
+        terms=(),
+        fixed_effects=joint.fit.effects,
+        start_values={
+            name.replace(f'[{index}]', '[0]'): joint.fit.value(name) for name in wanted[1:]
+        },
+        start=(residual, (solution.jacobian.rows[index][rows],)),
+        drift_estimated=options['fit_velocity_drift'],
+        **own,
+    ).fit
+
+
 def fit_friction(
     impacts: Sequence,
     *,
     rig: Rig = FMM_RIG,
     fit_damping: bool = False,
     fit_initial_position: bool = False,
+    fit_impulse_scale: bool = True,
+    remove_mains_hum: bool = True,
+    fit_velocity_drift: bool = True,
+    mains_hz: float | None = None,
     mu_bounds: tuple[float, float] = MU_BOUNDS,
     misfit: str = 'time',
     band_limit_hz: float = MISFIT_BAND_LIMIT_HZ,
     integrator: str = 'exact',
     jacobian: str = 'blocks',
+    judge_hit: bool = False,
+    uncertainty: str = 'spectral',
     progress: Callable[[str], None] | None = None,
 ) -> FrictionFit:
     """The paper's fit: one mu (and optionally c) over all impacts, plus each impact's own mu.
 
-    fit_initial_position and jacobian as in `fit_model` (each impact's own fit then refits its
-    own start). progress, when given, is told of each fit as it starts (a line of text).
+    The records as a data acquisition delivers them: by default each hit's impulse scale is
+    fitted and mains hum, velocity offset and drift are taken off (options as in
+    `fit_model`); each impact's own fit continues from the joint solution (`_own_fit`).
+    progress, when given, is told of each fit as it starts (a line of text).
     Raises ValueError for bad input and FitError (naming the impact) for any impact, or the
     set, that friction cannot explain.
     """
@@ -545,21 +904,37 @@ def fit_friction(
     options = dict(
         mu_bounds=mu_bounds,
         fit_initial_position=fit_initial_position,
+        fit_impulse_scale=fit_impulse_scale,
+        remove_mains_hum=remove_mains_hum,
+        fit_velocity_drift=fit_velocity_drift,
+        mains_hz=mains_hz,
         misfit=misfit,
         band_limit_hz=band_limit_hz,
         integrator=integrator,
         jacobian=jacobian,
+        judge_hit=judge_hit,
+        uncertainty=uncertainty,
     )
     count = len(conditioned)
     say(f'fitting one mu to {count} impact{"s" if count > 1 else ""}')
-    joint = fit_model(conditioned, rig=rig, fit_damping=fit_damping, **options)
+    fitted = _fit(
+        conditioned,
+        rig=rig,
+        mu0=None,
+        fit_damping=fit_damping,
+        terms=(),
+        fixed_effects=(),
+        start_values=None,
+        **options,
+    )
+    joint = fitted.fit
     if count == 1 and not fit_damping:
         per_impact = (joint,)
     else:
         fits = []
-        for number, impact in enumerate(conditioned, 1):
-            say(f'fitting mu of impact {number}/{count} alone')
-            fits.append(fit_model([impact], rig=joint.rig, mu0=joint.mu, **options))
+        for index in range(count):
+            say(f'fitting mu of impact {index + 1}/{count} alone')
+            fits.append(_own_fit(fitted, index, options))
         per_impact = tuple(fits)
     mus = np.array([fit.mu for fit in per_impact])
     errors = np.array([fit.mu_stderr for fit in per_impact])

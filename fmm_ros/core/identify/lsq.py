@@ -40,6 +40,12 @@ def inner(a: np.ndarray, b: np.ndarray) -> np.ndarray | float:
     """
     if a.ndim == 1 and b.ndim == 1:
         return float(np.einsum('i,i->', a, b))
+    if a is b and a.ndim == 2:  # a Gram matrix: its upper triangle, pair by pair (40 % less)
+        gram = np.empty((a.shape[0], a.shape[0]))
+        for i in range(a.shape[0]):
+            for k in range(i, a.shape[0]):
+                gram[i, k] = gram[k, i] = np.einsum('j,j->', a[i], a[k])
+        return gram
     return np.einsum('...j,kj->...k' if b.ndim == 2 else '...j,j->...', a, b)
 
 
@@ -128,12 +134,18 @@ class BlockJacobian:
     blocks: Blocks
     rows: tuple[np.ndarray, ...]
 
-    def normal(self) -> np.ndarray:
-        """J J^T (p x p), summed block by block."""
+    def block_normals(self) -> tuple[np.ndarray, ...]:
+        """J_k J_k^T of each block, over the parameters it depends on."""
+        return tuple(inner(rows, rows) for rows in self.rows)
+
+    def normal(self, block_normals: Sequence[np.ndarray] | None = None) -> np.ndarray:
+        """J J^T (p x p), summed block by block (from `block_normals` where at hand)."""
         p = self.blocks.n_parameters
         normal = np.zeros((p, p))
-        for indices, rows in zip(self.blocks.parameters, self.rows, strict=True):
-            normal[np.ix_(indices, indices)] += inner(rows, rows)
+        if block_normals is None:
+            block_normals = self.block_normals()
+        for indices, block in zip(self.blocks.parameters, block_normals, strict=True):
+            normal[np.ix_(indices, indices)] += block
         return normal
 
     def gradient(self, residual: np.ndarray) -> np.ndarray:
@@ -157,8 +169,10 @@ class LsqSolution:
     residual: np.ndarray
     """Residuals at x."""
     jacobian: BlockJacobian
-    """d residual / d x by blocks, at the last linearisation point (within the final step's
-    tolerance of x)."""
+    """d residual / d x by blocks, at the last linearisation point: the start of the last
+    step (a negligible one, or one over which the model was linear)."""
+    block_normals: tuple[np.ndarray, ...]
+    """`jacobian.block_normals()`, as the last iteration computed them."""
     cost: float
     """Sum of squared residuals at x."""
     evaluations: int
@@ -180,15 +194,23 @@ def levenberg_marquardt(
     chi2_tolerance: float = 1e-3,
     relative_step: float = 1e-4,
     max_iterations: int = 60,
+    residual0: np.ndarray | None = None,
+    jacobian0: BlockJacobian | None = None,
 ) -> LsqSolution:
     """Minimise sum(fun(x)^2) over lower <= x <= upper from x0.
 
     `typical` is each parameter's scale (finite-difference steps are relative_step x max(|x|,
     typical)). Converged when an accepted step lowers the cost by less than chi2_tolerance
     times the residual variance per sample, i.e. moves the parameters by about
-    sqrt(chi2_tolerance) of their (white-noise) standard errors, or when no step can lower it.
+    sqrt(chi2_tolerance) of their (white-noise) standard errors, or when no step can lower
+    it, or where a step gained what the linear model promised (`LINEAR_GAIN_RATIO`) and the
+    next Gauss-Newton step, predicted from the same Jacobian at the new residual, would gain
+    less than that (a new Jacobian costs a model run per parameter and impact).
     Without `blocks`, fun(x, out) writes every residual (one dense block); with them, fun is
     a BlockResidualFunction and a Jacobian column runs only the blocks its parameter touches.
+    residual0, jacobian0: the residuals and the Jacobian (of `blocks`' pattern) at x0 where
+    the caller has them (a fit continued from another's solution): no model run is spent on
+    them. residual0 is taken over (later trials overwrite it); jacobian0 is left as it is.
     """
     lower, upper, typical = (np.asarray(a, dtype=float) for a in (lower, upper, typical))
     x = np.clip(np.asarray(x0, dtype=float), lower, upper)
@@ -199,32 +221,52 @@ def levenberg_marquardt(
     if blocks.n_parameters != p:
         raise ValueError(f'the blocks describe {blocks.n_parameters} parameters, x0 has {p}')
     every = tuple(range(len(blocks.segments)))
-    residual = np.empty(n_residuals)
     trial = np.empty(n_residuals)
-    jacobian = blocks.empty_jacobian()
+    jacobian = jacobian0
     touched = [blocks.touched_by(j) for j in range(p)]
 
     def evaluate(x: np.ndarray, out: np.ndarray) -> None:
         fun(x, every, [out[segment] for segment in blocks.segments])
 
-    try:
-        evaluate(x, residual)
-    except Infeasible as error:
-        raise ValueError(f'the model cannot be evaluated at the start point {x}: {error}') from None
-    evaluations = len(every)
+    evaluations = 0
+    if residual0 is not None:
+        residual = residual0
+    else:
+        residual = np.empty(n_residuals)
+        try:
+            evaluate(x, residual)
+        except Infeasible as error:
+            raise ValueError(
+                f'the model cannot be evaluated at the start point {x}: {error}'
+            ) from None
+        evaluations = len(every)
     cost = inner(residual, residual)
     damping = 1e-3
 
     def finish(iterations: int, converged: bool, message: str) -> LsqSolution:
         return LsqSolution(
-            x, lower, upper, residual, jacobian, cost, evaluations, iterations, converged, message
+            x,
+            lower,
+            upper,
+            residual,
+            jacobian,
+            block_normals,
+            cost,
+            evaluations,
+            iterations,
+            converged,
+            message,
         )
 
     for iteration in range(1, max_iterations + 1):
-        evaluations += _forward_jacobian(
-            fun, x, residual, lower, upper, typical, relative_step, touched, jacobian
-        )
-        normal = jacobian.normal()
+        if iteration > 1 or jacobian is None:  # jacobian0 serves the first step
+            if jacobian is None or jacobian is jacobian0:
+                jacobian = blocks.empty_jacobian()
+            evaluations += _forward_jacobian(
+                fun, x, residual, lower, upper, typical, relative_step, touched, jacobian
+            )
+        block_normals = jacobian.block_normals()
+        normal = jacobian.normal(block_normals)
         gradient = jacobian.gradient(residual)
         noise_variance = cost / max(n_residuals - p, 1)
         while True:
@@ -246,12 +288,27 @@ def levenberg_marquardt(
             if damping > 1e10:
                 return finish(iteration, True, 'no step lowers the cost')
         reduction = cost - new_cost
+        taken = candidate - x
+        expected = -float(2.0 * gradient @ taken + taken @ normal @ taken)
         x, cost = candidate, new_cost
         residual, trial = trial, residual
         damping = max(damping / 10.0, 1e-9)
         if reduction < chi2_tolerance * noise_variance:
             return finish(iteration, True, 'the cost stopped falling')
+        # Where the step (taken with a Jacobian made at its start) gained what the linear
+        # model promised, that Jacobian still holds: if the next Gauss-Newton step, predicted
+        # from it (no model runs), would gain nothing worth a new one, stop here.
+        if expected > 0.0 and reduction > LINEAR_GAIN_RATIO * expected:
+            gradient = jacobian.gradient(residual)
+            step = _damped_step(normal, gradient, x, lower, upper, 0.0)
+            if -float(gradient @ step) < chi2_tolerance * noise_variance:
+                return finish(iteration, True, 'the next step would gain nothing')
     return finish(max_iterations, False, f'not converged after {max_iterations} iterations')
+
+
+LINEAR_GAIN_RATIO = 0.9
+"""A step that gained this much of what the linearised model promised shows the model linear
+over it: `levenberg_marquardt` may judge the next step from the same Jacobian."""
 
 
 def _one_block(fun: ResidualFunction) -> BlockResidualFunction:

@@ -18,13 +18,16 @@ Uncertainty, two parts added:
 The standard errors were checked against the scatter of fits over noise seeds (test_fit.py).
 """
 
+import math
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.fft
+import scipy.signal
 import scipy.stats
 
+from fmm_ros.core.identify.chain import DriftBasis
 from fmm_ros.core.identify.conditioning import ConditionedImpact, source_prefix
 from fmm_ros.core.identify.lsq import (
     Infeasible,
@@ -38,6 +41,13 @@ from fmm_ros.core.physics.terms import ModelTerm
 from fmm_ros.core.signal.frf import band_bins, mobility, spectra
 
 MISFITS = ('time', 'frf')
+
+
+UNCERTAINTIES = ('spectral', 'blocks')
+"""How the velocity residuals' share of a time fit's covariance is found: from the residual's
+spectrum over the whole record (default), or from block sums of the score over the motion
+(the way before issue 14: noisy where the motion lasts a few periods; kept as the reference
+the uncertainty benchmark compares with)."""
 
 
 JACOBIANS = ('blocks', 'dense')
@@ -58,10 +68,16 @@ class BuiltModel:
     effects: tuple[ModelTerm, ...]
     initial_positions_m: tuple[float, ...] = ()
     """Per impact [m]; empty: every impact starts at x = 0."""
+    impulse_scales: tuple[float, ...] = ()
+    """Per impact, the factor on its measured hit [-]; empty: every hit as measured."""
 
     def initial_position_m(self, index: int) -> float:
         """Where impact `index` starts [m]."""
         return self.initial_positions_m[index] if self.initial_positions_m else 0.0
+
+    def impulse_scale(self, index: int) -> float:
+        """The factor on impact `index`'s measured hit [-]."""
+        return self.impulse_scales[index] if self.impulse_scales else 1.0
 
 
 ModelBuilder = Callable[[np.ndarray], BuiltModel]
@@ -86,12 +102,23 @@ class OutputError:
         band_limit_hz: float,
         integrator: str,
         natural_frequency_hz: float,
+        *,
+        judge_hit: bool = False,
+        uncertainty: str = 'spectral',
     ) -> None:
         self.impacts = tuple(impacts)
         self.build = build
         self.misfit = misfit
         self.integrator = integrator
-        self.buffer = np.empty((2, max(impact.force_n.size for impact in self.impacts)))
+        self.band_limit_hz = band_limit_hz
+        self.natural_frequency_hz = natural_frequency_hz
+        self.judge_hit = judge_hit
+        self.uncertainty = uncertainty
+        longest = max(impact.force_n.size for impact in self.impacts)
+        self.buffer = np.empty((2, longest))
+        # The force that drives a run: zero but for one impact's gates, scaled (`drive`).
+        self.force_buffer = np.zeros(longest)
+        self._driving: tuple[int, float] | None = None
         self.targets: list[np.ndarray] = []
         self.inverse_force: list[np.ndarray] = []
         self.segments: list[slice] = []
@@ -120,6 +147,19 @@ class OutputError:
             start += length
         self.size = start
 
+    def with_impacts(self, impacts: Sequence[ConditionedImpact]) -> 'OutputError':
+        """The same problem over other impacts (the same records with a cleaned velocity)."""
+        return OutputError(
+            impacts,
+            self.build,
+            self.misfit,
+            self.band_limit_hz,
+            self.integrator,
+            self.natural_frequency_hz,
+            judge_hit=self.judge_hit,
+            uncertainty=self.uncertainty,
+        )
+
     def model(self, theta: np.ndarray) -> BuiltModel:
         """The model at theta, or Infeasible where it cannot be built."""
         try:
@@ -138,12 +178,14 @@ class OutputError:
     def impact_residual(
         self, index: int, model: BuiltModel, out: np.ndarray, force_scale: float = 1.0
     ) -> None:
-        """One impact's residual segment; force_scale multiplies its force (sensitivity)."""
+        """One impact's residual segment; force_scale multiplies its force (a sensitivity)."""
         impact = self.impacts[index]
-        force = impact.force_n if force_scale == 1.0 else impact.force_n * force_scale
+        force = self.drive(index, model.impulse_scale(index) * force_scale)
         velocity = self.simulate(index, model, force).velocity_m_s
         if self.misfit == 'time':
             np.subtract(impact.velocity_m_s, velocity, out=out)
+            if not self.judge_hit:
+                _clear_hit_windows(impact, out)
             return
         target = self.targets[index]
         spectrum = scipy.fft.rfft(velocity)[: target.size]
@@ -152,15 +194,37 @@ class OutputError:
         np.subtract(target, spectrum, out=residual)
         residual /= force_scale  # the measured mobility's denominator scales with the force
 
-    def simulate(
-        self, index: int, model: BuiltModel, force_n: np.ndarray | None = None
-    ) -> Simulation:
-        """Run one impact (or force_n in its place) through the model into the shared buffer."""
+    def drive(self, index: int, scale: float) -> np.ndarray:
+        """Impact `index`'s conditioned force times `scale`, in the shared force buffer.
+
+        The conditioned force is zero outside its gates, so only the gates are written (and
+        the previous impact's cleared): a few dozen samples, not the record.
+        """
         impact = self.impacts[index]
-        n = impact.force_n.size
+        if self._driving != (index, scale):
+            if self._driving is not None:
+                for start, stop in self.impacts[self._driving[0]].gate:
+                    self.force_buffer[start:stop] = 0.0
+            for start, stop in impact.gate:
+                np.multiply(impact.force_n[start:stop], scale, out=self.force_buffer[start:stop])
+            self._driving = (index, scale)
+        return self.force_buffer[: impact.force_n.size]
+
+    def simulate(
+        self, index: int, model: BuiltModel, force_n: np.ndarray | None = None, samples: int = 0
+    ) -> Simulation:
+        """Run one impact (or force_n in its place) through the model into the shared buffer.
+
+        samples: run only the first this many (the model is causal: they are the whole
+        run's); 0 for all.
+        """
+        impact = self.impacts[index]
+        n = samples or impact.force_n.size
+        if force_n is None:
+            force_n = self.drive(index, model.impulse_scale(index))
         try:
             return simulate(
-                impact.force_n if force_n is None else force_n,
+                force_n[:n],
                 impact.sample_rate_hz,
                 rig=model.rig,
                 mu=model.mu,
@@ -172,13 +236,59 @@ class OutputError:
         except ValueError as error:  # e.g. a term that makes one direction's friction < 0
             raise Infeasible(str(error)) from None
 
-    def time_residuals(self, theta: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Measured minus simulated velocity of every impact at theta (fresh arrays) [m/s]."""
+    def clear_hit_windows(self, residual: np.ndarray) -> np.ndarray:
+        """Zero the hit windows of a stacked time residual (in place), as the misfit has it."""
+        if self.judge_hit:
+            return residual
+        for impact, segment in zip(self.impacts, self.segments, strict=True):
+            _clear_hit_windows(impact, residual[segment])
+        return residual
+
+    def time_residuals(
+        self, theta: np.ndarray, residual: np.ndarray | None = None
+    ) -> tuple[np.ndarray, ...]:
+        """Measured minus simulated velocity of every impact at theta, every sample [m/s].
+
+        The hit windows included (which the time misfit leaves out). residual: the time
+        misfit's own stacked residual at theta, if at hand and no longer needed as it is:
+        then only the start of each record, up to its last hit window, is run again, the
+        windows are filled in in place, and its segments are returned (no copy of a 2.6 MB
+        record each); otherwise fresh arrays.
+        """
         model = self.model(theta)
-        return tuple(
-            impact.velocity_m_s - self.simulate(index, model).velocity_m_s
-            for index, impact in enumerate(self.impacts)
-        )
+        residuals = []
+        for index, impact in enumerate(self.impacts):
+            if residual is None or self.misfit != 'time':
+                run = self.simulate(index, model).velocity_m_s
+                residuals.append(impact.velocity_m_s - run)
+                continue
+            own = residual[self.segments[index]]
+            windows = impact.hit_windows
+            run = self.simulate(index, model, samples=windows[-1][1]).velocity_m_s
+            for start, stop in windows:
+                own[start:stop] = impact.velocity_m_s[start:stop] - run[start:stop]
+            residuals.append(own)
+        return tuple(residuals)
+
+    def scores(self, solution: LsqSolution) -> list[np.ndarray]:
+        """Each block's score covariance at a solution (`sandwich_uncertainty`).
+
+        In time from the residual's spectrum (`spectral_score`), for the FRF misfit (and with
+        uncertainty='blocks', the way before issue 14) from block sums over a natural period
+        or f_n/4 of bins (`block_score`).
+        """
+        scores = []
+        for index, (segment, rows, normal) in enumerate(
+            zip(self.segments, solution.jacobian.rows, solution.block_normals, strict=True)
+        ):
+            residual = solution.residual[segment]
+            if self.misfit == 'time' and self.uncertainty == 'spectral':
+                impact = self.impacts[index]
+                white = impact.velocity_noise_std_m_s**2
+                scores.append(spectral_score(rows, residual, white, impact.sample_rate_hz, normal))
+            else:
+                scores.append(block_score(rows, residual, self.block_lengths[index]))
+        return scores
 
     def impulse_jacobians(
         self, theta: np.ndarray, residual: np.ndarray, relative_step: float = 1e-4
@@ -201,6 +311,12 @@ class OutputError:
             yield shifted
 
 
+def _clear_hit_windows(impact: ConditionedImpact, residual: np.ndarray) -> None:
+    """Zero one impact's time residual where the fit does not judge it (the hit windows)."""
+    for start, stop in impact.hit_windows:
+        residual[start:stop] = 0.0
+
+
 @dataclass(frozen=True)
 class Uncertainty:
     """A fit's parameter covariance, its standard errors, and the white-noise ones beside them."""
@@ -211,24 +327,85 @@ class Uncertainty:
     stderr_force: np.ndarray
 
 
+def block_score(rows: np.ndarray, residual: np.ndarray, block: int) -> np.ndarray:
+    """Sum over blocks of `block` residuals of the score's outer product, (p, p).
+
+    The score J_i r_i is summed over each block first, so residuals correlated within a
+    block count as they do in the fit (a natural period in time, f_n/4 of bins in frequency).
+    """
+    contributions = rows * residual
+    sums = np.add.reduceat(contributions, np.arange(0, contributions.shape[1], block), axis=1)
+    return sums @ sums.T
+
+
+def spectral_score(
+    rows: np.ndarray,
+    residual: np.ndarray,
+    white_variance: float,
+    sample_rate_hz: float,
+    normal: np.ndarray | None = None,
+) -> np.ndarray:
+    """Covariance of the score J r for stationary noise of the residual's own spectrum, (p, p).
+
+    var(sum_i J_i e_i) = sum_ij J_i J_j gamma(i - j) = integral of |J(f)|^2 P(f) df, P the
+    noise's power spectral density, estimated (Welch) from the residual of the whole record:
+    the rest before and after the motion shows the chain's noise as well as the motion does,
+    and a record holds tens of seconds of it, so the estimate is steady where block sums over
+    the few seconds of motion scatter by tens of per cent. Done on `SPECTRAL_RATE_HZ` block
+    means (J's content is the rig's few Hz and its harmonics), plus the white noise's share of
+    what the block means smooth away (J's variation inside a block: the hit's fast edge).
+    normal: rows @ rows.T where at hand.
+    """
+    p, n = rows.shape
+    factor = max(1, int(sample_rate_hz // SPECTRAL_RATE_HZ))
+    m = n // factor
+    total = white_variance * (inner(rows, rows) if normal is None else normal)
+    segment = 1 << max(4, math.ceil(math.log2(SPECTRAL_SEGMENT_S * sample_rate_hz / factor)))
+    if m < 2 * segment:
+        return total
+    weights = np.full(factor, 1.0 / factor)
+    means = np.einsum('pmf,f->pm', rows[:, : m * factor].reshape(p, m, factor), weights)
+    residual_means = np.einsum('mf,f->m', residual[: m * factor].reshape(m, factor), weights)
+    frequency, one_sided = scipy.signal.welch(residual_means, nperseg=segment)
+    density = 0.5 * one_sided  # two-sided; welch doubles all but DC and Nyquist
+    density[0] = one_sided[0]
+    density[-1] = one_sided[-1]
+    transform = scipy.fft.rfft(means, axis=1)
+    density_at = np.interp(np.arange(transform.shape[1]) / m, frequency, density)
+    density_at[1 : (m + 1) // 2] *= 2.0  # the negative frequencies
+    weighted = transform * density_at
+    coloured = (factor * factor / m) * (weighted @ transform.conj().T).real
+    return total - white_variance * factor * inner(means, means) + coloured
+
+
+SPECTRAL_RATE_HZ = 500.0
+"""Rate of the block means `spectral_score` estimates the coloured noise at [Hz]: the rig's
+mode and the odd harmonics friction gives it (to ~100 Hz) lie well below its Nyquist."""
+
+
+SPECTRAL_SEGMENT_S = 4.0
+"""Welch segment of `spectral_score` [s]: 0.25 Hz resolution, ~15 averages in 33 s."""
+
+
 def sandwich_uncertainty(
     solution: LsqSolution,
-    block_lengths: Sequence[int],
+    scores: Sequence[np.ndarray],
     impulse_terms: Iterable[tuple[int, np.ndarray, float]] = (),
 ) -> Uncertainty:
-    """Covariance of a fit: velocity residuals (block sandwich) plus force noise (module doc).
+    """Covariance of a fit: the velocity residuals' sandwich plus force noise (module doc).
 
-    The sandwich is scaled up where it falls below the white-noise covariance (its block sums
-    are few, so it is noisy, and it cannot be more precise than white noise allows). The force
-    part propagates each impact's impulse uncertainty through the fit: d theta / d I =
-    -(J J^T)^-1 J (d r / d I). block_lengths: per block of the Jacobian (`_lsq.Blocks`), the
-    score's summing length; impulse_terms: (block, d r / d I on it, impulse std). Both pieces
-    are summed block by block over the parameters each block depends on.
+    scores: per block of the Jacobian (`_lsq.Blocks`), the covariance of its score J_k r_k
+    over the parameters the block depends on (`block_score`, `spectral_score`). The sandwich
+    (J J^T)^-1 S (J J^T)^-1 is scaled up where it falls below the white-noise covariance (it
+    cannot be more precise than white noise allows). The force part propagates each impact's
+    impulse uncertainty through the fit: d theta / d I = -(J J^T)^-1 J (d r / d I);
+    impulse_terms: (block, d r / d I on it, impulse std). Both pieces are summed block by
+    block over the parameters each block depends on.
     """
     jacobian, residual = solution.jacobian, solution.residual
     blocks = jacobian.blocks
     p = blocks.n_parameters
-    inverse = normal_inverse(jacobian.normal())
+    inverse = normal_inverse(jacobian.normal(solution.block_normals))
     white = solution.cost / max(residual.size - p, 1) * inverse
     # A parameter the residuals do not depend on has infinite variance (normal_inverse); the
     # products below run on the finite part (inf x 0 would make its row and column NaN) and
@@ -236,12 +413,8 @@ def sandwich_uncertainty(
     dead = ~np.isfinite(np.diag(inverse))
     inverse = np.where(np.isfinite(inverse), inverse, 0.0)
     score = np.zeros((p, p))
-    for segment, indices, rows, block in zip(
-        blocks.segments, blocks.parameters, jacobian.rows, block_lengths, strict=True
-    ):
-        contributions = rows * residual[segment]
-        sums = np.add.reduceat(contributions, np.arange(0, contributions.shape[1], block), axis=1)
-        score[np.ix_(indices, indices)] += sums @ sums.T
+    for indices, block_score_ in zip(blocks.parameters, scores, strict=True):
+        score[np.ix_(indices, indices)] += block_score_
     sandwich = inverse @ score @ inverse
     with np.errstate(divide='ignore', invalid='ignore'):
         raise_to_white = np.sqrt(np.maximum(1.0, np.diag(white) / np.diag(sandwich)))
@@ -263,8 +436,29 @@ def sandwich_uncertainty(
     )
 
 
-def fit_uncertainty(solution: LsqSolution, problem: OutputError) -> Uncertainty:
-    """`sandwich_uncertainty` of an output-error fit, force noise included."""
+def fit_uncertainty(
+    solution: LsqSolution,
+    problem: OutputError,
+    force_noise: bool = True,
+    drift: bool = False,
+    projected: bool = False,
+) -> Uncertainty:
+    """`sandwich_uncertainty` of an output-error fit, force noise included unless told not to.
+
+    force_noise=False where the fit has its own parameter for each hit's impulse: the noise's
+    effect on the impulse is then part of what the fit estimates, not an error beside it.
+    drift: each impact's velocity drift was estimated too (`chain.DriftBasis`), so the
+    Jacobian's part along its basis carries no information: it is projected out first (time
+    misfit), as a joint fit of the drift would, in the solution's own Jacobian rows (their
+    last use; 2.6 MB a row and impact are not copied); projected: they already were.
+    """
+    if drift and not projected and problem.misfit == 'time':  # in place: the rows' last use
+        for rows, impact in zip(solution.jacobian.rows, problem.impacts, strict=True):
+            DriftBasis.of(rows.shape[1], impact.sample_rate_hz).remove(rows)
+        solution = replace(solution, block_normals=solution.jacobian.block_normals())
+    scores = problem.scores(solution)
+    if not force_noise:
+        return sandwich_uncertainty(solution, scores)
     stds = [impact.impulse_std_n_s for impact in problem.impacts]
     terms = zip(
         range(len(stds)),
@@ -272,4 +466,4 @@ def fit_uncertainty(solution: LsqSolution, problem: OutputError) -> Uncertainty:
         stds,
         strict=True,
     )
-    return sandwich_uncertainty(solution, problem.block_lengths, terms)
+    return sandwich_uncertainty(solution, scores, terms)

@@ -35,6 +35,7 @@ from fmm_ros.core.identify.lsq import (
 from fmm_ros.core.identify.output_error import (
     BuiltModel,
     OutputError,
+    block_score,
     fit_uncertainty,
     sandwich_uncertainty,
 )
@@ -110,7 +111,10 @@ def fit_free_decay(
     _require_inside(
         solution, ('natural frequency', 'damping ratio'), 'a lightly damped free decay', source
     )
-    uncertainty = sandwich_uncertainty(solution, [max(1, round(sample_rate_hz / solution.x[0]))])
+    period = max(1, round(sample_rate_hz / solution.x[0]))
+    uncertainty = sandwich_uncertainty(
+        solution, [block_score(solution.jacobian.rows[0], solution.residual, period)]
+    )
     _decay_basis(solution.x[0], solution.x[1], sample_rate_hz, basis)
     a, b, offset = _solve_linear(basis, segment)
     rms = math.sqrt(solution.cost / segment.size)

@@ -56,7 +56,7 @@ class AnalysisConfig:
     # FRF arrays in results stop at this frequency [Hz] (None: Nyquist). The FMM's mode is at
     # 2.2 Hz and its odd harmonics matter up to ~20 Hz; 100 Hz keeps results small.
     band_limit_hz: float | None = 100.0
-    # Where the peak |receptance| (and so the natural frequency) is searched [Hz]. Its lower
+    # Where the peak |receptance| is searched [Hz]. Its lower
     # end keeps out the lowest bins, where the rest offset friction leaves in the displacement
     # (x_final != 0) makes |mobility / (i omega)| large. Its upper end is lowered further to
     # where the force spectrum has dropped by excitation_drop_db (`frf.excitation_bandwidth`).
@@ -118,6 +118,7 @@ class ImpactResult:
     contact_duration_s: float
     record_duration_s: float
     sample_rate_hz: float
+    # From the period between velocity reversals (`frf.natural_frequency`); NaN if too few.
     natural_frequency_hz: float
     peak_receptance_m_per_n: float
     frequency_step_hz: float
@@ -153,6 +154,7 @@ class LevelSummary:
     std_impulse_n_s: float
     mean_peak_force_n: float
     peak_receptance_m_per_n: float
+    # Mean of the level's impacts' natural frequencies (one method everywhere).
     natural_frequency_hz: float
     frequency_step_hz: float
     frequency_hz: np.ndarray
@@ -224,9 +226,10 @@ def analyze_impact(
     frequency = frf.frequency_axis(n_fft, rate)[:bins]
     mobility = frf.mobility(force_spectrum, velocity_spectrum)
     receptance = frf.receptance_from_mobility(mobility, frequency)
-    peak_receptance, natural_frequency = frf.peak_magnitude(
+    peak_receptance, _ = frf.peak_magnitude(
         receptance, frequency, _peak_band(force_spectrum, frequency, analysis)
     )
+    natural_frequency = frf.natural_frequency(record.velocity_m_s, rate)
     return ImpactResult(
         impact_id=impact_id,
         trigger_sample_index=record.trigger_sample_index,
@@ -322,13 +325,15 @@ def _level_summary(
         np.stack([result.velocity_spectrum for result in members]),
     )
     receptance = frf.receptance_from_mobility(average.mean_mobility, first.frequency_hz)
-    peak, natural_frequency = frf.peak_magnitude(
+    peak, _ = frf.peak_magnitude(
         receptance,
         first.frequency_hz,
         _peak_band(
             np.stack([result.force_spectrum for result in members]), first.frequency_hz, analysis
         ),
     )
+    frequencies = [m.natural_frequency_hz for m in members if np.isfinite(m.natural_frequency_hz)]
+    natural_frequency = float(np.mean(frequencies)) if frequencies else float('nan')
     impulses = np.array([result.impulse_n_s for result in members])
     return LevelSummary(
         level=name,

@@ -31,6 +31,14 @@ from fmm_ros.constants import FORCE, VELOCITY
 from fmm_ros.core.signal import quality
 from fmm_ros.core.signal.frf import first_true
 from fmm_ros.core.signal.records import Gaps, ImpactRecord
+from fmm_ros.core.signal.stream import (
+    DEFAULT_RULES,
+    MAX_STEP_SAMPLES,
+    AlignedStream,
+    Batch,
+    ChannelLedger,
+    StreamRules,
+)
 
 # Every quality flag, in the order they are reported. All but the last are properties of the
 # record (`quality_flags`); `out_of_tolerance` is set when impacts are grouped into levels.
@@ -41,13 +49,12 @@ FLAGS: tuple[str, ...] = (
     'no_response',
     'dropout',
     'gap',
+    'interrupted',
     'nan',
     'unsettled',
     'overlap',
     'out_of_tolerance',
 )
-# Largest block processed in one step: bounds the ring a huge batch would otherwise need.
-MAX_STEP_SAMPLES = 4096
 
 
 @dataclass(frozen=True)
@@ -77,6 +84,11 @@ class CaptureConfig:
     # How far one channel may run ahead of the other [s]; beyond it the lagging channel's
     # samples are declared missing, so a dead sensor cannot make the capture hoard memory.
     max_skew_s: float = 5.0
+    # The stream's other tolerances (see fmm_ros.core.signal.stream): the largest index jump
+    # that is a gap or a repeat rather than a discontinuity [s], and how far apart two
+    # batches' acquisition clocks may be and still be one acquisition [s].
+    max_gap_s: float = DEFAULT_RULES.max_gap_s
+    clock_tolerance_s: float = DEFAULT_RULES.clock_tolerance_s
 
     def __post_init__(self) -> None:
         if not self.rearm_level_n < self.trigger_level_n:
@@ -87,7 +99,7 @@ class CaptureConfig:
         for name in ('window_s', 'rest_velocity_m_s', 'rest_time_s', 'min_spacing_s'):
             if not getattr(self, name) > 0:
                 raise ValueError(f'{name} must be > 0, got {getattr(self, name)}')
-        for name in ('pretrigger_s', 'max_skew_s'):
+        for name in ('pretrigger_s', 'max_skew_s', 'max_gap_s', 'clock_tolerance_s'):
             if not getattr(self, name) >= 0:
                 raise ValueError(f'{name} must be >= 0, got {getattr(self, name)}')
         if not self.pretrigger_s < self.window_s:
@@ -95,6 +107,11 @@ class CaptureConfig:
                 f'pretrigger_s ({self.pretrigger_s} s) must be shorter than '
                 f'window_s ({self.window_s} s)'
             )
+
+    @property
+    def rules(self) -> StreamRules:
+        """The stream rules this capture aligns its channels by."""
+        return StreamRules(self.max_skew_s, self.max_gap_s, self.clock_tolerance_s)
 
     def samples(self, sample_rate_hz: float) -> CaptureSamples:
         """The durations of this config as whole sample counts at `sample_rate_hz`."""
@@ -222,6 +239,7 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
     - dropout: a noisy channel holds one exact value for longer than chance allows
       (`quality.stuck_stretch`): samples dropped and filled by zeros or the last value.
     - gap: samples that never arrived inside the record (they are NaN).
+    - interrupted: a new acquisition began before the record was complete (its tail is a gap).
     - nan: received samples that are NaN or infinite.
     - unsettled: |velocity - its level before the hit| (the level removes a vibrometer
       offset) above rest_velocity_m_s in the last rest_time_s of the record, or before the
@@ -258,6 +276,8 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
         flags.add('dropout')
     if record.force_gaps or record.velocity_gaps:
         flags.add('gap')
+    if record.interrupted:
+        flags.add('interrupted')
     if _non_finite_outside(force, record.force_gaps) or _non_finite_outside(
         velocity, record.velocity_gaps
     ):
@@ -321,17 +341,17 @@ def _non_finite_outside(samples: np.ndarray, gaps: Gaps) -> bool:
     return bool(bad.any())
 
 
-class _Channel:
-    """One input channel: its ring of recent samples, its watermark and its gaps."""
+class _Ring:
+    """One channel's recent samples by index, the capture's copy of its watermark, its gaps."""
 
     def __init__(self, name: str, capacity: int, origin: int) -> None:
         self.name = name
         self.ring = np.full(capacity, np.nan)
-        # Every sample below this index has arrived or been declared missing.
+        # Every sample below this index has arrived or been declared missing (the stream's
+        # watermark, mirrored).
         self.next_index = origin
         self.origin = origin
         self.gaps: list[tuple[int, int]] = []
-        self.full_scale = 0.0
 
     def store(self, first: int, samples: np.ndarray) -> None:
         """Write samples at indices first.. into the ring (samples fit in the ring)."""
@@ -362,6 +382,7 @@ class _OpenImpact:
         # Record length [samples]: the window, or shorter once the rig is found at rest.
         self.end = force.size
         self.end_found = False
+        self.interrupted = False
         self.buffers = {FORCE.quantity: force, VELOCITY.quantity: velocity}
         self.gaps: dict[str, list[tuple[int, int]]] = {FORCE.quantity: [], VELOCITY.quantity: []}
         # Rest search: next record index to examine and the at-rest run ending just before it.
@@ -381,31 +402,49 @@ class _OpenImpact:
         if low < high:
             self.gaps[name].append((low, high))
 
+    def lose(self, name: str, start: int, stop: int) -> None:
+        """Samples [start, stop) of a channel will never come: NaN in the record and a gap."""
+        self.add_gap(name, start, stop)
+        low, high = (
+            max(0, start - self.start),
+            max(0, min(stop, self.start + self.end) - self.start),
+        )
+        self.buffers[name][low:high] = np.nan
+
 
 class ImpactCapture:
     """Finds impacts in force and velocity streams fed in batches of any size.
 
-    Feed each channel's batches in order with `feed` (the channels may be out of step with
-    each other by up to `max_skew_s`), or aligned blocks of both with `feed_both`; each call
-    returns the records completed by it, in order of their end. `flush` ends the stream.
-    Records are views of pooled buffers: pass a record to `recycle` when done with it to
-    reuse its memory (it must not be used afterwards); records never recycled stay valid.
-    Not thread-safe: a node feeds it from one callback group that excludes itself.
+    Feed each channel's batches with `feed` (the channels may be out of step with each other
+    by up to `max_skew_s`), or aligned blocks of both with `feed_both`; each call returns the
+    records completed by it, in order of their end. `flush` ends the stream. The channels are
+    aligned by the rules of `fmm_ros.core.signal.stream` (gaps, past batches, new acquisitions,
+    skew), whose account `ledger` keeps. Records are views of pooled buffers: pass a record
+    to `recycle` when done with it to reuse its memory (it must not be used afterwards);
+    records never recycled stay valid. Not thread-safe: a node feeds it from one callback
+    group that excludes itself.
     """
 
     def __init__(self, config: CaptureConfig = DEFAULT_CAPTURE) -> None:
         self.config = config
         self.sample_rate_hz: float | None = None
         self._samples: CaptureSamples | None = None
-        self._channels: dict[str, _Channel] = {}
+        self._channels: dict[str, _Ring] = {}
         self._detector: TriggerDetector | None = None
         self._open: list[_OpenImpact] = []
         self._pool: list[tuple[np.ndarray, np.ndarray]] = []
+        self._done: list[ImpactRecord] = []
+        self.stream = AlignedStream(self, config.rules)
 
     @property
     def open_impacts(self) -> int:
         """Number of impacts triggered whose records are not complete yet."""
         return len(self._open)
+
+    @property
+    def ledger(self) -> dict[str, ChannelLedger]:
+        """What each channel received, missed and refused (the stream's ledger)."""
+        return self.stream.ledger
 
     def feed(
         self,
@@ -414,23 +453,26 @@ class ImpactCapture:
         samples: np.ndarray,
         sample_rate_hz: float,
         full_scale: float = 0.0,
+        *,
+        sender: str = '',
+        stamp_ns: int = 0,
     ) -> list[ImpactRecord]:
         """Add one batch of `quantity` ('force' [N] or 'velocity' [m/s]) samples.
 
-        `first_sample_index` counts from the start of acquisition; a batch that starts past
-        the channel's last sample leaves a gap. `full_scale` is the sensor range (0: unknown).
-        Raises ValueError, without changing any state, for an unknown quantity, a sample rate
-        different from the capture's, or a batch that starts before samples already taken.
+        `first_sample_index` counts from the start of acquisition; `full_scale` is the sensor
+        range (0: unknown); `sender` and `stamp_ns` (header.frame_id and .stamp, the time of
+        samples[0]) let the stream tell a new acquisition from a repeat. A batch that does not
+        fit the stream (from the past, a stray, another acquisition's) is refused and counted
+        in `ledger`; ValueError only for malformed input (unknown quantity, a sample array
+        that is not one-dimensional, a rate that is not positive), with no state changed.
         """
-        samples = self._checked(quantity, first_sample_index, samples, sample_rate_hz)
-        if samples.size == 0:
-            return []
-        channel = self._begin(quantity, first_sample_index, sample_rate_hz, full_scale)
-        done = self._settle()
-        for low in range(0, samples.size, MAX_STEP_SAMPLES):
-            self._take(channel, samples[low : low + MAX_STEP_SAMPLES])
-            done += self._settle()
-        return done
+        batch = Batch.of(first_sample_index, samples, sample_rate_hz, full_scale, sender, stamp_ns)
+        return self.feed_batch(quantity, batch)
+
+    def feed_batch(self, quantity: str, batch: Batch) -> list[ImpactRecord]:
+        """`feed` for a batch already in the stream's form (a node's message, a bag's)."""
+        self.stream.feed(quantity, batch)
+        return self._completed()
 
     def feed_both(
         self,
@@ -445,36 +487,42 @@ class ImpactCapture:
 
         Equivalent to feeding the two channels batch by batch, whatever the block length.
         """
-        force_n = self._checked(FORCE.quantity, first_sample_index, force_n, sample_rate_hz)
-        velocity_m_s = self._checked(
-            VELOCITY.quantity, first_sample_index, velocity_m_s, sample_rate_hz
-        )
+        force_n = np.asarray(force_n, dtype=float)
+        velocity_m_s = np.asarray(velocity_m_s, dtype=float)
         if force_n.shape != velocity_m_s.shape:
             raise ValueError(
                 f'force has {force_n.size} samples but velocity has '
                 f'{velocity_m_s.size}: feed_both needs aligned blocks'
             )
-        if force_n.size == 0:
-            return []
-        force = self._begin(FORCE.quantity, first_sample_index, sample_rate_hz, force_full_scale_n)
-        velocity = self._begin(
-            VELOCITY.quantity, first_sample_index, sample_rate_hz, velocity_full_scale_m_s
-        )
-        done = self._settle()
+        first = int(first_sample_index)
         for low in range(0, force_n.size, MAX_STEP_SAMPLES):
-            self._take(force, force_n[low : low + MAX_STEP_SAMPLES])
-            self._take(velocity, velocity_m_s[low : low + MAX_STEP_SAMPLES])
-            done += self._settle()
-        return done
+            self.stream.feed_together(
+                [
+                    (
+                        quantity,
+                        Batch(
+                            first + low,
+                            samples[low : low + MAX_STEP_SAMPLES],
+                            sample_rate_hz,
+                            float(full_scale),
+                        ),
+                    )
+                    for quantity, samples, full_scale in (
+                        (FORCE.quantity, force_n, force_full_scale_n),
+                        (VELOCITY.quantity, velocity_m_s, velocity_full_scale_m_s),
+                    )
+                ]
+            )
+        return self._completed()
 
     def flush(self) -> list[ImpactRecord]:
         """End of stream: complete every open record, its missing samples flagged as a gap."""
-        if not self._open:
-            return []
-        stop = max(impact.start + impact.end for impact in self._open)
-        for channel in self._channels.values():
-            self._declare_missing(channel, stop)
-        return self._settle()
+        self.stream.finish()
+        if self._open:
+            stop = max(impact.start + impact.end for impact in self._open)
+            for quantity in self._channels:
+                self.stream.declare_missing(quantity, stop)
+        return self._completed()
 
     def end_acquisition(self) -> list[ImpactRecord]:
         """The acquisition ended (one lab file of several, say): its samples stop here.
@@ -484,21 +532,21 @@ class ImpactCapture:
         shorter like a record ended at rest (its DFT zero-pads it to the window), judged only
         by what its samples show (`unsettled` if the rig was still moving). A channel behind
         the other is declared missing up to it, as by `flush`. The capture then starts afresh:
-        the next batch may start at any sample index, with a new trigger state (at the same
-        sample rate; completed records stay valid and can still be recycled).
+        the next batch may start at any sample index, with a new trigger state (completed
+        records stay valid and can still be recycled). An end stated, not inferred: the
+        stream does not count it as a resynchronisation.
         """
-        if not self._channels:
+        if not self.stream.started:
             return []
         stop = max(channel.next_index for channel in self._channels.values())
-        for channel in self._channels.values():
-            self._declare_missing(channel, stop)
+        for quantity in self._channels:
+            self.stream.declare_missing(quantity, stop)
         for impact in self._open:
             impact.end = min(impact.end, stop - impact.start)
             impact.end_found = True
-        done = self._settle()
-        self._channels = {}
-        self._detector = None
-        return done
+        self._settle()
+        self.stream.end_acquisition()
+        return self._completed()
 
     def recycle(self, record: ImpactRecord) -> None:
         """Return a completed record's buffers to the pool; the record is invalid afterwards."""
@@ -513,90 +561,66 @@ class ImpactCapture:
             raise ValueError('only a record completed by this capture can be recycled, once')
         self._pool.append((force, velocity))
 
-    def _checked(
-        self, quantity: str, first_sample_index: int, samples: np.ndarray, sample_rate_hz: float
-    ) -> np.ndarray:
-        """The batch as a float array, or ValueError (state untouched) if it cannot be taken."""
-        if quantity not in (FORCE.quantity, VELOCITY.quantity):
-            raise ValueError(
-                f"quantity must be '{FORCE.quantity}' or '{VELOCITY.quantity}', got {quantity!r}"
-            )
-        samples = np.asarray(samples, dtype=float)
-        if samples.ndim != 1:
-            raise ValueError(
-                f'{quantity} samples must be one-dimensional, got shape {samples.shape}'
-            )
-        if not np.isfinite(sample_rate_hz) or sample_rate_hz <= 0:
-            raise ValueError(f'{quantity} sample_rate_hz must be positive, got {sample_rate_hz}')
-        if self.sample_rate_hz is not None and not np.isclose(
-            sample_rate_hz, self.sample_rate_hz, rtol=1e-9, atol=0
-        ):
-            raise ValueError(
-                f'{quantity} batch is sampled at {sample_rate_hz} Hz but the capture '
-                f'runs at {self.sample_rate_hz} Hz: force and velocity must share '
-                'one sample rate'
-            )
-        if self._channels and first_sample_index < self._channels[quantity].next_index:
-            raise ValueError(
-                f'{quantity} batch starts at sample {first_sample_index} but the channel '
-                f'already holds samples up to {self._channels[quantity].next_index - 1}: '
-                'batches of a channel must arrive in order, each once'
-            )
-        return samples
+    def _completed(self) -> list[ImpactRecord]:
+        done, self._done = self._done, []
+        return done
 
-    def _begin(
-        self, quantity: str, first_sample_index: int, sample_rate_hz: float, full_scale: float
-    ) -> _Channel:
-        """The channel a checked batch goes to, with any samples skipped before it missing."""
-        self._start(int(first_sample_index), sample_rate_hz)
-        channel = self._channels[quantity]
-        channel.full_scale = float(full_scale)
-        self._declare_missing(channel, int(first_sample_index))
-        return channel
+    # -- the stream's sink ------------------------------------------------------------------------
 
-    def _start(self, origin: int, sample_rate_hz: float) -> None:
-        """Size the buffers on the first batch, when the sample rate becomes known."""
-        if self._channels:
-            return
-        samples = self.config.samples(sample_rate_hz)
-        capacity = samples.pretrigger + samples.max_skew + MAX_STEP_SAMPLES + 1
-        self.sample_rate_hz = float(sample_rate_hz)
-        self._samples = samples
+    def begin(self, sample_rate_hz: float, first_index: int) -> None:
+        """An acquisition begins: buffers sized for its rate, rings empty from first_index."""
+        if sample_rate_hz != self.sample_rate_hz:
+            samples = self.config.samples(sample_rate_hz)
+            if self._samples is None or samples.window != self._samples.window:
+                self._pool = [(np.zeros(samples.window), np.zeros(samples.window))]
+            self._samples = samples
+            self.sample_rate_hz = float(sample_rate_hz)
+        capacity = self._samples.pretrigger + self._samples.max_skew + MAX_STEP_SAMPLES + 1
         self._channels = {
-            name: _Channel(name, capacity, origin) for name in (FORCE.quantity, VELOCITY.quantity)
+            name: _Ring(name, capacity, first_index) for name in (FORCE.quantity, VELOCITY.quantity)
         }
-        self._detector = TriggerDetector(self.config, sample_rate_hz)
+        self._detector = TriggerDetector(self.config, self.sample_rate_hz)
         # One warm pair of record buffers (page faults now, not on the first impact).
         if not self._pool:
-            self._pool.append((np.zeros(samples.window), np.zeros(samples.window)))
+            window = self._samples.window
+            self._pool.append((np.zeros(window), np.zeros(window)))
 
-    def _take(self, channel: _Channel, samples: np.ndarray) -> None:
-        """Append one block (at most MAX_STEP_SAMPLES) at the channel's watermark."""
-        first = channel.next_index
-        channel.store(first, samples)
-        channel.next_index = first + samples.size
+    def end(self, reason: str) -> None:
+        """A new acquisition was recognised: open records end here, their tails a gap."""
         for impact in self._open:
-            impact.put(channel.name, first, samples)
-        if channel.name == FORCE.quantity:
-            for trigger in self._detector.scan(samples, first):
-                self._open_impact(trigger)
+            impact.interrupted = True
+            for ring in self._channels.values():
+                impact.lose(ring.name, ring.next_index, impact.start + impact.end)
+        self._done += [self._record(impact) for impact in self._ordered(self._open)]
+        self._open = []
 
-    def _declare_missing(self, channel: _Channel, stop: int) -> None:
-        """Samples from the channel's watermark up to `stop` will never come: NaN and a gap."""
-        start = channel.next_index
-        if stop <= start:
-            return
+    def take(self, quantity: str, first_index: int, samples: np.ndarray, full_scale: float) -> None:
+        """Samples at the channel's watermark (at most MAX_STEP_SAMPLES)."""
+        channel = self._channels[quantity]
+        channel.store(first_index, samples)
+        channel.next_index = first_index + samples.size
+        for impact in self._open:
+            impact.put(quantity, first_index, samples)
+        if quantity == FORCE.quantity:
+            for trigger in self._detector.scan(samples, first_index):
+                self._open_impact(trigger)
+        self._settle()
+
+    def missing(self, quantity: str, start: int, stop: int) -> None:
+        """Samples [start, stop) will never come: NaN in the ring and open records, a gap."""
+        channel = self._channels[quantity]
         channel.gaps.append((start, stop))
         capacity = channel.ring.size
         nan_from = max(start, stop - capacity)
         channel.store(nan_from, np.full(stop - nan_from, np.nan))
         channel.next_index = stop
         for impact in self._open:
-            impact.add_gap(channel.name, start, stop)
-            offset = impact.start
-            impact.buffers[channel.name][max(0, start - offset) : max(0, stop - offset)] = np.nan
+            impact.lose(quantity, start, stop)
         oldest = stop - capacity - self._samples.window
         channel.gaps = [gap for gap in channel.gaps if gap[1] > oldest]
+        self._settle()
+
+    # -- records ----------------------------------------------------------------------------------
 
     def _open_impact(self, trigger: int) -> None:
         """Start a record at `trigger`, filling what both channels already hold."""
@@ -619,22 +643,21 @@ class ImpactCapture:
                 impact.add_gap(channel.name, start, end)
         self._open.append(impact)
 
-    def _settle(self) -> list[ImpactRecord]:
-        """After a channel moved: bound the skew, search for rest, complete records."""
-        lagging, leading = sorted(self._channels.values(), key=lambda c: c.next_index)
-        if leading.next_index - lagging.next_index > self._samples.max_skew:
-            self._declare_missing(lagging, leading.next_index - self._samples.max_skew)
+    def _settle(self) -> None:
+        """After a channel moved: search for rest, complete the records both channels passed."""
         if self.config.end_at_rest:
             velocity_next = self._channels[VELOCITY.quantity].next_index
             for impact in self._open:
                 self._search_rest(impact, velocity_next)
         complete_below = min(channel.next_index for channel in self._channels.values())
         done = [impact for impact in self._open if impact.start + impact.end <= complete_below]
-        if not done:
-            return []
-        self._open = [impact for impact in self._open if impact not in done]
-        done.sort(key=lambda impact: (impact.start + impact.end, impact.trigger))
-        return [self._record(impact) for impact in done]
+        if done:
+            self._open = [impact for impact in self._open if impact not in done]
+            self._done += [self._record(impact) for impact in self._ordered(done)]
+
+    @staticmethod
+    def _ordered(impacts: list[_OpenImpact]) -> list[_OpenImpact]:
+        return sorted(impacts, key=lambda impact: (impact.start + impact.end, impact.trigger))
 
     def _search_rest(self, impact: _OpenImpact, velocity_next: int) -> None:
         """Shorten the record to where the velocity has rested for rest_time_s, once found."""
@@ -676,10 +699,11 @@ class ImpactCapture:
             record_start_sample_index=impact.start,
             trigger_sample_index=impact.trigger,
             window_samples=self._samples.window,
-            force_full_scale_n=self._channels[FORCE.quantity].full_scale,
-            velocity_full_scale_m_s=self._channels[VELOCITY.quantity].full_scale,
+            force_full_scale_n=self.stream.full_scale(FORCE.quantity),
+            velocity_full_scale_m_s=self.stream.full_scale(VELOCITY.quantity),
             force_gaps=gaps(FORCE.quantity),
             velocity_gaps=gaps(VELOCITY.quantity),
+            interrupted=impact.interrupted,
         )
 
 

@@ -3,33 +3,56 @@
 The fitter keeps this instead of asking the analyzer for records: when the analyzer reports
 an impact (its record start and length), the record is cut from here, so no multi-megabyte
 service response crosses the network, and a bag replayed into the graph works the same way.
-One ring per channel, preallocated; samples that never arrived are NaN.
+One ring per channel, sized from the first batch's rate (every batch carries it), and sized
+again when a new acquisition runs at another rate; samples that never arrived are NaN. The
+channels are aligned by the rules of `fmm_ros.core.signal.stream`, as the analyzer's are.
 """
 
 import numpy as np
 
-from fmm_ros.constants import CHANNELS
+from fmm_ros.constants import CHANNELS, FORCE, VELOCITY
 from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.core.signal.stream import (
+    DEFAULT_RULES,
+    AlignedStream,
+    Batch,
+    ChannelLedger,
+    StreamRules,
+)
 
 QUANTITIES = tuple(channel.quantity for channel in CHANNELS)
 
 
 class SampleHistory:
-    """The last `capacity_samples` of each channel, addressed by absolute sample index."""
+    """The last `history_s` seconds of each channel, addressed by absolute sample index."""
 
-    def __init__(self, capacity_samples: int) -> None:
-        if capacity_samples < 1:
-            raise ValueError(f'capacity_samples must be at least 1, got {capacity_samples}')
-        self.capacity = int(capacity_samples)
+    def __init__(self, history_s: float, rules: StreamRules = DEFAULT_RULES) -> None:
+        if not history_s > 0:
+            raise ValueError(f'history_s must be positive, got {history_s}')
+        self.history_s = float(history_s)
+        self.capacity = 0  # samples a ring holds: set by the first batch's rate
         self.sample_rate_hz: float | None = None
-        self._rings = {name: np.full(self.capacity, np.nan) for name in QUANTITIES}
-        # Next index each channel expects; None until its first batch.
-        self._next: dict[str, int | None] = dict.fromkeys(QUANTITIES)
-        self._full_scale = dict.fromkeys(QUANTITIES, 0.0)
+        self._rings: dict[str, np.ndarray] = {}
+        self.stream = AlignedStream(self, rules)
+
+    @property
+    def ledger(self) -> dict[str, ChannelLedger]:
+        """What each channel received, missed and refused (the stream's ledger)."""
+        return self.stream.ledger
+
+    @property
+    def acquisitions(self) -> int:
+        """Acquisitions followed so far: a record spans one of them, never two."""
+        return self.stream.acquisitions
+
+    @property
+    def origin_s(self) -> float | None:
+        """Time of sample 0 of the acquisition held [s] by its clock (None: no clock)."""
+        return self.stream.origin_s
 
     def next_index(self, quantity: str) -> int | None:
-        """The index after the last sample held for a channel (None before any)."""
-        return self._next[quantity]
+        """The watermark of a channel (None before any batch)."""
+        return self.stream.next_index(quantity)
 
     def feed(
         self,
@@ -38,28 +61,45 @@ class SampleHistory:
         samples: np.ndarray,
         sample_rate_hz: float,
         full_scale: float = 0.0,
+        *,
+        sender: str = '',
+        stamp_ns: int = 0,
     ) -> None:
-        """Store a batch; a jump ahead leaves NaN, a batch from the past is refused."""
-        if quantity not in QUANTITIES:
-            raise ValueError(f"quantity must be 'force' or 'velocity', got {quantity!r}")
-        if self.sample_rate_hz is None:
-            self.sample_rate_hz = float(sample_rate_hz)
-        elif sample_rate_hz != self.sample_rate_hz:
-            raise ValueError(
-                f'{quantity} batch at {sample_rate_hz} Hz, history at '
-                f'{self.sample_rate_hz} Hz: one rate for both channels'
-            )
-        expected = self._next[quantity]
-        if expected is not None and first_sample_index < expected:
-            raise ValueError(
-                f'{quantity} batch at {first_sample_index} repeats samples '
-                f'already held (next expected {expected})'
-            )
-        start = first_sample_index if expected is None else expected
-        self._write(quantity, start, np.full(max(0, first_sample_index - start), np.nan))
-        self._write(quantity, first_sample_index, np.asarray(samples, dtype=float))
-        self._next[quantity] = first_sample_index + len(samples)
-        self._full_scale[quantity] = float(full_scale)
+        """Store a batch; a jump ahead leaves NaN, a batch that does not fit is refused.
+
+        Refusals are counted in `ledger`; ValueError only for malformed input.
+        """
+        batch = Batch.of(first_sample_index, samples, sample_rate_hz, full_scale, sender, stamp_ns)
+        self.feed_batch(quantity, batch)
+
+    def feed_batch(self, quantity: str, batch: Batch) -> None:
+        """`feed` for a batch already in the stream's form (a node's message)."""
+        self.stream.feed(quantity, batch)
+
+    # -- the stream's sink ------------------------------------------------------------------------
+
+    def begin(self, sample_rate_hz: float, first_index: int) -> None:
+        """An acquisition begins: rings sized for its rate, empty."""
+        self.sample_rate_hz = float(sample_rate_hz)
+        capacity = max(1, int(round(self.history_s * sample_rate_hz)))
+        if capacity != self.capacity:
+            self.capacity = capacity
+            self._rings = {name: np.full(capacity, np.nan) for name in QUANTITIES}
+        else:
+            for ring in self._rings.values():
+                ring.fill(np.nan)
+
+    def end(self, reason: str) -> None:
+        """The acquisition held ends: nothing to close (records are cut on request)."""
+
+    def take(self, quantity: str, first_index: int, samples: np.ndarray, full_scale: float) -> None:
+        """Samples at the channel's watermark."""
+        self._write(quantity, first_index, samples)
+
+    def missing(self, quantity: str, start: int, stop: int) -> None:
+        """Samples that will never come are NaN (only the last capacity of them matter)."""
+        start = max(start, stop - self.capacity)
+        self._write(quantity, start, np.full(stop - start, np.nan))
 
     def _write(self, quantity: str, first: int, values: np.ndarray) -> None:
         """Put values (samples first, first + 1, ...) into the ring; only the last fit."""
@@ -72,13 +112,20 @@ class SampleHistory:
         ring[position : position + head] = values[:head]
         ring[: values.size - head] = values[head:]
 
+    # -- records ----------------------------------------------------------------------------------
+
     def covers(self, start: int, stop: int) -> bool:
         """True once both channels have reached `stop` (the record can be cut)."""
-        return all(n is not None and n >= stop for n in self._next.values())
+        return all(
+            (n := self.stream.next_index(name)) is not None and n >= stop for name in QUANTITIES
+        )
 
     def holds(self, start: int) -> bool:
         """True while sample `start` of both channels is still in the rings."""
-        return all(n is not None and n - self.capacity <= start for n in self._next.values())
+        return all(
+            (n := self.stream.next_index(name)) is not None and n - self.capacity <= start
+            for name in QUANTITIES
+        )
 
     def record(
         self, start: int, length: int, *, trigger_sample_index: int | None = None, source: str = ''
@@ -102,17 +149,18 @@ class SampleHistory:
             name: np.concatenate((ring[position : position + head], ring[: length - head]))
             for name, ring in self._rings.items()
         }
+        force, velocity = channels[FORCE.quantity], channels[VELOCITY.quantity]
         return ImpactRecord(
-            channels['force'],
-            channels['velocity'],
+            force,
+            velocity,
             self.sample_rate_hz,
             record_start_sample_index=start,
             trigger_sample_index=trigger_sample_index,
             window_samples=length,
-            force_full_scale_n=self._full_scale['force'],
-            velocity_full_scale_m_s=self._full_scale['velocity'],
-            force_gaps=_nan_runs(channels['force']),
-            velocity_gaps=_nan_runs(channels['velocity']),
+            force_full_scale_n=self.stream.full_scale(FORCE.quantity),
+            velocity_full_scale_m_s=self.stream.full_scale(VELOCITY.quantity),
+            force_gaps=_nan_runs(force),
+            velocity_gaps=_nan_runs(velocity),
             source=source,
         )
 

@@ -54,6 +54,9 @@ class ImpactRecord:
     velocity_gaps: Gaps = field(default=())
     # File name or other origin, for reports.
     source: str = ''
+    # The acquisition was restarted (a new one recognised) before the record was complete:
+    # its tail never came and is listed as a gap.
+    interrupted: bool = False
 
     def __post_init__(self) -> None:
         force = np.asarray(self.force_n, dtype=float)

@@ -24,7 +24,14 @@ from rosbags.interfaces import MessageDefinitionFormat
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import TypesysError, get_types_from_msg, get_typestore
 
-from fmm_ros.constants import FRF_TOPIC, IMPACTS_TOPIC
+from fmm_ros.constants import FORCE, FORCE_TOPIC, FRF_TOPIC, IMPACTS_TOPIC, VELOCITY, VELOCITY_TOPIC
+from fmm_ros.core.signal.stream import (
+    DEFAULT_RULES,
+    AlignedStream,
+    Batch,
+    ChannelLedger,
+    StreamRules,
+)
 from fmm_ros.io.bags.definitions import (
     BASE_STORE,
     FRF_SUMMARY,
@@ -34,8 +41,8 @@ from fmm_ros.io.bags.definitions import (
 )
 from fmm_ros.io.bags.errors import BagDamagedError, BagError, MessageTypeError, MissingTopicError
 from fmm_ros.io.bags.mcapscan import Damage, McapScan
+from fmm_ros.io.bags.metadata import custom_ledger, read_information
 from fmm_ros.io.bags.sqlitescan import SqliteScan
-from fmm_ros.io.bags.writer import FORCE_TOPIC, VELOCITY_TOPIC
 
 # What rosbags raises on a damaged bag: its own ReaderError, or whatever its parsers meet on
 # bad bytes (a KeyError from a corrupt QoS string, apsw.CorruptError from a damaged database
@@ -89,7 +96,9 @@ class AlignedBatch:
     """Force [N] and velocity [m/s] over the same sample indices, as the analyzer pairs them.
 
     gap_samples: samples missing between the previous aligned batch and this one (0 when
-    contiguous): a dropped batch on either channel shows up here.
+    contiguous, and at the start of each acquisition): a dropped batch on either channel shows
+    up here. acquisition: which acquisition of the bag it belongs to (1, 2, ... : a DAQ
+    restarted mid-recording starts the next).
     """
 
     first_sample_index: int
@@ -99,6 +108,7 @@ class AlignedBatch:
     gap_samples: int
     full_scale_force: float
     full_scale_velocity: float
+    acquisition: int = 1
 
     @property
     def end_index(self) -> int:
@@ -124,6 +134,13 @@ class BagReader:
         self._topics: dict[str, TopicInfo] = {}
         self._messages_read = 0
         self.typestore = fmm_typestore()
+        # What batches() counted per channel (taken, missing, refused): filled as it reads.
+        self.ledger: dict[str, ChannelLedger] = {}
+        # From metadata.yaml: rosbag2's custom_data, the ROS distribution, and the ledger the
+        # recorder wrote into custom_data (what the bag says of its own completeness).
+        self.custom_data: dict[str, str] = {}
+        self.ros_distro = ''
+        self.recorded_ledger: dict[str, ChannelLedger] = {}
 
     def __enter__(self) -> 'BagReader':
         self.open()
@@ -137,6 +154,14 @@ class BagReader:
     def open(self) -> None:
         """Open the bag: through rosbags when it is intact, else by scanning its MCAP file."""
         target = self._storage_target()
+        if self.path.is_dir():
+            information = read_information(self.path)
+            self.custom_data = dict(information.get('custom_data') or {})
+            self.ros_distro = str(information.get('ros_distro') or '')
+            try:
+                self.recorded_ledger = custom_ledger(self.custom_data)
+            except ValueError as error:
+                self._note(str(error))
         if self.storage == 'sqlite3':
             _roll_back_unfinished_transaction(target)
         try:
@@ -259,6 +284,33 @@ class BagReader:
         """Every topic in the bag, by name (counts of a recovered bag: what was readable)."""
         return dict(self._topics)
 
+    def find(self, topic: str, msgtype: str) -> str:
+        """The bag's topic for `topic`: itself, or the one whose name ends in it.
+
+        A relative name (`fmm/force`, as the constants hold it) matches a topic of msgtype
+        recorded under any namespace (`/fmm/force`, `/rig2/fmm/force`), so a bag of a rig run
+        under a namespace reads like any other. Several matches are an error naming them.
+        """
+        if topic.startswith('/'):
+            self.require(topic, msgtype)
+            return topic
+        tail = '/' + topic
+        matches = [
+            name
+            for name, info in self._topics.items()
+            if name.endswith(tail) and info.msgtype == msgtype
+        ]
+        if len(matches) == 1:
+            return matches[0]
+        if matches:
+            raise BagError(
+                f'bag {self.path} has {len(matches)} {msgtype} topics ending in {tail}: '
+                f'{", ".join(sorted(matches))}; name the one to read'
+            )
+        named = [name for name in self._topics if name.endswith(tail)]
+        self.require(named[0] if named else tail, msgtype)
+        return named[0]
+
     def require(self, topic: str, msgtype: str) -> None:
         """Check the bag has topic with msgtype; the error names what it has instead."""
         info = self._topics.get(topic)
@@ -361,8 +413,8 @@ class BagReader:
                 self._note(error.problems[0])
 
     def decoded(self, topic: str, msgtype: str) -> Iterator[tuple[int, object]]:
-        """(log time [ns], message) of every message on topic, which must be of msgtype."""
-        self.require(topic, msgtype)
+        """(log time [ns], message) of every message on topic (see `find`) of msgtype."""
+        topic = self.find(topic, msgtype)
         for message, decoded in self._decode_each(self.messages([topic])):
             yield message.log_time_ns, decoded
 
@@ -381,14 +433,12 @@ class BagReader:
     def sample_batches(
         self, topics: Iterable[str] = (FORCE_TOPIC, VELOCITY_TOPIC)
     ) -> Iterator[ChannelBatch]:
-        """Every SampleBatch of the topics, interleaved in storage (arrival) order.
+        """Every SampleBatch of the topics (see `find`), interleaved in storage (arrival) order.
 
         This is what a live subscriber saw, message by message: the form to feed a streaming
         consumer that aligns channels by sample index itself, as the analyzer does.
         """
-        topics = list(topics)
-        for topic in topics:
-            self.require(topic, SAMPLE_BATCH)
+        topics = [self.find(topic, SAMPLE_BATCH) for topic in topics]
         for message, batch in self._decode_each(self.messages(topics)):
             yield channel_batch(message, batch, self.path)
 
@@ -397,17 +447,26 @@ class BagReader:
         return self.sample_batches([topic])
 
     def batches(
-        self, force_topic: str = FORCE_TOPIC, velocity_topic: str = VELOCITY_TOPIC
+        self,
+        force_topic: str = FORCE_TOPIC,
+        velocity_topic: str = VELOCITY_TOPIC,
+        rules: StreamRules = DEFAULT_RULES,
     ) -> Iterator[AlignedBatch]:
         """Force and velocity paired by first_sample_index, as the live analyzer pairs them.
 
-        Equal batches on both channels come out as they are (views, no copy); unequal ones
-        are cut to their overlap. A sample present on one channel only is dropped and shows
-        as gap_samples on the next batch.
+        The channels follow the stream rules (`fmm_ros.core.signal.stream`): a repeated, late
+        or stray batch is refused, a new acquisition starts the next `acquisition`, and what
+        was refused or missing is counted in `ledger` (filled as reading goes). Equal batches
+        on both channels come out as they are (views, no copy); unequal ones are cut to their
+        overlap. A sample present on one channel only is dropped and shows as gap_samples.
         """
-        aligner = BatchAligner(str(self.path))
+        force_topic = self.find(force_topic, SAMPLE_BATCH)
+        velocity_topic = self.find(velocity_topic, SAMPLE_BATCH)
+        aligner = BatchAligner(rules)
+        self.ledger = aligner.ledger
         for batch in self.sample_batches([force_topic, velocity_topic]):
             yield from aligner.add(0 if batch.topic == force_topic else 1, batch)
+        aligner.finish()
 
 
 def channel_batch(message: BagMessage, batch, bag: str | Path = '') -> ChannelBatch:
@@ -441,62 +500,112 @@ def channel_batch(message: BagMessage, batch, bag: str | Path = '') -> ChannelBa
 
 
 class BatchAligner:
-    """Pairs two channels' batches by sample index: the streaming half of BagReader.batches."""
+    """Pairs force and velocity batches by sample index: the streaming half of BagReader.batches.
 
-    def __init__(self, source: str = 'stream') -> None:
-        self.source = source
-        self._pending: tuple[deque, deque] = (deque(), deque())
-        self._channel_end = [None, None]
+    The stream rules decide what each channel takes; this pairs what both took.
+    """
+
+    def __init__(self, rules: StreamRules = DEFAULT_RULES) -> None:
+        self.stream = AlignedStream(self, rules)
+        self._pending = {FORCE.quantity: deque(), VELOCITY.quantity: deque()}
+        self._next = dict.fromkeys(self._pending, 0)
+        self._out: list[AlignedBatch] = []
+        self._rate = 0.0
         self._last_end: int | None = None
 
-    def add(self, channel: int, batch: ChannelBatch) -> Iterator[AlignedBatch]:
-        """Take one batch of channel 0 (force) or 1 (velocity); yield what is now paired."""
-        end = self._channel_end[channel]
-        if end is not None and batch.first_sample_index < end:
-            raise BagError(
-                f'{self.source}: {batch.topic} goes back from sample {end} to '
-                f'{batch.first_sample_index} (acquisition restarted, or batches '
-                'out of order)'
-            )
-        self._channel_end[channel] = batch.end_index
-        self._pending[channel].append((batch.first_sample_index, batch))
-        forces, velocities = self._pending
+    @property
+    def ledger(self) -> dict[str, ChannelLedger]:
+        """What each channel received, missed and refused (the stream's ledger)."""
+        return self.stream.ledger
+
+    def add(self, channel: int, batch: ChannelBatch) -> list[AlignedBatch]:
+        """Take one batch of channel 0 (force) or 1 (velocity); return what is now paired."""
+        self.stream.feed(
+            (FORCE.quantity, VELOCITY.quantity)[channel],
+            Batch(
+                batch.first_sample_index,
+                batch.samples,
+                batch.sample_rate_hz,
+                batch.full_scale,
+                batch.frame_id,
+                batch.stamp_ns,
+            ),
+        )
+        out, self._out = self._out, []
+        return out
+
+    def finish(self) -> None:
+        """End of the stream: a batch still held as a possible new acquisition is refused."""
+        self.stream.finish()
+
+    # -- the stream's sink ------------------------------------------------------------------------
+
+    def begin(self, sample_rate_hz: float, first_index: int) -> None:
+        """An acquisition begins: nothing pending, no gap before its first pair."""
+        self._rate = sample_rate_hz
+        self._last_end = None
+        for quantity, queue in self._pending.items():
+            queue.clear()
+            self._next[quantity] = first_index
+
+    def end(self, reason: str) -> None:
+        """The acquisition ends: samples of one channel still unpaired never will be."""
+
+    def take(self, quantity: str, first_index: int, samples: np.ndarray, full_scale: float) -> None:
+        """Samples of a channel at its watermark: pair what both channels now hold."""
+        self._pending[quantity].append((first_index, samples, full_scale))
+        self._next[quantity] = first_index + len(samples)
+        self._pair()
+
+    def missing(self, quantity: str, start: int, stop: int) -> None:
+        """Samples that never came: the other channel's samples there stay unpaired."""
+        self._next[quantity] = stop
+        self._pair()
+
+    def _pair(self) -> None:
+        forces, velocities = self._pending[FORCE.quantity], self._pending[VELOCITY.quantity]
         while forces and velocities:
-            (f_start, f_batch), (v_start, v_batch) = forces[0], velocities[0]
-            if f_batch.sample_rate_hz != v_batch.sample_rate_hz:
-                raise BagError(
-                    f'{self.source}: {f_batch.topic} is sampled at '
-                    f'{f_batch.sample_rate_hz} Hz but {v_batch.topic} at '
-                    f'{v_batch.sample_rate_hz} Hz'
-                )
+            (f_start, f_samples, f_scale), (v_start, v_samples, v_scale) = forces[0], velocities[0]
             start = max(f_start, v_start)
-            stop = min(f_batch.end_index, v_batch.end_index)
+            stop = min(f_start + len(f_samples), v_start + len(v_samples))
             if stop > start:
                 gap = 0 if self._last_end is None else start - self._last_end
                 self._last_end = stop
-                yield AlignedBatch(
-                    start,
-                    _cut(f_batch, start, stop),
-                    _cut(v_batch, start, stop),
-                    f_batch.sample_rate_hz,
-                    gap,
-                    f_batch.full_scale,
-                    v_batch.full_scale,
+                self._out.append(
+                    AlignedBatch(
+                        start,
+                        _cut(f_samples, f_start, start, stop),
+                        _cut(v_samples, v_start, start, stop),
+                        self._rate,
+                        gap,
+                        f_scale,
+                        v_scale,
+                        self.stream.acquisitions,
+                    )
                 )
             # The head ending first is used up (or had no partner); the other moves on.
             for queue in (forces, velocities):
-                if queue[0][1].end_index <= stop:
+                head_start, head, scale = queue[0]
+                if head_start + len(head) <= stop:
+                    queue.popleft()
+                elif head_start < stop:
+                    queue[0] = (stop, head[stop - head_start :], scale)
+        # Samples below the other channel's watermark that found no partner never will.
+        for queue, other in ((forces, VELOCITY.quantity), (velocities, FORCE.quantity)):
+            watermark = self._next[other]
+            while queue and queue[0][0] < watermark:
+                head_start, head, scale = queue[0]
+                if head_start + len(head) <= watermark:
                     queue.popleft()
                 else:
-                    queue[0] = (max(queue[0][0], stop), queue[0][1])
+                    queue[0] = (watermark, head[watermark - head_start :], scale)
 
 
-def _cut(batch: ChannelBatch, start: int, stop: int) -> np.ndarray:
-    """Samples of batch over [start, stop) sample indices: the whole array when it fits."""
-    if start == batch.first_sample_index and stop == batch.end_index:
-        return batch.samples
-    offset = batch.first_sample_index
-    return batch.samples[start - offset : stop - offset]
+def _cut(samples: np.ndarray, first: int, start: int, stop: int) -> np.ndarray:
+    """Samples (from index first) over [start, stop): the whole array when it fits."""
+    if start == first and stop == first + len(samples):
+        return samples
+    return samples[start - first : stop - first]
 
 
 def _roll_back_unfinished_transaction(db_path: Path) -> None:

@@ -2,6 +2,9 @@
 
 One pass over every message (sample batches are decoded for their indices, not copied), so
 it also finds what metadata cannot tell: dropped batches, a rate that changed, clipping.
+It also shows what the bag says of itself: the recorder's ledger from its metadata (samples
+received, missing and refused per channel, as the recorder counted them live) and the last
+health status of every node recorded on /diagnostics.
 """
 
 from collections import Counter
@@ -10,8 +13,12 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from fmm_ros.core.signal.stream import ChannelLedger
 from fmm_ros.io.bags.definitions import FRF_SUMMARY, IMPACT_RESULT, SAMPLE_BATCH
 from fmm_ros.io.bags.reader import BagReader, channel_batch
+
+DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
+_LEVELS = {0: 'OK', 1: 'WARN', 2: 'ERROR', 3: 'STALE'}
 
 
 @dataclass
@@ -74,6 +81,11 @@ class BagSummary:
     channels: dict[str, ChannelSummary]
     impacts: dict[str, object]
     frf_levels: dict[str, int]
+    ros_distro: str = ''
+    ledger: dict[str, dict] = field(default_factory=dict)
+    """The recorder's ledger from the bag's metadata (topic -> ChannelLedger.to_dict())."""
+    health: dict[str, dict] = field(default_factory=dict)
+    """The last status of each node part on /diagnostics: level, message."""
 
     @property
     def duration_s(self) -> float:
@@ -103,7 +115,8 @@ def summarize_bag(
     channels: dict[str, ChannelSummary] = {}
     impacts = {'count': 0, 'accepted': 0, 'flags': Counter(), 'levels': Counter()}
     frf_levels: dict[str, int] = {}
-    decodable = {SAMPLE_BATCH, IMPACT_RESULT, FRF_SUMMARY}
+    decodable = {SAMPLE_BATCH, IMPACT_RESULT, FRF_SUMMARY, DIAGNOSTIC_ARRAY}
+    health: dict[str, dict] = {}
     for message in reader.messages():
         counts[message.topic] += 1
         start = message.log_time_ns if start is None else min(start, message.log_time_ns)
@@ -125,6 +138,17 @@ def summarize_bag(
             channel.add(
                 batch.first_sample_index, batch.samples, batch.sample_rate_hz, batch.full_scale
             )
+        elif message.msgtype == DIAGNOSTIC_ARRAY:
+            for status in decoded.status:
+                level = (
+                    int.from_bytes(status.level, 'little')
+                    if isinstance(status.level, bytes)
+                    else int(status.level)
+                )
+                health[status.name] = {
+                    'level': _LEVELS.get(level, str(level)),
+                    'message': status.message,
+                }
         elif message.msgtype == IMPACT_RESULT:
             impacts['count'] += 1
             impacts['accepted'] += bool(decoded.accepted)
@@ -157,6 +181,9 @@ def summarize_bag(
         channels,
         impacts,
         frf_levels,
+        reader.ros_distro,
+        {topic: ledger.to_dict() for topic, ledger in reader.recorded_ledger.items()},
+        dict(sorted(health.items())),
     )
 
 
@@ -168,6 +195,8 @@ def format_summary(summary: BagSummary) -> str:
         + (' (recovered by scanning: index unusable)' if summary.recovered else ''),
         f'duration:  {summary.duration_s:.3f} s',
     ]
+    if summary.ros_distro:
+        lines.append(f'ros:       {summary.ros_distro}')
     lines.append('topics:')
     width = max((len(t) for t in summary.topics), default=0)
     for name, info in summary.topics.items():
@@ -216,5 +245,15 @@ def format_summary(summary: BagSummary) -> str:
                 f'{level} ({count} impacts)' for level, count in sorted(summary.frf_levels.items())
             )
         )
+    if summary.ledger:
+        lines.append("recorded:  the recorder's ledger (bag metadata custom_data)")
+        for entry in summary.ledger.values():
+            lines.append(f'  {ChannelLedger.from_dict(entry).summary()}')
+    elif not summary.recovered:
+        lines.append('recorded:  no ledger in the metadata (not written by the fmm recorder)')
+    if summary.health:
+        lines.append('health:    last status on /diagnostics')
+        for name, status in summary.health.items():
+            lines.append(f'  {status["level"]:<5} {name}: {status["message"]}')
     lines.extend(f'problem:   {problem}' for problem in summary.problems)
     return '\n'.join(lines)

@@ -1,36 +1,42 @@
-"""Write rosbag2 bags (MCAP by default, sqlite3 on request) with rosbags, without ROS.
+"""Write rosbag2 bags (MCAP by default, sqlite3 on request) without ROS.
 
-Two ways in: numpy sample batches (serialized once, straight from the arrays) and raw CDR
-bytes (what a raw ROS subscription hands the recorder node, stored as received). Either way
-the bag is the one `ros2 bag` and the recorder node write: rosbag2 metadata version 9 (Jazzy),
-the fmm_interfaces definitions and type hashes embedded, the offered QoS of each topic.
+Two ways in: numpy sample batches (serialized once, straight from the arrays, with rosbags'
+CDR serializer) and raw CDR bytes (what a raw ROS subscription hands the recorder node, stored
+as received). Either way the bag is the one `ros2 bag` and the recorder node write: rosbag2
+metadata version 9 with the real ROS distribution, the fmm_interfaces definitions and type
+hashes embedded, the offered QoS of each topic, and `custom_data` (the recorder's ledger).
+The storage files are written by `storage.py` (the mcap library; sqlite3), no private API.
 
-A recording must survive a crash of the process writing it: the writer closes the pending
+A recording must survive a crash of the process writing it: the writer flushes the pending
 MCAP chunk (or commits the sqlite3 transaction) every `flush_interval_s` seconds of wall
 time, so a kill loses at most that much; the reader recovers the rest (see reader.py).
-Each MCAP chunk also gets the CRC-32 rosbags leaves at zero, so a flipped bit in a stored
-sample is reported as damage instead of read as data.
+Every MCAP chunk carries its CRC-32, so a flipped bit in a stored sample is reported as
+damage instead of read as data.
 """
 
 import time
-import zlib
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability
 from rosbags.interfaces import QosTime as _QosTime
-from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
 from rosbags.typesys.store import Typestore
 
-from fmm_ros.constants import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC
+from fmm_ros.constants import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC, resolve_name
 from fmm_ros.io.bags.definitions import SAMPLE_BATCH, fmm_typestore
 from fmm_ros.io.bags.errors import BagError, MessageTypeError
+from fmm_ros.io.bags.metadata import (
+    ROSBAG2_VERSION,
+    bag_information,
+    metadata_yaml,
+    qos_yaml,
+    ros_distro,
+)
+from fmm_ros.io.bags.storage import McapStorage, Sqlite3Storage, TopicRecord
 
 DEFAULT_BATCH_SIZE = 500
-ROSBAG2_VERSION = 9  # the metadata version rosbag2 on Jazzy writes
-
-STORAGES = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}
+STORAGES = ('mcap', 'sqlite3')
 
 _NO_TIME = _QosTime(0, 0)
 
@@ -71,7 +77,8 @@ class BagWriter:
     path: the bag directory to create (must not exist). storage: 'mcap' or 'sqlite3'.
     time_origin_ns: acquisition time of sample index 0, for headers and log times of batches
     written from arrays (default: now). flush_interval_s: most wall time a crash can lose
-    (None: flush only on close).
+    (None: flush only on close). Relative topic names are resolved in the root namespace,
+    as a node there would resolve them (`fmm/force` is stored as /fmm/force).
     """
 
     def __init__(
@@ -88,15 +95,25 @@ class BagWriter:
         if flush_interval_s is not None and flush_interval_s <= 0:
             raise ValueError(f'flush_interval_s must be positive, got {flush_interval_s}')
         self.path = Path(path)
+        if self.path.exists():
+            raise BagError(f'cannot create bag {self.path}: it exists already, not overwriting')
         self.storage = storage
         self.typestore = typestore or fmm_typestore()
         self.time_origin_ns = time.time_ns() if time_origin_ns is None else int(time_origin_ns)
         self.flush_interval_s = flush_interval_s
-        self._writer = Writer(self.path, version=ROSBAG2_VERSION, storage_plugin=STORAGES[storage])
-        self._connections: dict[str, object] = {}
+        self.custom_data: dict[str, str] = {}
+        """rosbag2's custom_data: strings stored in metadata.yaml when the bag closes."""
+        self._file: McapStorage | Sqlite3Storage | None = None
+        self._topics: dict[str, dict] = {}
+        self._start_ns = 2**63 - 1
+        self._end_ns = 0
         self._last_flush = time.monotonic()
-        self._open = False
+        self.last_flush_wall_ns = 0
+        """time.time_ns() of the last flush (0: none yet)."""
         self.messages_written = 0
+        self.bytes_written = 0
+        self.unflushed = 0
+        """Messages written since the last flush (what a crash now would lose)."""
 
     def __enter__(self) -> 'BagWriter':
         self.open()
@@ -105,30 +122,56 @@ class BagWriter:
     def __exit__(self, exc_type, exc, tb) -> None:
         self.close()
 
+    @property
+    def storage_file(self) -> Path:
+        """The .mcap or .db3 file inside the bag directory."""
+        return self.path / f'{self.path.name}.{"mcap" if self.storage == "mcap" else "db3"}'
+
     def open(self) -> None:
         """Create the bag directory and its storage file."""
         try:
-            self._writer.open()
-        except WriterError as error:
+            self.path.mkdir(mode=0o755, parents=True)
+        except FileExistsError:
+            raise BagError(
+                f'cannot create bag {self.path}: it exists already, not overwriting'
+            ) from None
+        except OSError as error:
             raise BagError(f'cannot create bag {self.path}: {error}') from None
         if self.storage == 'mcap':
-            _add_chunk_checksums(self._writer.storage)
-        self._open = True
+            self._file = McapStorage(self.storage_file, library=f'fmm_ros ({ros_distro()})')
+        else:
+            self._file = Sqlite3Storage(self.storage_file, ros_distro(), ROSBAG2_VERSION)
 
     def close(self) -> None:
         """Finish the storage file (MCAP summary and index) and write metadata.yaml."""
-        if self._open:
-            self._open = False
-            self._writer.close()
+        if self._file is None:
+            return
+        storage, self._file = self._file, None
+        information = bag_information(
+            storage=self.storage,
+            file_name=self.storage_file.name,
+            topics=list(self._topics.values()),
+            start_ns=self._start_ns,
+            end_ns=self._end_ns,
+            custom_data=self.custom_data,
+        )
+        storage.close(metadata_yaml(information))
+        target = self.path / 'metadata.yaml'
+        partial = target.with_suffix('.yaml.tmp')
+        partial.write_text(metadata_yaml(information), encoding='utf-8')
+        partial.replace(target)
 
     def set_custom_data(self, key: str, value: str) -> None:
-        """A key and text value for metadata.yaml's custom_data (written when the bag closes)."""
-        self._writer.set_custom_data(key, value)
+        """One custom_data entry (a string), stored when the bag closes."""
+        if not isinstance(value, str):
+            raise TypeError(f'custom_data values are strings, got {type(value).__name__}')
+        self.custom_data[key] = value
 
     def add_topic(self, topic: str, msgtype: str, *, qos: Qos | None = None) -> None:
         """Declare topic with msgtype (done on first write otherwise); qos: the offered QoS."""
-        if topic in self._connections:
-            known = self._connections[topic].msgtype
+        topic = resolve_name(topic)
+        if topic in self._topics:
+            known = self._topics[topic]['type']
             if known != msgtype:
                 raise BagError(
                     f'topic {topic} is already in bag {self.path} as {known}, '
@@ -140,23 +183,48 @@ class BagWriter:
                 f'unknown message type {msgtype!r} for topic {topic}: the bag writer knows '
                 'the fmm_interfaces messages and the ROS 2 Jazzy standard types'
             )
-        self._connections[topic] = self._writer.add_connection(
-            topic,
-            msgtype,
-            typestore=self.typestore,
-            offered_qos_profiles=[qos or offered_qos(msgtype)],
-        )
+        if self._file is None:
+            raise BagError(f'bag {self.path} is not open')
+        profiles = [qos or offered_qos(msgtype)]
+        msgdef, _ = self.typestore.generate_msgdef(msgtype, ros_version=2)
+        type_hash = self.typestore.hash_rihs01(msgtype)
+        self._file.add_topic(TopicRecord(topic, msgtype, msgdef, type_hash, qos_yaml(profiles)))
+        self._topics[topic] = {
+            'name': topic,
+            'type': msgtype,
+            'hash': type_hash,
+            'qos': profiles,
+            'count': 0,
+        }
 
     def write_raw(
         self, topic: str, msgtype: str, data: bytes | memoryview, log_time_ns: int
     ) -> None:
         """Store one serialized (CDR) message as received, without decoding it."""
-        if topic not in self._connections:
+        topic = resolve_name(topic)
+        if topic not in self._topics:
             self.add_topic(topic, msgtype)
-        self._writer.write(self._connections[topic], int(log_time_ns), data)
+        if self._file is None:
+            raise BagError(f'bag {self.path} is not open')
+        log_time_ns = int(log_time_ns)
+        self._file.write(topic, log_time_ns, data)
+        self._topics[topic]['count'] += 1
+        self._start_ns = min(self._start_ns, log_time_ns)
+        self._end_ns = max(self._end_ns, log_time_ns)
         self.messages_written += 1
+        self.unflushed += 1
+        self.bytes_written += len(data)
+        self.flush_if_due()
+
+    def flush_if_due(self) -> None:
+        """Flush if messages have waited flush_interval_s since the last flush.
+
+        Writing calls it; a writer that may sit idle (a recorder between sessions) should call
+        it periodically too, or its last messages wait for the next write or the close.
+        """
         if (
-            self.flush_interval_s is not None
+            self.unflushed
+            and self.flush_interval_s is not None
             and time.monotonic() - self._last_flush >= self.flush_interval_s
         ):
             self.flush()
@@ -261,40 +329,11 @@ class BagWriter:
         """Make everything written so far survive a crash of this process.
 
         MCAP: close the pending chunk (with its message index) and hand it to the OS.
-        sqlite3: commit the open transaction. (rosbags does neither before close.)
+        sqlite3: commit the open transaction.
         """
-        storage = self._writer.storage
-        if storage is None:
+        if self._file is None:
             return
-        if self.storage == 'mcap':
-            if storage.chunk.bio.tell():
-                storage.close_chunk()
-            storage.bio.flush()
-        else:
-            storage.conn.commit()
+        self._file.flush()
+        self.unflushed = 0
         self._last_flush = time.monotonic()
-
-
-# Offset of the uncompressed_crc field in an MCAP chunk record: opcode (1), record length (8),
-# message start time, end time and uncompressed size (8 each).
-_CHUNK_CRC_OFFSET = 1 + 8 + 24
-
-
-def _add_chunk_checksums(storage) -> None:
-    """Make a rosbags McapWriter fill in each chunk's CRC-32 (it writes 0, meaning none).
-
-    Wraps its close_chunk: the records of the pending chunk are checksummed before they are
-    written, and the field is patched in the chunk record just written.
-    """
-    close_chunk = storage.close_chunk
-
-    def close_chunk_with_crc() -> None:
-        crc = zlib.crc32(storage.chunk.bio.getbuffer())
-        chunk_start = storage.bio.tell()
-        close_chunk()
-        end = storage.bio.tell()
-        storage.bio.seek(chunk_start + _CHUNK_CRC_OFFSET)
-        storage.bio.write(crc.to_bytes(4, 'little'))
-        storage.bio.seek(end)
-
-    storage.close_chunk = close_chunk_with_crc
+        self.last_flush_wall_ns = time.time_ns()

@@ -19,6 +19,16 @@ NODES: dict[str, str] = {
 }
 
 
+# Who takes each source's sample batches in a rig: the nodes a source waits for before its
+# first sample (`wait_for_consumers`), as the launcher and the params file set it.
+CONSUMERS: dict[str, tuple[str, ...]] = {
+    'hammer_sim': ('rig_sim', 'analyzer', 'fitter', 'recorder'),
+    'rig_sim': ('analyzer', 'fitter', 'recorder'),
+    'daq': ('analyzer', 'fitter', 'recorder'),
+    'player': ('analyzer', 'fitter', 'recorder'),
+}
+
+
 def node_module(name: str) -> ModuleType:
     """The module of node `name` (ValueError naming the known nodes for any other name)."""
     if name not in NODES:

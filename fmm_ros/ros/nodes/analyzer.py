@@ -1,31 +1,31 @@
 """analyzer: captures impacts from /fmm/force and /fmm/velocity and publishes their FRFs.
 
 Both channels feed one `ImpactCapture`, which aligns them by `first_sample_index` (never by
-arrival time) and flags a missing batch as a gap instead of computing a wrong FRF. Every
-completed record becomes an ImpactResult on /fmm/impacts (accepted or rejected, with its
-flags); the level averages and the peak-receptance-vs-impulse law over all levels so far go
-out on /fmm/frf, one FrfSummary per level, transient-local for late subscribers.
+arrival time) under the stream rules of the signal core: a missing batch is a gap that flags
+the impact instead of computing a wrong FRF, a repeated or stray batch is refused and
+counted, a restarted source is followed within one batch (the open record ends flagged
+`interrupted`). Every completed record becomes an ImpactResult on fmm/impacts (accepted or
+rejected, with its flags), stamped with the acquisition time of its trigger; the level
+averages and the peak-receptance-vs-impulse law over all levels so far go out on fmm/frf,
+one FrfSummary per level, transient-local for late subscribers. Health on /diagnostics.
 """
 
 from collections import deque
 
+from builtin_interfaces.msg import Time
 from rclpy.node import Node
 
-from fmm_interfaces.msg import FrfSummary, ImpactResult, SampleBatch
-from fmm_ros.constants import (
-    FORCE_TOPIC,
-    FRF_TOPIC,
-    IMPACTS_TOPIC,
-    LEVEL_TOLERANCE_N,
-    PAPER_LEVELS,
-    VELOCITY_TOPIC,
-)
+from fmm_interfaces.msg import FrfSummary, ImpactResult
+from fmm_ros.constants import FRF_TOPIC, IMPACTS_TOPIC, LEVEL_TOLERANCE_N, PAPER_LEVELS
 from fmm_ros.core.signal.analysis import AnalysisConfig, NominalLevel, analyze_impact, summarize
 from fmm_ros.core.signal.analysis import ImpactResult as CoreImpactResult
 from fmm_ros.core.signal.capture import FLAGS, CaptureConfig, ImpactCapture
 from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.core.signal.stream import Batch
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import RESULT_QOS, SAMPLE_QOS, run_node
+from fmm_ros.ros.common import RESULT_QOS, run_node
+from fmm_ros.ros.health import OK, Health
+from fmm_ros.ros.inputs import SampleInputs
 from fmm_ros.ros.params import Param, declare_parameters
 
 _CAPTURE = CaptureConfig()
@@ -216,8 +216,9 @@ class Analyzer(Node):
         self.impacts_accepted = 0
         self._impact_pub = self.create_publisher(ImpactResult, IMPACTS_TOPIC, RESULT_QOS)
         self._frf_pub = self.create_publisher(FrfSummary, FRF_TOPIC, RESULT_QOS)
-        for topic in (FORCE_TOPIC, VELOCITY_TOPIC):
-            self.create_subscription(SampleBatch, topic, self._on_batch, SAMPLE_QOS)
+        health = Health(self)
+        self.inputs = SampleInputs(self, self.capture.stream, self._on_batch, health)
+        health.add('impacts', self._impacts_status)
         levels = (
             ', '.join(
                 f'{level.name} {level.peak_force_n:g}+-{level.tolerance_n:g} N'
@@ -230,25 +231,35 @@ class Analyzer(Node):
             f'{self.capture_config.window_s} s, levels: {levels}'
         )
 
-    def _on_batch(self, msg: SampleBatch) -> None:
-        try:
-            records = self.capture.feed(
-                msg.quantity,
-                msg.first_sample_index,
-                msgs.batch_samples(msg),
-                msg.sample_rate_hz,
-                msg.full_scale,
-            )
-        except ValueError as error:  # the capture is unchanged: report and drop this batch
-            self.get_logger().error(
-                f'{msg.quantity} batch {msg.first_sample_index} from '
-                f'{msg.header.frame_id!r} refused: {error}'
-            )
-            return
-        for record in records:
-            self._report(record, msg)
+    @property
+    def ledger(self):
+        """What each channel received, missed and refused."""
+        return self.capture.ledger
 
-    def _report(self, record: ImpactRecord, msg: SampleBatch) -> None:
+    def _on_batch(self, quantity: str, batch: Batch) -> None:
+        origin_before = self.capture.stream.origin_s  # an interrupted record's acquisition
+        for record in self.capture.feed_batch(quantity, batch):
+            origin = origin_before if record.interrupted else self.capture.stream.origin_s
+            self._report(record, _trigger_stamp(record, origin, batch))
+
+    def _impacts_status(self) -> tuple:
+        last = self.results[-1] if self.results else None
+        return (
+            OK,
+            f'{self.impacts_reported} reported, {self.impacts_accepted} accepted',
+            {
+                'impacts reported': self.impacts_reported,
+                'impacts accepted': self.impacts_accepted,
+                'open records': self.capture.open_impacts,
+                'last impact': (
+                    f'{last.impact_id} at {last.trigger_sample_index}: {last.level or "no level"}'
+                    if last
+                    else 'none'
+                ),
+            },
+        )
+
+    def _report(self, record: ImpactRecord, stamp: Time) -> None:
         """Analyse one completed record, publish it and the updated level summaries."""
         result = analyze_impact(
             record, self.capture_config, self.analysis_config, impact_id=self.impacts_reported
@@ -260,15 +271,12 @@ class Analyzer(Node):
         self.impacts_reported += 1
         self.impacts_accepted += judged.accepted
         self._impact_pub.publish(
-            msgs.impact_result_msg(judged, stamp=msg.header.stamp, frame_id=self.config['frame_id'])
+            msgs.impact_result_msg(judged, stamp=stamp, frame_id=self.config['frame_id'])
         )
         for level in summary.levels:
             self._frf_pub.publish(
                 msgs.frf_summary_msg(
-                    level,
-                    summary.linearity,
-                    stamp=msg.header.stamp,
-                    frame_id=self.config['frame_id'],
+                    level, summary.linearity, stamp=stamp, frame_id=self.config['frame_id']
                 )
             )
         verdict = 'accepted' if judged.accepted else f'rejected ({", ".join(judged.flags)})'
@@ -279,10 +287,27 @@ class Analyzer(Node):
             f'at {judged.natural_frequency_hz:.2f} Hz, {verdict}'
         )
 
+    def destroy_node(self) -> None:
+        """Log the final ledger of its inputs before the node goes."""
+        self.inputs.log_ledger()
+        super().destroy_node()
 
-def main(args: list[str] | None = None) -> None:
+
+def _trigger_stamp(record: ImpactRecord, origin_s: float | None, batch: Batch) -> Time:
+    """Acquisition time of the trigger sample by its acquisition's clock (else the batch's).
+
+    The fitter tells by it which acquisition a reported impact belongs to.
+    """
+    if origin_s is None:
+        return msgs.time_msg(batch.stamp_ns)
+    return msgs.time_msg(
+        round((origin_s + record.trigger_sample_index / record.sample_rate_hz) * 1e9)
+    )
+
+
+def main(args: list[str] | None = None) -> int:
     """`ros2 run fmm_ros analyzer`."""
-    run_node(Analyzer, args)
+    return run_node(Analyzer, args)
 
 
 if __name__ == '__main__':

@@ -10,6 +10,11 @@ Backends:
 - `file`: streams a recorded lab file (CSV, NPZ, MATLAB, TDMS, read by the bag importers
   with an explicit channel mapping) at its own sample rate x `rate_factor`, for dry runs
   of the analysis chain without the rig.
+
+Either holds its first sample until the consumers in `wait_for_consumers` have reported
+(ros/flow.py). The file backend also never runs more than the flow window ahead of the
+slowest consumer (it slows down instead); the hardware clock of a DAQ cannot slow down, so
+there the device buffer (`buffer_s`) absorbs what the consumers lag.
 """
 
 from collections.abc import Callable
@@ -23,7 +28,9 @@ from fmm_interfaces.msg import SampleBatch
 from fmm_ros.constants import FORCE, FORCE_TOPIC, SAMPLE_RATE_HZ, VELOCITY, VELOCITY_TOPIC
 from fmm_ros.io.labfiles import ChannelMapping, ImportMapping, load_mapping, read_lab_file
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import SAMPLE_QOS, BatchPacer, run_node
+from fmm_ros.ros.common import SAMPLE_QOS, run_node
+from fmm_ros.ros.flow import SOURCE_PARAMS, PacedSource, deliver_last_batches
+from fmm_ros.ros.health import Health
 from fmm_ros.ros.params import Param, declare_parameters
 
 INSTALL_HINT = (
@@ -104,6 +111,7 @@ PARAMS = (
         'File backend: start over at the end (the sample index runs on)',
         read_only=True,
     ),
+    *SOURCE_PARAMS,
 )
 
 Publish = Callable[[int, np.ndarray, np.ndarray], None]
@@ -119,9 +127,15 @@ class Daq(Node):
         self._velocity_pub = self.create_publisher(SampleBatch, VELOCITY_TOPIC, SAMPLE_QOS)
         self._start_stamp = self.get_clock().now()
         self.batches_published = 0
+        self.health = Health(self)
         backend = {'nidaqmx': NidaqmxBackend, 'file': FileBackend}[self.config['backend']]
         self.backend = backend(self, self._publish)
         self.get_logger().info(f'{self.config["backend"]} backend: {self.backend.describe()}')
+
+    @property
+    def publishers_of_samples(self) -> list:
+        """The force and velocity publishers (what a backend's flow control gates)."""
+        return [self._force_pub, self._velocity_pub]
 
     def _publish(
         self, first_sample_index: int, force_n: np.ndarray, velocity_m_s: np.ndarray
@@ -155,8 +169,13 @@ class Daq(Node):
         self.batches_published += 1
 
     def destroy_node(self) -> None:
-        """Stop the acquisition before the node goes."""
+        """Stop the acquisition, deliver its last batches, say what went out."""
         self.backend.close()
+        deliver_last_batches(self.publishers_of_samples)
+        self.get_logger().info(
+            f'stopped: samples 0..{self.backend.next_index} published on '
+            f'{self._force_pub.topic_name} and {self._velocity_pub.topic_name}'
+        )
         super().destroy_node()
 
 
@@ -215,13 +234,35 @@ class NidaqmxBackend:
                 reader.read_many_sample(buffer, number_of_samples_per_channel=batch, timeout=0.0)
                 publish(self.next_index, buffer[0], buffer[1] * scale)
                 self.next_index += batch
+                self._source.sent(self.next_index)
                 return 0
 
             self.task.register_every_n_samples_acquired_into_buffer_event(batch, on_samples)
-            self.task.start()
         except nidaqmx.errors.DaqError as error:
             self.task.close()
             raise RuntimeError(f'NI-DAQmx refused the acquisition: {error}') from error
+        # The hardware clock cannot wait: the task starts once the consumers are there.
+        self._source = PacedSource(
+            node,
+            node.publishers_of_samples,
+            cfg,
+            batches_per_s=self.sample_rate_hz / batch,
+            window_samples=PacedSource.window_samples(cfg, self.sample_rate_hz, batch),
+            pace_label='the hardware clock',
+        )
+        node.health.add('source', lambda: self._source.status(self.sample_rate_hz, batch, 1.0))
+        self._daq_error = nidaqmx.errors.DaqError
+        self._starting = node.create_timer(0.1, self._start_when_ready)
+        self._node = node
+
+    def _start_when_ready(self) -> None:
+        if not self._source.ready():
+            return
+        self._node.destroy_timer(self._starting)
+        try:
+            self.task.start()
+        except self._daq_error as error:
+            raise RuntimeError(f'NI-DAQmx refused to start: {error}') from error
 
     def describe(self) -> str:
         """One line for the start-up log."""
@@ -258,7 +299,19 @@ class FileBackend:
         self.next_index = 0
         self.finished = False
         batches_per_s = self.sample_rate_hz * cfg['rate_factor'] / self._batch
-        self._pacer = BatchPacer(batches_per_s)
+        self.source = PacedSource(
+            node,
+            node.publishers_of_samples,
+            cfg,
+            batches_per_s=batches_per_s,
+            window_samples=PacedSource.window_samples(cfg, self.sample_rate_hz, self._batch),
+            pace_label=f'x{cfg["rate_factor"]:g} the file rate',
+            release=self._on_tick,
+        )
+        node.health.add(
+            'source',
+            lambda: self.source.status(self.sample_rate_hz, self._batch, cfg['rate_factor']),
+        )
         self._log = node.get_logger()
         self._timer = node.create_timer(1.0 / batches_per_s, self._on_tick)
 
@@ -269,7 +322,9 @@ class FileBackend:
         )
 
     def _on_tick(self) -> None:
-        for _ in range(self._pacer.due()):
+        if not self.source.ready():
+            return
+        for _ in range(self.source.due(self._batch)):
             position = self.next_index % self.force_n.size if self._loop else self.next_index
             if position >= self.force_n.size:
                 if not self.finished:
@@ -281,6 +336,7 @@ class FileBackend:
                 self.next_index, self.force_n[position:stop], self.velocity_m_s[position:stop]
             )
             self.next_index += stop - position
+            self.source.sent(self.next_index)
 
     def close(self) -> None:
         """Nothing is held open: the file was read at start-up."""
@@ -294,9 +350,9 @@ def default_mapping(path: Path) -> ImportMapping:
     return ImportMapping(force, velocity, time=ChannelMapping('time_s', 's'))
 
 
-def main(args: list[str] | None = None) -> None:
+def main(args: list[str] | None = None) -> int:
     """`ros2 run fmm_ros daq --ros-args -p backend:=nidaqmx|file ...`."""
-    run_node(Daq, args)
+    return run_node(Daq, args)
 
 
 if __name__ == '__main__':

@@ -1,18 +1,26 @@
-"""fitter: the /fmm/fit_friction and /fmm/diagnose_model services over the analyzer's impacts.
+"""fitter: the fmm/fit_friction and fmm/diagnose_model services over the analyzer's impacts.
 
-The fitter keeps the recent force and velocity streams itself (`SampleHistory`) and cuts each
-impact the analyzer reports on /fmm/impacts out of them by sample index, keeping the last
-`keep_last_impacts`. So no record travels over a service, a bag played into the graph is
-fitted like a live session, and the analyzer stays a pure stream processor. Impacts are taken
-by the signal core's `select_impacts`: those the analyzer flagged and rejected are left out
-and named in the response's message unless the request sets include_flagged. A request that
-cannot be answered (no impacts yet, unknown ids, no clean impact, a record friction cannot
-explain) gets success = false and the reason, never a number.
+The fitter keeps the recent force and velocity streams itself (`SampleHistory`, sized from the
+batches' own rate, under the same stream rules as the analyzer) and cuts each impact the
+analyzer reports on fmm/impacts out of them by sample index, keeping the last
+`keep_last_impacts`; an impact stamped with another acquisition's clock (the source restarted
+in between) is not cut from this one's samples. So no record travels over a service, a bag
+played into the graph is fitted like a live session, and the analyzer stays a pure stream
+processor. Impacts are taken by the signal core's `select_impacts`: those the analyzer
+flagged and rejected are left out and named in the response's message unless the request
+sets include_flagged. A request that cannot be answered (no impacts yet, unknown ids, no
+clean impact, a record friction cannot explain) gets success = false and the reason, never
+a number.
+
+After every accepted impact it also fits that impact alone and publishes the running mu (the
+impacts' own mus, inverse-variance weighted: `core.identify.running`) on fmm/friction, so the
+lab sees mu converge while the session runs.
 
 Service callbacks run in their own callback group, so under `ros2 run` (a multi-threaded
 executor) the streams keep flowing while a fit runs.
 """
 
+import queue
 import threading
 from collections import OrderedDict
 from dataclasses import dataclass
@@ -20,24 +28,21 @@ from dataclasses import dataclass
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
 
-from fmm_interfaces.msg import ImpactResult, SampleBatch
+from fmm_interfaces.msg import FrictionEstimate, ImpactResult
 from fmm_interfaces.srv import DiagnoseModel, FitFriction
-from fmm_ros.constants import (
-    DIAGNOSE_SERVICE,
-    FIT_SERVICE,
-    FORCE_TOPIC,
-    IMPACTS_TOPIC,
-    SAMPLE_RATE_HZ,
-    VELOCITY_TOPIC,
-)
+from fmm_ros.constants import DIAGNOSE_SERVICE, FIT_SERVICE, FRICTION_TOPIC, IMPACTS_TOPIC
 from fmm_ros.core.diagnose.workflow import diagnose
 from fmm_ros.core.identify.conditioning import FitError
 from fmm_ros.core.identify.friction import MU_BOUNDS, fit_friction
+from fmm_ros.core.identify.running import RunningFriction
 from fmm_ros.core.signal.analysis import ImpactSelection, select_impacts
 from fmm_ros.core.signal.history import SampleHistory
 from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.core.signal.stream import Batch
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import RESULT_QOS, RIG_PARAMS, SAMPLE_QOS, rig_from_parameters, run_node
+from fmm_ros.ros.common import RESULT_QOS, RIG_PARAMS, rig_from_parameters, run_node
+from fmm_ros.ros.health import OK, Health
+from fmm_ros.ros.inputs import SampleInputs
 from fmm_ros.ros.params import Param, declare_parameters
 from fmm_ros.workflows.results import FrictionResult
 
@@ -48,6 +53,13 @@ PARAMS = (
         True,
         'Fit where each record starts: in a continuous session a hit finds the rig where '
         'friction stopped the last one (up to mu N / k off centre), which is not measured',
+        read_only=True,
+    ),
+    Param(
+        'live_mu',
+        True,
+        f'After every accepted impact, fit it alone (in a worker thread) and publish the running '
+        f'mu on {FRICTION_TOPIC}',
         read_only=True,
     ),
     Param(
@@ -62,13 +74,6 @@ PARAMS = (
         120.0,
         'Stream history kept to cut records from [s] (>= the analyzer window + latency)',
         limits=(1.0, 3600.0),
-        read_only=True,
-    ),
-    Param(
-        'sample_rate_hz',
-        SAMPLE_RATE_HZ,
-        'Expected sample rate, sizes the history [Hz]',
-        limits=(1.0, 1e7),
         read_only=True,
     ),
 )
@@ -93,18 +98,29 @@ class Fitter(Node):
         self.config = declare_parameters(self, PARAMS)
         cfg = self.config
         self.rig = rig_from_parameters(cfg)
-        self.history = SampleHistory(int(cfg['history_s'] * cfg['sample_rate_hz']))
+        self.history = SampleHistory(cfg['history_s'])
         self.impacts: OrderedDict[int, HeldImpact] = OrderedDict()
         self._waiting: list[ImpactResult] = []
+        self._acquisition = 0
+        self.last_fit = ''
+        self.live_mu = ''
         self._lock = threading.Lock()  # impacts: written by the stream group, read by services
         streams = MutuallyExclusiveCallbackGroup()
-        for topic in (FORCE_TOPIC, VELOCITY_TOPIC):
-            self.create_subscription(
-                SampleBatch, topic, self._on_batch, SAMPLE_QOS, callback_group=streams
-            )
+        health = Health(self)
+        self.inputs = SampleInputs(
+            self, self.history.stream, self._on_batch, health, callback_group=streams
+        )
+        health.add('fits', self._fits_status)
         self.create_subscription(
             ImpactResult, IMPACTS_TOPIC, self._on_impact, RESULT_QOS, callback_group=streams
         )
+        self._friction_pub = self.create_publisher(FrictionEstimate, FRICTION_TOPIC, RESULT_QOS)
+        self._running = RunningFriction()
+        self._to_fit: queue.Queue[HeldImpact | None] = queue.Queue()
+        self._worker = None
+        if cfg['live_mu']:
+            self._worker = threading.Thread(target=self._fit_live, name='live_mu', daemon=True)
+            self._worker.start()
         services = MutuallyExclusiveCallbackGroup()
         self.create_service(FitFriction, FIT_SERVICE, self._on_fit, callback_group=services)
         self.create_service(
@@ -118,26 +134,49 @@ class Fitter(Node):
 
     # -- streams ----------------------------------------------------------------------------
 
-    def _on_batch(self, msg: SampleBatch) -> None:
-        try:
-            self.history.feed(
-                msg.quantity,
-                msg.first_sample_index,
-                msgs.batch_samples(msg),
-                msg.sample_rate_hz,
-                msg.full_scale,
-            )
-        except ValueError as error:
-            self.get_logger().error(
-                f'{msg.quantity} batch {msg.first_sample_index} refused: {error}',
-                throttle_duration_sec=5.0,
-            )
-            return
+    def _on_batch(self, quantity: str, batch: Batch) -> None:
+        self.history.feed_batch(quantity, batch)
+        if self.history.acquisitions != self._acquisition:
+            self._acquisition = self.history.acquisitions
+            if self._waiting:
+                self.get_logger().warning(
+                    f'a new acquisition began: impacts {[m.impact_id for m in self._waiting]} '
+                    'of the previous one cannot be cut any more'
+                )
+                self._waiting.clear()
         self._cut_waiting()
 
     def _on_impact(self, msg: ImpactResult) -> None:
+        origin = self.history.origin_s
+        if origin is not None and msg.sample_rate_hz > 0:
+            impact_origin = msgs.stamp_ns(msg.header.stamp) / 1e9 - (
+                msg.trigger_sample_index / msg.sample_rate_hz
+            )
+            if abs(impact_origin - origin) > self.history.stream.rules.clock_tolerance_s:
+                self.get_logger().warning(
+                    f'impact {msg.impact_id} belongs to another acquisition than the samples '
+                    'held (its clock differs): not held'
+                )
+                return
         self._waiting.append(msg)
         self._cut_waiting()
+
+    def _fits_status(self) -> tuple:
+        with self._lock:
+            held = list(self.impacts.values())
+        return (
+            OK,
+            f'{len(held)} impacts held ({sum(i.accepted for i in held)} accepted); '
+            + (self.last_fit or 'no fit yet'),
+            {
+                'impacts held': len(held),
+                'accepted held': sum(i.accepted for i in held),
+                'impacts waiting for samples': len(self._waiting),
+                'history s': self.history.history_s,
+                'last fit': self.last_fit or 'none',
+                'live mu': self.live_mu or 'none',
+            },
+        )
 
     def _cut_waiting(self) -> None:
         """Cut the records of reported impacts whose samples have all arrived."""
@@ -157,12 +196,54 @@ class Fitter(Node):
             except ValueError as error:
                 self.get_logger().warning(f'impact {msg.impact_id} cannot be held: {error}')
                 continue
+            held = HeldImpact(msg.impact_id, msg.level, msg.accepted, tuple(msg.flags), record)
             with self._lock:
-                self.impacts[msg.impact_id] = HeldImpact(
-                    msg.impact_id, msg.level, msg.accepted, tuple(msg.flags), record
-                )
+                self.impacts[msg.impact_id] = held
                 while len(self.impacts) > self.config['keep_last_impacts']:
                     self.impacts.popitem(last=False)
+            if held.accepted and self._worker is not None:
+                self._to_fit.put(held)
+
+    # -- live mu ----------------------------------------------------------------------------
+
+    def _fit_live(self) -> None:
+        """Worker thread: fit each accepted impact alone, publish the running estimate.
+
+        Off the executor, so a fit (tens of ms) never holds up the streams; rclpy publishers
+        may be used from another thread. Stops at the None `destroy_node` puts in.
+        """
+        while (held := self._to_fit.get()) is not None:
+            try:
+                fit = fit_friction(
+                    [held.record],
+                    rig=self.rig,
+                    fit_initial_position=self.config['fit_initial_position'],
+                )
+                estimate = self._running.add(held.impact_id, held.level, fit.mu, fit.mu_stderr)
+            except ValueError as error:  # FitError included: the impact adds nothing
+                self.get_logger().warning(f'live mu: impact {held.impact_id} not used: {error}')
+                continue
+            self.live_mu = (
+                f'live mu {estimate.mu:.5f} +- {estimate.mu_stderr:.2g} over {estimate.count} '
+                f'impacts, one mu p = {estimate.consistency_p_value:.3g}'
+            )
+            self._friction_pub.publish(
+                msgs.friction_estimate_msg(estimate, stamp=self.get_clock().now().to_msg())
+            )
+            self.get_logger().info(
+                f'live mu after impact {held.impact_id}: {estimate.mu:.5f} +- '
+                f'{estimate.mu_stderr:.2g} over {estimate.count} impacts (one mu: p = '
+                f'{estimate.consistency_p_value:.3g})'
+            )
+
+    def destroy_node(self) -> None:
+        """Stop the live-mu worker (after the fit it is in), log the inputs' final ledger."""
+        if self._worker is not None:
+            self._to_fit.put(None)
+            self._worker.join()
+            self._worker = None
+        self.inputs.log_ledger()
+        super().destroy_node()
 
     # -- services ---------------------------------------------------------------------------
 
@@ -213,6 +294,7 @@ class Fitter(Node):
         msgs.fill_fit_response(response, result)
         if selection.note:
             response.message = f'{response.message}; {selection.note}'
+        self.last_fit = response.message
         self.get_logger().info(response.message)
         return response
 
@@ -244,9 +326,9 @@ def _refused(response: object, reason: str) -> object:
     return response
 
 
-def main(args: list[str] | None = None) -> None:
+def main(args: list[str] | None = None) -> int:
     """`ros2 run fmm_ros fitter`: two threads, so fits do not stall the streams."""
-    run_node(Fitter, args, threads=2)
+    return run_node(Fitter, args, threads=2)
 
 
 if __name__ == '__main__':

@@ -1,9 +1,14 @@
 """hammer_sim: a simulated impact hammer running the paper's session, published in batches.
 
-Publishes what the force sensor reports on /fmm/force and, for the simulated plant only, the
+Publishes what the force channel reports on /fmm/force and, for the simulated plant only, the
 force the hammer actually applies on /fmm/sim/applied_force (same sample indices): rig_sim is
-driven by the applied force, as the real rig is, so sensor noise never moves the plant.
-Paced to the wall clock; `rate_factor` runs it faster (it can be changed live).
+driven by the applied force, as the real rig is, so sensor noise never moves the plant. The
+channel's data acquisition chain (anti-alias filter, zero error and drift, mains hum:
+`sim.daq`) acts on the reported force only.
+Paced to the wall clock; `rate_factor` runs it faster (it can be changed live). It holds
+its first sample until the consumers in `wait_for_consumers` have reported, and never runs
+more than the flow window ahead of the slowest (ros/flow.py): above what the machine
+sustains it runs slower than asked rather than have a batch dropped.
 """
 
 import numpy as np
@@ -14,8 +19,11 @@ from rclpy.parameter import Parameter
 from fmm_interfaces.msg import SampleBatch
 from fmm_ros.constants import APPLIED_FORCE_TOPIC, FORCE, FORCE_TOPIC, PAPER_LEVELS, SAMPLE_RATE_HZ
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import SAMPLE_QOS, BatchPacer, run_node
+from fmm_ros.ros.common import SAMPLE_QOS, chain_from_parameters, chain_params, run_node
+from fmm_ros.ros.flow import SOURCE_PARAMS, PacedSource
+from fmm_ros.ros.health import Health
 from fmm_ros.ros.params import Param, declare_parameters
+from fmm_ros.sim.daq import ChainStream
 from fmm_ros.sim.hammer import HammerStream, session_schedule
 
 PARAMS = (
@@ -75,12 +83,20 @@ PARAMS = (
         read_only=True,
     ),
     Param(
+        'contact_scale',
+        1.0,
+        "Contact duration against the paper's tip [-] (below 1: a harder tip, sharper hits)",
+        limits=(0.05, 10.0),
+        read_only=True,
+    ),
+    Param(
         'noise_std_n',
         0.2,
-        'Force sensor noise, standard deviation [N]',
+        'Force sensor noise, standard deviation [N] (it passes the anti-alias filter)',
         limits=(0.0, 100.0),
         read_only=True,
     ),
+    *chain_params('force', 'N', 'n', 1000.0),
     Param(
         'full_scale_n',
         22_240.0,
@@ -96,14 +112,7 @@ PARAMS = (
         read_only=True,
     ),
     Param('frame_id', 'hammer', 'Sensor name in the message header', read_only=True),
-    Param(
-        'wait_for_subscribers',
-        0,
-        'Hold the session until /fmm/force has this many subscribers and the applied force '
-        'one (nodes in other processes are discovered later; a hit sent before is lost)',
-        limits=(0, 1000),
-        read_only=True,
-    ),
+    *SOURCE_PARAMS,
 )
 
 
@@ -128,9 +137,13 @@ class HammerSim(Node):
             first_hit_s=self.config['first_hit_s'],
             rng=self.config['seed'],
             spread_std_n=self.config['peak_spread_std_n'],
+            contact_scale=self.config['contact_scale'],
         )
         self.stream = HammerStream(
             self.schedule, rate, noise_std_n=self.config['noise_std_n'], seed=self.config['seed']
+        )
+        self.chain = ChainStream(
+            chain_from_parameters(self.config, 'n'), rate, seed=self.config['seed']
         )
         self.next_index = 0
         self._measured_pub = self.create_publisher(SampleBatch, FORCE_TOPIC, SAMPLE_QOS)
@@ -140,10 +153,22 @@ class HammerSim(Node):
         self._measured = np.empty(batch)
         self._start_stamp = self.get_clock().now()
         self._timer = None
-        self._started = False
-        self._pacer = BatchPacer(1.0)
+        self._held = False
+        self.source = PacedSource(
+            self,
+            [self._measured_pub, self._applied_pub],
+            self.config,
+            batches_per_s=1.0,
+            window_samples=PacedSource.window_samples(self.config, rate, batch),
+            pace_label=f'x{self.config["rate_factor"]:g} real time',
+            release=self._on_tick,
+        )
         self._pace(self.config['rate_factor'])
         self.add_post_set_parameters_callback(self._on_parameters)
+        Health(self).add(
+            'source',
+            lambda: self.source.status(rate, batch, self.config['rate_factor']),
+        )
         self.get_logger().info(
             f'{len(self.schedule)} hits at {", ".join(names)} ({peaks} N), '
             f'{self.config["hit_spacing_s"]} s apart, {rate:g} Hz in batches of {batch}, '
@@ -163,7 +188,9 @@ class HammerSim(Node):
     def _pace(self, rate_factor: float) -> None:
         """(Re)start the timer at one batch of sample time per tick, paced from now."""
         rate = self.config['sample_rate_hz'] * rate_factor
-        self._pacer.restart(rate / self._batch, self.next_index // self._batch)
+        self.config['rate_factor'] = rate_factor
+        self.source.label = f'x{rate_factor:g} real time'
+        self.source.pacer.restart(rate / self._batch, self.source.pacer.released)
         if self._timer is not None:
             self.destroy_timer(self._timer)
         self._timer = self.create_timer(self._batch / rate, self._on_tick)
@@ -173,25 +200,15 @@ class HammerSim(Node):
             if parameter.name == 'rate_factor':
                 self._pace(parameter.value)
 
+    def hold(self) -> None:
+        """Publish nothing more (a session driven from outside is over)."""
+        self._held = True
+
     def _on_tick(self) -> None:
-        if not self._started:
-            wanted = self.config['wait_for_subscribers']
-            self._started = (
-                self._measured_pub.get_subscription_count() >= wanted
-                and self._applied_pub.get_subscription_count() >= min(wanted, 1)
-            )
-            if not self._started:
-                self.get_logger().info(
-                    f'waiting for {wanted} subscribers on {FORCE_TOPIC}', throttle_duration_sec=5.0
-                )
-                return
-        for _ in range(self._pacer.due()):
+        if self._held or not self.source.ready():
+            return
+        for _ in range(self.source.due(self._batch)):
             self._publish_batch()
-        if self._pacer.fell_behind:
-            self.get_logger().warning(
-                f'cannot keep x{self.config["rate_factor"]:g} real time: running slower',
-                throttle_duration_sec=10.0,
-            )
 
     def _publish_batch(self) -> None:
         first = self.next_index
@@ -199,6 +216,7 @@ class HammerSim(Node):
         stamp = (self._start_stamp + Duration(nanoseconds=round(first / rate * 1e9))).to_msg()
         self.stream.applied(first, self._applied)
         self.stream.measured(self._applied, first, self._measured)
+        self.chain.apply(first, self._measured)
         common = dict(
             quantity=FORCE,
             sample_rate_hz=rate,
@@ -210,13 +228,23 @@ class HammerSim(Node):
         self._applied_pub.publish(msgs.sample_batch(self._applied, **common))
         self._measured_pub.publish(msgs.sample_batch(self._measured, **common))
         self.next_index = first + self._applied.size
+        self.source.sent(self.next_index)
         if self.next_index >= self.stream.end_index > first:
             self.get_logger().info(f'session complete: {len(self.schedule)} hits sent')
 
+    def destroy_node(self) -> None:
+        """Deliver the last batches, say what went out (a recording is checked against it)."""
+        self.source.finish()
+        self.get_logger().info(
+            f'stopped: samples 0..{self.next_index} published on {self._measured_pub.topic_name} '
+            f'({self.hits_sent} of {len(self.schedule)} hits)'
+        )
+        super().destroy_node()
 
-def main(args: list[str] | None = None) -> None:
+
+def main(args: list[str] | None = None) -> int:
     """`ros2 run fmm_ros hammer_sim`."""
-    run_node(HammerSim, args)
+    return run_node(HammerSim, args)
 
 
 if __name__ == '__main__':

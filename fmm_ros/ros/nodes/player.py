@@ -2,17 +2,30 @@
 
 The stored CDR bytes are published as they are (no decode), at `rate_factor` times the pace
 they were recorded at, so the analyzer and the fitter see the session again exactly as
-recorded: same sample indices, same batches. For analysis without a ROS graph, `fmm replay`
-feeds a bag straight into the core instead.
+recorded: same sample indices, same batches. A recorded fmm topic is published under its
+relative name (a bag of /rig2/fmm/force plays on fmm/force in the player's namespace); other
+topics keep their recorded names. Like every source it holds its first batch for the
+consumers in `wait_for_consumers` and never runs more than the flow window ahead of the
+slowest (ros/flow.py). For analysis without a ROS graph, `fmm replay` feeds a bag straight
+into the core instead.
 """
 
 import time
 
 from rclpy.node import Node
 
+from fmm_ros.constants import (
+    APPLIED_FORCE_TOPIC,
+    FORCE_TOPIC,
+    FRF_TOPIC,
+    IMPACTS_TOPIC,
+    VELOCITY_TOPIC,
+)
 from fmm_ros.io.bags.definitions import SAMPLE_BATCH
 from fmm_ros.io.bags.reader import BagReader
 from fmm_ros.ros.common import RESULT_QOS, SAMPLE_QOS, message_class, run_node
+from fmm_ros.ros.flow import SOURCE_PARAMS, PacedSource
+from fmm_ros.ros.health import OK, WARN, Health
 from fmm_ros.ros.params import Param, declare_parameters
 
 # As for hammer_sim: rclpy takes one message per subscription per wait cycle, so a tick
@@ -32,7 +45,15 @@ PARAMS = (
     Param(
         'tick_s', 0.005, 'Timer period of the pacing loop [s]', limits=(1e-4, 1.0), read_only=True
     ),
+    *SOURCE_PARAMS,
 )
+# The package's topics: played under their relative names, whatever namespace recorded them.
+FMM_TOPICS = (FORCE_TOPIC, VELOCITY_TOPIC, APPLIED_FORCE_TOPIC, IMPACTS_TOPIC, FRF_TOPIC)
+
+
+def played_name(recorded: str) -> str:
+    """The name a recorded topic is played on: an fmm topic's relative name, else itself."""
+    return next((name for name in FMM_TOPICS if recorded.endswith('/' + name)), recorded)
 
 
 class Player(Node):
@@ -58,14 +79,39 @@ class Player(Node):
             msgtype = self.reader.topics[topic].msgtype
             qos = SAMPLE_QOS if msgtype == SAMPLE_BATCH else RESULT_QOS
             self._topic_publishers[topic] = self.create_publisher(
-                message_class(msgtype), topic, qos
+                message_class(msgtype), played_name(topic), qos
             )
+        self._batch_topics = {
+            topic for topic in wanted if self.reader.topics[topic].msgtype == SAMPLE_BATCH
+        }
+        self.source = PacedSource(
+            self,
+            [self._topic_publishers[topic] for topic in self._batch_topics],
+            self.config,
+            batches_per_s=1.0,  # paced by log time below; the source gives start and window
+            window_samples=1,
+            pace_label=f'x{self.config["rate_factor"]:g}',
+            release=self._on_tick,
+        )
         self._messages = self.reader.messages(wanted)
         self._next = next(self._messages, None)
         self.messages_played = 0
         self._anchor: tuple[float, int] | None = None
         self.create_timer(self.config['tick_s'], self._on_tick)
         total = sum(self.reader.topics[topic].count for topic in wanted)
+        Health(self).add(
+            'player',
+            lambda: (
+                OK if self.source.gate.started else WARN,
+                f'{self.messages_played} of {total} messages played'
+                + (
+                    f', held back by {self.source.gate.holding_for}'
+                    if self.source.gate.holding_for
+                    else ''
+                ),
+                {'messages played': self.messages_played, 'messages in bag': total},
+            ),
+        )
         self.get_logger().info(
             f'playing {total} messages on {", ".join(wanted)} from '
             f'{self.config["bag_path"]} at x{self.config["rate_factor"]:g}'
@@ -77,7 +123,7 @@ class Player(Node):
         return self._next is None
 
     def _on_tick(self) -> None:
-        if self._next is None:
+        if self._next is None or not self.source.ready():
             return
         now = time.monotonic()
         if self._anchor is None:
@@ -86,7 +132,7 @@ class Player(Node):
         due_ns = log0 + (now - wall0) * 1e9 * self.config['rate_factor']
         sent = 0
         while self._next is not None and self._next.log_time_ns <= due_ns:
-            if sent == MAX_MESSAGES_PER_TICK:
+            if sent == MAX_MESSAGES_PER_TICK or not self._within_window(self._next):
                 self._anchor = (now, self._next.log_time_ns)
                 self.get_logger().warning(
                     f'cannot keep x{self.config["rate_factor"]:g}: playing slower',
@@ -102,15 +148,31 @@ class Player(Node):
             for problem in self.reader.problems:
                 self.get_logger().warning(f'bag: {problem}')
 
+    def _within_window(self, message) -> bool:
+        """For a SampleBatch: whether it keeps every consumer within the flow window."""
+        if message.topic not in self._batch_topics:
+            return True
+        batch = self.reader.decode(message)
+        first, end = batch.first_sample_index, batch.first_sample_index + len(batch.samples)
+        gate = self.source.gate
+        if first < gate.first_index or end < gate.published_end - len(batch.samples):
+            gate.begin(first)  # the recording's next acquisition (index back)
+        window = PacedSource.window_samples(self.config, batch.sample_rate_hz, len(batch.samples))
+        if not gate.allows(end, window):
+            return False
+        gate.sent(end)
+        return True
+
     def destroy_node(self) -> None:
-        """Close the bag before the node goes."""
+        """Deliver the last batches and close the bag before the node goes."""
+        self.source.finish()
         self.reader.close()
         super().destroy_node()
 
 
-def main(args: list[str] | None = None) -> None:
+def main(args: list[str] | None = None) -> int:
     """`ros2 run fmm_ros player --ros-args -p bag_path:=<bag>`."""
-    run_node(Player, args)
+    return run_node(Player, args)
 
 
 if __name__ == '__main__':

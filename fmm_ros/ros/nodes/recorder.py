@@ -5,32 +5,59 @@ came, so recording costs no decode/encode. The fmm topics are subscribed at once
 known types and QoS (nothing is missed while the graph is discovered); any other topic's
 type is read from the graph when a publisher appears, with the subscription QoS following
 what the publishers offer, as `ros2 bag record` does. The writer flushes every
-`flush_interval_s`, so a crash loses at most that much.
+`flush_interval_s` (also when the topics go quiet), so a crash loses at most that much.
+
+Every SampleBatch topic also runs through the stream rules for its ledger alone (samples
+received, missing, out of sequence, resynchronisations; every message is stored as it came
+all the same), the recorder reports its progress to the sources (flow control), and the
+ledger goes into the bag's metadata (`custom_data`, key fmm.ledger) when the bag closes:
+the bag states its own completeness, which `fmm bag-info` shows. rosbag2 logs only a
+dropped count at close and keeps no per-topic loss in the bag (ros2/rosbag2#2007).
 """
 
+import json
 import time
 from datetime import datetime
 from pathlib import Path
 
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
 
+from fmm_interfaces.msg import SampleBatch
 from fmm_ros.constants import (
     APPLIED_FORCE_TOPIC,
+    DIAGNOSTICS_TOPIC,
     FORCE_TOPIC,
     FRF_TOPIC,
+    FRICTION_TOPIC,
     IMPACTS_TOPIC,
+    RECORDED_TOPICS,
     VELOCITY_TOPIC,
 )
+from fmm_ros.core.signal.stream import AlignedStream, LedgerOnly
+from fmm_ros.io.bags.definitions import SAMPLE_BATCH
+from fmm_ros.io.bags.metadata import LEDGER_KEY, ledger_text
 from fmm_ros.io.bags.writer import STORAGES, BagWriter, bag_qos
+from fmm_ros.ros import msgs
 from fmm_ros.ros.common import RESULT_QOS, SAMPLE_QOS, message_class, run_node
+from fmm_ros.ros.flow import ProgressReporter
+from fmm_ros.ros.health import (
+    DIAGNOSTICS_QOS,
+    OK,
+    WARN,
+    ChannelRate,
+    FaultLog,
+    Health,
+    stream_status,
+)
 from fmm_ros.ros.params import Param, declare_parameters
 
 PARAMS = (
     Param(
         'topics',
-        [FORCE_TOPIC, VELOCITY_TOPIC, IMPACTS_TOPIC, FRF_TOPIC],
-        'Topics to record',
+        list(RECORDED_TOPICS),
+        'Topics to record (relative names resolve in the node namespace)',
         read_only=True,
     ),
     Param('bag_path', '', 'Bag directory to create; "" for fmm_<date>_<time> here', read_only=True),
@@ -58,6 +85,8 @@ KNOWN_TOPICS = {
     APPLIED_FORCE_TOPIC: ('fmm_interfaces/msg/SampleBatch', SAMPLE_QOS),
     IMPACTS_TOPIC: ('fmm_interfaces/msg/ImpactResult', RESULT_QOS),
     FRF_TOPIC: ('fmm_interfaces/msg/FrfSummary', RESULT_QOS),
+    FRICTION_TOPIC: ('fmm_interfaces/msg/FrictionEstimate', RESULT_QOS),
+    DIAGNOSTICS_TOPIC: ('diagnostic_msgs/msg/DiagnosticArray', DIAGNOSTICS_QOS),
 }
 
 
@@ -78,6 +107,15 @@ class Recorder(Node):
         self.messages_recorded = 0
         self._pending = []
         self._raw_subscriptions = []
+        # Per SampleBatch topic (resolved name): the stream rules, for the ledger alone.
+        self._streams: dict[str, AlignedStream] = {}
+        self._rates: dict[str, ChannelRate] = {}
+        self.reporter = ProgressReporter(self, [])
+        self.last_batch_at = 0.0  # a consumer of batches: drained before it stops
+        self._faults = FaultLog(self)
+        health = Health(self)
+        health.add('stream', lambda: stream_status(self.ledger, self._rates))
+        health.add('recorder', self._status)
         for topic in filter(None, self.config['topics']):
             if topic in KNOWN_TOPICS:
                 self._subscribe(topic, *KNOWN_TOPICS[topic])
@@ -93,12 +131,41 @@ class Recorder(Node):
         )
 
     @property
+    def ledger(self):
+        """Each SampleBatch topic's ledger, by resolved topic name."""
+        return {topic: stream.ledger[topic] for topic, stream in self._streams.items()}
+
+    def _status(self) -> tuple:
+        since_flush = (
+            (time.time_ns() - self.writer.last_flush_wall_ns) / 1e9
+            if self.writer.last_flush_wall_ns
+            else 0.0
+        )
+        interval = self.writer.flush_interval_s
+        late = interval is not None and self.writer.unflushed and since_flush > 3 * interval
+        return (
+            WARN if late else OK,
+            f'{self.writer.messages_written} messages, {self.writer.bytes_written / 1e6:.1f} MB '
+            f'to {self.bag_path}',
+            {
+                'bag': str(self.bag_path),
+                'messages written': self.writer.messages_written,
+                'bytes written': self.writer.bytes_written,
+                'seconds since last flush': since_flush,
+                'messages not flushed yet': self.writer.unflushed,
+                'topics recorded': len(self._raw_subscriptions),
+                'topics waited for': ', '.join(self._pending) or 'none',
+            },
+        )
+
+    @property
     def waiting_for(self) -> list[str]:
         """Topics asked for that no publisher has offered yet."""
         return list(self._pending)
 
     def _discover(self) -> None:
-        """Subscribe to every pending topic that now has a publisher."""
+        """Subscribe to every pending topic that now has a publisher; flush what waited."""
+        self.writer.flush_if_due()
         for topic in list(self._pending):
             publishers = self.get_publishers_info_by_topic(topic)
             types = {info.topic_type for info in publishers}
@@ -116,8 +183,9 @@ class Recorder(Node):
             self._pending.remove(topic)
 
     def _subscribe(self, topic: str, msgtype: str, qos: QoSProfile) -> None:
+        resolved = self.resolve_topic_name(topic)
         self.writer.add_topic(
-            topic,
+            resolved,
             msgtype,
             qos=bag_qos(
                 depth=qos.depth,
@@ -125,11 +193,16 @@ class Recorder(Node):
                 transient_local=qos.durability == DurabilityPolicy.TRANSIENT_LOCAL,
             ),
         )
+        store = self._store
+        if msgtype == SAMPLE_BATCH:
+            self._streams[resolved] = AlignedStream(LedgerOnly(), quantities=(resolved,))
+            self.reporter.add(resolved)
+            store = self._store_batch
         self._raw_subscriptions.append(
             self.create_subscription(
                 message_class(msgtype),
-                topic,
-                lambda data, topic=topic, msgtype=msgtype: self._store(topic, msgtype, data),
+                resolved,
+                lambda data, topic=resolved, msgtype=msgtype: store(topic, msgtype, data),
                 qos,
                 raw=True,
             )
@@ -139,8 +212,37 @@ class Recorder(Node):
         self.writer.write_raw(topic, msgtype, data, time.time_ns())
         self.messages_recorded += 1
 
+    def _store_batch(self, topic: str, msgtype: str, data: bytes) -> None:
+        """Store a SampleBatch as it came; account for it by the stream rules."""
+        self.last_batch_at = time.monotonic()
+        self._store(topic, msgtype, data)
+        stream = self._streams[topic]
+        batch = msgs.stream_batch(deserialize_message(data, SampleBatch))
+        try:
+            stream.feed(topic, batch)
+        except ValueError:
+            stream.refuse_malformed(topic, len(batch.samples))
+        self._rates.setdefault(topic, ChannelRate()).newest_stamp_ns = batch.stamp_ns
+        self.reporter.update(topic, stream.next_index(topic), stream.sample_rate_hz)
+        self._faults.check(stream.ledger, f'at {batch.first_sample_index}')
+
     def destroy_node(self) -> None:
-        """Close the bag (MCAP summary, metadata.yaml) before the node goes."""
+        """Close the bag (MCAP summary, metadata.yaml with the ledger) before the node goes."""
+        for stream in self._streams.values():
+            stream.finish()
+        self.writer.set_custom_data(LEDGER_KEY, ledger_text(self.ledger))
+        for ledger in self.ledger.values():
+            self.get_logger().info(f'stopped: {ledger.summary()}')
+        self.writer.set_custom_data(
+            'fmm.recorder',
+            json.dumps(
+                {
+                    'node': self.get_fully_qualified_name(),
+                    'flush_interval_s': self.config['flush_interval_s'],
+                    'closed_ns': time.time_ns(),
+                }
+            ),
+        )
         self.writer.close()
         super().destroy_node()
 
@@ -156,9 +258,9 @@ def _subscription_qos(offered: list[QoSProfile]) -> QoSProfile:
     )
 
 
-def main(args: list[str] | None = None) -> None:
+def main(args: list[str] | None = None) -> int:
     """`ros2 run fmm_ros recorder`."""
-    run_node(Recorder, args)
+    return run_node(Recorder, args)
 
 
 if __name__ == '__main__':

@@ -2,21 +2,43 @@
 
 Runs the physics core in streaming form (the oscillator state carries over between batches,
 so 500-sample batches give exactly the one-long-call result) and publishes the velocity with
-the force batch's sample index and stamp, plus vibrometer noise. Its model terms come from
+the force batch's sample index and stamp, plus vibrometer noise and the channel's data
+acquisition chain (anti-alias filter, zero error and drift, mains hum: `sim.daq`). Its model
+terms come from
 parameters (`effects`, e.g. `stribeck:mu_static_excess=0.02`), so a test or a demo can hide
 an effect in the plant that the analysis is not told about.
+
+The applied force is taken by the stream rules (`fmm_ros.core.signal.stream`), so the
+velocity goes out in index order, each sample once: force that never arrived moves the plant
+with zero force and leaves a velocity gap; a repeated or stray batch is refused; a restarted
+hammer (a new acquisition) restarts the plant at rest, one batch later. As a relay it reports
+on the applied force no further than its own velocity consumers have got (ros/flow.py), and
+only once they are there, so the hammer's hold-back reaches through it.
 """
+
+import time
 
 import numpy as np
 from rclpy.node import Node
 
 from fmm_interfaces.msg import SampleBatch
-from fmm_ros.constants import APPLIED_FORCE_TOPIC, PAPER_MU, VELOCITY, VELOCITY_TOPIC
+from fmm_ros.constants import APPLIED_FORCE_TOPIC, FORCE, PAPER_MU, VELOCITY, VELOCITY_TOPIC
 from fmm_ros.core.physics.model import INTEGRATORS, OscillatorStream
 from fmm_ros.core.physics.terms import parse_model_term
+from fmm_ros.core.signal.stream import AlignedStream
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import RIG_PARAMS, SAMPLE_QOS, rig_from_parameters, run_node
+from fmm_ros.ros.common import (
+    RIG_PARAMS,
+    SAMPLE_QOS,
+    chain_from_parameters,
+    chain_params,
+    rig_from_parameters,
+    run_node,
+)
+from fmm_ros.ros.flow import SOURCE_PARAMS, FlowGate, ProgressReporter, deliver_last_batches
+from fmm_ros.ros.health import ChannelRate, FaultLog, Health, stream_status
 from fmm_ros.ros.params import Param, declare_parameters
+from fmm_ros.sim.daq import ChainStream
 from fmm_ros.sim.hammer import add_indexed_noise
 
 PARAMS = (
@@ -48,10 +70,11 @@ PARAMS = (
     Param(
         'noise_std_m_s',
         1e-4,
-        'Vibrometer noise, standard deviation [m/s]',
+        'Vibrometer noise, standard deviation [m/s] (it passes the anti-alias filter)',
         limits=(0.0, 1.0),
         read_only=True,
     ),
+    *chain_params('velocity', 'm/s', 'm_s', 1.0),
     Param(
         'full_scale_m_s',
         0.5,
@@ -61,7 +84,12 @@ PARAMS = (
     ),
     Param('seed', 1, 'Seed of the vibrometer noise [-]', limits=(0, 2**31 - 1), read_only=True),
     Param('frame_id', 'vibrometer', 'Sensor name in the message header', read_only=True),
+    *(param for param in SOURCE_PARAMS if param.name != 'flow_window_s'),
 )
+
+
+# Longest stretch of missing force the plant is stepped through [s of signal].
+UNFORCED_LIMIT_S = 60.0
 
 
 class RigSim(Node):
@@ -73,82 +101,145 @@ class RigSim(Node):
         cfg = self.config
         self.rig = rig_from_parameters(cfg)
         self.effects = tuple(parse_model_term(text) for text in cfg['effects'] if text.strip())
-        self._stream: OscillatorStream | None = None
-        self._sample_rate_hz = 0.0
+        self._plant: OscillatorStream | None = None
         self.next_index = 0
         self._velocity = np.empty(0)
+        self._chain = chain_from_parameters(cfg, 'm_s')
+        self._chain_stream: ChainStream | None = None
+        self._runs: list[tuple[int, np.ndarray]] = []  # velocity taken in this callback
         self._publisher = self.create_publisher(SampleBatch, cfg['output_topic'], SAMPLE_QOS)
-        self.create_subscription(SampleBatch, cfg['input_topic'], self._on_force, SAMPLE_QOS)
+        self.stream = AlignedStream(self, quantities=(FORCE.quantity,))
+        self.gate = FlowGate(
+            self,
+            [self._publisher],
+            wait_for=cfg['wait_for_consumers'],
+            start_timeout_s=cfg['start_timeout_s'],
+            on_progress=self._report,
+        )
+        subscription = self.create_subscription(
+            SampleBatch, cfg['input_topic'], self._on_force, SAMPLE_QOS
+        )
+        self._input = subscription.topic_name
+        self._output = self._publisher.topic_name
+        # Reports on the applied force only once its own consumers are there.
+        self.reporter = ProgressReporter(self, [self._input], announce=False)
+        self._waiting = self.create_timer(0.1, self._await_consumers)
+        self.last_batch_at = 0.0  # a consumer of batches: drained before it stops
+        self._rates: dict[str, ChannelRate] = {}
+        self._faults = FaultLog(self)
+        Health(self).add('stream', lambda: stream_status(self.stream.ledger, self._rates))
         terms = ', '.join(str(effect) for effect in self.effects) or 'none'
         self.get_logger().info(
             f'plant m={self.rig.mass_kg} kg k={self.rig.stiffness_n_per_m} N/m '
             f'c={self.rig.damping_n_s_per_m} N*s/m N={self.rig.normal_force_n:.3f} N '
-            f'mu={cfg["mu"]}, extra terms: {terms}; driven by {cfg["input_topic"]}'
+            f'mu={cfg["mu"]}, extra terms: {terms}; driven by {self._input}'
         )
+
+    def _await_consumers(self) -> None:
+        if self.gate.ready():
+            self.destroy_timer(self._waiting)
+            self.reporter.announce()
+
+    def _report(self) -> None:
+        """Report on the applied force up to where the velocity consumers have got."""
+        if self.stream.started:
+            taken = self.stream.next_index(FORCE.quantity)
+            self.reporter.update(
+                self._input,
+                min(taken, self.gate.slowest_index(self._output)),
+                self.stream.sample_rate_hz,
+            )
 
     def _on_force(self, msg: SampleBatch) -> None:
-        force = msgs.batch_samples(msg)
-        if self._stream is None:
-            self._start(msg)
-        elif msg.sample_rate_hz != self._sample_rate_hz:
-            self.get_logger().error(
-                f'force batch at {msg.sample_rate_hz} Hz but the plant runs at '
-                f'{self._sample_rate_hz} Hz: batch {msg.first_sample_index} ignored'
+        self.last_batch_at = time.monotonic()
+        batch = msgs.stream_batch(msg)
+        try:
+            self.stream.feed(FORCE.quantity, batch)
+        except ValueError:
+            self.stream.refuse_malformed(FORCE.quantity, len(batch.samples))
+        self._rates.setdefault(FORCE.quantity, ChannelRate()).newest_stamp_ns = batch.stamp_ns
+        for first, velocity in self._runs:  # in index order, each sample once
+            stamp = batch.stamp_ns + round(
+                (first - batch.first_sample_index) / batch.sample_rate_hz * 1e9
             )
-            return
-        if msg.first_sample_index < self.next_index:
-            self.get_logger().warning(
-                f'force batch {msg.first_sample_index} repeats samples already simulated '
-                f'(next is {self.next_index}): ignored'
+            self._publisher.publish(
+                msgs.sample_batch(
+                    velocity,
+                    quantity=VELOCITY,
+                    sample_rate_hz=batch.sample_rate_hz,
+                    first_sample_index=first,
+                    stamp=msgs.time_msg(stamp),
+                    frame_id=self.config['frame_id'],
+                    full_scale=self.config['full_scale_m_s'],
+                )
             )
-            return
-        if msg.first_sample_index > self.next_index:
-            missing = msg.first_sample_index - self.next_index
-            self.get_logger().warning(
-                f'{missing} force samples never arrived before {msg.first_sample_index}: the '
-                'plant is run through them with zero applied force'
-            )
-            self._step(np.zeros(missing))
-        velocity = self._step(force)
-        out = msgs.sample_batch(
-            velocity,
-            quantity=VELOCITY,
-            sample_rate_hz=self._sample_rate_hz,
-            first_sample_index=msg.first_sample_index,
-            stamp=msg.header.stamp,
-            frame_id=self.config['frame_id'],
-            full_scale=self.config['full_scale_m_s'],
-        )
-        self._publisher.publish(out)
+            self.gate.sent(first + velocity.size)
+        self._runs = []
+        self._report()
+        self._faults.check(self.stream.ledger, f'last at {msg.first_sample_index}')
 
-    def _start(self, msg: SampleBatch) -> None:
-        """The plant starts at rest at the first batch's sample index."""
-        self._sample_rate_hz = msg.sample_rate_hz
-        self._stream = OscillatorStream(
-            msg.sample_rate_hz,
+    def destroy_node(self) -> None:
+        """Deliver the last velocity, log the final ledger of its input."""
+        deliver_last_batches([self._publisher])
+        for ledger in self.stream.ledger.values():
+            self.get_logger().info(f'stopped: {ledger.summary()}')
+        super().destroy_node()
+
+    # -- the stream's sink: the plant -----------------------------------------------------------
+
+    def begin(self, sample_rate_hz: float, first_index: int) -> None:
+        """An acquisition begins: the plant starts at rest at its first index."""
+        self._plant = OscillatorStream(
+            sample_rate_hz,
             rig=self.rig,
             mu=self.config['mu'],
             effects=self.effects,
             integrator=self.config['integrator'],
         )
-        self.next_index = msg.first_sample_index
+        self.next_index = first_index
+        self._chain_stream = ChainStream(self._chain, sample_rate_hz, seed=self.config['seed'])
+        self.gate.begin(first_index)
+
+    def end(self, reason: str) -> None:
+        """The acquisition the plant follows has ended (a new one began)."""
+        self.get_logger().warning(f'applied force restarted ({reason}): the plant starts again')
+
+    def take(self, quantity: str, first_index: int, samples: np.ndarray, full_scale: float) -> None:
+        """Force at the watermark: step the plant, keep the velocity for this callback's message."""
+        velocity = self._step(samples).copy()
+        if self._runs and self._runs[-1][0] + self._runs[-1][1].size == first_index:
+            first, earlier = self._runs[-1]
+            self._runs[-1] = (first, np.concatenate((earlier, velocity)))
+        else:
+            self._runs.append((first_index, velocity))
+
+    def missing(self, quantity: str, start: int, stop: int) -> None:
+        """Force that never arrived: the plant runs through it unforced; no velocity for it.
+
+        Friction stops the free plant within seconds, so a long gap is stepped only through
+        its first UNFORCED_LIMIT_S (the plant is at rest after it, whatever the gap's length).
+        """
+        limit = int(UNFORCED_LIMIT_S * self.stream.sample_rate_hz)
+        self._step(np.zeros(min(stop - start, limit)))
+        self.next_index = stop
 
     def _step(self, force_n: np.ndarray) -> np.ndarray:
         """Advance the plant over force_n and return the noisy vibrometer output (reused buffer)."""
         if self._velocity.size != force_n.size:
             self._velocity = np.empty(force_n.size)
-        _, velocity = self._stream.step(force_n)
+        _, velocity = self._plant.step(force_n)
         np.copyto(self._velocity, velocity)
         add_indexed_noise(
             self._velocity, self.next_index, self.config['noise_std_m_s'], self.config['seed']
         )
+        self._chain_stream.apply(self.next_index, self._velocity)
         self.next_index += force_n.size
         return self._velocity
 
 
-def main(args: list[str] | None = None) -> None:
+def main(args: list[str] | None = None) -> int:
     """`ros2 run fmm_ros rig_sim`."""
-    run_node(RigSim, args)
+    return run_node(RigSim, args)
 
 
 if __name__ == '__main__':

@@ -1,0 +1,509 @@
+"""Flow control of the sample streams: sources wait for their consumers and never outrun them.
+
+Sample batches travel RELIABLE with a KEEP_LAST queue: a batch published before its
+subscriber is matched is lost, and a subscriber that falls `depth` batches behind loses the
+oldest. Measured on the multi-process rig at x50 (issue 19): the velocity channel started at
+sample 532,500 and force had gaps of 43,500 samples, because the sources published while the
+analyzer and the recorder were still starting, and faster than they could take. DDS has no
+back-pressure for KEEP_LAST, and its KEEP_ALL buffers thousands of batches before it blocks.
+
+So the consumers say how far they have got (`ProgressReporter`, on fmm/stream_progress, one
+message per node carrying each topic's next expected index) and the sources listen
+(`FlowGate`):
+- a source holds its first sample until every consumer it was told to wait for has reported
+  and is matched on its topics; past `start_timeout_s` it stops, naming who is missing;
+- it never publishes a batch ending more than `window` samples past the slowest consumer's
+  index, so no queue ever holds more than the window (kept within half the QoS depth): above
+  what the machine sustains the source slows down (its pacer re-anchors) instead of dropping;
+- a consumer that leaves the graph (its node gone) stops counting; one that joins counts
+  from its first report. A report from an earlier acquisition (past what the source has
+  published since it restarted) counts as caught up.
+A relay (rig_sim) reports on its input no further than its own consumers have got, so the
+hold-back reaches the first source. The real DAQ cannot slow its hardware clock: it only
+holds its start; its device buffer absorbs what its consumers lag.
+"""
+
+import time
+from collections.abc import Callable, Sequence
+
+from rclpy.duration import Duration
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+from rclpy.node import Node
+from rclpy.publisher import Publisher
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from fmm_interfaces.msg import StreamProgress
+from fmm_ros.constants import STREAM_PROGRESS_TOPIC, resolve_name
+from fmm_ros.ros.common import SAMPLE_QOS, BatchPacer
+from fmm_ros.ros.health import OK, WARN
+from fmm_ros.ros.params import Param
+
+# A consumer keeps its last report for sources that start later (transient local, depth 1);
+# a source's queue is deep: depth counts per topic, not per writer, and one consumer's reports
+# must not push another's out before the source takes them.
+PROGRESS_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+PROGRESS_LISTEN_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=100,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+# A consumer reports once it has taken REPORT_SIGNAL_S of signal since its last report
+# (a sixteenth of the default window: the source never waits on the report's granularity),
+# at most once in REPORT_MIN_PERIOD_S [s] (a report held back by that goes out when it is
+# up), and what it took since goes out REPORT_TAIL_S later anyway (the end of a burst); both
+# are one-shot timers, idle otherwise. Measured: the analyzer at real-time pace with a report
+# per batch cost twice the CPU it costs without flow control.
+REPORT_SIGNAL_S = 0.25
+REPORT_MIN_PERIOD_S = 0.01
+REPORT_TAIL_S = 0.1
+# The flow-control topics are the package's own: no QoS event handlers in the wait sets
+# (rclpy's executor rebuilds them every cycle, and they cost more than the messages).
+QUIET_PUBLISHER = PublisherEventCallbacks(use_default_callbacks=False)
+QUIET_SUBSCRIPTION = SubscriptionEventCallbacks(use_default_callbacks=False)
+# How often a source looks which consumers are still in the graph [s], and how long one may
+# be missing from it before it stops counting [s] (discovery can blink). A consumer killed
+# outright stays in the graph until its DDS lease runs out (20 s for Fast DDS): one that holds
+# the source back and has not reported for SILENT_AFTER_S stops counting too, until it reports.
+GRAPH_CHECK_PERIOD_S = 1.0
+LEFT_AFTER_S = 3.0
+SILENT_AFTER_S = 5.0
+
+
+# How long a source waits, when it stops, for its last batches to be acknowledged [s].
+LAST_BATCHES_TIMEOUT_S = 2.0
+
+
+def deliver_last_batches(publishers: Sequence[Publisher]) -> None:
+    """Wait until every matched subscriber has the batches published (a source stopping).
+
+    A reliable writer may still hold the last batches when its process exits; without this
+    the bag of a rig stopped in order lacked the source's last batch.
+    """
+    for publisher in publishers:
+        publisher.wait_for_all_acked(Duration(seconds=LAST_BATCHES_TIMEOUT_S))
+
+
+class SourceStartTimeout(RuntimeError):
+    """A source's consumers did not all appear in time: it stops rather than lose samples."""
+
+
+class ProgressReporter:
+    """A consumer's side: reports, per SampleBatch topic it takes, the next index it expects."""
+
+    def __init__(self, node: Node, topics: Sequence[str], *, announce: bool = True) -> None:
+        """Report progress on topics (the resolved names of the node's subscriptions).
+
+        announce=False: report only after `announce()` (a relay first waits for its own
+        consumers).
+        """
+        self._node = node
+        self._name = node.get_fully_qualified_name()
+        self._next = dict.fromkeys(topics, -1)
+        self._reported: dict[str, int] = {}
+        self._publisher = node.create_publisher(StreamProgress, STREAM_PROGRESS_TOPIC, PROGRESS_QOS)
+        self._announced = False
+        self._last_report = 0.0
+        self._changed = False
+        self._due = node.create_timer(REPORT_MIN_PERIOD_S, lambda: self._on_timer(self._due))
+        self._tail = node.create_timer(REPORT_TAIL_S, lambda: self._on_timer(self._tail))
+        self._due.cancel()
+        self._tail.cancel()
+        if announce:
+            self.announce()
+
+    @property
+    def announced(self) -> bool:
+        """Whether it has told the sources it consumes their topics."""
+        return self._announced
+
+    def announce(self) -> None:
+        """Tell the sources this node consumes its topics (from here on it reports)."""
+        self._announced = True
+        self._report()
+
+    def add(self, topic: str) -> None:
+        """Report on one more topic (a resolved name) from now on."""
+        self._next.setdefault(topic, -1)
+        self._soon(now=True)
+
+    def update(self, topic: str, next_index: int, sample_rate_hz: float | None = None) -> None:
+        """The node has taken (or given up) every sample of topic below next_index.
+
+        With the rate known, reported once REPORT_SIGNAL_S of signal went by (else soon).
+        """
+        if self._next.get(topic) == next_index:
+            return
+        self._next[topic] = int(next_index)
+        moved = abs(next_index - self._reported.get(topic, -1))
+        self._soon(now=not sample_rate_hz or moved >= REPORT_SIGNAL_S * sample_rate_hz)
+
+    def _soon(self, now: bool) -> None:
+        """Report now if due and REPORT_MIN_PERIOD_S has passed, else a little later."""
+        self._changed = True
+        if not now:
+            if self._tail.is_canceled():
+                self._tail.reset()
+        elif time.monotonic() - self._last_report >= REPORT_MIN_PERIOD_S:
+            self._report()
+        elif self._due.is_canceled():
+            self._due.reset()
+
+    def _on_timer(self, timer) -> None:
+        # A timer cancels only itself, here: one cancelled elsewhere while the executor had
+        # it ready raises when the executor calls it ("timer is canceled").
+        if self._changed:
+            self._report()
+        else:
+            timer.cancel()
+
+    def _report(self) -> None:
+        if not self._announced:
+            return
+        message = StreamProgress()
+        message.node = self._name
+        message.topics = list(self._next)
+        message.next_sample_indices = list(self._next.values())
+        self._publisher.publish(message)
+        self._reported = dict(self._next)
+        self._last_report = time.monotonic()
+        self._changed = False
+
+
+class FlowGate:
+    """A source's side: when its first sample may go, and whether the next may go now."""
+
+    def __init__(
+        self,
+        node: Node,
+        publishers: Sequence[Publisher],
+        *,
+        wait_for: Sequence[str],
+        start_timeout_s: float,
+        on_progress: Callable[[], None] | None = None,
+    ) -> None:
+        """Gate the source's SampleBatch publishers.
+
+        wait_for: node names (relative to the source's namespace, or absolute) that must
+        report before the first sample; a start_timeout_s of 0 waits for ever.
+        """
+        self._node = node
+        self._publishers = {publisher.topic_name: publisher for publisher in publishers}
+        namespace = node.get_namespace()
+        self.wait_for = [resolve_name(name, namespace) for name in wait_for if name]
+        self._timeout_s = start_timeout_s
+        self._created = time.monotonic()
+        # node -> topic -> next index it expects; when a node was last seen in the graph.
+        self._progress: dict[str, dict[str, int]] = {}
+        self._seen: dict[str, float] = {}
+        self._heard: dict[str, float] = {}  # when each last reported
+        self._silent: dict[str, bool] = {}  # consumers not waited for while silent
+        self._graph_checked = 0.0
+        self.first_index = 0  # where the source's current acquisition began
+        self.published_end = 0  # index after the last sample published
+        self.started = False
+        self.holding_for = ''  # the slowest consumer while the window is full ('' otherwise)
+        self._on_progress_hook = on_progress
+        node.create_subscription(
+            StreamProgress,
+            STREAM_PROGRESS_TOPIC,
+            self._on_progress,
+            PROGRESS_LISTEN_QOS,
+            event_callbacks=QUIET_SUBSCRIPTION,
+        )
+
+    def _on_progress(self, message: StreamProgress) -> None:
+        mine = {
+            topic: index
+            for topic, index in zip(message.topics, message.next_sample_indices, strict=False)
+            if topic in self._publishers
+        }
+        if mine:
+            self._progress[message.node] = mine
+            self._seen[message.node] = self._heard[message.node] = time.monotonic()
+            if self._silent.pop(message.node, None):
+                self._node.get_logger().warning(f'consumer {message.node} reports again')
+            if self._on_progress_hook:
+                self._on_progress_hook()
+
+    # -- the start ---------------------------------------------------------------------------
+
+    def ready(self) -> bool:
+        """True once every awaited consumer has reported and is matched on its topics.
+
+        Raises SourceStartTimeout, naming who is missing, after the start timeout.
+        """
+        if self.started:
+            return True
+        missing = [name for name in self.wait_for if name not in self._progress]
+        unmatched = {
+            topic: (publisher.get_subscription_count(), self._consumers(topic))
+            for topic, publisher in self._publishers.items()
+            if publisher.get_subscription_count() < len(self._consumers(topic))
+        }
+        if not missing and not unmatched:
+            self.started = True
+            return True
+        if self._timeout_s and time.monotonic() - self._created > self._timeout_s:
+            raise SourceStartTimeout(self.describe_wait(missing, unmatched))
+        return False
+
+    def describe_wait(self, missing=None, unmatched=None) -> str:
+        """Who the source is waiting for, and who has reported."""
+        if missing is None:
+            missing = [name for name in self.wait_for if name not in self._progress]
+        present = ', '.join(sorted(self._progress)) or 'none'
+        text = (
+            f'{len(missing)} of {len(self.wait_for)} consumers missing after '
+            f'{time.monotonic() - self._created:.0f} s: {", ".join(missing) or "none"} '
+            f'(reported: {present}; topics {", ".join(self._publishers)})'
+        )
+        for topic, (matched, consumers) in (unmatched or {}).items():
+            text += f'; {topic} matched {matched} of {len(consumers)} subscribers'
+        return text
+
+    @property
+    def publishers(self) -> list[Publisher]:
+        """The source's SampleBatch publishers."""
+        return list(self._publishers.values())
+
+    @property
+    def consumers(self) -> list[str]:
+        """The nodes that have reported on the source's topics."""
+        return sorted(self._progress)
+
+    def _consumers(self, topic: str) -> list[str]:
+        return [name for name, topics in self._progress.items() if topic in topics]
+
+    # -- the pace ----------------------------------------------------------------------------
+
+    def begin(self, first_index: int) -> None:
+        """The source (re)starts its acquisition at first_index."""
+        self.first_index = self.published_end = int(first_index)
+
+    def sent(self, end_index: int) -> None:
+        """The source published samples up to end_index (exclusive)."""
+        self.published_end = max(self.published_end, int(end_index))
+
+    def lag(self, topic: str | None = None) -> dict[str, int]:
+        """Samples each consumer (of topic, or any) is behind what was published.
+
+        A consumer that lags and has been silent for SILENT_AFTER_S is left out (logged once).
+        """
+        self._forget_departed()
+        now = time.monotonic()
+        lags = {}
+        for name, topics in self._progress.items():
+            behind = max(
+                (
+                    self.published_end - self._effective(index)
+                    for candidate, index in topics.items()
+                    if topic is None or candidate == topic
+                ),
+                default=None,
+            )
+            if behind is None:
+                continue
+            if behind > 0 and now - self._heard.get(name, now) > SILENT_AFTER_S:
+                if not self._silent.get(name):
+                    self._silent[name] = True
+                    self._node.get_logger().error(
+                        f'consumer {name} has said nothing for {SILENT_AFTER_S:g} s with '
+                        f'{behind} samples outstanding: no longer waited for'
+                    )
+                continue
+            lags[name] = behind
+        return lags
+
+    def allows(self, end_index: int, window: int) -> bool:
+        """Whether a batch ending at end_index keeps every consumer within window samples."""
+        lags = self.lag()
+        slowest = max(lags, key=lags.get, default='')
+        behind = lags.get(slowest, 0) + end_index - self.published_end
+        self.holding_for = slowest if behind > window else ''
+        return not self.holding_for
+
+    def slowest_index(self, topic: str) -> int:
+        """The lowest index the consumers of topic expect (published_end without any)."""
+        lags = self.lag(topic)
+        return self.published_end - max(lags.values(), default=0)
+
+    def _effective(self, index: int) -> int:
+        """A reported index as progress in the current acquisition."""
+        if index < self.first_index:
+            return self.first_index  # nothing yet (-1), or an earlier acquisition's
+        return min(index, self.published_end)  # beyond: an earlier, longer acquisition's
+
+    def _forget_departed(self) -> None:
+        """Consumers whose node has left the graph stop counting."""
+        now = time.monotonic()
+        if now - self._graph_checked < GRAPH_CHECK_PERIOD_S:
+            return
+        self._graph_checked = now
+        present = set()
+        for topic in self._publishers:
+            for info in self._node.get_subscriptions_info_by_topic(topic):
+                present.add(resolve_name(info.node_name, info.node_namespace))
+        for name in list(self._progress):
+            if name in present:
+                self._seen[name] = now
+            elif now - self._seen.get(name, now) > LEFT_AFTER_S:
+                del self._progress[name]
+                self._node.get_logger().warning(
+                    f'consumer {name} left the graph: no longer waited for'
+                )
+
+
+# Every source's flow-control parameters (hammer_sim, daq, player).
+SOURCE_PARAMS = (
+    Param(
+        'wait_for_consumers',
+        [''],
+        'Nodes (names in this namespace, or absolute) that must report on fmm/stream_progress '
+        'before the first sample goes out: a batch sent before they are matched is lost; '
+        '[""] for none',
+        read_only=True,
+    ),
+    Param(
+        'start_timeout_s',
+        60.0,
+        'How long to wait for them before stopping with their names [s]; 0 waits for ever',
+        limits=(0.0, 86_400.0),
+        read_only=True,
+    ),
+    Param(
+        'flow_window_s',
+        4.0,
+        'Signal a consumer may lag behind before the source holds back [s] (also capped at '
+        'half the sample QoS depth in batches; keep it under the analyzer max_skew_s)',
+        limits=(0.01, 600.0),
+        read_only=True,
+    ),
+)
+
+
+class PacedSource:
+    """A source's release of batches: held for its consumers, then paced, within the window.
+
+    The start waits for the consumers (FlowGate.ready); then the wall-clock pace (BatchPacer),
+    never past the flow window of the slowest consumer.
+    """
+
+    def __init__(
+        self,
+        node: Node,
+        publishers: Sequence[Publisher],
+        config: dict,
+        *,
+        batches_per_s: float,
+        window_samples: int,
+        pace_label: str,
+        release: Callable[[], None] | None = None,
+    ) -> None:
+        """Pace a source's publishers under its config (SOURCE_PARAMS values).
+
+        release: the source's own release step (its timer callback), also run when a report
+        arrives while the window held it back, so it need not wait for its next tick.
+        """
+        self._node = node
+        self._release = release
+        self.gate = FlowGate(
+            node,
+            publishers,
+            wait_for=config['wait_for_consumers'],
+            start_timeout_s=config['start_timeout_s'],
+            on_progress=self._on_progress,
+        )
+        self.pacer = BatchPacer(batches_per_s)
+        self.window = int(window_samples)
+        self.label = pace_label
+        self._waiting_logged = 0.0
+        self._began = time.monotonic()
+        self._released_at_start = 0
+
+    def _on_progress(self) -> None:
+        if self._release is not None and self.gate.holding_for:
+            self._release()
+
+    @staticmethod
+    def window_samples(config: dict, sample_rate_hz: float, batch_size: int) -> int:
+        """The flow window [samples]: flow_window_s of signal, within bounds.
+
+        At most half the QoS depth in batches, at least two batches (one in flight while the
+        next is taken).
+        """
+        by_time = int(config['flow_window_s'] * sample_rate_hz)
+        return max(2 * batch_size, min(by_time, SAMPLE_QOS.depth // 2 * batch_size))
+
+    def ready(self) -> bool:
+        """Whether the first sample may go (logs whom it waits for every 5 s)."""
+        if self.gate.started:
+            return True
+        if self.gate.ready():
+            self.pacer.restart(self.pacer.batches_per_s, self.pacer.released)
+            self._began = time.monotonic()
+            self._released_at_start = self.pacer.released
+            self._node.get_logger().info(
+                f'consumers ready ({", ".join(self.gate.consumers) or "none awaited"}): starting'
+            )
+            return True
+        if time.monotonic() - self._waiting_logged > 5.0:
+            self._waiting_logged = time.monotonic()
+            self._node.get_logger().info(f'holding the first sample: {self.gate.describe_wait()}')
+        return False
+
+    def due(self, batch_samples: int) -> int:
+        """How many batches of batch_samples may go now (clock and flow window)."""
+        count = 0
+        for _ in range(self.pacer.due()):
+            end = self.gate.published_end + (count + 1) * batch_samples
+            if not self.gate.allows(end, self.window):
+                break
+            count += 1
+        if self.pacer.fell_behind:
+            reason = (
+                f'{self.gate.holding_for} lags by more than the flow window'
+                if self.gate.holding_for
+                else 'the graph is slower'
+            )
+            self._node.get_logger().warning(
+                f'cannot keep {self.label}: running slower ({reason})',
+                throttle_duration_sec=10.0,
+            )
+        return count
+
+    def sent(self, end_index: int) -> None:
+        """One batch, ending at end_index, went out."""
+        self.pacer.release()
+        self.gate.sent(end_index)
+
+    def finish(self) -> None:
+        """The source stops: its last batches reach every matched consumer first."""
+        deliver_last_batches(self.gate.publishers)
+
+    def status(self, sample_rate_hz: float, batch_size: int, asked: float) -> tuple:
+        """The source part of /diagnostics: pace achieved against asked, consumer lags."""
+        if not self.gate.started:
+            return WARN, f'holding the first sample: {self.gate.describe_wait()}', {}
+        wall = max(time.monotonic() - self._began, 1e-9)
+        signal_s = (self.pacer.released - self._released_at_start) * batch_size / sample_rate_hz
+        pace = signal_s / wall
+        lags = {name: lag / sample_rate_hz for name, lag in self.gate.lag().items()}
+        values = {
+            'published up to sample': self.gate.published_end,
+            'pace achieved x': pace,
+            'pace asked x': asked,
+            'holding for': self.gate.holding_for or 'nobody',
+            **{f'lag of {name} s': lag for name, lag in sorted(lags.items())},
+        }
+        slow = pace < 0.9 * asked and wall > 5.0
+        level = WARN if slow else OK
+        message = f'x{pace:.3g} of x{asked:g} asked' + (
+            f', held back by {self.gate.holding_for}' if self.gate.holding_for else ''
+        )
+        return level, message, values

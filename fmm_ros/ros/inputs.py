@@ -1,0 +1,78 @@
+"""A consumer node's force and velocity inputs: subscriptions into one stream, with its account.
+
+The analyzer and the fitter take both channels the same way: each batch goes to their
+`AlignedStream` owner (capture or history) under the core's stream rules, their progress goes
+back to the sources (flow control), their ledger goes to /diagnostics, and their faults to
+the log once per kind. The topic a batch arrives on says which channel it is; a batch whose
+own `quantity` disagrees, or that is no sample batch at all, is refused and counted.
+"""
+
+import time
+from collections.abc import Callable
+
+from rclpy.callback_groups import CallbackGroup
+from rclpy.node import Node
+
+from fmm_interfaces.msg import SampleBatch
+from fmm_ros.constants import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC
+from fmm_ros.core.signal.stream import AlignedStream, Batch
+from fmm_ros.ros import msgs
+from fmm_ros.ros.common import SAMPLE_QOS
+from fmm_ros.ros.flow import ProgressReporter
+from fmm_ros.ros.health import ChannelRate, FaultLog, Health, stream_status
+
+
+class SampleInputs:
+    """Subscribes force and velocity, feeds `take(quantity, batch)`, reports and accounts."""
+
+    def __init__(
+        self,
+        node: Node,
+        stream: AlignedStream,
+        take: Callable[[str, Batch], None],
+        health: Health,
+        *,
+        callback_group: CallbackGroup | None = None,
+    ) -> None:
+        self._node = node
+        self._stream = stream
+        self._take = take
+        node.last_batch_at = 0.0  # a consumer of batches: drained before it stops
+        self._rates: dict[str, ChannelRate] = {}
+        self._faults = FaultLog(node)
+        self.topics: dict[str, str] = {}
+        for channel, topic in ((FORCE, FORCE_TOPIC), (VELOCITY, VELOCITY_TOPIC)):
+            subscription = node.create_subscription(
+                SampleBatch,
+                topic,
+                lambda msg, quantity=channel.quantity: self._on_batch(quantity, msg),
+                SAMPLE_QOS,
+                callback_group=callback_group,
+            )
+            self.topics[channel.quantity] = subscription.topic_name
+        self.reporter = ProgressReporter(node, list(self.topics.values()))
+        health.add('stream', lambda: stream_status(stream.ledger, self._rates))
+
+    def log_ledger(self) -> None:
+        """Log each channel's ledger (a node does on stopping: its final account)."""
+        for ledger in self._stream.ledger.values():
+            self._node.get_logger().info(f'stopped: {ledger.summary()}')
+
+    def _on_batch(self, quantity: str, msg: SampleBatch) -> None:
+        self._node.last_batch_at = time.monotonic()
+        batch = msgs.stream_batch(msg)
+        if msg.quantity != quantity:
+            self._stream.refuse_malformed(quantity, len(batch.samples))
+        else:
+            try:
+                self._take(quantity, batch)
+            except ValueError:  # not even a sample batch: counted, the stream unchanged
+                self._stream.refuse_malformed(quantity, len(batch.samples))
+            else:
+                self._rates.setdefault(quantity, ChannelRate()).newest_stamp_ns = batch.stamp_ns
+        next_index = self._stream.next_index(quantity)
+        if next_index is not None:
+            self.reporter.update(self.topics[quantity], next_index, self._stream.sample_rate_hz)
+        self._faults.check(
+            self._stream.ledger, f'last from {msg.header.frame_id!r} at {msg.first_sample_index}'
+        )
