@@ -40,13 +40,7 @@ def sharp_pulse(rng: np.random.Generator) -> worlds.Pulse:
     impulse_n_s *= rng.uniform(0.93, 1.07)
     contact_s = rng.uniform(1.2e-3, 3.0e-3)
     rise_fraction = rng.uniform(0.15e-3, 0.3e-3) / contact_s
-    ringing = {}
-    if rng.random() < 1.0 / 3.0:
-        ringing = {
-            'ringing_fraction': rng.uniform(0.01, 0.06),
-            'ringing_hz': rng.uniform(3e3, 9e3),
-            'ringing_phase_rad': rng.uniform(0.0, 2.0 * np.pi),
-        }
+    ringing = worlds.pulses.random_ringing(rng)
     shape = dict(rise_fraction=rise_fraction, onset_exponent=rng.uniform(1.0, 2.0), **ringing)
     unit = worlds.SkewedPulse(1.0, contact_s, **shape)
     return worlds.SkewedPulse(impulse_n_s / unit.impulse_n_s, contact_s, **shape)

@@ -50,6 +50,7 @@ def test_the_recorded_bag_holds_every_topic_and_is_closed(recorded_session):
             '/fmm/velocity',
             '/fmm/impacts',
             '/fmm/frf',
+            '/fmm/friction',
             '/diagnostics',
         }
         assert reader.topics['/fmm/impacts'].count == len(live) == 3

@@ -28,6 +28,7 @@ def test_mu_and_its_error_are_honest_where_the_old_fit_was_not(scenario):
     assert now.worst < 1e-4
     assert np.all(np.abs(now.z) < 3.0) and now.coverage >= (SESSIONS - 1) / SESSIONS
     assert now.strict_rejection == 0.0 and now.rejection <= 2 / SESSIONS
-    # The fit before: its errors cover half the time or less, and one mu is refused at
-    # p < 0.001 in most sessions.
-    assert today.coverage <= 0.75 and today.strict_rejection >= 0.75
+    # The fit before, on the same records: its errors cover three sessions in four or fewer,
+    # and it refuses one true mu at p < 0.001 in a quarter of them or more (half at 10 kHz
+    # through the real chain, most at 5 kHz).
+    assert today.coverage <= 0.75 and today.strict_rejection >= 0.25

@@ -139,7 +139,7 @@ class _Results(Node):
     def __init__(
         self,
         on_impact: Callable[[ImpactResult], None],
-        on_estimate: Callable[[RunningEstimate], None],
+        on_estimate: Callable[[RunningEstimate], None] = lambda _: None,
         **kwargs,
     ) -> None:
         super().__init__('session_results', **kwargs)
