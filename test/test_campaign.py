@@ -44,7 +44,7 @@ SETTINGS = SessionOptions(
 BROKEN = {
     'missing': 'no such file or directory',
     'not_a_bag': 'cannot read',
-    'off_level': 'no accepted impact to fit',
+    'off_level': 'no clean impact to fit',
 }
 
 
