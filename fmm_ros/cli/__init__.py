@@ -25,6 +25,7 @@ SUBCOMMANDS: tuple[str, ...] = (
     'fit',
     'identify_rig',
     'diagnose',
+    'campaign',
     'env',
     'ros',
 )

@@ -81,6 +81,11 @@ def add_inputs(parser: argparse.ArgumentParser, *, nargs: str = '+', what: str =
         help=f'lab files (CSV/TSV/TXT, NPZ, MATLAB .mat, TDMS), one {what} each, or bags '
         '(directory, .mcap or .db3) of every impact recorded; told apart by content',
     )
+    add_lab_file_reading(parser)
+
+
+def add_lab_file_reading(parser: argparse.ArgumentParser) -> None:
+    """How lab files are read (mapping, text layout, full scales, continuous): add_inputs'."""
     group = parser.add_argument_group(
         'reading lab files',
         'Which channel is force, velocity and time, in which unit, at which rate: stated here '

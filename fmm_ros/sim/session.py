@@ -14,6 +14,7 @@ import numpy as np
 
 from fmm_ros.constants import PAPER_LEVELS, PAPER_MU, SAMPLE_RATE_HZ
 from fmm_ros.core.physics.model import simulate
+from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.io.bags.writer import BagWriter
 from fmm_ros.sim.excitation import (
     hammer_pulse,
@@ -53,11 +54,13 @@ def simulated_session(
     sample_rate_hz: float = SAMPLE_RATE_HZ,
     force_noise_std_n: float = 0.05,
     velocity_noise_std_m_s: float = 1e-5,
+    rig: Rig = FMM_RIG,
 ) -> SimulatedSession:
     """hits_per_level hits of each level in turn, each pretrigger_s into its spacing_s slot.
 
     The recording runs pretrigger_s past the last slot, so that a record as long as the
-    slot, started at its hit, is complete (the paper's 33 s records, hits 33 s apart).
+    slot, started at its hit, is complete (the paper's 33 s records, hits 33 s apart). rig:
+    the plant's constants (another normal force, say).
     """
     if hits_per_level < 1:
         raise ValueError(f'hits_per_level must be at least 1, got {hits_per_level}')
@@ -74,7 +77,7 @@ def simulated_session(
         )
         starts.append(k * slot + int(np.ceil(start_s * sample_rate_hz)))
         peaks.append(peak)
-    velocity = simulate(force, sample_rate_hz, mu=mu).velocity_m_s
+    velocity = simulate(force, sample_rate_hz, rig=rig, mu=mu).velocity_m_s
     force += rng.normal(0.0, force_noise_std_n, force.size)
     velocity = velocity + rng.normal(0.0, velocity_noise_std_m_s, velocity.size)
     return SimulatedSession(

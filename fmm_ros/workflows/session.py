@@ -70,6 +70,8 @@ class SessionOptions:
     """How a session is processed: inputs, analysis, fit, diagnosis.
 
     mu: draw the model with this mu instead of fitting one; fit=False: neither fit nor draw.
+    compare: run the model for every hit and analyse its velocity as the measurement's (what
+    the report draws; a fifth of a session's work, which `fmm campaign` draws none of).
     include_flagged: fit and diagnose the impacts the flags reject too (`select_impacts`).
     """
 
@@ -79,6 +81,7 @@ class SessionOptions:
     mu: float | None = None
     fit: bool = True
     diagnose: bool = False
+    compare: bool = True
     include_flagged: bool = False
 
 
@@ -312,7 +315,7 @@ def run_session(
     )
     comparison = (
         compare_model(records, summary, model, capture, options.analysis, progress=progress)
-        if model is not None
+        if model is not None and options.compare
         else None
     )
     return SessionResult(
