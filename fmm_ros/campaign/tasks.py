@@ -86,34 +86,10 @@ def run_sessions(
             if on_result:
                 on_result(index, results[-1])
         return results
-    if workers is not None and workers < 1:
-        raise ValueError(f'workers must be at least 1, got {workers}')
-    import dask
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
     if scheduler is None:
-        # Dask starts workers with glibc's trim threshold at 64 KiB, so they hand freed memory
-        # back at once; a session allocates and frees many 2.6 MB record arrays, each then
-        # faulted in afresh (15x the page faults, 7x the system time measured). The workers
-        # keep glibc's own adaptive threshold instead.
-        # Nor do they run Dask's statistical profiler (a stack sample every 10 ms, under the
-        # interpreter lock, for a dashboard no one opens here).
-        with dask.config.set(
-            {
-                f'{PRE_SPAWN_ENVIRON}.MALLOC_TRIM_THRESHOLD_': None,
-                'distributed.worker.profile.enabled': False,
-            }
-        ):
-            cluster = LocalCluster(
-                n_workers=workers or os.cpu_count() or 1,
-                threads_per_worker=1,
-                processes=True,
-                dashboard_address=None,
-                # A task's error comes back with its future; what the workers would log
-                # besides is a heartbeat missing a scheduler that is already closing.
-                silence_logs=logging.CRITICAL,
-            )
-        with cluster, Client(cluster) as client:
+        with local_cluster(workers) as cluster, Client(cluster) as client:
             return _compute(client, specs, options, cache, on_result)
     try:
         client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
@@ -121,6 +97,40 @@ def run_sessions(
         raise OSError(f'cannot reach the Dask scheduler at {scheduler}: {error}') from error
     with client:
         return _compute(client, specs, options, cache, on_result)
+
+
+def local_cluster(workers: int | None = None):
+    """A `LocalCluster` of `workers` processes (default: one a core), one thread each.
+
+    Use it as a context manager; `run_sessions` starts one per call when given no scheduler,
+    and its `scheduler_address` serves as `scheduler=` to reuse one across calls.
+    """
+    if workers is not None and workers < 1:
+        raise ValueError(f'workers must be at least 1, got {workers}')
+    import dask
+    from distributed import LocalCluster
+
+    # Dask starts workers with glibc's trim threshold at 64 KiB, so they hand freed memory
+    # back at once; a session allocates and frees many 2.6 MB record arrays, each then
+    # faulted in afresh (15x the page faults, 7x the system time measured). The workers
+    # keep glibc's own adaptive threshold instead.
+    # Nor do they run Dask's statistical profiler (a stack sample every 10 ms, under the
+    # interpreter lock, for a dashboard no one opens here).
+    with dask.config.set(
+        {
+            f'{PRE_SPAWN_ENVIRON}.MALLOC_TRIM_THRESHOLD_': None,
+            'distributed.worker.profile.enabled': False,
+        }
+    ):
+        return LocalCluster(
+            n_workers=workers or os.cpu_count() or 1,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            # A task's error comes back with its future; what the workers would log
+            # besides is a heartbeat missing a scheduler that is already closing.
+            silence_logs=logging.CRITICAL,
+        )
 
 
 def _compute(
