@@ -23,6 +23,18 @@ from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.physics.terms import ModelTerm
 
 
+def diagnostic_fit(impacts: Sequence[ConditionedImpact], **options) -> ModelFit:
+    """`fit_model` as the diagnosis fits every model: the velocity judged while the hammer acts.
+
+    `fit_model` leaves the hit windows (each pulse and 1 ms after it) out by default, since
+    their shape carries nothing about friction. A missing effect may show mostly there: a
+    channel delay shifts the velocity most where it changes fastest, in the hit. The
+    diagnosis compares models by their residuals over the whole motion (screen, gaps,
+    information criteria), so every fit it makes judges the same samples.
+    """
+    return fit_model(impacts, judge_hit=True, **options)
+
+
 @dataclass(frozen=True)
 class SessionModel:
     """The joint fit of some terms, and each hit's own mu on top of it when mu drifts."""
@@ -138,7 +150,7 @@ def with_terms(
     mu0: where mu starts (default the model's). A model with mu_drift gets each hit's mu
     refitted again on top of the new joint fit. Raises FitError when the fitter refuses.
     """
-    joint = fit_model(
+    joint = diagnostic_fit(
         impacts,
         rig=model.rig,
         mu0=model.joint.mu if mu0 is None else mu0,
@@ -165,7 +177,7 @@ def with_mu_per_hit(
     the fitter refuses a hit.
     """
     per_hit = tuple(
-        fit_model(
+        diagnostic_fit(
             [impact],
             rig=model.rig,
             mu0=float(mu0),
@@ -188,7 +200,7 @@ def without(
     kept = tuple(name for name in model.effects if name != effect)
     if effect == MU_DRIFT:
         return SessionModel(kept, model.joint)
-    joint = fit_model(
+    joint = diagnostic_fit(
         impacts,
         rig=model.rig,
         mu0=model.joint.mu,

@@ -65,6 +65,7 @@ from fmm_ros.core.diagnose.screen import (
 )
 from fmm_ros.core.diagnose.session_model import (
     SessionModel,
+    diagnostic_fit,
     with_mu_per_hit,
     with_terms,
     without,
@@ -78,7 +79,6 @@ from fmm_ros.core.identify.conditioning import (
     cropped_impact,
     source_prefix,
 )
-from fmm_ros.core.identify.friction import fit_model
 from fmm_ros.core.identify.lsq import inner
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import MODEL_TERMS
@@ -175,7 +175,9 @@ def diagnose(
     candidates = _checked_candidates(candidates, len(conditioned))
     stop = max(measured_motion_stop(impact, rig.natural_frequency_hz) for impact in conditioned)
     cropped = [cropped_impact(impact, stop) for impact in conditioned]
-    base = SessionModel((), fit_model(cropped, rig=rig, fit_initial_position=fit_initial_position))
+    base = SessionModel(
+        (), diagnostic_fit(cropped, rig=rig, fit_initial_position=fit_initial_position)
+    )
     say(
         f'base model fitted to {len(cropped)} impact(s), {stop / cropped[0].sample_rate_hz:.1f} s '
         f'each: mu = {base.joint.mu:.5f}'
