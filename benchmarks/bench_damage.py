@@ -7,7 +7,7 @@ independent generator test/worlds (its plant, hits, DAQ chain and damage kinds; 
 streamed by sample index as live capture and bag replay see it) and from our excitation and
 physics pieces with the fault done as the lab suffers it (see its docstring).
 Each case is a session of three hits (low, medium, high) fitted as `fmm fit` fits it
-(`select_records`, then `fit_friction`):
+(`select_records`, then `fit_impacts` with its defaults: each hit's start fitted):
 
 - all three hits damaged: the fit should refuse (no clean hit);
 - one hit damaged, two clean: the fit should return mu from the clean two and name the
@@ -32,8 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
 
 from damaged_records import FAULTS, session, worlds_session  # noqa: E402
 
-from fmm_ros.core.identify.friction import fit_friction  # noqa: E402
-from fmm_ros.workflows.session import analyse, select_records  # noqa: E402
+from fmm_ros.workflows.session import analyse, fit_impacts, select_records  # noqa: E402
 
 # Flags that say the samples are damaged (the others judge the record, not its samples).
 RECORD_FLAGS = ('unsettled', 'overlap', 'out_of_tolerance')
@@ -45,7 +44,7 @@ def fit_session(records, include_flagged=False):
     """('refused', reason) or ('mu', mu, stderr, selection) as `fmm fit` would end."""
     try:
         selection = select_records(records, include_flagged=include_flagged)
-        fit = fit_friction([records[i] for i in selection.chosen])
+        fit = fit_impacts(records, selection.chosen)  # fmm fit's defaults: each start fitted
     except ValueError as error:  # SelectionError, FitError, or samples the fit cannot take
         return ('refused', getattr(error, 'reason', type(error).__name__))
     return ('mu', fit.mu, fit.mu_stderr, selection)
