@@ -146,7 +146,13 @@ class Recorder(Node):
         return (
             WARN if late else OK,
             f'{self.writer.messages_written} messages, {self.writer.bytes_written / 1e6:.1f} MB '
-            f'to {self.bag_path}',
+            f'to {self.bag_path}'
+            + (
+                f'; {self.writer.unflushed} not flushed for {since_flush:.1f} s (flushes every '
+                f'{interval:g} s: the executor was busy)'
+                if late
+                else ''
+            ),
             {
                 'bag': str(self.bag_path),
                 'messages written': self.writer.messages_written,
