@@ -210,6 +210,7 @@ WRITER_SCRIPT = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
 def test_a_killed_recording_is_read_up_to_its_last_flush(tmp_path, storage):
     bag = tmp_path / 'crashed'

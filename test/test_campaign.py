@@ -179,6 +179,7 @@ def test_a_rerun_takes_known_sessions_from_the_cache_and_computes_an_added_one(
     assert not by_id['added'].cached and abs(by_id['added'].mu / 0.105 - 1) < 0.01
 
 
+@pytest.mark.slow
 def test_the_cache_key_follows_data_settings_and_rig_not_the_name(tmp_path):
     folder = tmp_path / 'session'
     folder.mkdir()

@@ -114,6 +114,7 @@ def _autocovariance_score(rows, gamma):
     return total
 
 
+@pytest.mark.slow
 def test_the_spectral_score_is_the_white_one_for_white_noise_and_counts_colour():
     rng = np.random.default_rng(5)
     n = 200_000
@@ -146,6 +147,7 @@ def _lab_chain_records(seed, chain):
     return out
 
 
+@pytest.mark.slow
 def test_fit_friction_takes_hum_offset_and_drift_off_the_velocity():
     chain = ChannelChain(offset=5e-5, drift_per_sqrt_s=1e-5, hum_amplitude=5e-5, mains_hz=60.0)
     impacts = _lab_chain_records(12, chain)

@@ -97,6 +97,7 @@ def test_rejection_is_configurable(tmp_path, capsys):
     assert json.loads(out)['impacts'][0]['accepted'] is True
 
 
+@pytest.mark.slow
 def test_a_file_and_a_live_capture_of_the_same_samples_agree(tmp_path):
     n = int(40 * 10_000)
     force, velocity = hits(n, 10_000.0, [(20_000, 1000.0)], zeta=0.05)

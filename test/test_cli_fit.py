@@ -105,6 +105,7 @@ def test_fit_json_has_the_issues_keys_and_one_mu(capsys, files):
         assert entry['mains_hum_hz'] is None and abs(entry['velocity_offset_m_s']) < 5e-6
 
 
+@pytest.mark.slow
 def test_fit_damping_and_the_frf_misfit(capsys, files):
     code, out, _ = run(
         capsys, 'fit', *files['levels'], '--json', '--fit-damping', '--misfit', 'frf'
@@ -123,6 +124,7 @@ def test_initial_positions_at_zero_on_request(capsys, files):
     assert all(entry['initial_position_m'] == 0.0 for entry in result['per_file'])
 
 
+@pytest.mark.slow
 def test_a_bag_gives_every_recorded_impact(capsys, tmp_path):
     session = simulated_session(1, seed=74, force_noise_std_n=0.2, velocity_noise_std_m_s=1e-4)
     bag = write_session_bag(tmp_path / 'session.mcap', session)

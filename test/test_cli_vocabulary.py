@@ -148,6 +148,7 @@ def test_import_full_scale_flags_are_in_si_and_the_old_one_keeps_file_units(tmp_
     assert full_scales == pytest.approx([4448.2216152605, 4448.2216152605])
 
 
+@pytest.mark.slow
 def test_fit_selects_the_accepted_hits_when_asked(levels_csv, tmp_path, capsys):
     out_of_levels = tmp_path / 'stray.csv'
     record = lab_levels(12, mu=0.113, duration_s=6.0, levels=('medium',))[0]

@@ -59,6 +59,7 @@ def test_every_fault_of_the_independent_generator_is_flagged_and_left_out(fault)
     assert fit_friction([hits[1].record]).mu == pytest.approx(mu, rel=0.02)
 
 
+@pytest.mark.slow
 def test_clean_records_of_the_independent_generator_raise_no_flag():
     flagged = []
     for seed in range(8):
@@ -111,6 +112,7 @@ def run(capsys, *args):
     return code, out, err
 
 
+@pytest.mark.slow
 def test_fmm_fit_leaves_a_clipped_csv_out_and_refuses_when_all_are_clipped(tmp_path, capsys):
     # The case: forces clipped flat at 60 % of their peak, full scale unknown.
     hits, mu = session('clipped', seed=5, damaged=(1,))
@@ -139,6 +141,7 @@ def test_fmm_fit_leaves_a_clipped_csv_out_and_refuses_when_all_are_clipped(tmp_p
     assert code == 1 and err.startswith('fmm diagnose: cannot fit (no_clean_impact): ')
 
 
+@pytest.mark.slow
 def test_import_of_several_files_keeps_each_an_acquisition_without_nan(tmp_path, capsys):
     # Three files of 6 s: each hit's 33 s window runs past its file's end. Joined on one
     # index without boundaries, records ran into the next file and the last one was padded

@@ -41,6 +41,7 @@ def check(cases, outcomes):
     assert heavy == []
 
 
+@pytest.mark.slow
 def test_every_mutation_of_every_format_is_refused_clearly_or_read(tmp_path):
     cases, outcomes = fuzz(per_target=6, seed=2024, folder=tmp_path)
     kinds = collections.defaultdict(set)

@@ -106,6 +106,7 @@ def test_bad_arguments_are_refused():
     'effects',
     [('stribeck', 'sensor_delay'), ('mu_drift',), ('speed_regimes',), ('wear_track', 'stribeck')],
 )
+@pytest.mark.slow
 def test_a_session_hides_each_effect_at_its_own_size(effects):
     session = hidden_session(
         effects, 21, n_impacts=4, ratio_range=(2.5, 2.5), duration_s=8.0, force_noise_std_n=0.0

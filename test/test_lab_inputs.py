@@ -222,6 +222,7 @@ def test_a_continuous_recording_is_cut_into_its_impacts(tmp_path):
     assert any('Force' in note and 'the one channel in force units' in note for note in read.notes)
 
 
+@pytest.mark.slow
 def test_fit_takes_matlab_and_tdms_files_as_it_takes_csv(tmp_path, capsys):
     """fmm fit (and so diagnose and report, which read through the same layer)."""
     records = lab_levels(5, mu=0.113, duration_s=8.0)

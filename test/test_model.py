@@ -85,6 +85,7 @@ def test_exact_step_is_the_exact_linear_response_without_friction():
     np.testing.assert_allclose(sim.velocity_m_s, v, rtol=0, atol=1e-12 * np.max(np.abs(v)))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('damping', [0.0, 0.275, 400.0])  # under-, and over-damped (c_crit 287)
 def test_exact_agrees_with_an_event_located_ode_solution(damping):
     rate = 2000.0
@@ -99,6 +100,7 @@ def test_exact_agrees_with_an_event_located_ode_solution(damping):
         assert sim.displacement_m[-1] == pytest.approx(ref_x[-1], abs=1e-10)
 
 
+@pytest.mark.slow
 def test_exact_agrees_with_the_paper_euler_method_at_a_tiny_step():
     # Euler holds the force over each step, which shifts the impact by half a step: at 1 MHz
     # that costs about (h/2) f_peak / m, 0.04 % of the peak velocity.
@@ -112,6 +114,7 @@ def test_exact_agrees_with_the_paper_euler_method_at_a_tiny_step():
     assert exact.rest_time_s == pytest.approx(euler.rest_time_s, abs=1e-4)
 
 
+@pytest.mark.slow
 def test_nonlinear_terms_agree_with_an_event_located_ode_solution():
     rate = 2000.0
     stribeck = model_term('stribeck', mu_static_excess=0.03, stribeck_velocity_m_s=5e-3)

@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from catkin_pkg.package import parse_package
 
 REPO = Path(__file__).resolve().parents[1]
@@ -74,6 +75,7 @@ def _third_party_imports() -> dict[str, set[str]]:
     return found
 
 
+@pytest.mark.slow
 def test_package_xml_parses_and_declares_every_runtime_import():
     package = parse_package(str(REPO / 'package.xml'))
     assert package.name == 'fmm_ros' and package.package_format == 3
@@ -145,6 +147,7 @@ def _ros_free_modules() -> list[str]:
     return [module for module in modules if module not in live] + sorted(live)
 
 
+@pytest.mark.slow
 def test_core_report_and_offline_commands_import_without_ros():
     """The core must stay ROS-free: importing any of it must not pull in rclpy."""
     code = (

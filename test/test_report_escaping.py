@@ -94,6 +94,7 @@ def hostile_report(tmp_path_factory):
     shutil.rmtree(folder, ignore_errors=True)
 
 
+@pytest.mark.slow
 def test_strings_from_files_and_users_are_text_in_the_report(hostile_report):
     code, out = hostile_report
     assert code == 1  # the bag was damaged: the page is written, the problem reported

@@ -55,6 +55,7 @@ def test_a_fit_made_elsewhere_is_drawn_as_given_and_not_made_again(records, monk
         )
 
 
+@pytest.mark.slow
 def test_one_session_from_files_to_a_json_summary(records, tmp_path):
     """process_session: what fmm report (and fmm campaign) run per session."""
     paths = []

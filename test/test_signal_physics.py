@@ -75,6 +75,7 @@ def stream_of_hits(levels, spacing_s=40.0, seed=0):
     return force + rng.normal(0, 0.05, n), velocity + rng.normal(0, 1e-5, n)
 
 
+@pytest.mark.slow
 def test_three_levels_give_a_line_through_the_origin_with_r2_above_0_99():
     force, velocity = stream_of_hits(['low', 'medium', 'high'] * 2)
     results = [

@@ -96,6 +96,7 @@ def test_worlds_imports_nothing_of_the_product():
         assert 'import_module' not in path.read_text() and '__import__' not in path.read_text()
 
 
+@pytest.mark.slow
 def test_making_a_record_loads_no_product_module():
     code = (
         'import sys; sys.path.insert(0, sys.argv[1]); import numpy as np, worlds; '
@@ -335,6 +336,7 @@ def test_coulomb_decay_loses_four_friction_bands_per_cycle():
     ],
     ids=['coulomb', 'static', 'asymmetric', 'stribeck'],
 )
+@pytest.mark.slow
 def test_rest_positions_lie_inside_the_static_band(friction):
     world = World(friction=friction)
     plant = world.mechanics
@@ -672,6 +674,7 @@ def test_vibrometer_lag_is_a_pure_delay_and_offsets_show_before_the_hit():
     assert record.force_n[before] == pytest.approx(0.4, abs=QUIET.force.adc_step)
 
 
+@pytest.mark.slow
 def test_second_mode_is_the_linear_response_to_the_pulse():
     """Checked against Duhamel's integral of the mode's impulse response over the pulse."""
     mode = SecondMode(frequency_hz=45.0, damping_ratio=0.002, modal_mass_kg=80.0)
