@@ -86,10 +86,11 @@ def run_sessions(
             if on_result:
                 on_result(index, results[-1])
         return results
+    n_workers = _worker_count(workers)  # checked for any scheduler, as the CLI passes it
     from distributed import Client
 
     if scheduler is None:
-        with local_cluster(workers) as cluster, Client(cluster) as client:
+        with local_cluster(n_workers) as cluster, Client(cluster) as client:
             return _compute(client, specs, options, cache, on_result)
     try:
         client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
@@ -105,8 +106,7 @@ def local_cluster(workers: int | None = None):
     Use it as a context manager; `run_sessions` starts one per call when given no scheduler,
     and its `scheduler_address` serves as `scheduler=` to reuse one across calls.
     """
-    if workers is not None and workers < 1:
-        raise ValueError(f'workers must be at least 1, got {workers}')
+    n_workers = _worker_count(workers)
     import dask
     from distributed import LocalCluster
 
@@ -123,7 +123,7 @@ def local_cluster(workers: int | None = None):
         }
     ):
         return LocalCluster(
-            n_workers=workers or os.cpu_count() or 1,
+            n_workers=n_workers,
             threads_per_worker=1,
             processes=True,
             dashboard_address=None,
@@ -131,6 +131,13 @@ def local_cluster(workers: int | None = None):
             # besides is a heartbeat missing a scheduler that is already closing.
             silence_logs=logging.CRITICAL,
         )
+
+
+def _worker_count(workers: int | None) -> int:
+    """Local worker processes: `workers`, or one a core; ValueError below 1."""
+    if workers is not None and workers < 1:
+        raise ValueError(f'workers must be at least 1, got {workers}')
+    return workers or os.cpu_count() or 1
 
 
 def _compute(

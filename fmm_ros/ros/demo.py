@@ -248,7 +248,11 @@ def run_session(
         _wait(lambda: len(results.impacts) >= total, lambda: hammer.next_index)
         wall_s = time.monotonic() - start
         accepted = sum(msg.accepted for msg in results.impacts)
-        _settle(lambda: len(results.estimates) >= accepted, lambda: len(results.estimates))
+        _until(
+            lambda: len(results.estimates) >= accepted,
+            lambda: len(results.estimates),
+            LIVE_MU_QUIET_S,
+        )
         # The session is over: the hammer stops, and what it sent reaches the bag.
         hammer.hold()
         _wait(lambda: _recorded(recorder) >= hammer.next_index, lambda: _recorded(recorder))
@@ -369,15 +373,6 @@ LIVE_MU_QUIET_S = 10.0
 impact the fitter could not fit alone has none) [s]."""
 
 
-def _settle(done: Callable[[], bool], count: Callable[[], int]) -> None:
-    """Wait until done(), or until count() has not moved for LIVE_MU_QUIET_S."""
-    last, moved = count(), time.monotonic()
-    while not done() and time.monotonic() - moved < LIVE_MU_QUIET_S:
-        time.sleep(0.05)
-        if count() != last:
-            last, moved = count(), time.monotonic()
-
-
 def _recorded(recorder: Recorder) -> int:
     """The sample index both channels have reached in the recorder's ledger."""
     spans = [ledger.span for ledger in recorder.ledger.values()]
@@ -392,12 +387,17 @@ def _one_accepted_per_level(impacts: list[ImpactResult]) -> list[int]:
 
 def _wait(done: Callable[[], bool], samples_out: Callable[[], int]) -> None:
     """Wait until done(); give up if the source stops publishing for STALL_TIMEOUT_S."""
-    last, moved = samples_out(), time.monotonic()
+    if not _until(done, samples_out, STALL_TIMEOUT_S):
+        raise TimeoutError(f'the session stalled: no samples published for {STALL_TIMEOUT_S:g} s')
+
+
+def _until(done: Callable[[], bool], count: Callable[[], int], quiet_s: float) -> bool:
+    """Wait until done() or until count() has not moved for quiet_s; whether done()."""
+    last, moved = count(), time.monotonic()
     while not done():
+        if time.monotonic() - moved > quiet_s:
+            return False
         time.sleep(0.05)
-        if samples_out() != last:
-            last, moved = samples_out(), time.monotonic()
-        elif time.monotonic() - moved > STALL_TIMEOUT_S:
-            raise TimeoutError(
-                f'the session stalled: no samples published for {STALL_TIMEOUT_S:g} s'
-            )
+        if count() != last:
+            last, moved = count(), time.monotonic()
+    return True

@@ -223,18 +223,14 @@ class Fitter(Node):
             except ValueError as error:  # FitError included: the impact adds nothing
                 self.get_logger().warning(f'live mu: impact {held.impact_id} not used: {error}')
                 continue
-            self.live_mu = (
-                f'live mu {estimate.mu:.5f} +- {estimate.mu_stderr:.2g} over {estimate.count} '
-                f'impacts, one mu p = {estimate.consistency_p_value:.3g}'
-            )
             self._friction_pub.publish(
                 msgs.friction_estimate_msg(estimate, stamp=self.get_clock().now().to_msg())
             )
-            self.get_logger().info(
-                f'live mu after impact {held.impact_id}: {estimate.mu:.5f} +- '
-                f'{estimate.mu_stderr:.2g} over {estimate.count} impacts (one mu: p = '
-                f'{estimate.consistency_p_value:.3g})'
+            self.live_mu = (
+                f'{estimate.mu:.5f} +- {estimate.mu_stderr:.2g} over {estimate.count} impacts '
+                f'(one mu: p = {estimate.consistency_p_value:.3g})'
             )
+            self.get_logger().info(f'live mu after impact {held.impact_id}: {self.live_mu}')
 
     def destroy_node(self) -> None:
         """Stop the live-mu worker (after the fit it is in), log the inputs' final ledger."""
