@@ -5,13 +5,8 @@ from datetime import datetime
 
 from fmm_ros.cli import options
 from fmm_ros.cli.progress import progress_bar
-from fmm_ros.io.labfiles import (
-    FORCE_UNITS,
-    VELOCITY_UNITS,
-    open_lab_file,
-    read_lab_files,
-    write_recordings,
-)
+from fmm_ros.io.labfiles import open_lab_file, read_lab_files, write_recordings
+from fmm_ros.units import FORCE_UNITS, VELOCITY_UNITS
 
 EPILOG = f"""\
 force units: {', '.join(FORCE_UNITS)}; velocity units: {', '.join(VELOCITY_UNITS)}.

@@ -42,21 +42,8 @@ from fmm_ros.io import sniff
 from fmm_ros.io.bags.acquisitions import Acquisition, write_acquisitions
 from fmm_ros.io.bags.writer import DEFAULT_BATCH_SIZE, BagWriter
 from fmm_ros.io.textfiles import DETECT, TextFormat, read_table
+from fmm_ros.units import QUANTITY_UNITS, SI_UNITS, lookup_unit
 
-# SI value of one file unit; lookups ignore case ("MM/S" is mm/s).
-FORCE_UNITS = {'N': 1.0, 'kN': 1e3, 'mN': 1e-3, 'lbf': 4.4482216152605, 'kgf': 9.80665}
-VELOCITY_UNITS = {
-    'm/s': 1.0,
-    'cm/s': 1e-2,
-    'mm/s': 1e-3,
-    'um/s': 1e-6,
-    'µm/s': 1e-6,
-    'in/s': 0.0254,
-    'ft/s': 0.3048,
-}
-TIME_UNITS = {'s': 1.0, 'ms': 1e-3, 'us': 1e-6, 'µs': 1e-6}
-QUANTITY_UNITS = {'force': FORCE_UNITS, 'velocity': VELOCITY_UNITS, 'time': TIME_UNITS}
-SI_UNITS = {'force': 'N', 'velocity': 'm/s', 'time': 's'}
 CANONICAL_NAMES = dict(zip(('time', 'force', 'velocity'), CSV_COLUMNS, strict=True))
 """Names that state their quantity and SI unit: the per-impact CSV columns fmm writes."""
 _CANONICAL_UNITS = {name: SI_UNITS[quantity] for quantity, name in CANONICAL_NAMES.items()}
@@ -95,7 +82,7 @@ class ChannelMapping:
         units = QUANTITY_UNITS[quantity]
         si = SI_UNITS[quantity]
         unit = self.unit or file_unit
-        known = _lookup_unit(units, unit)
+        known = lookup_unit(quantity, unit)
         if self.scale is not None:
             if known is not None:
                 raise ValueError(
@@ -118,16 +105,6 @@ class ChannelMapping:
         name, value = known
         source = '' if self.unit else ' (from the file)'
         return value, (f'[{name}]{source}' if value == 1.0 else f'[{name}]{source} × {value:g}')
-
-
-def _lookup_unit(units: dict[str, float], unit: str | None) -> tuple[str, float] | None:
-    """(canonical name, SI factor) of unit in units, ignoring case; None when unknown."""
-    if not unit:
-        return None
-    for name, value in units.items():
-        if name.lower() == unit.strip().lower():
-            return name, value
-    return None
 
 
 @dataclass(frozen=True)
@@ -647,8 +624,7 @@ def mapping_for(lab: LabFile, spec: dict) -> tuple[ImportMapping, list[str]]:
         canonical = CANONICAL_NAMES[quantity]
         if canonical in stated:
             return [canonical]
-        units = QUANTITY_UNITS[quantity]
-        return [name for name, unit in stated.items() if _lookup_unit(units, unit)]
+        return [name for name, unit in stated.items() if lookup_unit(quantity, unit)]
 
     listing = ', '.join(f'{name} [{unit}]' if unit else name for name, unit in stated.items())
     for quantity in ('force', 'velocity'):

@@ -29,6 +29,7 @@ import numpy as np
 from fmm_ros.core._checks import finite_samples, require_positive
 from fmm_ros.core.signal.frf import impulse
 from fmm_ros.core.signal.quality import robust_center_and_std, white_noise_std
+from fmm_ros.errors import FmmError
 
 HIT_THRESHOLD_SIGMA = 10.0
 """A hit departs from the force baseline by more than this many noise deviations (Gaussian
@@ -62,7 +63,7 @@ FIT_FAILURES = (
 )
 
 
-class FitError(ValueError):
+class FitError(FmmError):
     """A record or set of records the model cannot explain; `reason` is one of FIT_FAILURES."""
 
     def __init__(self, reason: str, message: str, source: str = '') -> None:

@@ -31,6 +31,7 @@ from fmm_ros.core.signal.capture import (
     with_trigger,
 )
 from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.errors import NoCleanImpactError
 
 
 @dataclass(frozen=True)
@@ -400,7 +401,7 @@ class ImpactSelection:
         return '; '.join(parts)
 
 
-class SelectionError(ValueError):
+class SelectionError(NoCleanImpactError):
     """Too few clean impacts for what was asked; `selection` says which were left out."""
 
     def __init__(self, message: str, selection: ImpactSelection) -> None:

@@ -1,16 +1,18 @@
 """Errors of bag I/O: each names the bag and what is wrong with it, in words a user can act on.
 
-All are ValueErrors, so the `fmm` command reports them as a one-line error.
+All are `FmmError`s (so ValueErrors), so the `fmm` command reports them as a one-line error.
 """
 
 from pathlib import Path
 
+from fmm_ros.errors import BadInputError, DamagedFileError, FmmError
 
-class BagError(ValueError):
+
+class BagError(FmmError):
     """A bag that cannot be read or written as asked."""
 
 
-class BagDamagedError(BagError):
+class BagDamagedError(BagError, DamagedFileError):
     """A bag is truncated or corrupt; every message before the damage was delivered first."""
 
     def __init__(self, path: Path, problems: list[str], messages_read: int) -> None:
@@ -23,9 +25,9 @@ class BagDamagedError(BagError):
         )
 
 
-class MissingTopicError(BagError):
+class MissingTopicError(BagError, BadInputError):
     """The bag lacks a topic the caller needs."""
 
 
-class MessageTypeError(BagError):
+class MessageTypeError(BagError, BadInputError):
     """A message type neither the bag nor fmm_ros defines, or not the type a topic needs."""

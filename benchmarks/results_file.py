@@ -1,0 +1,51 @@
+"""The one writer of benchmarks/RESULTS.md: each benchmark's full run replaces its own section.
+
+A section is delimited by HTML comments naming the benchmark, so runs of different scripts
+never touch each other's figures. Every section is stamped with the date, the machine
+(cores, load averages before the run) and the command that made it, so a reader knows what
+the figures were measured against. Quick runs (`--quick`, as CI runs every benchmark) check
+that the script works and write nothing.
+"""
+
+from __future__ import annotations
+
+import datetime
+import os
+import platform
+import re
+import sys
+from pathlib import Path
+
+RESULTS = Path(__file__).resolve().with_name('RESULTS.md')
+HEADER = (
+    '# Benchmark results\n\n'
+    'Written by the benchmark scripts themselves (`benchmarks/results_file.py`), one section '
+    'each, replaced on every full run; never edited by hand. Each figure stands beside its '
+    'baseline from the same run and the machine load it was measured under.\n'
+)
+
+
+def machine_line() -> str:
+    """Cores, load averages and Python: what a figure was measured on."""
+    load = ', '.join(f'{value:.2f}' for value in os.getloadavg())
+    python = platform.python_version()
+    return f'{os.cpu_count()} cores, load averages {load} (1/5/15 min), Python {python}'
+
+
+def write_section(name: str, body_markdown: str, *, quick: bool, path: Path = RESULTS) -> None:
+    """Replace benchmark `name`'s section of RESULTS.md by `body_markdown`; quick runs skip."""
+    if quick:
+        return
+    stamp = datetime.datetime.now(datetime.timezone.utc).strftime('%Y-%m-%d %H:%M UTC')
+    command = ' '.join(['python', *(Path(sys.argv[0]).name, *sys.argv[1:])])
+    section = (
+        f'<!-- {name} -->\n## {name}\n\n'
+        f'_{stamp}; {machine_line()}; `{command}`_\n\n{body_markdown.strip()}\n<!-- /{name} -->\n'
+    )
+    text = path.read_text(encoding='utf-8') if path.exists() else HEADER
+    pattern = re.compile(rf'<!-- {re.escape(name)} -->\n.*?<!-- /{re.escape(name)} -->\n', re.S)
+    if pattern.search(text):
+        text = pattern.sub(lambda _: section, text)
+    else:
+        text = text.rstrip('\n') + '\n\n' + section
+    path.write_text(text, encoding='utf-8')

@@ -1,0 +1,94 @@
+"""The one table of units a lab's DAQ or file may state, and their conversion to SI.
+
+Every path that takes numbers with a unit (lab files, live SampleBatch messages, bags on
+replay) converts through `si_factor`, so a unit is known everywhere or nowhere, and anything
+else is refused by name (`UnitError`) instead of being read as if it were SI.
+"""
+
+from __future__ import annotations
+
+from fmm_ros.errors import UnitError
+
+STANDARD_GRAVITY_M_S2 = 9.80665
+
+# SI value of one unit of each kind; lookups ignore case and surrounding blanks ("MM/S" is mm/s).
+FORCE_UNITS = {
+    'N': 1.0,
+    'kN': 1e3,
+    'mN': 1e-3,
+    'lbf': 4.4482216152605,
+    'kgf': STANDARD_GRAVITY_M_S2,
+}
+VELOCITY_UNITS = {
+    'm/s': 1.0,
+    'cm/s': 1e-2,
+    'mm/s': 1e-3,
+    'um/s': 1e-6,
+    'µm/s': 1e-6,
+    'in/s': 0.0254,
+    'ft/s': 0.3048,
+}
+ACCELERATION_UNITS = {
+    'm/s^2': 1.0,
+    'm/s2': 1.0,
+    'm/s²': 1.0,
+    'mm/s^2': 1e-3,
+    'mm/s2': 1e-3,
+    'g': STANDARD_GRAVITY_M_S2,
+    'in/s^2': 0.0254,
+    'ft/s^2': 0.3048,
+}
+DISPLACEMENT_UNITS = {
+    'm': 1.0,
+    'cm': 1e-2,
+    'mm': 1e-3,
+    'um': 1e-6,
+    'µm': 1e-6,
+    'nm': 1e-9,
+    'in': 0.0254,
+    'mil': 2.54e-5,
+}
+TIME_UNITS = {'s': 1.0, 'ms': 1e-3, 'us': 1e-6, 'µs': 1e-6}
+
+QUANTITY_UNITS = {
+    'force': FORCE_UNITS,
+    'velocity': VELOCITY_UNITS,
+    'acceleration': ACCELERATION_UNITS,
+    'displacement': DISPLACEMENT_UNITS,
+    'time': TIME_UNITS,
+}
+"""Each quantity's units, the first being its SI unit."""
+SI_UNITS = {quantity: next(iter(units)) for quantity, units in QUANTITY_UNITS.items()}
+
+
+def lookup_unit(quantity: str, unit: str | None) -> tuple[str, float] | None:
+    """(canonical name, SI factor) of `unit` as a `quantity` unit, ignoring case, or None."""
+    if not unit:
+        return None
+    wanted = unit.strip().lower()
+    for name, value in _units_of(quantity).items():
+        if name.lower() == wanted:
+            return name, value
+    return None
+
+
+def si_factor(quantity: str, unit: str) -> float:
+    """SI units per one `unit` of `quantity` (1000.0 for force in kN); UnitError if unknown."""
+    known = lookup_unit(quantity, unit)
+    if known is None:
+        other = [kind for kind in QUANTITY_UNITS if kind != quantity and lookup_unit(kind, unit)]
+        hint = f' ({unit!r} is a {other[0]} unit)' if other else ''
+        raise UnitError(
+            f'{quantity} in unit {unit!r} cannot be converted to SI{hint}; '
+            f'known {quantity} units: {", ".join(_units_of(quantity))}'
+        )
+    return known[1]
+
+
+def _units_of(quantity: str) -> dict[str, float]:
+    try:
+        return QUANTITY_UNITS[quantity]
+    except KeyError:
+        raise UnitError(
+            f'unknown quantity {quantity!r}; known: {", ".join(QUANTITY_UNITS)}'
+        ) from None
