@@ -32,6 +32,7 @@ from fmm_ros.core.signal.stream import (
     ChannelLedger,
     StreamRules,
 )
+from fmm_ros.io.bags.arrays import ChannelArrays, read_channel_arrays
 from fmm_ros.io.bags.definitions import (
     BASE_STORE,
     FRF_SUMMARY,
@@ -441,6 +442,24 @@ class BagReader:
         topics = [self.find(topic, SAMPLE_BATCH) for topic in topics]
         for message, batch in self._decode_each(self.messages(topics)):
             yield channel_batch(message, batch, self.path)
+
+    def channel_arrays(
+        self,
+        force_topic: str = FORCE_TOPIC,
+        velocity_topic: str = VELOCITY_TOPIC,
+        rules: StreamRules = DEFAULT_RULES,
+    ) -> ChannelArrays | None:
+        """Both channels read whole into two arrays, when the bag is a clean recording.
+
+        None unless the bag is one intact MCAP file, read without a problem so far, whose
+        batches the stream rules would take whole (see `fmm_ros.io.bags.arrays`): then
+        read batch by batch (`sample_batches`), where every fault has its rule.
+        """
+        topics = (self.find(force_topic, SAMPLE_BATCH), self.find(velocity_topic, SAMPLE_BATCH))
+        single = not self.path.is_dir() or len(list(self.path.glob('*.mcap'))) == 1
+        if self._reader is None or self.storage != 'mcap' or self.problems or not single:
+            return None
+        return read_channel_arrays(self._storage_file, topics, self.typestore, rules)
 
     def channel(self, topic: str) -> Iterator[ChannelBatch]:
         """Every SampleBatch of one channel topic, in storage order."""
