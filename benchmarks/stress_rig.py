@@ -18,9 +18,10 @@ a busy process on every core:
 
     .venv/bin/python benchmarks/stress_rig.py [--quick] [--load idle|busy|both]
 
-Each run is short (x1 60 s, the others 30 s, the soak 200 s; --quick: a third), so the whole
-benchmark takes minutes. Numbers are from the nodes' own logs (what they say when they stop)
-and the recorded bag, never from inside the processes.
+Each run is short (x1 60 s, the others 30 s, the soak 200 s), so the whole benchmark takes
+minutes. --quick (as CI runs it): idle only, 5 s a rate, the scripted faults alone. Numbers
+are from the nodes' own logs (what they say when they stop) and the recorded bag, never from
+inside the processes.
 """
 
 import argparse
@@ -37,6 +38,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import results_file
 from rclpy.node import Node
 
 from fmm_interfaces.msg import ImpactResult, SampleBatch
@@ -61,6 +63,7 @@ RATES = {1: 60.0, 10: 30.0, 50: 30.0, 100: 200.0}  # rate factor -> run length [
 # The x100 run is the soak: the held impacts are capped low so they fill within it, and
 # memory must be flat afterwards (every buffer bounded).
 SOAK = ('fitter.keep_last_impacts=5', 'analyzer.keep_last_impacts=10')
+QUICK_RUN_S = 5.0  # each rate's run with --quick [s]
 
 
 @dataclass(frozen=True)
@@ -542,7 +545,7 @@ def run_pass(work: Path, label: str, quick: bool) -> None:
     )
     soak = None
     for rate, seconds in RATES.items():
-        seconds = seconds / 3 if quick else seconds
+        seconds = QUICK_RUN_S if quick else seconds
         result = rate_run(work / f'x{rate}', rate, seconds, SOAK if rate == 100 else ())
         force, velocity = result['recorded']['force'], result['recorded']['velocity']
         pace = result['sent'] / 10_000.0 / result['streaming_s']
@@ -564,19 +567,23 @@ def run_pass(work: Path, label: str, quick: bool) -> None:
         print(f'  {name:<11} {first:7.0f} -> {last:7.0f} MB, {slope:+.2f} MB/min')
     print('\nlive faults: fault -> what the graph did -> outcome')
     rows = scripted_faults(work / 'faults')
-    rows.append(restart_recovery(work / 'restart'))
-    rows.append(killed_recorder(work / 'killed'))
-    rows.append(launcher_signal(work / 'sigterm', signal.SIGTERM))
-    rows.append(launcher_signal(work / 'sigkill', signal.SIGKILL))
+    if quick:
+        print('  (--quick: the restart, kill and launcher-signal rows are left out)')
+    else:
+        rows.append(restart_recovery(work / 'restart'))
+        rows.append(killed_recorder(work / 'killed'))
+        rows.append(launcher_signal(work / 'sigterm', signal.SIGTERM))
+        rows.append(launcher_signal(work / 'sigkill', signal.SIGKILL))
     for fault, handling, outcome in rows:
         print(f'  {fault}\n      -> {handling}' + (f'\n      -> {outcome}' if outcome else ''))
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--quick', action='store_true', help='runs a third as long')
-    parser.add_argument('--load', choices=('idle', 'busy', 'both'), default='both')
+    parser.add_argument('--quick', action='store_true', help=results_file.QUICK_HELP)
+    parser.add_argument('--load', choices=('idle', 'busy', 'both'))
     args = parser.parse_args()
+    args.load = args.load or ('idle' if args.quick else 'both')
     work = Path(tempfile.mkdtemp(prefix='stress_rig_'))
     try:
         if args.load in ('idle', 'both'):
@@ -598,4 +605,5 @@ def main() -> int:
 
 
 if __name__ == '__main__':
-    raise SystemExit(main())
+    with results_file.recorded('stress_rig', quick='--quick' in sys.argv):
+        raise SystemExit(main())
