@@ -35,7 +35,7 @@ from fmm_ros.campaign.table import CampaignTable
 from fmm_ros.campaign.tasks import run_sessions
 from fmm_ros.workflows.session import SessionOptions
 
-TABLES = ('sessions', 'hits', 'levels', 'estimates')
+INTERNAL_ERROR = 'internal error (a fault in fmm_ros, not the data: the traceback is in the log)'
 
 
 @dataclass(frozen=True)
@@ -53,9 +53,15 @@ class CampaignResult:
 
     @property
     def failed(self) -> list[tuple[str, str]]:
-        """(session id, reason) of each session without a mu."""
+        """(session id, reason) of each session without a mu.
+
+        A session that failed through a bug, not its data, says so first ('internal error').
+        """
         return [
-            (session.session_id, result.reason)
+            (
+                session.session_id,
+                f'{INTERNAL_ERROR}: {result.reason}' if result.internal_error else result.reason,
+            )
             for session, result in zip(self.table.sessions, self.results, strict=True)
             if not result.ok
         ]

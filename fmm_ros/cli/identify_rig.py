@@ -7,14 +7,17 @@ impacts. Exit status: 0 identified, 1 the records are not the frictionless rig's
 printed) or a bag was damaged (warnings), 2 bad input or flags.
 """
 
+from __future__ import annotations
+
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from fmm_ros.cli import options
-from fmm_ros.cli._fitting import fit_and_report
-from fmm_ros.core.identify.rig import RigIdentification, identify_rig
 from fmm_ros.core.physics.rig import FMM_RIG
-from fmm_ros.io.frf_files import json_number
+
+if TYPE_CHECKING:
+    from fmm_ros.core.identify.rig import RigIdentification
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -42,6 +45,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Read the inputs, identify, print the constants (or why there are none)."""
+    from fmm_ros.cli._fitting import fit_and_report
+    from fmm_ros.core.identify.rig import identify_rig
+
     return fit_and_report(
         'identify-rig',
         args,
@@ -53,6 +59,8 @@ def run(args: argparse.Namespace) -> int:
 
 def report(result: RigIdentification) -> dict:
     """The JSON document: the issue's keys, then standard errors and how they were found."""
+    from fmm_ros.io.frf_files import json_number
+
     return {
         'mass_kg': result.mass_kg,
         'stiffness_n_per_m': result.stiffness_n_per_m,

@@ -33,15 +33,15 @@ from fmm_ros.constants import (
 from fmm_ros.core.identify.running import RunningEstimate
 from fmm_ros.io.bags.reader import BagReader
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import RESULT_QOS
 from fmm_ros.ros.graph import InProcessGraph
-from fmm_ros.ros.health import DIAGNOSTICS_QOS, LEVEL_NAMES
+from fmm_ros.ros.health import LEVEL_NAMES
 from fmm_ros.ros.nodes import CONSUMERS
 from fmm_ros.ros.nodes.analyzer import Analyzer
 from fmm_ros.ros.nodes.fitter import Fitter
 from fmm_ros.ros.nodes.hammer_sim import HammerSim
 from fmm_ros.ros.nodes.recorder import Recorder
 from fmm_ros.ros.nodes.rig_sim import RigSim
+from fmm_ros.ros.qos import DIAGNOSTICS_QOS, RESULT_QOS
 from fmm_ros.workflows.results import FrictionResult, json_safe
 
 # A session stops waiting when no new sample has gone out for this long (wall time) [s].
@@ -181,7 +181,7 @@ class _Results(Node):
             }
 
 
-def run_session(
+def run_demo_session(
     config: SessionConfig, progress: Callable[[str], None] = lambda _: None
 ) -> DemoResult:
     """Run the session to its last impact, fit mu over it, close the bag; return the results."""
@@ -350,10 +350,10 @@ def _report(
     from fmm_ros.report import build_report  # matplotlib: only when a report is asked for
     from fmm_ros.workflows.inputs import InputOptions
     from fmm_ros.workflows.replay import bag_impact_records
-    from fmm_ros.workflows.session import SessionOptions, run_session
+    from fmm_ros.workflows.session import SessionOptions, process_records
 
     records, problems = bag_impact_records(bag, capture)
-    session = run_session(
+    session = process_records(
         records,
         SessionOptions(inputs=InputOptions(capture=capture), analysis=analysis),
         friction=friction,
@@ -401,3 +401,8 @@ def _until(done: Callable[[], bool], count: Callable[[], int], quiet_s: float) -
         if count() != last:
             last, moved = count(), time.monotonic()
     return True
+
+
+# Deprecated: the name before issue 23 (three functions were called run_session); use
+# run_demo_session. Kept one release so callers keep working.
+run_session = run_demo_session

@@ -18,6 +18,7 @@ from fmm_ros.core.identify.running import LevelEstimate, RunningEstimate
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.signal import analysis, frf
 from fmm_ros.core.signal.stream import Batch
+from fmm_ros.errors import BadInputError
 from fmm_ros.workflows.results import FrictionResult, json_safe
 
 
@@ -94,7 +95,7 @@ def _set_complex(msg: object, name: str, values: np.ndarray) -> None:
 
 
 def impact_result_msg(
-    result: analysis.ImpactResult, *, stamp: Time, frame_id: str = 'fmm'
+    result: analysis.ImpactAnalysis, *, stamp: Time, frame_id: str = 'fmm'
 ) -> ImpactResult:
     """An ImpactResult message from the signal core's result (same field names)."""
     msg = _stamped(ImpactResult(), stamp, frame_id)
@@ -298,7 +299,7 @@ def fill_fit_response(response: object, result: FrictionResult) -> object:
 def friction_result(response: object) -> FrictionResult:
     """The FrictionResult a successful FitFriction response carries (ValueError if refused)."""
     if not response.success:
-        raise ValueError(f'the fit was refused: {response.message}')
+        raise BadInputError(f'the fit was refused: {response.message}')
     ids = tuple(int(i) for i in response.impact_ids)
     return FrictionResult(
         mu=response.mu,
@@ -342,7 +343,7 @@ def diagnose_response_dict(response: object) -> dict:
     trend of fewer than four hits) are None.
     """
     if not response.success:
-        raise ValueError(f'the diagnosis was refused: {response.message}')
+        raise BadInputError(f'the diagnosis was refused: {response.message}')
     counts = list(response.candidate_parameter_counts)
     names, values = (
         response.candidate_parameter_names,

@@ -17,7 +17,7 @@ from pathlib import Path
 from fmm_ros.constants import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC
 from fmm_ros.core.signal.analysis import (
     AnalysisConfig,
-    ImpactResult,
+    ImpactAnalysis,
     Summary,
     analyze_impact,
     summarize,
@@ -150,7 +150,7 @@ def bag_impact_records(
 class Replay:
     """What the analyzer would have published for a bag, and what it took to find out."""
 
-    results: list[ImpactResult]
+    results: list[ImpactAnalysis]
     summary: Summary
     signal_s: float
     batches: int
@@ -163,16 +163,16 @@ def replay_bag(
     capture: CaptureConfig = DEFAULT_CAPTURE,
     analysis: AnalysisConfig | None = None,
     *,
-    on_result: Callable[[ImpactResult], None] | None = None,
+    on_result: Callable[[ImpactAnalysis], None] | None = None,
     on_batch: Callable[[ChannelBatch], None] | None = None,
 ) -> Replay:
     """Capture and analyse every impact of a bag as the live analyzer does, then summarize.
 
-    on_result gets each ImpactResult as the analyzer would publish it (impact ids count from
+    on_result gets each ImpactAnalysis as the analyzer would publish it (impact ids count from
     0 in capture order); on_batch sees every recorded batch.
     """
     analysis = analysis or AnalysisConfig()
-    results: list[ImpactResult] = []
+    results: list[ImpactAnalysis] = []
     fed = {'batches': 0, 'signal_s': 0.0}
     impacts = ImpactCapture(capture)
 

@@ -38,6 +38,7 @@ from fmm_ros.core.identify.running import RunningEstimate, running_estimates
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.physics.terms import ModelTerm
 from fmm_ros.core.signal.analysis import ImpactSelection, Summary
+from fmm_ros.errors import BadInputError
 from fmm_ros.io.frf_files import json_number
 
 
@@ -97,7 +98,7 @@ class FrictionResult:
             if getattr(self, name):
                 lengths.add(len(getattr(self, name)))
         if lengths != {count}:
-            raise ValueError(
+            raise BadInputError(
                 f'a friction result needs one value per impact: {count} impact '
                 f'ids but per-impact lengths {sorted(lengths)}'
             )

@@ -36,19 +36,16 @@ from fmm_ros.core.identify.lsq import (
 )
 from fmm_ros.core.identify.output_error import (
     JACOBIANS,
-    MISFITS,
     UNCERTAINTIES,
     BuiltModel,
     OutputError,
     fit_uncertainty,
 )
+from fmm_ros.core.identify.spec import MISFITS, MU_BOUNDS
 from fmm_ros.core.physics.model import INTEGRATORS, Simulation, simulate
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import MODEL_TERMS, ModelTerm
-
-MU_BOUNDS = (1e-3, 1.0)
-"""Default search range of the friction coefficient; a best fit on either end is a failure."""
-
+from fmm_ros.errors import BadInputError
 
 DAMPING_BOUNDS_N_S_PER_M = (0.0, 50.0)
 """Search range of the viscous damping c when it is fitted [N*s/m]."""
@@ -130,7 +127,7 @@ class ModelFit:
     def index(self, name: str) -> int:
         """Position of a parameter in `names`; ValueError naming the known ones."""
         if name not in self.names:
-            raise ValueError(f'no fitted parameter {name!r}; fitted: {", ".join(self.names)}')
+            raise BadInputError(f'no fitted parameter {name!r}; fitted: {", ".join(self.names)}')
         return self.names.index(name)
 
     def value(self, name: str) -> float:
@@ -244,7 +241,7 @@ def _space(
     fixed = tuple(fixed_effects)
     for effect in fixed:
         if not isinstance(effect, ModelTerm):
-            raise ValueError(f'fixed_effects must be model terms, got {effect!r}')
+            raise BadInputError(f'fixed_effects must be model terms, got {effect!r}')
     classes = []
     for term in terms:
         if isinstance(term, ModelTerm):
@@ -253,9 +250,9 @@ def _space(
             cls = MODEL_TERMS[term]
             values = np.array([p.default for p in cls.parameters])
         else:
-            raise ValueError(f'unknown model term {term!r}; known: {", ".join(MODEL_TERMS)}')
+            raise BadInputError(f'unknown model term {term!r}; known: {", ".join(MODEL_TERMS)}')
         if cls in classes or any(isinstance(effect, cls) for effect in fixed):
-            raise ValueError(f'model term {cls.name} given twice')
+            raise BadInputError(f'model term {cls.name} given twice')
         classes.append(cls)
         low, high = cls.bounds()
         for parameter, value, lo, hi in zip(cls.parameters, values, low, high, strict=True):
@@ -266,7 +263,7 @@ def _space(
             upper.append(hi)
             typical.append(max(abs(parameter.default), 1e-3 * (hi - lo)))
     if fit_damping and MODEL_TERMS['viscous_damping'] in classes:
-        raise ValueError(
+        raise BadInputError(
             'fit_damping and a fitted viscous_damping term are the same parameter; choose one'
         )
     # Where the mass can rest before a hit: inside the friction band of the largest mu searched.
@@ -435,14 +432,14 @@ def _fit(
     """
     _check_options(rig, misfit, band_limit_hz, integrator, jacobian)
     if uncertainty not in UNCERTAINTIES:
-        raise ValueError(
+        raise BadInputError(
             f'unknown uncertainty {uncertainty!r}; choose one of {", ".join(UNCERTAINTIES)}'
         )
     if mains_hz is not None and not mains_hz > 0:
-        raise ValueError(f'mains_hz must be > 0 (or None to find it), got {mains_hz}')
+        raise BadInputError(f'mains_hz must be > 0 (or None to find it), got {mains_hz}')
     low, high = (float(bound) for bound in mu_bounds)
     if not 0.0 <= low < high or not math.isfinite(high):
-        raise ValueError(f'mu_bounds must be 0 <= lower < upper, finite; got {mu_bounds}')
+        raise BadInputError(f'mu_bounds must be 0 <= lower < upper, finite; got {mu_bounds}')
     require_positive('normal_force_n (to fit mu)', rig.normal_force_n)
     _check_durations(conditioned, rig)
     if mu0 is None:
@@ -462,7 +459,7 @@ def _fit(
     )
     for name, value in (start_values or {}).items():
         if name not in space.names:
-            raise ValueError(f'start value for {name!r}, which is not fitted: {space.names}')
+            raise BadInputError(f'start value for {name!r}, which is not fitted: {space.names}')
         at = space.names.index(name)
         space.start[at] = min(max(float(value), space.lower[at]), space.upper[at])
     problem = OutputError(
@@ -766,7 +763,7 @@ def _conditioned_list(impacts: Sequence) -> list[ConditionedImpact]:
         impacts = [impacts]
     conditioned = [as_conditioned(impact) for impact in impacts]
     if not conditioned:
-        raise ValueError('no impacts to fit')
+        raise BadInputError('no impacts to fit')
     return conditioned
 
 
@@ -774,23 +771,23 @@ def _check_options(
     rig: Rig, misfit: str, band_limit_hz: float, integrator: str, jacobian: str
 ) -> None:
     if not isinstance(rig, Rig):
-        raise ValueError(f'rig must be a Rig, got {rig!r}')
+        raise BadInputError(f'rig must be a Rig, got {rig!r}')
     if misfit not in MISFITS:
-        raise ValueError(f'unknown misfit {misfit!r}; choose one of {", ".join(MISFITS)}')
+        raise BadInputError(f'unknown misfit {misfit!r}; choose one of {", ".join(MISFITS)}')
     require_positive('band_limit_hz', band_limit_hz)
     if integrator not in INTEGRATORS:
-        raise ValueError(
+        raise BadInputError(
             f'unknown integrator {integrator!r}; choose one of {", ".join(INTEGRATORS)}'
         )
     if jacobian not in JACOBIANS:
-        raise ValueError(f'unknown jacobian {jacobian!r}; choose one of {", ".join(JACOBIANS)}')
+        raise BadInputError(f'unknown jacobian {jacobian!r}; choose one of {", ".join(JACOBIANS)}')
 
 
 def _check_durations(impacts: Sequence[ConditionedImpact], rig: Rig) -> None:
     period_s = 1.0 / rig.natural_frequency_hz
     for impact in impacts:
         if impact.duration_s < 2.0 * period_s:
-            raise ValueError(
+            raise BadInputError(
                 f'{source_prefix(impact.source)}the record lasts {impact.duration_s:.3g} '
                 f's, less than two natural periods ({2 * period_s:.3g} s) of the '
                 'rig: too short to fit'

@@ -39,9 +39,7 @@ from fmm_ros.core.physics.model import Simulation, simulate
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.physics.terms import ModelTerm
 from fmm_ros.core.signal.frf import band_bins, mobility, spectra
-
-MISFITS = ('time', 'frf')
-
+from fmm_ros.errors import BadInputError
 
 UNCERTAINTIES = ('spectral', 'blocks')
 """How the velocity residuals' share of a time fit's covariance is found: from the residual's
@@ -134,7 +132,7 @@ class OutputError:
                 force_spectrum, velocity_spectrum = spectra(impact.force_n, impact.velocity_m_s)
                 target = mobility(force_spectrum[:bins], velocity_spectrum[:bins])
                 if np.isnan(target).any():
-                    raise ValueError(
+                    raise BadInputError(
                         f'{source_prefix(impact.source)}the force spectrum is zero inside '
                         f'the {band_limit_hz:g} Hz band: no mobility there'
                     )
