@@ -12,7 +12,6 @@ booleans, timestamps for date columns) for the next program; `to_json` is the sa
 from __future__ import annotations
 
 import dataclasses
-import datetime as dt
 import json
 import math
 import os
@@ -33,6 +32,7 @@ from fmm_ros.campaign.session import SessionOutcome, options_dict
 from fmm_ros.campaign.stats import Contrast
 from fmm_ros.campaign.table import CampaignTable
 from fmm_ros.campaign.tasks import run_sessions
+from fmm_ros.workflows.results import json_safe
 from fmm_ros.workflows.session import SessionOptions
 
 INTERNAL_ERROR = 'internal error (a fault in fmm_ros, not the data: the traceback is in the log)'
@@ -325,20 +325,7 @@ def to_json(campaign: CampaignResult) -> dict:
             if result.diagnosis is not None
         },
     }
-    return _json_ready(document)
-
-
-def _json_ready(value):
-    """NaN and infinities as None, dates as ISO text, tuples as lists, all the way down."""
-    if isinstance(value, dict):
-        return {str(key): _json_ready(item) for key, item in value.items()}
-    if isinstance(value, list | tuple):
-        return [_json_ready(item) for item in value]
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dt.datetime | dt.date):
-        return value.isoformat()
-    return value
+    return json_safe(document)
 
 
 def write_json(campaign: CampaignResult, path: str | Path) -> Path:

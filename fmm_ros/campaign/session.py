@@ -31,7 +31,7 @@ from fmm_ros.errors import BadInputError, FmmError
 from fmm_ros.io import sniff
 from fmm_ros.io.labfiles import load_mapping
 from fmm_ros.workflows.inputs import read_inputs
-from fmm_ros.workflows.results import FrictionResult
+from fmm_ros.workflows.results import FrictionResult, hit_record, level_record
 from fmm_ros.workflows.session import SessionOptions, SessionResult, process_records
 
 OK = 'ok'
@@ -326,16 +326,8 @@ def _hits(summary: Summary, friction: FrictionResult | None) -> tuple[HitSummary
         mu, mu_stderr, residual = fitted.get(impact.impact_id, (math.nan,) * 3)
         hits.append(
             HitSummary(
-                impact_id=impact.impact_id,
                 source=impact.source,
-                level=impact.level,
-                accepted=impact.accepted,
-                flags=tuple(impact.flags),
-                impulse_n_s=float(impact.impulse_n_s),
-                peak_force_n=float(impact.peak_force_n),
-                contact_duration_s=float(impact.contact_duration_s),
-                natural_frequency_hz=float(impact.natural_frequency_hz),
-                peak_receptance_m_per_n=float(impact.peak_receptance_m_per_n),
+                **hit_record(impact),
                 mu=float(mu),
                 mu_stderr=float(mu_stderr),
                 residual_rms_m_s=float(residual),
@@ -350,13 +342,4 @@ def _level_row(level: LevelSummary) -> LevelRow:
     if level.frequency_hz.size and math.isfinite(level.natural_frequency_hz):
         peak_bin = int(np.argmin(np.abs(level.frequency_hz - level.natural_frequency_hz)))
         coherence = float(level.coherence[peak_bin])
-    return LevelRow(
-        level=level.level,
-        count=level.count,
-        mean_impulse_n_s=float(level.mean_impulse_n_s),
-        std_impulse_n_s=float(level.std_impulse_n_s),
-        mean_peak_force_n=float(level.mean_peak_force_n),
-        peak_receptance_m_per_n=float(level.peak_receptance_m_per_n),
-        natural_frequency_hz=float(level.natural_frequency_hz),
-        coherence_at_peak=coherence,
-    )
+    return LevelRow(**level_record(level), coherence_at_peak=coherence)

@@ -42,7 +42,7 @@ from fmm_ros.ros.nodes.hammer_sim import HammerSim
 from fmm_ros.ros.nodes.recorder import Recorder
 from fmm_ros.ros.nodes.rig_sim import RigSim
 from fmm_ros.ros.qos import DIAGNOSTICS_QOS, RESULT_QOS
-from fmm_ros.workflows.results import FrictionResult, json_safe
+from fmm_ros.workflows.results import FrictionResult, hit_record, json_safe, level_record
 
 # A session stops waiting when no new sample has gone out for this long (wall time) [s].
 STALL_TIMEOUT_S = 60.0
@@ -289,11 +289,16 @@ def run_demo_session(
         levels=[
             {
                 'name': s.level,
-                'count': s.count,
-                'mean_impulse_n_s': s.mean_impulse_n_s,
-                'std_impulse_n_s': s.std_impulse_n_s,
-                'peak_receptance_m_per_n': s.peak_receptance_m_per_n,
-                'natural_frequency_hz': s.natural_frequency_hz,
+                **level_record(
+                    s,
+                    (
+                        'count',
+                        'mean_impulse_n_s',
+                        'std_impulse_n_s',
+                        'peak_receptance_m_per_n',
+                        'natural_frequency_hz',
+                    ),
+                ),
             }
             for s in ordered
         ],
@@ -310,14 +315,20 @@ def run_demo_session(
         diagnose_s=diagnose_s,
         impacts=[
             {
-                'impact_id': m.impact_id,
-                'level': m.level,
-                'accepted': m.accepted,
+                **hit_record(
+                    m,
+                    (
+                        'impact_id',
+                        'level',
+                        'accepted',
+                        'flags',
+                        'peak_force_n',
+                        'impulse_n_s',
+                        'peak_receptance_m_per_n',
+                        'natural_frequency_hz',
+                    ),
+                ),
                 'flags': list(m.flags),
-                'peak_force_n': m.peak_force_n,
-                'impulse_n_s': m.impulse_n_s,
-                'peak_receptance_m_per_n': m.peak_receptance_m_per_n,
-                'natural_frequency_hz': m.natural_frequency_hz,
             }
             for m in impacts
         ],

@@ -26,7 +26,7 @@ from fmm_ros.core.diagnose.result import Diagnosis
 from fmm_ros.core.diagnose.workflow import diagnose
 from fmm_ros.core.identify.conditioning import FitError
 from fmm_ros.core.identify.friction import fit_friction
-from fmm_ros.core.identify.spec import MU_BOUNDS
+from fmm_ros.core.identify.spec import FRICTION_FIT, MU_BOUNDS, FitSpec
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.signal.analysis import (
     AnalysisConfig,
@@ -62,6 +62,16 @@ class FitOptions:
     mu_bounds: tuple[float, float] = MU_BOUNDS
     misfit: str = 'time'
     band_limit_hz: float = MISFIT_BAND_LIMIT_HZ
+
+    def spec(self) -> FitSpec:
+        """The FitSpec of a session's fit: `fit_friction`'s default with these choices."""
+        return FRICTION_FIT.but(
+            fit_damping=self.fit_damping,
+            fit_initial_position=self.fit_initial_position,
+            mu_bounds=self.mu_bounds,
+            misfit=self.misfit,
+            band_limit_hz=self.band_limit_hz,
+        )
 
 
 DEFAULT_FIT = FitOptions()
@@ -230,14 +240,7 @@ def fit_impacts(
     Raises FitError (a ValueError) when friction cannot explain them.
     """
     fit = fit_friction(
-        [records[i] for i in impact_ids],
-        rig=options.rig,
-        fit_damping=options.fit_damping,
-        fit_initial_position=options.fit_initial_position,
-        mu_bounds=options.mu_bounds,
-        misfit=options.misfit,
-        band_limit_hz=options.band_limit_hz,
-        progress=progress,
+        [records[i] for i in impact_ids], options.spec(), rig=options.rig, progress=progress
     )
     return FrictionResult.from_fit(fit, impact_ids)
 
