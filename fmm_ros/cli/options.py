@@ -261,7 +261,8 @@ def add_hit_selection(parser: argparse.ArgumentParser, *, fits: bool = False) ->
     """
     group = parser.add_argument_group(
         'hit selection',
-        'How impacts are cut from recordings, grouped into force levels and judged'
+        'How impacts are cut from recordings, grouped into force levels (without levels given, '
+        "a bag's as its analyzer named them, else clustered peak forces) and judged"
         + (
             '. Only the accepted hits are fitted; the others are left out and named '
             '(--include-flagged takes them too).'
@@ -344,6 +345,10 @@ def analysis_configs(args: argparse.Namespace) -> tuple[CaptureConfig, AnalysisC
         if args.paper_levels
         else tuple(dataclasses.replace(level, tolerance_n=args.tolerance_n) for level in args.level)
     )
+    if not levels:  # a bag's levels keep the names its analyzer gave them (low, medium, high)
+        from fmm_ros.workflows.replay import recorded_levels
+
+        levels = recorded_levels(_input_paths(args), args.tolerance_n)
     frf = AnalysisConfig()
     analysis = AnalysisConfig(
         band_limit_hz=getattr(args, 'band_limit_hz', frf.band_limit_hz),
@@ -353,6 +358,13 @@ def analysis_configs(args: argparse.Namespace) -> tuple[CaptureConfig, AnalysisC
         reject_flags=FLAGS if args.reject is None else args.reject,
     )
     return capture, analysis
+
+
+def _input_paths(args: argparse.Namespace) -> list[Path]:
+    """The INPUTs of the command (analyze, fit, diagnose, report), or the bag of replay."""
+    if getattr(args, 'inputs', None):
+        return list(args.inputs)
+    return [args.bag] if getattr(args, 'bag', None) else []
 
 
 def _nominal_level(text: str) -> NominalLevel:
