@@ -107,18 +107,21 @@ def test_pip_only_keys_are_defined_for_rosdep_and_pinned():
                 assert f'\n{name}==' in requirements, f'{name} is not pinned in requirements.txt'
 
 
-# Keys the ROS rosdep database (rosdistro's base.yaml and python.yaml) or the ROS distribution
-# itself resolves, and the workspace's own interface package; every other key of package.xml
-# must be defined in rosdep/fmm_ros.yaml.
-ROS_KEYS = {
+# Imports served by ROS (its packages, not PyPI's).
+FROM_ROS = {
     'ament_index_python',
     'builtin_interfaces',
     'diagnostic_msgs',
     'fmm_interfaces',
     'rcl_interfaces',
     'rclpy',
-    'ros2launch',
     'std_msgs',
+}
+# Keys the ROS rosdep database (rosdistro's base.yaml and python.yaml) or the ROS distribution
+# itself resolves, and the workspace's own interface package; every other key of package.xml
+# must be defined in rosdep/fmm_ros.yaml.
+ROS_KEYS = FROM_ROS | {
+    'ros2launch',
     'python3-h5py',
     'python3-matplotlib',
     'python3-numba',
@@ -131,18 +134,8 @@ ROS_KEYS = {
     'python3-yaml',
 }
 
-# Imports served by ROS (its packages, not PyPI's), and the PyPI names of the others where
-# they differ from the module.
-FROM_ROS = {
-    'ament_index_python',
-    'builtin_interfaces',
-    'diagnostic_msgs',
-    'fmm_interfaces',
-    'rcl_interfaces',
-    'rclpy',
-    'std_msgs',
-}
 PYPI_NAMES = {'PIL': 'pillow', 'yaml': 'pyyaml'}
+"""PyPI names of the imports whose distribution is named otherwise."""
 
 
 def test_every_package_xml_key_resolves_for_rosdep():

@@ -92,6 +92,23 @@ def setting_of(cls: type, name: str) -> Setting:
     raise KeyError(f'{cls.__name__} declares no setting {name!r}')
 
 
+def setting_like(cls: type, name: str) -> Any:
+    """A field declared as cls's setting name is: the same default, unit, help and limits.
+
+    For a settings class that carries another's settings (the capture carries the stream's
+    tolerances), so they are declared once.
+    """
+    item = setting_of(cls, name)
+    return setting(
+        item.default,
+        help=item.help,
+        unit=item.unit,
+        limits=item.limits,
+        choices=item.choices,
+        flag=item.flag,
+    )
+
+
 # -- scalar checks (numpy-free: numpy registers its scalars with `numbers`) ---------------------
 
 

@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass
 
 from fmm_ros.constants import LEVEL_TOLERANCE_N, PAPER_LEVELS
-from fmm_ros.core.settings import setting
+from fmm_ros.core.settings import setting, setting_like
 from fmm_ros.errors import BadInputError
 
 # Every quality flag, in the order they are reported. All but the last are properties of the
@@ -113,25 +113,10 @@ class CaptureConfig:
         'impact',
         limits=(1e-3, 600.0),
     )
-    max_skew_s: float = setting(
-        DEFAULT_RULES.max_skew_s,
-        unit='s',
-        help='How far one channel may run ahead of the other before samples count as missing',
-        limits=(0.0, 600.0),
-    )
-    max_gap_s: float = setting(
-        DEFAULT_RULES.max_gap_s,
-        unit='s',
-        help='Largest jump of the sample index that is a gap or a past batch rather than a '
-        'new acquisition',
-        limits=(0.0, 3600.0),
-    )
-    clock_tolerance_s: float = setting(
-        DEFAULT_RULES.clock_tolerance_s,
-        unit='s',
-        help='Acquisition clocks further apart than this belong to different acquisitions',
-        limits=(0.0, 3600.0),
-    )
+    # The stream's tolerances (`StreamRules`), which the capture aligns its channels by.
+    max_skew_s: float = setting_like(StreamRules, 'max_skew_s')
+    max_gap_s: float = setting_like(StreamRules, 'max_gap_s')
+    clock_tolerance_s: float = setting_like(StreamRules, 'clock_tolerance_s')
 
     def __post_init__(self) -> None:
         if not self.rearm_level_n < self.trigger_level_n:
