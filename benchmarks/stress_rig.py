@@ -232,6 +232,83 @@ def memory_slope(samples: list[tuple[float, float]], after_s: float) -> tuple[fl
     return samples[0][1], samples[-1][1], float(np.polyfit(t, m, 1)[0] * 60)
 
 
+# -- the bare transport --------------------------------------------------------------------
+
+# A subscriber that does nothing but count: what the transport alone delivers.
+_BARE_SINK = """
+import sys, time, rclpy
+from fmm_interfaces.msg import SampleBatch
+from fmm_ros.constants import FORCE_TOPIC, VELOCITY_TOPIC
+from fmm_ros.ros.common import SAMPLE_QOS
+seconds = float(sys.argv[1])
+rclpy.init()
+node = rclpy.create_node('bare_sink')
+got = {'force': 0, 'first': None}
+def on_force(msg):
+    got['first'] = got['first'] or time.monotonic()
+    got['force'] += len(msg.samples)
+node.create_subscription(SampleBatch, FORCE_TOPIC, on_force, SAMPLE_QOS)
+node.create_subscription(SampleBatch, VELOCITY_TOPIC, lambda msg: None, SAMPLE_QOS)
+print('ready', flush=True)
+while got['first'] is None or time.monotonic() - got['first'] < seconds:
+    rclpy.spin_once(node, timeout_sec=0.1)
+print(got['force'] / (time.monotonic() - got['first']), flush=True)
+"""
+# A publisher of both channels as fast as publish() returns (the nodes' batch, no work).
+_BARE_SOURCE = """
+import sys, time, numpy as np, rclpy
+from fmm_interfaces.msg import SampleBatch
+from fmm_ros.constants import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC
+from fmm_ros.ros import msgs
+from fmm_ros.ros.common import SAMPLE_QOS
+from rclpy.signals import SignalHandlerOptions
+seconds, batch = float(sys.argv[1]), int(sys.argv[2])
+rclpy.init(signal_handler_options=SignalHandlerOptions.NO)  # SIGTERM ends it at once
+node = rclpy.create_node('bare_source')
+publishers = [node.create_publisher(SampleBatch, topic, SAMPLE_QOS)
+              for topic in (FORCE_TOPIC, VELOCITY_TOPIC)]
+while min(p.get_subscription_count() for p in publishers) == 0:
+    rclpy.spin_once(node, timeout_sec=0.05)
+stamp = msgs.time_msg(0)
+messages = [msgs.sample_batch(np.zeros(batch), quantity=quantity, sample_rate_hz=1e4,
+            first_sample_index=0, stamp=stamp, frame_id='bare') for quantity in (FORCE, VELOCITY)]
+end = time.monotonic() + seconds
+index = 0
+while time.monotonic() < end:
+    for publisher, message in zip(publishers, messages):
+        message.first_sample_index = index
+        publisher.publish(message)
+    index += batch
+"""
+
+
+def bare_transport(seconds: float, batch: int = 500) -> float:
+    """Pace (x real time of two 10 kHz channels) a publisher reaches at a do-nothing subscriber.
+
+    Both in their own processes, as the nodes run, with the nodes' sample QoS and batch:
+    the ceiling the rig's sustained pace is to be read against.
+    """
+    fresh_domain()
+    sink = subprocess.Popen(
+        [sys.executable, '-c', _BARE_SINK, str(seconds)], stdout=subprocess.PIPE, text=True
+    )
+    try:
+        sink.stdout.readline()  # ready
+        source = subprocess.Popen(
+            [sys.executable, '-c', _BARE_SOURCE, str(seconds + 5.0), str(batch)],
+            stdout=subprocess.DEVNULL,
+        )
+        try:
+            samples_per_s = float(sink.stdout.readline())
+        finally:
+            source.terminate()
+            source.wait(30)
+    finally:
+        sink.kill()
+        sink.wait()
+    return samples_per_s / 10_000.0
+
+
 # -- faults --------------------------------------------------------------------------------
 
 
@@ -543,7 +620,11 @@ def run_pass(work: Path, label: str, quick: bool) -> None:
         f'{"rate":>5} {"streaming s":>12} {"pace":>7} {"force sent":>11} {"recorded":>9} '
         f'{"velocity rec":>13} {"missing":>8} {"refused":>8} {"hits":>12}'
     )
+    bare = bare_transport(QUICK_RUN_S if quick else 20.0)
+    if not quick:  # what the batch size buys the transport
+        print(f'bare transport, 5000-sample batches: x{bare_transport(20.0, 5000):.3g}')
     soak = None
+    paces = {}
     for rate, seconds in RATES.items():
         seconds = QUICK_RUN_S if quick else seconds
         result = rate_run(work / f'x{rate}', rate, seconds, SOAK if rate == 100 else ())
@@ -555,8 +636,15 @@ def run_pass(work: Path, label: str, quick: bool) -> None:
             f'{result["sent"]:11d} {force[0]:9d} {velocity[0]:13d} '
             f'{result["missing"]:8d} {result["refused"]:8d} {hits:>12}'
         )
+        paces[rate] = pace
         if rate == 100:
             soak = result
+    best = max(paces, key=paces.get)
+    print(
+        f'sustained pace: x{paces[best]:.3g} (asked x{best}); the bare transport in the same '
+        f'run (publisher to a do-nothing subscriber, two processes, 500-sample batches): '
+        f'x{bare:.3g}, so the graph runs at {paces[best] / bare:.0%} of it'
+    )
     half = soak['wall_s'] / 2
     print(
         f'\nmemory over the x100 soak ({soak["wall_s"]:.0f} s, held impacts capped: {SOAK}); '
