@@ -18,6 +18,7 @@ from collections import Counter, deque
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from rosbags.interfaces import MessageDefinitionFormat
@@ -32,7 +33,6 @@ from fmm_ros.core.signal.stream import (
     ChannelLedger,
     StreamRules,
 )
-from fmm_ros.io.bags.arrays import ChannelArrays, read_channel_arrays
 from fmm_ros.io.bags.definitions import (
     BASE_STORE,
     FRF_SUMMARY,
@@ -44,6 +44,9 @@ from fmm_ros.io.bags.errors import BagDamagedError, BagError, MessageTypeError, 
 from fmm_ros.io.bags.mcapscan import Damage, McapScan
 from fmm_ros.io.bags.metadata import custom_ledger, read_information
 from fmm_ros.io.bags.sqlitescan import SqliteScan
+
+if TYPE_CHECKING:  # arrays.py compiles with numba: imported only by a whole read
+    from fmm_ros.io.bags.arrays import ChannelArrays
 
 # What rosbags raises on a damaged bag: its own ReaderError, or whatever its parsers meet on
 # bad bytes (a KeyError from a corrupt QoS string, apsw.CorruptError from a damaged database
@@ -448,7 +451,7 @@ class BagReader:
         force_topic: str = FORCE_TOPIC,
         velocity_topic: str = VELOCITY_TOPIC,
         rules: StreamRules = DEFAULT_RULES,
-    ) -> ChannelArrays | None:
+    ) -> 'ChannelArrays | None':
         """Both channels read whole into two arrays, when the bag is a clean recording.
 
         None unless the bag is one intact MCAP file, read without a problem so far, whose
@@ -459,6 +462,8 @@ class BagReader:
         single = not self.path.is_dir() or len(list(self.path.glob('*.mcap'))) == 1
         if self._reader is None or self.storage != 'mcap' or self.problems or not single:
             return None
+        from fmm_ros.io.bags.arrays import read_channel_arrays  # numba: on first use only
+
         return read_channel_arrays(self._storage_file, topics, self.typestore, rules)
 
     def channel(self, topic: str) -> Iterator[ChannelBatch]:
