@@ -133,6 +133,7 @@ def main() -> None:
     args = parser.parse_args()
     if args.quick:
         args.cases, args.clean = 1, 2
+        args.generator = next(iter(GENERATORS))
     for name, generator in GENERATORS.items():
         if args.generator in (name, 'both'):
             matrix(name, generator, args.cases, args.clean)

@@ -142,7 +142,7 @@ def main() -> int:
     if args.quick:
         args.repeats, args.dpi = 1, 40.0
 
-    session = simulated_session(10)
+    session = simulated_session(1 if args.quick else 10)
     records = capture_impacts(session.force_n, session.velocity_m_s, session.sample_rate_hz)
     work = Path(tempfile.mkdtemp(prefix='bench_report_'))
     out = args.out or work / 'report'
