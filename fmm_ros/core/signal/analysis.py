@@ -21,7 +21,7 @@ from typing import Protocol
 import numpy as np
 
 from fmm_ros.constants import LEVEL_TOLERANCE_N, PAPER_LEVELS
-from fmm_ros.core.signal import frf
+from fmm_ros.core.signal import frf, response
 from fmm_ros.core.signal.capture import (
     DEFAULT_CAPTURE,
     FLAGS,
@@ -57,7 +57,8 @@ class AnalysisConfig:
     # FRF arrays in results stop at this frequency [Hz] (None: Nyquist). The FMM's mode is at
     # 2.2 Hz and its odd harmonics matter up to ~20 Hz; 100 Hz keeps results small.
     band_limit_hz: float | None = 100.0
-    # Where the peak |receptance| is searched [Hz]. Its lower
+    # Where the peak |receptance| is searched [Hz] (its top raised to band_limit_hz above it,
+    # `_peak_band`). Its lower
     # end keeps out the lowest bins, where the rest offset friction leaves in the displacement
     # (x_final != 0) makes |mobility / (i omega)| large. Its upper end is lowered further to
     # where the force spectrum has dropped by excitation_drop_db (`frf.excitation_bandwidth`).
@@ -202,7 +203,8 @@ def analyze_impact(
     peak_force = float(np.max(raw_force[interval[0] : interval[1]])) if interval else float('nan')
 
     impulse = frf.pulse_impulse(raw_force, rate, capture.rearm_level_n, contact_start)
-    force, velocity = raw_force, record.velocity_m_s
+    # The DFT of what the sensor measured, turned into velocity bin by bin (exact).
+    force, velocity = raw_force, record.measured[0]
     if analysis.force_window_s is not None:
         offset = float(np.mean(force[:contact_start])) if contact_start else 0.0
         force = (force - offset) * frf.force_window(
@@ -223,8 +225,10 @@ def analyze_impact(
     force_spectrum, velocity_spectrum = frf.spectra(force, velocity, n_fft)
     # Copies, so the full-length spectra are freed rather than kept alive by the slices.
     force_spectrum = force_spectrum[:bins].copy()
-    velocity_spectrum = velocity_spectrum[:bins].copy()
     frequency = frf.frequency_axis(n_fft, rate)[:bins]
+    velocity_spectrum = response.convert_spectrum(
+        velocity_spectrum[:bins], frequency, record.response_quantity, response.VELOCITY
+    ).copy()
     mobility = frf.mobility(force_spectrum, velocity_spectrum)
     receptance = frf.receptance_from_mobility(mobility, frequency)
     peak_receptance, _ = frf.peak_magnitude(
@@ -360,8 +364,14 @@ def _level_summary(
 def _peak_band(
     force_spectrum: np.ndarray, frequency_hz: np.ndarray, analysis: AnalysisConfig
 ) -> tuple[float, float]:
-    """The configured peak band, its top lowered to where the excitation has run out."""
+    """The configured peak band, its top lowered to where the excitation has run out.
+
+    A band limit above the configured top (a structure's kHz modes, not the FMM's 2.2 Hz)
+    raises the top to it: the band then follows the data, up to what the hammer excited.
+    """
     low, high = analysis.peak_band_hz
+    if analysis.band_limit_hz is None or analysis.band_limit_hz > high:
+        high = analysis.band_limit_hz or frequency_hz[-1]
     usable = frf.excitation_bandwidth(force_spectrum, frequency_hz, analysis.excitation_drop_db)
     return low, high if np.isnan(usable) else min(high, usable)
 

@@ -23,7 +23,14 @@ from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, Qo
 from rosbags.interfaces import QosTime as _QosTime
 from rosbags.typesys.store import Typestore
 
-from fmm_ros.constants import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC, resolve_name
+from fmm_ros.constants import (
+    FORCE,
+    FORCE_TOPIC,
+    VELOCITY,
+    VELOCITY_TOPIC,
+    Channel,
+    resolve_name,
+)
 from fmm_ros.io.bags.definitions import SAMPLE_BATCH, fmm_typestore
 from fmm_ros.io.bags.errors import BagError, MessageTypeError
 from fmm_ros.io.bags.metadata import (
@@ -287,11 +294,14 @@ class BagWriter:
         force_frame: str = 'hammer',
         velocity_frame: str = 'vibrometer',
         on_progress: Callable[[int], None] | None = None,
+        response: Channel = VELOCITY,
     ) -> int:
         """Whole force [N] and velocity [m/s] records as batches on /fmm/force, /fmm/velocity.
 
         Both channels share one sample index, as a DAQ publishes them. on_progress gets the
         number of samples written per batch. Returns the index after the last sample.
+        response: what the second channel measures (`RESPONSE_CHANNELS`: an accelerometer's
+        m/s^2 go on the velocity topic as quantity 'acceleration').
         """
         if len(force) != len(velocity):
             raise ValueError(
@@ -315,7 +325,7 @@ class BagWriter:
             self.write_sample_batch(
                 VELOCITY_TOPIC,
                 velocity[start:stop],
-                quantity=VELOCITY,
+                quantity=response,
                 sample_rate_hz=sample_rate_hz,
                 first_sample_index=index,
                 frame_id=velocity_frame,

@@ -21,6 +21,7 @@ from fmm_ros.core.signal.analysis import AnalysisConfig, NominalLevel, analyze_i
 from fmm_ros.core.signal.analysis import ImpactResult as CoreImpactResult
 from fmm_ros.core.signal.capture import FLAGS, CaptureConfig, ImpactCapture
 from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.core.signal.response import as_measured
 from fmm_ros.core.signal.stream import Batch
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import RESULT_QOS, run_node
@@ -261,8 +262,9 @@ class Analyzer(Node):
 
     def _report(self, record: ImpactRecord, stamp: Time) -> None:
         """Analyse one completed record, publish it and the updated level summaries."""
+        measured = as_measured(record, self.inputs.response_quantity, self.capture_config)
         result = analyze_impact(
-            record, self.capture_config, self.analysis_config, impact_id=self.impacts_reported
+            measured, self.capture_config, self.analysis_config, impact_id=self.impacts_reported
         )
         self.capture.recycle(record)
         self.results.append(result)
