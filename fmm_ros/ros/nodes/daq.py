@@ -39,7 +39,7 @@ from fmm_ros.constants import (
     VELOCITY,
     VELOCITY_TOPIC,
 )
-from fmm_ros.io.labfiles import ChannelMapping, ImportMapping, load_mapping, read_lab_file
+from fmm_ros.io.labfiles import ImportMapping, load_mapping, read_lab_file
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import SAMPLE_QOS, run_node
 from fmm_ros.ros.flow import SOURCE_PARAMS, PacedSource, deliver_last_batches
@@ -143,7 +143,8 @@ PARAMS = (
     Param(
         'file_mapping',
         '',
-        'YAML channel mapping of the file (see fmm import); "" for the fmm CSV/NPZ layout',
+        'YAML channel mapping of the file (see fmm import); "" for what the file states '
+        '(time_s, force_n and velocity_m_s, acceleration_m_s2 or displacement_m)',
         read_only=True,
     ),
     Param(
@@ -358,7 +359,7 @@ class FileBackend:
         mapping = (
             ImportMapping.from_dict(load_mapping(cfg['file_mapping']))
             if cfg['file_mapping']
-            else default_mapping(path)
+            else {}
         )
         recording = read_lab_file(path, mapping)
         self.response = next(
@@ -417,14 +418,6 @@ class FileBackend:
 
     def close(self) -> None:
         """Nothing is held open: the file was read at start-up."""
-
-
-def default_mapping(path: Path) -> ImportMapping:
-    """The channel layout fmm writes: force_n [N], velocity_m_s [m/s], time_s or sample_rate_hz."""
-    force, velocity = ChannelMapping('force_n', 'N'), ChannelMapping('velocity_m_s', 'm/s')
-    if path.suffix.lower() == '.npz':
-        return ImportMapping(force, velocity, sample_rate_hz='sample_rate_hz')
-    return ImportMapping(force, velocity, time=ChannelMapping('time_s', 's'))
 
 
 def main(args: list[str] | None = None) -> int:
