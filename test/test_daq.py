@@ -10,7 +10,6 @@ from rig_graph import FAST_ANALYZER, Listener, params, wait_for
 
 from fmm_interfaces.srv import FitFriction
 from fmm_ros.constants import FIT_SERVICE
-
 from fmm_ros.core.signal.records import write_impact_csv
 from fmm_ros.ros.nodes.analyzer import Analyzer
 from fmm_ros.ros.nodes.daq import Daq

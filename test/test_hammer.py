@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from fmm_ros.cli import main
-from fmm_ros.core.signal.capture import CaptureConfig, quality_flags
+from fmm_ros.core.signal.config import CaptureConfig
+from fmm_ros.core.signal.quality import quality_flags
 from fmm_ros.core.signal.hammer import hammer_hits
 from fmm_ros.core.signal.records import ImpactRecord
 

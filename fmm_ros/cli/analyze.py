@@ -15,15 +15,12 @@ import argparse
 import dataclasses
 import json
 import sys
+from typing import TYPE_CHECKING
 
 from fmm_ros.cli import options
-from fmm_ros.cli.formats import analysis_text
-from fmm_ros.cli.progress import StatusLine, report_problems
-from fmm_ros.io.frf_files import level_curves, write_frfs
-from fmm_ros.workflows.hammer import FileHits, read_hammer_hits
-from fmm_ros.workflows.inputs import read_inputs
-from fmm_ros.workflows.results import analysis_dict, json_safe
-from fmm_ros.workflows.session import analyse
+
+if TYPE_CHECKING:
+    from fmm_ros.workflows.hammer import FileHits
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -52,8 +49,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Analyse the files and bags, print the report, write any exports."""
+    from fmm_ros.cli.formats import analysis_text
+    from fmm_ros.cli.progress import StatusLine, report_problems
+    from fmm_ros.io.frf_files import level_curves, write_frfs
+    from fmm_ros.workflows.inputs import read_inputs
+    from fmm_ros.workflows.results import analysis_dict
+    from fmm_ros.workflows.session import analyse
+
     capture, analysis = options.analysis_configs(args)
     if args.force_only:
+        from fmm_ros.workflows.hammer import read_hammer_hits
+
         return _hammer_only(
             args, read_hammer_hits(args.inputs, options.input_options(args, capture))
         )
@@ -75,6 +81,8 @@ def run(args: argparse.Namespace) -> int:
 def _hammer_only(args: argparse.Namespace, files: list[FileHits]) -> int:
     """Print every file's hits (JSON or a table); exit 0 whether hits were found or not."""
     if args.json:
+        from fmm_ros.workflows.results import json_safe
+
         document = {
             'files': [
                 {

@@ -94,14 +94,14 @@ class ChannelMapping:
         known = lookup_unit(quantity, unit)
         if self.scale is not None:
             if known is not None:
-                raise ValueError(
+                raise BadInputError(
                     f'{quantity} {self.name!r}: unit {unit} already fixes the scale '
                     f'({known[1]:g} {si} per {unit}); drop scale, or give the raw sensor unit '
                     f'(e.g. V) with scale in {si} per that unit'
                 )
             return float(self.scale), f'× {self.scale:g} {si}/{unit or "unit"} (stated scale)'
         if known is None:
-            raise ValueError(
+            raise BadInputError(
                 f'{quantity} {self.name!r}: '
                 + (
                     f'unit {unit!r} is not a {quantity} unit ({", ".join(units)}); for a '
@@ -185,10 +185,10 @@ def _channel(spec, key: str) -> ChannelMapping:
     if isinstance(spec, str | int):
         return ChannelMapping(str(spec))
     if not isinstance(spec, dict) or 'name' not in spec:
-        raise ValueError(f'mapping entry {key} needs a name: {key}: {{name: ..., unit: ...}}')
+        raise BadInputError(f'mapping entry {key} needs a name: {key}: {{name: ..., unit: ...}}')
     unknown = set(spec) - set(CHANNEL_KEYS)
     if unknown:
-        raise ValueError(f'unknown keys in mapping entry {key}: {", ".join(sorted(unknown))}')
+        raise BadInputError(f'unknown keys in mapping entry {key}: {", ".join(sorted(unknown))}')
     scale, full_scale_si = spec.get('scale'), spec.get('full_scale_si')
     return ChannelMapping(
         str(spec['name']),
@@ -256,19 +256,19 @@ class LabFile(ABC):
         values = np.asarray(self.array(name))
         squeezed = np.squeeze(values)
         if squeezed.ndim != 1:
-            raise ValueError(
+            raise BadInputError(
                 f'{self.path}: {name!r} has shape {values.shape}; a channel must '
                 'be a vector (one trial per file)'
             )
         if not np.issubdtype(squeezed.dtype, np.number):
-            raise ValueError(f'{self.path}: {name!r} is not numeric ({squeezed.dtype})')
+            raise BadInputError(f'{self.path}: {name!r} is not numeric ({squeezed.dtype})')
         return squeezed.astype(np.float64, copy=False)
 
     def scalar(self, name: str) -> float:
         """A scalar variable (e.g. the sample rate)."""
         values = np.asarray(self.array(name), dtype=np.float64)
         if values.size != 1:
-            raise ValueError(
+            raise BadInputError(
                 f'{self.path}: {name!r} should be one number, has shape {values.shape}'
             )
         return float(values.reshape(-1)[0])
@@ -518,10 +518,10 @@ def _reading(path: Path, kind: str) -> Iterator[None]:
     except ValueError as error:  # the library's own words, with the file they are about
         if str(path) in str(error):
             raise
-        raise ValueError(f'{path} ({kind}): {error}') from None
+        raise BadInputError(f'{path} ({kind}): {error}') from None
     except Exception as error:  # noqa: BLE001 - the boundary to third-party parsers of bytes
         detail = str(error) or type(error).__name__
-        raise ValueError(f'{path}: not a readable {kind} file ({detail})') from None
+        raise BadInputError(f'{path}: not a readable {kind} file ({detail})') from None
 
 
 class _BoundedFile(io.FileIO):
@@ -542,7 +542,7 @@ def _check_declared_size(path: Path, name: str, declared_bytes: int) -> None:
     """ValueError when a channel declares more bytes than its file can hold."""
     size = os.stat(path).st_size
     if declared_bytes > DECLARED_SIZE_RATIO * size:
-        raise ValueError(
+        raise BadInputError(
             f'{path}: {name!r} declares {declared_bytes} bytes of data, more than '
             f'{DECLARED_SIZE_RATIO} times the file ({size} bytes): a corrupt length, not a '
             'measurement'
@@ -571,7 +571,7 @@ def open_lab_file(path: str | Path, text_format: TextFormat = DETECT) -> LabFile
     path = Path(path)
     kind = sniff.file_kind(path)
     if kind == sniff.BAG:
-        raise ValueError(f'{path} is a bag, not a lab file: give it to fmm analyze/fit/report')
+        raise BadInputError(f'{path} is a bag, not a lab file: give it to fmm analyze/fit/report')
     if kind == sniff.CSV:
         return CsvFile(path, text_format)
     if kind == sniff.NPZ:
@@ -767,7 +767,7 @@ def _sample_rate(lab: LabFile, mapping: ImportMapping, length: int) -> tuple[flo
             # Over the whole span, so the rounding of each printed time stamp averages out.
             from_time = sample_rate_from_times(time_s, rtol=UNIFORM_TIME_TOLERANCE)
         except ValueError as error:
-            raise ValueError(
+            raise BadInputError(
                 f'{lab.path}: time {name!r} is not uniformly increasing ({error}; a dropped '
                 'or repeated sample?): the analysis needs a constant sample rate'
             ) from None
@@ -777,7 +777,7 @@ def _sample_rate(lab: LabFile, mapping: ImportMapping, length: int) -> tuple[flo
         if rate is None:
             rate, how = from_time, f'time channel {name!r}'
         elif abs(from_time - rate) > UNIFORM_TIME_TOLERANCE * rate:
-            raise ValueError(
+            raise BadInputError(
                 f'{lab.path}: sample rate {rate:g} Hz ({how}) disagrees with '
                 f'time channel {name!r} ({from_time:g} Hz)'
             )
@@ -790,7 +790,7 @@ def _sample_rate(lab: LabFile, mapping: ImportMapping, length: int) -> tuple[flo
         if None not in increments and len(increments) == 1:
             rate, how = 1.0 / increments.pop(), 'wf_increment in the file'
         elif len(increments - {None}) > 1:
-            raise ValueError(
+            raise BadInputError(
                 f'{lab.path}: force and {mapping.response_quantity} have different sample '
                 f'intervals {sorted(increments - {None})} s'
             )
@@ -801,7 +801,7 @@ def _sample_rate(lab: LabFile, mapping: ImportMapping, length: int) -> tuple[flo
             '(a number or a variable name) or --time NAME'
         )
     if not np.isfinite(rate) or rate <= 0:
-        raise ValueError(f'{lab.path}: sample rate {rate} Hz is not a positive number')
+        raise BadInputError(f'{lab.path}: sample rate {rate} Hz is not a positive number')
     return rate, how
 
 
@@ -827,12 +827,12 @@ def read_lab_files(
 ) -> list[LabRecording]:
     """Every file read with one mapping (see `read_lab_file`); they must share one rate."""
     if not paths:
-        raise ValueError('no input files')
+        raise BadInputError('no input files')
     recordings = [read_lab_file(path, mapping, text_format) for path in paths]
     rate = recordings[0].sample_rate_hz
     for recording in recordings[1:]:
         if abs(recording.sample_rate_hz - rate) > 1e-9 * rate:
-            raise ValueError(
+            raise BadInputError(
                 f'{recording.source} is sampled at {recording.sample_rate_hz:g} '
                 f'Hz, {recordings[0].source} at {rate:g} Hz: one bag, one rate'
             )

@@ -89,7 +89,7 @@ def read_inputs(
     continuous file without an impact, and inputs of different sample rates.
     """
     if not paths:
-        raise ValueError('no inputs given')
+        raise BadInputError('no inputs given')
     records: list[ImpactRecord] = []
     problems: list[str] = []
     notes: list[str] = []
@@ -160,7 +160,7 @@ def _cut(recording: LabRecording, capture: CaptureConfig) -> list[ImpactRecord]:
 def _some(records: list[ImpactRecord], path: Path, capture: CaptureConfig) -> list[ImpactRecord]:
     """The records of a recording of several hits, which must hold one at least."""
     if not records:
-        raise ValueError(
+        raise BadInputError(
             f'{path}: no impact in the recorded streams (the force never reaches the trigger '
             f'level {capture.trigger_level_n:g} N)'
         )
@@ -178,7 +178,7 @@ def _on_one_grid(records: list[ImpactRecord], options: InputOptions) -> list[Imp
         record for record in records if abs(record.sample_rate_hz - rate) > RATE_TOLERANCE * rate
     ]
     if odd:
-        raise ValueError(
+        raise BadInputError(
             f'mismatched sample rates: {records[0].source} is sampled at {rate:.6g} '
             f'Hz but {odd[0].source} at {odd[0].sample_rate_hz:.6g} Hz'
         )

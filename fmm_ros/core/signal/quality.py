@@ -1,9 +1,9 @@
 """Signs of damaged samples in one channel: a flat top, a stuck stretch, no response to a hit.
 
-Plain functions on arrays, used by `capture.quality_flags` (so the analyzer node, `fmm analyze`,
-bag replay and every fit see the same verdict). None of them needs to know the sensor: a
-full-scale range, a quantisation step or a noise level, where they matter, are read from the
-samples themselves.
+Plain functions on arrays, and `quality_flags`, the record's verdict they make (so the analyzer
+node, `fmm analyze`, bag replay and every fit see the same one). None of them needs to know
+the sensor: a full-scale range, a quantisation step or a noise level, where they matter, are
+read from the samples themselves.
 
 - Noise: the white-noise deviation of a channel is the MAD deviation of its second differences
   over sqrt(6) (`white_noise_std`): a few-Hz motion barely changes over two samples at 10 kHz,
@@ -40,7 +40,16 @@ import math
 
 import numpy as np
 
-from fmm_ros.core.signal.frf import first_true
+from fmm_ros.core.signal import pulse
+from fmm_ros.core.signal.capture import (
+    TriggerDetector,
+    below_level,
+    contact_start_index,
+    with_trigger,
+)
+from fmm_ros.core.signal.config import DEFAULT_CAPTURE, FLAGS, CaptureConfig
+from fmm_ros.core.signal.frf import contact_duration, first_true
+from fmm_ros.core.signal.records import Gaps, ImpactRecord
 
 MAD_TO_STD = 1.482602218505602
 """1 / Phi^-1(3/4): the MAD of Gaussian noise times this is its standard deviation."""
@@ -87,6 +96,18 @@ STUCK_MAX_EQUAL_FRACTION = 0.9
 RESPONSE_RATIO = 5.0
 """The velocity after a hit must depart from its level by this many times the noise and the
 quiet tail's spread."""
+
+SETTLED_TAIL_FRACTION = 0.01
+"""An acceleration or displacement record has settled when its last 1 % ..."""
+
+SETTLED_RESPONSE_FRACTION = 0.01
+"""... departs from its level before the hit by at most 1 % of its largest departure: the
+jump the DFT's wrap-around makes from the record's end to its start, and so the leakage of its
+FRF, is then at the per cent level of the peak (a velocity has an absolute rest level instead,
+`CaptureConfig.rest_velocity_m_s`)."""
+
+SETTLED_TAIL_MIN_SAMPLES = 8
+"""The tail judged is at least this many samples (a short record's 1 % is too few)."""
 
 RESPONSE_PERCENTILE = 90.0
 """The departure after a hit is this percentile of |velocity - level| (robust to a spike)."""
@@ -289,3 +310,120 @@ def responds(
     spread = float(np.percentile(np.abs(before - level), RESPONSE_PERCENTILE))
     noise = white_noise_std(velocity) if noise_std is None else noise_std
     return departure > RESPONSE_RATIO * max(spread, noise if np.isfinite(noise) else 0.0)
+
+
+def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE) -> tuple[str, ...]:
+    """The quality flags a record raises, in `FLAGS` order (see the module docstring for rules).
+
+    - double_hit: after the force falls below the re-arm level, it rises again within
+      min_spacing_s of the trigger to the trigger level or a tenth of the peak, whichever is
+      lower (`pulse.rebounds`: a hammer bounce, two inputs in one FRF).
+    - clipped: the force reaches its known full-scale range, or its peak is a flat top no
+      smooth pulse makes (`flat_extreme`: clipping with the range unknown).
+    - coarse: the contact spans too few samples for its impulse and spectrum
+      (`pulse.coarse`).
+    - saturated: the velocity reaches its known range, or its maximum or minimum is such a
+      flat top (the vibrometer's range exceeded).
+    - no_response: the velocity does not depart from its level before the hit by more than
+      its noise and its own spread there (`responds`): a dead or disconnected
+      vibrometer.
+    - dropout: a noisy channel holds one exact value for longer than chance allows
+      (`stuck_stretch`): samples dropped and filled by zeros or the last value.
+    - gap: samples that never arrived inside the record (they are NaN).
+    - interrupted: a new acquisition began before the record was complete (its tail is a gap).
+    - nan: received samples that are NaN or infinite.
+    - unsettled: |velocity - its level before the hit| (the level removes a vibrometer
+      offset) above rest_velocity_m_s in the last rest_time_s of the record, or before the
+      hammer touched, so the record is not one whole transient and its DFT leaks. An
+      acceleration or displacement sensor has no velocity threshold: its departure from
+      that level over the record's last `SETTLED_TAIL_FRACTION`, or before the hit, must stay
+      within `SETTLED_RESPONSE_FRACTION` of its largest departure.
+    - overlap: the next impact triggers inside this record.
+
+    The response flags (saturated, no_response, dropout, nan, unsettled) judge the channel the
+    sensor measured (`ImpactRecord.measured`), in its own units and range.
+    """
+    record = with_trigger(record, config)
+    force = record.force_n
+    velocity, response_full_scale = record.measured
+    samples = config.samples(record.sample_rate_hz)
+    trigger = record.trigger_offset
+    flags = set()
+    force_noise = white_noise_std(force)
+    velocity_noise = white_noise_std(velocity)
+
+    after_contact = first_true(below_level(force[trigger:], config.rearm_level_n))
+    contact_end = force.size if after_contact < 0 else trigger + after_contact
+    contact_start = contact_start_index(force, trigger, config)
+    peak = float(np.nanmax(force[contact_start:contact_end]))
+    if pulse.rebounds(
+        force,
+        contact_end,
+        trigger + samples.min_spacing,
+        peak,
+        config.trigger_level_n,
+        config.rearm_level_n,
+    ):
+        flags.add('double_hit')
+    if pulse.coarse(
+        contact_duration(force, record.sample_rate_hz, config.rearm_level_n, contact_start),
+        record.sample_rate_hz,
+    ):
+        flags.add('coarse')
+    force_plateaus = _plateaus(force, (1.0,), force_noise)
+    velocity_plateaus = _plateaus(velocity, (1.0, -1.0), velocity_noise)
+    if _beyond(force, record.force_full_scale_n) or force_plateaus:
+        flags.add('clipped')
+    if _beyond(velocity, response_full_scale) or velocity_plateaus:
+        flags.add('saturated')
+    if not responds(velocity, contact_start, contact_end, samples.min_spacing, velocity_noise):
+        flags.add('no_response')
+    if stuck_stretch(force, force_plateaus) or stuck_stretch(velocity, velocity_plateaus):
+        flags.add('dropout')
+    if record.force_gaps or record.velocity_gaps:
+        flags.add('gap')
+    if record.interrupted:
+        flags.add('interrupted')
+    if _non_finite_outside(force, record.force_gaps) or _non_finite_outside(
+        velocity, record.velocity_gaps
+    ):
+        flags.add('nan')
+    # Motion is judged about the level at rest before the hit: a vibrometer's offset is not.
+    before = velocity[:contact_start]
+    finite_before = before[np.isfinite(before)]
+    rest_level = float(np.median(finite_before)) if finite_before.size else 0.0
+    if record.response is None:
+        rest = config.rest_velocity_m_s
+        tail = velocity[max(trigger + 1, velocity.size - samples.rest) :]
+    else:
+        tail_samples = max(SETTLED_TAIL_MIN_SAMPLES, int(SETTLED_TAIL_FRACTION * velocity.size))
+        tail = velocity[max(trigger + 1, velocity.size - tail_samples) :]
+        with np.errstate(invalid='ignore'):
+            rest = SETTLED_RESPONSE_FRACTION * float(np.nanmax(np.abs(velocity - rest_level)))
+    if np.any(np.abs(before - rest_level) > rest) or np.any(np.abs(tail - rest_level) > rest):
+        flags.add('unsettled')
+    follower = TriggerDetector(config, record.sample_rate_hz, last_trigger=trigger)
+    if follower.scan(force[trigger + 1 :], trigger + 1):
+        flags.add('overlap')
+    return tuple(flag for flag in FLAGS if flag in flags)
+
+
+def _plateaus(samples: np.ndarray, signs: tuple[float, ...], noise_std: float) -> tuple[float, ...]:
+    """Levels of the channel's clipped extremes (`flat_extreme`) on the given sides."""
+    levels = (flat_extreme(samples, sign, noise_std) for sign in signs)
+    return tuple(level for level in levels if level is not None)
+
+
+def _beyond(samples: np.ndarray, full_scale: float) -> bool:
+    """Whether any sample reaches a known full-scale range (0: unknown, never)."""
+    return full_scale > 0 and bool(np.any(np.abs(samples) >= full_scale))
+
+
+def _non_finite_outside(samples: np.ndarray, gaps: Gaps) -> bool:
+    """Whether a sample outside the gap ranges is NaN or infinite."""
+    if np.isfinite(np.sum(samples)):
+        return False
+    bad = ~np.isfinite(samples)
+    for start, stop in gaps:
+        bad[start:stop] = False
+    return bool(bad.any())
