@@ -12,8 +12,8 @@ import pytest
 
 from fmm_ros.cli import main
 from fmm_ros.core.signal.config import CaptureConfig
-from fmm_ros.core.signal.quality import quality_flags
 from fmm_ros.core.signal.hammer import hammer_hits
+from fmm_ros.core.signal.quality import quality_flags
 from fmm_ros.core.signal.records import ImpactRecord
 
 NOISE_N = 0.1
