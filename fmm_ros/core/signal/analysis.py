@@ -20,7 +20,7 @@ from typing import Protocol
 
 import numpy as np
 
-from fmm_ros.core.signal import frf, response
+from fmm_ros.core.signal import frf, pulse, response
 from fmm_ros.core.signal.capture import (
     contact_start_index,
     with_trigger,
@@ -210,7 +210,9 @@ def summarize(
 
     With nominal levels an impact belongs to the nearest one within its tolerance, or to none
     (flag `out_of_tolerance`); without, peak forces are clustered into `level_1`, `level_2`, ...
-    in ascending force. Only accepted impacts enter the averages; every impact is returned.
+    in ascending force. Impacts that share the session's top force to the last bit, several
+    of them, are `clipped` (`pulse.shared_top`: a one-sample clipped top is no plateau). Only
+    accepted impacts enter the averages; every impact is returned.
     """
     peaks = np.array([result.peak_force_n for result in results], dtype=float)
     if analysis.levels:
@@ -227,10 +229,13 @@ def summarize(
         level_order = [(f'level_{label + 1}', 0.0) for label in range(labels.max(initial=-1) + 1)]
 
     judged = []
-    for result, name in zip(results, names, strict=True):
+    on_top = pulse.shared_top(peaks)  # clipped hits: several share the top to the last bit
+    for result, name, topped in zip(results, names, on_top, strict=True):
         flags = set(result.flags) - {'out_of_tolerance'}
         if analysis.levels and not name:
             flags.add('out_of_tolerance')
+        if topped:
+            flags.add('clipped')
         ordered = tuple(flag for flag in FLAGS if flag in flags)
         judged.append(
             dataclasses.replace(

@@ -7,11 +7,7 @@ here is an impact there: a rebound is part of its hit, never a new one) and thes
 
 - double_hit and coarse: the pulse rules every impact is judged by (`fmm_ros.core.signal.pulse`);
 - clipped: the hit's peak reaches the force sensor's full scale, or its top is a flat plateau
-  (`quality.flat_extreme`), or its peak is the record's largest force and `SHARED_TOP_HITS`
-  hits peak there to the last bit: a top clipped to one sample is no plateau, but hits of a
-  hand-held hammer do not peak at one identical value unless a rail cut them (a coarse ADC,
-  whose step the peaks of many hits may share, could alarm here: its step shows in the
-  peaks, and the docs say so);
+  (`quality.flat_extreme`), or several hits share the record's top (`pulse.shared_top`);
 - nan: a non-finite sample around the hit.
 """
 
@@ -31,9 +27,6 @@ from fmm_ros.core.signal.capture import (
 
 HIT_FLAGS: tuple[str, ...] = ('double_hit', 'clipped', 'coarse', 'nan')
 """The flags a hit of the force alone can raise (a subset of `capture.FLAGS`, in its order)."""
-
-SHARED_TOP_HITS = 2
-"""This many hits peaking at the record's largest force, to the last bit, were clipped."""
 
 
 @dataclass(frozen=True)
@@ -70,11 +63,10 @@ def hammer_hits(
         low = max(0, trigger - samples.pretrigger)
         stretch = force[low : trigger + samples.min_spacing]
         judged.append((trigger, *_judged(stretch, trigger - low, sample_rate_hz, capture, noise)))
-    top = max((peak for _, peak, *_ in judged), default=np.nan)
-    shared_top = sum(peak == top for _, peak, *_ in judged) >= SHARED_TOP_HITS
+    on_top = pulse.shared_top(np.array([peak for _, peak, *_ in judged]))
     hits = []
-    for trigger, peak, impulse, contact, flags in judged:
-        if (force_full_scale_n > 0 and peak >= force_full_scale_n) or (shared_top and peak == top):
+    for (trigger, peak, impulse, contact, flags), topped in zip(judged, on_top, strict=True):
+        if (force_full_scale_n > 0 and peak >= force_full_scale_n) or topped:
             flags.add('clipped')
         hits.append(
             Hit(

@@ -10,6 +10,11 @@ Shared by the impact flags (`capture.quality_flags`) and the check of the hammer
   a trigger level set for the hit: it is the hit's rebound, not a new hit, and it spoils it.
   For the FMM's 450-1450 N hits the trigger level (20 N) is the lower: the rule is the
   paper-scale one.
+- clipped (`shared_top`): several hits peak at the session's largest force to the last bit.
+  A top clipped to one sample is no plateau, but hand-held hits do not peak at one identical
+  value unless a rail cut them; `SHARED_TOP_HITS` (3) keeps a chance tie of two hits on a
+  coarse ADC's step from alarming (give the sensor's range, `force_full_scale_n`, to catch
+  one or two clipped hits).
 - coarse (`coarse`): the contact, measured where the force crosses the re-arm level, spans
   fewer than `COARSE_PULSE_SAMPLES` sample intervals. The trapezoid impulse of a half-sine
   pulse of n samples is off by up to -9/+5 % at n = 3, -5/+3 % at 4, -3/+2 % at 5,
@@ -23,6 +28,9 @@ import numpy as np
 
 REBOUND_FRACTION = 0.1
 """A rebound reaches this fraction of its hit's peak (or the trigger level, if lower)."""
+
+SHARED_TOP_HITS = 3
+"""This many hits peaking at the largest force of a session, to the last bit, were clipped."""
 
 COARSE_PULSE_SAMPLES = 6.0
 """A contact shorter than this many sample intervals is sampled too coarsely (module doc)."""
@@ -48,6 +56,16 @@ def rebounds(
     after = force_n[contact_end:stop]
     level = rebound_level_n(peak_force_n, trigger_level_n, rearm_level_n)
     return bool(np.any((after >= level) & np.isfinite(after)))
+
+
+def shared_top(peak_force_n: np.ndarray) -> np.ndarray:
+    """Which hits peak at the session's largest force, shared by `SHARED_TOP_HITS` or more."""
+    peaks = np.asarray(peak_force_n, dtype=float)
+    finite = np.isfinite(peaks)
+    if not finite.any():
+        return np.zeros(peaks.shape, dtype=bool)
+    top = peaks == np.max(peaks[finite])
+    return top if np.count_nonzero(top) >= SHARED_TOP_HITS else np.zeros(peaks.shape, dtype=bool)
 
 
 def coarse(contact_time_s: float, sample_rate_hz: float) -> bool:
