@@ -17,6 +17,7 @@ NODES = {
     'recorder': 'fmm_ros.ros.nodes.recorder:main',
     'player': 'fmm_ros.ros.nodes.player:main',
     'daq': 'fmm_ros.ros.nodes.daq:main',
+    'live': 'fmm_ros.ros.nodes.live:main',
 }
 
 

@@ -39,6 +39,7 @@ ROSDEP_KEYS = {
     'pyuff': 'python3-pyuff-pip',
     'rcl_interfaces': 'rcl_interfaces',
     'rclpy': 'rclpy',
+    'rosgraph_msgs': 'rosgraph_msgs',
     'rosbags': 'python3-rosbags-pip',
     'scipy': 'python3-scipy',
     'std_msgs': 'std_msgs',

@@ -32,6 +32,7 @@ from fmm_ros.ros.common import SAMPLE_QOS, run_node
 from fmm_ros.ros.flow import SOURCE_PARAMS, PacedSource, deliver_last_batches
 from fmm_ros.ros.health import Health
 from fmm_ros.ros.params import Param, declare_parameters
+from fmm_ros.ros.timebase import CLOCK_PARAM, ClockPublisher
 
 INSTALL_HINT = (
     'the nidaqmx backend needs NI-DAQmx: `pip install nidaqmx` into the environment '
@@ -112,6 +113,7 @@ PARAMS = (
         read_only=True,
     ),
     *SOURCE_PARAMS,
+    CLOCK_PARAM,
 )
 
 Publish = Callable[[int, np.ndarray, np.ndarray], None]
@@ -126,6 +128,7 @@ class Daq(Node):
         self._force_pub = self.create_publisher(SampleBatch, FORCE_TOPIC, SAMPLE_QOS)
         self._velocity_pub = self.create_publisher(SampleBatch, VELOCITY_TOPIC, SAMPLE_QOS)
         self._start_stamp = self.get_clock().now()
+        self.clock = ClockPublisher(self, self.config['publish_clock'])
         self.batches_published = 0
         self.health = Health(self)
         backend = {'nidaqmx': NidaqmxBackend, 'file': FileBackend}[self.config['backend']]
@@ -167,6 +170,8 @@ class Daq(Node):
                 )
             )
         self.batches_published += 1
+        end = first_sample_index + len(force_n)
+        self.clock.advance(self._start_stamp.nanoseconds + round(end / rate * 1e9))
 
     def destroy_node(self) -> None:
         """Stop the acquisition, deliver its last batches, say what went out."""
