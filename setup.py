@@ -18,6 +18,7 @@ NODES = {
     'player': 'fmm_ros.ros.nodes.player:main',
     'daq': 'fmm_ros.ros.nodes.daq:main',
     'live': 'fmm_ros.ros.nodes.live:main',
+    'foxglove_server': 'fmm_ros.ros.nodes.foxglove_server:main',
 }
 
 
@@ -49,6 +50,7 @@ setup(
         (f'share/{PACKAGE}', ['package.xml']),
         (f'share/{PACKAGE}/config', glob('config/*.yaml')),
         (f'share/{PACKAGE}/config/sros2', glob('config/sros2/*.xml')),
+        (f'share/{PACKAGE}/config/foxglove', glob('config/foxglove/*.json')),
         (f'share/{PACKAGE}/launch_scripts', glob('launch_scripts/*.py')),
     ],
     python_requires='>=3.10',
@@ -67,6 +69,7 @@ setup(
         'tqdm',
         'matplotlib',
         'pillow',
+        'foxglove-sdk',
     ],
     cmdclass={'build_py': BuildPyWithInterfaces},
     zip_safe=True,

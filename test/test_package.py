@@ -27,6 +27,7 @@ ROSDEP_KEYS = {
     'distributed': 'python3-distributed-pip',
     'diagnostic_msgs': 'diagnostic_msgs',
     'fmm_interfaces': 'fmm_interfaces',
+    'foxglove': 'python3-foxglove-sdk-pip',
     'h5py': 'python3-h5py',
     'lz4': 'python3-lz4',
     'matplotlib': 'python3-matplotlib',

@@ -17,6 +17,7 @@ NODES: dict[str, str] = {
     'recorder': 'Recorder',
     'player': 'Player',
     'live': 'Live',
+    'foxglove_server': 'FoxgloveServer',
 }
 
 
