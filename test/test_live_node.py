@@ -11,9 +11,9 @@ from rig_graph import FAST_HAMMER, params, wait_for
 from fmm_interfaces.msg import DisplayPoint, SampleBatch
 from fmm_ros.constants import FORCE_TOPIC, LIVE_TOPICS
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import SAMPLE_QOS
 from fmm_ros.ros.nodes.hammer_sim import HammerSim
 from fmm_ros.ros.nodes.live import Live
+from fmm_ros.ros.qos import SAMPLE_QOS
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 REAL_TIME_X10 = dict(rate_factor=10.0)

@@ -25,6 +25,7 @@ SUBCOMMANDS: tuple[str, ...] = (
     'export',
     'fit',
     'identify_rig',
+    'identify_friction',
     'diagnose',
     'campaign',
     'env',

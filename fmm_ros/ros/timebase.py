@@ -20,28 +20,15 @@ two rigs in one graph (namespaces) give one source `publish_clock:=false`, or us
 import time
 
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 
 from fmm_ros.constants import CLOCK_TOPIC
 from fmm_ros.ros import msgs
 from fmm_ros.ros.params import Param
+from fmm_ros.ros.qos import CLOCK_QOS, CLOCK_SUBSCRIPTION_QOS
 
 CLOCK_RATE_HZ = 50.0
 """Most /clock messages a source publishes per wall second (each batch moves the clock)."""
-
-# Reliable, so best-effort subscribers (rclpy's and rclcpp's TimeSource) and reliable ones
-# (the recorder) both match; depth 1: only the newest time matters.
-CLOCK_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
-# What a consumer of the clock asks for: matches any publisher.
-CLOCK_SUBSCRIPTION_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.BEST_EFFORT
-)
 
 CLOCK_PARAM = Param(
     'publish_clock',

@@ -17,9 +17,10 @@ from fmm_interfaces.msg import DisplayPoint, SampleBatch
 from fmm_ros.constants import CHANNELS, FORCE_TOPIC, LIVE_TOPICS, VELOCITY_TOPIC
 from fmm_ros.core.signal import display
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import SAMPLE_QOS, run_node
+from fmm_ros.ros.common import run_node
 from fmm_ros.ros.health import OK, Health
 from fmm_ros.ros.params import Param, declare_parameters
+from fmm_ros.ros.qos import SAMPLE_QOS
 
 PARAMS = (
     Param(
