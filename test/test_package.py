@@ -117,6 +117,7 @@ FROM_ROS = {
     'fmm_interfaces',
     'rcl_interfaces',
     'rclpy',
+    'rosgraph_msgs',
     'std_msgs',
 }
 # Keys the ROS rosdep database (rosdistro's base.yaml and python.yaml) or the ROS distribution
@@ -136,7 +137,7 @@ ROS_KEYS = FROM_ROS | {
     'python3-yaml',
 }
 
-PYPI_NAMES = {'PIL': 'pillow', 'yaml': 'pyyaml'}
+PYPI_NAMES = {'PIL': 'pillow', 'yaml': 'pyyaml', 'foxglove': 'foxglove-sdk'}
 """PyPI names of the imports whose distribution is named otherwise."""
 
 
