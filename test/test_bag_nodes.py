@@ -82,10 +82,11 @@ def test_every_stamp_in_the_bag_is_signal_time(recorded_session):
         health = [msgs.stamp_ns(m.header.stamp) for _, m in reader.decoded('/diagnostics', DIAG)]
     start_ns = force[0].stamp_ns  # sample 0 of the acquisition
     end_ns = start_ns + (force[-1].first_sample_index + len(force[-1].samples)) * 100_000
-    assert clock == sorted(clock) and start_ns < clock[0] and clock[-1] <= end_ns
+    # The source runs at most its flow window (4 s of signal) ahead of what the recorder took.
+    assert clock == sorted(clock) and start_ns < clock[0] and clock[-1] <= end_ns + 4 * 10**9
     last_hit_ns = msgs.stamp_ns(live[-1].header.stamp)
     assert start_ns + 16 * 10**9 < last_hit_ns  # the third hit, 17 s into the signal
-    assert last_hit_ns <= health[-1] <= end_ns
+    assert last_hit_ns <= health[-1] <= end_ns + 4 * 10**9
 
 
 def test_bag_info_shows_the_ledger_and_the_health_the_bag_holds(recorded_session, capsys):
