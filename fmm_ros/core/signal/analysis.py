@@ -21,7 +21,7 @@ from typing import Protocol
 import numpy as np
 
 from fmm_ros.core.settings import result_field, setting
-from fmm_ros.core.signal import frf
+from fmm_ros.core.signal import frf, pulse, response
 from fmm_ros.core.signal.capture import (
     contact_start_index,
     with_trigger,
@@ -163,7 +163,8 @@ def analyze_impact(
     peak_force = float(np.max(raw_force[interval[0] : interval[1]])) if interval else float('nan')
 
     impulse = frf.pulse_impulse(raw_force, rate, capture.rearm_level_n, contact_start)
-    force, velocity = raw_force, record.velocity_m_s
+    # The DFT of what the sensor measured, turned into velocity bin by bin (exact).
+    force, velocity = raw_force, record.measured[0]
     if analysis.force_window_s is not None:
         offset = float(np.mean(force[:contact_start])) if contact_start else 0.0
         force = (force - offset) * frf.force_window(
@@ -184,8 +185,10 @@ def analyze_impact(
     force_spectrum, velocity_spectrum = frf.spectra(force, velocity, n_fft)
     # Copies, so the full-length spectra are freed rather than kept alive by the slices.
     force_spectrum = force_spectrum[:bins].copy()
-    velocity_spectrum = velocity_spectrum[:bins].copy()
     frequency = frf.frequency_axis(n_fft, rate)[:bins]
+    velocity_spectrum = response.convert_spectrum(
+        velocity_spectrum[:bins], frequency, record.response_quantity, response.VELOCITY
+    ).copy()
     mobility = frf.mobility(force_spectrum, velocity_spectrum)
     receptance = frf.receptance_from_mobility(mobility, frequency)
     peak_receptance, _ = frf.peak_magnitude(
@@ -227,7 +230,9 @@ def summarize(
 
     With nominal levels an impact belongs to the nearest one within its tolerance, or to none
     (flag `out_of_tolerance`); without, peak forces are clustered into `level_1`, `level_2`, ...
-    in ascending force. Only accepted impacts enter the averages; every impact is returned.
+    in ascending force. Impacts that share the session's top force to the last bit, several
+    of them, are `clipped` (`pulse.shared_top`: a one-sample clipped top is no plateau). Only
+    accepted impacts enter the averages; every impact is returned.
     """
     peaks = np.array([result.peak_force_n for result in results], dtype=float)
     if analysis.levels:
@@ -244,10 +249,13 @@ def summarize(
         level_order = [(f'level_{label + 1}', 0.0) for label in range(labels.max(initial=-1) + 1)]
 
     judged = []
-    for result, name in zip(results, names, strict=True):
+    on_top = pulse.shared_top(peaks)  # clipped hits: several share the top to the last bit
+    for result, name, topped in zip(results, names, on_top, strict=True):
         flags = set(result.flags) - {'out_of_tolerance'}
         if analysis.levels and not name:
             flags.add('out_of_tolerance')
+        if topped:
+            flags.add('clipped')
         ordered = tuple(flag for flag in FLAGS if flag in flags)
         judged.append(
             dataclasses.replace(
@@ -321,8 +329,14 @@ def _level_summary(
 def _peak_band(
     force_spectrum: np.ndarray, frequency_hz: np.ndarray, analysis: AnalysisConfig
 ) -> tuple[float, float]:
-    """The configured peak band, its top lowered to where the excitation has run out."""
+    """The configured peak band, its top lowered to where the excitation has run out.
+
+    A band limit above the configured top (a structure's kHz modes, not the FMM's 2.2 Hz)
+    raises the top to it: the band then follows the data, up to what the hammer excited.
+    """
     low, high = analysis.peak_band_hz
+    if analysis.band_limit_hz is None or analysis.band_limit_hz > high:
+        high = analysis.band_limit_hz or frequency_hz[-1]
     usable = frf.excitation_bandwidth(force_spectrum, frequency_hz, analysis.excitation_drop_db)
     return low, high if np.isnan(usable) else min(high, usable)
 
