@@ -16,6 +16,7 @@ the objects and null in JSON.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -38,6 +39,7 @@ from fmm_ros.core.identify.running import RunningEstimate, running_estimates
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.physics.terms import ModelTerm
 from fmm_ros.core.signal.analysis import ImpactSelection, Summary
+from fmm_ros.core.signal.judging import Decision
 from fmm_ros.io.frf_files import json_number
 
 
@@ -265,7 +267,13 @@ def selection_dict(selection: ImpactSelection | None) -> dict:
     return {
         'left_out': entries(selection.excluded),
         'included_flagged': entries(selection.included_flagged),
+        'judged': [decision_dict(decision) for decision in selection.judged],
     }
+
+
+def decision_dict(decision: Decision) -> dict:
+    """A judging decision as JSON (`core.signal.judging.Decision`'s fields)."""
+    return dataclasses.asdict(decision)
 
 
 def diagnosis_dict(diagnosis: Diagnosis) -> dict:

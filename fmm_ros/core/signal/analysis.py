@@ -14,7 +14,7 @@ split into `_real`/`_imag` there), so the ROS shell converts them field by field
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -30,6 +30,7 @@ from fmm_ros.core.signal.capture import (
     quality_flags,
     with_trigger,
 )
+from fmm_ros.core.signal.judging import Decision
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.errors import NoCleanImpactError
 
@@ -383,6 +384,8 @@ class ImpactSelection:
     excluded: tuple[tuple[int, tuple[str, ...], str], ...]
     # (impact id, flags, source) of flagged impacts taken because include_flagged was set.
     included_flagged: tuple[tuple[int, tuple[str, ...], str], ...] = ()
+    # Decisions that overruled the flags (`core.signal.judging`), in the order given.
+    judged: tuple[Decision, ...] = ()
 
     @property
     def note(self) -> str:
@@ -397,6 +400,11 @@ class ImpactSelection:
             parts.append(
                 f'WARNING: {len(self.included_flagged)} flagged impact(s) included on '
                 f'request: {_named(self.included_flagged)}'
+            )
+        if self.judged:
+            parts.append(
+                f'{len(self.judged)} judged: '
+                + ', '.join(decision.describe() for decision in self.judged)
             )
         return '; '.join(parts)
 
@@ -414,6 +422,7 @@ def select_impacts(
     *,
     include_flagged: bool = False,
     min_clean: int = 1,
+    decisions: Mapping[int, Decision] | None = None,
 ) -> ImpactSelection:
     """The impacts a fit or diagnosis takes: the accepted ones, or all with include_flagged.
 
@@ -421,24 +430,33 @@ def select_impacts(
     by default; the analyzer node's `reject_flags` for its messages): a clipped force, a double
     hit, a dead vibrometer or a gap gives a confident wrong mu, so it never enters a fit
     silently. include_flagged takes every impact (and the selection says which were flagged).
+    decisions (impact id -> the newest `Decision` about it) overrule the flags and
+    include_flagged: an operator's or judge function's accept takes an impact, a reject or
+    pending leaves it out, and the selection lists them (`judged`).
     Raises SelectionError naming the impacts left out and their flags when fewer than
     min_clean remain.
     """
     if isinstance(impacts, Summary):
         impacts = impacts.impacts
-    chosen, excluded, included = [], [], []
+    decisions = decisions or {}
+    chosen, excluded, included, judged = [], [], [], []
     for impact in impacts:
         entry = (int(impact.impact_id), tuple(impact.flags), getattr(impact, 'source', ''))
-        if impact.accepted:
+        decision = decisions.get(entry[0])
+        if decision is not None and decision.taken is not None:
+            judged.append(decision)
+            if decision.taken:
+                chosen.append(entry[0])
+        elif impact.accepted:
             chosen.append(entry[0])
         elif include_flagged:
             chosen.append(entry[0])
             included.append(entry)
         else:
             excluded.append(entry)
-    selection = ImpactSelection(tuple(chosen), tuple(excluded), tuple(included))
+    selection = ImpactSelection(tuple(chosen), tuple(excluded), tuple(included), tuple(judged))
     if len(chosen) < min_clean:
-        total = len(chosen) + len(excluded)
+        total = len(chosen) + len(excluded) + len(judged)
         if total == 0:
             raise SelectionError('no impact to fit', selection)
         count = (
@@ -446,10 +464,10 @@ def select_impacts(
             if not chosen
             else f'{len(chosen)} clean impact(s) of {total}, {min_clean} needed'
         )
-        raise SelectionError(
-            f'{count}: {_named(excluded)} flagged (--include-flagged takes them anyway)',
-            selection,
-        )
+        left_out = [f'{_named(excluded)} flagged (--include-flagged takes them anyway)'] * bool(
+            excluded
+        ) + [decision.describe() for decision in judged if not decision.taken]
+        raise SelectionError(f'{count}: {"; ".join(left_out)}', selection)
     return selection
 
 
