@@ -17,6 +17,7 @@ NODES = {
     'recorder': 'fmm_ros.ros.nodes.recorder:main',
     'player': 'fmm_ros.ros.nodes.player:main',
     'daq': 'fmm_ros.ros.nodes.daq:main',
+    'station': 'fmm_ros.ros.nodes.station:main',
 }
 
 
@@ -43,6 +44,8 @@ setup(
     name=PACKAGE,
     version='0.1.0',
     packages=find_packages(include=[PACKAGE, f'{PACKAGE}.*']),
+    # The station's page, served as files (uPlot vendored beside it: it works offline).
+    package_data={f'{PACKAGE}.station': ['static/*.*', 'static/vendor/uplot/*']},
     data_files=[
         ('share/ament_index/resource_index/packages', [f'resource/{PACKAGE}']),
         (f'share/{PACKAGE}', ['package.xml']),
@@ -66,6 +69,7 @@ setup(
         'tqdm',
         'matplotlib',
         'pillow',
+        'tornado',
     ],
     cmdclass={'build_py': BuildPyWithInterfaces},
     zip_safe=True,

@@ -42,6 +42,7 @@ ROSDEP_KEYS = {
     'rosbags': 'python3-rosbags-pip',
     'scipy': 'python3-scipy',
     'std_msgs': 'std_msgs',
+    'tornado': 'python3-tornado',
     'tqdm': 'python3-tqdm',
     'yaml': 'python3-yaml',
     'zstandard': 'python3-zstandard',

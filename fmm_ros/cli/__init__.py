@@ -26,6 +26,7 @@ SUBCOMMANDS: tuple[str, ...] = (
     'identify_rig',
     'diagnose',
     'campaign',
+    'station',
     'env',
     'ros',
 )

@@ -131,6 +131,22 @@ RESULT_QOS = QoSProfile(
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
 
+# Decisions about hits (issue 27): every one matters to a late subscriber (a fitter restarted
+# mid-session must know every hit the operator rejected), so all are kept for it.
+DECISION_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10_000,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+# The session's metadata: only the newest entry counts.
+SESSION_INFO_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+
 
 # The signals a process manager sends a node: Ctrl-C, systemd / docker stop / ros2 launch's
 # escalation, and a closed terminal or a launcher's reload.

@@ -17,7 +17,7 @@ A fit or diagnosis the data refuse does not stop the pipeline: the result says w
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -37,7 +37,9 @@ from fmm_ros.core.signal.analysis import (
     summarize,
 )
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, with_trigger
+from fmm_ros.core.signal.judging import Decision
 from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.io.session_info import SessionInfo
 from fmm_ros.workflows.inputs import DEFAULT_INPUTS, InputOptions, Progress, read_inputs
 from fmm_ros.workflows.model import ModelComparison, ModelOverlay, compare_model
 from fmm_ros.workflows.results import (
@@ -131,6 +133,8 @@ class SessionResult:
     """What went wrong reading the inputs (a damaged bag): shown, never dropped."""
     notes: list[str] = field(default_factory=list)
     """How each lab file was read (format, channels, units, rate)."""
+    session_info: dict[str, SessionInfo] = field(default_factory=dict)
+    """Each bag's session metadata (who, pin, counterface, lubricant, load...), by path."""
 
     def __post_init__(self) -> None:
         missing = [
@@ -274,9 +278,14 @@ def run_session(
     inputs: Sequence[str] = (),
     problems: Sequence[str] = (),
     notes: Sequence[str] = (),
+    decisions: Mapping[int, Decision] | None = None,
+    session_info: Mapping[str, SessionInfo] | None = None,
     progress: Progress | None = None,
 ) -> SessionResult:
     """Analyse records, fit mu over the accepted ones (or take the fit given), diagnose.
+
+    decisions: the newest decision about records[i], by i (recorded by the station): they
+    overrule the flags in `select_impacts`. session_info: each bag's metadata, shown.
 
     friction: a fit made elsewhere (the fitter service's answer), drawn as it is instead of
     fitting; fit_failure: why that fit was refused. options.mu draws a given mu instead;
@@ -290,7 +299,10 @@ def run_session(
     capture = options.inputs.capture
     summary = analyse(records, capture, options.analysis, progress=progress)
     try:
-        selection, refusal = select_impacts(summary, include_flagged=options.include_flagged), ''
+        selection = select_impacts(
+            summary, include_flagged=options.include_flagged, decisions=decisions
+        )
+        refusal = ''
     except SelectionError as error:  # the result says why there is no fit, naming the hits
         selection, refusal = error.selection, str(error)
     if friction is None and not fit_failure and options.mu is None and options.fit:
@@ -332,6 +344,7 @@ def run_session(
         list(inputs),
         list(problems),
         list(notes),
+        dict(session_info or {}),
     )
 
 
@@ -350,6 +363,8 @@ def process_session(
         inputs=read.paths,
         problems=read.problems,
         notes=read.notes,
+        decisions=read.decisions,
+        session_info=read.session_info,
         progress=progress,
     )
 

@@ -16,6 +16,7 @@ NODES: dict[str, str] = {
     'fitter': 'Fitter',
     'recorder': 'Recorder',
     'player': 'Player',
+    'station': 'Station',
 }
 
 
