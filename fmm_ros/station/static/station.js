@@ -76,6 +76,10 @@ function fmt(value, digits) {
   return value === null || value === undefined ? '–' : Number(value).toFixed(digits);
 }
 
+function sig(value, digits) {  // an uncertainty: significant digits, never a flat 0.0000
+  return value === null || value === undefined ? '–' : Number(value).toPrecision(digits);
+}
+
 function cell(tr, text, cls) {
   const td = document.createElement('td');
   td.textContent = text;
@@ -218,7 +222,7 @@ function onFriction(friction) {
     $('mu').textContent = friction ? `μ: no impact left in the estimate (impact ${friction.impact_id} taken out)` : 'μ: no estimate yet';
     return;
   }
-  $('mu').textContent = `μ = ${fmt(friction.mu, 4)} ± ${fmt(2 * friction.mu_stderr, 4)} (2σ) over ` +
+  $('mu').textContent = `μ = ${fmt(friction.mu, 5)} ± ${sig(2 * friction.mu_stderr, 2)} (2σ) over ` +
     `${friction.count} hits; one μ for all: p = ${fmt(friction.p_value, 3)}; ids ${friction.impact_ids.join(', ')}`;
   $('mu').dataset.ids = friction.impact_ids.join(',');
   page.muCount += 1;
@@ -233,7 +237,7 @@ function onFriction(friction) {
     const tr = document.createElement('tr');
     cell(tr, lv.name, 'text');
     cell(tr, String(lv.count));
-    cell(tr, `${fmt(lv.mu, 4)} ± ${fmt(lv.mu_stderr, 4)}`);
+    cell(tr, `${fmt(lv.mu, 5)} ± ${sig(lv.mu_stderr, 2)}`);
     body.appendChild(tr);
   }
 }
