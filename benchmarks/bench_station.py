@@ -45,9 +45,9 @@ from results_file import write_section  # noqa: E402
 
 from fmm_interfaces.msg import ImpactResult  # noqa: E402
 from fmm_ros.constants import IMPACTS_TOPIC  # noqa: E402
-from fmm_ros.ros.common import RESULT_QOS  # noqa: E402
 from fmm_ros.ros.graph import PRIVATE_DOMAIN_IDS, InProcessGraph  # noqa: E402
 from fmm_ros.ros.launch import start_processes, stop_processes, with_consumers  # noqa: E402
+from fmm_ros.ros.qos import RESULT_QOS  # noqa: E402
 from fmm_ros.sim.session import simulated_session, write_session_bag  # noqa: E402
 
 CLOCK_TICKS = os.sysconf('SC_CLK_TCK')

@@ -29,7 +29,6 @@ from fmm_ros.constants import FIT_SERVICE, FRICTION_TOPIC, IMPACTS_TOPIC
 from fmm_ros.io.bags.metadata import read_information
 from fmm_ros.io.bags.reader import BagReader
 from fmm_ros.io.session_info import SESSION_KEY, from_json
-from fmm_ros.ros.common import RESULT_QOS
 from fmm_ros.ros.graph import PRIVATE_DOMAIN_IDS, InProcessGraph
 from fmm_ros.ros.launch import (
     SIMULATED_RIG,
@@ -39,6 +38,7 @@ from fmm_ros.ros.launch import (
     stop_processes,
     with_consumers,
 )
+from fmm_ros.ros.qos import RESULT_QOS
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

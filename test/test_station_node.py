@@ -19,8 +19,8 @@ from fmm_interfaces.msg import ImpactDecision, ImpactResult, SampleBatch
 from fmm_interfaces.srv import JudgeImpact
 from fmm_ros.constants import DECISIONS_TOPIC, FORCE, IMPACTS_TOPIC, JUDGE_SERVICE, VELOCITY
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import DECISION_QOS, RESULT_QOS, SAMPLE_QOS
 from fmm_ros.ros.nodes.station import Station
+from fmm_ros.ros.qos import DECISION_QOS, RESULT_QOS, SAMPLE_QOS
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

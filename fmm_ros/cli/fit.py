@@ -10,16 +10,13 @@ cannot be explained by friction or none is clean (the reason is printed, as JSON
 input or flags.
 """
 
+from __future__ import annotations
+
 import argparse
 
 from fmm_ros.cli import options
-from fmm_ros.cli._fitting import fit_and_report
-from fmm_ros.cli.formats import friction_text
 from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ
-from fmm_ros.core.identify.friction import MU_BOUNDS
-from fmm_ros.core.identify.output_error import MISFITS
-from fmm_ros.workflows.results import FrictionResult
-from fmm_ros.workflows.session import fit_impacts
+from fmm_ros.core.identify.spec import MISFITS, MU_BOUNDS
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -72,6 +69,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Read the inputs, fit, print the result (or why there is none)."""
+    from fmm_ros.cli._fitting import fit_and_report
+    from fmm_ros.cli.formats import friction_text
+    from fmm_ros.workflows.results import FrictionResult
+    from fmm_ros.workflows.session import fit_impacts
+
     fit = options.fit_options(args)
     return fit_and_report(
         'fit',

@@ -44,25 +44,22 @@ from fmm_ros.constants import (
 )
 from fmm_ros.core.diagnose.workflow import diagnose
 from fmm_ros.core.identify.conditioning import FitError
-from fmm_ros.core.identify.friction import MU_BOUNDS, fit_friction
+from fmm_ros.core.identify.friction import fit_friction
 from fmm_ros.core.identify.running import RunningEstimate, RunningFriction
+from fmm_ros.core.identify.spec import MU_BOUNDS
 from fmm_ros.core.signal.analysis import ImpactSelection, select_impacts
 from fmm_ros.core.signal.history import SampleHistory
 from fmm_ros.core.signal.judging import Decision, is_taken
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.core.signal.stream import Batch
+from fmm_ros.errors import BadInputError
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import (
-    DECISION_QOS,
-    RESULT_QOS,
-    RIG_PARAMS,
-    rig_from_parameters,
-    run_node,
-)
+from fmm_ros.ros.common import RIG_PARAMS, rig_from_parameters, run_node
 from fmm_ros.ros.cutting import ImpactCutter
 from fmm_ros.ros.health import OK, Health
 from fmm_ros.ros.inputs import SampleInputs
 from fmm_ros.ros.params import Param, declare_parameters
+from fmm_ros.ros.qos import DECISION_QOS, RESULT_QOS
 from fmm_ros.workflows.results import FrictionResult
 
 PARAMS = (
@@ -292,14 +289,14 @@ class Fitter(Node):
         if impact_ids:
             missing = [i for i in impact_ids if i not in by_id]
             if missing:
-                raise ValueError(
+                raise BadInputError(
                     f'impacts {missing} are not held (held: '
                     f'{sorted(by_id) or "none"}; the fitter keeps the last '
                     f'{self.config["keep_last_impacts"]})'
                 )
             held = [by_id[i] for i in impact_ids]
         elif not held:
-            raise ValueError(f'no impact held yet ({len(self.cutter.waiting)} still arriving)')
+            raise BadInputError(f'no impact held yet ({len(self.cutter.waiting)} still arriving)')
         with self._lock:
             decisions = dict(self.decisions)
         selection = select_impacts(held, include_flagged=include_flagged, decisions=decisions)

@@ -53,19 +53,18 @@ from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.errors import BadInputError, FmmError
 from fmm_ros.io import session_info
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import (
-    DECISION_QOS,
-    RESULT_QOS,
-    RIG_PARAMS,
-    SAMPLE_QOS,
-    SESSION_INFO_QOS,
-    rig_from_parameters,
-    run_node,
-)
+from fmm_ros.ros.common import RIG_PARAMS, rig_from_parameters, run_node
 from fmm_ros.ros.cutting import ImpactCutter
-from fmm_ros.ros.health import DIAGNOSTICS_QOS, LEVEL_NAMES, OK, WARN, Health
+from fmm_ros.ros.health import LEVEL_NAMES, OK, WARN, Health
 from fmm_ros.ros.nodes.analyzer import PARAMS as ANALYZER_PARAMS
 from fmm_ros.ros.params import Param, declare_parameters
+from fmm_ros.ros.qos import (
+    DECISION_QOS,
+    DIAGNOSTICS_QOS,
+    RESULT_QOS,
+    SAMPLE_QOS,
+    SESSION_INFO_QOS,
+)
 from fmm_ros.station.server import StationServer
 from fmm_ros.station.state import Level, StationState
 
