@@ -6,8 +6,13 @@ hold every new hit pending in manual mode, and let a judge function decide once 
 record has arrived.
 """
 
+import os
+import random
+import signal
+import subprocess
 import sys
 import types
+import urllib.request
 
 import numpy as np
 import pytest
@@ -19,6 +24,7 @@ from fmm_interfaces.msg import ImpactDecision, ImpactResult, SampleBatch
 from fmm_interfaces.srv import JudgeImpact
 from fmm_ros.constants import DECISIONS_TOPIC, FORCE, IMPACTS_TOPIC, JUDGE_SERVICE, VELOCITY
 from fmm_ros.ros import msgs
+from fmm_ros.ros.graph import PRIVATE_DOMAIN_IDS
 from fmm_ros.ros.nodes.station import Station
 from fmm_ros.ros.qos import DECISION_QOS, RESULT_QOS, SAMPLE_QOS
 
@@ -143,3 +149,32 @@ def test_a_judge_function_decides_once_the_hit_record_is_cut(ros_graph, monkeypa
         'station_judges:soft_only',
         'peak 1200 N',
     )
+
+
+def test_fmm_station_serves_the_page_and_stops_cleanly(tmp_path):
+    """`fmm station` beside a graph: it serves the page, and Ctrl-C ends it with status 0."""
+    env = {
+        **os.environ,
+        'ROS_DOMAIN_ID': str(random.choice(PRIVATE_DOMAIN_IDS)),
+        'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST',
+    }
+    fmm = os.path.join(os.path.dirname(sys.executable), 'fmm')
+    log = tmp_path / 'station.log'
+    with open(log, 'wb') as out:
+        process = subprocess.Popen(
+            [fmm, 'station', '--port', '0', '--judge-mode', 'manual'],
+            env=env,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+        )
+    try:
+        assert wait_for(lambda: 'station page on' in log.read_text(), timeout_s=60.0)
+        url = log.read_text().split('station page on ', 1)[1].split()[0]
+        with urllib.request.urlopen(url, timeout=10) as response:
+            page = response.read().decode()
+        assert 'vendor/uplot/uPlot.iife.min.js' in page and 'https://' not in page
+        assert '(judging: manual)' in log.read_text()
+    finally:
+        process.send_signal(signal.SIGINT)
+        code = process.wait(timeout=30)
+    assert code == 0, log.read_text()

@@ -2,7 +2,8 @@
 
 Starts the station node in this process on the shell's ROS_DOMAIN_ID, as
 `ros2 run fmm_ros station` would, with the options below as its parameters; Ctrl-C stops it.
-The page is http://127.0.0.1:8765/ unless --host/--port say otherwise.
+Unset options keep the node's defaults (or the params file's): the page is then
+http://127.0.0.1:8765/.
 """
 
 from __future__ import annotations
@@ -19,10 +20,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help='the live page of a running rig: hits as they land, judged by the operator',
         description=__doc__.split('\n\n', 1)[1],
     )
-    parser.add_argument('--host', default=None, help='address to serve on (default 127.0.0.1)')
-    parser.add_argument('--port', type=int, default=None, help='port (default 8765; 0: any)')
+    parser.add_argument('--host', default=None, help="address to serve on (parameter 'host')")
     parser.add_argument(
-        '--judge-mode', choices=MODES, default=None, help='who judges a new hit (default flags)'
+        '--port', type=int, default=None, help="TCP port, 0: any free one (parameter 'port')"
+    )
+    parser.add_argument(
+        '--judge-mode', choices=MODES, default=None, help="who judges a new hit ('judge_mode')"
     )
     parser.add_argument(
         '--judge-function',
