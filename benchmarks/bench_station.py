@@ -166,7 +166,8 @@ def run(quick: bool, soak_s: float) -> str:
     session = simulated_session(2 if quick else 4, spacing_s=8.0, levels=levels, seed=5)
     hits = len(session.hit_start_indices)
     tmp = Path(tempfile.mkdtemp(prefix='bench_station_'))
-    bag = write_session_bag(tmp / 'session', session)
+    # Stamped with today's clock, as a recorder stamps a live session.
+    bag = write_session_bag(tmp / 'session', session, time_origin_ns=time.time_ns())
     domain = random.choice(PRIVATE_DOMAIN_IDS)
     os.environ['ROS_DOMAIN_ID'] = str(domain)
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'

@@ -216,10 +216,12 @@ def select_records(
     analysis: AnalysisConfig | None = None,
     *,
     include_flagged: bool = False,
+    decisions: Mapping[int, Decision] | None = None,
     progress: Progress | None = None,
 ) -> ImpactSelection:
     """The impacts of records a fit takes: `select_impacts` over their analysis.
 
+    decisions: the newest recorded decision about records[i], by i (`read_inputs`).
     Raises FitError (reason 'no_hit') for a record without a hit, which has nothing to judge
     or fit, and `SelectionError` (a ValueError) naming the flagged records when none is clean.
     """
@@ -229,7 +231,7 @@ def select_records(
         except ValueError as error:
             raise FitError('no_hit', f'no hit: {error}', record.source) from None
     summary = analyse(records, capture, analysis, progress=progress)
-    return select_impacts(summary, include_flagged=include_flagged)
+    return select_impacts(summary, include_flagged=include_flagged, decisions=decisions)
 
 
 def fit_impacts(
