@@ -3,16 +3,20 @@ selection (found by trigger sample), its session metadata reaches the session re
 campaign's session table made from bags."""
 
 import math
+import types
 
 import pytest
 
 from fmm_ros.campaign.table import read_campaign_table
 from fmm_ros.constants import DECISIONS_TOPIC, SESSION_INFO_TOPIC
 from fmm_ros.core.signal.capture import CaptureConfig, capture_impacts
+from fmm_ros.core.signal.judging import Decision
 from fmm_ros.io import session_info
 from fmm_ros.io.bags import BagWriter, new_message
 from fmm_ros.io.bags.definitions import IMPACT_DECISION, SESSION_INFO
 from fmm_ros.io.session_info import SESSION_KEY
+from fmm_ros.report.html import Page
+from fmm_ros.report.session import station_header
 from fmm_ros.sim.session import simulated_session
 from fmm_ros.workflows.inputs import InputOptions
 from fmm_ros.workflows.session import SessionOptions, process_session
@@ -124,3 +128,20 @@ def test_a_campaign_table_made_from_bags_takes_their_conditions(session, tmp_pat
     assert first.notes == 'run-in'
     assert second.conditions['lubricant'] is None
     assert not math.isclose(second.spec.rig.normal_force_n, 6.5)
+
+
+def test_the_report_header_shows_the_metadata_and_the_decisions_escaped(tmp_path):
+    """What the station recorded heads the report; text typed by the operator is shown as text."""
+    info = session_info.validated(
+        {'operator_name': '<b>kb</b>', 'lubricant': 'ISO VG 32', 'temperature_c': 21.5}
+    )
+    judged = (Decision(2, 'reject', 'kb', '<script>alert(1)</script>'),)
+    session = types.SimpleNamespace(
+        session_info={'/data/bag_a': info}, selection=types.SimpleNamespace(judged=judged)
+    )
+    page = Page(tmp_path, 'session')
+    station_header(page, session)
+    text = page.write().read_text()
+    assert 'Session metadata of bag_a' in text and 'ISO VG 32' in text and '21.5 °C' in text
+    assert '&lt;b&gt;kb&lt;/b&gt;' in text and '<b>kb' not in text
+    assert 'impact 2 rejected by kb (&lt;script&gt;' in text and '<script>alert' not in text

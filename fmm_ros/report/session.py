@@ -95,7 +95,7 @@ def _session_section(page: Page, session: SessionResult) -> None:
     if session.problems:
         page.text('Problems reading the inputs (what was readable is reported):')
         page.items(session.problems)
-    _station_header(page, session)
+    station_header(page, session)
     rate = records[0].sample_rate_hz
     lines = [
         f'{len(summary.impacts)} hit(s): {accepted} accepted, '
@@ -138,7 +138,7 @@ def _session_section(page: Page, session: SessionResult) -> None:
         page.items(shown + ([f'... and {more} more lines like these'] if more else []))
 
 
-def _station_header(page: Page, session: SessionResult) -> None:
+def station_header(page: Page, session: SessionResult) -> None:
     """What the station recorded (issue 27): each bag's metadata, the decisions about hits."""
     for path, info in session.session_info.items():
         rows = describe_info(info)
