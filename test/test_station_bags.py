@@ -104,6 +104,9 @@ def test_replay_honours_the_recorded_decisions_by_trigger_sample(session, tmp_pa
     assert 0 not in result.selection.chosen and 1 in result.selection.chosen
     assert [d.impact_id for d in result.selection.judged] == [0, 1]
     assert result.selection.judged[0].reason == 'double tap'
+    # The level averages take what the fit takes: hit 0 was the only one of the lowest level.
+    assert [level.level for level in result.summary.levels] == ['level_2', 'level_3']
+    assert result.summary.impacts[0].accepted  # its flags' verdict is still reported
     assert len(result.records) == 3
     assert any('trigger sample 12' in problem for problem in result.problems)
     assert result.session_info[str(bag)]['operator_name'] == 'kb'

@@ -23,9 +23,9 @@ from playwright.sync_api import sync_playwright
 from rclpy.node import Node
 from rig_graph import wait_for
 
-from fmm_interfaces.msg import FrictionEstimate, ImpactResult
+from fmm_interfaces.msg import FrfSummary, FrictionEstimate, ImpactResult
 from fmm_interfaces.srv import FitFriction
-from fmm_ros.constants import FIT_SERVICE, FRICTION_TOPIC, IMPACTS_TOPIC
+from fmm_ros.constants import FIT_SERVICE, FRF_TOPIC, FRICTION_TOPIC, IMPACTS_TOPIC
 from fmm_ros.io.bags.metadata import read_information
 from fmm_ros.io.bags.reader import BagReader
 from fmm_ros.io.session_info import SESSION_KEY, from_json
@@ -54,6 +54,10 @@ class Watcher(Node):
         super().__init__('watcher', **kwargs)
         self.impacts: list[tuple[ImpactResult, float]] = []
         self.friction: list[FrictionEstimate] = []
+        self.levels: dict[str, FrfSummary] = {}
+        self.create_subscription(
+            FrfSummary, FRF_TOPIC, lambda m: self.levels.__setitem__(m.level, m), RESULT_QOS
+        )
         self.create_subscription(
             ImpactResult, IMPACTS_TOPIC, lambda m: self.impacts.append((m, time.time())), RESULT_QOS
         )
@@ -103,8 +107,15 @@ class Rig:
             self.processes[name] = process
 
     def stop(self, *names: str) -> list[int]:
+        """Stop these nodes (default all) in the launcher's order; their exit codes.
+
+        A generous SIGTERM deadline: what is asserted is that each node closes cleanly on
+        SIGINT, not how fast a loaded 2-core machine gets there.
+        """
         names = names or tuple(self.processes)
-        return stop_processes([self.processes.pop(n) for n in names], nodes=list(names))
+        return stop_processes(
+            [self.processes.pop(n) for n in names], nodes=list(names), sigterm_timeout_s=30.0
+        )
 
 
 @pytest.fixture
@@ -188,6 +199,8 @@ def test_hits_appear_within_a_second_and_a_rejected_hit_leaves_the_mu(rig, brows
         assert fit.success, fit.message
         assert target not in fit.impact_ids and set(fit.impact_ids) == set(accepted) - {target}
         assert f'impact {target} rejected by kb (hammer slipped)' in fit.message
+        level = next(m.level for m, _ in watcher.impacts if m.impact_id == target)
+        assert wait_for(lambda: target not in watcher.levels[level].impact_ids, timeout_s=10.0)
 
         page.click(f'#hits tr[data-id="{target}"] button.accept')  # reversible
         assert wait_for(lambda: target in watcher.friction[-1].impact_ids, timeout_s=10.0)

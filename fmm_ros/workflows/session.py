@@ -198,16 +198,20 @@ def analyse(
     capture: CaptureConfig = DEFAULT_CAPTURE,
     analysis: AnalysisConfig | None = None,
     *,
+    decisions: Mapping[int, Decision] | None = None,
     progress: Progress | None = None,
 ) -> Summary:
-    """The signal core's verdict on every record, impact i being record i."""
+    """The signal core's verdict on every record, impact i being record i.
+
+    decisions (by record position) decide which hits the level averages take (`summarize`).
+    """
     analysis = analysis or AnalysisConfig()
     results = []
     for number, record in enumerate(records):
         if progress:
             progress(f'analysing hit {number + 1}/{len(records)}')
         results.append(analyze_impact(record, capture, analysis, impact_id=number))
-    return summarize(results, analysis)
+    return summarize(results, analysis, decisions)
 
 
 def select_records(
@@ -230,7 +234,7 @@ def select_records(
             with_trigger(record, capture)
         except ValueError as error:
             raise FitError('no_hit', f'no hit: {error}', record.source) from None
-    summary = analyse(records, capture, analysis, progress=progress)
+    summary = analyse(records, capture, analysis, decisions=decisions, progress=progress)
     return select_impacts(summary, include_flagged=include_flagged, decisions=decisions)
 
 
@@ -304,7 +308,7 @@ def process_records(
     if not records:
         raise BadInputError('a session needs at least one impact record')
     capture = options.inputs.capture
-    summary = analyse(records, capture, options.analysis, progress=progress)
+    summary = analyse(records, capture, options.analysis, decisions=decisions, progress=progress)
     try:
         selection = select_impacts(
             summary, include_flagged=options.include_flagged, decisions=decisions

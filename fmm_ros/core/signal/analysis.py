@@ -34,7 +34,7 @@ from fmm_ros.core.signal.config import (  # noqa: F401 (re-exported: declared in
     NominalLevel,
     paper_levels,
 )
-from fmm_ros.core.signal.judging import Decision
+from fmm_ros.core.signal.judging import Decision, is_taken
 from fmm_ros.core.signal.levels import assign_nominal_levels, cluster_levels
 from fmm_ros.core.signal.quality import quality_flags
 from fmm_ros.core.signal.records import ImpactRecord
@@ -202,13 +202,17 @@ def analyze_impact(
 
 
 def summarize(
-    results: Sequence[ImpactAnalysis], analysis: AnalysisConfig = DEFAULT_ANALYSIS
+    results: Sequence[ImpactAnalysis],
+    analysis: AnalysisConfig = DEFAULT_ANALYSIS,
+    decisions: Mapping[int, Decision] | None = None,
 ) -> Summary:
     """Assign levels, judge every impact, average each level and fit |receptance| vs impulse.
 
     With nominal levels an impact belongs to the nearest one within its tolerance, or to none
     (flag `out_of_tolerance`); without, peak forces are clustered into `level_1`, `level_2`, ...
-    in ascending force. Only accepted impacts enter the averages; every impact is returned.
+    in ascending force. Only accepted impacts enter the averages, or under decisions (impact
+    id -> the newest `Decision`) the ones a fit takes (`judging.is_taken`, as
+    `select_impacts`); every impact is returned, `accepted` its flags' verdict.
     """
     peaks = np.array([result.peak_force_n for result in results], dtype=float)
     if analysis.levels:
@@ -238,7 +242,11 @@ def summarize(
 
     levels = []
     for name, nominal in level_order:
-        members = [result for result in judged if result.level == name and result.accepted]
+        members = [
+            result
+            for result in judged
+            if result.level == name and is_taken(result.impact_id, result.accepted, decisions or {})
+        ]
         if members:
             levels.append(_level_summary(name, nominal, members, analysis))
     linearity = frf.linear_fit(

@@ -18,8 +18,13 @@ decided before. The session metadata goes out on fmm/session_info.
 
 The station only watches: it reports no progress to the sources, so a slow page or a slow
 station never holds the rig back (a batch the station misses is a gap in its display only).
+A hit's figures (the model run over its decay, milliseconds, but seconds the first time,
+while numba compiles) and a judge function (a user's code) run in a worker thread, so the
+next hit reaches the page at once whatever they cost.
 """
 
+import queue
+import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -155,6 +160,9 @@ class Station(Node):
         self.history = SampleHistory(cfg['history_s'])
         self.cutter = ImpactCutter(self.history, self.get_logger())
         self._auto_judge: set[int] = set()  # hits published after the start, to judge
+        self._records: queue.Queue[tuple[ImpactResult, ImpactRecord] | None] = queue.Queue()
+        self._worker = threading.Thread(target=self._draw_hits, name='station_hits', daemon=True)
+        self._worker.start()
         self._decisions_pub = self.create_publisher(ImpactDecision, DECISIONS_TOPIC, DECISION_QOS)
         self._session_pub = self.create_publisher(SessionInfo, SESSION_INFO_TOPIC, SESSION_INFO_QOS)
         for channel, topic in ((FORCE, FORCE_TOPIC), (VELOCITY, VELOCITY_TOPIC)):
@@ -211,8 +219,8 @@ class Station(Node):
         except ValueError:
             self.history.stream.refuse_malformed(quantity, len(msg.samples))
             return
-        for result, record in self.cutter.batch_fed():
-            self._on_record(result, record)
+        for cut in self.cutter.batch_fed():
+            self._records.put(cut)
 
     def _on_impact(self, msg: ImpactResult, info: dict) -> None:
         self.state.on_impact(msg)
@@ -230,8 +238,16 @@ class Station(Node):
                         time.time_ns(),
                     )
                 )
-        for result, record in self.cutter.impact(msg):
-            self._on_record(result, record)
+        for cut in self.cutter.impact(msg):
+            self._records.put(cut)
+
+    def _draw_hits(self) -> None:
+        """Worker thread: each cut hit's figures, and its judgement in function mode.
+
+        Stops at the None `destroy_node` puts in.
+        """
+        while (cut := self._records.get()) is not None:
+            self._on_record(*cut)
 
     def _on_record(self, msg: ImpactResult, record: ImpactRecord) -> None:
         self.state.on_record(int(msg.impact_id), record)
@@ -365,7 +381,9 @@ class Station(Node):
         )
 
     def destroy_node(self) -> None:
-        """Stop serving the page (open pages retry until a station is back)."""
+        """Stop the hits' worker and serving the page (open pages retry until one is back)."""
+        self._records.put(None)
+        self._worker.join()
         self.server.stop()
         super().destroy_node()
 
