@@ -15,8 +15,7 @@ from __future__ import annotations
 import argparse
 
 from fmm_ros.cli import options
-from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ
-from fmm_ros.core.identify.spec import MISFITS, MU_BOUNDS
+from fmm_ros.core.identify.spec import MU_BOUNDS, FitSpec
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -34,19 +33,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     options.add_json(parser)
     options.add_model(parser)
     group = parser.add_argument_group('the fit')
-    group.add_argument(
-        '--misfit',
-        choices=MISFITS,
-        default='time',
-        help='time: velocity residual (default); frf: mobility residual up to '
-        '--misfit-band-limit-hz',
+    options.add_setting(
+        group,
+        FitSpec,
+        'misfit',
+        help='time: velocity residual; frf: mobility residual up to --misfit-band-limit-hz',
     )
-    group.add_argument(
-        '--misfit-band-limit-hz',
-        type=float,
-        default=MISFIT_BAND_LIMIT_HZ,
-        help=f'top of the mobility misfit band [Hz] (default {MISFIT_BAND_LIMIT_HZ:g})',
-    )
+    options.add_setting(group, FitSpec, 'band_limit_hz', flag='--misfit-band-limit-hz')
     options.add_alias(
         parser, '--band-limit-hz', 'misfit_band_limit_hz', '--misfit-band-limit-hz', type=float
     )

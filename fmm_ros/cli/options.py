@@ -81,12 +81,19 @@ def add_alias(parser, old: str, dest: str, use: str, **kwargs) -> None:
 
 
 def add_setting(
-    group, cls: type, name: str, *, help: str | None = None, **kwargs: Any
+    group,
+    cls: type,
+    name: str,
+    *,
+    help: str | None = None,
+    flag: str | None = None,
+    **kwargs: Any,
 ) -> argparse.Action:
-    """The option of a declared setting: its flag, type, default, unit and help (`settings_of`).
+    """The option of a declared setting: its flag, type, default, choices, unit and help.
 
-    help replaces the declared help (the unit and default are still added); kwargs go to
-    add_argument (a different default, a metavar).
+    help replaces the declared help (the unit and default are still added); flag another
+    spelling than the declared one (the dest follows it); kwargs go to add_argument (a
+    different default, a metavar).
     """
     item = setting_of(cls, name)
     default = kwargs.pop('default', item.default)
@@ -94,8 +101,10 @@ def add_setting(
     options: dict[str, Any] = {'type': kind, 'default': default}
     if kind is bool:
         options = {'action': argparse.BooleanOptionalAction, 'default': default}
+    elif kind is str and item.choices:
+        options['choices'] = item.choices
     return group.add_argument(
-        item.option, **options, help=setting_help(item, help, default), **kwargs
+        flag or item.option, **options, help=setting_help(item, help, default), **kwargs
     )
 
 

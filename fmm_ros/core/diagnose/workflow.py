@@ -71,7 +71,12 @@ from fmm_ros.core.diagnose.session_model import (
     without,
 )
 from fmm_ros.core.diagnose.starts import probes
-from fmm_ros.core.diagnose.vocabulary import EFFECTS, NONE, UNEXPLAINED
+from fmm_ros.core.diagnose.vocabulary import (  # noqa: F401 (VOCABULARY re-exported)
+    EFFECTS,
+    NONE,
+    UNEXPLAINED,
+    VOCABULARY,
+)
 from fmm_ros.core.diagnose.where import locate_misfit, locate_residual
 from fmm_ros.core.identify.conditioning import (
     ConditionedImpact,

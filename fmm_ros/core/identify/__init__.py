@@ -1,14 +1,17 @@
 """Output-error identification: mu, damping and model terms from measured force and velocity.
 
-`conditioning` (one record -> the gated force and untouched velocity a fit drives the model
-with), `output_error` (a parameter vector -> residuals, and the fit's uncertainty), `lsq`
-(Levenberg-Marquardt for tall block-structured problems), `friction` (`fit_model`,
-`fit_friction`: the paper's Sec. 5 question), `rig` (`identify_rig`, `fit_free_decay`: Sec. 4).
+`spec` (`FitSpec`: what a fit frees and how it runs), `conditioning` (one record -> the
+gated force and untouched velocity a fit drives the model with), `output_error` (a parameter
+vector -> residuals, and the fit's uncertainty), `lsq` (Levenberg-Marquardt for tall
+block-structured problems), `friction` (`fit_model`, `fit_friction`: the paper's Sec. 5
+question), `rig` (`identify_rig`, `fit_free_decay`: Sec. 4).
 """
 
 from fmm_ros._lazy import lazy_exports
 
 _EXPORTS = {
+    'FRICTION_FIT': 'spec',
+    'FitSpec': 'spec',
     'ConditionedImpact': 'conditioning',
     'FIT_FAILURES': 'conditioning',
     'FitError': 'conditioning',

@@ -1,9 +1,11 @@
 """From force and velocity samples to impacts, flags, impulses, FRFs, level averages, linearity.
 
-`records` (the `ImpactRecord` type), `capture` (the trigger rule, streaming capture and quality
-flags), `quality` (the signs of damaged samples those flags use), `frf` (scipy.signal-style
-functions), `analysis` (per impact and per level, and which impacts a fit takes),
-`history` (the recent past of both streams, for cutting records by sample index).
+`config` (the declared settings: capture, stream rules, levels, FRFs; numpy-free), `records`
+(the `ImpactRecord` type), `capture` (the trigger rule and streaming capture), `quality` (the
+signs of damaged samples and the quality flags they raise), `frf` (scipy.signal-style
+functions), `levels` (nominal levels and clustering), `analysis` (per impact and per level,
+and which impacts a fit takes), `history` (the recent past of both streams, for cutting
+records by sample index).
 """
 
 from fmm_ros._lazy import lazy_exports

@@ -212,7 +212,7 @@ class AnalysisConfig:
     band_limit_hz: float | None = setting(
         100.0,
         unit='Hz',
-        help='Highest FRF frequency kept in results (None: Nyquist)',
+        help='Highest FRF frequency kept in results',
         limits=(0.1, 1e6),
     )
     peak_band_hz: tuple[float, float] = setting(

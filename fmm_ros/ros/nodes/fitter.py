@@ -46,7 +46,7 @@ from fmm_ros.core.diagnose.workflow import diagnose
 from fmm_ros.core.identify.conditioning import FitError
 from fmm_ros.core.identify.friction import fit_friction
 from fmm_ros.core.identify.running import RunningEstimate, RunningFriction
-from fmm_ros.core.identify.spec import MU_BOUNDS
+from fmm_ros.core.identify.spec import MU_BOUNDS, FitSpec
 from fmm_ros.core.signal.analysis import ImpactSelection, select_impacts
 from fmm_ros.core.signal.history import SampleHistory
 from fmm_ros.core.signal.judging import Decision, is_taken
@@ -58,19 +58,14 @@ from fmm_ros.ros.common import RIG_PARAMS, rig_from_parameters, run_node
 from fmm_ros.ros.cutting import ImpactCutter
 from fmm_ros.ros.health import OK, Health
 from fmm_ros.ros.inputs import SampleInputs
-from fmm_ros.ros.params import Param, declare_parameters
+from fmm_ros.ros.params import Param, declare_parameters, params_from
 from fmm_ros.ros.qos import DECISION_QOS, RESULT_QOS
 from fmm_ros.workflows.results import FrictionResult
 
 PARAMS = (
     *RIG_PARAMS,
-    Param(
-        'fit_initial_position',
-        True,
-        'Fit where each record starts: in a continuous session a hit finds the rig where '
-        'friction stopped the last one (up to mu N / k off centre), which is not measured',
-        read_only=True,
-    ),
+    # In a continuous session a hit finds the rig where friction stopped the last one.
+    *params_from(FitSpec(fit_initial_position=True), ('fit_initial_position',)),
     Param(
         'live_mu',
         True,
