@@ -19,6 +19,7 @@ NODES = {
     'daq': 'fmm_ros.ros.nodes.daq:main',
     'live': 'fmm_ros.ros.nodes.live:main',
     'foxglove_server': 'fmm_ros.ros.nodes.foxglove_server:main',
+    'station': 'fmm_ros.ros.nodes.station:main',
 }
 
 
@@ -45,6 +46,8 @@ setup(
     name=PACKAGE,
     version='0.1.0',
     packages=find_packages(include=[PACKAGE, f'{PACKAGE}.*']),
+    # The station's page, served as files (uPlot vendored beside it: it works offline).
+    package_data={f'{PACKAGE}.station': ['static/*.*', 'static/vendor/uplot/*']},
     data_files=[
         ('share/ament_index/resource_index/packages', [f'resource/{PACKAGE}']),
         (f'share/{PACKAGE}', ['package.xml']),
@@ -79,6 +82,7 @@ setup(
         'dask',
         'distributed',
         'pyarrow',
+        'tornado',
     ],
     cmdclass={'build_py': BuildPyWithInterfaces},
     zip_safe=True,

@@ -91,6 +91,12 @@ STREAM_PROGRESS_TOPIC = 'fmm/stream_progress'
 DIAGNOSTICS_TOPIC = '/diagnostics'
 """Health of every node (diagnostic_msgs/DiagnosticArray): absolute, as the ROS convention
 has it (rqt_robot_monitor and Foxglove read it); statuses carry the node's full name."""
+DECISIONS_TOPIC = 'fmm/impact_decisions'
+"""Decisions about hits (ImpactDecision) overruling the flags: the operator's, a judge's."""
+SESSION_INFO_TOPIC = 'fmm/session_info'
+"""What the session tests and who runs it (SessionInfo), as entered at the station."""
+JUDGE_SERVICE = 'fmm/judge_impact'
+"""The station's service: decide about one hit (JudgeImpact)."""
 FIT_SERVICE = 'fmm/fit_friction'
 DIAGNOSE_SERVICE = 'fmm/diagnose_model'
 RECORDED_TOPICS = (
@@ -101,6 +107,8 @@ RECORDED_TOPICS = (
     FRICTION_TOPIC,
     DIAGNOSTICS_TOPIC,
     CLOCK_TOPIC,
+    DECISIONS_TOPIC,
+    SESSION_INFO_TOPIC,
 )
 """What the recorder (and `fmm record`) records unless told otherwise."""
 

@@ -54,6 +54,8 @@ def test_the_recorded_bag_holds_every_topic_and_is_closed(recorded_session):
             '/fmm/friction',
             '/diagnostics',
             '/clock',
+            '/fmm/impact_decisions',
+            '/fmm/session_info',
         }
         assert reader.topics['/fmm/impacts'].count == len(live) == 3
         assert not reader.problems

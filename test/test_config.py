@@ -15,6 +15,7 @@ from fmm_ros.ros.nodes import (
     player,
     recorder,
     rig_sim,
+    station,
 )
 from fmm_ros.ros.params_file import node_param_tables, params_file_text
 
@@ -33,6 +34,7 @@ NODES = {
         daq,
         live,
         foxglove_server,
+        station,
     )
 }
 

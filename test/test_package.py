@@ -44,6 +44,7 @@ ROSDEP_KEYS = {
     'rosbags': 'python3-rosbags-pip',
     'scipy': 'python3-scipy',
     'std_msgs': 'std_msgs',
+    'tornado': 'python3-tornado',
     'tqdm': 'python3-tqdm',
     'yaml': 'python3-yaml',
     'zstandard': 'python3-zstandard',
@@ -133,6 +134,7 @@ ROS_KEYS = FROM_ROS | {
     'python3-pytest',
     'python3-pytest-xdist',
     'python3-scipy',
+    'python3-tornado',
     'python3-tqdm',
     'python3-yaml',
 }

@@ -254,6 +254,8 @@ def compute_session(spec: SessionSpec, options: SessionOptions) -> SessionOutcom
                 inputs=read.paths,
                 problems=read.problems,
                 notes=read.notes,
+                decisions=read.decisions,
+                session_info=read.session_info,
             ),
         )
     except (FmmError, OSError) as error:  # refused data; anything else is a bug (`tasks`)

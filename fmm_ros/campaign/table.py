@@ -17,6 +17,11 @@ A CSV file (a header row, one session a row; comma, semicolon or tab separated) 
 - Condition columns named as the rig's constants (`normal_force_n`, `mass_kg`,
   `stiffness_n_per_m`, `damping_n_s_per_m`, SI units) also set the rig that session's fit
   uses: mu = F_f / N is computed with the session's own normal force, not the FMM's.
+
+Or a folder of bags the station recorded (issue 27): one session a bag, its conditions the
+session metadata each bag holds (`fmm_ros.io.session_info`: operator, pin, counterface,
+lubricant, temperature, humidity; its normal load becomes `normal_force_n`, so each fit uses
+the load entered), its notes the bag's notes.
 """
 
 from __future__ import annotations
@@ -34,6 +39,8 @@ import yaml
 from fmm_ros.campaign.session import RIG_COLUMNS, SessionSpec
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.errors import BadInputError
+from fmm_ros.io import session_info, sniff
+from fmm_ros.io.bags.station import bag_session_info
 
 SESSION_COLUMN = 'session'
 ID_COLUMN = 'id'
@@ -41,6 +48,9 @@ MAPPING_COLUMN = 'mapping'
 NOTES_COLUMN = 'notes'
 RESERVED_COLUMNS = (SESSION_COLUMN, ID_COLUMN, MAPPING_COLUMN, NOTES_COLUMN)
 NUMBER, DATE, TEXT = 'number', 'date', 'text'
+BAG_COLUMNS = {'normal_load_n': 'normal_force_n'}
+"""Session metadata fields that become another column in a table made from bags: the normal
+load entered at the station is the normal force the session's fit uses."""
 _YAML_KEYS = {'sessions', 'by', 'trend', 'mapping', 'title'}
 _DELIMITERS = ',;\t'
 
@@ -101,7 +111,9 @@ class CampaignTable:
 def read_campaign_table(path: str | Path, base_rig: Rig = FMM_RIG) -> CampaignTable:
     """Read and check a campaign table (see module); ValueError naming row and column."""
     path = Path(path)
-    if path.suffix.lower() in ('.yaml', '.yml'):
+    if path.is_dir():
+        rows, options = bag_rows(path), {}
+    elif path.suffix.lower() in ('.yaml', '.yml'):
         rows, options = _yaml_rows(path)
     else:
         rows, options = _csv_rows(path), {}
@@ -120,7 +132,8 @@ def read_campaign_table(path: str | Path, base_rig: Rig = FMM_RIG) -> CampaignTa
     for column in columns:
         if column.name in RIG_COLUMNS and column.kind != NUMBER:
             raise BadInputError(f'{path}: column {column.name!r} sets the rig and must be numeric')
-    folder = path.absolute().parent  # absolute: workers elsewhere resolve the same paths
+    # absolute: workers elsewhere resolve the same paths
+    folder = path.absolute() if path.is_dir() else path.absolute().parent
     default_mapping = options.get('mapping')
     sessions = []
     for number, row in rows:
@@ -163,6 +176,27 @@ def read_campaign_table(path: str | Path, base_rig: Rig = FMM_RIG) -> CampaignTa
     for name in (*table.by, *table.trend):
         table.column(name)
     return table
+
+
+def bag_rows(folder: Path) -> list[tuple[int, dict[str, str]]]:
+    """The rows of a session table made from the bags in folder and their session metadata.
+
+    ValueError naming a bag whose metadata is not valid; a bag without any has empty cells.
+    """
+    bags = sorted(entry for entry in folder.iterdir() if sniff.file_kind(entry) == sniff.BAG)
+    rows = []
+    for number, bag in enumerate(bags, start=1):
+        try:
+            info = bag_session_info(bag) or session_info.empty()
+        except ValueError as error:
+            raise ValueError(f'{bag}: {error}') from error
+        row = {SESSION_COLUMN: bag.name}
+        for info_field in session_info.FIELDS:
+            value = info[info_field.name]
+            name = BAG_COLUMNS.get(info_field.name, info_field.name)
+            row[name] = '' if isinstance(value, float) and math.isnan(value) else f'{value}'
+        rows.append((number, row))
+    return rows
 
 
 def _csv_rows(path: Path) -> list[tuple[int, dict[str, str]]]:

@@ -28,6 +28,7 @@ SUBCOMMANDS: tuple[str, ...] = (
     'identify_friction',
     'diagnose',
     'campaign',
+    'station',
     'env',
     'ros',
 )

@@ -59,6 +59,7 @@ def fit_and_report(
                     capture,
                     analysis,
                     include_flagged=args.include_flagged,
+                    decisions=read.decisions,
                     progress=progress,
                 )
             ids = selection.chosen if selection else tuple(range(len(records)))

@@ -16,6 +16,7 @@ import numpy as np
 
 from fmm_ros.constants import MM_PER_M
 from fmm_ros.core.signal.analysis import ImpactAnalysis, Summary
+from fmm_ros.io.session_info import describe as describe_info
 from fmm_ros.report import diagnosis_figures
 from fmm_ros.report import session_figures as figures
 from fmm_ros.report.html import Markup, Page, escape, link
@@ -96,6 +97,7 @@ def _session_section(page: Page, session: SessionResult) -> None:
     if session.problems:
         page.text('Problems reading the inputs (what was readable is reported):')
         page.items(session.problems)
+    station_header(page, session)
     rate = records[0].sample_rate_hz
     lines = [
         f'{len(summary.impacts)} hit(s): {accepted} accepted, '
@@ -136,6 +138,19 @@ def _session_section(page: Page, session: SessionResult) -> None:
         more = len(session.notes) - len(shown)
         page.text('How the lab files were read:')
         page.items(shown + ([f'... and {more} more lines like these'] if more else []))
+
+
+def station_header(page: Page, session: SessionResult) -> None:
+    """What the station recorded (issue 27): each bag's metadata, the decisions about hits."""
+    for path, info in session.session_info.items():
+        rows = describe_info(info)
+        if rows:
+            page.text(f'Session metadata of {Path(path).name}:')
+            page.table(['field', 'value'], rows, text_columns=(0, 1), table_id='session-info')
+    judged = session.selection.judged if session.selection is not None else ()
+    if judged:
+        page.text('Decisions about hits, which overrule the flags in the fit:')
+        page.items([decision.describe() for decision in judged])
 
 
 def _hit_table(page: Page, summary: Summary, comparison: ModelComparison | None) -> None:

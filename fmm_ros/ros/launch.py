@@ -36,6 +36,8 @@ from fmm_ros.ros.nodes import CONSUMERS, node_class
 
 SIMULATED_RIG = ('hammer_sim', 'rig_sim', 'analyzer', 'fitter', 'recorder')
 REAL_RIG = ('daq', 'analyzer', 'fitter', 'recorder')
+STATION = 'station'
+"""The operator's page (issue 27): added to a rig by the launch scripts' --station."""
 # Escalation after the forwarded signal, as ros2 launch's defaults [s] (kept under 10 s in
 # all: what a process manager waits before it kills); each stage of the ordered stop may
 # take STAGE_TIMEOUT_S of the first.
@@ -319,7 +321,15 @@ def launch_main(nodes: Sequence[str], description: str, argv: Sequence[str] | No
         help='one process per node (as ros2 run would start them) instead of '
         'all nodes on one executor in this process',
     )
+    parser.add_argument(
+        '--station',
+        action='store_true',
+        help='also start the station: the live page on http://127.0.0.1:8080/ '
+        '(--set station.port=... to move it)',
+    )
     args = parser.parse_args(argv)
+    if args.station:
+        nodes = (*nodes, STATION)
     if args.params_file is not None and not args.params_file.is_file():
         parser.error(f'--params-file {args.params_file} does not exist')
     try:

@@ -12,14 +12,22 @@ import math
 import numpy as np
 from builtin_interfaces.msg import Time
 
-from fmm_interfaces.msg import FrfSummary, FrictionEstimate, ImpactResult, SampleBatch
+from fmm_interfaces.msg import (
+    FrfSummary,
+    FrictionEstimate,
+    ImpactDecision,
+    ImpactResult,
+    SampleBatch,
+)
+from fmm_interfaces.msg import SessionInfo as SessionInfoMsg
 from fmm_ros.constants import Channel
 from fmm_ros.core import diagnose
 from fmm_ros.core.identify.running import LevelEstimate, RunningEstimate
 from fmm_ros.core.physics.rig import Rig
-from fmm_ros.core.signal import analysis, frf
+from fmm_ros.core.signal import analysis, frf, judging
 from fmm_ros.core.signal.stream import Batch
 from fmm_ros.errors import BadInputError
+from fmm_ros.io.session_info import FIELDS, SessionInfo
 from fmm_ros.workflows.results import FrictionResult, json_safe
 
 
@@ -169,6 +177,7 @@ def friction_estimate_msg(
     msg.level_counts = [int(level.count) for level in estimate.levels]
     msg.level_mu = float64_field([level.mu for level in estimate.levels])
     msg.level_mu_stderr = float64_field([level.mu_stderr for level in estimate.levels])
+    msg.impact_ids = [int(impact_id) for impact_id in estimate.impact_ids]
     return msg
 
 
@@ -193,6 +202,32 @@ def running_estimate(msg: FrictionEstimate) -> RunningEstimate:
                 strict=True,
             )
         ),
+        impact_ids=tuple(int(i) for i in msg.impact_ids),
+    )
+
+
+def decision_msg(decision: judging.Decision, *, frame_id: str = 'fmm') -> ImpactDecision:
+    """An ImpactDecision message of a decision (same field names; stamp: when decided)."""
+    msg = _stamped(ImpactDecision(), time_msg(decision.stamp_ns), frame_id)
+    msg.impact_id = decision.impact_id
+    msg.trigger_sample_index = max(0, decision.trigger_sample_index)
+    msg.verdict = decision.verdict
+    msg.decided_by = decision.decided_by
+    msg.reason = decision.reason
+    msg.mode = decision.mode
+    return msg
+
+
+def decision(msg: ImpactDecision) -> judging.Decision:
+    """The decision an ImpactDecision message carries (BadInputError for a malformed one)."""
+    return judging.Decision(
+        int(msg.impact_id),
+        msg.verdict,
+        msg.decided_by,
+        msg.reason,
+        msg.mode,
+        int(msg.trigger_sample_index),
+        stamp_ns(msg.header.stamp),
     )
 
 
@@ -454,3 +489,12 @@ def _open_world_dict(response: object) -> dict:
             },
         },
     }
+
+
+def session_info_msg(info: SessionInfo, *, stamp: Time, frame_id: str = 'fmm') -> SessionInfoMsg:
+    """A SessionInfo message of validated metadata (its fields named as `FIELDS`)."""
+    msg = _stamped(SessionInfoMsg(), stamp, frame_id)
+    for info_field in FIELDS:
+        value = info[info_field.name]
+        setattr(msg, info_field.name, float(value) if info_field.numeric else str(value))
+    return msg

@@ -43,6 +43,23 @@ PROGRESS_LISTEN_QOS = QoSProfile(
 """A source's queue of progress reports: deep, since depth counts per topic, not per writer,
 and one consumer's reports must not push another's out before the source takes them."""
 
+DECISION_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10_000,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+"""Decisions about hits (issue 27): every one matters to a late subscriber (a fitter restarted
+mid-session must know every hit the operator rejected), so all are kept for it."""
+
+SESSION_INFO_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+"""The session's metadata: only the newest entry counts, kept for late subscribers."""
+
 DIAGNOSTICS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 """/diagnostics, as rqt_robot_monitor and Foxglove subscribe to it."""
 

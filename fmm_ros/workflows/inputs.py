@@ -5,7 +5,9 @@ INPUTs here, and only here. Each path is told apart by its content (`fmm_ros.io.
 
 - a bag (directory, .mcap or .db3): every impact the analyzer's own capture finds in its
   recorded streams (`fmm_ros.workflows.replay.bag_impact_records`); damage does not stop it,
-  and is returned as problems;
+  and is returned as problems. The decisions recorded about its hits (issue 27) are matched
+  to the records by trigger sample, and its session metadata is read
+  (`fmm_ros.io.bags.station`);
 - a lab file (delimited text, NPZ, MATLAB v4-v7.3, TDMS): read by `fmm_ros.io.labfiles` with
   the channel mapping semantics of `fmm import` (a mapping file and flags, else what the file
   states: canonical names `time_s,force_n,velocity_m_s`, a units row, bracketed units, TDMS
@@ -27,11 +29,15 @@ from pathlib import Path
 import numpy as np
 
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, capture_impacts
+from fmm_ros.core.signal.judging import Decision, by_trigger
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.core.signal.response import as_measured
-from fmm_ros.errors import BadInputError
+from fmm_ros.errors import BadInputError, FmmError
 from fmm_ros.io import sniff
+from fmm_ros.io.bags.reader import BagReader
+from fmm_ros.io.bags.station import bag_decisions, bag_session_info
 from fmm_ros.io.labfiles import LabRecording, read_lab_file
+from fmm_ros.io.session_info import SessionInfo
 from fmm_ros.io.textfiles import DETECT, TextFormat
 from fmm_ros.workflows.replay import bag_impact_records
 
@@ -74,6 +80,10 @@ class SessionInputs:
     notes: list[str]
     """How each lab file was read: format, channels, units, rate (the import report)."""
     paths: list[str]
+    decisions: dict[int, Decision] = field(default_factory=dict)
+    """The newest recorded decision about records[i], by i (bags only)."""
+    session_info: dict[str, SessionInfo] = field(default_factory=dict)
+    """Each bag's session metadata, by path (bags that hold some)."""
 
 
 def read_inputs(
@@ -93,13 +103,26 @@ def read_inputs(
     records: list[ImpactRecord] = []
     problems: list[str] = []
     notes: list[str] = []
+    decisions: dict[int, Decision] = {}
+    infos: dict[str, SessionInfo] = {}
     for number, path in enumerate(map(Path, paths), 1):
         if progress:
             progress(f'reading {path.name} ({number}/{len(paths)})')
         if sniff.file_kind(path) == sniff.BAG:
             found, damage = bag_impact_records(path, options.capture)
             problems += [f'{path}: {problem}' for problem in damage]
+            first = len(records)
             records += _some(found, path, options.capture)
+            judged, lost = _bag_decisions(path, found, first)
+            decisions.update(judged)
+            problems += [f'{path}: {problem}' for problem in lost]
+            try:
+                info = bag_session_info(path)
+            except FmmError as error:
+                problems.append(f'{path}: {error}')
+                info = None
+            if info is not None:
+                infos[str(path)] = info
             continue
         recording = read_lab_file(path, options.mapping, options.text_format)
         notes += recording.report
@@ -107,7 +130,33 @@ def read_inputs(
             records += _some(_cut(recording, options.capture), path, options.capture)
         else:
             records.append(_one_impact(recording, options.capture))
-    return SessionInputs(_on_one_grid(records, options), problems, notes, [str(p) for p in paths])
+    return SessionInputs(
+        _on_one_grid(records, options),
+        problems,
+        notes,
+        [str(p) for p in paths],
+        decisions,
+        infos,
+    )
+
+
+def _bag_decisions(
+    path: Path, records: list[ImpactRecord], first: int
+) -> tuple[dict[int, Decision], list[str]]:
+    """A bag's recorded decisions under the positions its records take (from `first`).
+
+    Also a problem for each decision that found no hit (or was malformed).
+    """
+    with BagReader(path, strict=False) as reader:
+        recorded, problems = bag_decisions(reader)
+    triggers = {record.trigger_sample_index: first + i for i, record in enumerate(records)}
+    judged, lost = by_trigger(recorded, triggers)
+    problems += [
+        f'{decision.describe()} names trigger sample {decision.trigger_sample_index}, where '
+        'replay found no hit: not applied'
+        for decision in lost
+    ]
+    return judged, problems
 
 
 def _one_impact(recording: LabRecording, capture: CaptureConfig) -> ImpactRecord:

@@ -21,6 +21,7 @@ the objects and null in JSON.
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import math
 from collections.abc import Sequence
@@ -45,6 +46,7 @@ from fmm_ros.core.identify.running import RunningEstimate, running_estimates
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.physics.terms import ModelTerm
 from fmm_ros.core.signal.analysis import ImpactSelection, Summary
+from fmm_ros.core.signal.judging import Decision
 from fmm_ros.errors import BadInputError
 from fmm_ros.io.frf_files import json_number
 
@@ -325,7 +327,13 @@ def selection_dict(selection: ImpactSelection | None) -> dict:
     return {
         'left_out': entries(selection.excluded),
         'included_flagged': entries(selection.included_flagged),
+        'judged': [decision_dict(decision) for decision in selection.judged],
     }
+
+
+def decision_dict(decision: Decision) -> dict:
+    """A judging decision as JSON (`core.signal.judging.Decision`'s fields)."""
+    return dataclasses.asdict(decision)
 
 
 def diagnosis_dict(diagnosis: Diagnosis) -> dict:

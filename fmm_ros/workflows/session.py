@@ -17,7 +17,7 @@ A fit or diagnosis the data refuse does not stop the pipeline: the result says w
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -38,8 +38,10 @@ from fmm_ros.core.signal.analysis import (
     summarize,
 )
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, with_trigger
+from fmm_ros.core.signal.judging import Decision
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.errors import BadInputError
+from fmm_ros.io.session_info import SessionInfo
 from fmm_ros.workflows.inputs import DEFAULT_INPUTS, InputOptions, Progress, read_inputs
 from fmm_ros.workflows.model import ModelComparison, ModelOverlay, compare_model
 from fmm_ros.workflows.results import (
@@ -143,6 +145,8 @@ class SessionResult:
     """What went wrong reading the inputs (a damaged bag): shown, never dropped."""
     notes: list[str] = field(default_factory=list)
     """How each lab file was read (format, channels, units, rate)."""
+    session_info: dict[str, SessionInfo] = field(default_factory=dict)
+    """Each bag's session metadata (who, pin, counterface, lubricant, load...), by path."""
 
     def __post_init__(self) -> None:
         missing = [
@@ -194,16 +198,20 @@ def analyse(
     capture: CaptureConfig = DEFAULT_CAPTURE,
     analysis: AnalysisConfig | None = None,
     *,
+    decisions: Mapping[int, Decision] | None = None,
     progress: Progress | None = None,
 ) -> Summary:
-    """The signal core's verdict on every record, impact i being record i."""
+    """The signal core's verdict on every record, impact i being record i.
+
+    decisions (by record position) decide which hits the level averages take (`summarize`).
+    """
     analysis = analysis or AnalysisConfig()
     results = []
     for number, record in enumerate(records):
         if progress:
             progress(f'analysing hit {number + 1}/{len(records)}')
         results.append(analyze_impact(record, capture, analysis, impact_id=number))
-    return summarize(results, analysis)
+    return summarize(results, analysis, decisions)
 
 
 def select_records(
@@ -212,10 +220,12 @@ def select_records(
     analysis: AnalysisConfig | None = None,
     *,
     include_flagged: bool = False,
+    decisions: Mapping[int, Decision] | None = None,
     progress: Progress | None = None,
 ) -> ImpactSelection:
     """The impacts of records a fit takes: `select_impacts` over their analysis.
 
+    decisions: the newest recorded decision about records[i], by i (`read_inputs`).
     Raises FitError (reason 'no_hit') for a record without a hit, which has nothing to judge
     or fit, and `SelectionError` (a ValueError) naming the flagged records when none is clean.
     """
@@ -224,8 +234,8 @@ def select_records(
             with_trigger(record, capture)
         except ValueError as error:
             raise FitError('no_hit', f'no hit: {error}', record.source) from None
-    summary = analyse(records, capture, analysis, progress=progress)
-    return select_impacts(summary, include_flagged=include_flagged)
+    summary = analyse(records, capture, analysis, decisions=decisions, progress=progress)
+    return select_impacts(summary, include_flagged=include_flagged, decisions=decisions)
 
 
 def fit_impacts(
@@ -279,9 +289,14 @@ def process_records(
     inputs: Sequence[str] = (),
     problems: Sequence[str] = (),
     notes: Sequence[str] = (),
+    decisions: Mapping[int, Decision] | None = None,
+    session_info: Mapping[str, SessionInfo] | None = None,
     progress: Progress | None = None,
 ) -> SessionResult:
     """Analyse records, fit mu over the accepted ones (or take the fit given), diagnose.
+
+    decisions: the newest decision about records[i], by i (recorded by the station): they
+    overrule the flags in `select_impacts`. session_info: each bag's metadata, shown.
 
     friction: a fit made elsewhere (the fitter service's answer), drawn as it is instead of
     fitting; fit_failure: why that fit was refused. options.mu draws a given mu instead;
@@ -293,9 +308,12 @@ def process_records(
     if not records:
         raise BadInputError('a session needs at least one impact record')
     capture = options.inputs.capture
-    summary = analyse(records, capture, options.analysis, progress=progress)
+    summary = analyse(records, capture, options.analysis, decisions=decisions, progress=progress)
     try:
-        selection, refusal = select_impacts(summary, include_flagged=options.include_flagged), ''
+        selection = select_impacts(
+            summary, include_flagged=options.include_flagged, decisions=decisions
+        )
+        refusal = ''
     except SelectionError as error:  # the result says why there is no fit, naming the hits
         selection, refusal = error.selection, str(error)
     if friction is None and not fit_failure and options.mu is None and options.fit:
@@ -337,6 +355,7 @@ def process_records(
         list(inputs),
         list(problems),
         list(notes),
+        dict(session_info or {}),
     )
 
 
@@ -355,6 +374,8 @@ def process_session(
         inputs=read.paths,
         problems=read.problems,
         notes=read.notes,
+        decisions=read.decisions,
+        session_info=read.session_info,
         progress=progress,
     )
 

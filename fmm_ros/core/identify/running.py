@@ -46,38 +46,34 @@ class RunningEstimate:
     """Chance of this much scatter if one mu served all (NaN for one impact)."""
     levels: tuple[LevelEstimate, ...]
     """Per level, in the order the levels first appeared."""
+    impact_ids: tuple[int, ...] = ()
+    """The impacts behind the estimate; impact_id absent from them: it was just removed."""
 
 
-@dataclass
-class _Impacts:
-    """Impacts' own mus and standard errors: their weighted mean, its error and chi^2."""
+def _weighted(entries: list[tuple[float, float]]) -> tuple[float, float, float]:
+    """(weighted mean, its standard error, chi^2 of the mus about it) of (mu, stderr) pairs.
 
-    mus: list[float] = field(default_factory=list)
-    stderrs: list[float] = field(default_factory=list)
-
-    def add(self, mu: float, stderr: float) -> None:
-        self.mus.append(mu)
-        self.stderrs.append(stderr)
-
-    @property
-    def count(self) -> int:
-        return len(self.mus)
-
-    def estimate(self) -> tuple[float, float, float]:
-        """(weighted mean, its standard error, chi^2 of the mus about it)."""
-        weights = [1.0 / s**2 for s in self.stderrs]
-        total = math.fsum(weights)
-        mean = math.fsum(w * m for w, m in zip(weights, self.mus, strict=True)) / total
-        chi2 = math.fsum(w * (m - mean) ** 2 for w, m in zip(weights, self.mus, strict=True))
-        return mean, 1.0 / math.sqrt(total), chi2
+    NaN for none.
+    """
+    if not entries:
+        return math.nan, math.nan, math.nan
+    weights = [1.0 / s**2 for _, s in entries]
+    total = math.fsum(weights)
+    mean = math.fsum(w * m for w, (m, _) in zip(weights, entries, strict=True)) / total
+    chi2 = math.fsum(w * (m - mean) ** 2 for w, (m, _) in zip(weights, entries, strict=True))
+    return mean, 1.0 / math.sqrt(total), chi2
 
 
 @dataclass
 class RunningFriction:
-    """Accumulates each accepted impact's own mu into the running estimate."""
+    """Each impact's own mu by impact id, and the running estimate over them.
 
-    _all: _Impacts = field(default_factory=_Impacts)
-    _levels: dict[str, _Impacts] = field(default_factory=dict)
+    Impacts can be taken out again (`remove`: an operator rejected a hit, issue 27) and put
+    back; the estimate is recomputed from the impacts' own mus, so it is the same as if the
+    removed impact had never been added.
+    """
+
+    _impacts: dict[int, tuple[str, float, float]] = field(default_factory=dict)
 
     def add(self, impact_id: int, level: str, mu: float, mu_stderr: float) -> RunningEstimate:
         """Take in one impact's own fit (mu and its standard error); the estimate now.
@@ -90,24 +86,44 @@ class RunningFriction:
                 f'impact {impact_id}: mu {mu} +- {mu_stderr} cannot be weighted (a positive, '
                 'finite standard error is needed)'
             )
-        self._all.add(mu, mu_stderr)
-        self._levels.setdefault(level, _Impacts()).add(mu, mu_stderr)
-        mean, stderr, chi2 = self._all.estimate()
-        dof = self._all.count - 1
+        self._impacts[impact_id] = (level, mu, mu_stderr)
+        return self.estimate(impact_id, mu, mu_stderr)
+
+    def remove(self, impact_id: int) -> RunningEstimate:
+        """Take impact_id out; the estimate without it.
+
+        Its impact_id is the one removed, absent from impact_ids; mu is NaN when none is left.
+        KeyError for an id not held.
+        """
+        _, mu, stderr = self._impacts.pop(impact_id)
+        return self.estimate(impact_id, mu, stderr)
+
+    def __contains__(self, impact_id: int) -> bool:
+        return impact_id in self._impacts
+
+    def estimate(self, impact_id: int, impact_mu: float, impact_stderr: float) -> RunningEstimate:
+        """The estimate over the impacts held, told as the change of impact_id."""
+        entries = list(self._impacts.values())
+        mean, stderr, chi2 = _weighted([(mu, s) for _, mu, s in entries])
+        dof = len(entries) - 1
+        by_level: dict[str, list[tuple[float, float]]] = {}
+        for level, mu, s in entries:
+            by_level.setdefault(level, []).append((mu, s))
         levels = []
-        for name, impacts in self._levels.items():
-            level_mu, level_stderr, _ = impacts.estimate()
-            levels.append(LevelEstimate(name, impacts.count, level_mu, level_stderr))
+        for name, pairs in by_level.items():
+            level_mu, level_stderr, _ = _weighted(pairs)
+            levels.append(LevelEstimate(name, len(pairs), level_mu, level_stderr))
         return RunningEstimate(
             impact_id=impact_id,
-            impact_mu=mu,
-            impact_mu_stderr=mu_stderr,
-            count=self._all.count,
+            impact_mu=impact_mu,
+            impact_mu_stderr=impact_stderr,
+            count=len(entries),
             mu=mean,
             mu_stderr=stderr,
             consistency_chi2=chi2,
-            consistency_p_value=float(scipy.stats.chi2.sf(chi2, dof)) if dof else math.nan,
+            consistency_p_value=float(scipy.stats.chi2.sf(chi2, dof)) if dof > 0 else math.nan,
             levels=tuple(levels),
+            impact_ids=tuple(self._impacts),
         )
 
 

@@ -14,7 +14,7 @@ split into `_real`/`_imag` there), so the ROS shell converts them field by field
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -35,6 +35,7 @@ from fmm_ros.core.signal.config import (  # noqa: F401 (re-exported: declared in
     NominalLevel,
     paper_levels,
 )
+from fmm_ros.core.signal.judging import Decision, is_taken
 from fmm_ros.core.signal.levels import assign_nominal_levels, cluster_levels
 from fmm_ros.core.signal.quality import quality_flags
 from fmm_ros.core.signal.records import ImpactRecord
@@ -224,7 +225,9 @@ def analyze_impact(
 
 
 def summarize(
-    results: Sequence[ImpactAnalysis], analysis: AnalysisConfig = DEFAULT_ANALYSIS
+    results: Sequence[ImpactAnalysis],
+    analysis: AnalysisConfig = DEFAULT_ANALYSIS,
+    decisions: Mapping[int, Decision] | None = None,
 ) -> Summary:
     """Assign levels, judge every impact, average each level and fit |receptance| vs impulse.
 
@@ -232,7 +235,9 @@ def summarize(
     (flag `out_of_tolerance`); without, peak forces are clustered into `level_1`, `level_2`, ...
     in ascending force. Impacts that share the session's top force to the last bit, several
     of them, are `clipped` (`pulse.shared_top`: a one-sample clipped top is no plateau). Only
-    accepted impacts enter the averages; every impact is returned.
+    accepted impacts enter the averages, or under decisions (impact id -> the newest
+    `Decision`) the ones a fit takes (`judging.is_taken`, as `select_impacts`); every impact
+    is returned, `accepted` its flags' verdict.
     """
     peaks = np.array([result.peak_force_n for result in results], dtype=float)
     if analysis.levels:
@@ -265,7 +270,11 @@ def summarize(
 
     levels = []
     for name, nominal in level_order:
-        members = [result for result in judged if result.level == name and result.accepted]
+        members = [
+            result
+            for result in judged
+            if result.level == name and is_taken(result.impact_id, result.accepted, decisions or {})
+        ]
         if members:
             levels.append(_level_summary(name, nominal, members, analysis))
     linearity = frf.linear_fit(
@@ -358,6 +367,8 @@ class ImpactSelection:
     excluded: tuple[tuple[int, tuple[str, ...], str], ...]
     # (impact id, flags, source) of flagged impacts taken because include_flagged was set.
     included_flagged: tuple[tuple[int, tuple[str, ...], str], ...] = ()
+    # Decisions that overruled the flags (`core.signal.judging`), in the order given.
+    judged: tuple[Decision, ...] = ()
 
     @property
     def note(self) -> str:
@@ -372,6 +383,11 @@ class ImpactSelection:
             parts.append(
                 f'WARNING: {len(self.included_flagged)} flagged impact(s) included on '
                 f'request: {_named(self.included_flagged)}'
+            )
+        if self.judged:
+            parts.append(
+                f'{len(self.judged)} judged: '
+                + ', '.join(decision.describe() for decision in self.judged)
             )
         return '; '.join(parts)
 
@@ -389,6 +405,7 @@ def select_impacts(
     *,
     include_flagged: bool = False,
     min_clean: int = 1,
+    decisions: Mapping[int, Decision] | None = None,
 ) -> ImpactSelection:
     """The impacts a fit or diagnosis takes: the accepted ones, or all with include_flagged.
 
@@ -396,24 +413,33 @@ def select_impacts(
     by default; the analyzer node's `reject_flags` for its messages): a clipped force, a double
     hit, a dead vibrometer or a gap gives a confident wrong mu, so it never enters a fit
     silently. include_flagged takes every impact (and the selection says which were flagged).
+    decisions (impact id -> the newest `Decision` about it) overrule the flags and
+    include_flagged: an operator's or judge function's accept takes an impact, a reject or
+    pending leaves it out, and the selection lists them (`judged`).
     Raises SelectionError naming the impacts left out and their flags when fewer than
     min_clean remain.
     """
     if isinstance(impacts, Summary):
         impacts = impacts.impacts
-    chosen, excluded, included = [], [], []
+    decisions = decisions or {}
+    chosen, excluded, included, judged = [], [], [], []
     for impact in impacts:
         entry = (int(impact.impact_id), tuple(impact.flags), getattr(impact, 'source', ''))
-        if impact.accepted:
+        decision = decisions.get(entry[0])
+        if decision is not None and decision.taken is not None:
+            judged.append(decision)
+            if decision.taken:
+                chosen.append(entry[0])
+        elif impact.accepted:
             chosen.append(entry[0])
         elif include_flagged:
             chosen.append(entry[0])
             included.append(entry)
         else:
             excluded.append(entry)
-    selection = ImpactSelection(tuple(chosen), tuple(excluded), tuple(included))
+    selection = ImpactSelection(tuple(chosen), tuple(excluded), tuple(included), tuple(judged))
     if len(chosen) < min_clean:
-        total = len(chosen) + len(excluded)
+        total = len(chosen) + len(excluded) + len(judged)
         if total == 0:
             raise SelectionError('no impact to fit', selection)
         count = (
@@ -421,10 +447,10 @@ def select_impacts(
             if not chosen
             else f'{len(chosen)} clean impact(s) of {total}, {min_clean} needed'
         )
-        raise SelectionError(
-            f'{count}: {_named(excluded)} flagged (--include-flagged takes them anyway)',
-            selection,
-        )
+        left_out = [f'{_named(excluded)} flagged (--include-flagged takes them anyway)'] * bool(
+            excluded
+        ) + [decision.describe() for decision in judged if not decision.taken]
+        raise SelectionError(f'{count}: {"; ".join(left_out)}', selection)
     return selection
 
 

@@ -34,6 +34,7 @@ class SampleHistory:
         self.capacity = 0  # samples a ring holds: set by the first batch's rate
         self.sample_rate_hz: float | None = None
         self._rings: dict[str, np.ndarray] = {}
+        self._first_index = 0
         self.stream = AlignedStream(self, rules)
 
     @property
@@ -82,6 +83,7 @@ class SampleHistory:
     def begin(self, sample_rate_hz: float, first_index: int) -> None:
         """An acquisition begins: rings sized for its rate, empty."""
         self.sample_rate_hz = float(sample_rate_hz)
+        self._first_index = first_index
         capacity = max(1, int(round(self.history_s * sample_rate_hz)))
         if capacity != self.capacity:
             self.capacity = capacity
@@ -112,6 +114,21 @@ class SampleHistory:
         head = min(values.size, self.capacity - position)
         ring[position : position + head] = values[:head]
         ring[: values.size - head] = values[head:]
+
+    def recent(self, quantity: str, length: int) -> tuple[int, np.ndarray]:
+        """A copy of a channel's last `length` samples up to its watermark, and the first's index.
+
+        Fewer at the start of an acquisition; NaN where samples never arrived.
+        """
+        stop = self.stream.next_index(quantity)
+        if stop is None or not self.capacity:
+            return 0, np.empty(0)
+        start = max(stop - length, stop - self.capacity, self._first_index)
+        position = start % self.capacity
+        count = stop - start
+        head = min(count, self.capacity - position)
+        ring = self._rings[quantity]
+        return start, np.concatenate((ring[position : position + head], ring[: count - head]))
 
     # -- records ----------------------------------------------------------------------------------
 

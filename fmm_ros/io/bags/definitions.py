@@ -28,6 +28,8 @@ INTERFACES_PACKAGE = 'fmm_interfaces'
 SAMPLE_BATCH = 'fmm_interfaces/msg/SampleBatch'
 IMPACT_RESULT = 'fmm_interfaces/msg/ImpactResult'
 FRF_SUMMARY = 'fmm_interfaces/msg/FrfSummary'
+IMPACT_DECISION = 'fmm_interfaces/msg/ImpactDecision'
+SESSION_INFO = 'fmm_interfaces/msg/SessionInfo'
 
 # The ROS 2 distribution whose standard types (std_msgs, builtin_interfaces, ...) bags use.
 BASE_STORE = Stores.ROS2_JAZZY

@@ -20,6 +20,7 @@ NODES: dict[str, str] = {
     'player': 'Player',
     'live': 'Live',
     'foxglove_server': 'FoxgloveServer',
+    'station': 'Station',
 }
 
 

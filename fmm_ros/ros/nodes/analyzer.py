@@ -8,6 +8,8 @@ counted, a restarted source is followed within one batch (the open record ends f
 rejected, with its flags), stamped with the acquisition time of its trigger; the level
 averages and the peak-receptance-vs-impulse law over all levels so far go out on fmm/frf,
 one FrfSummary per level, transient-local for late subscribers. Health on /diagnostics.
+Decisions about hits (fmm/impact_decisions, issue 27) decide which hits the level averages
+take, as they decide the fits (`summarize`): a decision republishes the levels.
 """
 
 import dataclasses
@@ -16,26 +18,29 @@ from collections import deque
 from builtin_interfaces.msg import Time
 from rclpy.node import Node
 
-from fmm_interfaces.msg import FrfSummary, ImpactResult
-from fmm_ros.constants import FRF_TOPIC, IMPACTS_TOPIC, PAPER_LEVELS
+from fmm_interfaces.msg import FrfSummary, ImpactDecision, ImpactResult
+from fmm_ros.constants import DECISIONS_TOPIC, FRF_TOPIC, IMPACTS_TOPIC, PAPER_LEVELS
 from fmm_ros.core.settings import settings_of
 from fmm_ros.core.signal.analysis import (
     AnalysisConfig,
     ImpactAnalysis,
     NominalLevel,
+    Summary,
     analyze_impact,
     summarize,
 )
 from fmm_ros.core.signal.capture import FLAGS, CaptureConfig, ImpactCapture
+from fmm_ros.core.signal.judging import Decision
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.core.signal.response import as_measured
 from fmm_ros.core.signal.stream import Batch
-from fmm_ros.errors import BadInputError
+from fmm_ros.errors import BadInputError, FmmError
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import RESULT_QOS, run_node
 from fmm_ros.ros.health import OK, Health
 from fmm_ros.ros.inputs import SampleInputs
 from fmm_ros.ros.params import Param, declare_parameters, params_from
+from fmm_ros.ros.qos import DECISION_QOS
 
 # The capture's and the FRFs' settings as declared in the core (`core.signal.config`), then
 # the levels, which a params file gives as parallel lists.
@@ -113,6 +118,9 @@ class Analyzer(Node):
         self.impacts_accepted = 0
         self._impact_pub = self.create_publisher(ImpactResult, IMPACTS_TOPIC, RESULT_QOS)
         self._frf_pub = self.create_publisher(FrfSummary, FRF_TOPIC, RESULT_QOS)
+        self.decisions: dict[int, Decision] = {}
+        self._last_stamp = Time()
+        self.create_subscription(ImpactDecision, DECISIONS_TOPIC, self._on_decision, DECISION_QOS)
         health = Health(self)
         self.inputs = SampleInputs(self, self.capture.stream, self._on_batch, health)
         health.add('impacts', self._impacts_status)
@@ -164,19 +172,15 @@ class Analyzer(Node):
         )
         self.capture.recycle(record)
         self.results.append(result)
-        summary = summarize(list(self.results), self.analysis_config)
+        summary = summarize(list(self.results), self.analysis_config, self.decisions)
         judged = summary.impacts[-1]
         self.impacts_reported += 1
         self.impacts_accepted += judged.accepted
         self._impact_pub.publish(
             msgs.impact_result_msg(judged, stamp=stamp, frame_id=self.config['frame_id'])
         )
-        for level in summary.levels:
-            self._frf_pub.publish(
-                msgs.frf_summary_msg(
-                    level, summary.linearity, stamp=stamp, frame_id=self.config['frame_id']
-                )
-            )
+        self._last_stamp = stamp
+        self._publish_levels(summary)
         verdict = 'accepted' if judged.accepted else f'rejected ({", ".join(judged.flags)})'
         self.get_logger().info(
             f'impact {judged.impact_id} at sample {judged.trigger_sample_index}: '
@@ -184,6 +188,31 @@ class Analyzer(Node):
             f'{judged.impulse_n_s:.3f} N*s, |X/F| {judged.peak_receptance_m_per_n:.3e} m/N '
             f'at {judged.natural_frequency_hz:.2f} Hz, {verdict}'
         )
+
+    def _publish_levels(self, summary: Summary) -> None:
+        """Each level's average and the linearity law, stamped with the newest impact."""
+        for level in summary.levels:
+            self._frf_pub.publish(
+                msgs.frf_summary_msg(
+                    level,
+                    summary.linearity,
+                    stamp=self._last_stamp,
+                    frame_id=self.config['frame_id'],
+                )
+            )
+
+    def _on_decision(self, msg: ImpactDecision) -> None:
+        """A decision about a hit held: the level averages again, without or with it."""
+        try:
+            decision = msgs.decision(msg)
+        except FmmError as error:
+            self.get_logger().error(f'decision about impact {msg.impact_id} ignored: {error}')
+            return
+        self.decisions[decision.impact_id] = decision
+        if any(result.impact_id == decision.impact_id for result in self.results):
+            self._publish_levels(
+                summarize(list(self.results), self.analysis_config, self.decisions)
+            )
 
     def destroy_node(self) -> None:
         """Log the final ledger of its inputs before the node goes."""

@@ -16,6 +16,11 @@ After every accepted impact it also fits that impact alone and publishes the run
 impacts' own mus, inverse-variance weighted: `core.identify.running`) on fmm/friction, so the
 lab sees mu converge while the session runs.
 
+Decisions about hits (fmm/impact_decisions: the operator's or a judge function's, issue 27)
+overrule the flags in both: a fit request takes the impacts `select_impacts` takes under
+them, and the live mu drops a rejected impact (a new estimate, without its id) and takes an
+accepted one back.
+
 Service callbacks run in their own callback group, so under `ros2 run` (a multi-threaded
 executor) the streams keep flowing while a fit runs.
 """
@@ -28,26 +33,34 @@ from dataclasses import dataclass
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
 
-from fmm_interfaces.msg import FrictionEstimate, ImpactResult
+from fmm_interfaces.msg import FrictionEstimate, ImpactDecision, ImpactResult
 from fmm_interfaces.srv import DiagnoseModel, FitFriction
-from fmm_ros.constants import DIAGNOSE_SERVICE, FIT_SERVICE, FRICTION_TOPIC, IMPACTS_TOPIC
+from fmm_ros.constants import (
+    DECISIONS_TOPIC,
+    DIAGNOSE_SERVICE,
+    FIT_SERVICE,
+    FRICTION_TOPIC,
+    IMPACTS_TOPIC,
+)
 from fmm_ros.core.diagnose.workflow import diagnose
 from fmm_ros.core.identify.conditioning import FitError
 from fmm_ros.core.identify.friction import fit_friction
-from fmm_ros.core.identify.running import RunningFriction
+from fmm_ros.core.identify.running import RunningEstimate, RunningFriction
 from fmm_ros.core.identify.spec import MU_BOUNDS, FitSpec
 from fmm_ros.core.signal.analysis import ImpactSelection, select_impacts
 from fmm_ros.core.signal.history import SampleHistory
+from fmm_ros.core.signal.judging import Decision, is_taken
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.core.signal.response import as_measured
 from fmm_ros.core.signal.stream import Batch
 from fmm_ros.errors import BadInputError
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import RIG_PARAMS, rig_from_parameters, run_node
+from fmm_ros.ros.cutting import ImpactCutter
 from fmm_ros.ros.health import OK, Health
 from fmm_ros.ros.inputs import SampleInputs
 from fmm_ros.ros.params import Param, declare_parameters, params_from
-from fmm_ros.ros.qos import RESULT_QOS
+from fmm_ros.ros.qos import DECISION_QOS, RESULT_QOS
 from fmm_ros.workflows.results import FrictionResult
 
 PARAMS = (
@@ -99,9 +112,8 @@ class Fitter(Node):
         cfg = self.config
         self.rig = rig_from_parameters(cfg)
         self.history = SampleHistory(cfg['history_s'])
+        self.cutter = ImpactCutter(self.history, self.get_logger())
         self.impacts: OrderedDict[int, HeldImpact] = OrderedDict()
-        self._waiting: list[ImpactResult] = []
-        self._acquisition = 0
         self.last_fit = ''
         self.live_mu = ''
         self._lock = threading.Lock()  # impacts: written by the stream group, read by services
@@ -114,8 +126,18 @@ class Fitter(Node):
         self.create_subscription(
             ImpactResult, IMPACTS_TOPIC, self._on_impact, RESULT_QOS, callback_group=streams
         )
+        self.decisions: dict[int, Decision] = {}
+        self.create_subscription(
+            ImpactDecision,
+            DECISIONS_TOPIC,
+            self._on_decision,
+            DECISION_QOS,
+            callback_group=streams,
+        )
         self._friction_pub = self.create_publisher(FrictionEstimate, FRICTION_TOPIC, RESULT_QOS)
         self._running = RunningFriction()
+        # Each live-fitted impact's own (level, mu, stderr): put back when accepted again.
+        self._own_fits: dict[int, tuple[str, float, float]] = {}
         self._to_fit: queue.Queue[HeldImpact | None] = queue.Queue()
         self._worker = None
         if cfg['live_mu']:
@@ -136,30 +158,12 @@ class Fitter(Node):
 
     def _on_batch(self, quantity: str, batch: Batch) -> None:
         self.history.feed_batch(quantity, batch)
-        if self.history.acquisitions != self._acquisition:
-            self._acquisition = self.history.acquisitions
-            if self._waiting:
-                self.get_logger().warning(
-                    f'a new acquisition began: impacts {[m.impact_id for m in self._waiting]} '
-                    'of the previous one cannot be cut any more'
-                )
-                self._waiting.clear()
-        self._cut_waiting()
+        for msg, record in self.cutter.batch_fed():
+            self._hold(msg, record)
 
     def _on_impact(self, msg: ImpactResult) -> None:
-        origin = self.history.origin_s
-        if origin is not None and msg.sample_rate_hz > 0:
-            impact_origin = msgs.stamp_ns(msg.header.stamp) / 1e9 - (
-                msg.trigger_sample_index / msg.sample_rate_hz
-            )
-            if abs(impact_origin - origin) > self.history.stream.rules.clock_tolerance_s:
-                self.get_logger().warning(
-                    f'impact {msg.impact_id} belongs to another acquisition than the samples '
-                    'held (its clock differs): not held'
-                )
-                return
-        self._waiting.append(msg)
-        self._cut_waiting()
+        for cut, record in self.cutter.impact(msg):
+            self._hold(cut, record)
 
     def _fits_status(self) -> tuple:
         with self._lock:
@@ -171,48 +175,61 @@ class Fitter(Node):
             {
                 'impacts held': len(held),
                 'accepted held': sum(i.accepted for i in held),
-                'impacts waiting for samples': len(self._waiting),
+                'impacts waiting for samples': len(self.cutter.waiting),
                 'history s': self.history.history_s,
                 'last fit': self.last_fit or 'none',
                 'live mu': self.live_mu or 'none',
             },
         )
 
-    def _cut_waiting(self) -> None:
-        """Cut the records of reported impacts whose samples have all arrived."""
-        for msg in list(self._waiting):
-            start = msg.record_start_sample_index
-            length = round(msg.record_duration_s * msg.sample_rate_hz)
-            if not self.history.covers(start, start + length):
-                continue
-            self._waiting.remove(msg)
-            try:
-                record = as_measured(
-                    self.history.record(
-                        start,
-                        length,
-                        trigger_sample_index=msg.trigger_sample_index,
-                        source=f'impact {msg.impact_id}',
-                    ),
-                    self.inputs.response_quantity,
-                )
-            except ValueError as error:
-                self.get_logger().warning(f'impact {msg.impact_id} cannot be held: {error}')
-                continue
-            held = HeldImpact(
-                msg.impact_id,
-                msg.level,
-                msg.accepted,
-                tuple(msg.flags),
-                record,
-                msgs.stamp_ns(msg.header.stamp),
-            )
-            with self._lock:
-                self.impacts[msg.impact_id] = held
-                while len(self.impacts) > self.config['keep_last_impacts']:
-                    self.impacts.popitem(last=False)
-            if held.accepted and self._worker is not None:
-                self._to_fit.put(held)
+    def _hold(self, msg: ImpactResult, record: ImpactRecord) -> None:
+        """Hold a reported impact's record (the last keep_last_impacts); fit it live."""
+        held = HeldImpact(
+            msg.impact_id,
+            msg.level,
+            msg.accepted,
+            tuple(msg.flags),
+            as_measured(record, self.inputs.response_quantity),
+            msgs.stamp_ns(msg.header.stamp),
+        )
+        with self._lock:
+            self.impacts[msg.impact_id] = held
+            while len(self.impacts) > self.config['keep_last_impacts']:
+                self.impacts.popitem(last=False)
+        if self._worker is not None and self._taken(held):
+            self._to_fit.put(held)
+
+    # -- decisions --------------------------------------------------------------------------
+
+    def _taken(self, held: HeldImpact) -> bool:
+        return is_taken(held.impact_id, held.accepted, self.decisions)
+
+    def _on_decision(self, msg: ImpactDecision) -> None:
+        """Apply one decision: fits take it from now on, the live mu drops or takes the hit."""
+        try:
+            decision = msgs.decision(msg)
+        except ValueError as error:
+            self.get_logger().error(f'decision about impact {msg.impact_id} ignored: {error}')
+            return
+        with self._lock:
+            self.decisions[decision.impact_id] = decision
+            held = self.impacts.get(decision.impact_id)
+        self.get_logger().info(f'{decision.describe()}')
+        if held is None or self._worker is None:
+            return
+        taken = self._taken(held)
+        with self._lock:
+            own = self._own_fits.get(held.impact_id)
+            if not taken and held.impact_id in self._running:
+                estimate = self._running.remove(held.impact_id)
+            elif taken and own is not None and held.impact_id not in self._running:
+                estimate = self._running.add(held.impact_id, *own)
+            else:
+                estimate = None
+        if estimate is not None:
+            self._publish_estimate(estimate)
+        elif taken and own is None:
+            self._to_fit.put(held)
 
     # -- live mu ----------------------------------------------------------------------------
 
@@ -229,18 +246,34 @@ class Fitter(Node):
                     rig=self.rig,
                     fit_initial_position=self.config['fit_initial_position'],
                 )
-                estimate = self._running.add(held.impact_id, held.level, fit.mu, fit.mu_stderr)
+                with self._lock:
+                    if held.impact_id in self._own_fits or not self._taken(held):
+                        continue  # fitted twice over, or rejected while it was fitted
+                    estimate = self._running.add(held.impact_id, held.level, fit.mu, fit.mu_stderr)
+                    self._own_fits[held.impact_id] = (held.level, fit.mu, fit.mu_stderr)
             except ValueError as error:  # FitError included: the impact adds nothing
                 self.get_logger().warning(f'live mu: impact {held.impact_id} not used: {error}')
                 continue
-            self._friction_pub.publish(
-                msgs.friction_estimate_msg(estimate, stamp=msgs.time_msg(held.stamp_ns))
-            )
-            self.live_mu = (
-                f'{estimate.mu:.5f} +- {estimate.mu_stderr:.2g} over {estimate.count} impacts '
-                f'(one mu: p = {estimate.consistency_p_value:.3g})'
-            )
-            self.get_logger().info(f'live mu after impact {held.impact_id}: {self.live_mu}')
+            self._publish_estimate(estimate)
+
+    def _publish_estimate(self, estimate: RunningEstimate) -> None:
+        """The running mu on fmm/friction, and in the log and the health status."""
+        # Stamped in signal time, as the impact it follows; a decision's estimate follows no
+        # new impact and takes the node's clock.
+        with self._lock:
+            held = self.impacts.get(estimate.impact_id)
+        stamp = (
+            msgs.time_msg(held.stamp_ns)
+            if held is not None and held.stamp_ns and estimate.impact_id in estimate.impact_ids
+            else self.get_clock().now().to_msg()
+        )
+        self._friction_pub.publish(msgs.friction_estimate_msg(estimate, stamp=stamp))
+        self.live_mu = (
+            f'{estimate.mu:.5f} +- {estimate.mu_stderr:.2g} over {estimate.count} impacts '
+            f'(one mu: p = {estimate.consistency_p_value:.3g})'
+        )
+        change = 'after' if estimate.impact_id in estimate.impact_ids else 'without'
+        self.get_logger().info(f'live mu {change} impact {estimate.impact_id}: {self.live_mu}')
 
     def destroy_node(self) -> None:
         """Stop the live-mu worker (after the fit it is in), log the inputs' final ledger."""
@@ -274,8 +307,10 @@ class Fitter(Node):
                 )
             held = [by_id[i] for i in impact_ids]
         elif not held:
-            raise BadInputError(f'no impact held yet ({len(self._waiting)} still arriving)')
-        selection = select_impacts(held, include_flagged=include_flagged)
+            raise BadInputError(f'no impact held yet ({len(self.cutter.waiting)} still arriving)')
+        with self._lock:
+            decisions = dict(self.decisions)
+        selection = select_impacts(held, include_flagged=include_flagged, decisions=decisions)
         return [by_id[i] for i in selection.chosen], selection
 
     def _on_fit(

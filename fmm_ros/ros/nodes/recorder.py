@@ -13,6 +13,8 @@ all the same), the recorder reports its progress to the sources (flow control), 
 ledger goes into the bag's metadata (`custom_data`, key fmm.ledger) when the bag closes:
 the bag states its own completeness, which `fmm bag-info` shows. rosbag2 logs only a
 dropped count at close and keeps no per-topic loss in the bag (ros2/rosbag2#2007).
+The newest session metadata the station published (fmm/session_info) goes into the
+metadata too (key fmm.session), so a campaign reads a bag's conditions without decoding it.
 """
 
 import json
@@ -24,10 +26,11 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 
-from fmm_interfaces.msg import SampleBatch
+from fmm_interfaces.msg import SampleBatch, SessionInfo
 from fmm_ros.constants import (
     APPLIED_FORCE_TOPIC,
     CLOCK_TOPIC,
+    DECISIONS_TOPIC,
     DIAGNOSTICS_TOPIC,
     FORCE_TOPIC,
     FRF_TOPIC,
@@ -35,12 +38,15 @@ from fmm_ros.constants import (
     IMPACTS_TOPIC,
     LIVE_TOPICS,
     RECORDED_TOPICS,
+    SESSION_INFO_TOPIC,
     VELOCITY_TOPIC,
 )
 from fmm_ros.core.signal.stream import AlignedStream, LedgerOnly
+from fmm_ros.errors import FmmError
 from fmm_ros.io.bags.definitions import SAMPLE_BATCH
 from fmm_ros.io.bags.metadata import LEDGER_KEY, ledger_text
 from fmm_ros.io.bags.writer import STORAGES, BagWriter, bag_qos
+from fmm_ros.io.session_info import SESSION_KEY, from_message, to_json
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import message_class, run_node
 from fmm_ros.ros.flow import ProgressReporter
@@ -53,7 +59,15 @@ from fmm_ros.ros.health import (
     stream_status,
 )
 from fmm_ros.ros.params import Param, declare_parameters
-from fmm_ros.ros.qos import CLOCK_QOS, DIAGNOSTICS_QOS, RESULT_QOS, SAMPLE_QOS, recording_qos
+from fmm_ros.ros.qos import (
+    CLOCK_QOS,
+    DECISION_QOS,
+    DIAGNOSTICS_QOS,
+    RESULT_QOS,
+    SAMPLE_QOS,
+    SESSION_INFO_QOS,
+    recording_qos,
+)
 
 PARAMS = (
     Param(
@@ -91,6 +105,8 @@ KNOWN_TOPICS = {
     DIAGNOSTICS_TOPIC: ('diagnostic_msgs/msg/DiagnosticArray', DIAGNOSTICS_QOS),
     CLOCK_TOPIC: ('rosgraph_msgs/msg/Clock', CLOCK_QOS),
     **{topic: ('fmm_interfaces/msg/DisplayPoint', SAMPLE_QOS) for topic in LIVE_TOPICS.values()},
+    DECISIONS_TOPIC: ('fmm_interfaces/msg/ImpactDecision', DECISION_QOS),
+    SESSION_INFO_TOPIC: ('fmm_interfaces/msg/SessionInfo', SESSION_INFO_QOS),
 }
 
 
@@ -109,6 +125,7 @@ class Recorder(Node):
         self.writer.open()
         self.bag_path = self.writer.path
         self.messages_recorded = 0
+        self._session_info: bytes | None = None  # the newest, serialized
         self._pending = []
         self._raw_subscriptions = []
         # Per SampleBatch topic (resolved name): the stream rules, for the ledger alone.
@@ -221,6 +238,8 @@ class Recorder(Node):
     def _store(self, topic: str, msgtype: str, data: bytes) -> None:
         self.writer.write_raw(topic, msgtype, data, time.time_ns())
         self.messages_recorded += 1
+        if msgtype == 'fmm_interfaces/msg/SessionInfo':
+            self._session_info = data
 
     def _store_batch(self, topic: str, msgtype: str, data: bytes) -> None:
         """Store a SampleBatch as it came; account for it by the stream rules."""
@@ -241,6 +260,12 @@ class Recorder(Node):
         for stream in self._streams.values():
             stream.finish()
         self.writer.set_custom_data(LEDGER_KEY, ledger_text(self.ledger))
+        if self._session_info is not None:
+            try:
+                info = from_message(deserialize_message(self._session_info, SessionInfo))
+                self.writer.set_custom_data(SESSION_KEY, to_json(info))
+            except FmmError as error:  # the message itself is in the bag all the same
+                self.get_logger().error(f'session metadata not put in the bag metadata: {error}')
         for ledger in self.ledger.values():
             self.get_logger().info(f'stopped: {ledger.summary()}')
         self.writer.set_custom_data(

@@ -1,0 +1,79 @@
+"""Impact records cut from a node's own stream history, by the analyzer's reports.
+
+The fitter (to fit) and the station (to draw and judge a hit) keep the recent force and
+velocity streams themselves (`SampleHistory`) and cut each impact the analyzer reports on
+fmm/impacts out of them by sample index, once every sample of its record has arrived. So
+no record travels over the network, and a bag played into the graph works like a live
+session. An impact stamped with another acquisition's clock (the source restarted in
+between) is not cut from this one's samples, and impacts still waiting when a new
+acquisition begins can no longer be cut: both are said in the log.
+"""
+
+from rclpy.impl.rcutils_logger import RcutilsLogger
+
+from fmm_interfaces.msg import ImpactResult
+from fmm_ros.core.signal.history import SampleHistory
+from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.ros import msgs
+
+Cut = tuple[ImpactResult, ImpactRecord]
+
+
+class ImpactCutter:
+    """Reported impacts waiting for their samples, and their records once complete."""
+
+    def __init__(self, history: SampleHistory, logger: RcutilsLogger) -> None:
+        self.history = history
+        self.waiting: list[ImpactResult] = []
+        self._logger = logger
+        self._acquisition = 0
+
+    def batch_fed(self) -> list[Cut]:
+        """After a batch went into the history: the records it completed."""
+        if self.history.acquisitions != self._acquisition:
+            self._acquisition = self.history.acquisitions
+            if self.waiting:
+                self._logger.warning(
+                    f'a new acquisition began: impacts {[m.impact_id for m in self.waiting]} '
+                    'of the previous one cannot be cut any more'
+                )
+                self.waiting.clear()
+        return self._cut()
+
+    def impact(self, msg: ImpactResult) -> list[Cut]:
+        """An impact reported: its record at once if its samples are held, else later."""
+        origin = self.history.origin_s
+        if origin is not None and msg.sample_rate_hz > 0:
+            impact_origin = msgs.stamp_ns(msg.header.stamp) / 1e9 - (
+                msg.trigger_sample_index / msg.sample_rate_hz
+            )
+            if abs(impact_origin - origin) > self.history.stream.rules.clock_tolerance_s:
+                self._logger.warning(
+                    f'impact {msg.impact_id} belongs to another acquisition than the samples '
+                    'held (its clock differs): not held'
+                )
+                return []
+        self.waiting.append(msg)
+        return self._cut()
+
+    def _cut(self) -> list[Cut]:
+        """The records of reported impacts whose samples have all arrived."""
+        cuts = []
+        for msg in list(self.waiting):
+            start = msg.record_start_sample_index
+            length = round(msg.record_duration_s * msg.sample_rate_hz)
+            if not self.history.covers(start, start + length):
+                continue
+            self.waiting.remove(msg)
+            try:
+                record = self.history.record(
+                    start,
+                    length,
+                    trigger_sample_index=msg.trigger_sample_index,
+                    source=f'impact {msg.impact_id}',
+                )
+            except ValueError as error:
+                self._logger.warning(f'impact {msg.impact_id} cannot be held: {error}')
+                continue
+            cuts.append((msg, record))
+        return cuts
