@@ -146,3 +146,14 @@ def test_fmm_foxglove_refuses_a_port_that_is_none(capsys):
 
     assert main(['foxglove', '--port', '70000']) == 2
     assert '--port 70000 is not a TCP port' in capsys.readouterr().err
+
+
+@pytest.mark.ros
+@pytest.mark.slow
+def test_a_port_already_served_is_refused_with_the_reason(ros_graph):
+    from fmm_ros.errors import BadInputError
+    from fmm_ros.ros.nodes.foxglove_server import FoxgloveServer
+
+    first = ros_graph.add(FoxgloveServer, parameter_overrides=params(port=0))
+    with pytest.raises(BadInputError, match=f'cannot serve on 127.0.0.1:{first.port}: .*in use'):
+        FoxgloveServer(context=ros_graph.context, parameter_overrides=params(port=first.port))
