@@ -22,6 +22,12 @@ FORCE = Channel('force', 'N')
 VELOCITY = Channel('velocity', 'm/s')
 """The laser vibrometer's velocity channel."""
 CHANNELS: tuple[Channel, ...] = (FORCE, VELOCITY)
+ACCELERATION = Channel('acceleration', 'm/s^2')
+"""An accelerometer's channel: published on the response (velocity) topic in its place."""
+DISPLACEMENT = Channel('displacement', 'm')
+"""A displacement sensor's channel, likewise."""
+RESPONSE_CHANNELS: tuple[Channel, ...] = (VELOCITY, ACCELERATION, DISPLACEMENT)
+"""What the response topic may carry; a SampleBatch's quantity says which."""
 
 # -- acquisition (the paper's Sec. 4) -----------------------------------------------------------
 SAMPLE_RATE_HZ = 10_000.0

@@ -39,6 +39,8 @@ FLAG_MEANINGS: dict[str, str] = {
     '(a hammer bounce): two inputs in one FRF',
     'clipped': "the force reached its sensor's full-scale range or has a flat top: peak "
     'and spectrum are wrong',
+    'coarse': 'the hammer pulse spans too few samples: its impulse and peak are off by per '
+    'cents, depending on where the samples fell',
     'saturated': "the velocity reached the vibrometer's range or has a flat top",
     'no_response': 'the velocity does not respond to the hit: a dead or disconnected vibrometer',
     'dropout': 'a channel holds one exact value too long: samples dropped and filled',

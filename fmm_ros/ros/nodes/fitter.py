@@ -39,6 +39,7 @@ from fmm_ros.core.identify.spec import MU_BOUNDS, FitSpec
 from fmm_ros.core.signal.analysis import ImpactSelection, select_impacts
 from fmm_ros.core.signal.history import SampleHistory
 from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.core.signal.response import as_measured
 from fmm_ros.core.signal.stream import Batch
 from fmm_ros.errors import BadInputError
 from fmm_ros.ros import msgs
@@ -186,11 +187,14 @@ class Fitter(Node):
                 continue
             self._waiting.remove(msg)
             try:
-                record = self.history.record(
-                    start,
-                    length,
-                    trigger_sample_index=msg.trigger_sample_index,
-                    source=f'impact {msg.impact_id}',
+                record = as_measured(
+                    self.history.record(
+                        start,
+                        length,
+                        trigger_sample_index=msg.trigger_sample_index,
+                        source=f'impact {msg.impact_id}',
+                    ),
+                    self.inputs.response_quantity,
                 )
             except ValueError as error:
                 self.get_logger().warning(f'impact {msg.impact_id} cannot be held: {error}')
