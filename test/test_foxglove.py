@@ -12,7 +12,6 @@ import json
 import re
 import shutil
 import subprocess
-import time
 from pathlib import Path
 
 import pytest
@@ -137,7 +136,6 @@ def test_foxglove_s_own_client_decodes_force_impacts_and_mu_from_a_running_graph
     server_times = [int(t) for t in times['time']]
     assert server_times and server_times == sorted(server_times)
     assert start_ns < server_times[-1] <= signal_end_ns
-    assert time.time_ns() < signal_end_ns  # at x20 signal time is ahead of the wall clock
 
 
 @pytest.mark.slow
