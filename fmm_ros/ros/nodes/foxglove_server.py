@@ -118,15 +118,21 @@ class FoxgloveServer(Node):
             )
         self._foxglove_context = foxglove.Context()
         self.listener = _Subscriptions()
-        self.server = foxglove.start_server(
-            name=f'fmm_ros {self.get_fully_qualified_name()}',
-            host=self.config['host'],
-            port=self.config['port'],
-            capabilities=[Capability.Time],
-            server_listener=self.listener,
-            context=self._foxglove_context,
-            message_backlog_size=self.config['queue_messages'],
-        )
+        try:
+            self.server = foxglove.start_server(
+                name=f'fmm_ros {self.get_fully_qualified_name()}',
+                host=self.config['host'],
+                port=self.config['port'],
+                capabilities=[Capability.Time],
+                server_listener=self.listener,
+                context=self._foxglove_context,
+                message_backlog_size=self.config['queue_messages'],
+            )
+        except RuntimeError as error:  # the SDK's FoxgloveError: bind failed, bad address
+            raise BadInputError(
+                f'foxglove_server: cannot serve on {self.config["host"]}:{self.config["port"]}: '
+                f'{error} (another server there? choose another port)'
+            ) from error
         self.messages_forwarded = 0
         typestore = fmm_typestore()
         self._channels = {}
