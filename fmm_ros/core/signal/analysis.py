@@ -20,6 +20,7 @@ from typing import Protocol
 
 import numpy as np
 
+from fmm_ros.core.settings import result_field, setting
 from fmm_ros.core.signal import frf, pulse, response
 from fmm_ros.core.signal.capture import (
     contact_start_index,
@@ -44,32 +45,43 @@ from fmm_ros.errors import BadInputError, NoCleanImpactError
 class ImpactAnalysis:
     """One impact analysed: the fields of ImpactResult.msg plus the spectra averaging needs."""
 
-    impact_id: int
-    trigger_sample_index: int
-    record_start_sample_index: int
-    level: str
-    accepted: bool
-    flags: tuple[str, ...]
-    impulse_n_s: float
-    peak_force_n: float
-    contact_duration_s: float
-    record_duration_s: float
-    sample_rate_hz: float
-    # From the period between velocity reversals (`frf.natural_frequency`); NaN if too few.
-    natural_frequency_hz: float
-    peak_receptance_m_per_n: float
-    frequency_step_hz: float
-    # Band-limited axis [Hz] and complex FRFs: mobility [m/(N*s)], receptance [m/N].
-    frequency_hz: np.ndarray
-    mobility: np.ndarray
-    receptance: np.ndarray
-    # Windows the FRF was computed with [s]; 0 where none.
-    force_window_s: float
-    exponential_window_decay_s: float
-    # Band-limited unscaled DFTs of the (windowed) force and velocity, for H1/H2/coherence.
-    force_spectrum: np.ndarray
-    velocity_spectrum: np.ndarray
-    source: str = ''
+    impact_id: int = result_field(help='Impact number, from 0 in capture order')
+    trigger_sample_index: int = result_field(help='Sample index of the trigger in its acquisition')
+    record_start_sample_index: int = result_field(help="Sample index of the record's first sample")
+    level: str = result_field(help='Force level the impact belongs to; empty: none')
+    accepted: bool = result_field(help='Whether it enters the level averages: no rejecting flag')
+    flags: tuple[str, ...] = result_field(help='Quality flags it raised, in FLAGS order')
+    impulse_n_s: float = result_field(unit='N*s', help='Impulse: the force integrated over the hit')
+    peak_force_n: float = result_field(unit='N', help='Peak force of the hit')
+    contact_duration_s: float = result_field(unit='s', help='How long the hammer touched')
+    record_duration_s: float = result_field(unit='s', help='Length of the record analysed')
+    sample_rate_hz: float = result_field(unit='Hz', help='Sample rate of both channels')
+    natural_frequency_hz: float = result_field(
+        unit='Hz',
+        help='From the period between velocity reversals (`frf.natural_frequency`); NaN if too few',
+    )
+    peak_receptance_m_per_n: float = result_field(
+        unit='m/N', help='Peak |receptance| in the peak band'
+    )
+    frequency_step_hz: float = result_field(
+        unit='Hz', help='Frequency resolution: 1 / record length'
+    )
+    frequency_hz: np.ndarray = result_field(unit='Hz', help='Band-limited frequency axis')
+    mobility: np.ndarray = result_field(unit='m/(N*s)', help='Mobility V/F (complex)')
+    receptance: np.ndarray = result_field(unit='m/N', help='Receptance X/F (complex)')
+    force_window_s: float = result_field(
+        unit='s', help='Force window the FRF was computed with; 0: none'
+    )
+    exponential_window_decay_s: float = result_field(
+        unit='s', help='Exponential window decay time the FRF was computed with; 0: none'
+    )
+    force_spectrum: np.ndarray = result_field(
+        unit='N', help='Unscaled DFT of the (windowed) force, band-limited, for H1/H2/coherence'
+    )
+    velocity_spectrum: np.ndarray = result_field(
+        unit='m/s', help='Unscaled DFT of the (windowed) velocity, band-limited'
+    )
+    source: str = setting('', help='The file, or bag@trigger, the record came from')
 
     @property
     def accelerance(self) -> np.ndarray:
@@ -86,27 +98,35 @@ ImpactResult = ImpactAnalysis
 class LevelSummary:
     """One force level's averaged FRF: the per-level fields of FrfSummary.msg."""
 
-    level: str
-    # 0 when the level comes from clustering.
-    nominal_peak_force_n: float
-    count: int
-    impact_ids: tuple[int, ...]
-    mean_impulse_n_s: float
-    # Sample standard deviation; NaN for a single impact.
-    std_impulse_n_s: float
-    mean_peak_force_n: float
-    peak_receptance_m_per_n: float
-    # Mean of the level's impacts' natural frequencies (one method everywhere).
-    natural_frequency_hz: float
-    frequency_step_hz: float
-    frequency_hz: np.ndarray
-    # Plain mean of the trials (the paper's average): mobility and receptance.
-    mobility: np.ndarray
-    receptance: np.ndarray
-    h1_mobility: np.ndarray
-    h2_mobility: np.ndarray
-    coherence: np.ndarray
-    exponential_window_decay_s: float
+    level: str = result_field(help='Name of the level')
+    nominal_peak_force_n: float = result_field(
+        unit='N', help='Nominal peak force; 0 when the level comes from clustering'
+    )
+    count: int = result_field(help='Accepted impacts averaged')
+    impact_ids: tuple[int, ...] = result_field(help='Their impact numbers')
+    mean_impulse_n_s: float = result_field(unit='N*s', help='Mean impulse')
+    std_impulse_n_s: float = result_field(
+        unit='N*s', help='Sample standard deviation of the impulse; NaN for a single impact'
+    )
+    mean_peak_force_n: float = result_field(unit='N', help='Mean peak force')
+    peak_receptance_m_per_n: float = result_field(
+        unit='m/N', help='Peak |receptance| of the averaged receptance'
+    )
+    natural_frequency_hz: float = result_field(
+        unit='Hz', help="Mean of the level's impacts' natural frequencies"
+    )
+    frequency_step_hz: float = result_field(unit='Hz', help='Frequency resolution')
+    frequency_hz: np.ndarray = result_field(unit='Hz', help='Band-limited frequency axis')
+    mobility: np.ndarray = result_field(
+        unit='m/(N*s)', help="Plain mean of the trials' mobility (the paper's average)"
+    )
+    receptance: np.ndarray = result_field(unit='m/N', help="Plain mean of the trials' receptance")
+    h1_mobility: np.ndarray = result_field(unit='m/(N*s)', help='H1 estimate of the mobility')
+    h2_mobility: np.ndarray = result_field(unit='m/(N*s)', help='H2 estimate of the mobility')
+    coherence: np.ndarray = result_field(help='Ordinary coherence of force and velocity [-]')
+    exponential_window_decay_s: float = result_field(
+        unit='s', help='Exponential window decay time; 0: none'
+    )
 
 
 @dataclass(frozen=True, eq=False)
