@@ -42,6 +42,7 @@ import numpy as np
 from issue8_diagnose import diagnose_issue8
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'test'))
+from results_file import QUICK_HELP, recorded
 from world_cases import OUTSIDE_KINDS, VOCABULARY_KINDS, world_case  # noqa: E402
 
 from fmm_ros.constants import MU_DRIFT
@@ -267,7 +268,10 @@ def main() -> None:
         '--session-hits', type=int, default=10, help='hits per level of the timed session'
     )
     parser.add_argument('--skip-sweep', action='store_true', help='time only')
+    parser.add_argument('--quick', action='store_true', help=QUICK_HELP)
     args = parser.parse_args()
+    if args.quick:
+        args.cases, args.world_cases, args.repeats, args.session_hits = 1, 1, 1, 1
     if not args.skip_sweep:
         print(f'sweep: {args.cases} sessions of each of {len(ROWS)} kinds (hidden_effects)')
         sweep(args.cases, args.seed)
@@ -280,4 +284,5 @@ def main() -> None:
 
 
 if __name__ == '__main__':
-    main()
+    with recorded('bench_diagnose', quick='--quick' in sys.argv):
+        main()

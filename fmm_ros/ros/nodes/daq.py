@@ -47,6 +47,7 @@ from fmm_ros.ros.flow import SOURCE_PARAMS, PacedSource, deliver_last_batches
 from fmm_ros.ros.health import Health
 from fmm_ros.ros.params import Param, declare_parameters
 from fmm_ros.ros.qos import SAMPLE_QOS
+from fmm_ros.ros.timebase import CLOCK_PARAM, ClockPublisher
 
 INSTALL_HINT = (
     'the nidaqmx backend needs NI-DAQmx: `pip install nidaqmx` into the environment '
@@ -163,6 +164,7 @@ PARAMS = (
         read_only=True,
     ),
     *SOURCE_PARAMS,
+    CLOCK_PARAM,
 )
 
 Publish = Callable[[int, np.ndarray, np.ndarray], None]
@@ -177,6 +179,7 @@ class Daq(Node):
         self._force_pub = self.create_publisher(SampleBatch, FORCE_TOPIC, SAMPLE_QOS)
         self._velocity_pub = self.create_publisher(SampleBatch, VELOCITY_TOPIC, SAMPLE_QOS)
         self._start_stamp = self.get_clock().now()
+        self.clock = ClockPublisher(self, self.config['publish_clock'])
         self.batches_published = 0
         self.health = Health(self)
         backend = {'nidaqmx': NidaqmxBackend, 'file': FileBackend}[self.config['backend']]
@@ -218,6 +221,8 @@ class Daq(Node):
                 )
             )
         self.batches_published += 1
+        end = first_sample_index + len(force_n)
+        self.clock.advance(self._start_stamp.nanoseconds + round(end / rate * 1e9))
 
     def destroy_node(self) -> None:
         """Stop the acquisition, deliver its last batches, say what went out."""

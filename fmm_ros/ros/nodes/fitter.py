@@ -87,6 +87,7 @@ class HeldImpact:
     accepted: bool
     flags: tuple[str, ...]
     record: ImpactRecord
+    stamp_ns: int = 0  # ImpactResult.header.stamp: signal time of the trigger
 
 
 class Fitter(Node):
@@ -198,7 +199,14 @@ class Fitter(Node):
             except ValueError as error:
                 self.get_logger().warning(f'impact {msg.impact_id} cannot be held: {error}')
                 continue
-            held = HeldImpact(msg.impact_id, msg.level, msg.accepted, tuple(msg.flags), record)
+            held = HeldImpact(
+                msg.impact_id,
+                msg.level,
+                msg.accepted,
+                tuple(msg.flags),
+                record,
+                msgs.stamp_ns(msg.header.stamp),
+            )
             with self._lock:
                 self.impacts[msg.impact_id] = held
                 while len(self.impacts) > self.config['keep_last_impacts']:
@@ -226,7 +234,7 @@ class Fitter(Node):
                 self.get_logger().warning(f'live mu: impact {held.impact_id} not used: {error}')
                 continue
             self._friction_pub.publish(
-                msgs.friction_estimate_msg(estimate, stamp=self.get_clock().now().to_msg())
+                msgs.friction_estimate_msg(estimate, stamp=msgs.time_msg(held.stamp_ns))
             )
             self.live_mu = (
                 f'{estimate.mu:.5f} +- {estimate.mu_stderr:.2g} over {estimate.count} impacts '
