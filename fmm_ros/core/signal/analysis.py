@@ -25,6 +25,7 @@ from fmm_ros.core.signal import frf
 from fmm_ros.core.signal.capture import (
     DEFAULT_CAPTURE,
     FLAGS,
+    UNDETERMINED,
     CaptureConfig,
     contact_start_index,
     quality_flags,
@@ -60,7 +61,9 @@ class AnalysisConfig:
     # Where the peak |receptance| is searched [Hz]. Its lower
     # end keeps out the lowest bins, where the rest offset friction leaves in the displacement
     # (x_final != 0) makes |mobility / (i omega)| large. Its upper end is lowered further to
-    # where the force spectrum has dropped by excitation_drop_db (`frf.excitation_bandwidth`).
+    # where the hammer pulse's spectrum (baseline removed: an offset, drift or hum on the
+    # force channel excites nothing) has dropped by excitation_drop_db
+    # (`frf.excitation_bandwidth`).
     peak_band_hz: tuple[float, float] = (1.0, 100.0)
     excitation_drop_db: float = 20.0
     # Optional force window: keep the force this long after the trigger [s], then a
@@ -133,6 +136,9 @@ class ImpactResult:
     # Band-limited unscaled DFTs of the (windowed) force and velocity, for H1/H2/coherence.
     force_spectrum: np.ndarray
     velocity_spectrum: np.ndarray
+    # Band-limited unscaled DFT of the hammer pulse alone, baseline removed: the excitation
+    # the usable band is judged by (`frf.pulse_spectrum`).
+    excitation_spectrum: np.ndarray
     source: str = ''
 
     @property
@@ -225,18 +231,24 @@ def analyze_impact(
     force_spectrum = force_spectrum[:bins].copy()
     velocity_spectrum = velocity_spectrum[:bins].copy()
     frequency = frf.frequency_axis(n_fft, rate)[:bins]
+    excitation_spectrum = frf.pulse_spectrum(
+        raw_force, capture.rearm_level_n, n_fft, contact_start
+    )[:bins].copy()
     mobility = frf.mobility(force_spectrum, velocity_spectrum)
     receptance = frf.receptance_from_mobility(mobility, frequency)
     peak_receptance, _ = frf.peak_magnitude(
-        receptance, frequency, _peak_band(force_spectrum, frequency, analysis)
+        receptance, frequency, _peak_band(excitation_spectrum, frequency, analysis)
     )
     natural_frequency = frf.natural_frequency(record.velocity_m_s, rate)
+    determined = _determined(impulse, natural_frequency, peak_receptance)
+    if not determined and not flags:
+        flags = (UNDETERMINED,)
     return ImpactResult(
         impact_id=impact_id,
         trigger_sample_index=record.trigger_sample_index,
         record_start_sample_index=record.record_start_sample_index,
         level='',
-        accepted=not set(flags) & set(analysis.reject_flags),
+        accepted=determined and not set(flags) & set(analysis.reject_flags),
         flags=flags,
         impulse_n_s=impulse,
         peak_force_n=peak_force,
@@ -255,6 +267,7 @@ def analyze_impact(
         exponential_window_decay_s=analysis.exponential_decay_s or 0.0,
         force_spectrum=force_spectrum,
         velocity_spectrum=velocity_spectrum,
+        excitation_spectrum=excitation_spectrum,
         source=record.source,
     )
 
@@ -288,11 +301,10 @@ def summarize(
         if analysis.levels and not name:
             flags.add('out_of_tolerance')
         ordered = tuple(flag for flag in FLAGS if flag in flags)
-        judged.append(
-            dataclasses.replace(
-                result, level=name, flags=ordered, accepted=not flags & set(analysis.reject_flags)
-            )
+        accepted = not flags & set(analysis.reject_flags) and _determined(
+            result.impulse_n_s, result.natural_frequency_hz, result.peak_receptance_m_per_n
         )
+        judged.append(dataclasses.replace(result, level=name, flags=ordered, accepted=accepted))
 
     levels = []
     for name, nominal in level_order:
@@ -330,7 +342,9 @@ def _level_summary(
         receptance,
         first.frequency_hz,
         _peak_band(
-            np.stack([result.force_spectrum for result in members]), first.frequency_hz, analysis
+            np.stack([result.excitation_spectrum for result in members]),
+            first.frequency_hz,
+            analysis,
         ),
     )
     frequencies = [m.natural_frequency_hz for m in members if np.isfinite(m.natural_frequency_hz)]
@@ -357,12 +371,23 @@ def _level_summary(
     )
 
 
+def _determined(impulse_n_s: float, natural_frequency_hz: float, peak_receptance: float) -> bool:
+    """Whether a hit's headline numbers are all finite: no hit is accepted without them.
+
+    A NaN comes from a record flagged already (a gap, a NaN sample), or else is flagged
+    `undetermined`; either way the hit never enters an average or a fit.
+    """
+    return bool(np.isfinite((impulse_n_s, natural_frequency_hz, peak_receptance)).all())
+
+
 def _peak_band(
-    force_spectrum: np.ndarray, frequency_hz: np.ndarray, analysis: AnalysisConfig
+    excitation_spectrum: np.ndarray, frequency_hz: np.ndarray, analysis: AnalysisConfig
 ) -> tuple[float, float]:
-    """The configured peak band, its top lowered to where the excitation has run out."""
+    """The configured peak band, its top lowered to where the pulse's excitation runs out."""
     low, high = analysis.peak_band_hz
-    usable = frf.excitation_bandwidth(force_spectrum, frequency_hz, analysis.excitation_drop_db)
+    usable = frf.excitation_bandwidth(
+        excitation_spectrum, frequency_hz, analysis.excitation_drop_db
+    )
     return low, high if np.isnan(usable) else min(high, usable)
 
 

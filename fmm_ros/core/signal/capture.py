@@ -40,8 +40,13 @@ from fmm_ros.core.signal.stream import (
     StreamRules,
 )
 
-# Every quality flag, in the order they are reported. All but the last are properties of the
-# record (`quality_flags`); `out_of_tolerance` is set when impacts are grouped into levels.
+UNDETERMINED = 'undetermined'
+"""The flag of a hit whose headline number (impulse, f_n or peak |X/F|) came out NaN."""
+
+# Every quality flag, in the order they are reported. All but the last two are properties of
+# the record (`quality_flags`); `undetermined` is set by the analysis when a headline number
+# is NaN (so no hit is accepted without one), `out_of_tolerance` when impacts are grouped
+# into levels.
 FLAGS: tuple[str, ...] = (
     'double_hit',
     'clipped',
@@ -53,6 +58,7 @@ FLAGS: tuple[str, ...] = (
     'nan',
     'unsettled',
     'overlap',
+    UNDETERMINED,
     'out_of_tolerance',
 )
 

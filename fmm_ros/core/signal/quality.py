@@ -40,7 +40,7 @@ import math
 
 import numpy as np
 
-from fmm_ros.core.signal.frf import first_true
+from fmm_ros.core.signal.frf import first_true, runs
 
 MAD_TO_STD = 1.482602218505602
 """1 / Phi^-1(3/4): the MAD of Gaussian noise times this is its standard deviation."""
@@ -251,12 +251,6 @@ def _foreign_stretch(
         if entered and left and (start > 0 or stop < changes.size):
             return True
     return False
-
-
-def runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """[start, stop) of every run of True in a boolean array."""
-    edges = np.diff(np.concatenate(([False], mask, [False])).astype(np.int8))
-    return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
 
 
 def responds(
