@@ -17,7 +17,7 @@ from heldout.lab import EVENTS, Effects, session
 
 from fmm_ros.cli import main
 from fmm_ros.core.signal.analysis import analyze_impact
-from fmm_ros.core.signal.capture import FLAGS, UNDETERMINED
+from fmm_ros.core.signal.config import FLAGS, UNDETERMINED
 from fmm_ros.core.signal.records import ImpactRecord, write_impact_csv
 from fmm_ros.report.session import FLAG_MEANINGS
 
