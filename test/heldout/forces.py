@@ -85,7 +85,10 @@ class Hit:
             ratio = scipy.special.gamma(1.25) / scipy.special.gamma(1.75)
             return self.peak_n * self.contact_s * math.sqrt(math.pi) * ratio / math.pi
         fall, rise = self.contact_s, self.rise_ratio * self.contact_s
-        return self._amplitude() * (fall - rise)
+        span = self.end_s - self.onset_s  # the cut-off tail is not part of the hit
+        return self._amplitude() * (
+            fall * -math.expm1(-span / fall) - rise * -math.expm1(-span / rise)
+        )
 
 
 LEVELS_N = (450.0, 1000.0, 1450.0)
