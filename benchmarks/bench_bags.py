@@ -16,11 +16,13 @@ noise; the ratios compare runs made back to back in the same process.
 import argparse
 import shutil
 import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from results_file import QUICK_HELP, recorded
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 
 from fmm_ros.constants import FORCE_TOPIC, VELOCITY_TOPIC, resolve_name
@@ -144,7 +146,10 @@ def main() -> int:
         '--seconds', type=float, default=120.0, help='signal length per run [s] (default 120)'
     )
     parser.add_argument('--repeats', type=int, default=5)
+    parser.add_argument('--quick', action='store_true', help=QUICK_HELP)
     args = parser.parse_args()
+    if args.quick:
+        args.seconds, args.repeats = 10.0, 1
 
     force, velocity = session(args.seconds)
     raw = raw_batches(force, velocity)
@@ -219,4 +224,5 @@ def main() -> int:
 
 
 if __name__ == '__main__':
-    raise SystemExit(main())
+    with recorded('bench_bags', quick='--quick' in sys.argv):
+        raise SystemExit(main())

@@ -37,6 +37,7 @@ import scipy.stats
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
 from campaign_sessions import COLUMNS, LOADS_N, LUBRICANTS, random_effects_campaign  # noqa: E402
+from results_file import QUICK_HELP, recorded
 
 from fmm_ros.campaign.cache import session_key
 from fmm_ros.campaign.compare import compare_sessions
@@ -359,7 +360,10 @@ def main() -> None:
     parser.add_argument('--campaigns', type=int, default=2000)
     parser.add_argument('--seed', type=int, default=0)
     parser.add_argument('--keep', type=Path, help='generate the campaign here and keep it')
+    parser.add_argument('--quick', action='store_true', help=QUICK_HELP)
     args = parser.parse_args()
+    if args.quick:
+        args.sessions_per_condition, args.hits, args.repeats, args.campaigns = 1, 1, 1, 20
     if args.keep:
         speed(args.keep, args)
     else:
@@ -369,4 +373,5 @@ def main() -> None:
 
 
 if __name__ == '__main__':
-    main()
+    with recorded('bench_campaign', quick='--quick' in sys.argv):
+        main()

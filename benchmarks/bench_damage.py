@@ -31,6 +31,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
 
 from damaged_records import FAULTS, session, worlds_session  # noqa: E402
+from results_file import QUICK_HELP, recorded
 
 from fmm_ros.workflows.session import analyse, fit_impacts, select_records  # noqa: E402
 
@@ -128,7 +129,11 @@ def main() -> None:
         default='both',
         help='worlds: the independent generator; excitation: ours (default: both)',
     )
+    parser.add_argument('--quick', action='store_true', help=QUICK_HELP)
     args = parser.parse_args()
+    if args.quick:
+        args.cases, args.clean = 1, 2
+        args.generator = next(iter(GENERATORS))
     for name, generator in GENERATORS.items():
         if args.generator in (name, 'both'):
             matrix(name, generator, args.cases, args.clean)
@@ -194,4 +199,5 @@ def matrix(name, generator, cases, clean):
 
 
 if __name__ == '__main__':
-    main()
+    with recorded('bench_damage', quick='--quick' in sys.argv):
+        main()

@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 from issue8_diagnose import diagnose_issue8
-from results_file import write_section
+from results_file import QUICK_HELP, write_section
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'test'))
 from heldout import HELD_OUT, ROLES  # noqa: E402
@@ -376,7 +376,7 @@ def markdown(sweeps: list[Sweep]) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--quick', action='store_true', help='a few sessions, writes nothing')
+    parser.add_argument('--quick', action='store_true', help=QUICK_HELP)
     parser.add_argument('--cases', type=int, default=10, help='sessions per kind of ours')
     parser.add_argument(
         '--world-cases', type=int, default=10, help='sessions per kind from worlds (0: skip)'

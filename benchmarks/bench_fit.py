@@ -17,12 +17,14 @@ Jacobian dense (jacobian='dense', the plain way, one run).
 import argparse
 import dataclasses
 import os
+import sys
 import time
 import tracemalloc
 
 import numpy as np
 import scipy.optimize
 from bench_physics import RATE_HZ, euler_in_python, median_s
+from results_file import QUICK_HELP, recorded
 
 from fmm_ros.constants import PAPER_LEVELS, PAPER_MU
 from fmm_ros.core.identify.conditioning import condition_impact
@@ -178,7 +180,10 @@ def main() -> None:
         default=10,
         help='hits per paper level in the session (3 levels)',
     )
+    parser.add_argument('--quick', action='store_true', help=QUICK_HELP)
     args = parser.parse_args()
+    if args.quick:
+        args.repeats, args.session_hits = 1, 1
     repeats = args.repeats
 
     one = lab_record(1000.0, 1)
@@ -315,4 +320,5 @@ def verdict(met: bool) -> str:
 
 
 if __name__ == '__main__':
-    main()
+    with recorded('bench_fit', quick='--quick' in sys.argv):
+        main()

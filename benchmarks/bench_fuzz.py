@@ -20,6 +20,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
 
 from fuzz_files import MUTATIONS, TARGETS, fuzz  # noqa: E402
+from results_file import QUICK_HELP, recorded
 
 VERDICTS = ('ok', 'damage', 'error', 'traceback', 'hang', 'crash')
 
@@ -28,7 +29,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--per-target', type=int, default=100, help='mutated files per target')
     parser.add_argument('--seed', type=int, default=7)
+    parser.add_argument('--quick', action='store_true', help=QUICK_HELP)
     args = parser.parse_args()
+    if args.quick:
+        args.per_target = 2
     began = time.perf_counter()
     cases, outcomes = fuzz(args.per_target, args.seed)
     elapsed = time.perf_counter() - began
@@ -78,4 +82,5 @@ def main() -> None:
 
 
 if __name__ == '__main__':
-    main()
+    with recorded('bench_fuzz', quick='--quick' in sys.argv):
+        main()

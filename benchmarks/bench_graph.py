@@ -8,14 +8,17 @@
    source in another process: its CPU seconds (from /proc) per second of signal, at the
    default 500-sample batches and at 50-sample batches (what per-message cost does).
 
-Run: .venv/bin/python benchmarks/bench_graph.py
+Run: .venv/bin/python benchmarks/bench_graph.py [--quick]
 """
 
+import argparse
 import os
 import random
+import sys
 import time
 
 from rclpy.parameter import Parameter
+from results_file import QUICK_HELP, recorded
 
 from fmm_ros.ros.demo import SessionConfig
 from fmm_ros.ros.graph import PRIVATE_DOMAIN_IDS, InProcessGraph
@@ -29,7 +32,7 @@ from fmm_ros.ros.nodes.rig_sim import RigSim
 CLOCK_TICKS = os.sysconf('SC_CLK_TCK')
 
 
-def whole_graph(batch_size: int, tmp: str) -> tuple[float, int]:
+def whole_graph(batch_size: int, tmp: str, hits_per_level: int = 2) -> tuple[float, int]:
     """Real-time factor of the five-node graph asked to run at x1000, and impacts accepted.
 
     The clock stops when the analyzer has reported the last impact, whose record ends
@@ -43,7 +46,9 @@ def whole_graph(batch_size: int, tmp: str) -> tuple[float, int]:
     with InProcessGraph() as graph:
         hammer = graph.add(
             HammerSim,
-            parameter_overrides=p(rate_factor=1000.0, batch_size=batch_size, hits_per_level=2),
+            parameter_overrides=p(
+                rate_factor=1000.0, batch_size=batch_size, hits_per_level=hits_per_level
+            ),
         )
         graph.add(RigSim)
         analyzer = graph.add(Analyzer)
@@ -98,17 +103,24 @@ def analyzer_share(batch_size: int, seconds: float = 20.0) -> float:
 def main() -> None:
     import tempfile
 
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--quick', action='store_true', help=QUICK_HELP)
+    quick = parser.parse_args().quick
+    levels = 1 if quick else 2
+    hits = 3 * levels
     demo_batch = SessionConfig(out_dir='.', rate_factor=1000.0).batch()
     print(
-        'Whole simulated graph in one process (6 hits 40 s apart, two 10 kHz channels, '
+        f'Whole simulated graph in one process ({hits} hits 40 s apart, two 10 kHz channels, '
         '5 nodes, recording); clock stopped at the last impact reported'
     )
     with tempfile.TemporaryDirectory() as tmp:
-        naive, naive_ok = whole_graph(500, tmp)
-        sized, sized_ok = whole_graph(demo_batch, tmp)
-    print(f'  naive 500-sample batches          x{naive:7.1f} real time  ({naive_ok}/6 accepted)')
+        naive, naive_ok = whole_graph(500, tmp, levels)
+        sized, sized_ok = whole_graph(demo_batch, tmp, levels)
     print(
-        f'  {demo_batch}-sample batches (fmm demo) x{sized:7.1f} real time  ({sized_ok}/6 '
+        f'  naive 500-sample batches          x{naive:7.1f} real time  ({naive_ok}/{hits} accepted)'
+    )
+    print(
+        f'  {demo_batch}-sample batches (fmm demo) x{sized:7.1f} real time  ({sized_ok}/{hits} '
         f'accepted; {sized / naive:.1f}x the naive)   target >= x20: '
         f'{"met" if sized >= 20 else "MISSED"}'
     )
@@ -116,8 +128,9 @@ def main() -> None:
         f'\nAnalyzer alone at real-time pace ({node_command("analyzer")[0]}), CPU of its '
         'process per second of signal'
     )
-    default = analyzer_share(500)
-    small = analyzer_share(50)
+    seconds = 3.0 if quick else 20.0
+    default = analyzer_share(500, seconds)
+    small = analyzer_share(50, seconds)
     print(
         f'  500-sample batches (default)      {default * 100:6.2f} % of one core   '
         f'target < 5 %: {"met" if default < 0.05 else "MISSED"}'
@@ -129,4 +142,5 @@ def main() -> None:
 
 
 if __name__ == '__main__':
-    main()
+    with recorded('bench_graph', quick='--quick' in sys.argv):
+        main()

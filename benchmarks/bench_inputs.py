@@ -12,6 +12,7 @@ whose layout is known); the ratio is what detection and the general path cost.
 
 import argparse
 import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -20,6 +21,7 @@ import h5py
 import numpy as np
 import scipy.io
 from nptdms import ChannelObject, GroupObject, TdmsWriter
+from results_file import QUICK_HELP, recorded
 
 from fmm_ros.core.signal.records import read_impact_csv, write_impact_csv
 from fmm_ros.workflows.inputs import read_inputs
@@ -77,7 +79,10 @@ def median_s(action, repeats: int) -> float:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--repeats', type=int, default=5)
+    parser.add_argument('--quick', action='store_true', help=QUICK_HELP)
     args = parser.parse_args()
+    if args.quick:
+        args.repeats = 1
     with tempfile.TemporaryDirectory(prefix='bench_inputs_') as folder:
         files = write_files(Path(folder))
         read_inputs([files['German Excel CSV']])  # imports (clevercsv, chardet), page cache
@@ -93,4 +98,5 @@ def main() -> int:
 
 
 if __name__ == '__main__':
-    raise SystemExit(main())
+    with recorded('bench_inputs', quick='--quick' in sys.argv):
+        raise SystemExit(main())

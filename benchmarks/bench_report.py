@@ -19,9 +19,12 @@ import contextlib
 import io
 import shutil
 import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
+
+from results_file import QUICK_HELP, recorded
 
 from fmm_ros.constants import PAPER_MU
 from fmm_ros.core.signal.analysis import AnalysisConfig, paper_levels
@@ -134,9 +137,12 @@ def main() -> int:
     parser.add_argument('--repeats', type=int, default=3)
     parser.add_argument('--dpi', type=float, default=DEFAULT_DPI)
     parser.add_argument('--out', type=Path, help='keep the report here (default: a temp dir)')
+    parser.add_argument('--quick', action='store_true', help=QUICK_HELP)
     args = parser.parse_args()
+    if args.quick:
+        args.repeats, args.dpi = 1, 40.0
 
-    session = simulated_session(10)
+    session = simulated_session(1 if args.quick else 10)
     records = capture_impacts(session.force_n, session.velocity_m_s, session.sample_rate_hz)
     work = Path(tempfile.mkdtemp(prefix='bench_report_'))
     out = args.out or work / 'report'
@@ -200,4 +206,5 @@ def main() -> int:
 
 
 if __name__ == '__main__':
-    raise SystemExit(main())
+    with recorded('bench_report', quick='--quick' in sys.argv):
+        raise SystemExit(main())

@@ -9,10 +9,12 @@ baseline in the same run. Medians of several repeats, since the 2 cores are shar
 
 import argparse
 import statistics
+import sys
 import time
 
 import numpy as np
 import scipy.signal
+from results_file import QUICK_HELP, recorded
 
 from fmm_ros.core.signal.analysis import analyze_impact
 from fmm_ros.core.signal.capture import CaptureConfig, ImpactCapture, find_triggers
@@ -168,10 +170,14 @@ def bench_streaming(repeats: int) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--repeats', type=int, default=7)
+    parser.add_argument('--quick', action='store_true', help=QUICK_HELP)
     args = parser.parse_args()
+    if args.quick:
+        args.repeats = 1
     bench_analysis(args.repeats)
     bench_streaming(max(3, args.repeats // 2))
 
 
 if __name__ == '__main__':
-    main()
+    with recorded('bench_signal', quick='--quick' in sys.argv):
+        main()

@@ -23,6 +23,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
 
 from calibration import FITTERS, SCENARIOS, Calibration, calibrate  # noqa: E402
+from results_file import QUICK_HELP, recorded
 
 TARGET_COVERAGE = 0.90
 TARGET_REJECTION = 0.05
@@ -38,7 +39,10 @@ def main() -> None:
         default=list(range(len(SCENARIOS))),
         help=' '.join(f'{i}: {s.name};' for i, s in enumerate(SCENARIOS)),
     )
+    parser.add_argument('--quick', action='store_true', help=QUICK_HELP)
     args = parser.parse_args()
+    if args.quick:
+        args.sessions, args.scenarios = 2, args.scenarios[:1]
     print(
         f'{args.sessions} sessions a scenario, 3 hits each (independent generator); '
         f"'today': the fit before issue 14, 'now': fit_friction as fmm fit runs it"
@@ -82,4 +86,5 @@ def _binomial_allowance(sessions: int) -> float:
 
 
 if __name__ == '__main__':
-    main()
+    with recorded('bench_uncertainty', quick='--quick' in sys.argv):
+        main()

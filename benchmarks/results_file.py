@@ -9,12 +9,16 @@ that the script works and write nothing.
 
 from __future__ import annotations
 
+import contextlib
 import datetime
+import io
 import os
 import platform
 import re
 import sys
+from collections.abc import Iterator
 from pathlib import Path
+from typing import TextIO
 
 RESULTS = Path(__file__).resolve().with_name('RESULTS.md')
 HEADER = (
@@ -49,3 +53,46 @@ def write_section(name: str, body_markdown: str, *, quick: bool, path: Path = RE
     else:
         text = text.rstrip('\n') + '\n\n' + section
     path.write_text(text, encoding='utf-8')
+
+
+@contextlib.contextmanager
+def recorded(name: str, *, quick: bool) -> Iterator[None]:
+    """Print as usual; a full run that ends without error writes what it printed.
+
+    The printout becomes benchmark `name`'s section of RESULTS.md (its tables hold each
+    figure beside its baseline from the same run); quick runs write nothing.
+    """
+    printed = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(_Tee(sys.stdout, printed)):
+            yield
+    except SystemExit as done:  # `raise SystemExit(main())`: status 0 is a finished run
+        if done.code not in (0, None):
+            raise
+        write_section(name, _fenced(printed.getvalue()), quick=quick)
+        raise
+    write_section(name, _fenced(printed.getvalue()), quick=quick)
+
+
+def _fenced(text: str) -> str:
+    """Printed output as a Markdown code block."""
+    return f'```text\n{text.strip()}\n```'
+
+
+QUICK_HELP = 'a few repeats at small sizes (as CI runs it, to catch a crash); writes nothing'
+
+
+class _Tee(io.TextIOBase):
+    """A text stream writing to several at once."""
+
+    def __init__(self, *streams: TextIO) -> None:
+        self._streams = streams
+
+    def write(self, text: str) -> int:
+        for stream in self._streams:
+            stream.write(text)
+        return len(text)
+
+    def flush(self) -> None:
+        for stream in self._streams:
+            stream.flush()

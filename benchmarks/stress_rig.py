@@ -18,9 +18,10 @@ a busy process on every core:
 
     .venv/bin/python benchmarks/stress_rig.py [--quick] [--load idle|busy|both]
 
-Each run is short (x1 60 s, the others 30 s, the soak 200 s; --quick: a third), so the whole
-benchmark takes minutes. Numbers are from the nodes' own logs (what they say when they stop)
-and the recorded bag, never from inside the processes.
+Each run is short (x1 60 s, the others 30 s, the soak 200 s), so the whole benchmark takes
+minutes. --quick (as CI runs it): idle only, x10 and x100 15 s each, the scripted faults
+alone. Numbers are from the nodes' own logs (what they say when they stop) and the recorded
+bag, never from inside the processes.
 """
 
 import argparse
@@ -37,6 +38,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import results_file
 from rclpy.node import Node
 
 from fmm_interfaces.msg import ImpactResult, SampleBatch
@@ -61,6 +63,9 @@ RATES = {1: 60.0, 10: 30.0, 50: 30.0, 100: 200.0}  # rate factor -> run length [
 # The x100 run is the soak: the held impacts are capped low so they fill within it, and
 # memory must be flat afterwards (every buffer bounded).
 SOAK = ('fitter.keep_last_impacts=5', 'analyzer.keep_last_impacts=10')
+# --quick: these rates only, each for this long [s] (nodes take seconds to start on busy cores).
+QUICK_RATES = (10, 100)
+QUICK_RUN_S = 15.0
 
 
 @dataclass(frozen=True)
@@ -227,6 +232,83 @@ def memory_slope(samples: list[tuple[float, float]], after_s: float) -> tuple[fl
         return (samples[0][1] if samples else 0.0, samples[-1][1] if samples else 0.0, float('nan'))
     t, m = np.array(late).T
     return samples[0][1], samples[-1][1], float(np.polyfit(t, m, 1)[0] * 60)
+
+
+# -- the bare transport --------------------------------------------------------------------
+
+# A subscriber that does nothing but count: what the transport alone delivers.
+_BARE_SINK = """
+import sys, time, rclpy
+from fmm_interfaces.msg import SampleBatch
+from fmm_ros.constants import FORCE_TOPIC, VELOCITY_TOPIC
+from fmm_ros.ros.common import SAMPLE_QOS
+seconds = float(sys.argv[1])
+rclpy.init()
+node = rclpy.create_node('bare_sink')
+got = {'force': 0, 'first': None}
+def on_force(msg):
+    got['first'] = got['first'] or time.monotonic()
+    got['force'] += len(msg.samples)
+node.create_subscription(SampleBatch, FORCE_TOPIC, on_force, SAMPLE_QOS)
+node.create_subscription(SampleBatch, VELOCITY_TOPIC, lambda msg: None, SAMPLE_QOS)
+print('ready', flush=True)
+while got['first'] is None or time.monotonic() - got['first'] < seconds:
+    rclpy.spin_once(node, timeout_sec=0.1)
+print(got['force'] / (time.monotonic() - got['first']), flush=True)
+"""
+# A publisher of both channels as fast as publish() returns (the nodes' batch, no work).
+_BARE_SOURCE = """
+import sys, time, numpy as np, rclpy
+from fmm_interfaces.msg import SampleBatch
+from fmm_ros.constants import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC
+from fmm_ros.ros import msgs
+from fmm_ros.ros.common import SAMPLE_QOS
+from rclpy.signals import SignalHandlerOptions
+seconds, batch = float(sys.argv[1]), int(sys.argv[2])
+rclpy.init(signal_handler_options=SignalHandlerOptions.NO)  # SIGTERM ends it at once
+node = rclpy.create_node('bare_source')
+publishers = [node.create_publisher(SampleBatch, topic, SAMPLE_QOS)
+              for topic in (FORCE_TOPIC, VELOCITY_TOPIC)]
+while min(p.get_subscription_count() for p in publishers) == 0:
+    rclpy.spin_once(node, timeout_sec=0.05)
+stamp = msgs.time_msg(0)
+messages = [msgs.sample_batch(np.zeros(batch), quantity=quantity, sample_rate_hz=1e4,
+            first_sample_index=0, stamp=stamp, frame_id='bare') for quantity in (FORCE, VELOCITY)]
+end = time.monotonic() + seconds
+index = 0
+while time.monotonic() < end:
+    for publisher, message in zip(publishers, messages):
+        message.first_sample_index = index
+        publisher.publish(message)
+    index += batch
+"""
+
+
+def bare_transport(seconds: float, batch: int = 500) -> float:
+    """Pace (x real time of two 10 kHz channels) a publisher reaches at a do-nothing subscriber.
+
+    Both in their own processes, as the nodes run, with the nodes' sample QoS and batch:
+    the ceiling the rig's sustained pace is to be read against.
+    """
+    fresh_domain()
+    sink = subprocess.Popen(
+        [sys.executable, '-c', _BARE_SINK, str(seconds)], stdout=subprocess.PIPE, text=True
+    )
+    try:
+        sink.stdout.readline()  # ready
+        source = subprocess.Popen(
+            [sys.executable, '-c', _BARE_SOURCE, str(seconds + 5.0), str(batch)],
+            stdout=subprocess.DEVNULL,
+        )
+        try:
+            samples_per_s = float(sink.stdout.readline())
+        finally:
+            source.terminate()
+            source.wait(30)
+    finally:
+        sink.kill()
+        sink.wait()
+    return samples_per_s / 10_000.0
 
 
 # -- faults --------------------------------------------------------------------------------
@@ -540,9 +622,15 @@ def run_pass(work: Path, label: str, quick: bool) -> None:
         f'{"rate":>5} {"streaming s":>12} {"pace":>7} {"force sent":>11} {"recorded":>9} '
         f'{"velocity rec":>13} {"missing":>8} {"refused":>8} {"hits":>12}'
     )
+    bare = bare_transport(5.0 if quick else 20.0)
+    if not quick:  # what the batch size buys the transport
+        print(f'bare transport, 5000-sample batches: x{bare_transport(20.0, 5000):.3g}')
     soak = None
+    paces = {}
     for rate, seconds in RATES.items():
-        seconds = seconds / 3 if quick else seconds
+        if quick and rate not in QUICK_RATES:
+            continue
+        seconds = QUICK_RUN_S if quick else seconds
         result = rate_run(work / f'x{rate}', rate, seconds, SOAK if rate == 100 else ())
         force, velocity = result['recorded']['force'], result['recorded']['velocity']
         pace = result['sent'] / 10_000.0 / result['streaming_s']
@@ -552,8 +640,15 @@ def run_pass(work: Path, label: str, quick: bool) -> None:
             f'{result["sent"]:11d} {force[0]:9d} {velocity[0]:13d} '
             f'{result["missing"]:8d} {result["refused"]:8d} {hits:>12}'
         )
+        paces[rate] = pace
         if rate == 100:
             soak = result
+    best = max(paces, key=paces.get)
+    print(
+        f'sustained pace: x{paces[best]:.3g} (asked x{best}); the bare transport in the same '
+        f'run (publisher to a do-nothing subscriber, two processes, 500-sample batches): '
+        f'x{bare:.3g}, so the graph runs at {paces[best] / bare:.0%} of it'
+    )
     half = soak['wall_s'] / 2
     print(
         f'\nmemory over the x100 soak ({soak["wall_s"]:.0f} s, held impacts capped: {SOAK}); '
@@ -564,19 +659,23 @@ def run_pass(work: Path, label: str, quick: bool) -> None:
         print(f'  {name:<11} {first:7.0f} -> {last:7.0f} MB, {slope:+.2f} MB/min')
     print('\nlive faults: fault -> what the graph did -> outcome')
     rows = scripted_faults(work / 'faults')
-    rows.append(restart_recovery(work / 'restart'))
-    rows.append(killed_recorder(work / 'killed'))
-    rows.append(launcher_signal(work / 'sigterm', signal.SIGTERM))
-    rows.append(launcher_signal(work / 'sigkill', signal.SIGKILL))
+    if quick:
+        print('  (--quick: the restart, kill and launcher-signal rows are left out)')
+    else:
+        rows.append(restart_recovery(work / 'restart'))
+        rows.append(killed_recorder(work / 'killed'))
+        rows.append(launcher_signal(work / 'sigterm', signal.SIGTERM))
+        rows.append(launcher_signal(work / 'sigkill', signal.SIGKILL))
     for fault, handling, outcome in rows:
         print(f'  {fault}\n      -> {handling}' + (f'\n      -> {outcome}' if outcome else ''))
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--quick', action='store_true', help='runs a third as long')
-    parser.add_argument('--load', choices=('idle', 'busy', 'both'), default='both')
+    parser.add_argument('--quick', action='store_true', help=results_file.QUICK_HELP)
+    parser.add_argument('--load', choices=('idle', 'busy', 'both'))
     args = parser.parse_args()
+    args.load = args.load or ('idle' if args.quick else 'both')
     work = Path(tempfile.mkdtemp(prefix='stress_rig_'))
     try:
         if args.load in ('idle', 'both'):
@@ -598,4 +697,5 @@ def main() -> int:
 
 
 if __name__ == '__main__':
-    raise SystemExit(main())
+    with results_file.recorded('stress_rig', quick='--quick' in sys.argv):
+        raise SystemExit(main())

@@ -45,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
         total = sum(info.count for info in reader.topics.values() if info.msgtype == SAMPLE_BATCH)
     start = time.perf_counter()
     with progress_bar(total, desc='replaying', unit='batch', quiet=args.quiet) as bar:
-        replay = replay_bag(args.bag, capture, analysis, on_batch=lambda _: bar.update())
+        replay = replay_bag(args.bag, capture, analysis, on_progress=bar.update)
     wall_s = time.perf_counter() - start
     for path in args.output:
         write_frfs(path, level_curves(replay.summary))

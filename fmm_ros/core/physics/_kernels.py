@@ -58,6 +58,9 @@ MODE_GAMMA_U0 = 6
 MODE_GAMMA_DU = 8
 MODE_SIZE = 10
 
+# Samples a stretch at rest is tested in at once (without a branch per sample).
+REST_BLOCK = 64
+
 # More events than this inside one sample interval means chattering at rounding level: the
 # mass is then held at rest for the rest of that interval.
 MAX_EVENTS_PER_INTERVAL = 64
@@ -343,6 +346,39 @@ def _start(force, x_out, v_out, state, p):
 
 
 @njit(cache=True)
+def _rest_until(force, i, spring, band_neg, band_pos, x, x_out, v_out):
+    """Fill the stretch at rest that starts at sample i (which is in the band); return its end.
+
+    The rig rests for most of a record, so this is most of a simulation's work: whole blocks
+    are tested without a branch per sample (the loop vectorizes) and written as they go; a
+    block with a sample leaving the band is redone sample by sample up to that sample.
+    Every sample inside gets what the sample-by-sample rule gives it: x, and v = 0.
+    """
+    n = force.shape[0]
+    x_out[i] = x
+    v_out[i] = 0.0
+    stop = i + 1
+    while stop + REST_BLOCK <= n:
+        inside = 0
+        for k in range(stop, stop + REST_BLOCK):
+            g = force[k] - spring
+            inside += (band_neg <= g) & (g <= band_pos)
+        if inside < REST_BLOCK:
+            break
+        x_out[stop : stop + REST_BLOCK] = x
+        v_out[stop : stop + REST_BLOCK] = 0.0
+        stop += REST_BLOCK
+    while stop < n:
+        g = force[stop] - spring
+        if not band_neg <= g <= band_pos:
+            break
+        x_out[stop] = x
+        v_out[stop] = 0.0
+        stop += 1
+    return stop
+
+
+@njit(cache=True)
 def oscillator_exact(force, x_out, v_out, state, p):
     """Event-located solution over a force batch: closed form (linear) or RK4 (nonlinear).
 
@@ -358,14 +394,17 @@ def oscillator_exact(force, x_out, v_out, state, p):
     phi0, phi1, phi2, phi3 = p[PHI], p[PHI + 1], p[PHI + 2], p[PHI + 3]
     ga0, ga1 = p[GAMMA_U0], p[GAMMA_U0 + 1]
     gb0, gb1 = p[GAMMA_DU], p[GAMMA_DU + 1]
-    for i in range(first, force.shape[0]):
+    n = force.shape[0]
+    i = first
+    while i < n:
         f1 = force[i]
         if mode == 0:
-            g = f1 - _spring(x, p)
+            spring = _spring(x, p)  # x is fixed at rest
+            g = f1 - spring
             if band_neg <= g <= band_pos:  # stays at rest: the net force is linear in time
-                x_out[i] = x
-                v_out[i] = 0.0
-                f0 = f1
+                stop = _rest_until(force, i, spring, band_neg, band_pos, x, x_out, v_out)
+                f0 = force[stop - 1]
+                i = stop
                 continue
         elif linear:
             u0 = f0 - mode * (p[FRICTION_POS] if mode > 0 else p[FRICTION_NEG])
@@ -381,12 +420,14 @@ def oscillator_exact(force, x_out, v_out, state, p):
                     x_out[i] = x
                     v_out[i] = v
                     f0 = f1
+                    i += 1
                     continue
         t0 = (index0 + i - 1) * h
         x, v, mode, rest_time = _interval(x, v, mode, f0, f1, t0, rest_time, p)
         x_out[i] = x
         v_out[i] = v
         f0 = f1
+        i += 1
     _store(state, x, v, mode, rest_time, f0, index0 + force.shape[0])
 
 

@@ -218,7 +218,12 @@ class OscillatorStream:
         overwritten) by the next call: copy them to keep them. A bad batch raises ValueError
         before the state changes.
         """
-        force = _checked_force(force_n)
+        return self._step_checked(_checked_force(force_n), out)
+
+    def _step_checked(
+        self, force: np.ndarray, out: tuple[np.ndarray, np.ndarray] | None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """`step` for a force already checked (`_checked_force`): a record is checked once."""
         n = force.size
         if out is None:
             if self._buffers[0].size < n:
@@ -287,7 +292,7 @@ def simulate(
     )
     if out is None:
         out = tuple(_output_block(force.size))
-    displacement, velocity = stream.step(force, out=out)
+    displacement, velocity = stream._step_checked(force, out)
     return Simulation(
         displacement, velocity, stream.sample_rate_hz, stream.rest_position_m, stream.rest_time_s
     )

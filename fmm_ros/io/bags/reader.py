@@ -18,6 +18,7 @@ from collections import Counter, deque
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from rosbags.interfaces import MessageDefinitionFormat
@@ -43,6 +44,9 @@ from fmm_ros.io.bags.errors import BagDamagedError, BagError, MessageTypeError, 
 from fmm_ros.io.bags.mcapscan import Damage, McapScan
 from fmm_ros.io.bags.metadata import custom_ledger, read_information
 from fmm_ros.io.bags.sqlitescan import SqliteScan
+
+if TYPE_CHECKING:  # arrays.py compiles with numba: imported only by a whole read
+    from fmm_ros.io.bags.arrays import ChannelArrays
 
 # What rosbags raises on a damaged bag: its own ReaderError, or whatever its parsers meet on
 # bad bytes (a KeyError from a corrupt QoS string, apsw.CorruptError from a damaged database
@@ -441,6 +445,26 @@ class BagReader:
         topics = [self.find(topic, SAMPLE_BATCH) for topic in topics]
         for message, batch in self._decode_each(self.messages(topics)):
             yield channel_batch(message, batch, self.path)
+
+    def channel_arrays(
+        self,
+        force_topic: str = FORCE_TOPIC,
+        velocity_topic: str = VELOCITY_TOPIC,
+        rules: StreamRules = DEFAULT_RULES,
+    ) -> 'ChannelArrays | None':
+        """Both channels read whole into two arrays, when the bag is a clean recording.
+
+        None unless the bag is one intact MCAP file, read without a problem so far, whose
+        batches the stream rules would take whole (see `fmm_ros.io.bags.arrays`): then
+        read batch by batch (`sample_batches`), where every fault has its rule.
+        """
+        topics = (self.find(force_topic, SAMPLE_BATCH), self.find(velocity_topic, SAMPLE_BATCH))
+        single = not self.path.is_dir() or len(list(self.path.glob('*.mcap'))) == 1
+        if self._reader is None or self.storage != 'mcap' or self.problems or not single:
+            return None
+        from fmm_ros.io.bags.arrays import read_channel_arrays  # numba: on first use only
+
+        return read_channel_arrays(self._storage_file, topics, self.typestore, rules)
 
     def channel(self, topic: str) -> Iterator[ChannelBatch]:
         """Every SampleBatch of one channel topic, in storage order."""

@@ -1,0 +1,56 @@
+"""Every benchmark runs, in its quick mode, so a benchmark that crashes fails the build (issue 28).
+
+Scripts are discovered, not listed: every file in benchmarks/ that runs as a script (it has a
+`__main__` block) is run with `--quick`, so a benchmark added later is covered without
+touching this test. A quick run must end with status 0 and write nothing to RESULTS.md.
+"""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+BENCHMARKS = Path(__file__).resolve().parents[1] / 'benchmarks'
+SCRIPTS = sorted(
+    path
+    for path in BENCHMARKS.glob('*.py')
+    if "if __name__ == '__main__':" in path.read_text(encoding='utf-8')
+)
+# Scripts that start ROS graphs (processes of their own, on a domain they pick).
+ROS_SCRIPTS = ('bench_graph', 'stress_rig', 'fault_rig', 'bench_station')
+QUICK_TIMEOUT_S = 600  # a busy shared machine runs them several times slower
+
+
+def test_the_known_benchmarks_are_discovered():
+    names = {path.stem for path in SCRIPTS}
+    assert {'bench_replay', 'bench_physics', 'stress_rig', 'bench_signal'} <= names
+    assert 'results_file' not in names and 'issue8_diagnose' not in names
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    'script',
+    [
+        pytest.param(path, id=path.stem, marks=[pytest.mark.ros] * (path.stem in ROS_SCRIPTS))
+        for path in SCRIPTS
+    ],
+)
+def test_benchmark_runs_in_quick_mode(script: Path, tmp_path: Path):
+    results = BENCHMARKS / 'RESULTS.md'
+    before = results.read_bytes() if results.exists() else None
+    run = subprocess.run(
+        [sys.executable, str(script), '--quick'],
+        cwd=tmp_path,
+        env={**os.environ, 'MPLBACKEND': 'Agg', 'PYTHONUNBUFFERED': '1'},
+        capture_output=True,
+        text=True,
+        timeout=QUICK_TIMEOUT_S,
+        check=False,
+    )
+    output = f'{run.stdout[-3000:]}\n{run.stderr[-3000:]}'
+    assert run.returncode == 0, f'{script.name} --quick failed:\n{output}'
+    assert run.stdout.strip(), f'{script.name} --quick printed nothing'
+    after = results.read_bytes() if results.exists() else None
+    assert after == before, f'{script.name} --quick wrote RESULTS.md'

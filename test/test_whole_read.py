@@ -1,0 +1,152 @@
+"""A clean recording read whole (issue 28): the same records and results as batch by batch.
+
+`BagReader.channel_arrays` reads both channels of a clean MCAP bag straight into two arrays,
+and replay feeds them to the capture in blocks. These tests hold that road to the old one
+(every batch decoded and fed in delivery order): equal results field by field, equal ledgers
+and counts, and no whole read at all where a bag is not clean (a gap, a skew, damage,
+another storage), so every fault keeps its rule.
+"""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from fmm_ros.constants import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC
+from fmm_ros.core.signal.analysis import AnalysisConfig, analyze_impact, paper_levels
+from fmm_ros.core.signal.capture import CaptureConfig, ImpactCapture
+from fmm_ros.io.bags import BagReader, BagWriter
+from fmm_ros.sim.session import simulated_session, write_session_bag
+from fmm_ros.workflows.replay import Fed, bag_impact_records, capture_records, replay_bag
+
+CAPTURE = CaptureConfig(window_s=5.0)
+ANALYSIS = AnalysisConfig(levels=paper_levels())
+BATCH = 500
+
+
+@pytest.fixture(scope='module')
+def session():
+    return simulated_session(2, spacing_s=6.0, seed=5)
+
+
+@pytest.fixture(scope='module')
+def session_bag(session, tmp_path_factory):
+    return write_session_bag(tmp_path_factory.mktemp('whole') / 'session', session)
+
+
+def batch_by_batch(bag, capture=CAPTURE):
+    """Today's road: every batch decoded and fed (an on_batch observer keeps replay on it)."""
+    impacts, fed, results = ImpactCapture(capture), Fed(), []
+    with BagReader(bag, strict=False) as reader:
+        for record in capture_records(
+            reader, impacts, reuse_buffers=True, on_batch=lambda _: None, fed=fed
+        ):
+            results.append(analyze_impact(record, capture, ANALYSIS, impact_id=len(results)))
+        problems = list(reader.problems)
+    return results, impacts.ledger, fed, problems
+
+
+def assert_same_results(ours, theirs):
+    assert len(ours) == len(theirs) > 0
+    for mine, old in zip(ours, theirs, strict=True):
+        for field in dataclasses.fields(mine):
+            a, b = getattr(mine, field.name), getattr(old, field.name)
+            if isinstance(a, np.ndarray):
+                np.testing.assert_array_equal(a, b, err_msg=field.name)
+            elif isinstance(a, float) and np.isnan(a):
+                assert np.isnan(b), field.name
+            else:
+                assert a == b, field.name
+
+
+def write_batches(path, session, *, skip=(), order='interleaved', scale_change_at=None):
+    """A bag of the session's batches; skip: (topic, first index) pairs left out."""
+    starts = range(0, len(session.force_n), BATCH)
+    rows = [
+        (topic, start)
+        for start in starts
+        for topic in (FORCE_TOPIC, VELOCITY_TOPIC)
+        if (topic, start) not in skip
+    ]
+    if order == 'channel after channel':
+        rows.sort(key=lambda row: row[0] != FORCE_TOPIC)
+    with BagWriter(path, time_origin_ns=0) as writer:
+        for row, (topic, start) in enumerate(rows):  # logged in the order written
+            force = topic == FORCE_TOPIC
+            scale = 5000.0 if scale_change_at is None or start < scale_change_at else 6000.0
+            writer.write_sample_batch(
+                topic,
+                (session.force_n if force else session.velocity_m_s)[start : start + BATCH],
+                quantity=FORCE if force else VELOCITY,
+                sample_rate_hz=session.sample_rate_hz,
+                first_sample_index=start,
+                full_scale=scale if force else 0.0,
+                log_time_ns=row * 25_000_000,
+            )
+    return path
+
+
+def test_a_clean_bag_is_read_whole_into_the_recorded_samples(session, session_bag):
+    with BagReader(session_bag) as reader:
+        whole = reader.channel_arrays()
+    assert whole is not None
+    np.testing.assert_array_equal(whole.force, session.force_n)
+    np.testing.assert_array_equal(whole.velocity, session.velocity_m_s)
+    assert whole.first_sample_index == 0 and whole.sample_rate_hz == session.sample_rate_hz
+    assert whole.batches == 2 * -(-len(session.force_n) // BATCH)
+
+
+@pytest.mark.slow
+def test_replay_of_a_clean_bag_equals_replay_batch_by_batch(session_bag):
+    replay = replay_bag(session_bag, CAPTURE, ANALYSIS)
+    results, ledger, fed, problems = batch_by_batch(session_bag)
+    assert_same_results(replay.results, results)
+    assert replay.signal_s == fed.signal_s and replay.batches == fed.batches
+    assert {q: v.to_dict() for q, v in replay.ledger.items()} == {
+        q: v.to_dict() for q, v in ledger.items()
+    }
+    assert replay.problems == problems == []
+    # The records a campaign session reads take the same road.
+    records, _ = bag_impact_records(session_bag, CAPTURE)
+    with BagReader(session_bag) as reader:
+        old = list(capture_records(reader, CAPTURE, on_batch=lambda _: None))
+    assert [r.trigger_sample_index for r in records] == [r.trigger_sample_index for r in old]
+    for mine, theirs in zip(records, old, strict=True):
+        np.testing.assert_array_equal(mine.velocity_m_s, theirs.velocity_m_s)
+        assert mine.source == theirs.source and mine.force_gaps == theirs.force_gaps
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    'case',
+    ['dropped velocity batch', 'channel after channel', 'full scale changes', 'corrupt chunk'],
+)
+def test_a_bag_that_is_not_clean_is_read_batch_by_batch(session, tmp_path, case):
+    hit = int(session.hit_start_indices[1]) // BATCH * BATCH
+    if case == 'dropped velocity batch':
+        bag = write_batches(tmp_path / 'bag', session, skip={(VELOCITY_TOPIC, hit)})
+    elif case == 'channel after channel':  # the velocity lags far beyond max_skew_s
+        bag = write_batches(tmp_path / 'bag', session, order=case)
+    elif case == 'full scale changes':
+        bag = write_batches(tmp_path / 'bag', session, scale_change_at=hit)
+    else:
+        bag = write_batches(tmp_path / 'bag', session)
+        mcap = next(bag.glob('*.mcap'))
+        data = bytearray(mcap.read_bytes())
+        data[len(data) // 2] ^= 0x40  # one flipped bit in a stored sample
+        mcap.write_bytes(bytes(data))
+    with BagReader(bag, strict=False) as reader:
+        assert reader.channel_arrays() is None
+    replay = replay_bag(bag, CAPTURE, ANALYSIS)
+    results, ledger, fed, problems = batch_by_batch(bag)
+    assert_same_results(replay.results, results)
+    assert replay.batches == fed.batches and replay.problems[: len(problems)] == problems
+    assert {q: v.to_dict() for q, v in replay.ledger.items()} == {
+        q: v.to_dict() for q, v in ledger.items()
+    }
+
+
+def test_a_sqlite3_bag_is_read_batch_by_batch(session, tmp_path):
+    bag = write_session_bag(tmp_path / 'db', session, storage='sqlite3')
+    with BagReader(bag) as reader:
+        assert reader.channel_arrays() is None
