@@ -1,33 +1,36 @@
-"""Diagnose workflow: the open-world sweep with its confusion table, and the time of a diagnosis.
+"""Diagnose workflow: confusion tables per world (held-out worlds apart) and its time.
 
-Run: .venv/bin/python benchmarks/bench_diagnose.py [--cases N] [--world-cases W] [--seed S]
-     [--repeats R] [--session-hits H] [--skip-sweep]
+Run: .venv/bin/python benchmarks/bench_diagnose.py [--quick] [--cases N] [--world-cases W]
+     [--heldout-cases H] [--seed S] [--repeats R] [--session-hits K] [--skip-sweep]
 
-The sweep draws N sessions of each kind, 0.2 N / 1e-4 m/s noise, random hammer levels and
-friction coefficient (`fmm_ros.sim.hidden_effects`), and diagnoses them seeing only force and
-velocity:
-- one model term hidden, three hits, sized 1-4x the velocity noise after the base fit (issue 8);
-- a pair of distinct terms, three hits, each sized 2-4x the noise alone (issue 13: both named,
-  the gap at least 75 % smaller);
-- mu drifting linearly over eight hits, 1-4x the noise (named mu_drift, with its trend);
-- a friction law outside the vocabulary, three hits, 2-4x: velocity strengthening above a
-  transition speed, or a worn groove (answer 'unexplained');
-- clean sessions of three and of eight hits (answer 'none'; false alarms <= 5 %).
-It prints the confusion table (rows: what was hidden; columns: the first effect named, i.e.
-`missing_effect`), how many answers were exactly right (the named set is the hidden set; for
-the out-of-vocabulary laws, 'unexplained' first), and every miss.
+Four generators of sessions, each with its role declared once in `test/heldout` (`ROLES`):
+tuning worlds, which the diagnosis's thresholds were chosen on, and held-out worlds, never
+used to choose one (a world looked at before a threshold changed becomes a tuning world).
 
-Then the same over W sessions of each kind from the independent generator `worlds` (test/,
-`world_cases.py`): its laws and effects, continuous-force hits, an anti-alias filter, hum,
-drift and an ADC; run-in over eight hits of a continuous recording (each start fitted); two
-speed regimes, a sinusoidal wear track and a sharp wear patch outside the vocabulary.
+Tuning: `ours` (`fmm_ros.sim.hidden_effects`, N sessions of each kind): one model term
+hidden in three hits, sized 1-4x the velocity noise after the base fit (issue 8); a pair of
+distinct terms, 2-4x each (issue 13); mu drifting over eight hits; a law outside the
+vocabulary (answer 'unexplained'); clean sessions of three and eight hits. `worlds` (test/,
+`world_cases.py`, W of each kind): its laws and effects, continuous-force hits, an
+anti-alias filter, hum, drift and an ADC; run-in over eight hits of a continuous recording;
+three laws outside the vocabulary.
 
-Then the time of one diagnosis of three 33 s impacts (hidden Stribeck) and of a 30-hit
-session with each impact's start fitted (as /fmm/diagnose_model does), against issue 8's
-closed-world algorithm (`issue8_diagnose.py`) in the same run; and a 30-hit session with a
-Stribeck contact, where refits on the RK4 path cannot be screened away. Issue 13's targets:
-both effects of a pair named, 'unexplained' on the outside laws, drift named, <= 5 % false
-alarms; <= 5 s for 30 hits, <= 1.5 s for three.
+Held out (`test/heldout`, H of each kind): `events` (event-located DOP853, half-sine and
+Hertzian hits with sub-sample onsets, white noise, a Butterworth chain with a 0.22 N force
+offset) and `steps` (fixed-step RK4, Hertzian and two-exponential hits, white plus coloured
+noise, a Bessel chain, 60 Hz hum, random-walk drift): each of the seven effects alone, a pair,
+mu drifting 4-7 % a hit over three hits, a wear track (answer 'unexplained'), clean sessions.
+Issue 24's targets, on held-out worlds: single effects >= 15 of 16 per world, pairs >= 5 of
+6, false alarms <= 5 %, drift >= 90 %, the gap at least halved whenever an effect is named.
+
+Each table: rows what was hidden, columns the first effect named (`missing_effect`), how many
+were exactly right (the named set is the hidden set; 'unexplained' first for a law outside
+the vocabulary) and every miss. Then the time of one diagnosis of three 33 s impacts (hidden
+Stribeck) and of a 30-hit session with each start fitted, against issue 8's closed-world
+algorithm (`issue8_diagnose.py`) in the same run, and a 30-hit Stribeck session (<= 5 s).
+A full run writes its sections of RESULTS.md (`results_file`: tuning worlds, held-out worlds
+and time, each replaced only by a run that made it; --role sweeps one role); --quick (one
+session of a few kinds per world, three-hit timing) writes nothing.
 """
 
 import argparse
@@ -35,14 +38,19 @@ import statistics
 import sys
 import time
 from collections import Counter
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from issue8_diagnose import diagnose_issue8
+from results_file import QUICK_HELP, write_section
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'test'))
-from results_file import QUICK_HELP, recorded
+from heldout import HELD_OUT, ROLES  # noqa: E402
+from heldout.cases import KINDS as HELDOUT_KINDS  # noqa: E402
+from heldout.cases import case as heldout_case  # noqa: E402
+from heldout.lab import EVENTS, STEPS  # noqa: E402
 from world_cases import OUTSIDE_KINDS, VOCABULARY_KINDS, world_case  # noqa: E402
 
 from fmm_ros.constants import MU_DRIFT
@@ -60,8 +68,12 @@ from fmm_ros.sim.session import simulated_session
 TARGET_FALSE_ALARMS = 0.05
 TARGET_SESSION_S = 5.0
 TARGET_THREE_S = 1.5
+TARGET_SINGLES = 15 / 16
+TARGET_PAIRS = 5 / 6
+TARGET_DRIFT = 0.9
 PAIR_RATIOS = (2.0, 4.0)
 DRIFT_HITS = 8
+QUICK_KINDS = ('stribeck', MU_DRIFT, 'none')
 
 SHORT = {
     'viscous_damping': 'visc',
@@ -80,16 +92,19 @@ SHORT = {
     'none8': 'none8',
     UNEXPLAINED: 'unexpl',
 }
-ROWS = (*MODEL_TERMS, 'pair', MU_DRIFT, *OUT_OF_VOCABULARY, 'none', 'none8')
+OURS_ROWS = (*MODEL_TERMS, 'pair', MU_DRIFT, *OUT_OF_VOCABULARY, 'none', 'none8')
+WORLD_ROWS = (*VOCABULARY_KINDS, 'pair', MU_DRIFT, *OUTSIDE_KINDS, 'none', 'none8')
 COLUMNS = (*MODEL_TERMS, MU_DRIFT, UNEXPLAINED, NONE)
+OUTSIDE = (*OUT_OF_VOCABULARY, *OUTSIDE_KINDS)
+CLEAN = ('none', 'none8')
 
 
-def draw(kind: str, rng: np.random.Generator):
-    """(records, hidden effects, the right answer's test) of one session of a kind."""
+def draw_ours(kind: str, rng: np.random.Generator):
+    """(records, hidden effects, drawn sizes, starts to be fitted) of one session of ours."""
     if kind in MODEL_TERMS or kind == 'none':
-        case = hidden_effect_case(kind, rng)
+        drawn = hidden_effect_case(kind, rng)
         hidden = () if kind == 'none' else (kind,)
-        return case.records, hidden, {kind: case.ratio}
+        return drawn.records, hidden, {kind: drawn.ratio}, False
     if kind == 'pair':
         pair = tuple(str(e) for e in rng.choice(list(MODEL_TERMS), size=2, replace=False))
         session = hidden_session(pair, rng, ratio_range=PAIR_RATIOS)
@@ -99,17 +114,7 @@ def draw(kind: str, rng: np.random.Generator):
         session = hidden_session((), rng, n_impacts=DRIFT_HITS)
     else:
         session = hidden_session((kind,), rng, ratio_range=PAIR_RATIOS)
-    return session.records, session.effects, session.ratios
-
-
-WORLD_ROWS = (*VOCABULARY_KINDS, 'pair', MU_DRIFT, *OUTSIDE_KINDS, 'none', 'none8')
-
-
-def right(kind: str, hidden: tuple[str, ...], named: tuple[str, ...]) -> bool:
-    """Whether a diagnosis answered a kind of session rightly."""
-    if kind in OUT_OF_VOCABULARY or kind in OUTSIDE_KINDS:
-        return bool(named) and named[0] == UNEXPLAINED
-    return set(named) == set(hidden) and len(named) == len(hidden)
+    return session.records, session.effects, session.ratios, False
 
 
 def draw_world(kind: str, rng: np.random.Generator):
@@ -118,80 +123,174 @@ def draw_world(kind: str, rng: np.random.Generator):
     return records, hidden, {}, fit_starts
 
 
-def sweep(cases: int, seed: int, rows=ROWS, source: str = 'hidden_effects') -> None:
-    """Diagnose `cases` sessions of each kind in rows and print the confusion table."""
-    confusion = {row: Counter() for row in rows}
-    exact = Counter()
-    misses, seconds, shrink, pair_gaps = [], [], [], []
-    sizes = {row: [] for row in rows}
-    left = {'vocabulary': []}
-    for row_index, kind in enumerate(rows):
-        for case in range(cases):
-            rng = np.random.default_rng([seed, row_index, case])
-            if source == 'worlds':
-                records, hidden, ratios, fit_starts = draw_world(kind, rng)
-            else:
-                (records, hidden, ratios), fit_starts = draw(kind, rng), False
+def draw_held_out(world) -> Callable:
+    """The session drawer of a held-out world."""
+
+    def draw(kind: str, rng: np.random.Generator):
+        records, hidden, fit_starts = heldout_case(world, kind, rng)
+        return records, hidden, {}, fit_starts
+
+    return draw
+
+
+@dataclass(frozen=True)
+class Source:
+    """One generator of sessions: its name, rows (kinds) and drawer."""
+
+    name: str
+    rows: tuple[str, ...]
+    draw: Callable
+
+    @property
+    def role(self) -> str:
+        """'tuning' or 'held out', as test/heldout declares it."""
+        return ROLES[self.name]
+
+
+SOURCES = (
+    Source('ours', OURS_ROWS, draw_ours),
+    Source('worlds', WORLD_ROWS, draw_world),
+    Source('events', HELDOUT_KINDS, draw_held_out(EVENTS)),
+    Source('steps', HELDOUT_KINDS, draw_held_out(STEPS)),
+)
+
+
+def right(kind: str, hidden: tuple[str, ...], named: tuple[str, ...]) -> bool:
+    """Whether a diagnosis answered a kind of session rightly."""
+    if kind in OUTSIDE:
+        return bool(named) and named[0] == UNEXPLAINED
+    return set(named) == set(hidden) and len(named) == len(hidden)
+
+
+@dataclass
+class Sweep:
+    """What one source's sweep found."""
+
+    source: Source
+    cases: int
+    rows: tuple[str, ...]
+    confusion: dict = field(default_factory=dict)
+    exact: Counter = field(default_factory=Counter)
+    sizes: dict = field(default_factory=dict)
+    misses: list = field(default_factory=list)
+    seconds: list = field(default_factory=list)
+    shrink: list = field(default_factory=list)
+    not_halved: int = 0
+    named_sessions: int = 0
+    left: list = field(default_factory=list)
+
+    def rate(self, kinds) -> tuple[int, int]:
+        """(right, sessions) over some rows."""
+        kinds = [k for k in kinds if k in self.rows]
+        return sum(self.exact[k] for k in kinds), self.cases * len(kinds)
+
+    def table(self) -> list[str]:
+        """The confusion table as text lines (markdown-compatible)."""
+        head = ['hidden', *(SHORT[c] for c in COLUMNS), 'right', 'size']
+        lines = ['| ' + ' | '.join(head) + ' |', '|' + '---|' * len(head)]
+        for row in self.rows:
+            counts = [str(self.confusion[row][c]) for c in COLUMNS]
+            size = f'{np.median(self.sizes[row]):.1f}' if self.sizes[row] else '-'
+            cells = [SHORT[row], *counts, f'{self.exact[row]}/{self.cases}', size]
+            lines.append('| ' + ' | '.join(cells) + ' |')
+        return lines
+
+    def summary(self) -> list[str]:
+        """The figures under the table, one a line."""
+        total, sessions = self.rate(self.rows)
+        clean_right, clean = self.rate(CLEAN)
+        singles = [k for k in self.rows if k in MODEL_TERMS]
+        worst = min((self.exact[k] for k in singles), default=0)
+        lines = [
+            f'right: {total} of {sessions} sessions ({100 * total / sessions:.1f} %)',
+            f'single effects: worst kind {worst} of {self.cases} right',
+            f'false alarms on clean sessions: {clean - clean_right} of {clean}',
+        ]
+        if 'pair' in self.rows:
+            lines.append(f'pairs: both named in {self.exact["pair"]} of {self.cases}')
+        if MU_DRIFT in self.rows:
+            lines.append(f'mu drift: named in {self.exact[MU_DRIFT]} of {self.cases}')
+        if self.named_sessions:
+            lines.append(
+                f'an effect named in {self.named_sessions} sessions; the gap not halved in '
+                f'{self.not_halved} (median reduction where vocabulary effects were hidden: '
+                f'{100 * np.median(self.shrink):.1f} %)'
+            )
+        if self.left:
+            lines.append(
+                'residual left beyond the noise by a right vocabulary answer: median '
+                f'{np.median(self.left):.2f}, largest {max(self.left):.2f} noise RMS '
+                f'(unexplained from {MIN_EXCESS})'
+            )
+        lines.append(
+            f'diagnosis time per session: median {statistics.median(self.seconds):.2f} s, '
+            f'longest {max(self.seconds):.2f} s'
+        )
+        return lines
+
+    def targets(self) -> list[str]:
+        """Issue 24's targets for a held-out world, each met or not."""
+        singles = [k for k in self.rows if k in (*MODEL_TERMS, 'none')]
+        worst = min(self.exact[k] / self.cases for k in singles)
+        clean_right, clean = self.rate(CLEAN)
+        checks = [
+            ('single effects and none, worst kind', worst, TARGET_SINGLES, True),
+            ('false alarms', (clean - clean_right) / clean, TARGET_FALSE_ALARMS, False),
+            ('gap not halved where named', self.not_halved, 0, False),
+        ]
+        if 'pair' in self.rows:
+            checks.append(('pairs', self.exact['pair'] / self.cases, TARGET_PAIRS, True))
+        if MU_DRIFT in self.rows:
+            checks.append(('mu drift', self.exact[MU_DRIFT] / self.cases, TARGET_DRIFT, True))
+        return [
+            f'{name}: {value:.2f} (target {"at least" if high else "at most"} {target:.2f}) '
+            f'{"met" if (value >= target if high else value <= target) else "NOT met"}'
+            for name, value, target, high in checks
+        ]
+
+
+def sweep(source: Source, cases: int, seed: int, rows: tuple[str, ...] | None = None) -> Sweep:
+    """Diagnose `cases` sessions of each kind of a source; print its table as it goes."""
+    rows = rows or source.rows
+    found = Sweep(source, cases, rows)
+    for kind in rows:
+        found.confusion[kind], found.sizes[kind] = Counter(), []
+        for number in range(cases):
+            rng = np.random.default_rng([seed, source.rows.index(kind), number])
+            records, hidden, ratios, fit_starts = source.draw(kind, rng)
             start = time.perf_counter()
             result = diagnose(records, fit_initial_position=fit_starts)
-            seconds.append(time.perf_counter() - start)
+            found.seconds.append(time.perf_counter() - start)
             peak = max(float(np.max(np.abs(r.velocity_m_s))) for r in records)
-            sizes[kind].append(result.gap_before * peak / result.noise_std_m_s)
+            found.sizes[kind].append(result.gap_before * peak / result.noise_std_m_s)
             named = result.named_effects
-            confusion[kind][result.missing_effect] += 1
-            outside = kind in OUT_OF_VOCABULARY or kind in OUTSIDE_KINDS
-            if not outside and hidden and right(kind, hidden, named):
-                left['vocabulary'].append(result.residual_where.excess_to_noise)
+            found.confusion[kind][result.missing_effect] += 1
+            vocabulary = kind not in OUTSIDE and bool(hidden)
+            if vocabulary and right(kind, hidden, named):
+                found.left.append(result.residual_where.excess_to_noise)
             if right(kind, hidden, named):
-                exact[kind] += 1
+                found.exact[kind] += 1
             else:
                 drawn = ', '.join(f'{SHORT[e]} {r:.1f}x' for e, r in ratios.items())
-                misses.append(
-                    f'  {kind} [{drawn or f"{sizes[kind][-1]:.1f}x"}] case {case}: named '
+                found.misses.append(
+                    f'{kind} [{drawn or f"{found.sizes[kind][-1]:.1f}x"}] case {number}: named '
                     f'{", ".join(named) or "none"}; {result.verdict[:160]}'
                 )
-            if hidden and not outside and result.gap_before > 0.0:
-                shrink.append(1.0 - result.gap_after / result.gap_before)
-            if kind == 'pair':
-                pair_gaps.append(1.0 - result.gap_after / result.gap_before)
-        print(f'  {kind}: {exact[kind]}/{cases} right', flush=True)
-    width = 7
-    print(f'\nconfusion table, {source} (rows: hidden; columns: missing_effect, the first named;')
-    print('right: the named set is the hidden set, or "unexplained" first for a law outside the')
-    print('vocabulary; size: median excess of the base model over the noise, in noise RMS)')
-    header = ''.join(f'{SHORT[c]:>{width}}' for c in COLUMNS)
-    print(' ' * 8 + header + f'{"right":>{width}}{"size":>{width}}')
-    for row in rows:
-        counts = ''.join(f'{confusion[row][c]:>{width}}' for c in COLUMNS)
-        print(f'{SHORT[row]:>8}{counts}{exact[row]:>{width}}{np.median(sizes[row]):>{width}.1f}')
-    total, sessions = sum(exact.values()), cases * len(rows)
-    print(f'\nright: {total} of {sessions} sessions ({100 * total / sessions:.1f} %)')
-    clean = cases * 2
-    alarms = clean - exact['none'] - exact['none8']
-    print(
-        f'false alarms on clean sessions: {alarms} of {clean} ({100 * alarms / clean:.1f} %, '
-        f'target <= {100 * TARGET_FALSE_ALARMS:.0f} %)'
-    )
-    print(
-        f'pairs: both named in {exact["pair"]} of {cases}; gap at least 75 % smaller in '
-        f'{sum(g >= 0.75 for g in pair_gaps)} (median {100 * np.median(pair_gaps):.1f} %)'
-    )
-    print(
-        f'median gap reduction where vocabulary effects were hidden: '
-        f'{100 * np.median(shrink):.1f} % (smallest {100 * min(shrink):.1f} %)'
-    )
-    print(
-        'residual left beyond the noise by a right vocabulary answer: median '
-        f'{np.median(left["vocabulary"]):.2f}, largest {max(left["vocabulary"]):.2f} noise RMS '
-        f'(unexplained from {MIN_EXCESS})'
-    )
-    print(
-        f'diagnosis time per session: median {statistics.median(seconds):.2f} s, '
-        f'longest {max(seconds):.2f} s'
-    )
-    print('misses:' if misses else 'misses: none')
-    for miss in misses:
-        print(miss)
+            if vocabulary and result.gap_before > 0.0:
+                found.shrink.append(1.0 - result.gap_after / result.gap_before)
+            if any(n != UNEXPLAINED for n in named):
+                found.named_sessions += 1
+                found.not_halved += result.gap_after > 0.5 * result.gap_before
+        print(f'  {source.name} {kind}: {found.exact[kind]}/{cases} right', flush=True)
+    print(f'\nconfusion table, {source.name} ({source.role} world)')
+    print('\n'.join(found.table()))
+    print('\n'.join(found.summary()))
+    if source.role == HELD_OUT:
+        print('\n'.join(found.targets()))
+    print('misses:' if found.misses else 'misses: none')
+    for miss in found.misses:
+        print(f'  {miss}')
+    return found
 
 
 @dataclass(frozen=True)
@@ -221,13 +320,20 @@ def timed(function, *args, repeats: int = 1, **kwargs) -> Timed:
     return Timed(statistics.median(wall), statistics.median(cpu), result)
 
 
-def timing(repeats: int, seed: int, hits_per_level: int) -> None:
+def timing(repeats: int, seed: int, hits_per_level: int) -> list[str]:
+    """The time of a three-hit and a many-hit diagnosis, and issue 8's in the same run."""
+    lines = []
+
+    def say(line: str) -> None:
+        print(line, flush=True)
+        lines.append(line)
+
     case = hidden_effect_case('stribeck', seed)
     diagnose(case.records)  # JIT and caches warm
     new = timed(diagnose, case.records, repeats=repeats)
     old = timed(diagnose_issue8, case.records, repeats=max(1, repeats // 2))
-    print(
-        f'\nthree 33 s impacts, hidden stribeck: {new} median of {repeats} (named '
+    say(
+        f'three 33 s impacts, hidden stribeck: {new} median of {repeats} (named '
         f'{", ".join(new.result.named_effects)}); issue 8: {old} (named {old.result}); '
         f'{old.cpu_s / new.cpu_s:.1f}x less CPU (target <= {TARGET_THREE_S} s)'
     )
@@ -240,7 +346,7 @@ def timing(repeats: int, seed: int, hits_per_level: int) -> None:
     ]
     new = timed(diagnose, impacts, fit_initial_position=True)
     old = timed(diagnose_issue8, impacts, fit_initial_position=True)
-    print(
+    say(
         f'a {len(impacts)}-hit session, each start fitted: {new} (named '
         f'{", ".join(new.result.named_effects) or "none"}); issue 8: {old} (named '
         f'{old.result}); {old.cpu_s / new.cpu_s:.1f}x less CPU (target <= {TARGET_SESSION_S} s)'
@@ -249,18 +355,34 @@ def timing(repeats: int, seed: int, hits_per_level: int) -> None:
         ('stribeck',), np.random.default_rng([seed, 99]), n_impacts=len(impacts)
     )
     new = timed(diagnose, stribeck.records, fit_initial_position=True)
-    print(
+    say(
         f'a {len(impacts)}-hit session with a Stribeck contact ({stribeck.ratios["stribeck"]:.1f}x '
         f'the noise), each start fitted: {new} (named '
-        f'{", ".join(new.result.named_effects) or "none"})'
+        f'{", ".join(new.result.named_effects) or "none"}; target <= {TARGET_SESSION_S} s)'
     )
+    return lines
+
+
+def markdown(sweeps: list[Sweep]) -> str:
+    """A RESULTS.md section: the tables and figures of some sweeps."""
+    parts = []
+    for found in sweeps:
+        parts.append(f'**{found.source.name}** ({found.cases} sessions a kind)\n')
+        parts.append('\n'.join(found.table()) + '\n')
+        figures = found.summary() + (found.targets() if found.source.role == HELD_OUT else [])
+        parts.append('\n'.join(f'- {line}' for line in figures) + '\n')
+    return '\n'.join(parts)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--cases', type=int, default=10, help='sessions per kind')
+    parser.add_argument('--quick', action='store_true', help=QUICK_HELP)
+    parser.add_argument('--cases', type=int, default=10, help='sessions per kind of ours')
     parser.add_argument(
         '--world-cases', type=int, default=10, help='sessions per kind from worlds (0: skip)'
+    )
+    parser.add_argument(
+        '--heldout-cases', type=int, default=16, help='sessions per kind, held out (0: skip)'
     )
     parser.add_argument('--seed', type=int, default=2019)
     parser.add_argument('--repeats', type=int, default=5, help='timing repeats')
@@ -268,21 +390,39 @@ def main() -> None:
         '--session-hits', type=int, default=10, help='hits per level of the timed session'
     )
     parser.add_argument('--skip-sweep', action='store_true', help='time only')
-    parser.add_argument('--quick', action='store_true', help=QUICK_HELP)
+    parser.add_argument('--skip-timing', action='store_true', help='sweeps only')
+    parser.add_argument(
+        '--role',
+        choices=('all', 'tuning', 'held-out'),
+        default='all',
+        help='which worlds to sweep (each role writes its own section)',
+    )
     args = parser.parse_args()
-    if args.quick:
-        args.cases, args.world_cases, args.repeats, args.session_hits = 1, 1, 1, 1
-    if not args.skip_sweep:
-        print(f'sweep: {args.cases} sessions of each of {len(ROWS)} kinds (hidden_effects)')
-        sweep(args.cases, args.seed)
-        if args.world_cases:
-            print(
-                f'\nsweep: {args.world_cases} sessions of each of {len(WORLD_ROWS)} kinds (worlds)'
-            )
-            sweep(args.world_cases, args.seed, WORLD_ROWS, 'worlds')
-    timing(args.repeats, args.seed, args.session_hits)
+    counts = {
+        'ours': args.cases,
+        'worlds': args.world_cases,
+        'events': args.heldout_cases,
+        'steps': args.heldout_cases,
+    }
+    for role in ('tuning', HELD_OUT) if args.role == 'all' else (args.role.replace('-', ' '),):
+        sweeps = []
+        for source in (s for s in SOURCES if s.role == role and not args.skip_sweep):
+            cases = 1 if args.quick else counts[source.name]
+            if not cases:
+                continue
+            rows = tuple(k for k in source.rows if k in QUICK_KINDS) if args.quick else None
+            print(f'\nsweep: {cases} sessions a kind, {source.name} ({source.role} world)')
+            sweeps.append(sweep(source, cases, args.seed, rows))
+        if sweeps:
+            write_section(f'bench_diagnose, {role} worlds', markdown(sweeps), quick=args.quick)
+    if not args.skip_timing:
+        times = timing(
+            1 if args.quick else args.repeats, args.seed, 1 if args.quick else args.session_hits
+        )
+        write_section(
+            'bench_diagnose, time', '\n'.join(f'- {line}' for line in times), quick=args.quick
+        )
 
 
 if __name__ == '__main__':
-    with recorded('bench_diagnose', quick='--quick' in sys.argv):
-        main()
+    main()

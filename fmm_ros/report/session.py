@@ -51,6 +51,9 @@ FLAG_MEANINGS: dict[str, str] = {
     'unsettled': 'the rig moved before the hit or had not come to rest at the end of the '
     'record: not one whole transient, the DFT leaks',
     'overlap': 'the next impact triggers inside this record: two responses in one FRF',
+    'undetermined': 'a headline number came out NaN: no impulse (the force never reached the '
+    're-arm level), no f_n (fewer than three strong velocity reversals) or no peak |X/F| (no '
+    'excited bin in the peak band)',
     'out_of_tolerance': 'the peak force is not within tolerance of any nominal level',
 }
 

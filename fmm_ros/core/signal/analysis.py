@@ -30,6 +30,7 @@ from fmm_ros.core.signal.config import (  # noqa: F401 (re-exported: declared in
     DEFAULT_ANALYSIS,
     DEFAULT_CAPTURE,
     FLAGS,
+    UNDETERMINED,
     AnalysisConfig,
     CaptureConfig,
     NominalLevel,
@@ -81,6 +82,11 @@ class ImpactAnalysis:
     )
     velocity_spectrum: np.ndarray = result_field(
         unit='m/s', help='Unscaled DFT of the (windowed) velocity, band-limited'
+    )
+    excitation_spectrum: np.ndarray = result_field(
+        unit='N',
+        help='Unscaled DFT of the hammer pulse alone, baseline removed, band-limited: the '
+        'excitation the usable band is judged by',
     )
     source: str = setting('', help='The file, or bag@trigger, the record came from')
 
@@ -190,18 +196,24 @@ def analyze_impact(
     velocity_spectrum = response.convert_spectrum(
         velocity_spectrum[:bins], frequency, record.response_quantity, response.VELOCITY
     ).copy()
+    excitation_spectrum = frf.pulse_spectrum(
+        raw_force, capture.rearm_level_n, n_fft, contact_start
+    )[:bins].copy()
     mobility = frf.mobility(force_spectrum, velocity_spectrum)
     receptance = frf.receptance_from_mobility(mobility, frequency)
     peak_receptance, _ = frf.peak_magnitude(
-        receptance, frequency, _peak_band(force_spectrum, frequency, analysis)
+        receptance, frequency, _peak_band(excitation_spectrum, frequency, analysis)
     )
     natural_frequency = frf.natural_frequency(record.velocity_m_s, rate)
+    determined = _determined(impulse, natural_frequency, peak_receptance)
+    if not determined and not flags:
+        flags = (UNDETERMINED,)
     return ImpactAnalysis(
         impact_id=impact_id,
         trigger_sample_index=record.trigger_sample_index,
         record_start_sample_index=record.record_start_sample_index,
         level='',
-        accepted=not set(flags) & set(analysis.reject_flags),
+        accepted=determined and not set(flags) & set(analysis.reject_flags),
         flags=flags,
         impulse_n_s=impulse,
         peak_force_n=peak_force,
@@ -220,6 +232,7 @@ def analyze_impact(
         exponential_window_decay_s=analysis.exponential_decay_s or 0.0,
         force_spectrum=force_spectrum,
         velocity_spectrum=velocity_spectrum,
+        excitation_spectrum=excitation_spectrum,
         source=record.source,
     )
 
@@ -262,11 +275,10 @@ def summarize(
         if topped:
             flags.add('clipped')
         ordered = tuple(flag for flag in FLAGS if flag in flags)
-        judged.append(
-            dataclasses.replace(
-                result, level=name, flags=ordered, accepted=not flags & set(analysis.reject_flags)
-            )
+        accepted = not flags & set(analysis.reject_flags) and _determined(
+            result.impulse_n_s, result.natural_frequency_hz, result.peak_receptance_m_per_n
         )
+        judged.append(dataclasses.replace(result, level=name, flags=ordered, accepted=accepted))
 
     levels = []
     for name, nominal in level_order:
@@ -308,7 +320,9 @@ def _level_summary(
         receptance,
         first.frequency_hz,
         _peak_band(
-            np.stack([result.force_spectrum for result in members]), first.frequency_hz, analysis
+            np.stack([result.excitation_spectrum for result in members]),
+            first.frequency_hz,
+            analysis,
         ),
     )
     frequencies = [m.natural_frequency_hz for m in members if np.isfinite(m.natural_frequency_hz)]
@@ -335,10 +349,19 @@ def _level_summary(
     )
 
 
+def _determined(impulse_n_s: float, natural_frequency_hz: float, peak_receptance: float) -> bool:
+    """Whether a hit's headline numbers are all finite: no hit is accepted without them.
+
+    A NaN comes from a record flagged already (a gap, a NaN sample), or else is flagged
+    `undetermined`; either way the hit never enters an average or a fit.
+    """
+    return bool(np.isfinite((impulse_n_s, natural_frequency_hz, peak_receptance)).all())
+
+
 def _peak_band(
-    force_spectrum: np.ndarray, frequency_hz: np.ndarray, analysis: AnalysisConfig
+    excitation_spectrum: np.ndarray, frequency_hz: np.ndarray, analysis: AnalysisConfig
 ) -> tuple[float, float]:
-    """The configured peak band, its top lowered to where the excitation has run out.
+    """The configured peak band, its top lowered to where the pulse's excitation runs out.
 
     A band limit above the configured top (a structure's kHz modes, not the FMM's 2.2 Hz)
     raises the top to it: the band then follows the data, up to what the hammer excited.
@@ -346,7 +369,9 @@ def _peak_band(
     low, high = analysis.peak_band_hz
     if analysis.band_limit_hz is None or analysis.band_limit_hz > high:
         high = analysis.band_limit_hz or frequency_hz[-1]
-    usable = frf.excitation_bandwidth(force_spectrum, frequency_hz, analysis.excitation_drop_db)
+    usable = frf.excitation_bandwidth(
+        excitation_spectrum, frequency_hz, analysis.excitation_drop_db
+    )
     return low, high if np.isnan(usable) else min(high, usable)
 
 

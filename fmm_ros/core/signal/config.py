@@ -15,8 +15,13 @@ from fmm_ros.constants import LEVEL_TOLERANCE_N, PAPER_LEVELS
 from fmm_ros.core.settings import setting, setting_like
 from fmm_ros.errors import BadInputError
 
-# Every quality flag, in the order they are reported. All but the last are properties of the
-# record (`quality_flags`); `out_of_tolerance` is set when impacts are grouped into levels.
+UNDETERMINED = 'undetermined'
+"""The flag of a hit whose headline number (impulse, f_n or peak |X/F|) came out NaN."""
+
+# Every quality flag, in the order they are reported. All but the last two are properties of
+# the record (`quality_flags`); `undetermined` is set by the analysis when a headline number
+# is NaN and no other flag explains it (no hit is accepted without one), `out_of_tolerance`
+# when impacts are grouped into levels.
 FLAGS: tuple[str, ...] = (
     'double_hit',
     'clipped',
@@ -29,6 +34,7 @@ FLAGS: tuple[str, ...] = (
     'nan',
     'unsettled',
     'overlap',
+    UNDETERMINED,
     'out_of_tolerance',
 )
 
@@ -205,7 +211,8 @@ class AnalysisConfig:
     The FMM's mode is at 2.2 Hz and its odd harmonics matter up to ~20 Hz; a 100 Hz band keeps
     results small. The peak band's lower end keeps out the lowest bins, where the rest offset
     friction leaves in the displacement (x_final != 0) makes |mobility / (i omega)| large; its
-    upper end is lowered further to where the force spectrum has dropped by
+    upper end is lowered further to where the hammer pulse's spectrum (baseline removed: an
+    offset, drift or hum on the force channel excites nothing) has dropped by
     excitation_drop_db (`frf.excitation_bandwidth`). Without windows (the paper's method),
     friction brings the rig to rest inside the record.
     """

@@ -48,7 +48,7 @@ from fmm_ros.core.signal.capture import (
     with_trigger,
 )
 from fmm_ros.core.signal.config import DEFAULT_CAPTURE, FLAGS, CaptureConfig
-from fmm_ros.core.signal.frf import contact_duration, first_true
+from fmm_ros.core.signal.frf import contact_duration, first_true, runs
 from fmm_ros.core.signal.records import Gaps, ImpactRecord
 
 MAD_TO_STD = 1.482602218505602
@@ -272,12 +272,6 @@ def _foreign_stretch(
         if entered and left and (start > 0 or stop < changes.size):
             return True
     return False
-
-
-def runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """[start, stop) of every run of True in a boolean array."""
-    edges = np.diff(np.concatenate(([False], mask, [False])).astype(np.int8))
-    return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
 
 
 def responds(

@@ -1,0 +1,27 @@
+"""Held-out generators of FMM impact data, written from scratch, never used to tune the product.
+
+Two worlds (`lab.EVENTS`, `lab.STEPS`), each another way of making the data a lab records:
+hits as continuous-time forces (half-sine, Hertzian, two exponentials) with a sub-sample
+onset, sampled afterwards; the rig's stick-slip motion by an event-located DOP853 solver or a
+fine fixed RK4 step; an acquisition chain (anti-alias filter on a fine grid, offset, drift,
+mains hum, white and coloured noise, ADC). Hidden effects are implemented here as physics, not
+through the product's model terms. Nothing here imports the product (a test holds it to that).
+
+`ROLES` is the one declaration of which worlds the product's thresholds were tuned on and
+which are held out: a world a threshold was changed after looking at is a tuning world from
+then on, and `ROLES` says so.
+
+Modules: `forces` (hits), `plant` (the rig and both integrators), `chain` (the DAQ), `lab`
+(worlds, effects, records, sessions), `cases` (diagnosis cases by kind).
+"""
+
+TUNING = 'tuning'
+HELD_OUT = 'held out'
+
+ROLES: dict[str, str] = {
+    'ours': TUNING,  # fmm_ros.sim.hidden_effects: the product's own simulator
+    'worlds': TUNING,  # test/worlds: issue 13's independent generator, tuned against since
+    'events': HELD_OUT,  # heldout.lab.EVENTS
+    'steps': HELD_OUT,  # heldout.lab.STEPS
+}
+"""Every generator by name, and whether the product was tuned on it (see the module doc)."""

@@ -1,0 +1,87 @@
+"""Diagnosis cases from the held-out generators: one kind of session, its size drawn at random.
+
+Kinds: each effect the diagnosis has a name for, hidden alone; `pair` (two distinct ones);
+`mu_drift` (mu changing 4-7 % a hit over three hits); `wear_track` (friction varying along
+the track: outside the vocabulary, the right answer is 'unexplained'); `none` (the plain
+rig). Three hits a session, one at each paper level in random order, every one from rest at
+the centre, except `asymmetric_chained` (and pairs holding asymmetric friction): a continuous
+session where each hit starts where the previous came to rest (the diagnosis fits starts).
+Sizes are drawn from ranges that leave a misfit of about 1-5 velocity-noise deviations after
+the base fit, as a lab would meet them.
+"""
+
+import numpy as np
+
+from heldout.lab import Effects, World, session
+
+VOCABULARY_KINDS = (
+    'viscous_damping',
+    'stribeck',
+    'asymmetric_friction',
+    'cubic_stiffness',
+    'second_mode',
+    'velocity_offset',
+    'sensor_delay',
+)
+KINDS = (*VOCABULARY_KINDS, 'pair', 'mu_drift', 'wear_track', 'none')
+MU_RANGE = (0.08, 0.16)
+
+
+def _log_uniform(rng: np.random.Generator, low: float, high: float) -> float:
+    return float(np.exp(rng.uniform(np.log(low), np.log(high))))
+
+
+def _sign(rng: np.random.Generator) -> float:
+    return float(rng.choice((-1.0, 1.0)))
+
+
+def effect_fields(kind: str, mu: float, rng: np.random.Generator) -> dict:
+    """The Effects fields of one hidden effect of a kind, its size drawn."""
+    if kind == 'viscous_damping':
+        return {'added_damping_n_s_per_m': rng.uniform(0.12, 0.4)}
+    if kind == 'stribeck':
+        return {
+            'static_excess': rng.uniform(0.02, 0.06),
+            'stribeck_speed_m_s': _log_uniform(rng, 1.5e-3, 6e-3),
+        }
+    if kind == 'asymmetric_friction':
+        return {'asymmetry': _sign(rng) * mu * rng.uniform(0.1, 0.25)}
+    if kind == 'cubic_stiffness':
+        return {'cubic_n_per_m3': _sign(rng) * rng.uniform(3e4, 9e4)}
+    if kind == 'second_mode':
+        return {
+            'mode_hz': _log_uniform(rng, 15.0, 300.0),
+            'mode_damping_ratio': _log_uniform(rng, 3e-3, 3e-2),
+            'mode_mass_kg': _log_uniform(rng, 300.0, 1500.0),
+        }
+    if kind == 'velocity_offset':
+        return {'velocity_offset_m_s': _sign(rng) * rng.uniform(1.2e-4, 4e-4)}
+    if kind == 'sensor_delay':
+        return {'lag_s': rng.uniform(1e-4, 3e-4)}
+    if kind == 'mu_drift':
+        return {'mu_step': _sign(rng) * rng.uniform(0.04, 0.07)}
+    if kind == 'wear_track':
+        return {
+            'track_amplitude': rng.uniform(0.08, 0.15),
+            'track_wavelength_m': rng.uniform(4e-3, 10e-3),
+            'track_phase': rng.uniform(0.0, 2 * np.pi),
+        }
+    raise ValueError(f'unknown kind {kind!r}')
+
+
+def case(world: World, kind: str, rng: np.random.Generator):
+    """(records, hidden effects in the diagnosis's names, whether starts are to be fitted)."""
+    mu = float(rng.uniform(*MU_RANGE))
+    if kind == 'none':
+        hidden, fields = (), {}
+    elif kind == 'pair':
+        hidden = tuple(str(k) for k in rng.choice(VOCABULARY_KINDS, size=2, replace=False))
+        fields = {}
+        for name in hidden:
+            fields.update(effect_fields(name, mu, rng))
+    else:
+        hidden = (kind,)
+        fields = effect_fields(kind, mu, rng)
+    levels = rng.permutation((450.0, 1000.0, 1450.0))
+    records = session(world, Effects(**fields), mu, rng, levels)
+    return records, () if kind == 'wear_track' else hidden, False

@@ -1,0 +1,126 @@
+"""The held-out generators (test/heldout): independent, exact where they claim, and what the
+diagnosis must get right on them.
+
+The generators are held to their own physics (two integrators that share no code agree, the
+closed-form Coulomb path matches DOP853, impulses are exact, the chain passes a constant
+through) and to independence (they import neither the product nor test/worlds). Then a
+modest number of sessions from each held-out world (`heldout.ROLES`): clean sessions are
+'none', mu drifting over three hits is
+'mu_drift', a wear track is 'unexplained', single effects are named. The benchmark
+(`benchmarks/bench_diagnose.py`) measures the rates over many more cases.
+"""
+
+import ast
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.integrate
+from heldout import HELD_OUT, ROLES
+from heldout.cases import case
+from heldout.chain import Channel, Daq, acquire
+from heldout.forces import SHAPES, Hit
+from heldout.lab import EVENTS, STEPS
+from heldout.plant import Contact, Plant, solve_events, solve_steps
+
+from fmm_ros.constants import MU_DRIFT
+from fmm_ros.core.diagnose import NONE, UNEXPLAINED, diagnose
+
+HELDOUT_DIR = Path(__file__).resolve().parent / 'heldout'
+WORLDS = {'events': EVENTS, 'steps': STEPS}
+
+
+def test_the_held_out_generators_import_neither_the_product_nor_worlds():
+    for path in sorted(HELDOUT_DIR.glob('*.py')):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                names = [node.module or '']
+            else:
+                continue
+            roots = {name.split('.')[0] for name in names}
+            assert not roots & {'fmm_ros', 'worlds'}, f'{path.name} imports {names}'
+
+
+def test_every_generator_has_one_role_and_some_are_held_out():
+    assert set(ROLES) == {'ours', 'worlds', *WORLDS}
+    assert {ROLES[name] for name in WORLDS} == {HELD_OUT}
+
+
+@pytest.mark.parametrize('shape', SHAPES)
+def test_hit_impulses_are_exact(shape):
+    hit = Hit(shape, 1000.0, 0.6e-3 if shape == 'double_exponential' else 3e-3, 0.1, 0.3)
+    area, _ = scipy.integrate.quad(hit.force_at, hit.onset_s, hit.end_s, limit=200)
+    assert area == pytest.approx(hit.impulse_n_s, rel=1e-9)
+    peak = max(hit.force_n(np.linspace(hit.onset_s, hit.end_s, 200_001)))
+    assert peak == pytest.approx(1000.0, rel=1e-6)
+
+
+def test_the_chain_passes_a_constant_and_adds_its_offset():
+    daq = Daq(force=Channel(0.0, offset=0.22), velocity=Channel(0.0))
+    samples = acquire(
+        daq,
+        lambda t: np.full(np.shape(t), 3.0),
+        daq.force,
+        1000,
+        0.0,
+        (0.02, 0.05),
+        np.random.default_rng(0),
+    )
+    assert samples == pytest.approx(3.22, abs=1e-9)
+
+
+@pytest.mark.slow
+def test_the_two_integrators_agree_on_every_contact():
+    hit = Hit('hertz', 1000.0, 3e-3, 0.1 + 0.37e-4)
+    contacts = (
+        Contact(0.11),
+        Contact(0.11, asymmetry=0.02, static_excess=0.04, stribeck_speed_m_s=3e-3),
+        Contact(0.11, track_amplitude=0.1, track_wavelength_m=6e-3),
+    )
+    times = np.linspace(0.09, 6.0, 60_001)
+    for contact in contacts:
+        for plant in (Plant(), Plant(cubic_n_per_m3=6e4)):
+            exact = solve_events(plant, contact, hit, 1e-4, 8.0)
+            steps = solve_steps(plant, contact, hit, 1e-4, 8.0)
+            difference = np.abs(exact.evaluate(times)[1] - steps.evaluate(times)[1])
+            assert difference.max() < 1e-5, (contact, plant)
+            assert steps.rest_m == pytest.approx(exact.rest_m, abs=1e-7)
+
+
+@pytest.mark.slow
+def test_the_closed_form_coulomb_path_matches_dop853():
+    hit = Hit('half_sine', 1450.0, 2e-3, 0.1 + 0.81e-4)
+    closed = solve_events(Plant(), Contact(0.09, asymmetry=0.01), hit, 0.0, 8.0)
+    # a cubic spring of 1e-9 N/m^3 changes nothing but forces the DOP853 path throughout
+    general = solve_events(Plant(cubic_n_per_m3=1e-9), Contact(0.09, asymmetry=0.01), hit, 0.0, 8.0)
+    times = np.linspace(0.09, 6.0, 60_001)
+    assert np.abs(closed.evaluate(times)[1] - general.evaluate(times)[1]).max() < 1e-9
+    assert closed.rest_m == pytest.approx(general.rest_m, abs=1e-11)
+
+
+def diagnosed(world: str, kind: str, index: int):
+    records, hidden, fit_starts = case(WORLDS[world], kind, np.random.default_rng([2424, index]))
+    return records, hidden, diagnose(records, fit_initial_position=fit_starts)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('world', sorted(WORLDS))
+def test_held_out_sessions_get_the_right_answer(world):
+    wrong = []
+    for index, kind in enumerate(
+        ('none', 'none', MU_DRIFT, MU_DRIFT, 'wear_track', 'stribeck', 'sensor_delay')
+    ):
+        records, hidden, result = diagnosed(world, kind, index)
+        named = result.named_effects
+        right = named[:1] == (UNEXPLAINED,) if kind == 'wear_track' else set(named) == set(hidden)
+        if not right:
+            wrong.append((kind, named, result.verdict))
+        if kind == 'none' and right:
+            assert result.missing_effect == NONE
+        if kind == MU_DRIFT and right:
+            truth = [record.mu for record in records]
+            trend = result.missing_effects[0].trend
+            assert np.abs(np.array(trend.mu) - truth) < 0.01 * np.array(truth)
+    assert wrong == []
