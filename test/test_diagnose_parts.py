@@ -187,7 +187,7 @@ def test_bad_input_gets_a_clear_error_naming_the_problem():
         diagnose([small_record(velocity_m_s=velocity)])
     with pytest.raises(ValueError, match=r'hit1\.csv: the record runs only .* too short to see'):
         diagnose([small_record(duration_s=1.0)])
-    with pytest.raises(ValueError, match='mu_drift needs at least 2 impacts .* got 1'):
+    with pytest.raises(ValueError, match='mu_drift needs at least 4 impacts .* got 1'):
         diagnose([good], candidates=('mu_drift',))
     with pytest.raises(ValueError, match='different sample rates'):
         slow = small_record(seed=2)

@@ -2,8 +2,7 @@
 
 Wear, run-in and temperature change a contact over a session, so each hit's friction
 coefficient drifts with the hit's place in the session. `mu_trend` takes each hit's mu and its
-standard error, in hit order, and answers both questions (`per_hit_mu` the first alone when
-there are too few hits for a trend: two or three hits, one a level, as the demo diagnoses):
+standard error, in hit order, and answers both questions:
 
 - consistency: chi^2 of the mu_i about their weighted mean with the stated errors (n - 1
   degrees of freedom), as `fit_friction` does;
@@ -23,12 +22,8 @@ import scipy.stats
 
 from fmm_ros.errors import BadInputError
 
-MIN_TREND_HITS = 4
+MIN_DRIFT_HITS = 4
 """A trend in hit order needs at least this many hits (two degrees of freedom left)."""
-
-
-MIN_DRIFT_HITS = 2
-"""mu_drift is considered from this many hits: their own mu can differ beyond their errors."""
 
 
 @dataclass(frozen=True)
@@ -50,8 +45,7 @@ class MuTrend:
     intercept: float
     """mu at the first hit on the fitted line [-]."""
     p_value: float
-    """Two-sided chance of a slope this far from zero with no trend [-] (NaN: fewer than
-    MIN_TREND_HITS hits, no trend judged)."""
+    """Two-sided chance of a slope this far from zero with no trend [-]."""
 
     @property
     def trend_per_hit(self) -> tuple[float, ...]:
@@ -60,52 +54,37 @@ class MuTrend:
 
 
 def mu_trend(mu: Sequence[float], mu_stderr: Sequence[float], *, refitted: bool) -> MuTrend:
-    """Consistency and trend of per-hit mu (module doc); BadInputError for fewer than 4 hits."""
-    if len(mu) < MIN_TREND_HITS:
-        raise BadInputError(
-            f'a trend of mu in hit order needs at least {MIN_TREND_HITS} hits, got {len(mu)}'
-        )
-    return per_hit_mu(mu, mu_stderr, refitted=refitted)
-
-
-def per_hit_mu(mu: Sequence[float], mu_stderr: Sequence[float], *, refitted: bool) -> MuTrend:
-    """Consistency of per-hit mu, and their trend from MIN_TREND_HITS hits (module doc).
-
-    With two or three hits the line through them is reported (its slope's error from the
-    stated errors alone) but not judged: p_value is NaN. BadInputError for fewer than
-    MIN_DRIFT_HITS hits, or for non-finite values or errors.
-    """
+    """Consistency and trend of per-hit mu (module doc); ValueError for fewer than 4 hits."""
     values = np.asarray(mu, dtype=float)
     errors = np.asarray(mu_stderr, dtype=float)
     n = values.size
     if n < MIN_DRIFT_HITS:
-        raise BadInputError(f'per-hit mu need at least {MIN_DRIFT_HITS} hits to compare, got {n}')
+        raise BadInputError(
+            f'a trend of mu in hit order needs at least {MIN_DRIFT_HITS} hits, got {n}'
+        )
     if not (np.all(np.isfinite(values)) and np.all(errors > 0.0) and np.all(np.isfinite(errors))):
         raise BadInputError('per-hit mu and their standard errors must be finite, errors positive')
     weights = 1.0 / errors**2
     mean = float(np.sum(weights * values) / np.sum(weights))
     consistency = float(np.sum(weights * (values - mean) ** 2))
-    consistency_p = float(scipy.stats.chi2.sf(consistency, n - 1))
     hits = np.arange(n, dtype=float)
     design = np.column_stack((np.ones(n), hits))
     normal = design.T @ (weights[:, None] * design)
     covariance = np.linalg.inv(normal)
     intercept, slope = covariance @ (design.T @ (weights * values))
-    slope_error, p_value = math.sqrt(covariance[1, 1]), math.nan
-    if n >= MIN_TREND_HITS:
-        line = intercept + slope * hits
-        reduced = float(np.sum(weights * (values - line) ** 2)) / (n - 2)
-        slope_error *= math.sqrt(max(reduced, 1.0))
-        t = slope / slope_error if slope_error > 0.0 else math.inf
-        p_value = float(2.0 * scipy.stats.t.sf(abs(t), n - 2))
+    line = intercept + slope * hits
+    reduced = float(np.sum(weights * (values - line) ** 2)) / (n - 2)
+    covariance *= max(reduced, 1.0)
+    slope_error = math.sqrt(covariance[1, 1])
+    t = slope / slope_error if slope_error > 0.0 else math.inf
     return MuTrend(
         mu=tuple(float(v) for v in values),
         mu_stderr=tuple(float(e) for e in errors),
         refitted=refitted,
         consistency_chi2=consistency,
-        consistency_p_value=consistency_p,
+        consistency_p_value=float(scipy.stats.chi2.sf(consistency, n - 1)),
         slope_per_hit=float(slope),
         slope_stderr=slope_error,
         intercept=float(intercept),
-        p_value=p_value,
+        p_value=float(2.0 * scipy.stats.t.sf(abs(t), n - 2)),
     )

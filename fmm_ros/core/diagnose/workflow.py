@@ -15,9 +15,7 @@
    explains, the required score), removes at least `MIN_STEP_SHARE` of the squared gap left
    at that step, accounts for at least `MIN_EXCESS` of the noise RMS (sqrt of the fall of
    the squared excess over the motion), and, for `mu_drift`, the refitted per-hit mu trend
-   in hit order (p < `DRIFT_P_VALUE`) from `MIN_TREND_HITS` hits on, or with two or three
-   hits their own mu differing beyond their errors (consistency p < `DRIFT_P_VALUE`).
-   Repeat until no candidate qualifies.
+   in hit order (p < `DRIFT_P_VALUE`). Repeat until no candidate qualifies.
 5. Backward check: with two or more named, each is taken out in turn (the rest refitted);
    one whose removal costs less than the required score is dropped, and the check repeats.
 6. Verdict. The named set must at least halve the gap (`EXPLAINED_GAP`), or no vocabulary
@@ -37,7 +35,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from fmm_ros.constants import MU_DRIFT
-from fmm_ros.core.diagnose.drift import MIN_DRIFT_HITS, MIN_TREND_HITS, MuTrend, per_hit_mu
+from fmm_ros.core.diagnose.drift import MIN_DRIFT_HITS, MuTrend, mu_trend
 from fmm_ros.core.diagnose.friction_map import (
     HIT_GUARD_S,
     FrictionMap,
@@ -120,9 +118,7 @@ is not what a diagnosis of the rig is for; a right answer leaves 0.0-0.15.)"""
 
 
 DRIFT_P_VALUE = 1e-3
-"""mu_drift is named only when the per-hit mu trend in hit order at least this significantly
-(from MIN_TREND_HITS hits; with fewer, when their mu differ from one another this
-significantly)."""
+"""mu_drift is named only when the per-hit mu trend in hit order at least this significantly."""
 
 
 SCREEN_FRACTION = 0.5
@@ -159,7 +155,7 @@ def diagnose(
     impacts: records with force_n, velocity_m_s and sample_rate_hz (CSV or simulated impact
     records) or ConditionedImpacts, in hit order (mu_drift looks for a trend in it); every
     one is fitted at once. candidates: effects to consider (default: every one of EFFECTS,
-    mu_drift from MIN_DRIFT_HITS hits). fit_initial_position: every model also fits
+    mu_drift only from MIN_DRIFT_HITS hits). fit_initial_position: every model also fits
     where each impact starts (a hit that found the rig held off centre by friction), as
     `fmm fit --fit-initial-position` does. progress: called with a line of text after each
     screen, refit and selection step. Raises ValueError naming the problem for bad input
@@ -225,7 +221,8 @@ def _checked_candidates(candidates: Sequence[str] | None, hits: int) -> tuple[st
         )
     if MU_DRIFT in candidates and hits < MIN_DRIFT_HITS:
         raise BadInputError(
-            f'{MU_DRIFT} needs at least {MIN_DRIFT_HITS} impacts to compare their mu, got {hits}'
+            f'{MU_DRIFT} needs at least {MIN_DRIFT_HITS} impacts to see a trend in hit '
+            f'order, got {hits}'
         )
     return tuple(dict.fromkeys(candidates))
 
@@ -496,15 +493,10 @@ class _Session:
                     f'{candidate.effect} scores {candidate.score:.0f} but accounts for only '
                     f'{size:.2f}x the noise RMS'
                 )
-            elif candidate.effect == MU_DRIFT and not _drifts(trend := _trend(model)):
+            elif candidate.effect == MU_DRIFT and (trend := _trend(model)).p_value >= DRIFT_P_VALUE:
                 reasons.append(
                     f'one mu does not serve every hit (score {candidate.score:.0f}), but the '
-                    + (
-                        f'per-hit mu show no trend in hit order (p = {trend.p_value:.2g})'
-                        if len(trend.mu) >= MIN_TREND_HITS
-                        else 'per-hit mu do not differ beyond their errors '
-                        f'(p = {trend.consistency_p_value:.2g})'
-                    )
+                    f'per-hit mu show no trend in hit order (p = {trend.p_value:.2g})'
                 )
             else:
                 return (candidate, model), ''
@@ -674,7 +666,7 @@ class _Session:
         if screen is None:
             every = Linearisation(self.impacts, model, self.fit_initial_position)
             screen = screen_drift(every, self.noise)
-        return per_hit_mu(screen.mu_per_hit, screen.mu_per_hit_stderr, refitted=False)
+        return mu_trend(screen.mu_per_hit, screen.mu_per_hit_stderr, refitted=False)
 
     def _full_residuals(
         self, records: Sequence[ConditionedImpact], model: SessionModel
@@ -723,17 +715,7 @@ class _Session:
 
 def _trend(model: SessionModel) -> MuTrend:
     """The refitted per-hit mu of a model with mu_drift, and their trend."""
-    return per_hit_mu(model.mus, model.mu_stderrs, refitted=True)
-
-
-def _drifts(trend: MuTrend) -> bool:
-    """Whether per-hit mu drift: a significant trend, or mu that differ beyond their errors.
-
-    The trend from MIN_TREND_HITS hits on; with two or three hits, their consistency.
-    """
-    if len(trend.mu) >= MIN_TREND_HITS:
-        return trend.p_value < DRIFT_P_VALUE
-    return trend.consistency_p_value < DRIFT_P_VALUE
+    return mu_trend(model.mus, model.mu_stderrs, refitted=True)
 
 
 def _own_parameters(model: SessionModel, effect: str) -> tuple[ParameterEstimate, ...]:
