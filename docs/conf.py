@@ -73,9 +73,21 @@ def _bars_as_text(app, what, name, obj, options, lines: list[str]) -> None:
     lines[:] = [_BAR.sub(r'\\|', line) for line in lines]
 
 
+def _skip_foreign(app, what, name, obj, skip, options) -> bool | None:
+    """Leave out members a class gets from another library (matplotlib's generated `set`).
+
+    Their docstrings are written for that library's own documentation build.
+    """
+    module = getattr(obj, '__module__', None)
+    if what == 'class' and isinstance(module, str) and not module.startswith('fmm_ros'):
+        return True
+    return None
+
+
 def setup(app) -> None:
-    """Connect the docstring hook."""
+    """Connect the docstring hooks."""
     app.connect('autodoc-process-docstring', _bars_as_text)
+    app.connect('autodoc-skip-member', _skip_foreign)
 
 
 sphinx_gallery_conf = {

@@ -74,7 +74,7 @@ def test_interface_parser_groups_fields_under_their_comment():
     ]
     assert [(g.comment, g.fields) for g in response.groups] == [([], ['bool ok'])]
     with pytest.raises(ValueError, match='not a field'):
-        parse_interface('this is no field\n')
+        parse_interface('float64[ mu\n')
 
 
 @pytest.fixture(scope='module')
