@@ -40,7 +40,9 @@ myst_heading_anchors = 3
 myst_enable_extensions = ['colon_fence', 'deflist']
 
 autosummary_generate = True
-autodoc_default_options = {'members': True, 'show-inheritance': True}
+# Packages re-export their modules' names (`__all__`); each object is documented once, in the
+# module that defines it, so a reference to it has one target.
+autodoc_default_options = {'members': True, 'show-inheritance': True, 'ignore-module-all': True}
 autodoc_member_order = 'bysource'
 autodoc_typehints = 'description'
 autodoc_typehints_format = 'short'
