@@ -17,6 +17,8 @@ NODES = {
     'recorder': 'fmm_ros.ros.nodes.recorder:main',
     'player': 'fmm_ros.ros.nodes.player:main',
     'daq': 'fmm_ros.ros.nodes.daq:main',
+    'live': 'fmm_ros.ros.nodes.live:main',
+    'foxglove_server': 'fmm_ros.ros.nodes.foxglove_server:main',
 }
 
 
@@ -48,6 +50,7 @@ setup(
         (f'share/{PACKAGE}', ['package.xml']),
         (f'share/{PACKAGE}/config', glob('config/*.yaml')),
         (f'share/{PACKAGE}/config/sros2', glob('config/sros2/*.xml')),
+        (f'share/{PACKAGE}/config/foxglove', glob('config/foxglove/*.json')),
         (f'share/{PACKAGE}/launch_scripts', glob('launch_scripts/*.py')),
         # `ros2 launch fmm_ros sim_rig.launch.xml` in a sourced workspace.
         (f'share/{PACKAGE}/launch', glob('launch/*.launch.xml')),
@@ -72,6 +75,7 @@ setup(
         'tqdm',
         'matplotlib',
         'pillow',
+        'foxglove-sdk',
         'dask',
         'distributed',
         'pyarrow',

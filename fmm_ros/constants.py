@@ -22,6 +22,12 @@ FORCE = Channel('force', 'N')
 VELOCITY = Channel('velocity', 'm/s')
 """The laser vibrometer's velocity channel."""
 CHANNELS: tuple[Channel, ...] = (FORCE, VELOCITY)
+ACCELERATION = Channel('acceleration', 'm/s^2')
+"""An accelerometer's channel: published on the response (velocity) topic in its place."""
+DISPLACEMENT = Channel('displacement', 'm')
+"""A displacement sensor's channel, likewise."""
+RESPONSE_CHANNELS: tuple[Channel, ...] = (VELOCITY, ACCELERATION, DISPLACEMENT)
+"""What the response topic may carry; a SampleBatch's quantity says which."""
 
 # -- acquisition (the paper's Sec. 4) -----------------------------------------------------------
 SAMPLE_RATE_HZ = 10_000.0
@@ -68,6 +74,12 @@ what the diagnosis names and the proof data (`fmm_ros.sim.hidden_effects`) hide 
 # without cross-talk. Bags hold the resolved names; readers find a channel by its name's tail.
 FORCE_TOPIC = 'fmm/force'
 VELOCITY_TOPIC = 'fmm/velocity'
+LIVE_TOPICS = {FORCE.quantity: 'fmm/live/force', VELOCITY.quantity: 'fmm/live/velocity'}
+"""Each channel decimated for live plots (DisplayPoint, one point per message), by quantity:
+what Foxglove, PlotJuggler and the station page plot (the live node publishes them)."""
+CLOCK_TOPIC = '/clock'
+"""Signal time (rosgraph_msgs/Clock), published by the source: the one time base of the
+graph's stamps, absolute as ROS sim time has it (`fmm_ros.ros.timebase`)."""
 APPLIED_FORCE_TOPIC = 'fmm/sim/applied_force'
 """Simulation only: the force the hammer applies (noise-free), which drives rig_sim."""
 IMPACTS_TOPIC = 'fmm/impacts'
@@ -88,6 +100,7 @@ RECORDED_TOPICS = (
     FRF_TOPIC,
     FRICTION_TOPIC,
     DIAGNOSTICS_TOPIC,
+    CLOCK_TOPIC,
 )
 """What the recorder (and `fmm record`) records unless told otherwise."""
 

@@ -5,8 +5,9 @@
 #
 # Each step is skipped when the inputs it depends on are unchanged (hashes kept in
 # .venv/.fmm_setup/), so a re-run with nothing changed takes about a second.
-# Writes only inside the repo (.venv/, build/); pip keeps no cache outside it. The one
-# exception is Debian's chromium, installed system-wide with apt-get when missing (step 5).
+# Writes only inside the repo (.venv/, build/, test/foxglove_client/node_modules/); pip and
+# npm keep no cache outside it. The exceptions are Debian's chromium (step 6), and node and
+# npm (step 7), installed system-wide with apt-get when missing.
 set -euo pipefail
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -119,6 +120,30 @@ if ! command -v chromium >/dev/null; then
     die "installing chromium with apt-get failed; full log in $log"
   fi
   command -v chromium >/dev/null || die "apt-get installed chromium, but no chromium is on PATH"
+fi
+
+# 7. Foxglove's own WebSocket protocol client (npm: @foxglove/ws-protocol and its ROS 2
+#    decoder), which test/test_foxglove.py runs with node as an independent consumer of the
+#    Foxglove server: `npm ci` from the lock file into test/foxglove_client/node_modules,
+#    npm's cache kept in build/; skipped while the lock file is unchanged. Offline at run time.
+CLIENT="$ROOT/test/foxglove_client"
+client_key=$(inputs_hash "$CLIENT/package.json" "$CLIENT/package-lock.json")
+if ! is_current npm_client "$client_key" || [ ! -d "$CLIENT/node_modules" ]; then
+  if ! command -v npm >/dev/null; then
+    [ "$(id -u)" -eq 0 ] && command -v apt-get >/dev/null || die "node and npm are not installed (the Foxglove client test needs them): run 'sudo apt-get install nodejs npm', then this script again"
+    say "installing Debian's nodejs and npm (the Foxglove client test)"
+    mkdir -p "$ROOT/build"
+    (export DEBIAN_FRONTEND=noninteractive; apt-get update -q && apt-get install -y -q --no-install-recommends nodejs npm) >"$ROOT/build/apt-node.log" 2>&1 \
+      || { tail -n 20 "$ROOT/build/apt-node.log" >&2; die "installing nodejs and npm with apt-get failed; full log in $ROOT/build/apt-node.log"; }
+  fi
+  say "installing Foxglove's protocol client (npm ci in test/foxglove_client)"
+  mkdir -p "$ROOT/build"
+  log="$ROOT/build/npm-client.log"
+  if ! (cd "$CLIENT" && npm ci --no-audit --no-fund --cache "$ROOT/build/npm-cache") >"$log" 2>&1; then
+    tail -n 20 "$log" >&2
+    die "npm ci in test/foxglove_client failed; full log in $log"
+  fi
+  mark_current npm_client "$client_key"
 fi
 
 say "ready: $VENV (python: $VENV/bin/python, CLI: $VENV/bin/fmm)"

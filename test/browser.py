@@ -37,6 +37,12 @@ _IMAGES_JS = """() => Array.from(document.images, image => ({
     alt: image.getAttribute('alt'), complete: image.complete,
     natural_width: image.naturalWidth, natural_height: image.naturalHeight,
     figure_id: image.closest('figure') ? image.closest('figure').id : null}))"""
+# The page's height as loaded, then with every <details> opened (as a reader clicking them).
+_HEIGHTS_JS = """() => {
+    const folded = document.documentElement.scrollHeight;
+    for (const details of document.querySelectorAll('details')) { details.open = true; }
+    return [folded, document.documentElement.scrollHeight];
+}"""
 _TAG_COUNTS_JS = """() => {
     const counts = {};
     for (const element of document.getElementsByTagName('*')) {
@@ -70,6 +76,8 @@ class Visit:
     dialogs: list[str]  # 'type: message' of every alert/confirm/prompt that opened
     images: list[Image]
     tag_counts: dict[str, int]  # elements of the document by tag name
+    height_px: int  # the page's height as loaded (folded <details> closed)
+    height_open_px: int  # its height once every <details> is opened
 
 
 def chromium_path() -> str:
@@ -117,15 +125,20 @@ def visit(page_path: str | Path) -> Visit:
             page.on('dialog', on_dialog)
             page.goto(url, wait_until='load', timeout=TIMEOUT_MS)
             images = [Image(**image) for image in page.evaluate(_IMAGES_JS)]
+            tags = page.evaluate(_TAG_COUNTS_JS)
+            body_text = page.inner_text('body')
+            height_px, height_open_px = page.evaluate(_HEIGHTS_JS)
             return Visit(
                 title=page.title(),
-                body_text=page.inner_text('body'),
+                body_text=body_text,
                 console=console,
                 page_errors=page_errors,
                 failed_requests=failed,
                 dialogs=dialogs,
                 images=images,
-                tag_counts=page.evaluate(_TAG_COUNTS_JS),
+                tag_counts=tags,
+                height_px=height_px,
+                height_open_px=height_open_px,
             )
         finally:
             browser.close()

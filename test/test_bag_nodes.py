@@ -18,6 +18,7 @@ from fmm_ros.ros.nodes.rig_sim import RigSim
 from fmm_ros.workflows.replay import replay_bag
 
 pytestmark = pytest.mark.ros
+CLOCK, DIAG = 'rosgraph_msgs/msg/Clock', 'diagnostic_msgs/msg/DiagnosticArray'
 
 
 @pytest.fixture(scope='module')
@@ -52,6 +53,7 @@ def test_the_recorded_bag_holds_every_topic_and_is_closed(recorded_session):
             '/fmm/frf',
             '/fmm/friction',
             '/diagnostics',
+            '/clock',
         }
         assert reader.topics['/fmm/impacts'].count == len(live) == 3
         assert not reader.problems
@@ -65,6 +67,26 @@ def test_the_recorded_bag_holds_every_topic_and_is_closed(recorded_session):
         assert force.acquisitions == [[0, 1000 * len(indices)]]
         assert force.received_samples == 1000 * len(indices)
         assert (force.missing_samples, force.refused_batches, force.resyncs) == (0, 0, 0)
+
+
+def test_every_stamp_in_the_bag_is_signal_time(recorded_session):
+    """One time base: /clock, /diagnostics and the results are stamped in the samples' time.
+
+    At x100 signal time runs 100 times faster than the wall clock, so a wall-clock stamp
+    (as /diagnostics had) would lie seconds after the start while the hits lie up to 17 s.
+    """
+    bag, live, _ = recorded_session
+    with BagReader(bag) as reader:
+        force = list(reader.channel('/fmm/force'))
+        clock = [msgs.stamp_ns(m.clock) for _, m in reader.decoded('/clock', CLOCK)]
+        health = [msgs.stamp_ns(m.header.stamp) for _, m in reader.decoded('/diagnostics', DIAG)]
+    start_ns = force[0].stamp_ns  # sample 0 of the acquisition
+    end_ns = start_ns + (force[-1].first_sample_index + len(force[-1].samples)) * 100_000
+    # The source runs at most its flow window (4 s of signal) ahead of what the recorder took.
+    assert clock == sorted(clock) and start_ns < clock[0] and clock[-1] <= end_ns + 4 * 10**9
+    last_hit_ns = msgs.stamp_ns(live[-1].header.stamp)
+    assert start_ns + 16 * 10**9 < last_hit_ns  # the third hit, 17 s into the signal
+    assert last_hit_ns <= health[-1] <= end_ns + 4 * 10**9
 
 
 def test_bag_info_shows_the_ledger_and_the_health_the_bag_holds(recorded_session, capsys):
@@ -119,7 +141,7 @@ def test_the_player_replays_the_session_into_a_live_analyzer(recorded_session):
 def test_player_names_what_a_bag_lacks(recorded_session, ros_graph):
     bag, _, _ = recorded_session
     with pytest.raises(
-        ValueError, match='has no topic /fmm/torque; it has /diagnostics, /fmm/force'
+        ValueError, match='has no topic /fmm/torque; it has /clock, /diagnostics, /fmm/force'
     ):
         ros_graph.add(Player, parameter_overrides=params(bag_path=str(bag), topics=['/fmm/torque']))
     with pytest.raises(ValueError, match='set the bag_path parameter'):

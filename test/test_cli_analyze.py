@@ -83,9 +83,15 @@ def test_clustering_text_report_and_exports(series, capsys, tmp_path):
     assert code == 0
     assert 'hit_5.csv' in out and 'level_4' in out  # 1900 N is a level of its own
     assert 'linearity:' in out
-    assert uff.read_text().count('\n    58') == 4 * 5  # 4 levels x 5 curves
-    header = csv.read_text().splitlines()[0]
-    assert header.startswith('frequency_hz,level_1_mean_mobility_real')
+    assert uff.read_text().count('\n    58') == 4 * 9  # 4 levels x 9 curves
+    header = csv.read_text().splitlines()[0].split(',')
+    assert header[:2] == ['frequency_hz', 'level_1_mean_mobility_real']
+    for estimator in ('h1', 'h2'):
+        for form in ('accelerance', 'mobility', 'receptance'):
+            assert {f'level_4_{estimator}_{form}_real', f'level_4_{estimator}_{form}_imag'} < set(
+                header
+            )
+    assert 'level_4_coherence' in header
 
 
 def test_rejection_is_configurable(tmp_path, capsys):

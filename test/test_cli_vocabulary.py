@@ -33,8 +33,10 @@ DIMENSIONLESS = {
     '--dpi',
     '--force-scale',  # SI units per file unit: the unit is the file's
     '--velocity-scale',
+    '--acceleration-scale',
+    '--displacement-scale',
 }
-SI_SUFFIXES = ('-n', '-s', '-hz', '-kg', '-m', '-m-s', '-n-per-m', '-n-s-per-m')
+SI_SUFFIXES = ('-n', '-s', '-hz', '-kg', '-m', '-m-s', '-m-s2', '-n-per-m', '-n-s-per-m')
 HIT_SELECTION = {
     '--paper-levels',
     '--level',

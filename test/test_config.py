@@ -5,7 +5,17 @@ from pathlib import Path
 import pytest
 import yaml
 
-from fmm_ros.ros.nodes import analyzer, daq, fitter, hammer_sim, player, recorder, rig_sim
+from fmm_ros.ros.nodes import (
+    analyzer,
+    daq,
+    fitter,
+    foxglove_server,
+    hammer_sim,
+    live,
+    player,
+    recorder,
+    rig_sim,
+)
 from fmm_ros.ros.params_file import node_param_tables, params_file_text
 
 pytestmark = pytest.mark.ros
@@ -13,7 +23,17 @@ pytestmark = pytest.mark.ros
 CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'fmm_rig.yaml'
 NODES = {
     module.__name__.rsplit('.', 1)[1]: module
-    for module in (hammer_sim, rig_sim, analyzer, fitter, recorder, player, daq)
+    for module in (
+        hammer_sim,
+        rig_sim,
+        analyzer,
+        fitter,
+        recorder,
+        player,
+        daq,
+        live,
+        foxglove_server,
+    )
 }
 
 

@@ -4,11 +4,16 @@ import sys
 
 import numpy as np
 import pytest
+from accelerometer_records import session, write_csv
+from rclpy.node import Node
 from rig_graph import FAST_ANALYZER, Listener, params, wait_for
 
+from fmm_interfaces.srv import FitFriction
+from fmm_ros.constants import FIT_SERVICE
 from fmm_ros.core.signal.records import write_impact_csv
 from fmm_ros.ros.nodes.analyzer import Analyzer
 from fmm_ros.ros.nodes.daq import Daq
+from fmm_ros.ros.nodes.fitter import Fitter
 from fmm_ros.sim.excitation import impact_record
 
 pytestmark = pytest.mark.ros
@@ -57,3 +62,33 @@ def test_nidaqmx_backend_without_the_driver_says_what_to_install(ros_graph, monk
     monkeypatch.setitem(sys.modules, 'nidaqmx', None)  # as on a machine without nidaqmx
     with pytest.raises(RuntimeError, match='pip install nidaqmx'):
         ros_graph.add(Daq)
+
+
+@pytest.mark.slow
+def test_an_accelerometer_session_streams_through_analyzer_and_fitter(ros_graph, tmp_path):
+    """Acceleration on the response topic: flags on it, FRFs from it, mu from its integral."""
+    mu = 0.113
+    hits = session(mu, seed=4)
+    path = write_csv(
+        tmp_path / 'session.csv',
+        np.concatenate([force for force, _ in hits]),
+        np.concatenate([acceleration for _, acceleration in hits]),
+    )
+    ros_graph.add(
+        Daq,
+        parameter_overrides=params(
+            backend='file', file_path=str(path), rate_factor=100.0, batch_size=1000
+        ),
+    )
+    ros_graph.add(Analyzer, parameter_overrides=params(**FAST_ANALYZER))
+    fitter = ros_graph.add(Fitter)
+    listener = ros_graph.add(Listener)
+    client = ros_graph.add(Node, node_name='caller').create_client(FitFriction, FIT_SERVICE)
+    ros_graph.start()
+    assert wait_for(lambda: len(fitter.impacts) == 3), f'{len(listener.impacts)} reported'
+    assert all(impact.accepted for impact in listener.impacts), [
+        tuple(impact.flags) for impact in listener.impacts
+    ]
+    response = ros_graph.call(client, FitFriction.Request(), timeout_s=120.0)
+    assert response.success, response.message
+    assert response.mu == pytest.approx(mu, rel=0.005)

@@ -99,7 +99,7 @@ def test_format_from_suffix_and_refusals(tmp_path):
 def test_curves_from_a_summary_and_from_impacts():
     rate, n = 1000.0, 4000
     force = np.zeros(n)
-    force[100:105] = [0, 300, 450, 300, 0]
+    force[100:112] = 450 * np.sin(np.pi * np.arange(12) / 11)  # 10 samples of contact
     velocity = np.zeros(n)
     velocity[103:900] = 0.01 * np.sin(np.arange(797) / 50) * np.exp(-np.arange(797) / 100)
     results: list[ImpactAnalysis] = [
@@ -111,11 +111,20 @@ def test_curves_from_a_summary_and_from_impacts():
     assert [c.name for c in curves] == [
         'level_1 mean mobility',
         'level_1 mean receptance',
+        'level_1 H1 accelerance',
         'level_1 H1 mobility',
+        'level_1 H1 receptance',
+        'level_1 H2 accelerance',
         'level_1 H2 mobility',
+        'level_1 H2 receptance',
         'level_1 coherence',
     ]
-    np.testing.assert_array_equal(curves[2].values, summary.levels[0].h1_mobility)
+    np.testing.assert_array_equal(curves[3].values, summary.levels[0].h1_mobility)
+    omega = 2j * np.pi * curves[3].frequency_hz
+    np.testing.assert_allclose(curves[2].values, omega * summary.levels[0].h1_mobility)
+    np.testing.assert_allclose(
+        curves[7].values[1:] * omega[1:], summary.levels[0].h2_mobility[1:], rtol=1e-12
+    )
     assert [c.name for c in impact_curves(summary.impacts)] == [
         'impact 0 level_1 mobility',
         'impact 1 level_1 mobility',

@@ -199,7 +199,8 @@ def test_a_yaml_mapping_file(tmp_path):
     )
     mapping = ImportMapping.from_dict(load_mapping(path))
     assert mapping.force == ChannelMapping('Hammer', 'lbf')
-    assert mapping.velocity.scale == 0.125 and mapping.sample_rate_hz == FS
+    assert mapping.response.scale == 0.125 and mapping.response_quantity == 'velocity'
+    assert mapping.sample_rate_hz == FS
 
 
 @pytest.mark.parametrize(

@@ -27,6 +27,7 @@ ROSDEP_KEYS = {
     'distributed': 'python3-distributed-pip',
     'diagnostic_msgs': 'diagnostic_msgs',
     'fmm_interfaces': 'fmm_interfaces',
+    'foxglove': 'python3-foxglove-sdk-pip',
     'h5py': 'python3-h5py',
     'lz4': 'python3-lz4',
     'matplotlib': 'python3-matplotlib',
@@ -39,6 +40,7 @@ ROSDEP_KEYS = {
     'pyuff': 'python3-pyuff-pip',
     'rcl_interfaces': 'rcl_interfaces',
     'rclpy': 'rclpy',
+    'rosgraph_msgs': 'rosgraph_msgs',
     'rosbags': 'python3-rosbags-pip',
     'scipy': 'python3-scipy',
     'std_msgs': 'std_msgs',
@@ -115,6 +117,7 @@ FROM_ROS = {
     'fmm_interfaces',
     'rcl_interfaces',
     'rclpy',
+    'rosgraph_msgs',
     'std_msgs',
 }
 # Keys the ROS rosdep database (rosdistro's base.yaml and python.yaml) or the ROS distribution
@@ -134,7 +137,7 @@ ROS_KEYS = FROM_ROS | {
     'python3-yaml',
 }
 
-PYPI_NAMES = {'PIL': 'pillow', 'yaml': 'pyyaml'}
+PYPI_NAMES = {'PIL': 'pillow', 'yaml': 'pyyaml', 'foxglove': 'foxglove-sdk'}
 """PyPI names of the imports whose distribution is named otherwise."""
 
 

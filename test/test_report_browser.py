@@ -135,6 +135,22 @@ def test_a_hostile_title_and_file_name_are_shown_as_text_never_run(tmp_path):
     assert all(image.figure_id for image in seen.images)
     hit_alt = next(image.alt for image in seen.images if image.figure_id == 'fig-hit_000')
     assert f'{HOSTILE_NAME}.csv' in hit_alt
+    # One hit: its level's coherence is not drawn as a flat 1; the page and the figure say why.
+    assert 'Coherence is not drawn: level medium has one hit' in seen.body_text
+    coherence = next(i.alt for i in seen.images if i.figure_id == 'fig-coherence_medium')
+    assert 'coherence needs two hits: level medium has one' in coherence
+
+
+def test_each_hit_is_folded_under_a_line_and_opens_to_its_figure(session):
+    """The per-hit figures made the page 45,000 pixels long: each is now a <details>."""
+    _, seen = session
+    hits = [image for image in seen.images if image.figure_id.startswith('fig-hit_')]
+    assert len(hits) >= 7
+    assert seen.tag_counts['details'] == seen.tag_counts['summary'] == len(hits)
+    assert re.search(r'hit 0 · \w+ · accepted · peak [0-9.]+ N, impulse', seen.body_text)
+    assert 'rejected: double_hit' in seen.body_text
+    opened = seen.height_open_px - seen.height_px
+    assert opened > 0.5 * sum(image.natural_height for image in hits), (seen.height_px, opened)
 
 
 def test_level_names_flagged_files_and_a_damaged_bag_with_markup_stay_text(tmp_path):

@@ -25,7 +25,7 @@ HOSTILE_NAME = '"><img src=x onerror=alert(4)>'  # a file name cannot hold a sla
 PAGE_TAGS = {
     'html', 'head', 'meta', 'title', 'style', 'body', 'h1', 'h2', 'h3', 'p', 'nav', 'ul',
     'li', 'a', 'b', 'table', 'thead', 'tbody', 'tr', 'th', 'td', 'figure', 'img',
-    'figcaption',
+    'figcaption', 'details', 'summary',
 }  # fmt: skip
 
 

@@ -202,7 +202,8 @@ def test_a_restart_mid_recording_gives_the_records_of_both_acquisitions():
     """The capture ends the open record flagged, starts again at once, reports later hits."""
     config = CaptureConfig(window_s=3.0, min_spacing_s=0.5, max_skew_s=1.0)
     n = 10_000
-    force, velocity = hits(n, RATE, [(1000, 450.0), (6000, 1000.0)], zeta=0.05)
+    # 8 ms pulses: 8 samples at 1 kHz, not the coarse ones the flag is for.
+    force, velocity = hits(n, RATE, [(1000, 450.0), (6000, 1000.0)], zeta=0.05, duration_s=0.008)
     capture = ImpactCapture(config)
     records = []
     first_origin, second_origin = ORIGIN_NS, ORIGIN_NS + 60 * 10**9

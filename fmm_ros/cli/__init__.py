@@ -19,6 +19,7 @@ SUBCOMMANDS: tuple[str, ...] = (
     'report',
     'replay',
     'record',
+    'foxglove',
     'import_lab',
     'bag_info',
     'export',

@@ -11,7 +11,6 @@ executables are found.
 from __future__ import annotations
 
 import argparse
-import importlib.metadata
 import os
 import re
 import shlex
@@ -43,6 +42,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def ros_distro() -> str:
     """The ROS distribution of the installed rclpy wheel (its name: ros-<distro>-rclpy)."""
+    import importlib.metadata  # here: 40 ms that `fmm --help` need not pay
+
     for distribution in importlib.metadata.distributions():
         match = _DISTRO_WHEEL.match((distribution.metadata['Name'] or '').lower())
         if match:

@@ -28,6 +28,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from fmm_ros.constants import RESPONSE_CHANNELS
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.settings import Setting, setting_of
 from fmm_ros.core.signal.config import (
@@ -43,9 +44,22 @@ if TYPE_CHECKING:
     from fmm_ros.workflows.inputs import InputOptions
     from fmm_ros.workflows.session import FitOptions
 
-QUANTITIES = ('force', 'velocity')
-FULL_SCALE_FLAGS = {'force': '--force-full-scale-n', 'velocity': '--velocity-full-scale-m-s'}
-FULL_SCALE_DESTS = {'force': 'force_full_scale_n', 'velocity': 'velocity_full_scale_m_s'}
+QUANTITIES = ('force', *(channel.quantity for channel in RESPONSE_CHANNELS))
+FULL_SCALE_FLAGS = {
+    'force': '--force-full-scale-n',
+    'velocity': '--velocity-full-scale-m-s',
+    'acceleration': '--acceleration-full-scale-m-s2',
+    'displacement': '--displacement-full-scale-m',
+}
+FULL_SCALE_DESTS = {
+    quantity: flag[2:].replace('-', '_') for quantity, flag in FULL_SCALE_FLAGS.items()
+}
+FULL_SCALE_HELP = {
+    'force': 'force sensor range [N]',
+    'velocity': 'vibrometer range [m/s]',
+    'acceleration': 'accelerometer range [m/s^2]',
+    'displacement': 'displacement sensor range [m]',
+}
 
 
 class DeprecatedAlias(argparse.Action):
@@ -137,9 +151,11 @@ def add_lab_file_reading(parser: argparse.ArgumentParser) -> None:
     """How lab files are read (mapping, text layout, full scales, continuous): add_inputs'."""
     group = parser.add_argument_group(
         'reading lab files',
-        'Which channel is force, velocity and time, in which unit, at which rate: stated here '
-        'or in a mapping file (as fmm import), else taken from the file where it says so '
-        '(names time_s, force_n, velocity_m_s; a units row; "Hammer [lbf]"; TDMS units).',
+        'Which channel is force, the response (velocity, acceleration or displacement) and '
+        'time, in which unit, at which rate: stated here or in a mapping file (as fmm '
+        'import), else taken from the file where it says so (names time_s, force_n, '
+        'velocity_m_s, acceleration_m_s2, displacement_m; a units row; "Hammer [lbf]"; TDMS '
+        'units).',
     )
     add_mapping_flags(group)
     add_full_scale_flags(group)
@@ -196,21 +212,16 @@ def add_mapping_flags(group) -> None:
 
 
 def add_full_scale_flags(group) -> None:
-    """--force-full-scale-n and --velocity-full-scale-m-s (SI), for the clipped flag."""
-    group.add_argument(
-        FULL_SCALE_FLAGS['force'],
-        type=float,
-        default=0.0,
-        metavar='N',
-        help='force sensor range [N], for the clipped flag (default: as recorded, or unknown)',
-    )
-    group.add_argument(
-        FULL_SCALE_FLAGS['velocity'],
-        type=float,
-        default=0.0,
-        metavar='M_S',
-        help='vibrometer range [m/s], for the clipped flag (default: as recorded, or unknown)',
-    )
+    """--force-full-scale-n and the response sensors' ranges (SI), for the clipped flags."""
+    for quantity, flag in FULL_SCALE_FLAGS.items():
+        group.add_argument(
+            flag,
+            type=float,
+            default=0.0,
+            metavar=flag.rsplit('-scale-', 1)[1].upper().replace('-', '_'),
+            help=f'{FULL_SCALE_HELP[quantity]}, for the clipped/saturated flag (default: as '
+            'recorded, or unknown)',
+        )
 
 
 def mapping_spec(args: argparse.Namespace) -> dict:

@@ -67,6 +67,16 @@ def setting(
     return dataclasses.field(default=default, metadata={_KEY: meta})
 
 
+def result_field(*, help: str, unit: str = '') -> Any:
+    """A dataclass field of a result (no default) that carries its unit and help.
+
+    `settings_of` lists these too (their default is `dataclasses.MISSING`): the reference
+    docs and the record of a hit are made from them.
+    """
+    meta = {'unit': unit, 'help': help, 'limits': None, 'choices': (), 'flag': ''}
+    return dataclasses.field(metadata={_KEY: meta})
+
+
 def settings_of(cls_or_instance: Any) -> tuple[Setting, ...]:
     """The declared settings of a settings dataclass, in field order (with its defaults).
 

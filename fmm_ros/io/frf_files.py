@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from fmm_ros.core.signal.analysis import ImpactAnalysis, Summary
+from fmm_ros.core.signal.response import FRF_FORMS, VELOCITY, convert_spectrum
 from fmm_ros.errors import BadInputError
 
 
@@ -70,17 +71,30 @@ class FrfCurve:
 
 
 def level_curves(summary: Summary) -> list[FrfCurve]:
-    """Every level's plain-mean mobility and receptance, H1 and H2 mobility, and coherence."""
+    """Every level's plain-mean mobility and receptance, H1 and H2 in all forms, coherence.
+
+    The forms are accelerance, mobility and receptance, whatever the sensor measured. In a
+    CSV they are the columns `{level}_h1_{form}_real/_imag`, `{level}_h2_...`,
+    `{level}_coherence` (and `{level}_mean_mobility_...`, `{level}_mean_receptance_...`).
+    """
     curves = []
     for level in summary.levels:
         axis = level.frequency_hz
         curves += [
             FrfCurve(f'{level.level} mean mobility', 'mobility', axis, level.mobility),
             FrfCurve(f'{level.level} mean receptance', 'receptance', axis, level.receptance),
-            FrfCurve(f'{level.level} H1 mobility', 'mobility', axis, level.h1_mobility),
-            FrfCurve(f'{level.level} H2 mobility', 'mobility', axis, level.h2_mobility),
-            FrfCurve(f'{level.level} coherence', 'coherence', axis, level.coherence),
         ]
+        for estimator, mobility in (('H1', level.h1_mobility), ('H2', level.h2_mobility)):
+            curves += [
+                FrfCurve(
+                    f'{level.level} {estimator} {form}',
+                    form,
+                    axis,
+                    convert_spectrum(mobility, axis, VELOCITY, quantity),
+                )
+                for form, quantity in FRF_FORMS.items()
+            ]
+        curves.append(FrfCurve(f'{level.level} coherence', 'coherence', axis, level.coherence))
     return curves
 
 

@@ -36,17 +36,25 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from fmm_ros.constants import RESPONSE_CHANNELS
 from fmm_ros.core._checks import sample_rate_from_times
 from fmm_ros.core.signal.records import CSV_COLUMNS
+from fmm_ros.core.signal.response import RESPONSE_QUANTITIES, VELOCITY
 from fmm_ros.errors import BadInputError
 from fmm_ros.io import sniff
 from fmm_ros.io.bags.acquisitions import Acquisition, write_acquisitions
 from fmm_ros.io.bags.writer import DEFAULT_BATCH_SIZE, BagWriter
+from fmm_ros.io.stamps import backwards, stamp_rate
 from fmm_ros.io.textfiles import DETECT, TextFormat, read_table
 from fmm_ros.units import QUANTITY_UNITS, SI_UNITS, lookup_unit
 
-CANONICAL_NAMES = dict(zip(('time', 'force', 'velocity'), CSV_COLUMNS, strict=True))
-"""Names that state their quantity and SI unit: the per-impact CSV columns fmm writes."""
+CANONICAL_NAMES = {
+    **dict(zip(('time', 'force', 'velocity'), CSV_COLUMNS, strict=True)),
+    'acceleration': 'acceleration_m_s2',
+    'displacement': 'displacement_m',
+}
+"""Names that state their quantity and SI unit: the per-impact CSV columns fmm writes, and
+their acceleration and displacement kin."""
 _CANONICAL_UNITS = {name: SI_UNITS[quantity] for quantity, name in CANONICAL_NAMES.items()}
 SAMPLE_RATE_NAME = 'sample_rate_hz'
 """A scalar variable of this name (NPZ, MATLAB) is the sample rate when none is stated."""
@@ -110,41 +118,66 @@ class ChannelMapping:
 
 @dataclass(frozen=True)
 class ImportMapping:
-    """Force and velocity channels of a lab file and its sample rate (see module doc).
+    """Force and response channels of a lab file and its sample rate (see module doc).
 
-    sample_rate_hz: a number, or the name of a variable holding it; None to take it from
-    the time channel or, for TDMS, from the channels' wf_increment property.
+    response: the response sensor's channel, which measures response_quantity (velocity,
+    acceleration or displacement; YAML: a `velocity:`, `acceleration:` or `displacement:`
+    entry). sample_rate_hz: a number, or the name of a variable holding it; None to take it
+    from the time channel or, for TDMS, from the channels' wf_increment property.
     """
 
     force: ChannelMapping
-    velocity: ChannelMapping
+    response: ChannelMapping | None
     sample_rate_hz: float | str | None = None
     time: ChannelMapping | None = None
+    response_quantity: str = VELOCITY
 
     @classmethod
-    def from_dict(cls, spec: dict) -> 'ImportMapping':
-        """A mapping from its YAML form; unknown keys are errors, not silently ignored."""
+    def from_dict(cls, spec: dict, *, force_only: bool = False) -> 'ImportMapping':
+        """A mapping from its YAML form; unknown keys are errors, not silently ignored.
+
+        force_only: the response channel is not wanted (the hammer alone), and not read.
+        """
         if not isinstance(spec, dict):
             raise BadInputError(f'an import mapping is a YAML mapping, got {type(spec).__name__}')
-        unknown = set(spec) - {'force', 'velocity', 'sample_rate_hz', 'time'}
-        if unknown:
+        _check_keys(spec)
+        responses = [key for key in RESPONSE_QUANTITIES if key in spec]
+        if 'force' not in spec:
+            raise BadInputError('the mapping names no force channel (force: {name: ...})')
+        if force_only:
+            responses = responses[:1]
+        elif len(responses) != 1:
             raise BadInputError(
-                f'unknown mapping keys: {", ".join(sorted(unknown))} (known: '
-                'force, velocity, sample_rate_hz, time)'
+                'the mapping names '
+                + (
+                    f'{len(responses)} response channels ({", ".join(responses)})'
+                    if responses
+                    else 'no response channel'
+                )
+                + f'; name one of {", ".join(RESPONSE_QUANTITIES)} ({{name: ..., unit: ...}})'
             )
-        for key in ('force', 'velocity'):
-            if key not in spec:
-                raise BadInputError(f'the mapping names no {key} channel ({key}: {{name: ...}})')
         rate = spec.get('sample_rate_hz')
         return cls(
             _channel(spec['force'], 'force'),
-            _channel(spec['velocity'], 'velocity'),
+            None if force_only else _channel(spec[responses[0]], responses[0]),
             rate if isinstance(rate, str) or rate is None else float(rate),
             _channel(spec['time'], 'time') if spec.get('time') else None,
+            responses[0] if responses else VELOCITY,
         )
 
 
 CHANNEL_KEYS = ('name', 'unit', 'scale', 'full_scale', 'full_scale_si')
+MAPPING_KEYS = ('force', *RESPONSE_QUANTITIES, 'sample_rate_hz', 'time')
+
+
+def _check_keys(spec: dict) -> None:
+    """BadInputError naming a key of a mapping that is no channel or setting fmm knows."""
+    unknown = set(spec) - set(MAPPING_KEYS)
+    if unknown:
+        raise BadInputError(
+            f'unknown mapping keys: {", ".join(sorted(unknown))} (a channel of an unknown '
+            f'kind? known: {", ".join(MAPPING_KEYS)})'
+        )
 
 
 def _channel(spec, key: str) -> ChannelMapping:
@@ -207,6 +240,10 @@ class LabFile(ABC):
     def start_time_ns(self) -> int | None:
         """Acquisition start the file states (TDMS only)."""
         return None
+
+    def stamped(self, name: str) -> bool:
+        """Whether a channel holds date-time stamps, read as seconds (text files only)."""
+        return False
 
     def _missing(self, name: str) -> ValueError:
         return ValueError(
@@ -275,14 +312,23 @@ class CsvFile(LabFile):
         return self._values[:, column]
 
     def channel_unit(self, name: str) -> str | None:
-        """The column's cell in the units row, else the unit in its header, else its name's."""
+        """The column's cell in the units row, else the unit in its header, else its name's.
+
+        A column of date-time stamps is in seconds (since its first stamp).
+        """
         column = self._column(name)
+        if column in self.table.stamp_columns:
+            return 's'
         header = self.table.names[column]
         return self.table.units[column] or _split_unit(header)[1] or super().channel_unit(header)
 
     def layout(self) -> str:
         """How the text was read (delimiter, decimal, units row, encoding)."""
         return self.table.describe()
+
+    def stamped(self, name: str) -> bool:
+        """Whether the column holds date-time stamps."""
+        return self._column(name) in self.table.stamp_columns
 
 
 _HEADER_UNIT = re.compile(r'^(.*?)\s*[\[(]([^\[\]()]+)[\])]\s*$')
@@ -540,18 +586,24 @@ def open_lab_file(path: str | Path, text_format: TextFormat = DETECT) -> LabFile
 
 @dataclass
 class LabRecording:
-    """Force [N] and velocity [m/s] of one lab file on one sample clock, and how it was mapped."""
+    """Force [N] and response of one lab file on one sample clock, and how it was mapped.
+
+    response: the response sensor's samples in SI units of response_quantity (m/s for a
+    velocity, m/s^2 for an acceleration, m for a displacement); full_scale_response likewise.
+    """
 
     force_n: np.ndarray
-    velocity_m_s: np.ndarray
+    response: np.ndarray | None
+    """None when only the force was read (`read_lab_file(force_only=True)`)."""
     sample_rate_hz: float
     full_scale_force_n: float
-    full_scale_velocity_m_s: float
+    full_scale_response: float
     start_time_ns: int | None
     source: Path
     report: list[str] = field(default_factory=list)
     channel_names: dict[str, str] = field(default_factory=dict)
-    """The file's name of each quantity's channel ('force', 'velocity')."""
+    """The file's name of each quantity's channel ('force', and the response quantity)."""
+    response_quantity: str = VELOCITY
 
     @property
     def duration_s(self) -> float:
@@ -563,19 +615,25 @@ def read_lab_file(
     path: str | Path,
     mapping: ImportMapping | dict,
     text_format: TextFormat = DETECT,
+    *,
+    force_only: bool = False,
 ) -> LabRecording:
-    """Force and velocity of one lab file in SI, with the sample rate the mapping says.
+    """Force and response of one lab file in SI, with the sample rate the mapping says.
 
     mapping: an ImportMapping, or its YAML form with any part left out that the file states
-    itself (`mapping_for`).
+    itself (`mapping_for`). force_only: read the force alone (the response is None).
     """
     lab = open_lab_file(path, text_format)
     report = [f'{lab.path} ({lab.format}{", " + lab.layout() if lab.layout() else ""})']
     if not isinstance(mapping, ImportMapping):
-        mapping, notes = mapping_for(lab, mapping)
+        mapping, notes = mapping_for(lab, mapping, force_only=force_only)
         report += [f'  {note}' for note in notes]
     channels = {}
-    for quantity, spec in (('force', mapping.force), ('velocity', mapping.velocity)):
+    response = mapping.response_quantity
+    wanted = [('force', mapping.force)]
+    if mapping.response is not None:
+        wanted.append((response, mapping.response))
+    for quantity, spec in wanted:
         values = lab.vector(spec.name)
         factor, how = spec.factor(quantity, lab.channel_unit(spec.name))
         channels[quantity] = (values * factor, spec.full_scale_in_si(factor))
@@ -587,76 +645,96 @@ def read_lab_file(
                 f'  warning: {quantity} has {nans} NaN samples (kept; the analyzer '
                 'flags impacts over them)'
             )
-    force, velocity = channels['force'][0], channels['velocity'][0]
-    if len(force) != len(velocity):
+    force, values = channels['force'][0], channels.get(response, (None, 0.0))[0]
+    if values is not None and len(force) != len(values):
         raise BadInputError(
             f'{lab.path}: force {mapping.force.name!r} has {len(force)} samples '
-            f'but velocity {mapping.velocity.name!r} has {len(velocity)}'
+            f'but {response} {mapping.response.name!r} has {len(values)}'
         )
     rate, how = _sample_rate(lab, mapping, len(force))
     report.append(f'  sample rate: {rate:g} Hz ({how})')
     return LabRecording(
         force,
-        velocity,
+        values,
         rate,
         channels['force'][1],
-        channels['velocity'][1],
+        channels.get(response, (None, 0.0))[1],
         lab.start_time_ns(),
         lab.path,
         report,
-        {'force': mapping.force.name, 'velocity': mapping.velocity.name},
+        {quantity: spec.name for quantity, spec in wanted},
+        response,
     )
 
 
-def mapping_for(lab: LabFile, spec: dict) -> tuple[ImportMapping, list[str]]:
+def mapping_for(
+    lab: LabFile, spec: dict, *, force_only: bool = False
+) -> tuple[ImportMapping, list[str]]:
     """A mapping's YAML form completed from what the file states, and what was taken so.
 
     A channel the spec does not name is the file's one channel whose unit (stated in the
     file, `LabFile.channel_unit`) is a unit of that quantity; several or none is an error
-    that lists the channels. Without a stated rate, the one channel in time units becomes
-    the time channel, else a scalar variable `sample_rate_hz`, else TDMS's own increments.
+    that lists the channels. The response is velocity, acceleration or displacement: the one
+    channel of those kinds (canonical names first), unless the spec says which kind. Without
+    a stated rate, the one channel in time units becomes the time channel, else a scalar
+    variable `sample_rate_hz`, else TDMS's own increments. force_only: no response is sought.
     """
     spec = dict(spec)
+    _check_keys(spec)
     notes = []
     stated = {name: lab.channel_unit(name) for name in lab.names()}
+    given = [quantity for quantity in RESPONSE_QUANTITIES if spec.get(quantity)]
+    if len(given) > 1:
+        raise BadInputError(
+            f'{lab.path}: {len(given)} response channels given ({", ".join(given)}): '
+            'one sensor measures the response'
+        )
 
-    def channels_of(quantity: str) -> list[str]:
-        """The channel of the canonical name, else every channel in that quantity's units."""
-        canonical = CANONICAL_NAMES[quantity]
-        if canonical in stated:
-            return [canonical]
-        return [name for name, unit in stated.items() if lookup_unit(quantity, unit)]
+    def channels_of(kinds: tuple[str, ...]) -> list[tuple[str, str]]:
+        """(kind, channel) of the canonical names, else of every channel in those units."""
+        named = [(kind, CANONICAL_NAMES[kind]) for kind in kinds if CANONICAL_NAMES[kind] in stated]
+        return named or [
+            (kind, name)
+            for kind in kinds
+            for name, unit in stated.items()
+            if lookup_unit(kind, unit)
+        ]
 
     listing = ', '.join(f'{name} [{unit}]' if unit else name for name, unit in stated.items())
-    for quantity in ('force', 'velocity'):
-        entry = spec.get(quantity)
+    wanted = [('force',)] if force_only else [('force',), tuple(given) or RESPONSE_QUANTITIES]
+    for kinds in wanted:
+        what = kinds[0] if len(kinds) == 1 else f'response ({", ".join(kinds)})'
+        entry = spec.get(kinds[0]) if len(kinds) == 1 else None
         entry = {'name': entry} if isinstance(entry, str | int) else dict(entry or {})
         if 'name' in entry:
-            spec[quantity] = entry
+            spec[kinds[0]] = entry
             continue
-        found = channels_of(quantity)
+        found = channels_of(kinds)
         if len(found) != 1:
+            names = ', '.join(CANONICAL_NAMES[kind] for kind in kinds)
             problem = (
-                f'missing column(s) {CANONICAL_NAMES[quantity]}, and no channel is in '
-                f'{quantity} units'
+                f'missing column(s) {names}, and no channel is in {" or ".join(kinds)} units'
                 if not found
-                else f'{len(found)} channels are in {quantity} units ({", ".join(found)})'
+                else f'{len(found)} channels are in {" or ".join(kinds)} units '
+                f'({", ".join(name for _, name in found)})'
             )
+            flags = ' or '.join(f'--{kind} NAME' for kind in kinds)
             raise BadInputError(
-                f'{lab.path} ({lab.format}): which channel is the {quantity}? {problem}; '
-                f'name it with --{quantity} NAME (and --{quantity}-unit UNIT), or in a mapping '
+                f'{lab.path} ({lab.format}): which channel is the {what}? {problem}; '
+                f'name it with {flags} (and its unit, --{kinds[0]}-unit UNIT), or in a mapping '
                 f'file (-m); the file has: {listing or "nothing"}'
             )
-        spec[quantity] = {**entry, 'name': found[0]}
-        notes.append(f'{quantity}: {found[0]!r}, the one channel in {quantity} units')
+        kind, name = found[0]
+        spec[kind] = {**entry, 'name': name}
+        notes.append(f'{kind}: {name!r}, the one channel in {kind} units')
     if spec.get('sample_rate_hz') is None and not spec.get('time'):
-        times = channels_of('time')
+        times = [name for _, name in channels_of(('time',))]
         if len(times) == 1:
             spec['time'] = {'name': times[0]}
             notes.append(f'time: {times[0]!r}, the one channel in time units')
         elif SAMPLE_RATE_NAME in stated:
             spec['sample_rate_hz'] = SAMPLE_RATE_NAME
-    return ImportMapping.from_dict(spec), notes
+    return ImportMapping.from_dict(spec, force_only=force_only), notes
 
 
 def _sample_rate(lab: LabFile, mapping: ImportMapping, length: int) -> tuple[float, str]:
@@ -674,6 +752,17 @@ def _sample_rate(lab: LabFile, mapping: ImportMapping, length: int) -> tuple[flo
             raise BadInputError(
                 f'{lab.path}: time {name!r} has {len(time_s)} samples, the channels {length}'
             )
+        backwards(time_s, f'{lab.path}: time {name!r}')
+        if lab.stamped(name):
+            stamped = stamp_rate(time_s, f'{lab.path}: time {name!r}')
+            if rate is None:
+                return stamped.sample_rate_hz, f'time channel {name!r} {stamped.describe()}'
+            if abs(stamped.sample_rate_hz - rate) > UNIFORM_TIME_TOLERANCE * rate:
+                raise BadInputError(
+                    f'{lab.path}: sample rate {rate:g} Hz ({how}) disagrees with the '
+                    f'stamps of {name!r} ({stamped.sample_rate_hz:.6g} Hz)'
+                )
+            return rate, f'{how}; stamps of {name!r} agree, {stamped.describe()}'
         try:
             # Over the whole span, so the rounding of each printed time stamp averages out.
             from_time = sample_rate_from_times(time_s, rtol=UNIFORM_TIME_TOLERANCE)
@@ -694,19 +783,22 @@ def _sample_rate(lab: LabFile, mapping: ImportMapping, length: int) -> tuple[flo
             )
     if rate is None:
         increments = {
-            lab.channel_increment_s(spec.name) for spec in (mapping.force, mapping.velocity)
+            lab.channel_increment_s(spec.name)
+            for spec in (mapping.force, mapping.response)
+            if spec is not None
         }
         if None not in increments and len(increments) == 1:
             rate, how = 1.0 / increments.pop(), 'wf_increment in the file'
         elif len(increments - {None}) > 1:
             raise BadInputError(
-                f'{lab.path}: force and velocity have different sample '
+                f'{lab.path}: force and {mapping.response_quantity} have different sample '
                 f'intervals {sorted(increments - {None})} s'
             )
     if rate is None:
         raise BadInputError(
-            f'{lab.path}: no sample rate; state sample_rate_hz (a number or a '
-            'variable name) or a time channel'
+            f'{lab.path}: no sample rate: force and {mapping.response_quantity} have no time '
+            'base (no time channel, rate variable or stated rate); state --sample-rate-hz '
+            '(a number or a variable name) or --time NAME'
         )
     if not np.isfinite(rate) or rate <= 0:
         raise BadInputError(f'{lab.path}: sample rate {rate} Hz is not a positive number')
@@ -767,6 +859,13 @@ def write_recordings(
     the samples written per batch.
     """
     rate = recordings[0].sample_rate_hz
+    kinds = {recording.response_quantity for recording in recordings}
+    if len(kinds) > 1 or any(recording.response is None for recording in recordings):
+        raise BadInputError(
+            'one bag, one response sensor: the files hold '
+            + ', '.join(f'{r.source.name}: {r.response_quantity}' for r in recordings)
+        )
+    response = next(channel for channel in RESPONSE_CHANNELS if channel.quantity in kinds)
     total = sum(len(r.force_n) for r in recordings)
     report = [line for recording in recordings for line in recording.report]
     if start_time_ns is not None:
@@ -788,12 +887,13 @@ def write_recordings(
             acquisitions.append(Acquisition(index, len(recording.force_n), recording.source.name))
             index = writer.write_signals(
                 recording.force_n,
-                recording.velocity_m_s,
+                recording.response,
                 rate,
                 first_sample_index=index,
                 batch_size=batch_size,
                 full_scale_force=recording.full_scale_force_n,
-                full_scale_velocity=recording.full_scale_velocity_m_s,
+                full_scale_velocity=recording.full_scale_response,
+                response=response,
                 on_progress=on_progress,
             )
         write_acquisitions(writer, acquisitions)

@@ -12,8 +12,10 @@ finds all of it, and `TextFormat` states any part instead:
   semicolon file full of decimal commas is not taken for comma-separated, as the standard
   library's csv.Sniffer takes it);
 - decimal comma: when the delimiter is not a comma and the numbers are written `0,25`;
-- rows: the first row whose cells are all numbers starts the data; the first row before it
-  with as many cells is the header, and a second such row under it the units row. Rows
+- date-time stamps (`fmm_ros.io.stamps`, NI's `27/03/2025 10:51:38,2226056`): a column of
+  them is read as seconds since its first stamp;
+- rows: the first row whose cells are all numbers (or stamps) starts the data; the first row
+  before it with as many cells is the header, and a second such row under it the units row. Rows
   before the header (or the first `skip_rows` rows, when stated) are a preamble; `#` lines
   and blank lines are comments.
 """
@@ -30,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from fmm_ros.errors import BadInputError
+from fmm_ros.io.stamps import StampParser, is_stamp
 from fmm_ros.io.textformat import (
     DELIMITER_NAMES,
     DELIMITERS,
@@ -70,6 +73,8 @@ class TextTable:
     """The file's text."""
     _data_offset: int
     """Where the first data row starts in it."""
+    stamp_columns: tuple[int, ...] = ()
+    """Columns of date-time stamps, read as seconds since their first stamp."""
 
     def describe(self) -> str:
         """How the file was read, for an import report: 'semicolon, decimal comma, cp1252'."""
@@ -78,6 +83,7 @@ class TextTable:
             f'{name}-delimited',
             'decimal comma' if self.decimal == ',' else '',
             'units row' if any(self.units) else '',
+            'date-time stamps' if self.stamp_columns else '',
             self.encoding,
             f'data from line {self.data_line}',
         ]
@@ -100,6 +106,7 @@ class TextTable:
                 rows,
                 delimiter=None if self.delimiter == ' ' else self.delimiter,
                 usecols=range(len(self.names)),
+                converters={column: StampParser() for column in self.stamp_columns} or None,
                 ndmin=2,
                 quotechar='"',
                 comments='#',
@@ -172,6 +179,7 @@ def read_table(path: str | Path, text_format: TextFormat = DETECT) -> TextTable:
             f'{delimiter!r}, decimal {decimal!r}; state --delimiter, --decimal or --skip-rows)'
         )
     width = len(rows[start][1])
+    stamps = tuple(column for column, cell in enumerate(_trimmed(rows[start][1])) if is_stamp(cell))
     above = [cells for _, cells in rows[:start] if len(_trimmed(cells)) == width]
     names: list[str] = [str(column) for column in range(width)]
     units: list[str | None] = [None] * width
@@ -193,6 +201,7 @@ def read_table(path: str | Path, text_format: TextFormat = DETECT) -> TextTable:
         data_line,
         content,
         offsets[data_line],
+        stamps,
     )
 
 
@@ -274,5 +283,6 @@ def _numeric(cells: list[str], decimal: str) -> bool:
         try:
             float(cell.replace(',', '.') if decimal == ',' else cell)
         except ValueError:
-            return False
+            if not is_stamp(cell):
+                return False
     return True

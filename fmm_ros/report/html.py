@@ -8,9 +8,10 @@ Everything put on the page is HTML-escaped unless handed over as `Markup`.
 from __future__ import annotations
 
 import base64
+import contextlib
 import html
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -33,6 +34,8 @@ figure { margin: 1rem 0; } figure img { max-width: 100%; border: 1px solid #eee;
 figcaption { font-size: 0.85rem; color: #444; }
 .note { color: #555; font-style: italic; }
 nav ul { columns: 2; font-size: 0.9rem; }
+details { margin: 0.2rem 0; } summary { cursor: pointer; font-size: 0.9rem; }
+details[open] > summary { font-weight: 600; }
 """
 
 _NAME = re.compile(r'^[A-Za-z0-9_.-]+$')
@@ -151,6 +154,20 @@ class Page:
     def subsection(self, title: str) -> None:
         """A heading inside the current section."""
         self._body.append(f'<h3>{escape(title)}</h3>')
+
+    @contextlib.contextmanager
+    def collapsed(self, summary: object) -> Iterator[None]:
+        """What is added inside is folded under a one-line summary the reader opens.
+
+        A plain <details> element: no script, and the browser's find-in-page opens it. A
+        session's per-hit figures are folded so the page is read by its levels first (30
+        hits drawn open made a 45,000-pixel page).
+        """
+        self._body.append(f'<details><summary>{escape(summary)}</summary>')
+        try:
+            yield
+        finally:
+            self._body.append('</details>')
 
     def text(self, content: object, *, note: bool = False) -> None:
         """A paragraph (note: set in the muted style, for what is absent and why)."""

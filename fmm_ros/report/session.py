@@ -39,6 +39,8 @@ FLAG_MEANINGS: dict[str, str] = {
     '(a hammer bounce): two inputs in one FRF',
     'clipped': "the force reached its sensor's full-scale range or has a flat top: peak "
     'and spectrum are wrong',
+    'coarse': 'the hammer pulse spans too few samples: its impulse and peak are off by per '
+    'cents, depending on where the samples fell',
     'saturated': "the velocity reached the vibrometer's range or has a flat top",
     'no_response': 'the velocity does not respond to the hit: a dead or disconnected vibrometer',
     'dropout': 'a channel holds one exact value too long: samples dropped and filled',
@@ -228,7 +230,8 @@ def _level_section(page: Page, summary: Summary, analysis) -> None:
         'levels_receptance',
         figures.level_magnitude_figure(summary.levels),
         'Fig. 16: mean receptance magnitude of each level (plain frequency-domain '
-        'average of its accepted hits).',
+        'average of its accepted hits), on a linear axis as the paper (left) and a log '
+        'axis (right).',
     )
 
 
@@ -348,31 +351,37 @@ def _time_section(page: Page, session: SessionResult, colours: dict[str, str]) -
             f'{level.count} accepted hits of level {level.level}.',
         )
     page.subsection('Every hit')
+    page.text('Each hit is folded: open one to see its force, decay and model.', note=True)
     hit_figures = figures.HitFigures()
     for impact in summary.impacts:
         record = records[impact.impact_id]
         velocity = model.velocity_m_s(record, impact.impact_id) if model is not None else None
-        page.figure(
-            _hit_name(impact),
-            hit_figures.draw(
-                record,
-                impact,
-                capture=capture,
-                model_velocity_m_s=velocity,
-                model_label=model.label if model is not None else '',
-                colour=colours.get(impact.level, REJECTED_COLOUR)
-                if impact.accepted
-                else REJECTED_COLOUR,
-            ),
-            f'Figs. 18/20/22: hit {impact.impact_id} '
-            + ('' if impact.accepted else f'(rejected: {", ".join(impact.flags)}) ')
-            + (
-                'with the model driven by its measured force.'
-                if velocity is not None
-                else 'as measured.'
-            ),
-            keep=True,
-        )
+        verdict = 'accepted' if impact.accepted else f'rejected: {", ".join(impact.flags)}'
+        with page.collapsed(
+            f'hit {impact.impact_id} · {impact.level or "no level"} · {verdict} · peak '
+            f'{impact.peak_force_n:.4g} N, impulse {impact.impulse_n_s:.4g} N·s'
+        ):
+            page.figure(
+                _hit_name(impact),
+                hit_figures.draw(
+                    record,
+                    impact,
+                    capture=capture,
+                    model_velocity_m_s=velocity,
+                    model_label=model.label if model is not None else '',
+                    colour=colours.get(impact.level, REJECTED_COLOUR)
+                    if impact.accepted
+                    else REJECTED_COLOUR,
+                ),
+                f'Figs. 18/20/22: hit {impact.impact_id} '
+                + ('' if impact.accepted else f'({verdict}) ')
+                + (
+                    'with the model driven by its measured force.'
+                    if velocity is not None
+                    else 'as measured.'
+                ),
+                keep=True,
+            )
 
 
 def _frf_section(
@@ -398,14 +407,20 @@ def _frf_section(
                 figures.frf_trials_figure(level, members, quantity, colour=colours[level.level]),
                 f'Fig. {number}: {quantity} of the {level.count} accepted hits of level '
                 f"{level.level} and their mean, as real and imaginary parts (the paper's view) "
-                'and as magnitude and phase.',
+                'and as log magnitude and phase (Bode).',
             )
         page.figure(
             f'coherence_{_safe(level.level)}',
             figures.coherence_figure(level, members, colour=colours[level.level]),
-            f'Coherence of force and velocity over the {level.count} hits of level '
-            f'{level.level} (1: every hit saw the same linear FRF), and the spread of their '
-            '|mobility| about the mean: where the hits disagree, the mean is less certain.',
+            (
+                f'Coherence of force and velocity over the {level.count} hits of level '
+                f'{level.level} (1: every hit saw the same linear FRF)'
+                if level.count >= 2
+                else f'Coherence is not drawn: level {level.level} has one hit, and of one hit '
+                'it is 1 by definition (it needs two)'
+            )
+            + ', and the spread of their |mobility| about the mean: where the hits disagree, '
+            'the mean is less certain.',
         )
         if level.level in model_mobility:
             page.figure(

@@ -193,9 +193,10 @@ def frf_trials_figure(
 ) -> Figure:
     """One level's trials and their mean (Figs. 14, 15): real/imaginary and magnitude/phase.
 
-    Real and imaginary parts on the left (the paper's view), magnitude and phase on the
-    right. quantity: 'mobility' or 'receptance'; the mean is the level's plain frequency-domain
-    average (the paper's).
+    Real and imaginary parts on the left (the paper's view), magnitude on a log axis and phase
+    on the right (a Bode plot: the decades away from resonance, where the odd harmonics and the
+    noise floor sit, stay readable). quantity: 'mobility' or 'receptance'; the mean is the
+    level's plain frequency-domain average (the paper's).
     """
     unit = _frf_unit(quantity)
     top_hz = top_hz or resonance_top_hz(level.natural_frequency_hz)
@@ -210,7 +211,7 @@ def frf_trials_figure(
     views = (
         (axes[0], lambda h: np.real(h) * MM_PER_M, f'real [{unit}]'),
         (axes[2], lambda h: np.imag(h) * MM_PER_M, f'imaginary [{unit}]'),
-        (axes[1], lambda h: np.abs(h) * MM_PER_M, f'magnitude [{unit}]'),
+        (axes[1], lambda h: np.abs(h) * MM_PER_M, f'magnitude [{unit}], log'),
         (axes[3], lambda h: np.angle(h, deg=True), 'phase [°]'),
     )
     for ax, view, label in views:
@@ -226,6 +227,7 @@ def frf_trials_figure(
         ax.plot(frequency, view(getattr(level, quantity)[band]), color=MEAN_COLOUR, linewidth=1.4)
         ax.lines[-1].set_label('mean')
         ax.set_ylabel(label)
+    axes[1].set_yscale('log')
     axes[3].set_yticks([-180, -90, 0, 90, 180])
     axes[0].legend(loc='upper right', fontsize='small')
     for ax in axes[2:]:
@@ -244,7 +246,9 @@ def coherence_figure(
     """How well one level's hits agree: their coherence, and the spread of their mobility.
 
     Top: the ordinary coherence of force and velocity over the level's trials (1 where every
-    hit saw the same linear FRF; friction, noise and leakage lower it). Bottom: |mobility| of
+    hit saw the same linear FRF; friction, noise and leakage lower it). It needs two hits: of
+    one hit it is 1 at every frequency by definition, so the panel says so instead of drawing
+    a flat 1 that would read as a perfect measurement. Bottom: |mobility| of
     the mean, with the band from the smallest to the largest of the hits at each frequency.
     """
     top_hz = top_hz or resonance_top_hz(level.natural_frequency_hz)
@@ -256,7 +260,21 @@ def coherence_figure(
     )
     band = level.frequency_hz <= top_hz
     frequency = level.frequency_hz[band]
-    axes[0].plot(frequency, level.coherence[band], color=colour, linewidth=1.2, label='γ²')
+    if len(trials) >= 2:
+        axes[0].plot(frequency, level.coherence[band], color=colour, linewidth=1.2, label='γ²')
+    else:
+        axes[0].set_title(
+            f'coherence needs two hits: level {level.level} has one', fontsize='small'
+        )
+        axes[0].text(
+            0.5,
+            0.5,
+            'not drawn: of a single hit it is 1 at every frequency, whatever the data',
+            transform=axes[0].transAxes,
+            ha='center',
+            va='center',
+            fontsize='small',
+        )
     axes[0].set_ylim(-0.05, 1.05)
     axes[0].set_ylabel('coherence γ² [-]')
     magnitudes = np.abs([trial.mobility[band] for trial in trials]) * MM_PER_M
@@ -286,23 +304,30 @@ def coherence_figure(
 def level_magnitude_figure(
     levels: Sequence[LevelSummary], *, top_hz: float | None = None
 ) -> Figure:
-    """Mean |receptance| of every level on one axis (Fig. 16): it grows with the force."""
+    """Mean |receptance| of every level (Fig. 16): it grows with the force.
+
+    Left on a linear axis, as the paper draws it; right the same on a log axis, where the
+    levels' responses away from resonance (harmonics, noise floor) can be told apart.
+    """
     top_hz = top_hz or resonance_top_hz(np.nanmax([lv.natural_frequency_hz for lv in levels]))
     figure, axes = new_figure(
-        1, 1, height_in=3.2, title='mean receptance magnitude per force level'
+        1, 2, height_in=3.2, title='mean receptance magnitude per force level'
     )
     for index, level in enumerate(levels):
         band = level.frequency_hz <= top_hz
-        axes[0].plot(
-            level.frequency_hz[band],
-            np.abs(level.receptance[band]) * MM_PER_M,
-            color=level_colour(index),
-            linewidth=1.2,
-            label=f'{level.level} ({level.count} trials, {level.mean_impulse_n_s:.3g} N·s)',
-        )
-    axes[0].set_xlim(0, top_hz)
-    axes[0].set_xlabel(FREQUENCY_LABEL)
-    axes[0].set_ylabel(f'|receptance| [{RECEPTANCE_UNIT}]')
+        for ax in axes:
+            ax.plot(
+                level.frequency_hz[band],
+                np.abs(level.receptance[band]) * MM_PER_M,
+                color=level_colour(index),
+                linewidth=1.2,
+                label=f'{level.level} ({level.count} trials, {level.mean_impulse_n_s:.3g} N·s)',
+            )
+    axes[1].set_yscale('log')
+    for ax, scale in zip(axes, ('', ', log'), strict=True):
+        ax.set_xlim(0, top_hz)
+        ax.set_xlabel(FREQUENCY_LABEL)
+        ax.set_ylabel(f'|receptance| [{RECEPTANCE_UNIT}]{scale}')
     axes[0].legend(loc='upper right', fontsize='small')
     return figure
 

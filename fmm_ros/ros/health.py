@@ -7,7 +7,8 @@ rqt_robot_monitor and Foxglove read), one `DiagnosticStatus` per part of the nod
 refused, resynchronisations, the rate over the last second and how far the newest sample
 lags the wall clock. `FaultLog` logs a fault kind the first time it happens, then a running
 count at most every `repeat_s`: a source sending garbage for an hour writes a few lines, not
-2,945 (issue 19).
+2,945 (issue 19). Arrays are stamped in signal time, the graph's one time base
+(`fmm_ros.ros.timebase`).
 """
 
 import time
@@ -20,7 +21,9 @@ from rclpy.node import Node
 
 from fmm_ros.constants import DIAGNOSTICS_TOPIC
 from fmm_ros.core.signal.stream import FAULTS, RESYNC_REASONS, ChannelLedger
+from fmm_ros.ros import msgs
 from fmm_ros.ros.qos import DIAGNOSTICS_QOS
+from fmm_ros.ros.timebase import SignalClock
 
 OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
 LEVEL_NAMES = {OK: 'OK', WARN: 'WARN', ERROR: 'ERROR', DiagnosticStatus.STALE: 'STALE'}
@@ -43,6 +46,7 @@ class Health:
             DIAGNOSTICS_QOS,
             event_callbacks=PublisherEventCallbacks(use_default_callbacks=False),
         )
+        self._clock = SignalClock(node)
         node.create_timer(period_s, self.publish)
 
     def add(self, part: str, check: Check) -> None:
@@ -66,7 +70,7 @@ class Health:
     def publish(self) -> None:
         """One DiagnosticArray of every part."""
         array = DiagnosticArray()
-        array.header.stamp = self._node.get_clock().now().to_msg()
+        array.header.stamp = msgs.time_msg(self._clock.now_ns())  # signal time, as all stamps
         array.status = self.statuses()
         self._publisher.publish(array)
 

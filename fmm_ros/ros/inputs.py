@@ -4,7 +4,10 @@ The analyzer and the fitter take both channels the same way: each batch goes to 
 `AlignedStream` owner (capture or history) under the core's stream rules, their progress goes
 back to the sources (flow control), their ledger goes to /diagnostics, and their faults to
 the log once per kind. The topic a batch arrives on says which channel it is; a batch whose
-own `quantity` disagrees, or that is no sample batch at all, is refused and counted.
+own `quantity` disagrees, or that is no sample batch at all, is refused and counted. The
+response topic carries a velocity, an acceleration or a displacement (`RESPONSE_CHANNELS`):
+the first batch's quantity is the sensor's (`response_quantity`), fed where the velocity goes,
+and a later batch of another quantity is refused.
 """
 
 import time
@@ -14,7 +17,7 @@ from rclpy.callback_groups import CallbackGroup
 from rclpy.node import Node
 
 from fmm_interfaces.msg import SampleBatch
-from fmm_ros.constants import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC
+from fmm_ros.constants import FORCE, FORCE_TOPIC, RESPONSE_CHANNELS, VELOCITY, VELOCITY_TOPIC
 from fmm_ros.core.signal.stream import AlignedStream, Batch
 from fmm_ros.ros import msgs
 from fmm_ros.ros.flow import ProgressReporter
@@ -41,6 +44,9 @@ class SampleInputs:
         self._rates: dict[str, ChannelRate] = {}
         self._faults = FaultLog(node)
         self.topics: dict[str, str] = {}
+        self.response_quantity = VELOCITY.quantity
+        """What the response sensor measures (from its first batch; velocity until then)."""
+        self._response_known = False
         for channel, topic in ((FORCE, FORCE_TOPIC), (VELOCITY, VELOCITY_TOPIC)):
             subscription = node.create_subscription(
                 SampleBatch,
@@ -61,7 +67,11 @@ class SampleInputs:
     def _on_batch(self, quantity: str, msg: SampleBatch) -> None:
         self._node.last_batch_at = time.monotonic()
         batch = msgs.stream_batch(msg)
-        if msg.quantity != quantity:
+        if quantity == VELOCITY.quantity and not self._response_known:
+            if msg.quantity in {channel.quantity for channel in RESPONSE_CHANNELS}:
+                self.response_quantity, self._response_known = msg.quantity, True
+        expected = self.response_quantity if quantity == VELOCITY.quantity else quantity
+        if msg.quantity != expected:
             self._stream.refuse_malformed(quantity, len(batch.samples))
         else:
             try:

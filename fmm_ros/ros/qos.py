@@ -3,7 +3,8 @@
 Sample batches are RELIABLE with a deep queue (a lost batch is a gap in an FRF record);
 results are transient-local, so a late subscriber (a plot, a fitter started later) still gets
 the latest; the flow-control reports keep the last one per consumer for sources that start
-later; /diagnostics is plain reliable, as the ROS tools expect; the recorder asks for the
+later; /diagnostics is plain reliable, as the ROS tools expect; /clock keeps only the newest
+time; the recorder asks for the
 strongest QoS every publisher of a topic can serve (`recording_qos`).
 """
 
@@ -44,6 +45,20 @@ and one consumer's reports must not push another's out before the source takes t
 
 DIAGNOSTICS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 """/diagnostics, as rqt_robot_monitor and Foxglove subscribe to it."""
+
+CLOCK_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+"""/clock from a source: reliable, so best-effort subscribers (rclpy's and rclcpp's
+TimeSource) and reliable ones (the recorder) both match; depth 1, only the newest time counts."""
+
+CLOCK_SUBSCRIPTION_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.BEST_EFFORT
+)
+"""What a consumer of /clock asks for (`timebase.SignalClock`): matches any publisher."""
 
 RECORDING_DEPTH = 1000
 """Queue of the recorder's subscriptions (as ros2 bag record)."""

@@ -28,6 +28,7 @@ import numpy as np
 
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, capture_impacts
 from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.core.signal.response import as_measured
 from fmm_ros.errors import BadInputError
 from fmm_ros.io import sniff
 from fmm_ros.io.labfiles import LabRecording, read_lab_file
@@ -105,15 +106,15 @@ def read_inputs(
         if options.continuous:
             records += _some(_cut(recording, options.capture), path, options.capture)
         else:
-            records.append(_one_impact(recording))
+            records.append(_one_impact(recording, options.capture))
     return SessionInputs(_on_one_grid(records, options), problems, notes, [str(p) for p in paths])
 
 
-def _one_impact(recording: LabRecording) -> ImpactRecord:
+def _one_impact(recording: LabRecording, capture: CaptureConfig) -> ImpactRecord:
     """A lab file as one impact record; a non-finite sample is refused, naming its channel."""
     channels = (
         ('force', recording.force_n),
-        ('velocity', recording.velocity_m_s),
+        (recording.response_quantity, recording.response),
     )
     for quantity, values in channels:
         bad = np.flatnonzero(~np.isfinite(values))
@@ -124,27 +125,34 @@ def _one_impact(recording: LabRecording) -> ImpactRecord:
                 'a record with missing samples has no FRF (fmm import keeps them in a bag, '
                 'where the impact over them is flagged)'
             )
-    return ImpactRecord(
+    record = ImpactRecord(
         force_n=recording.force_n,
-        velocity_m_s=recording.velocity_m_s,
+        velocity_m_s=recording.response,
         sample_rate_hz=recording.sample_rate_hz,
         force_full_scale_n=recording.full_scale_force_n,
-        velocity_full_scale_m_s=recording.full_scale_velocity_m_s,
+        velocity_full_scale_m_s=recording.full_scale_response,
         source=str(recording.source),
     )
+    return as_measured(record, recording.response_quantity, capture)
 
 
 def _cut(recording: LabRecording, capture: CaptureConfig) -> list[ImpactRecord]:
     """Every impact of a continuous lab recording, tagged file@trigger as a bag's are."""
     return [
-        dataclasses.replace(record, source=f'{recording.source.name}@{record.trigger_sample_index}')
+        as_measured(
+            dataclasses.replace(
+                record, source=f'{recording.source.name}@{record.trigger_sample_index}'
+            ),
+            recording.response_quantity,
+            capture,
+        )
         for record in capture_impacts(
             recording.force_n,
-            recording.velocity_m_s,
+            recording.response,
             recording.sample_rate_hz,
             capture,
             force_full_scale_n=recording.full_scale_force_n,
-            velocity_full_scale_m_s=recording.full_scale_velocity_m_s,
+            velocity_full_scale_m_s=recording.full_scale_response,
         )
     ]
 

@@ -32,6 +32,7 @@ from fmm_ros.core.signal.analysis import (
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, ImpactCapture
 from fmm_ros.core.signal.config import NominalLevel
 from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.core.signal.response import RESPONSE_QUANTITIES, as_measured
 from fmm_ros.core.signal.stream import ChannelLedger
 from fmm_ros.io import sniff
 from fmm_ros.io.bags.acquisitions import read_acquisitions
@@ -59,6 +60,10 @@ def capture_records(
     capture's acquisition ends at each one's last sample (`ImpactCapture.end_acquisition`),
     and at the bag's end, so no record runs into the next file or is padded with samples that
     were never taken. (A restart the bag does not state is found by the stream rules.)
+    The response topic may hold an acceleration or a displacement (its batches' quantity; any
+    other is read as velocity, as bags always were): each record is then made whole
+    (`as_measured`); a batch of another response quantity than the first is left out and
+    named in the reader's problems.
     """
     impacts = capture if isinstance(capture, ImpactCapture) else ImpactCapture(capture)
     quantity = {
@@ -75,16 +80,32 @@ def capture_records(
     reached = dict.fromkeys(quantity, 0)  # index after each channel's last sample fed
     held: list[ChannelBatch] = []  # batches of the next acquisition, read early
 
+    response = []  # the response sensor's quantity, once its first batch is read
+
     def tagged(records: list[ImpactRecord]) -> Iterator[ImpactRecord]:
         for record in records:
-            yield dataclasses.replace(
-                record, source=f'{reader.path.name}@{record.trigger_sample_index}'
+            yield as_measured(
+                dataclasses.replace(
+                    record, source=f'{reader.path.name}@{record.trigger_sample_index}'
+                ),
+                response[0] if response else VELOCITY.quantity,
+                impacts.config,
             )
             if reuse_buffers:
                 impacts.recycle(record)
 
     def take(batch: ChannelBatch) -> Iterator[ImpactRecord]:
         """Feed a batch, or hold it while another channel is still in the acquisition before."""
+        if quantity[batch.topic] == VELOCITY.quantity:
+            kind = batch.quantity if batch.quantity in RESPONSE_QUANTITIES else VELOCITY.quantity
+            if not response:
+                response.append(kind)
+            elif kind != response[0]:
+                reader.problems.append(
+                    f'{batch.topic} batch at sample {batch.first_sample_index} holds '
+                    f'{batch.quantity!r}, the response before it {response[0]!r}: left out'
+                )
+                return
         if boundaries and batch.first_sample_index >= boundaries[0]:
             held.append(batch)
             return

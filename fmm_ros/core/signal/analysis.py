@@ -20,7 +20,8 @@ from typing import Protocol
 
 import numpy as np
 
-from fmm_ros.core.signal import frf
+from fmm_ros.core.settings import result_field, setting
+from fmm_ros.core.signal import frf, pulse, response
 from fmm_ros.core.signal.capture import (
     contact_start_index,
     with_trigger,
@@ -44,32 +45,43 @@ from fmm_ros.errors import BadInputError, NoCleanImpactError
 class ImpactAnalysis:
     """One impact analysed: the fields of ImpactResult.msg plus the spectra averaging needs."""
 
-    impact_id: int
-    trigger_sample_index: int
-    record_start_sample_index: int
-    level: str
-    accepted: bool
-    flags: tuple[str, ...]
-    impulse_n_s: float
-    peak_force_n: float
-    contact_duration_s: float
-    record_duration_s: float
-    sample_rate_hz: float
-    # From the period between velocity reversals (`frf.natural_frequency`); NaN if too few.
-    natural_frequency_hz: float
-    peak_receptance_m_per_n: float
-    frequency_step_hz: float
-    # Band-limited axis [Hz] and complex FRFs: mobility [m/(N*s)], receptance [m/N].
-    frequency_hz: np.ndarray
-    mobility: np.ndarray
-    receptance: np.ndarray
-    # Windows the FRF was computed with [s]; 0 where none.
-    force_window_s: float
-    exponential_window_decay_s: float
-    # Band-limited unscaled DFTs of the (windowed) force and velocity, for H1/H2/coherence.
-    force_spectrum: np.ndarray
-    velocity_spectrum: np.ndarray
-    source: str = ''
+    impact_id: int = result_field(help='Impact number, from 0 in capture order')
+    trigger_sample_index: int = result_field(help='Sample index of the trigger in its acquisition')
+    record_start_sample_index: int = result_field(help="Sample index of the record's first sample")
+    level: str = result_field(help='Force level the impact belongs to; empty: none')
+    accepted: bool = result_field(help='Whether it enters the level averages: no rejecting flag')
+    flags: tuple[str, ...] = result_field(help='Quality flags it raised, in FLAGS order')
+    impulse_n_s: float = result_field(unit='N*s', help='Impulse: the force integrated over the hit')
+    peak_force_n: float = result_field(unit='N', help='Peak force of the hit')
+    contact_duration_s: float = result_field(unit='s', help='How long the hammer touched')
+    record_duration_s: float = result_field(unit='s', help='Length of the record analysed')
+    sample_rate_hz: float = result_field(unit='Hz', help='Sample rate of both channels')
+    natural_frequency_hz: float = result_field(
+        unit='Hz',
+        help='From the period between velocity reversals (`frf.natural_frequency`); NaN if too few',
+    )
+    peak_receptance_m_per_n: float = result_field(
+        unit='m/N', help='Peak |receptance| in the peak band'
+    )
+    frequency_step_hz: float = result_field(
+        unit='Hz', help='Frequency resolution: 1 / record length'
+    )
+    frequency_hz: np.ndarray = result_field(unit='Hz', help='Band-limited frequency axis')
+    mobility: np.ndarray = result_field(unit='m/(N*s)', help='Mobility V/F (complex)')
+    receptance: np.ndarray = result_field(unit='m/N', help='Receptance X/F (complex)')
+    force_window_s: float = result_field(
+        unit='s', help='Force window the FRF was computed with; 0: none'
+    )
+    exponential_window_decay_s: float = result_field(
+        unit='s', help='Exponential window decay time the FRF was computed with; 0: none'
+    )
+    force_spectrum: np.ndarray = result_field(
+        unit='N', help='Unscaled DFT of the (windowed) force, band-limited, for H1/H2/coherence'
+    )
+    velocity_spectrum: np.ndarray = result_field(
+        unit='m/s', help='Unscaled DFT of the (windowed) velocity, band-limited'
+    )
+    source: str = setting('', help='The file, or bag@trigger, the record came from')
 
     @property
     def accelerance(self) -> np.ndarray:
@@ -86,27 +98,35 @@ ImpactResult = ImpactAnalysis
 class LevelSummary:
     """One force level's averaged FRF: the per-level fields of FrfSummary.msg."""
 
-    level: str
-    # 0 when the level comes from clustering.
-    nominal_peak_force_n: float
-    count: int
-    impact_ids: tuple[int, ...]
-    mean_impulse_n_s: float
-    # Sample standard deviation; NaN for a single impact.
-    std_impulse_n_s: float
-    mean_peak_force_n: float
-    peak_receptance_m_per_n: float
-    # Mean of the level's impacts' natural frequencies (one method everywhere).
-    natural_frequency_hz: float
-    frequency_step_hz: float
-    frequency_hz: np.ndarray
-    # Plain mean of the trials (the paper's average): mobility and receptance.
-    mobility: np.ndarray
-    receptance: np.ndarray
-    h1_mobility: np.ndarray
-    h2_mobility: np.ndarray
-    coherence: np.ndarray
-    exponential_window_decay_s: float
+    level: str = result_field(help='Name of the level')
+    nominal_peak_force_n: float = result_field(
+        unit='N', help='Nominal peak force; 0 when the level comes from clustering'
+    )
+    count: int = result_field(help='Accepted impacts averaged')
+    impact_ids: tuple[int, ...] = result_field(help='Their impact numbers')
+    mean_impulse_n_s: float = result_field(unit='N*s', help='Mean impulse')
+    std_impulse_n_s: float = result_field(
+        unit='N*s', help='Sample standard deviation of the impulse; NaN for a single impact'
+    )
+    mean_peak_force_n: float = result_field(unit='N', help='Mean peak force')
+    peak_receptance_m_per_n: float = result_field(
+        unit='m/N', help='Peak |receptance| of the averaged receptance'
+    )
+    natural_frequency_hz: float = result_field(
+        unit='Hz', help="Mean of the level's impacts' natural frequencies"
+    )
+    frequency_step_hz: float = result_field(unit='Hz', help='Frequency resolution')
+    frequency_hz: np.ndarray = result_field(unit='Hz', help='Band-limited frequency axis')
+    mobility: np.ndarray = result_field(
+        unit='m/(N*s)', help="Plain mean of the trials' mobility (the paper's average)"
+    )
+    receptance: np.ndarray = result_field(unit='m/N', help="Plain mean of the trials' receptance")
+    h1_mobility: np.ndarray = result_field(unit='m/(N*s)', help='H1 estimate of the mobility')
+    h2_mobility: np.ndarray = result_field(unit='m/(N*s)', help='H2 estimate of the mobility')
+    coherence: np.ndarray = result_field(help='Ordinary coherence of force and velocity [-]')
+    exponential_window_decay_s: float = result_field(
+        unit='s', help='Exponential window decay time; 0: none'
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,7 +163,8 @@ def analyze_impact(
     peak_force = float(np.max(raw_force[interval[0] : interval[1]])) if interval else float('nan')
 
     impulse = frf.pulse_impulse(raw_force, rate, capture.rearm_level_n, contact_start)
-    force, velocity = raw_force, record.velocity_m_s
+    # The DFT of what the sensor measured, turned into velocity bin by bin (exact).
+    force, velocity = raw_force, record.measured[0]
     if analysis.force_window_s is not None:
         offset = float(np.mean(force[:contact_start])) if contact_start else 0.0
         force = (force - offset) * frf.force_window(
@@ -164,8 +185,10 @@ def analyze_impact(
     force_spectrum, velocity_spectrum = frf.spectra(force, velocity, n_fft)
     # Copies, so the full-length spectra are freed rather than kept alive by the slices.
     force_spectrum = force_spectrum[:bins].copy()
-    velocity_spectrum = velocity_spectrum[:bins].copy()
     frequency = frf.frequency_axis(n_fft, rate)[:bins]
+    velocity_spectrum = response.convert_spectrum(
+        velocity_spectrum[:bins], frequency, record.response_quantity, response.VELOCITY
+    ).copy()
     mobility = frf.mobility(force_spectrum, velocity_spectrum)
     receptance = frf.receptance_from_mobility(mobility, frequency)
     peak_receptance, _ = frf.peak_magnitude(
@@ -207,7 +230,9 @@ def summarize(
 
     With nominal levels an impact belongs to the nearest one within its tolerance, or to none
     (flag `out_of_tolerance`); without, peak forces are clustered into `level_1`, `level_2`, ...
-    in ascending force. Only accepted impacts enter the averages; every impact is returned.
+    in ascending force. Impacts that share the session's top force to the last bit, several
+    of them, are `clipped` (`pulse.shared_top`: a one-sample clipped top is no plateau). Only
+    accepted impacts enter the averages; every impact is returned.
     """
     peaks = np.array([result.peak_force_n for result in results], dtype=float)
     if analysis.levels:
@@ -224,10 +249,13 @@ def summarize(
         level_order = [(f'level_{label + 1}', 0.0) for label in range(labels.max(initial=-1) + 1)]
 
     judged = []
-    for result, name in zip(results, names, strict=True):
+    on_top = pulse.shared_top(peaks)  # clipped hits: several share the top to the last bit
+    for result, name, topped in zip(results, names, on_top, strict=True):
         flags = set(result.flags) - {'out_of_tolerance'}
         if analysis.levels and not name:
             flags.add('out_of_tolerance')
+        if topped:
+            flags.add('clipped')
         ordered = tuple(flag for flag in FLAGS if flag in flags)
         judged.append(
             dataclasses.replace(
@@ -301,8 +329,14 @@ def _level_summary(
 def _peak_band(
     force_spectrum: np.ndarray, frequency_hz: np.ndarray, analysis: AnalysisConfig
 ) -> tuple[float, float]:
-    """The configured peak band, its top lowered to where the excitation has run out."""
+    """The configured peak band, its top lowered to where the excitation has run out.
+
+    A band limit above the configured top (a structure's kHz modes, not the FMM's 2.2 Hz)
+    raises the top to it: the band then follows the data, up to what the hammer excited.
+    """
     low, high = analysis.peak_band_hz
+    if analysis.band_limit_hz is None or analysis.band_limit_hz > high:
+        high = analysis.band_limit_hz or frequency_hz[-1]
     usable = frf.excitation_bandwidth(force_spectrum, frequency_hz, analysis.excitation_drop_db)
     return low, high if np.isnan(usable) else min(high, usable)
 

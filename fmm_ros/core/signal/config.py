@@ -20,6 +20,7 @@ from fmm_ros.errors import BadInputError
 FLAGS: tuple[str, ...] = (
     'double_hit',
     'clipped',
+    'coarse',
     'saturated',
     'no_response',
     'dropout',
@@ -218,7 +219,8 @@ class AnalysisConfig:
     peak_band_hz: tuple[float, float] = setting(
         (1.0, 100.0),
         unit='Hz',
-        help='Band [low, high] searched for the peak |receptance|',
+        help='Band [low, high] searched for the peak |receptance| (its top raised to a higher '
+        'band limit)',
         limits=(0.0, 1e6),
     )
     excitation_drop_db: float = setting(

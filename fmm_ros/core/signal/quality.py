@@ -40,15 +40,15 @@ import math
 
 import numpy as np
 
+from fmm_ros.core.signal import pulse
 from fmm_ros.core.signal.capture import (
     TriggerDetector,
     below_level,
     contact_start_index,
-    reaches_level,
     with_trigger,
 )
 from fmm_ros.core.signal.config import DEFAULT_CAPTURE, FLAGS, CaptureConfig
-from fmm_ros.core.signal.frf import first_true
+from fmm_ros.core.signal.frf import contact_duration, first_true
 from fmm_ros.core.signal.records import Gaps, ImpactRecord
 
 MAD_TO_STD = 1.482602218505602
@@ -96,6 +96,18 @@ STUCK_MAX_EQUAL_FRACTION = 0.9
 RESPONSE_RATIO = 5.0
 """The velocity after a hit must depart from its level by this many times the noise and the
 quiet tail's spread."""
+
+SETTLED_TAIL_FRACTION = 0.01
+"""An acceleration or displacement record has settled when its last 1 % ..."""
+
+SETTLED_RESPONSE_FRACTION = 0.01
+"""... departs from its level before the hit by at most 1 % of its largest departure: the
+jump the DFT's wrap-around makes from the record's end to its start, and so the leakage of its
+FRF, is then at the per cent level of the peak (a velocity has an absolute rest level instead,
+`CaptureConfig.rest_velocity_m_s`)."""
+
+SETTLED_TAIL_MIN_SAMPLES = 8
+"""The tail judged is at least this many samples (a short record's 1 % is too few)."""
 
 RESPONSE_PERCENTILE = 90.0
 """The departure after a hit is this percentile of |velocity - level| (robust to a spike)."""
@@ -303,10 +315,13 @@ def responds(
 def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE) -> tuple[str, ...]:
     """The quality flags a record raises, in `FLAGS` order (see the module docstring for rules).
 
-    - double_hit: after the force falls below the re-arm level, it reaches the trigger level
-      again within min_spacing_s of the trigger (a hammer bounce: two inputs in one FRF).
+    - double_hit: after the force falls below the re-arm level, it rises again within
+      min_spacing_s of the trigger to the trigger level or a tenth of the peak, whichever is
+      lower (`pulse.rebounds`: a hammer bounce, two inputs in one FRF).
     - clipped: the force reaches its known full-scale range, or its peak is a flat top no
       smooth pulse makes (`flat_extreme`: clipping with the range unknown).
+    - coarse: the contact spans too few samples for its impulse and spectrum
+      (`pulse.coarse`).
     - saturated: the velocity reaches its known range, or its maximum or minimum is such a
       flat top (the vibrometer's range exceeded).
     - no_response: the velocity does not depart from its level before the hit by more than
@@ -319,11 +334,18 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
     - nan: received samples that are NaN or infinite.
     - unsettled: |velocity - its level before the hit| (the level removes a vibrometer
       offset) above rest_velocity_m_s in the last rest_time_s of the record, or before the
-      hammer touched, so the record is not one whole transient and its DFT leaks.
+      hammer touched, so the record is not one whole transient and its DFT leaks. An
+      acceleration or displacement sensor has no velocity threshold: its departure from
+      that level over the record's last `SETTLED_TAIL_FRACTION`, or before the hit, must stay
+      within `SETTLED_RESPONSE_FRACTION` of its largest departure.
     - overlap: the next impact triggers inside this record.
+
+    The response flags (saturated, no_response, dropout, nan, unsettled) judge the channel the
+    sensor measured (`ImpactRecord.measured`), in its own units and range.
     """
     record = with_trigger(record, config)
-    force, velocity = record.force_n, record.velocity_m_s
+    force = record.force_n
+    velocity, response_full_scale = record.measured
     samples = config.samples(record.sample_rate_hz)
     trigger = record.trigger_offset
     flags = set()
@@ -332,16 +354,28 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
 
     after_contact = first_true(below_level(force[trigger:], config.rearm_level_n))
     contact_end = force.size if after_contact < 0 else trigger + after_contact
-    bounce = force[contact_end : trigger + samples.min_spacing]
-    if np.any(reaches_level(bounce, config.trigger_level_n)):
+    contact_start = contact_start_index(force, trigger, config)
+    peak = float(np.nanmax(force[contact_start:contact_end]))
+    if pulse.rebounds(
+        force,
+        contact_end,
+        trigger + samples.min_spacing,
+        peak,
+        config.trigger_level_n,
+        config.rearm_level_n,
+    ):
         flags.add('double_hit')
+    if pulse.coarse(
+        contact_duration(force, record.sample_rate_hz, config.rearm_level_n, contact_start),
+        record.sample_rate_hz,
+    ):
+        flags.add('coarse')
     force_plateaus = _plateaus(force, (1.0,), force_noise)
     velocity_plateaus = _plateaus(velocity, (1.0, -1.0), velocity_noise)
     if _beyond(force, record.force_full_scale_n) or force_plateaus:
         flags.add('clipped')
-    if _beyond(velocity, record.velocity_full_scale_m_s) or velocity_plateaus:
+    if _beyond(velocity, response_full_scale) or velocity_plateaus:
         flags.add('saturated')
-    contact_start = contact_start_index(force, trigger, config)
     if not responds(velocity, contact_start, contact_end, samples.min_spacing, velocity_noise):
         flags.add('no_response')
     if stuck_stretch(force, force_plateaus) or stuck_stretch(velocity, velocity_plateaus):
@@ -358,10 +392,15 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
     before = velocity[:contact_start]
     finite_before = before[np.isfinite(before)]
     rest_level = float(np.median(finite_before)) if finite_before.size else 0.0
-    tail = velocity[max(trigger + 1, velocity.size - samples.rest) :]
-    if np.any(np.abs(before - rest_level) > config.rest_velocity_m_s) or np.any(
-        np.abs(tail - rest_level) > config.rest_velocity_m_s
-    ):
+    if record.response is None:
+        rest = config.rest_velocity_m_s
+        tail = velocity[max(trigger + 1, velocity.size - samples.rest) :]
+    else:
+        tail_samples = max(SETTLED_TAIL_MIN_SAMPLES, int(SETTLED_TAIL_FRACTION * velocity.size))
+        tail = velocity[max(trigger + 1, velocity.size - tail_samples) :]
+        with np.errstate(invalid='ignore'):
+            rest = SETTLED_RESPONSE_FRACTION * float(np.nanmax(np.abs(velocity - rest_level)))
+    if np.any(np.abs(before - rest_level) > rest) or np.any(np.abs(tail - rest_level) > rest):
         flags.add('unsettled')
     follower = TriggerDetector(config, record.sample_rate_hz, last_trigger=trigger)
     if follower.scan(force[trigger + 1 :], trigger + 1):

@@ -58,6 +58,14 @@ class ImpactRecord:
     # The acquisition was restarted (a new one recognised) before the record was complete:
     # its tail never came and is listed as a gap.
     interrupted: bool = False
+    # What the response sensor measured (`fmm_ros.core.signal.response`): 'velocity' (then
+    # velocity_m_s is the measurement and response None), or 'acceleration' [m/s^2] or
+    # 'displacement' [m], whose samples are in response, velocity_m_s being their velocity.
+    response_quantity: str = 'velocity'
+    response: np.ndarray | None = None
+    # The response sensor's range in SI units of response_quantity (0: unknown), when that
+    # is not velocity (a velocity sensor's is velocity_full_scale_m_s).
+    response_full_scale: float = 0.0
 
     def __post_init__(self) -> None:
         force = np.asarray(self.force_n, dtype=float)
@@ -87,6 +95,21 @@ class ImpactRecord:
         object.__setattr__(self, 'force_n', force)
         object.__setattr__(self, 'velocity_m_s', velocity)
         object.__setattr__(self, 'window_samples', int(window))
+        if self.response is not None:
+            response = np.asarray(self.response, dtype=float)
+            if response.shape != force.shape:
+                raise ValueError(
+                    f'the {self.response_quantity} response has {response.size} samples but '
+                    f'force has {force.size}: the channels of a record must be sample-aligned'
+                )
+            object.__setattr__(self, 'response', response)
+
+    @property
+    def measured(self) -> tuple[np.ndarray, float]:
+        """The response channel as the sensor measured it, and its range (0: unknown)."""
+        if self.response is None:
+            return self.velocity_m_s, self.velocity_full_scale_m_s
+        return self.response, self.response_full_scale
 
     @property
     def trigger_offset(self) -> int | None:

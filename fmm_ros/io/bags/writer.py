@@ -29,6 +29,7 @@ from fmm_ros.constants import (
     FORCE_TOPIC,
     VELOCITY,
     VELOCITY_TOPIC,
+    Channel,
     resolve_name,
 )
 from fmm_ros.errors import BadInputError
@@ -295,11 +296,14 @@ class BagWriter:
         force_frame: str = 'hammer',
         velocity_frame: str = 'vibrometer',
         on_progress: Callable[[int], None] | None = None,
+        response: Channel = VELOCITY,
     ) -> int:
         """Whole force [N] and velocity [m/s] records as batches on /fmm/force, /fmm/velocity.
 
         Both channels share one sample index, as a DAQ publishes them. on_progress gets the
         number of samples written per batch. Returns the index after the last sample.
+        response: what the second channel measures (`RESPONSE_CHANNELS`: an accelerometer's
+        m/s^2 go on the velocity topic as quantity 'acceleration').
         """
         if len(force) != len(velocity):
             raise BadInputError(
@@ -323,7 +327,7 @@ class BagWriter:
             self.write_sample_batch(
                 VELOCITY_TOPIC,
                 velocity[start:stop],
-                quantity=VELOCITY,
+                quantity=response,
                 sample_rate_hz=sample_rate_hz,
                 first_sample_index=index,
                 frame_id=velocity_frame,

@@ -18,6 +18,8 @@ NODES: dict[str, str] = {
     'fitter': 'Fitter',
     'recorder': 'Recorder',
     'player': 'Player',
+    'live': 'Live',
+    'foxglove_server': 'FoxgloveServer',
 }
 
 

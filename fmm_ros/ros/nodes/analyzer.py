@@ -28,6 +28,7 @@ from fmm_ros.core.signal.analysis import (
 )
 from fmm_ros.core.signal.capture import FLAGS, CaptureConfig, ImpactCapture
 from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.core.signal.response import as_measured
 from fmm_ros.core.signal.stream import Batch
 from fmm_ros.errors import BadInputError
 from fmm_ros.ros import msgs
@@ -157,8 +158,9 @@ class Analyzer(Node):
 
     def _report(self, record: ImpactRecord, stamp: Time) -> None:
         """Analyse one completed record, publish it and the updated level summaries."""
+        measured = as_measured(record, self.inputs.response_quantity, self.capture_config)
         result = analyze_impact(
-            record, self.capture_config, self.analysis_config, impact_id=self.impacts_reported
+            measured, self.capture_config, self.analysis_config, impact_id=self.impacts_reported
         )
         self.capture.recycle(record)
         self.results.append(result)

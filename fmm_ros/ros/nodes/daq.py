@@ -3,14 +3,18 @@
 Backends:
 
 - `nidaqmx`: an NI-DAQmx device, hardware-clocked continuous acquisition of an IEPE force
-  channel (impact hammer: sensitivity in mV/N, excitation current) and a voltage channel
-  (laser vibrometer decoder output, scaled in m/s per V); an every-N-samples callback reads
+  channel (impact hammer: sensitivity in mV/N, excitation current) and the response: a
+  voltage channel (laser vibrometer decoder output, scaled in m/s per V), or with
+  `response_sensor:=iepe_accelerometer` an IEPE accelerometer channel (sensitivity in mV/g,
+  published in m/s^2 as quantity 'acceleration' on the response topic); an every-N-samples
+  callback reads
   each batch of both channels into one preallocated buffer and publishes it. Needs the
   optional `nidaqmx` package and NI's driver; without them the node stops at start-up and
   says what to install.
 - `file`: streams a recorded lab file (CSV, NPZ, MATLAB, TDMS, read by the bag importers
   with an explicit channel mapping) at its own sample rate x `rate_factor`, for dry runs
-  of the analysis chain without the rig.
+  of the analysis chain without the rig; its response (velocity, acceleration or
+  displacement) goes out as the quantity it is.
 
 Either holds its first sample until the consumers in `wait_for_consumers` have reported
 (ros/flow.py). The file backend also never runs more than the flow window ahead of the
@@ -26,21 +30,39 @@ from rclpy.duration import Duration
 from rclpy.node import Node
 
 from fmm_interfaces.msg import SampleBatch
-from fmm_ros.constants import FORCE, FORCE_TOPIC, SAMPLE_RATE_HZ, VELOCITY, VELOCITY_TOPIC
+from fmm_ros.constants import (
+    ACCELERATION,
+    DISPLACEMENT,
+    FORCE,
+    FORCE_TOPIC,
+    RESPONSE_CHANNELS,
+    SAMPLE_RATE_HZ,
+    VELOCITY,
+    VELOCITY_TOPIC,
+)
 from fmm_ros.errors import BadInputError
-from fmm_ros.io.labfiles import ChannelMapping, ImportMapping, load_mapping, read_lab_file
+from fmm_ros.io.labfiles import ImportMapping, load_mapping, read_lab_file
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import run_node
 from fmm_ros.ros.flow import SOURCE_PARAMS, PacedSource, deliver_last_batches
 from fmm_ros.ros.health import Health
 from fmm_ros.ros.params import Param, declare_parameters
 from fmm_ros.ros.qos import SAMPLE_QOS
+from fmm_ros.ros.timebase import CLOCK_PARAM, ClockPublisher
 
 INSTALL_HINT = (
     'the nidaqmx backend needs NI-DAQmx: `pip install nidaqmx` into the environment '
     "that runs this node, then NI's driver (`python -m nidaqmx installdriver`, or "
     'the NI Linux Device Drivers package); use backend:=file for a dry run'
 )
+
+RESPONSE_SENSORS = ('vibrometer', 'iepe_accelerometer')
+RESPONSE_FRAMES = {
+    VELOCITY.quantity: 'vibrometer',
+    ACCELERATION.quantity: 'accelerometer',
+    DISPLACEMENT.quantity: 'displacement_sensor',
+}
+"""The frame_id of each response sensor's batches."""
 
 PARAMS = (
     Param('backend', 'nidaqmx', 'Acquisition backend', choices=('nidaqmx', 'file'), read_only=True),
@@ -93,12 +115,40 @@ PARAMS = (
         limits=(0.01, 100.0),
         read_only=True,
     ),
+    Param(
+        'response_sensor',
+        'vibrometer',
+        'What measures the response (nidaqmx): the vibrometer voltage or an IEPE accelerometer',
+        choices=RESPONSE_SENSORS,
+        read_only=True,
+    ),
+    Param(
+        'accelerometer_channel',
+        'Dev1/ai1',
+        'Physical channel of the IEPE accelerometer',
+        read_only=True,
+    ),
+    Param(
+        'accelerometer_sensitivity_mv_per_g',
+        100.0,
+        'Accelerometer sensitivity [mV/g] (from its calibration sheet)',
+        limits=(1e-3, 1e5),
+        read_only=True,
+    ),
+    Param(
+        'acceleration_range_m_s2',
+        500.0,
+        'Acceleration channel range +- [m/s^2] (also the saturation level)',
+        limits=(1e-3, 1e6),
+        read_only=True,
+    ),
     Param('buffer_s', 10.0, 'Device buffer length [s]', limits=(0.1, 3600.0), read_only=True),
     Param('file_path', '', 'Lab file to stream (file backend)', read_only=True),
     Param(
         'file_mapping',
         '',
-        'YAML channel mapping of the file (see fmm import); "" for the fmm CSV/NPZ layout',
+        'YAML channel mapping of the file (see fmm import); "" for what the file states '
+        '(time_s, force_n and velocity_m_s, acceleration_m_s2 or displacement_m)',
         read_only=True,
     ),
     Param(
@@ -115,6 +165,7 @@ PARAMS = (
         read_only=True,
     ),
     *SOURCE_PARAMS,
+    CLOCK_PARAM,
 )
 
 Publish = Callable[[int, np.ndarray, np.ndarray], None]
@@ -129,6 +180,7 @@ class Daq(Node):
         self._force_pub = self.create_publisher(SampleBatch, FORCE_TOPIC, SAMPLE_QOS)
         self._velocity_pub = self.create_publisher(SampleBatch, VELOCITY_TOPIC, SAMPLE_QOS)
         self._start_stamp = self.get_clock().now()
+        self.clock = ClockPublisher(self, self.config['publish_clock'])
         self.batches_published = 0
         self.health = Health(self)
         backend = {'nidaqmx': NidaqmxBackend, 'file': FileBackend}[self.config['backend']]
@@ -153,8 +205,8 @@ class Daq(Node):
             (
                 self._velocity_pub,
                 velocity_m_s,
-                VELOCITY,
-                'vibrometer',
+                self.backend.response,
+                RESPONSE_FRAMES[self.backend.response.quantity],
                 self.backend.velocity_full_scale,
             ),
         ):
@@ -170,6 +222,8 @@ class Daq(Node):
                 )
             )
         self.batches_published += 1
+        end = first_sample_index + len(force_n)
+        self.clock.advance(self._start_stamp.nanoseconds + round(end / rate * 1e9))
 
     def destroy_node(self) -> None:
         """Stop the acquisition, deliver its last batches, say what went out."""
@@ -195,11 +249,20 @@ class NidaqmxBackend:
         cfg = node.config
         self.sample_rate_hz = cfg['sample_rate_hz']
         self.force_full_scale = cfg['force_range_n']
-        self.velocity_full_scale = cfg['velocity_range_v'] * cfg['velocity_scale_m_s_per_v']
+        accelerometer = cfg['response_sensor'] == 'iepe_accelerometer'
+        self.response = ACCELERATION if accelerometer else VELOCITY
+        if accelerometer:
+            self.velocity_full_scale = cfg['acceleration_range_m_s2']
+            response = (
+                f'{cfg["accelerometer_channel"]} (IEPE accelerometer '
+                f'{cfg["accelerometer_sensitivity_mv_per_g"]} mV/g)'
+            )
+        else:
+            self.velocity_full_scale = cfg['velocity_range_v'] * cfg['velocity_scale_m_s_per_v']
+            response = f'{cfg["velocity_channel"]} ({cfg["velocity_scale_m_s_per_v"]} m/s/V)'
         self._describe = (
             f'{cfg["force_channel"]} (IEPE {cfg["hammer_sensitivity_mv_per_n"]} '
-            f'mV/N, {cfg["iepe_current_a"] * 1e3:g} mA), {cfg["velocity_channel"]} '
-            f'({cfg["velocity_scale_m_s_per_v"]} m/s/V), '
+            f'mV/N, {cfg["iepe_current_a"] * 1e3:g} mA), {response}, '
             f'{self.sample_rate_hz:g} Hz'
         )
         try:
@@ -217,11 +280,26 @@ class NidaqmxBackend:
                 current_excit_source=constants.ExcitationSource.INTERNAL,
                 current_excit_val=cfg['iepe_current_a'],
             )
-            self.task.ai_channels.add_ai_voltage_chan(
-                cfg['velocity_channel'],
-                min_val=-cfg['velocity_range_v'],
-                max_val=cfg['velocity_range_v'],
-            )
+            if accelerometer:
+                sensitivity_units = constants.AccelSensitivityUnits
+                self.task.ai_channels.add_ai_accel_chan(
+                    cfg['accelerometer_channel'],
+                    min_val=-cfg['acceleration_range_m_s2'],
+                    max_val=cfg['acceleration_range_m_s2'],
+                    units=constants.AccelUnits.METERS_PER_SECOND_SQUARED,
+                    sensitivity=cfg['accelerometer_sensitivity_mv_per_g'],
+                    # nidaqmx >= 0.8 spells it MILLIVOLTS_PER_G, older releases M_VOLTS_PER_G.
+                    sensitivity_units=getattr(sensitivity_units, 'MILLIVOLTS_PER_G', None)
+                    or sensitivity_units.M_VOLTS_PER_G,
+                    current_excit_source=constants.ExcitationSource.INTERNAL,
+                    current_excit_val=cfg['iepe_current_a'],
+                )
+            else:
+                self.task.ai_channels.add_ai_voltage_chan(
+                    cfg['velocity_channel'],
+                    min_val=-cfg['velocity_range_v'],
+                    max_val=cfg['velocity_range_v'],
+                )
             self.task.timing.cfg_samp_clk_timing(
                 self.sample_rate_hz,
                 sample_mode=constants.AcquisitionType.CONTINUOUS,
@@ -230,7 +308,7 @@ class NidaqmxBackend:
             batch = cfg['batch_size']
             reader = AnalogMultiChannelReader(self.task.in_stream)
             buffer = np.empty((2, batch))
-            scale = cfg['velocity_scale_m_s_per_v']
+            scale = 1.0 if accelerometer else cfg['velocity_scale_m_s_per_v']
             self.next_index = 0
 
             def on_samples(task_handle, event_type, number_of_samples, callback_data) -> int:
@@ -289,14 +367,19 @@ class FileBackend:
         mapping = (
             ImportMapping.from_dict(load_mapping(cfg['file_mapping']))
             if cfg['file_mapping']
-            else default_mapping(path)
+            else {}
         )
         recording = read_lab_file(path, mapping)
+        self.response = next(
+            channel
+            for channel in RESPONSE_CHANNELS
+            if channel.quantity == recording.response_quantity
+        )
         self.force_n = recording.force_n
-        self.velocity_m_s = recording.velocity_m_s
+        self.velocity_m_s = recording.response
         self.sample_rate_hz = recording.sample_rate_hz
         self.force_full_scale = recording.full_scale_force_n
-        self.velocity_full_scale = recording.full_scale_velocity_m_s
+        self.velocity_full_scale = recording.full_scale_response
         self._path, self._loop, self._publish = path, cfg['loop'], publish
         self._batch = cfg['batch_size']
         self.next_index = 0
@@ -343,14 +426,6 @@ class FileBackend:
 
     def close(self) -> None:
         """Nothing is held open: the file was read at start-up."""
-
-
-def default_mapping(path: Path) -> ImportMapping:
-    """The channel layout fmm writes: force_n [N], velocity_m_s [m/s], time_s or sample_rate_hz."""
-    force, velocity = ChannelMapping('force_n', 'N'), ChannelMapping('velocity_m_s', 'm/s')
-    if path.suffix.lower() == '.npz':
-        return ImportMapping(force, velocity, sample_rate_hz='sample_rate_hz')
-    return ImportMapping(force, velocity, time=ChannelMapping('time_s', 's'))
 
 
 def main(args: list[str] | None = None) -> int:

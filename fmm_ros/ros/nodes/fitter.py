@@ -39,6 +39,7 @@ from fmm_ros.core.identify.spec import MU_BOUNDS, FitSpec
 from fmm_ros.core.signal.analysis import ImpactSelection, select_impacts
 from fmm_ros.core.signal.history import SampleHistory
 from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.core.signal.response import as_measured
 from fmm_ros.core.signal.stream import Batch
 from fmm_ros.errors import BadInputError
 from fmm_ros.ros import msgs
@@ -86,6 +87,7 @@ class HeldImpact:
     accepted: bool
     flags: tuple[str, ...]
     record: ImpactRecord
+    stamp_ns: int = 0  # ImpactResult.header.stamp: signal time of the trigger
 
 
 class Fitter(Node):
@@ -185,16 +187,26 @@ class Fitter(Node):
                 continue
             self._waiting.remove(msg)
             try:
-                record = self.history.record(
-                    start,
-                    length,
-                    trigger_sample_index=msg.trigger_sample_index,
-                    source=f'impact {msg.impact_id}',
+                record = as_measured(
+                    self.history.record(
+                        start,
+                        length,
+                        trigger_sample_index=msg.trigger_sample_index,
+                        source=f'impact {msg.impact_id}',
+                    ),
+                    self.inputs.response_quantity,
                 )
             except ValueError as error:
                 self.get_logger().warning(f'impact {msg.impact_id} cannot be held: {error}')
                 continue
-            held = HeldImpact(msg.impact_id, msg.level, msg.accepted, tuple(msg.flags), record)
+            held = HeldImpact(
+                msg.impact_id,
+                msg.level,
+                msg.accepted,
+                tuple(msg.flags),
+                record,
+                msgs.stamp_ns(msg.header.stamp),
+            )
             with self._lock:
                 self.impacts[msg.impact_id] = held
                 while len(self.impacts) > self.config['keep_last_impacts']:
@@ -222,7 +234,7 @@ class Fitter(Node):
                 self.get_logger().warning(f'live mu: impact {held.impact_id} not used: {error}')
                 continue
             self._friction_pub.publish(
-                msgs.friction_estimate_msg(estimate, stamp=self.get_clock().now().to_msg())
+                msgs.friction_estimate_msg(estimate, stamp=msgs.time_msg(held.stamp_ns))
             )
             self.live_mu = (
                 f'{estimate.mu:.5f} +- {estimate.mu_stderr:.2g} over {estimate.count} impacts '

@@ -25,6 +25,7 @@ from fmm_ros.ros.flow import SOURCE_PARAMS, PacedSource
 from fmm_ros.ros.health import Health
 from fmm_ros.ros.params import Param, declare_parameters
 from fmm_ros.ros.qos import SAMPLE_QOS
+from fmm_ros.ros.timebase import CLOCK_PARAM, ClockPublisher
 from fmm_ros.sim.daq import ChainStream
 from fmm_ros.sim.hammer import HammerStream, session_schedule
 
@@ -115,6 +116,7 @@ PARAMS = (
     ),
     Param('frame_id', 'hammer', 'Sensor name in the message header', read_only=True),
     *SOURCE_PARAMS,
+    CLOCK_PARAM,
 )
 
 
@@ -154,6 +156,7 @@ class HammerSim(Node):
         self._applied = np.empty(batch)
         self._measured = np.empty(batch)
         self._start_stamp = self.get_clock().now()
+        self.clock = ClockPublisher(self, self.config['publish_clock'])
         self._timer = None
         self._held = False
         self.source = PacedSource(
@@ -231,7 +234,11 @@ class HammerSim(Node):
         self._measured_pub.publish(msgs.sample_batch(self._measured, **common))
         self.next_index = first + self._applied.size
         self.source.sent(self.next_index)
-        if self.next_index >= self.stream.end_index > first:
+        done = self.next_index >= self.stream.end_index > first
+        self.clock.advance(
+            self._start_stamp.nanoseconds + round(self.next_index / rate * 1e9), force=done
+        )
+        if done:
             self.get_logger().info(f'session complete: {len(self.schedule)} hits sent')
 
     def destroy_node(self) -> None:

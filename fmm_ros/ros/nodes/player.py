@@ -16,6 +16,7 @@ from rclpy.node import Node
 
 from fmm_ros.constants import (
     APPLIED_FORCE_TOPIC,
+    CLOCK_TOPIC,
     FORCE_TOPIC,
     FRF_TOPIC,
     IMPACTS_TOPIC,
@@ -29,6 +30,7 @@ from fmm_ros.ros.flow import SOURCE_PARAMS, PacedSource
 from fmm_ros.ros.health import OK, WARN, Health
 from fmm_ros.ros.params import Param, declare_parameters
 from fmm_ros.ros.qos import RESULT_QOS, SAMPLE_QOS
+from fmm_ros.ros.timebase import CLOCK_PARAM, ClockPublisher
 
 # As for hammer_sim: rclpy takes one message per subscription per wait cycle, so a tick
 # sends only a few messages; further behind than that the pace is re-anchored.
@@ -48,6 +50,7 @@ PARAMS = (
         'tick_s', 0.005, 'Timer period of the pacing loop [s]', limits=(1e-4, 1.0), read_only=True
     ),
     *SOURCE_PARAMS,
+    CLOCK_PARAM,
 )
 # The package's topics: played under their relative names, whatever namespace recorded them.
 FMM_TOPICS = (FORCE_TOPIC, VELOCITY_TOPIC, APPLIED_FORCE_TOPIC, IMPACTS_TOPIC, FRF_TOPIC)
@@ -94,6 +97,10 @@ class Player(Node):
             window_samples=1,
             pace_label=f'x{self.config["rate_factor"]:g}',
             release=self._on_tick,
+        )
+        # A bag that recorded /clock plays it; an older one gets it from the batches' stamps.
+        self.clock = ClockPublisher(
+            self, self.config['publish_clock'] and CLOCK_TOPIC not in self.reader.topics
         )
         self._messages = self.reader.messages(wanted)
         self._next = next(self._messages, None)
@@ -163,6 +170,9 @@ class Player(Node):
         if not gate.allows(end, window):
             return False
         gate.sent(end)
+        stamp_ns = batch.header.stamp.sec * 1_000_000_000 + batch.header.stamp.nanosec
+        if stamp_ns:
+            self.clock.advance(stamp_ns + round(len(batch.samples) / batch.sample_rate_hz * 1e9))
         return True
 
     def destroy_node(self) -> None:

@@ -27,11 +27,13 @@ from rclpy.serialization import deserialize_message
 from fmm_interfaces.msg import SampleBatch
 from fmm_ros.constants import (
     APPLIED_FORCE_TOPIC,
+    CLOCK_TOPIC,
     DIAGNOSTICS_TOPIC,
     FORCE_TOPIC,
     FRF_TOPIC,
     FRICTION_TOPIC,
     IMPACTS_TOPIC,
+    LIVE_TOPICS,
     RECORDED_TOPICS,
     VELOCITY_TOPIC,
 )
@@ -51,7 +53,7 @@ from fmm_ros.ros.health import (
     stream_status,
 )
 from fmm_ros.ros.params import Param, declare_parameters
-from fmm_ros.ros.qos import DIAGNOSTICS_QOS, RESULT_QOS, SAMPLE_QOS, recording_qos
+from fmm_ros.ros.qos import CLOCK_QOS, DIAGNOSTICS_QOS, RESULT_QOS, SAMPLE_QOS, recording_qos
 
 PARAMS = (
     Param(
@@ -87,6 +89,8 @@ KNOWN_TOPICS = {
     FRF_TOPIC: ('fmm_interfaces/msg/FrfSummary', RESULT_QOS),
     FRICTION_TOPIC: ('fmm_interfaces/msg/FrictionEstimate', RESULT_QOS),
     DIAGNOSTICS_TOPIC: ('diagnostic_msgs/msg/DiagnosticArray', DIAGNOSTICS_QOS),
+    CLOCK_TOPIC: ('rosgraph_msgs/msg/Clock', CLOCK_QOS),
+    **{topic: ('fmm_interfaces/msg/DisplayPoint', SAMPLE_QOS) for topic in LIVE_TOPICS.values()},
 }
 
 
