@@ -51,7 +51,7 @@ autodoc_typehints_format = 'short'
 # (intersphinx would download one): they stay plain text instead of failing as broken links.
 # So do private helpers (a leading underscore) and type variables that annotations name.
 _EXTERNAL = (
-    'np|numpy|npt|matplotlib|rclpy|rcl_interfaces|builtin_interfaces|diagnostic_msgs|std_msgs',
+    'foxglove|np|numpy|npt|matplotlib|rclpy|rcl_interfaces|builtin_interfaces|diagnostic_msgs|std_msgs',
     'fmm_interfaces|rosbags|tqdm|dask|distributed|pyarrow|yaml|argparse|pathlib|subprocess',
     'os|array|types|abc|collections|typing|dataclasses|enum|datetime|io|logging|threading',
 )
