@@ -1,5 +1,6 @@
-# The two commands of the README. Both set up .venv first (instant when nothing changed).
-.PHONY: setup demo test
+# The two commands of the README, and the documentation site. Each sets up .venv first
+# (instant when nothing changed).
+.PHONY: setup demo test docs
 
 setup:
 	@./launch_scripts/setup_env.sh
@@ -13,3 +14,7 @@ test: setup
 	@.venv/bin/python -m pytest $(PYTEST_ARGS); rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "make test: pytest collected no tests" >&2; exit 1; fi; \
 	exit $$rc
+
+# The documentation site into docs/_build/html; any warning fails it (as test/test_docs.py does in CI).
+docs: setup
+	@.venv/bin/sphinx-build -W --keep-going -n -q -b html docs docs/_build/html

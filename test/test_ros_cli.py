@@ -125,11 +125,9 @@ def test_fmm_ros_run_names_the_executables_it_has(capsys):
     assert "no executable 'talker'" in err and 'analyzer' in err and 'fitter' in err
 
 
-def test_no_ros2_is_needed_by_the_readme_venv_commands():
-    """The README's venv section runs only what the venv has (the ros2 lines are the lab's)."""
-    readme = (Path(__file__).resolve().parents[1] / 'README.md').read_text()
-    section = readme[readme.index('### From the venv') :]
-    section = section[: section.index('\n## ')]
+def test_no_ros2_is_needed_by_the_venv_page_commands():
+    """The docs' venv page runs only what the venv has (the ros2 lines are the lab's)."""
+    section = (Path(__file__).resolve().parents[1] / 'docs' / 'howto' / 'venv.md').read_text()
     commands = [
         line.split('#')[0]  # the comments name the ros2 command each stands for
         for line in section.splitlines()

@@ -6,7 +6,7 @@ enclave's profile, names resolved as SROS2 resolves them (relative to the profil
 namespace, ~ the node's own). The policy's structure is checked against the rules of the
 SROS2 policy schema 0.2.0 (sros2 is not on PyPI: `ros2 security generate_artifacts`
 validates it against the schema itself on a lab install). And the venv's middleware is shown
-to refuse a secured node, as the README says.
+to refuse a secured node, as docs/howto/security.md says.
 """
 
 import fnmatch

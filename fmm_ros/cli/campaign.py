@@ -104,7 +104,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action=argparse.BooleanOptionalAction,
         default=True,
         help="run the discrepancy workflow on each session too: the missing effects, mu's "
-        'drift, the friction map (default; about 0.8 s more a 10-hit session, see README)',
+        "drift, the friction map (default; it adds to each session's time)",
     )
     options.add_model(parser)
     parser.add_argument('--title', default='', help="report title (default: the table's)")

@@ -1,4 +1,4 @@
-"""`fmm import FILE... -o BAG`: lab measurements (CSV, NPZ, .mat, TDMS) into a session bag."""
+"""`fmm import FILE [FILE ...] -o BAG`: lab measurements (CSV, NPZ, MAT, TDMS) into a bag."""
 
 from __future__ import annotations
 

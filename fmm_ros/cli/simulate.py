@@ -1,6 +1,7 @@
 """`fmm simulate`: run the friction oscillator from an initial condition or a force record.
 
-Examples (the paper's Fig. 2 oscillator; an FMM response to a recorded hit):
+Examples (the paper's Fig. 2 oscillator; an FMM response to a recorded hit)::
+
     fmm simulate --x0-m 0.003 --mu 0.1 --mass-kg 1 --stiffness-n-per-m 5000
                  --damping-n-s-per-m 0 --normal-force-n 9.81 --duration-s 1 --json
     fmm simulate --force-csv hit.csv -o response.csv

@@ -1,7 +1,7 @@
 """Export of FRFs: Universal File Format dataset 58 (via pyuff), CSV and JSON.
 
 UFF 58 is what modal-testing tools exchange (ME'scope, Simcenter Testlab, pyEMA, SDypy read it);
-CSV and JSON are for spreadsheets and scripts. All three take the same list of `FrfCurve`s,
+CSV and JSON are for spreadsheets and scripts. All three take the same list of `FrfCurve` objects,
 built from a `Summary` by `level_curves` (each level's plain mean, H1, H2 and coherence) or
 from impacts by `impact_curves`.
 """

@@ -903,5 +903,5 @@ def write_recordings(
 def import_to_bag(
     paths: Sequence[str | Path], bag: str | Path, mapping: ImportMapping | dict, **options
 ) -> ImportSummary:
-    """Lab files into one session bag: read_lab_files, then write_recordings(**options)."""
+    """Lab files into one session bag: read_lab_files, then write_recordings with options."""
     return write_recordings(read_lab_files(paths, mapping), bag, **options)

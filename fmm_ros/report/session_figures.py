@@ -1,7 +1,8 @@
 """Figures of one impact session, in the style of the paper's Figs. 12-24.
 
-Each function takes analysed data (records, `ImpactAnalysis`s, `LevelSummary`s) and returns a
-`matplotlib.figure.Figure`; nothing is computed here that the signal core already computes.
+Each function takes analysed data (records, `ImpactAnalysis` and `LevelSummary` objects) and
+returns a `matplotlib.figure.Figure`; nothing is computed here that the signal core already
+computes.
 Time is counted from each hit's trigger, so trials overlay; frequency axes stop where the
 figure's subject does (a few f_n for the resonance, 20 Hz for the odd harmonics).
 """

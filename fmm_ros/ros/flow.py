@@ -10,6 +10,7 @@ back-pressure for KEEP_LAST, and its KEEP_ALL buffers thousands of batches befor
 So the consumers say how far they have got (`ProgressReporter`, on fmm/stream_progress, one
 message per node carrying each topic's next expected index) and the sources listen
 (`FlowGate`):
+
 - a source holds its first sample until every consumer it was told to wait for has reported
   and is matched on its topics; past `start_timeout_s` it stops, naming who is missing;
 - it never publishes a batch ending more than `window` samples past the slowest consumer's
@@ -18,6 +19,7 @@ message per node carrying each topic's next expected index) and the sources list
 - a consumer that leaves the graph (its node gone) stops counting; one that joins counts
   from its first report. A report from an earlier acquisition (past what the source has
   published since it restarted) counts as caught up.
+
 A relay (rig_sim) reports on its input no further than its own consumers have got, so the
 hold-back reaches the first source. The real DAQ cannot slow its hardware clock: it only
 holds its start; its device buffer absorbs what its consumers lag.

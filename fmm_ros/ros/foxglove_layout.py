@@ -7,8 +7,10 @@ and impulse, the newest level's coherence over frequency, the last impact's full
 the nodes' health. Time plots use the messages' header stamps, the graph's one time base
 (signal time), so they line up at any rate_factor and in a bag.
 
-Regenerate after changing a panel or a topic name:
+Regenerate after changing a panel or a topic name::
+
     .venv/bin/python -m fmm_ros.ros.foxglove_layout
+
 (test/test_foxglove.py checks the shipped file equals this declaration).
 """
 

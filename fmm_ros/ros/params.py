@@ -1,6 +1,6 @@
 """Declare a node's parameters from one table: description with unit, range, choices, read-only.
 
-Tables are written as `Param`s, or made from the core's declared settings (`params_from`), so
+Tables are written as `Param` entries, or made from the core's declared settings (`params_from`), so
 a capture or rig setting has one default, unit, range and help in the package. The params
 file of every node is written above the nodes, by `fmm_ros.ros.params_file`.
 

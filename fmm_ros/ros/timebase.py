@@ -9,10 +9,12 @@ replay it is the recording's time.
 
 A source also publishes it on /clock (rosgraph_msgs/Clock, the ROS sim-time topic) as its
 samples go out, at most `CLOCK_RATE_HZ` times a wall second, so that:
+
 - /diagnostics, stamped by nodes that may see no samples at all, follow it (`SignalClock`);
 - a bag records it, and a viewer (Foxglove, PlotJuggler, rqt) lines every topic up on one
   axis at any rate_factor;
 - a node a lab adds can run with `use_sim_time:=true` and stamp in the same time.
+
 As ROS sim time, it stands still while no samples go out. /clock is absolute, as ROS has it:
 two rigs in one graph (namespaces) give one source `publish_clock:=false`, or use a domain each.
 """

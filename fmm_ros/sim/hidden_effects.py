@@ -360,7 +360,7 @@ def hidden_session(
     Each effect is sized as `hidden_effect_case` sizes one (its discrepancy after the base fit,
     with the others absent, drawn from ratio_range in velocity noise units), then all act
     together. mu_drift changes mu linearly over the hits, up or down by up to MAX_DRIFT;
-    'speed_regimes' and 'wear_track' are `RegimeLaw`s with a random transition (20-60 mm/s,
+    'speed_regimes' and 'wear_track' are each a `RegimeLaw` with a random transition (20-60 mm/s,
     friction up above it) or groove (half width 1-3 mm, centre within 1 mm of the start,
     friction up or down in it).
     """

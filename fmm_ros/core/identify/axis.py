@@ -12,6 +12,7 @@ solve identifies them from one record of force and motion, open or closed loop (
 Janot, Gautier and Brunot 2019, the EMPS benchmark).
 
 How the motion is differentiated, and why it does not bias the estimate:
+
 - The position is low-passed by a zero-phase Butterworth filter (forward and backward, so no
   lag between force and motion), then differentiated by central differences: velocity and
   acceleration with the same zero phase ("band-pass filtering").

@@ -2,6 +2,7 @@
 
 Conditioning of the force (`condition_impact`), because the model integrates every sample it
 is given: a 0.2 N noise floor over 33 s would drive the stuck mass into creep and bias mu.
+
 - Baseline: the mean of the force outside the hit, subtracted.
 - Gate: the hit is where the force departs from the baseline by more than
   `HIT_THRESHOLD_SIGMA` robust noise deviations (median absolute deviation); each such run

@@ -5,6 +5,7 @@ shared by all impacts) and returns measured minus simulated velocity, or the mob
 up to `band_limit_hz`, one block per impact, for `fmm_ros.core.identify.lsq`.
 
 Uncertainty, two parts added:
+
 - Velocity: the residuals of an output-error fit are not independent (a model error is smooth
   in time, and so are a vibrometer's low-frequency errors), so the white-noise covariance
   s^2 (J^T J)^-1 is optimistic. Used instead is the sandwich (J^T J)^-1 S (J^T J)^-1 with S
@@ -15,6 +16,7 @@ Uncertainty, two parts added:
   -(J J^T)^-1 J dr/dI per N*s (dr/dI found by scaling the hit). At 0.2 N this part dominates
   the error of mu for one record (about 1e-4 of mu), and it is what makes per-impact mu's
   scatter.
+
 The standard errors were checked against the scatter of fits over noise seeds (test_fit.py).
 """
 

@@ -11,6 +11,7 @@ are the state on the sample grid: sample i is the state at t = i / sample_rate_h
 initial condition.
 
 Integrators:
+
 - 'exact' (default): piecewise-linear models (Coulomb + viscous, asymmetric friction, second
   mode) are solved exactly: between velocity reversals the motion is linear with a constant
   friction force, so each sample interval is one matrix step (FOH matrix exponential); a

@@ -1,7 +1,7 @@
 """Force and velocity as one index-aligned stream: the rules every consumer of batches shares.
 
 The live analyzer's capture, the fitter's history, bag reading (`BagReader.batches`) and bag
-replay all receive the same thing, two channels of `SampleBatch`es counted on one acquisition
+replay all receive the same thing, two channels of `SampleBatch` messages counted on one acquisition
 sample index, and all must agree on what a batch means. These rules live here and only here:
 
 - **Watermark.** Each channel has one: every sample below it has been taken or declared

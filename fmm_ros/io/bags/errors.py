@@ -1,6 +1,7 @@
 """Errors of bag I/O: each names the bag and what is wrong with it, in words a user can act on.
 
-All are `FmmError`s (so ValueErrors), so the `fmm` command reports them as a one-line error.
+All are `FmmError` subclasses (so ValueErrors), so the `fmm` command reports them as a
+one-line error.
 """
 
 from pathlib import Path

@@ -1,6 +1,7 @@
 """daq: the real rig's acquisition, publishing force and velocity with one shared sample index.
 
 Backends:
+
 - `nidaqmx`: an NI-DAQmx device, hardware-clocked continuous acquisition of an IEPE force
   channel (impact hammer: sensitivity in mV/N, excitation current) and the response: a
   voltage channel (laser vibrometer decoder output, scaled in m/s per V), or with

@@ -1,0 +1,151 @@
+"""The documentation: the site builds without a warning, covers the code, and the prose stays short.
+
+The site build (Sphinx + MyST, `make docs`) is run here as CI runs it, with warnings as
+errors, into a temporary folder. Its reference pages are generated from the code, so the
+test also checks that every subcommand, node parameter and message field is on them, and
+that no page loads anything from the network.
+"""
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+DOCS = REPO / 'docs'
+sys.path.insert(0, str(DOCS / '_ext'))
+
+from fmm_reference import parse_interface  # noqa: E402
+
+# The README is read in ten minutes; the map stays a map. Counted as `wc -w` counts.
+WORD_LIMITS = {'README.md': 1_500, 'ARCHITECTURE.md': 3_000}
+
+
+@pytest.mark.parametrize('name', sorted(WORD_LIMITS))
+def test_readme_and_architecture_stay_within_their_word_limits(name):
+    words = len((REPO / name).read_text(encoding='utf-8').split())
+    assert words <= WORD_LIMITS[name], f'{name} has {words} words (limit {WORD_LIMITS[name]})'
+
+
+def test_every_page_has_one_title_and_sits_in_a_globbed_folder():
+    """The index globs these four folders, so a page anywhere else would be left out."""
+    pages = sorted(DOCS.glob('*/*.md'))
+    assert {page.parent.name for page in pages} == {
+        'tutorials',
+        'howto',
+        'explanation',
+        'reference',
+    }
+    for page in pages:
+        lines = page.read_text(encoding='utf-8').splitlines()
+        fence = False
+        titles = []
+        for line in lines:
+            fence ^= line.startswith('```')
+            if not fence and line.startswith('# '):
+                titles.append(line)
+        assert lines[0].startswith('# ') and len(titles) == 1, page
+
+
+def test_interface_files_parse_into_described_fields():
+    """Every field of every .msg and .srv has a comment to show on the reference page."""
+    files = sorted((REPO / 'fmm_interfaces').glob('*/*.*'))
+    assert {path.suffix for path in files} >= {'.msg', '.srv'}
+    for path in files:
+        parts = parse_interface(path.read_text(encoding='utf-8'))
+        assert len(parts) == (1 if path.suffix == '.msg' else 2), path
+        for part in parts:
+            for group in part.groups:
+                assert group.fields and group.comment, (path, group)
+
+
+def test_interface_parser_groups_fields_under_their_comment():
+    text = (
+        '# A message.\n\n# Mean [-] and its error [-].\nfloat64 mu\nfloat64 mu_stderr\n'
+        '---\nbool ok\n'
+    )
+    request, response = parse_interface(text)
+    assert request.description == ['A message.']
+    assert [(g.comment, g.fields) for g in request.groups] == [
+        (['Mean [-] and its error [-].'], ['float64 mu', 'float64 mu_stderr'])
+    ]
+    assert [(g.comment, g.fields) for g in response.groups] == [([], ['bool ok'])]
+    with pytest.raises(ValueError, match='not a field'):
+        parse_interface('float64[ mu\n')
+
+
+@pytest.fixture(scope='module')
+def site(tmp_path_factory) -> Path:
+    """The site built as `make docs` builds it; the build's own output on failure."""
+    out = tmp_path_factory.mktemp('site')
+    result = subprocess.run(
+        [
+            *(sys.executable, '-m', 'sphinx'),
+            *('-W', '--keep-going', '-n', '-q', '-b', 'html'),
+            *(str(DOCS), str(out)),
+        ],
+        capture_output=True,
+        text=True,
+        env={**os.environ, 'MPLBACKEND': 'Agg'},
+    )
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-6000:]
+    assert not result.stderr.strip(), result.stderr[-6000:]
+    return out
+
+
+def _text(page: Path) -> str:
+    """A page's text without its tags."""
+    return re.sub(r'<[^>]+>', ' ', page.read_text(encoding='utf-8'))
+
+
+@pytest.mark.slow
+def test_the_site_builds_without_warnings_and_loads_nothing_from_the_network(site):
+    pages = sorted(site.rglob('*.html'))
+    assert len(pages) > 30
+    for page in pages:
+        html = page.read_text(encoding='utf-8')
+        remote = re.findall(r'<(?:script|link|img)[^>]+(?:src|href)="(?:https?:)?//[^"]+"', html)
+        assert not remote, (page, remote)
+    for folder in ('tutorials', 'howto', 'explanation', 'reference'):
+        for source in (DOCS / folder).glob('*.md'):
+            assert (site / folder / f'{source.stem}.html').exists(), source
+
+
+@pytest.mark.slow
+def test_the_reference_covers_every_command_parameter_and_field(site):
+    from fmm_ros.cli import build_parser
+    from fmm_ros.ros.nodes import NODES, node_module
+
+    cli = _text(site / 'reference' / 'cli.html')
+    parser = build_parser()
+    commands = next(a for a in parser._actions if a.__class__.__name__ == '_SubParsersAction')
+    for name, sub in commands.choices.items():
+        assert f'fmm {name}' in cli, name
+        for action in sub._actions:
+            for flag in action.option_strings:
+                assert flag in cli, (name, flag)
+    nodes = _text(site / 'reference' / 'nodes.html')
+    for name in NODES:
+        for param in node_module(name).PARAMS:
+            assert param.name in nodes, (name, param.name)
+    interfaces = _text(site / 'reference' / 'interfaces.html')
+    for path in sorted((REPO / 'fmm_interfaces').glob('*/*.*')):
+        assert path.stem in interfaces
+        for part in parse_interface(path.read_text(encoding='utf-8')):
+            for group in part.groups:
+                for field in group.fields:
+                    assert field.split()[-1] in interfaces, (path, field)
+
+
+@pytest.mark.slow
+def test_the_gallery_draws_the_papers_figures(site):
+    gallery = site / 'auto_examples'
+    examples = sorted((DOCS / 'examples').glob('plot_*.py'))
+    assert examples
+    for example in examples:
+        assert (gallery / f'{example.stem}.html').exists(), example
+    images = list((site / '_images').glob('sphx_glr_plot_*.png'))
+    assert len(images) >= 2 * len(examples)
