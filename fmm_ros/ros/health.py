@@ -21,6 +21,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from fmm_ros.constants import DIAGNOSTICS_TOPIC
 from fmm_ros.core.signal.stream import FAULTS, RESYNC_REASONS, ChannelLedger
+from fmm_ros.ros.faults import CallbackFaults
 
 OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
 LEVEL_NAMES = {OK: 'OK', WARN: 'WARN', ERROR: 'ERROR', DiagnosticStatus.STALE: 'STALE'}
@@ -45,6 +46,9 @@ class Health:
             event_callbacks=PublisherEventCallbacks(use_default_callbacks=False),
         )
         node.create_timer(period_s, self.publish)
+        node.health = self
+        node.callback_faults = self.faults = CallbackFaults(node)
+        self.add('faults', self.faults.status)
 
     def add(self, part: str, check: Check) -> None:
         """Report a part of the node (e.g. 'stream', 'recorder') by calling check each time."""
@@ -99,7 +103,10 @@ class ChannelRate:
 def stream_status(
     ledgers: dict[str, ChannelLedger], rates: dict[str, ChannelRate]
 ) -> tuple[bytes, str, dict[str, object]]:
-    """A consumer's stream part: WARN on any missing or refused sample, per channel values."""
+    """A consumer's stream part: WARN on any missing or refused sample, per channel values.
+
+    ERROR on a unit no table knows: nothing of that channel can be used.
+    """
     values: dict[str, object] = {}
     lines = []
     level = OK
@@ -122,8 +129,10 @@ def stream_status(
         )
         for kind, count in sorted(ledger.faults.items()):
             values[f'{name} fault {kind}'] = count
-        if ledger.missing_samples or ledger.refused_samples or ledger.refused_batches:
-            level = WARN
+        if ledger.faults.get('unit'):  # nothing of the channel can be used: a setup error
+            level = ERROR
+        elif ledger.missing_samples or ledger.refused_samples or ledger.refused_batches:
+            level = max(level, WARN)
         lines.append(
             f'{name} {ledger.received_samples} received, {ledger.missing_samples} missing, '
             f'{ledger.refused_batches} refused'

@@ -23,11 +23,12 @@ from fmm_ros.core.signal.analysis import (
     summarize,
 )
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, ImpactCapture
-from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.core.signal.records import ImpactRecord, stable_impact_id
 from fmm_ros.core.signal.stream import ChannelLedger
 from fmm_ros.io.bags.acquisitions import read_acquisitions
 from fmm_ros.io.bags.definitions import SAMPLE_BATCH
 from fmm_ros.io.bags.reader import BagReader, ChannelBatch
+from fmm_ros.units import sample_si_factor
 
 
 def capture_records(
@@ -50,6 +51,8 @@ def capture_records(
     capture's acquisition ends at each one's last sample (`ImpactCapture.end_acquisition`),
     and at the bag's end, so no record runs into the next file or is padded with samples that
     were never taken. (A restart the bag does not state is found by the stream rules.)
+    Samples are converted to SI from each batch's unit (`units.sample_si_factor`); a unit the
+    table does not know raises UnitError naming it.
     """
     impacts = capture if isinstance(capture, ImpactCapture) else ImpactCapture(capture)
     quantity = {
@@ -80,13 +83,14 @@ def capture_records(
             held.append(batch)
             return
         reached[batch.topic] = batch.first_sample_index + len(batch.samples)
+        factor = sample_si_factor(quantity[batch.topic], batch.unit)  # UnitError: refused
         yield from tagged(
             impacts.feed(
                 quantity[batch.topic],
                 batch.first_sample_index,
-                batch.samples,
+                batch.samples * factor if factor != 1.0 else batch.samples,
                 batch.sample_rate_hz,
-                batch.full_scale,
+                batch.full_scale * factor,
                 sender=batch.frame_id,
                 stamp_ns=batch.stamp_ns,
             )
@@ -168,8 +172,8 @@ def replay_bag(
 ) -> Replay:
     """Capture and analyse every impact of a bag as the live analyzer does, then summarize.
 
-    on_result gets each ImpactResult as the analyzer would publish it (impact ids count from
-    0 in capture order); on_batch sees every recorded batch.
+    on_result gets each ImpactResult as the analyzer would publish it (impact ids by
+    `stable_impact_id`, as the analyzer gives them); on_batch sees every recorded batch.
     """
     analysis = analysis or AnalysisConfig()
     results: list[ImpactResult] = []
@@ -185,7 +189,7 @@ def replay_bag(
 
     with BagReader(path, strict=False) as reader:
         for record in capture_records(reader, impacts, reuse_buffers=True, on_batch=count):
-            result = analyze_impact(record, capture, analysis, impact_id=len(results))
+            result = analyze_impact(record, capture, analysis, impact_id=stable_impact_id(record))
             results.append(result)
             if on_result:
                 on_result(result)
