@@ -184,15 +184,17 @@ def run(
     extra: tuple[str, ...] = (),
     recovers: bool = True,
 ) -> Outcome:
-    """One session with a fault injected once the first hit is out; the outcome."""
+    """One session with a fault injected once the analyzer reported its first hit."""
     rig = Rig(work, rate, hits_per_level, extra)
     session_s = (1.0 + 3 * hits_per_level * HIT_SPACING_S) / rate
     try:
         rig.wait_for('hammer_sim', 'starting', 60.0)
-        time.sleep(1.5 * HIT_SPACING_S / rate)
+        rig.wait_for('analyzer', '[analyzer]: impact ', 60.0)
         inject(rig)
         rig.wait_for('hammer_sim', DONE, 60.0 + 4 * session_s)
-        time.sleep(max(1.0, 8.0 / rate))  # the last record (6 s of signal) completes
+        # The last record (6 s of signal after the last hit) completes, however loaded.
+        last = f'at sample {round((1.0 + (3 * hits_per_level - 1) * HIT_SPACING_S) * 1e4) + 1}'
+        rig.wait_for('analyzer', last, 30.0)
     finally:
         rig.stop()
     return outcome(rig, fault, named, recovers)
@@ -212,7 +214,9 @@ def outcome(rig: Rig, fault: str, named: str, recovers: bool) -> Outcome:
     result.reported = len(by_trigger)
     result.accepted = sum(verdict == 'accepted' for _, verdict in by_trigger.values())
     for _, verdict in by_trigger.values():
-        for flag in re.findall(r'[a-z_]+', verdict.removeprefix('rejected')):
+        for flag in re.findall(r'[a-z_]+', verdict.removeprefix('rejected')) * (
+            verdict != 'accepted'
+        ):
             result.flags[flag] = result.flags.get(flag, 0) + 1
     result.reused_ids = sum(len(triggers) > 1 for triggers in ids.values())
     final = [entry for entry in ledgers(rig.work) if entry.node in ('analyzer', 'recorder')]
@@ -270,7 +274,10 @@ def restarts(work: Path, nodes, rate: float) -> list[Outcome]:
             f'{node} SIGKILL + respawn',
             lambda rig, node=node: rig.respawn(node),
             named={'recorder': 'beside it', 'analyzer': 'joined an acquisition'}.get(node, ''),
-            rate=rate,
+            # Slower, and hits enough for after the respawn: a node starting on a loaded
+            # machine takes 5-20 s (measured) before it takes its first batch.
+            rate=rate / 4,
+            hits_per_level=5,
         )
         for node in nodes
     ]
