@@ -23,8 +23,9 @@ given twice to different hits, and tracebacks in any log (must be 0).
 
     .venv/bin/python benchmarks/fault_rig.py [--quick]
 
---quick (CI, through test/test_fault_rig.py): a few short faults at x20. The full run covers
-every node and stall lengths 1, 5, 15 and 30 s, and writes its table to RESULTS.md.
+--quick (CI, through test/test_fault_rig.py): a few short faults at x20. The full run stalls
+rig_sim and the analyzer for 1, 5, 15 and 30 s and every other node for 15 s, restarts every
+node, tries every unit of the table, and writes its table to RESULTS.md.
 """
 
 from __future__ import annotations
@@ -395,7 +396,8 @@ def main(argv: list[str] | None = None) -> int:
             rows = quick_rows(work)
         else:
             rows = [
-                *stalls(work, SIMULATED_RIG, [1.0, 5.0, 15.0, 30.0], rate),
+                *stalls(work, ['rig_sim', 'analyzer'], [1.0, 5.0, 15.0, 30.0], rate),
+                *stalls(work, ['hammer_sim', 'fitter', 'recorder'], [15.0], rate),
                 *restarts(work, SIMULATED_RIG, rate),
                 early_trigger(work, rate),
                 *units(work, list(FORCE_UNITS)[1:], list(VELOCITY_UNITS)[1:], rate),

@@ -215,3 +215,67 @@ def test_a_gap_of_any_length_in_the_applied_force_leaves_rig_sim_working(ros_gra
     assert ledger.received_samples == 8000
     assert ledger.missing_samples == 114_705_000 - 8000
     assert rig.gate.published_end == 114_705_000
+
+
+def test_a_record_the_analysis_cannot_take_is_dropped_and_the_next_reported(ros_graph, monkeypatch):
+    """The analyzer's last resort: one broken record named once, ERROR, the rest go on."""
+    from fmm_ros.ros.nodes import analyzer as analyzer_module
+
+    real = analyzer_module.analyze_impact
+    calls = []
+
+    def first_breaks(record, *args, **kwargs):
+        calls.append(record.trigger_sample_index)
+        if len(calls) == 1:
+            raise ZeroDivisionError('a fault no rule foresaw')
+        return real(record, *args, **kwargs)
+
+    monkeypatch.setattr(analyzer_module, 'analyze_impact', first_breaks)
+    analyzer, listener = session(ros_graph)
+    ros_graph.start()
+    assert wait_for(lambda: len(listener.impacts) == 2), f'{len(listener.impacts)} reported'
+    assert [m.trigger_sample_index for m in listener.impacts] == calls[1:]
+    faults = statuses(analyzer)['faults']
+    assert faults.level == ERROR and 'ZeroDivisionError: a fault no rule foresaw' in faults.message
+    assert analyzer.capture.open_impacts == 0 and analyzer.callback_faults.count == 1
+
+
+def test_an_exception_in_any_callback_is_survived_by_a_ros_run_node():
+    """run_node's spin: the fault is counted (ERROR), the node's other callbacks go on."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+
+    from fmm_ros.ros.common import _spin_guarded
+    from fmm_ros.ros.health import Health
+
+    class Faulty(Node):
+        def __init__(self, **kwargs):
+            super().__init__('faulty', **kwargs)
+            Health(self)
+            self.ticks = 0
+            self.create_timer(0.01, self._tick)
+
+        def _tick(self):
+            self.ticks += 1
+            if self.ticks % 2:
+                raise RuntimeError(f'tick {self.ticks}')
+
+    context = Context()
+    rclpy.init(context=context, domain_id=InProcessGraph().domain_id)
+    executor = SingleThreadedExecutor(context=context)
+    node = Faulty(context=context)
+    executor.add_node(node)
+    try:
+        while node.ticks < 10:
+            _spin_guarded(executor, node, 0.05)
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        context.try_shutdown()
+    assert node.callback_faults.count == 5
+    level, message, values = node.callback_faults.status()
+    assert (
+        level == ERROR and message == '5 exceptions survived; last: callback: RuntimeError: tick 9'
+    )
+    assert values == {'callback: RuntimeError': 5}
