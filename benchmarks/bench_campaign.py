@@ -43,7 +43,7 @@ from fmm_ros.campaign.compare import compare_sessions
 from fmm_ros.campaign.results import run_campaign
 from fmm_ros.campaign.stats import meta_regression
 from fmm_ros.campaign.table import read_campaign_table
-from fmm_ros.campaign.tasks import SERIAL, local_cluster, run_session, run_sessions
+from fmm_ros.campaign.tasks import SERIAL, local_cluster, run_cached_session, run_sessions
 from fmm_ros.core.signal.analysis import AnalysisConfig, paper_levels
 from fmm_ros.sim.campaign import simulated_campaign
 from fmm_ros.workflows.session import SessionOptions
@@ -191,7 +191,7 @@ def speed(folder: Path, args) -> None:
         f' hashing its bag for the cache key {key_s:.2f} s'
     )
     diagnosed = timed(
-        lambda: run_session(
+        lambda: run_cached_session(
             table.sessions[0].spec,
             dataclasses.replace(SETTINGS, diagnose=True),
             None,

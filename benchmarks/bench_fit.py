@@ -26,9 +26,10 @@ from bench_physics import RATE_HZ, euler_in_python, median_s
 
 from fmm_ros.constants import PAPER_LEVELS, PAPER_MU
 from fmm_ros.core.identify.conditioning import condition_impact
-from fmm_ros.core.identify.friction import MU_BOUNDS, energy_balance_mu, fit_friction, fit_model
+from fmm_ros.core.identify.friction import energy_balance_mu, fit_friction, fit_model
 from fmm_ros.core.identify.lsq import levenberg_marquardt
 from fmm_ros.core.identify.rig import identify_rig
+from fmm_ros.core.identify.spec import MU_BOUNDS
 from fmm_ros.core.physics.model import simulate
 from fmm_ros.core.physics.rig import FMM_RIG
 from fmm_ros.core.signal.capture import capture_impacts

@@ -3,7 +3,7 @@
 Run: .venv/bin/python benchmarks/bench_report.py [--repeats R] [--dpi D] [--out DIR]
 
 A simulated session of ten hits at each of the paper's three levels, one every 33 s as
-`fmm demo` records them, is cut into impact records; run_session analyses them and runs the
+`fmm demo` records them, is cut into impact records; process_records analyses them and runs the
 model with a given mu (Eq. 3 over every hit and FRF; fitting is timed by bench_fit), and
 build_report draws the page: both are timed together, as the report's time. Then the same
 report the naive way, in the same run: matplotlib's
@@ -30,7 +30,7 @@ from fmm_ros.report import build_report, session_figures
 from fmm_ros.report import html as report_html
 from fmm_ros.report.plotting import DEFAULT_DPI, freeze_ticks
 from fmm_ros.sim.session import simulated_session
-from fmm_ros.workflows.session import SessionOptions, run_session
+from fmm_ros.workflows.session import SessionOptions, process_records
 
 TARGET_S = 6.0
 HIT_FIGURES = session_figures.HitFigures
@@ -119,11 +119,11 @@ def _patched():
 
 
 def run(records, out: Path, dpi: float, naive: bool):
-    """One report (run_session, build_report): its time [s] and each figure type's cost."""
+    """One report (process_records, build_report): its time [s] and each figure type's cost."""
     shutil.rmtree(out, ignore_errors=True)
     with instrumented(naive) as cost:
         start = time.perf_counter()
-        session = run_session(records, SessionOptions(analysis=ANALYSIS, mu=PAPER_MU))
+        session = process_records(records, SessionOptions(analysis=ANALYSIS, mu=PAPER_MU))
         build_report(session, out, dpi=dpi)
         seconds = time.perf_counter() - start
     return seconds, dict(cost)

@@ -43,7 +43,6 @@ from fmm_interfaces.msg import ImpactResult, SampleBatch
 from fmm_ros.constants import FORCE, FORCE_TOPIC, IMPACTS_TOPIC, VELOCITY, VELOCITY_TOPIC
 from fmm_ros.io.bags.reader import BagReader
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import RESULT_QOS, SAMPLE_QOS
 from fmm_ros.ros.flow import SOURCE_PARAMS, PacedSource
 from fmm_ros.ros.graph import PRIVATE_DOMAIN_IDS, InProcessGraph
 from fmm_ros.ros.launch import (
@@ -54,6 +53,7 @@ from fmm_ros.ros.launch import (
     stop_processes,
     with_consumers,
 )
+from fmm_ros.ros.qos import RESULT_QOS, SAMPLE_QOS
 from fmm_ros.sim.session import simulated_session
 
 REPO = Path(__file__).resolve().parents[1]

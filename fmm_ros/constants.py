@@ -99,6 +99,12 @@ def resolve_name(name: str, namespace: str = '/') -> str:
     return namespace.rstrip('/') + '/' + name
 
 
+# -- files ------------------------------------------------------------------------------------
+BAG_STORAGES = ('mcap', 'sqlite3')
+"""The rosbag2 storage formats bags are written in (`fmm record --storage`, the recorder)."""
+FRF_FORMATS = ('csv', 'uff', 'json')
+"""The FRF exchange formats `fmm export` writes (`fmm_ros.io.frf_files`)."""
+
 # -- how results are shown to people: CLI text and report pages alike -------------------------
 MM_PER_M = 1e3
 """Receptance is shown in mm/N and mobility in mm/(N*s), so numbers stay short (JSON, bags

@@ -7,7 +7,7 @@ from rclpy.parameter import Parameter
 
 from fmm_interfaces.msg import FrfSummary, FrictionEstimate, ImpactResult, SampleBatch
 from fmm_ros.constants import FRF_TOPIC, FRICTION_TOPIC, IMPACTS_TOPIC, VELOCITY_TOPIC
-from fmm_ros.ros.common import RESULT_QOS, SAMPLE_QOS
+from fmm_ros.ros.qos import RESULT_QOS, SAMPLE_QOS
 
 
 def params(**values):

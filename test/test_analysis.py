@@ -9,7 +9,7 @@ from signal_records import analytic_mobility, damping_for_ratio, half_sine, hits
 
 from fmm_ros.core.signal.analysis import (
     AnalysisConfig,
-    ImpactResult,
+    ImpactAnalysis,
     LevelSummary,
     analyze_impact,
     paper_levels,
@@ -278,7 +278,7 @@ def test_flag_names_match_the_message_definition():
 
 
 @pytest.mark.parametrize(
-    'message, dataclass', [('ImpactResult', ImpactResult), ('FrfSummary', LevelSummary)]
+    'message, dataclass', [('ImpactResult', ImpactAnalysis), ('FrfSummary', LevelSummary)]
 )
 def test_every_message_field_has_its_dataclass_field(message, dataclass):
     # The ROS shell converts field by field: complex arrays split into _real/_imag, and the

@@ -32,7 +32,7 @@ from fmm_ros.sim.campaign import simulated_campaign
 from fmm_ros.sim.excitation import impact_record
 from fmm_ros.sim.session import simulated_session, write_session_bag
 from fmm_ros.workflows.inputs import InputOptions
-from fmm_ros.workflows.session import SessionOptions, run_session
+from fmm_ros.workflows.session import SessionOptions, process_records
 
 LUBRICANTS = {'A': 0.113, 'B': 0.101, 'C': 0.113}
 LOADS_N = (6.6708, 9.81)
@@ -222,6 +222,27 @@ def test_a_task_that_raises_fails_its_session_alone(tmp_path, monkeypatch):
     assert bad.reason == 'the analysis raised RuntimeError: a bug'
 
 
+def test_a_bug_is_an_internal_error_with_its_traceback_and_refused_data_is_not(
+    tmp_path, monkeypatch, caplog
+):
+    import fmm_ros.campaign.tasks as tasks
+    from fmm_ros.errors import BadInputError
+
+    def compute(spec, settings):
+        if spec.session_id == 'bug':
+            raise KeyError('a bug')
+        raise BadInputError('no force column')
+
+    monkeypatch.setattr(tasks, 'compute_session', compute)
+    specs = [SessionSpec('bug', tmp_path), SessionSpec('refused', tmp_path)]
+    with caplog.at_level('ERROR', logger=tasks.__name__):
+        bug, refused = run_sessions(specs, SETTINGS, scheduler=SERIAL)
+    assert bug.status == refused.status == FAILED
+    assert bug.internal_error and not refused.internal_error
+    assert 'no force column' in refused.reason
+    assert [record.exc_info[0] for record in caplog.records] == [KeyError]
+
+
 @pytest.mark.slow
 def test_the_tables_and_json_hold_every_session_hit_and_estimate(tmp_path, on_cluster):
     import pyarrow.csv as pa_csv
@@ -384,14 +405,14 @@ def test_a_session_of_lab_files_is_read_through_its_mapping(tmp_path):
 
 
 def test_the_campaign_skips_the_model_run_only_the_report_draws():
-    """run_session(compare=False): the fit and its per-hit residuals, no model run per hit."""
+    """process_records(compare=False): the fit and its per-hit residuals, no model run per hit."""
     hits = [impact_record(level, rng=n, duration_s=WINDOW_S) for n, level in enumerate((450, 1450))]
     records = [
         ImpactRecord(hit.force_n, hit.velocity_m_s, 1e4, source=f'hit{n}')
         for n, hit in enumerate(hits)
     ]
-    drawn = run_session(records, SETTINGS)
-    skipped = run_session(records, dataclasses.replace(SETTINGS, compare=False))
+    drawn = process_records(records, SETTINGS)
+    skipped = process_records(records, dataclasses.replace(SETTINGS, compare=False))
     assert drawn.comparison is not None and skipped.comparison is None
     assert skipped.friction.mu == drawn.friction.mu
     assert all(r > 0 for r in skipped.friction.per_impact_residual_rms_m_s)

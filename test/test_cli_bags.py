@@ -180,3 +180,27 @@ def test_progress_bar_only_on_a_terminal_and_never_when_quiet():
         with progress_bar(1000, desc='reading', unit='msg', quiet=quiet, stream=stream) as bar:
             bar.update(1000)
         assert ('reading' in stream.getvalue()) == shown, (quiet, type(stream))
+
+
+@pytest.mark.slow
+def test_analyze_names_a_bag_s_levels_as_its_analyzer_did(tmp_path, capsys):
+    """bag-info and export show the recorded names (low, medium, high): so does analyze."""
+    from fmm_ros.constants import PAPER_LEVELS
+    from fmm_ros.sim.session import simulated_session
+
+    session = simulated_session(1, spacing_s=8.0, seed=5)
+    bag, store = tmp_path / 'bag', fmm_typestore()
+    with BagWriter(bag) as writer:
+        writer.write_signals(session.force_n, session.velocity_m_s, session.sample_rate_hz)
+        for number, level in enumerate(PAPER_LEVELS):
+            summary = random_message(store, FRF_SUMMARY, np.random.default_rng(number))
+            summary.level, summary.nominal_peak_force_n = level.name, level.peak_force_n
+            writer.write_message(FRF_TOPIC, summary, log_time_ns=number + 1)
+    assert main(['bag-info', str(bag), '--json']) == 0
+    recorded = set(json.loads(capsys.readouterr().out)['frf_levels'])
+    assert recorded == {'low', 'medium', 'high'}
+    assert main(['analyze', str(bag), '--window-s', '7', '--json']) == 0
+    analysed = json.loads(capsys.readouterr().out)
+    assert [level['name'] for level in analysed['levels']] == ['low', 'medium', 'high']
+    assert main(['analyze', str(bag), '--window-s', '7', '--level', 'a=450', '--json']) == 0
+    assert [level['name'] for level in json.loads(capsys.readouterr().out)['levels']] == ['a']

@@ -6,7 +6,7 @@ import pytest
 import yaml
 
 from fmm_ros.ros.nodes import analyzer, daq, fitter, hammer_sim, player, recorder, rig_sim
-from fmm_ros.ros.params import node_param_tables, params_file_text
+from fmm_ros.ros.params_file import node_param_tables, params_file_text
 
 pytestmark = pytest.mark.ros
 
@@ -35,7 +35,8 @@ def test_every_node_and_every_parameter_is_in_the_config_and_valid():
 def test_the_config_is_the_text_made_from_the_parameter_tables():
     """Descriptions, units, ranges and defaults cannot drift from the code."""
     assert CONFIG.read_text() == params_file_text(node_param_tables()), (
-        'config/fmm_rig.yaml is stale: .venv/bin/python -m fmm_ros.ros.params > config/fmm_rig.yaml'
+        'config/fmm_rig.yaml is stale: '
+        '.venv/bin/python -m fmm_ros.ros.params_file > config/fmm_rig.yaml'
     )
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import pyuff
 
-from fmm_ros.core.signal.analysis import AnalysisConfig, ImpactResult, analyze_impact, summarize
+from fmm_ros.core.signal.analysis import AnalysisConfig, ImpactAnalysis, analyze_impact, summarize
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.io.frf_files import (
     FrfCurve,
@@ -102,7 +102,7 @@ def test_curves_from_a_summary_and_from_impacts():
     force[100:105] = [0, 300, 450, 300, 0]
     velocity = np.zeros(n)
     velocity[103:900] = 0.01 * np.sin(np.arange(797) / 50) * np.exp(-np.arange(797) / 100)
-    results: list[ImpactResult] = [
+    results: list[ImpactAnalysis] = [
         analyze_impact(ImpactRecord(force * scale, velocity * scale, rate), impact_id=i)
         for i, scale in enumerate((1.0, 1.05))
     ]

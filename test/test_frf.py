@@ -13,7 +13,7 @@ from signal_records import (
 )
 
 from fmm_ros.core.physics.rig import FMM_RIG
-from fmm_ros.core.signal import frf
+from fmm_ros.core.signal import frf, levels
 from fmm_ros.sim.excitation import impact_record
 
 RATE_HZ = 10_000.0
@@ -194,13 +194,13 @@ def test_level_assignment_and_clustering():
     rng = np.random.default_rng(0)
     nominal = np.repeat([450.0, 1000.0, 1450.0], 10)
     peaks = nominal + rng.uniform(-50, 50, nominal.size)
-    assert np.array_equal(frf.cluster_levels(peaks), np.repeat([0, 1, 2], 10))
-    index = frf.assign_nominal_levels(
+    assert np.array_equal(levels.cluster_levels(peaks), np.repeat([0, 1, 2], 10))
+    index = levels.assign_nominal_levels(
         np.array([440.0, 1049.0, 1051.0, 700.0, np.nan]), [450.0, 1000.0, 1450.0], 50.0
     )
     assert index.tolist() == [0, 1, -1, -1, -1]
-    assert frf.cluster_levels(np.array([1000.0, np.nan, 1010.0])).tolist() == [0, -1, 0]
-    assert frf.cluster_levels(np.array([])).size == 0
+    assert levels.cluster_levels(np.array([1000.0, np.nan, 1010.0])).tolist() == [0, -1, 0]
+    assert levels.cluster_levels(np.array([])).size == 0
 
 
 def test_linear_fit():

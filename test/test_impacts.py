@@ -11,8 +11,8 @@ from fmm_ros.core.signal.capture import (
     TriggerDetector,
     capture_impacts,
     find_triggers,
-    quality_flags,
 )
+from fmm_ros.core.signal.quality import quality_flags
 
 RATE_HZ = 1000.0
 # A short window and a low rate keep the sample-by-sample runs quick; the logic is rate-free.

@@ -107,6 +107,63 @@ def test_pip_only_keys_are_defined_for_rosdep_and_pinned():
                 assert f'\n{name}==' in requirements, f'{name} is not pinned in requirements.txt'
 
 
+# Imports served by ROS (its packages, not PyPI's).
+FROM_ROS = {
+    'ament_index_python',
+    'builtin_interfaces',
+    'diagnostic_msgs',
+    'fmm_interfaces',
+    'rcl_interfaces',
+    'rclpy',
+    'std_msgs',
+}
+# Keys the ROS rosdep database (rosdistro's base.yaml and python.yaml) or the ROS distribution
+# itself resolves, and the workspace's own interface package; every other key of package.xml
+# must be defined in rosdep/fmm_ros.yaml.
+ROS_KEYS = FROM_ROS | {
+    'ros2launch',
+    'python3-h5py',
+    'python3-matplotlib',
+    'python3-numba',
+    'python3-numpy',
+    'python3-pil',
+    'python3-pytest',
+    'python3-pytest-xdist',
+    'python3-scipy',
+    'python3-tqdm',
+    'python3-yaml',
+}
+
+PYPI_NAMES = {'PIL': 'pillow', 'yaml': 'pyyaml'}
+"""PyPI names of the imports whose distribution is named otherwise."""
+
+
+def test_every_package_xml_key_resolves_for_rosdep():
+    """`rosdep install --from-paths .` must find every key: a ROS key or one defined here."""
+    import yaml
+
+    definitions = yaml.safe_load((REPO / 'rosdep' / 'fmm_ros.yaml').read_text())
+    package = parse_package(str(REPO / 'package.xml'))
+    keys = {dep.name for dep in package.exec_depends + package.test_depends}
+    assert {'python3-zstandard', 'python3-lz4', 'python3-chardet'} <= keys
+    assert sorted(keys - ROS_KEYS - set(definitions)) == []
+    for key, rule in definitions.items():
+        assert set(rule) == {'debian', 'ubuntu'}, f'{key}: define it for Debian and Ubuntu'
+
+
+def test_install_requires_lists_every_import():
+    """A pip install of fmm_ros brings everything the code imports (but ROS itself)."""
+    required = {name.lower() for name in _setup_distribution().install_requires}
+    missing = sorted(
+        f'{PYPI_NAMES.get(module, module)} (imported by {sorted(files)[0]})'
+        for module, files in _third_party_imports().items()
+        if module not in FROM_ROS
+        and module not in OPTIONAL_IMPORTS
+        and PYPI_NAMES.get(module, module).lower() not in required
+    )
+    assert missing == []
+
+
 def test_interface_package_xml_parses():
     package = parse_package(str(REPO / 'fmm_interfaces' / 'package.xml'))
     assert package.get_build_type() == 'ament_cmake'

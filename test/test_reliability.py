@@ -24,7 +24,6 @@ from fmm_interfaces.srv import FitFriction
 from fmm_ros.constants import FIT_SERVICE, FORCE, FORCE_TOPIC
 from fmm_ros.io.bags.reader import BagReader
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import SAMPLE_QOS
 from fmm_ros.ros.graph import PRIVATE_DOMAIN_IDS, InProcessGraph
 from fmm_ros.ros.launch import (
     SIMULATED_RIG,
@@ -39,6 +38,7 @@ from fmm_ros.ros.nodes.fitter import Fitter
 from fmm_ros.ros.nodes.hammer_sim import HammerSim
 from fmm_ros.ros.nodes.recorder import Recorder
 from fmm_ros.ros.nodes.rig_sim import RigSim
+from fmm_ros.ros.qos import SAMPLE_QOS
 from fmm_ros.workflows.replay import replay_bag
 
 pytestmark = pytest.mark.ros

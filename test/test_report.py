@@ -35,7 +35,13 @@ from fmm_ros.report.session_figures import HitFigures
 from fmm_ros.sim.excitation import hammer_pulse, impact_record
 from fmm_ros.sim.hidden_effects import hidden_effect_case
 from fmm_ros.sim.session import simulated_session
-from fmm_ros.workflows import FrictionResult, ModelOverlay, SessionOptions, overlay_of, run_session
+from fmm_ros.workflows import (
+    FrictionResult,
+    ModelOverlay,
+    SessionOptions,
+    overlay_of,
+    process_records,
+)
 
 pytestmark = pytest.mark.slow
 
@@ -431,12 +437,12 @@ def test_all_rejected_session_still_reports_and_says_why_mu_is_not_fitted(tmp_pa
 
 
 def test_a_session_of_records_with_a_given_mu_is_analysed_and_drawn(tmp_path):
-    """Records in hand (as the demo holds them), a given mu: run_session, then the page."""
+    """Records in hand (as the demo holds them), a given mu: process_records, then the page."""
     hit = impact_record(1000.0, rng=3, duration_s=DURATION_S)
     record = ImpactRecord(
         hit.force_n, hit.velocity_m_s, RATE_HZ, force_full_scale_n=900.0, source='clipped.csv'
     )
-    session = run_session([record], SessionOptions(mu=0.113))
+    session = process_records([record], SessionOptions(mu=0.113))
     page = build_report(session, tmp_path, dpi=TEST_DPI)
     text = page.read_text(encoding='utf-8')
     header, rows = hit_rows(text)

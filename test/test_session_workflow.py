@@ -42,13 +42,13 @@ def test_a_fit_made_elsewhere_is_drawn_as_given_and_not_made_again(records, monk
         raise AssertionError('the session fitted again')
 
     monkeypatch.setattr(workflow, 'fit_friction', refit)
-    session = workflow.run_session(records, options(), friction=given)
+    session = workflow.process_records(records, options(), friction=given)
     assert session.friction is given
     assert session.model.mu == 0.1234 and session.model.source == 'fitted'
     assert session.model.initial_positions_m == {0: 0.0, 1: 1e-4, 2: -1e-4}
     assert set(session.comparison.hits) == {0, 1, 2}
     with pytest.raises(ValueError, match=r'names impact\(s\) \[5\] the session lacks'):
-        workflow.run_session(
+        workflow.process_records(
             records,
             options(),
             friction=FrictionResult(0.1, 1e-5, FMM_RIG, (5,), (0.1,), (1e-5,)),
@@ -72,7 +72,7 @@ def test_one_session_from_files_to_a_json_summary(records, tmp_path):
     assert summary['diagnosis'] is None and summary['fit_failure'] is None
     assert all(rms < 2e-4 for rms in summary['residual_rms_m_s'].values())
     assert 'analysing hit 3/3' in steps and 'fitting mu of impact 3/3 alone' in steps
-    refused = workflow.run_session(records[:1], options(model=workflow.FitOptions(rig=FMM_RIG)))
+    refused = workflow.process_records(records[:1], options(model=workflow.FitOptions(rig=FMM_RIG)))
     assert refused.friction is not None  # one accepted impact is enough to fit
-    none = workflow.run_session(records, options(fit=False))
+    none = workflow.process_records(records, options(fit=False))
     assert none.friction is None and none.comparison is None and none.fit_failure == ''

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 from signal_records import hits
 
-from fmm_ros.core.signal.capture import CaptureConfig, ImpactCapture, quality_flags
+from fmm_ros.core.signal.capture import CaptureConfig, ImpactCapture
 from fmm_ros.core.signal.history import SampleHistory
+from fmm_ros.core.signal.quality import quality_flags
 from fmm_ros.core.signal.stream import AlignedStream, Batch, ChannelLedger, StreamRules
 
 RATE = 1000.0

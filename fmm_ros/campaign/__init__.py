@@ -5,11 +5,11 @@ A table of sessions (`table`), each an independent task run on Dask with a cache
 `compare`), written as tidy tables and JSON (`results`) and an HTML page (`report`). ROS-free.
 
 The names below are imported on first use (PEP 562): a Dask worker imports this package to
-run `tasks.run_session` and needs neither the statistics nor the figures, whose imports
+run `tasks.run_cached_session` and needs neither the statistics nor the figures, whose imports
 (scipy.stats, matplotlib) cost it 2.3 s at start.
 """
 
-import importlib
+from fmm_ros._lazy import lazy_exports
 
 _EXPORTS = {
     'SERIAL': 'tasks',
@@ -24,20 +24,15 @@ _EXPORTS = {
     'meta_regression': 'stats',
     'read_campaign_table': 'table',
     'run_campaign': 'results',
-    'run_session': 'tasks',
+    'run_cached_session': 'tasks',
     'run_sessions': 'tasks',
     'tidy_tables': 'results',
     'to_json': 'results',
     'write_campaign_report': 'report',
     'write_json': 'results',
     'write_tables': 'results',
+    'run_session': 'tasks',  # deprecated alias (issue 23)
 }
 
 __all__ = sorted(_EXPORTS)
-
-
-def __getattr__(name: str):
-    """The public name from its module, imported now."""
-    if name not in _EXPORTS:
-        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
-    return getattr(importlib.import_module(f'{__name__}.{_EXPORTS[name]}'), name)
+__getattr__ = lazy_exports(__name__, _EXPORTS)

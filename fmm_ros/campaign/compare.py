@@ -29,6 +29,7 @@ import numpy as np
 
 from fmm_ros.campaign.stats import CONFIDENCE, Contrast, MetaRegression, holm, meta_regression
 from fmm_ros.campaign.table import DATE, NUMBER, Column, Value, format_value
+from fmm_ros.errors import BadInputError
 from fmm_ros.report.plotting import value_with_error
 
 ALPHA = 1.0 - CONFIDENCE
@@ -139,10 +140,10 @@ def compare_sessions(
     kinds = {column.name: column.kind for column in columns}
     for name in (*by, *trend):
         if name not in kinds:
-            raise ValueError(f'no condition column {name!r} (known: {", ".join(kinds)})')
+            raise BadInputError(f'no condition column {name!r} (known: {", ".join(kinds)})')
     for name in trend:
         if kinds[name] not in (NUMBER, DATE):
-            raise ValueError(f'trend column {name!r} is text: a trend needs numbers or dates')
+            raise BadInputError(f'trend column {name!r} is text: a trend needs numbers or dates')
     by = tuple(by)
     notes: list[str] = []
     usable = [s for s in sessions if all(s.conditions.get(name) is not None for name in by)]

@@ -12,7 +12,6 @@ booleans, timestamps for date columns) for the next program; `to_json` is the sa
 from __future__ import annotations
 
 import dataclasses
-import datetime as dt
 import json
 import math
 import os
@@ -33,9 +32,10 @@ from fmm_ros.campaign.session import SessionOutcome, options_dict
 from fmm_ros.campaign.stats import Contrast
 from fmm_ros.campaign.table import CampaignTable
 from fmm_ros.campaign.tasks import run_sessions
+from fmm_ros.workflows.results import json_safe
 from fmm_ros.workflows.session import SessionOptions
 
-TABLES = ('sessions', 'hits', 'levels', 'estimates')
+INTERNAL_ERROR = 'internal error (a fault in fmm_ros, not the data: the traceback is in the log)'
 
 
 @dataclass(frozen=True)
@@ -53,9 +53,15 @@ class CampaignResult:
 
     @property
     def failed(self) -> list[tuple[str, str]]:
-        """(session id, reason) of each session without a mu."""
+        """(session id, reason) of each session without a mu.
+
+        A session that failed through a bug, not its data, says so first ('internal error').
+        """
         return [
-            (session.session_id, result.reason)
+            (
+                session.session_id,
+                f'{INTERNAL_ERROR}: {result.reason}' if result.internal_error else result.reason,
+            )
             for session, result in zip(self.table.sessions, self.results, strict=True)
             if not result.ok
         ]
@@ -319,20 +325,7 @@ def to_json(campaign: CampaignResult) -> dict:
             if result.diagnosis is not None
         },
     }
-    return _json_ready(document)
-
-
-def _json_ready(value):
-    """NaN and infinities as None, dates as ISO text, tuples as lists, all the way down."""
-    if isinstance(value, dict):
-        return {str(key): _json_ready(item) for key, item in value.items()}
-    if isinstance(value, list | tuple):
-        return [_json_ready(item) for item in value]
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dt.datetime | dt.date):
-        return value.isoformat()
-    return value
+    return json_safe(document)
 
 
 def write_json(campaign: CampaignResult, path: str | Path) -> Path:

@@ -2,7 +2,7 @@
 
 The work is the product's per-session pipeline, not a copy of it: the session's files are
 read by the one input layer (`fmm_ros.workflows.inputs.read_inputs`: bags, lab files by
-content, a mapping) and processed by `fmm_ros.workflows.session.run_session` (analysis, the
+content, a mapping) and processed by `fmm_ros.workflows.session.process_records` (analysis, the
 friction fit over the accepted hits, the model run for every hit, optionally the diagnosis),
 exactly as `fmm report` processes a session, with the rig the session ran on: its normal
 force sets mu = F_f / N.
@@ -27,11 +27,12 @@ import numpy as np
 
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.signal.analysis import LevelSummary, Summary
+from fmm_ros.errors import BadInputError, FmmError
 from fmm_ros.io import sniff
 from fmm_ros.io.labfiles import load_mapping
 from fmm_ros.workflows.inputs import read_inputs
-from fmm_ros.workflows.results import FrictionResult
-from fmm_ros.workflows.session import SessionOptions, SessionResult, run_session
+from fmm_ros.workflows.results import FrictionResult, hit_record, level_record
+from fmm_ros.workflows.session import SessionOptions, SessionResult, process_records
 
 OK = 'ok'
 FAILED = 'failed'
@@ -146,6 +147,9 @@ class SessionOutcome:
     key: str = ''
     """The cache key (data and settings hash); empty when the inputs could not be hashed."""
     cached: bool = False
+    internal_error: bool = False
+    """The session failed through a fault in the code or the cluster, not its data: reported
+    as an internal error, its traceback in the log (`tasks`)."""
 
     @property
     def ok(self) -> bool:
@@ -194,7 +198,7 @@ class SessionOutcome:
             values['seconds'] = dict(values.get('seconds', {}))
             return cls(**values)
         except (KeyError, TypeError) as error:
-            raise ValueError(f'not a session result: {error}') from error
+            raise BadInputError(f'not a session result: {error}') from error
 
 
 def session_files(spec: SessionSpec) -> list[Path]:
@@ -208,10 +212,10 @@ def session_files(spec: SessionSpec) -> list[Path]:
     if any(character in text for character in _GLOB_CHARACTERS):
         paths = sorted(Path(match) for match in glob.glob(text))
         if not paths:
-            raise ValueError(f'{source}: no file matches')
+            raise BadInputError(f'{source}: no file matches')
         return paths
     if not source.exists():
-        raise ValueError(f'{source}: no such file or directory')
+        raise BadInputError(f'{source}: no such file or directory')
     if source.is_dir() and not _is_bag(source):
         paths = sorted(
             path
@@ -221,7 +225,7 @@ def session_files(spec: SessionSpec) -> list[Path]:
             and path.suffix.lower() not in _NOT_DATA
         )
         if not paths:
-            raise ValueError(f'{source}: a folder with no bag or lab file in it')
+            raise BadInputError(f'{source}: a folder with no bag or lab file in it')
         return paths
     return [source]
 
@@ -244,7 +248,7 @@ def compute_session(spec: SessionSpec, options: SessionOptions) -> SessionOutcom
         read = timed('read', lambda: read_inputs(session_files(spec), mine.inputs))
         processed = timed(
             'process',
-            lambda: run_session(
+            lambda: process_records(
                 read.records,
                 mine,
                 inputs=read.paths,
@@ -252,7 +256,7 @@ def compute_session(spec: SessionSpec, options: SessionOptions) -> SessionOutcom
                 notes=read.notes,
             ),
         )
-    except (ValueError, OSError) as error:  # bag, lab-file and input errors are ValueErrors
+    except (FmmError, OSError) as error:  # refused data; anything else is a bug (`tasks`)
         step = 'read' if 'process' not in seconds else 'analyse'
         outcome = SessionOutcome(FAILED, f'cannot {step}: {error}', seconds=seconds)
     else:
@@ -322,16 +326,8 @@ def _hits(summary: Summary, friction: FrictionResult | None) -> tuple[HitSummary
         mu, mu_stderr, residual = fitted.get(impact.impact_id, (math.nan,) * 3)
         hits.append(
             HitSummary(
-                impact_id=impact.impact_id,
                 source=impact.source,
-                level=impact.level,
-                accepted=impact.accepted,
-                flags=tuple(impact.flags),
-                impulse_n_s=float(impact.impulse_n_s),
-                peak_force_n=float(impact.peak_force_n),
-                contact_duration_s=float(impact.contact_duration_s),
-                natural_frequency_hz=float(impact.natural_frequency_hz),
-                peak_receptance_m_per_n=float(impact.peak_receptance_m_per_n),
+                **hit_record(impact),
                 mu=float(mu),
                 mu_stderr=float(mu_stderr),
                 residual_rms_m_s=float(residual),
@@ -346,13 +342,4 @@ def _level_row(level: LevelSummary) -> LevelRow:
     if level.frequency_hz.size and math.isfinite(level.natural_frequency_hz):
         peak_bin = int(np.argmin(np.abs(level.frequency_hz - level.natural_frequency_hz)))
         coherence = float(level.coherence[peak_bin])
-    return LevelRow(
-        level=level.level,
-        count=level.count,
-        mean_impulse_n_s=float(level.mean_impulse_n_s),
-        std_impulse_n_s=float(level.std_impulse_n_s),
-        mean_peak_force_n=float(level.mean_peak_force_n),
-        peak_receptance_m_per_n=float(level.peak_receptance_m_per_n),
-        natural_frequency_hz=float(level.natural_frequency_hz),
-        coherence_at_peak=coherence,
-    )
+    return LevelRow(**level_record(level), coherence_at_peak=coherence)

@@ -29,6 +29,8 @@ import numpy as np
 import scipy.optimize
 import scipy.stats
 
+from fmm_ros.errors import BadInputError
+
 TAU2_METHODS = ('reml', 'dl')
 # Fisher scoring stops when a step changes tau^2 by less than this fraction of the typical
 # total variance (mean v_i + tau^2), or after this many steps.
@@ -89,7 +91,7 @@ class MetaRegression:
         """The contrast c' beta for coefficient weights c, with its t test and interval."""
         c = np.asarray(weights, dtype=float)
         if c.shape != self.coefficients.shape:
-            raise ValueError(f'a contrast needs {self.coefficients.size} weights, got {c.size}')
+            raise BadInputError(f'a contrast needs {self.coefficients.size} weights, got {c.size}')
         estimate = float(c @ self.coefficients)
         stderr = float(math.sqrt(max(c @ self.covariance @ c, 0.0)))
         if self.dof < 1 or not stderr > 0:
@@ -136,18 +138,18 @@ def meta_regression(
     k, p = x.shape
     names = tuple(names) if names is not None else tuple(f'b{i}' for i in range(p))
     if y.shape != (k,) or v.shape != (k,) or len(names) != p:
-        raise ValueError(
+        raise BadInputError(
             f'{y.size} estimates, {v.size} variances, a {k} x {p} design and {len(names)} '
             'names do not match'
         )
     if not (np.isfinite(y).all() and np.isfinite(v).all() and np.isfinite(x).all()):
-        raise ValueError('estimates, variances and design must be finite')
+        raise BadInputError('estimates, variances and design must be finite')
     if not (v > 0).all():
-        raise ValueError('within-session variances must be positive')
+        raise BadInputError('within-session variances must be positive')
     if np.linalg.matrix_rank(x) < p:
-        raise ValueError(f'the design ({", ".join(names)}) does not identify its coefficients')
+        raise BadInputError(f'the design ({", ".join(names)}) does not identify its coefficients')
     if tau2_method not in TAU2_METHODS:
-        raise ValueError(f'tau2_method must be one of {TAU2_METHODS}, got {tau2_method!r}')
+        raise BadInputError(f'tau2_method must be one of {TAU2_METHODS}, got {tau2_method!r}')
     dof = k - p
     fixed_q, fixed_trace = _fixed_effect_moments(y, v, x)
     tau2_dl = max(0.0, (fixed_q - dof) / fixed_trace) if dof > 0 else 0.0

@@ -33,6 +33,7 @@ import yaml
 
 from fmm_ros.campaign.session import RIG_COLUMNS, SessionSpec
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
+from fmm_ros.errors import BadInputError
 
 SESSION_COLUMN = 'session'
 ID_COLUMN = 'id'
@@ -90,7 +91,7 @@ class CampaignTable:
             if column.name == name:
                 return column
         known = ', '.join(c.name for c in self.columns) or 'none'
-        raise ValueError(f'{self.path}: no condition column {name!r} (the table has: {known})')
+        raise BadInputError(f'{self.path}: no condition column {name!r} (the table has: {known})')
 
     def default_by(self) -> tuple[str, ...]:
         """The condition when none is named: the table's `by`, else every non-date column."""
@@ -105,10 +106,12 @@ def read_campaign_table(path: str | Path, base_rig: Rig = FMM_RIG) -> CampaignTa
     else:
         rows, options = _csv_rows(path), {}
     if not rows:
-        raise ValueError(f'{path}: the campaign table lists no session')
+        raise BadInputError(f'{path}: the campaign table lists no session')
     names = [name for name in dict.fromkeys(key for _, row in rows for key in row)]
     if SESSION_COLUMN not in names:
-        raise ValueError(f'{path}: no "{SESSION_COLUMN}" column (where each session\'s data are)')
+        raise BadInputError(
+            f'{path}: no "{SESSION_COLUMN}" column (where each session\'s data are)'
+        )
     condition_names = [name for name in names if name not in RESERVED_COLUMNS]
     columns = tuple(
         Column(name, _column_kind([row.get(name, '') for _, row in rows]))
@@ -116,7 +119,7 @@ def read_campaign_table(path: str | Path, base_rig: Rig = FMM_RIG) -> CampaignTa
     )
     for column in columns:
         if column.name in RIG_COLUMNS and column.kind != NUMBER:
-            raise ValueError(f'{path}: column {column.name!r} sets the rig and must be numeric')
+            raise BadInputError(f'{path}: column {column.name!r} sets the rig and must be numeric')
     folder = path.absolute().parent  # absolute: workers elsewhere resolve the same paths
     default_mapping = options.get('mapping')
     sessions = []
@@ -124,7 +127,7 @@ def read_campaign_table(path: str | Path, base_rig: Rig = FMM_RIG) -> CampaignTa
         where = f'{path}: row {number}'
         source = row.get(SESSION_COLUMN, '').strip()
         if not source:
-            raise ValueError(f'{where}: no session given')
+            raise BadInputError(f'{where}: no session given')
         conditions = {c.name: _value(row.get(c.name, ''), c.kind) for c in columns}
         try:
             constants = {name: conditions.get(name) for name in RIG_COLUMNS}
@@ -132,7 +135,7 @@ def read_campaign_table(path: str | Path, base_rig: Rig = FMM_RIG) -> CampaignTa
                 base_rig, **{name: value for name, value in constants.items() if value is not None}
             )
         except ValueError as error:
-            raise ValueError(f'{where}: {error}') from error
+            raise BadInputError(f'{where}: {error}') from error
         mapping = row.get(MAPPING_COLUMN, '').strip() or default_mapping
         spec = SessionSpec(
             session_id=row.get(ID_COLUMN, '').strip() or source,
@@ -144,7 +147,7 @@ def read_campaign_table(path: str | Path, base_rig: Rig = FMM_RIG) -> CampaignTa
     ids = [s.session_id for s in sessions]
     repeated = sorted({i for i in ids if ids.count(i) > 1})
     if repeated:
-        raise ValueError(
+        raise BadInputError(
             f'{path}: session id(s) {", ".join(map(repr, repeated))} appear more than once '
             f'(give each row a unique "{ID_COLUMN}")'
         )
@@ -180,11 +183,11 @@ def _csv_rows(path: Path) -> list[tuple[int, dict[str, str]]]:
     parsed = list(csv.reader([line for _, line in lines], delimiter=delimiter))
     header = [name.strip() for name in parsed[0]]
     if len(set(header)) != len(header) or '' in header:
-        raise ValueError(f'{path}: the header needs unique, non-empty column names: {header}')
+        raise BadInputError(f'{path}: the header needs unique, non-empty column names: {header}')
     rows = []
     for (number, _), cells in zip(lines[1:], parsed[1:], strict=True):
         if len(cells) > len(header):
-            raise ValueError(
+            raise BadInputError(
                 f'{path}: row {number} has {len(cells)} cells for {len(header)} columns'
             )
         cells += [''] * (len(header) - len(cells))  # a short row: its last cells are empty
@@ -202,14 +205,14 @@ def _yaml_rows(path: Path) -> tuple[list[tuple[int, dict[str, str]]], dict]:
     if isinstance(document, dict):
         unknown = set(document) - _YAML_KEYS
         if unknown:
-            raise ValueError(
+            raise BadInputError(
                 f'{path}: unknown key(s) {", ".join(sorted(unknown))} (known: '
                 f'{", ".join(sorted(_YAML_KEYS))})'
             )
         options = {key: value for key, value in document.items() if key != 'sessions'}
         document = document.get('sessions')
     if not isinstance(document, list) or not all(isinstance(row, dict) for row in document):
-        raise ValueError(f'{path}: expected a list of sessions, each a mapping of columns')
+        raise BadInputError(f'{path}: expected a list of sessions, each a mapping of columns')
     rows = [
         (number, {str(key): _text(value) for key, value in row.items()})
         for number, row in enumerate(document, start=1)
@@ -224,7 +227,7 @@ def _text(value: object) -> str:
     if isinstance(value, dt.date | dt.datetime):
         return value.isoformat()
     if isinstance(value, list | dict):
-        raise ValueError(f'a table cell must be a single value, got {value!r}')
+        raise BadInputError(f'a table cell must be a single value, got {value!r}')
     return str(value)
 
 
@@ -236,7 +239,7 @@ def _names(value: object, key: str, path: Path) -> tuple[str, ...]:
         return (value,)
     if isinstance(value, list) and all(isinstance(item, str) for item in value):
         return tuple(value)
-    raise ValueError(f'{path}: "{key}" must be a column name or a list of them, got {value!r}')
+    raise BadInputError(f'{path}: "{key}" must be a column name or a list of them, got {value!r}')
 
 
 def _column_kind(cells: Sequence[str]) -> str:

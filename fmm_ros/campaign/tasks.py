@@ -1,6 +1,6 @@
 """A campaign's sessions as independent Dask tasks: on this machine's cores or on a cluster.
 
-Each session is one task (`run_session`): hash its inputs, return the cached result when the
+Each session is one task (`run_cached_session`): hash its inputs, return the cached result when the
 key is known, else run the pipeline and cache what it gives. The graph is a list of
 `dask.delayed` calls with no edges between them; `run_sessions` computes it on
 
@@ -30,7 +30,10 @@ from fmm_ros.campaign.session import (
     SessionSpec,
     compute_session,
 )
+from fmm_ros.errors import BadInputError, FmmError
 from fmm_ros.workflows.session import SessionOptions
+
+_log = logging.getLogger(__name__)
 
 SERIAL = 'serial'
 """The scheduler name that runs every session in this process, without Dask."""
@@ -39,7 +42,7 @@ PRE_SPAWN_ENVIRON = 'distributed.nanny.pre-spawn-environ'
 """Dask's configuration of the environment its worker processes start with."""
 
 
-def run_session(
+def run_cached_session(
     spec: SessionSpec, options: SessionOptions, cache_dir: str | None = None
 ) -> SessionOutcome:
     """One session: from the cache when its data and options are known, else computed.
@@ -52,7 +55,7 @@ def run_session(
         return compute_session(spec, options)
     try:
         key = session_key(spec, options)
-    except (ValueError, OSError) as error:
+    except (FmmError, OSError) as error:
         return SessionOutcome(FAILED, f'cannot read: {error}')
     cache = ResultCache(cache_dir)
     if (stored := cache.get(key)) is not None:
@@ -82,7 +85,7 @@ def run_sessions(
     if scheduler == SERIAL:
         results = []
         for index, spec in enumerate(specs):
-            results.append(_guarded(run_session, spec, options, cache))
+            results.append(_guarded(run_cached_session, spec, options, cache))
             if on_result:
                 on_result(index, results[-1])
         return results
@@ -136,7 +139,7 @@ def local_cluster(workers: int | None = None):
 def _worker_count(workers: int | None) -> int:
     """Local worker processes: `workers`, or one a core; ValueError below 1."""
     if workers is not None and workers < 1:
-        raise ValueError(f'workers must be at least 1, got {workers}')
+        raise BadInputError(f'workers must be at least 1, got {workers}')
     return workers or os.cpu_count() or 1
 
 
@@ -151,7 +154,7 @@ def _compute(
     import dask
     from distributed import as_completed
 
-    tasks = [dask.delayed(run_session, pure=False)(spec, options, cache) for spec in specs]
+    tasks = [dask.delayed(run_cached_session, pure=False)(spec, options, cache) for spec in specs]
     futures = client.compute(tasks)
     index_of = {future.key: index for index, future in enumerate(futures)}
     results: list[SessionOutcome | None] = [None] * len(specs)
@@ -179,8 +182,21 @@ def _guarded(task: Callable[..., SessionOutcome], *args) -> SessionOutcome:
 
 
 def _task_failure(error: BaseException) -> SessionOutcome:
-    """The failed result of a task that raised (not cached: it may not happen again)."""
+    """The failed result of a task that raised (not cached: it may not happen again).
+
+    Refused data never gets here (`compute_session` makes it a failed outcome with the
+    reason): an exception here is a fault in the code or the cluster. It is reported as an
+    internal error, its traceback kept in the log, so a bug is not mistaken for bad data.
+    """
     name = type(error).__name__
     if name == 'KilledWorker':
         return SessionOutcome(FAILED, f'its worker died repeatedly (memory? killed?): {error}')
-    return SessionOutcome(FAILED, f'the analysis raised {name}: {error}')
+    if isinstance(error, FmmError):
+        return SessionOutcome(FAILED, f'the analysis refused the data: {error}')
+    _log.error('internal error in a session task', exc_info=error)
+    return SessionOutcome(FAILED, f'the analysis raised {name}: {error}', internal_error=True)
+
+
+# Deprecated: the name before issue 23 (three functions were called run_session); use
+# run_cached_session. Kept one release so callers keep working.
+run_session = run_cached_session

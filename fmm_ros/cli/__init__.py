@@ -24,6 +24,7 @@ SUBCOMMANDS: tuple[str, ...] = (
     'export',
     'fit',
     'identify_rig',
+    'identify_friction',
     'diagnose',
     'campaign',
     'env',

@@ -8,23 +8,20 @@ bad input or flags (2, from the `fmm` entry point); a damaged bag's problems are
 after the result, and also exit 1, as in `fmm analyze`.
 """
 
+from __future__ import annotations
+
 import argparse
 import json
 import sys
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from fmm_ros.cli import options
-from fmm_ros.cli.progress import StatusLine, report_problems
-from fmm_ros.core.identify.conditioning import FitError
-from fmm_ros.core.signal.analysis import SelectionError
-from fmm_ros.core.signal.capture import CaptureConfig
-from fmm_ros.core.signal.records import ImpactRecord
-from fmm_ros.workflows.inputs import read_inputs
-from fmm_ros.workflows.results import selection_dict
-from fmm_ros.workflows.session import select_records
 
-Fit = Callable[[list[ImpactRecord], Sequence[int], Callable[[str], None]], Any]
+if TYPE_CHECKING:
+    from fmm_ros.core.signal.records import ImpactRecord
+
+Fit = Callable[[list['ImpactRecord'], Sequence[int], Callable[[str], None]], Any]
 
 
 def fit_and_report(
@@ -41,6 +38,14 @@ def fit_and_report(
     accepted ones; all with --include-flagged) and names the others after the result; one
     without (identify-rig: free decays hold no hit) takes every record.
     """
+    from fmm_ros.cli.progress import StatusLine, report_problems
+    from fmm_ros.core.identify.conditioning import FitError
+    from fmm_ros.core.signal.analysis import SelectionError
+    from fmm_ros.core.signal.capture import CaptureConfig
+    from fmm_ros.workflows.inputs import read_inputs
+    from fmm_ros.workflows.results import selection_dict
+    from fmm_ros.workflows.session import select_records
+
     selecting = hasattr(args, 'include_flagged')
     capture, analysis = options.analysis_configs(args) if selecting else (CaptureConfig(), None)
     selection = None

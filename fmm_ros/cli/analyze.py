@@ -14,12 +14,6 @@ import argparse
 import json
 
 from fmm_ros.cli import options
-from fmm_ros.cli.formats import analysis_text
-from fmm_ros.cli.progress import StatusLine, report_problems
-from fmm_ros.io.frf_files import level_curves, write_frfs
-from fmm_ros.workflows.inputs import read_inputs
-from fmm_ros.workflows.results import analysis_dict
-from fmm_ros.workflows.session import analyse
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -40,6 +34,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Analyse the files and bags, print the report, write any exports."""
+    from fmm_ros.cli.formats import analysis_text
+    from fmm_ros.cli.progress import StatusLine, report_problems
+    from fmm_ros.io.frf_files import level_curves, write_frfs
+    from fmm_ros.workflows.inputs import read_inputs
+    from fmm_ros.workflows.results import analysis_dict
+    from fmm_ros.workflows.session import analyse
+
     capture, analysis = options.analysis_configs(args)
     with StatusLine(quiet=args.quiet) as progress:
         read = read_inputs(args.inputs, options.input_options(args, capture), progress=progress)

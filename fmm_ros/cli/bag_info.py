@@ -1,12 +1,11 @@
 """`fmm bag-info BAG`: topics, counts, duration, sample rate and gaps of a session bag."""
 
+from __future__ import annotations
+
 import argparse
 import json
 
 from fmm_ros.cli import options
-from fmm_ros.cli.progress import progress_bar, report_problems
-from fmm_ros.io.bags import BagReader
-from fmm_ros.io.bags.summary import format_summary, summarize_bag
 
 
 def register(subparsers) -> None:
@@ -27,6 +26,10 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Summarize the bag and print it."""
+    from fmm_ros.cli.progress import progress_bar, report_problems
+    from fmm_ros.io.bags import BagReader
+    from fmm_ros.io.bags.summary import format_summary, summarize_bag
+
     with BagReader(args.bag, strict=False) as reader:
         total = sum(info.count for info in reader.topics.values())
         with progress_bar(total, desc='reading', unit='msg', quiet=args.quiet) as bar:

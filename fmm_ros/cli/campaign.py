@@ -21,14 +21,9 @@ import signal
 import sys
 from pathlib import Path
 
-from fmm_ros.campaign.report import write_campaign_report
-from fmm_ros.campaign.results import run_campaign, to_json, write_json, write_tables
-from fmm_ros.campaign.table import format_value, read_campaign_table
-from fmm_ros.campaign.tasks import SERIAL
 from fmm_ros.cli import options
-from fmm_ros.cli.progress import progress_bar
-from fmm_ros.report.plotting import DEFAULT_DPI, value_with_error
-from fmm_ros.workflows.session import SessionOptions
+from fmm_ros.constants import REPORT_DPI
+from fmm_ros.errors import BadInputError
 
 EPILOG = """\
 table (CSV; YAML takes the same columns as a list under `sessions:`, plus by/trend/mapping):
@@ -116,8 +111,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         '--dpi',
         type=float,
-        default=DEFAULT_DPI,
-        help=f'PNG resolution [dots per inch] (default {DEFAULT_DPI:g})',
+        default=REPORT_DPI,
+        help=f'PNG resolution [dots per inch] (default {REPORT_DPI:g})',
     )
     options.add_json(parser, 'the campaign (also written as DIR/campaign.json)')
     options.add_quiet(parser)
@@ -129,8 +124,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run, compare and write the campaign; print the verdict (or the JSON)."""
+    from fmm_ros.campaign.report import write_campaign_report
+    from fmm_ros.campaign.results import run_campaign, to_json, write_json, write_tables
+    from fmm_ros.campaign.table import read_campaign_table
+    from fmm_ros.campaign.tasks import SERIAL
+    from fmm_ros.cli.progress import progress_bar
+    from fmm_ros.workflows.session import SessionOptions
+
     if args.dpi <= 0:
-        raise ValueError(f'--dpi must be positive, got {args.dpi:g}')
+        raise BadInputError(f'--dpi must be positive, got {args.dpi:g}')
     table = read_campaign_table(args.table, options.rig_from_args(args))
     capture, analysis = options.analysis_configs(args)
     session_options = SessionOptions(
@@ -198,6 +200,9 @@ def _stop_on_sigterm():
 
 def text_report(campaign) -> str:
     """Sessions with their mu, then the verdict, the notes and the failures."""
+    from fmm_ros.campaign.table import format_value
+    from fmm_ros.report.plotting import value_with_error
+
     names = [column.name for column in campaign.table.columns]
     header = f'{"session":<20} ' + ' '.join(f'{n[:14]:<14}' for n in names)
     lines = [f'{header} {"hits":>7}  mu']

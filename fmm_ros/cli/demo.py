@@ -8,6 +8,7 @@ from pathlib import Path
 
 from fmm_ros.cli import options
 from fmm_ros.constants import PAPER_MU
+from fmm_ros.errors import BadInputError
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -64,15 +65,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the session, write summary.json next to the bag, print the summary."""
-    from fmm_ros.ros.demo import SessionConfig, run_session  # imports rclpy: only when run
+    from fmm_ros.ros.demo import SessionConfig, run_demo_session  # imports rclpy: only when run
 
     if args.hits_per_level < 1:
-        raise ValueError(f'--hits-per-level must be at least 1, got {args.hits_per_level}')
+        raise BadInputError(f'--hits-per-level must be at least 1, got {args.hits_per_level}')
     if not 0.01 <= args.rate_factor <= 1000:
-        raise ValueError(f'--rate-factor must be in [0.01, 1000], got {args.rate_factor}')
+        raise BadInputError(f'--rate-factor must be in [0.01, 1000], got {args.rate_factor}')
     out = args.output or Path('runs') / datetime.now().strftime('demo_%Y%m%d_%H%M%S')
     if (out / 'bag').exists():
-        raise ValueError(f'{out / "bag"} exists: choose another --output (nothing is overwritten)')
+        raise BadInputError(
+            f'{out / "bag"} exists: choose another --output (nothing is overwritten)'
+        )
     config = SessionConfig(
         out_dir=out,
         hits_per_level=args.hits_per_level,
@@ -84,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
         report=not args.no_report,
     )
     log = (lambda _: None) if args.json else (lambda line: print(line, file=sys.stderr))
-    result = run_session(config, progress=log)
+    result = run_demo_session(config, progress=log)
     summary = result.as_json()
     (out / 'summary.json').write_text(json.dumps(summary, indent=2))
     if args.json:

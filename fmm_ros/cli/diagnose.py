@@ -14,18 +14,19 @@ Examples:
     fmm diagnose hit*.csv -o figures/
 """
 
+from __future__ import annotations
+
 import argparse
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from fmm_ros.cli import options
-from fmm_ros.cli._fitting import fit_and_report
-from fmm_ros.cli.formats import diagnosis_text
-from fmm_ros.core.diagnose.result import Diagnosis
-from fmm_ros.core.diagnose.workflow import EFFECTS
+from fmm_ros.core.diagnose.vocabulary import EFFECTS
 from fmm_ros.core.physics.rig import Rig
-from fmm_ros.workflows.results import diagnosis_dict
-from fmm_ros.workflows.session import diagnose_impacts
+
+if TYPE_CHECKING:
+    from fmm_ros.core.diagnose.result import Diagnosis
 
 # Resolution of the --plot figures [dots per inch].
 PLOT_DPI = 120
@@ -70,6 +71,11 @@ class _Run:
 
 def run(args: argparse.Namespace) -> int:
     """Diagnose the inputs; print a table or JSON; draw the figures if asked."""
+    from fmm_ros.cli._fitting import fit_and_report
+    from fmm_ros.cli.formats import diagnosis_text
+    from fmm_ros.workflows.results import diagnosis_dict
+    from fmm_ros.workflows.session import diagnose_impacts
+
     model = options.fit_options(args)
 
     def diagnose_records(records, ids, progress) -> _Run:
@@ -89,6 +95,8 @@ def run(args: argparse.Namespace) -> int:
 
 def report(run_result: _Run) -> dict:
     """The JSON document: `diagnosis_dict`, the input names and the figures written."""
+    from fmm_ros.workflows.results import diagnosis_dict
+
     return {
         **diagnosis_dict(run_result.diagnosis),
         'files': run_result.files,

@@ -1,11 +1,14 @@
 """`fmm export BAG -o DIR`: a bag's impact results and level FRFs as CSV files."""
 
-import argparse
+from __future__ import annotations
 
-from fmm_ros.cli.progress import report_problems
-from fmm_ros.constants import FRF_TOPIC, IMPACTS_TOPIC
-from fmm_ros.io.bags import FRF_SUMMARY, IMPACT_RESULT, BagReader, MissingTopicError
-from fmm_ros.io.bags.tables import FRF_FORMATS, export_results
+import argparse
+from typing import TYPE_CHECKING
+
+from fmm_ros.constants import FRF_FORMATS, FRF_TOPIC, IMPACTS_TOPIC
+
+if TYPE_CHECKING:
+    from fmm_ros.io.bags import BagReader
 
 
 def register(subparsers) -> None:
@@ -34,6 +37,10 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Export what the bag recorded on the two result topics."""
+    from fmm_ros.cli.progress import report_problems
+    from fmm_ros.io.bags import FRF_SUMMARY, IMPACT_RESULT, BagReader
+    from fmm_ros.io.bags.tables import export_results
+
     with BagReader(args.bag, strict=False) as reader:
         impacts_topic = _found(reader, args.impacts_topic, IMPACT_RESULT)
         frf_topic = _found(reader, args.frf_topic, FRF_SUMMARY)
@@ -52,6 +59,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _found(reader: BagReader, topic: str, msgtype: str) -> str | None:
     """The bag's name for topic (see BagReader.find), or None when it has none."""
+    from fmm_ros.io.bags import MissingTopicError
+
     try:
         return reader.find(topic, msgtype)
     except MissingTopicError:

@@ -10,16 +10,12 @@ cannot be explained by friction or none is clean (the reason is printed, as JSON
 input or flags.
 """
 
+from __future__ import annotations
+
 import argparse
 
 from fmm_ros.cli import options
-from fmm_ros.cli._fitting import fit_and_report
-from fmm_ros.cli.formats import friction_text
-from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ
-from fmm_ros.core.identify.friction import MU_BOUNDS
-from fmm_ros.core.identify.output_error import MISFITS
-from fmm_ros.workflows.results import FrictionResult
-from fmm_ros.workflows.session import fit_impacts
+from fmm_ros.core.identify.spec import MU_BOUNDS, FitSpec
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -37,19 +33,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     options.add_json(parser)
     options.add_model(parser)
     group = parser.add_argument_group('the fit')
-    group.add_argument(
-        '--misfit',
-        choices=MISFITS,
-        default='time',
-        help='time: velocity residual (default); frf: mobility residual up to '
-        '--misfit-band-limit-hz',
+    options.add_setting(
+        group,
+        FitSpec,
+        'misfit',
+        help='time: velocity residual; frf: mobility residual up to --misfit-band-limit-hz',
     )
-    group.add_argument(
-        '--misfit-band-limit-hz',
-        type=float,
-        default=MISFIT_BAND_LIMIT_HZ,
-        help=f'top of the mobility misfit band [Hz] (default {MISFIT_BAND_LIMIT_HZ:g})',
-    )
+    options.add_setting(group, FitSpec, 'band_limit_hz', flag='--misfit-band-limit-hz')
     options.add_alias(
         parser, '--band-limit-hz', 'misfit_band_limit_hz', '--misfit-band-limit-hz', type=float
     )
@@ -72,6 +62,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Read the inputs, fit, print the result (or why there is none)."""
+    from fmm_ros.cli._fitting import fit_and_report
+    from fmm_ros.cli.formats import friction_text
+    from fmm_ros.workflows.results import FrictionResult
+    from fmm_ros.workflows.session import fit_impacts
+
     fit = options.fit_options(args)
     return fit_and_report(
         'fit',

@@ -11,17 +11,20 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from pathlib import Path
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from fmm_ros.constants import MM_PER_M, RECEPTANCE_DISPLAY_UNIT
-from fmm_ros.core.diagnose.workflow import NONE
-from fmm_ros.core.signal.analysis import Summary
-from fmm_ros.workflows.results import FrictionResult
+from fmm_ros.core.diagnose.vocabulary import NONE
+
+if TYPE_CHECKING:
+    from fmm_ros.core.signal.analysis import Summary
+    from fmm_ros.workflows.results import FrictionResult
 
 
 def analysis_text(summary: Summary) -> str:
     """A table of impacts, one of levels, and the regression line (|X/F| in mm/N)."""
+    import numpy as np
+
     unit = RECEPTANCE_DISPLAY_UNIT
     lines = [
         f'{"impact":<28} {"level":<8} {"ok":<3} {"impulse N*s":>11} {"peak N":>8} '

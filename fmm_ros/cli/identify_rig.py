@@ -7,14 +7,17 @@ impacts. Exit status: 0 identified, 1 the records are not the frictionless rig's
 printed) or a bag was damaged (warnings), 2 bad input or flags.
 """
 
+from __future__ import annotations
+
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from fmm_ros.cli import options
-from fmm_ros.cli._fitting import fit_and_report
-from fmm_ros.core.identify.rig import RigIdentification, identify_rig
 from fmm_ros.core.physics.rig import FMM_RIG
-from fmm_ros.io.frf_files import json_number
+
+if TYPE_CHECKING:
+    from fmm_ros.core.identify.rig import RigIdentification
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -42,6 +45,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Read the inputs, identify, print the constants (or why there are none)."""
+    from fmm_ros.cli._fitting import fit_and_report
+    from fmm_ros.core.identify.rig import identify_rig
+
     return fit_and_report(
         'identify-rig',
         args,
@@ -52,31 +58,10 @@ def run(args: argparse.Namespace) -> int:
 
 
 def report(result: RigIdentification) -> dict:
-    """The JSON document: the issue's keys, then standard errors and how they were found."""
-    return {
-        'mass_kg': result.mass_kg,
-        'stiffness_n_per_m': result.stiffness_n_per_m,
-        'damping_n_s_per_m': result.damping_n_s_per_m,
-        'natural_frequency_hz': result.natural_frequency_hz,
-        'damping_ratio': result.damping_ratio,
-        'mass_stderr_kg': json_number(result.mass_stderr_kg),
-        'stiffness_stderr_n_per_m': json_number(result.stiffness_stderr_n_per_m),
-        'damping_stderr_n_s_per_m': json_number(result.damping_stderr_n_s_per_m),
-        'natural_frequency_stderr_hz': json_number(result.natural_frequency_stderr_hz),
-        'damping_ratio_stderr': json_number(result.damping_ratio_stderr),
-        'method': result.method,
-        'residual_rms_m_s': result.residual_rms_m_s,
-        'normalised_residual': result.normalised_residual,
-        'files': list(result.sources),
-        'free_decays': [
-            {
-                'file': decay.source,
-                'natural_frequency_hz': decay.natural_frequency_hz,
-                'damping_ratio': decay.damping_ratio,
-            }
-            for decay in result.free_decays
-        ],
-    }
+    """The JSON document (`workflows.results.rig_identification_dict`)."""
+    from fmm_ros.workflows.results import rig_identification_dict
+
+    return rig_identification_dict(result)
 
 
 def text_report(result: RigIdentification) -> str:

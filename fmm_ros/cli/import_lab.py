@@ -1,11 +1,12 @@
 """`fmm import FILE... -o BAG`: lab measurements (CSV, NPZ, .mat, TDMS) into a session bag."""
 
+from __future__ import annotations
+
 import argparse
 from datetime import datetime
 
 from fmm_ros.cli import options
-from fmm_ros.cli.progress import progress_bar
-from fmm_ros.io.labfiles import open_lab_file, read_lab_files, write_recordings
+from fmm_ros.errors import BadInputError
 from fmm_ros.units import FORCE_UNITS, VELOCITY_UNITS
 
 EPILOG = f"""\
@@ -69,6 +70,9 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """List the files' channels, or import them into a bag."""
+    from fmm_ros.cli.progress import progress_bar
+    from fmm_ros.io.labfiles import open_lab_file, read_lab_files, write_recordings
+
     if args.list:
         for path in args.files:
             lab = open_lab_file(path, options.text_format(args))
@@ -82,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
                 print(f'  {name}{extra}')
         return 0
     if not args.output:
-        raise ValueError('give the bag to write with -o BAG (or --list to see the channels)')
+        raise BadInputError('give the bag to write with -o BAG (or --list to see the channels)')
     start_ns = None
     if args.start_time:
         start_ns = round(datetime.fromisoformat(args.start_time).timestamp() * 1e9)

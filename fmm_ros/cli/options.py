@@ -9,6 +9,11 @@
 - `add_output`: `-o/--output`, where results go;
 - `add_quiet`, `add_json`.
 
+Options that set a core setting are made from its declaration (`add_setting`: the field's
+default, unit, help and limits in `fmm_ros.core.settings`), so they say what the ROS
+parameters and the docs say. This module imports no numerics: `fmm --help` answers at once;
+the readers and workflows are imported by the functions that build their options.
+
 Units are SI and named in every flag (`--force-full-scale-n`). Spellings that an earlier
 release used stay for one release as hidden aliases (`argparse.SUPPRESS`) that still work and
 say, on stderr, what replaces them.
@@ -18,18 +23,25 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import math
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
+from fmm_ros.core.physics.rig import Rig
+from fmm_ros.core.settings import Setting, setting_of
+from fmm_ros.core.signal.config import (
+    FLAGS,
+    AnalysisConfig,
+    CaptureConfig,
+    NominalLevel,
+    paper_levels,
+)
+from fmm_ros.io.textformat import DECIMALS, TextFormat, delimiter_from_name
 
-from fmm_ros.core.physics.rig import FMM_RIG, Rig
-from fmm_ros.core.signal.analysis import AnalysisConfig, NominalLevel, paper_levels
-from fmm_ros.core.signal.capture import FLAGS, CaptureConfig
-from fmm_ros.io.labfiles import CHANNEL_KEYS, load_mapping
-from fmm_ros.io.textfiles import DECIMALS, TextFormat, delimiter_from_name
-from fmm_ros.workflows.inputs import InputOptions
-from fmm_ros.workflows.session import FitOptions
+if TYPE_CHECKING:
+    from fmm_ros.workflows.inputs import InputOptions
+    from fmm_ros.workflows.session import FitOptions
 
 QUANTITIES = ('force', 'velocity')
 FULL_SCALE_FLAGS = {'force': '--force-full-scale-n', 'velocity': '--velocity-full-scale-m-s'}
@@ -66,6 +78,43 @@ class DeprecatedAlias(argparse.Action):
 def add_alias(parser, old: str, dest: str, use: str, **kwargs) -> None:
     """A hidden old spelling of the option stored in dest (see DeprecatedAlias)."""
     parser.add_argument(old, dest=dest, action=DeprecatedAlias, use=use, **kwargs)
+
+
+def add_setting(
+    group,
+    cls: type,
+    name: str,
+    *,
+    help: str | None = None,
+    flag: str | None = None,
+    **kwargs: Any,
+) -> argparse.Action:
+    """The option of a declared setting: its flag, type, default, choices, unit and help.
+
+    help replaces the declared help (the unit and default are still added); flag another
+    spelling than the declared one (the dest follows it); kwargs go to add_argument (a
+    different default, a metavar).
+    """
+    item = setting_of(cls, name)
+    default = kwargs.pop('default', item.default)
+    kind = type(item.default) if item.default is not None else float
+    options: dict[str, Any] = {'type': kind, 'default': default}
+    if kind is bool:
+        options = {'action': argparse.BooleanOptionalAction, 'default': default}
+    elif kind is str and item.choices:
+        options['choices'] = item.choices
+    return group.add_argument(
+        flag or item.option, **options, help=setting_help(item, help, default), **kwargs
+    )
+
+
+def setting_help(item: Setting, help: str | None, default: Any) -> str:
+    """'Force that starts an impact [N] (default 20)': a setting's help as --help shows it."""
+    text = help or item.help[:1].lower() + item.help[1:]
+    if item.unit:
+        text += f' [{item.unit}]'
+    shown = 'none' if default is None else f'{default:g}' if isinstance(default, float) else default
+    return f'{text} (default {shown})'
 
 
 # -- inputs ------------------------------------------------------------------------------------
@@ -166,6 +215,8 @@ def add_full_scale_flags(group) -> None:
 
 def mapping_spec(args: argparse.Namespace) -> dict:
     """The mapping file's entries with the flags laid over them (flags win), in YAML form."""
+    from fmm_ros.io.labfiles import CHANNEL_KEYS, load_mapping
+
     spec = load_mapping(args.mapping) if getattr(args, 'mapping', None) else {}
     for quantity in (*QUANTITIES, 'time'):
         entry = spec.get(quantity)
@@ -196,6 +247,8 @@ def text_format(args: argparse.Namespace) -> TextFormat:
 
 def input_options(args: argparse.Namespace, capture: CaptureConfig | None = None) -> InputOptions:
     """The InputOptions of the flags add_inputs added (and the capture of the hit options)."""
+    from fmm_ros.workflows.inputs import InputOptions
+
     return InputOptions(
         mapping=mapping_spec(args),
         text_format=text_format(args),
@@ -215,10 +268,10 @@ def add_hit_selection(parser: argparse.ArgumentParser, *, fits: bool = False) ->
     fits: the command fits or diagnoses the hits (fit, diagnose, report): only the accepted
     ones, the others named, unless --include-flagged (`select_impacts`).
     """
-    defaults = CaptureConfig()
     group = parser.add_argument_group(
         'hit selection',
-        'How impacts are cut from recordings, grouped into force levels and judged'
+        'How impacts are cut from recordings, grouped into force levels (without levels given, '
+        "a bag's as its analyzer named them, else clustered peak forces) and judged"
         + (
             '. Only the accepted hits are fitted; the others are left out and named '
             '(--include-flagged takes them too).'
@@ -240,37 +293,17 @@ def add_hit_selection(parser: argparse.ArgumentParser, *, fits: bool = False) ->
         action='store_true',
         help="the paper's levels: low=450, medium=1000, high=1450 N",
     )
-    group.add_argument(
-        '--tolerance-n',
-        type=float,
-        default=50.0,
-        help='accepted distance from a nominal peak force [N] (default 50)',
+    add_setting(group, NominalLevel, 'tolerance_n')
+    add_setting(group, CaptureConfig, 'trigger_level_n')
+    add_setting(group, CaptureConfig, 'rearm_level_n')
+    add_setting(
+        group,
+        CaptureConfig,
+        'window_s',
+        help='record length cut from a bag or continuous file, pre-trigger included (33 s in '
+        'the paper)',
     )
-    group.add_argument(
-        '--trigger-n',
-        type=float,
-        default=defaults.trigger_level_n,
-        help=f'trigger level [N] (default {defaults.trigger_level_n:g})',
-    )
-    group.add_argument(
-        '--rearm-n',
-        type=float,
-        default=defaults.rearm_level_n,
-        help=f're-arm / contact threshold [N] (default {defaults.rearm_level_n:g})',
-    )
-    group.add_argument(
-        '--window-s',
-        type=float,
-        default=defaults.window_s,
-        help='record length cut from a bag or continuous file [s] '
-        f'(default {defaults.window_s:g}, as in the paper)',
-    )
-    group.add_argument(
-        '--rest-velocity-m-s',
-        type=float,
-        default=defaults.rest_velocity_m_s,
-        help=f'|velocity| counted as rest [m/s] (default {defaults.rest_velocity_m_s:g})',
-    )
+    add_setting(group, CaptureConfig, 'rest_velocity_m_s')
     group.add_argument(
         '--reject',
         type=_flag_list,
@@ -289,26 +322,9 @@ def add_hit_selection(parser: argparse.ArgumentParser, *, fits: bool = False) ->
 
 def add_frf_options(parser: argparse.ArgumentParser) -> None:
     """The FRFs' band and windows (analyze, replay, report)."""
-    analysis = AnalysisConfig()
     group = parser.add_argument_group('frequency response functions')
-    group.add_argument(
-        '--band-limit-hz',
-        type=float,
-        default=analysis.band_limit_hz,
-        help=f'highest FRF frequency kept [Hz] (default {analysis.band_limit_hz:g})',
-    )
-    group.add_argument(
-        '--force-window-s',
-        type=float,
-        default=None,
-        help='force window length after the trigger [s] (default: none)',
-    )
-    group.add_argument(
-        '--exponential-decay-s',
-        type=float,
-        default=None,
-        help='exponential window decay time [s] (default: none)',
-    )
+    for name in ('band_limit_hz', 'force_window_s', 'exponential_decay_s'):
+        add_setting(group, AnalysisConfig, name)
 
 
 def add_analysis(parser: argparse.ArgumentParser) -> None:
@@ -338,6 +354,10 @@ def analysis_configs(args: argparse.Namespace) -> tuple[CaptureConfig, AnalysisC
         if args.paper_levels
         else tuple(dataclasses.replace(level, tolerance_n=args.tolerance_n) for level in args.level)
     )
+    if not levels:  # a bag's levels keep the names its analyzer gave them (low, medium, high)
+        from fmm_ros.workflows.replay import recorded_levels
+
+        levels = recorded_levels(_input_paths(args), args.tolerance_n)
     frf = AnalysisConfig()
     analysis = AnalysisConfig(
         band_limit_hz=getattr(args, 'band_limit_hz', frf.band_limit_hz),
@@ -349,14 +369,21 @@ def analysis_configs(args: argparse.Namespace) -> tuple[CaptureConfig, AnalysisC
     return capture, analysis
 
 
+def _input_paths(args: argparse.Namespace) -> list[Path]:
+    """The INPUTs of the command (analyze, fit, diagnose, report), or the bag of replay."""
+    if getattr(args, 'inputs', None):
+        return list(args.inputs)
+    return [args.bag] if getattr(args, 'bag', None) else []
+
+
 def _nominal_level(text: str) -> NominalLevel:
     """NAME=FORCE_N from the command line."""
     name, _, force = text.partition('=')
     try:
         value = float(force)
     except ValueError:
-        value = float('nan')
-    if not name.strip() or not np.isfinite(value) or value <= 0:
+        value = math.nan
+    if not name.strip() or not math.isfinite(value) or value <= 0:
         raise argparse.ArgumentTypeError(
             f'expected NAME=FORCE_N with a positive force, got {text!r}'
         )
@@ -389,30 +416,8 @@ def _delimiter(text: str) -> str:
 def add_rig(parser: argparse.ArgumentParser) -> None:
     """--mass-kg, --stiffness-n-per-m, --damping-n-s-per-m, --normal-force-n (FMM defaults)."""
     group = parser.add_argument_group('rig constants (default: the FMM)')
-    group.add_argument(
-        '--mass-kg',
-        type=float,
-        default=FMM_RIG.mass_kg,
-        help=f'moving mass m [kg] (default {FMM_RIG.mass_kg})',
-    )
-    group.add_argument(
-        '--stiffness-n-per-m',
-        type=float,
-        default=FMM_RIG.stiffness_n_per_m,
-        help=f'spring constant k [N/m] (default {FMM_RIG.stiffness_n_per_m:g})',
-    )
-    group.add_argument(
-        '--damping-n-s-per-m',
-        type=float,
-        default=FMM_RIG.damping_n_s_per_m,
-        help=f'viscous damping c [N*s/m] (default {FMM_RIG.damping_n_s_per_m})',
-    )
-    group.add_argument(
-        '--normal-force-n',
-        type=float,
-        default=FMM_RIG.normal_force_n,
-        help=f'normal force N [N] (default 0.680 kg x 9.81 m/s^2 = {FMM_RIG.normal_force_n:.4f})',
-    )
+    for item in dataclasses.fields(Rig):
+        add_setting(group, Rig, item.name)
 
 
 def add_model(parser: argparse.ArgumentParser, *, damping: bool = True) -> None:
@@ -446,6 +451,8 @@ def rig_from_args(args: argparse.Namespace) -> Rig:
 
 def fit_options(args: argparse.Namespace) -> FitOptions:
     """The FitOptions of the model flags (and fmm fit's own, where present)."""
+    from fmm_ros.workflows.session import FitOptions
+
     extra = {}
     if hasattr(args, 'mu_min'):
         extra = {

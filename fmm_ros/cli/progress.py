@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import sys
 import threading
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
-from tqdm import tqdm
+if TYPE_CHECKING:
+    from tqdm import tqdm
 
 # A StatusLine redraws itself this often [s], so the clock moves during a long step.
 REFRESH_S = 0.5
@@ -22,6 +23,8 @@ def progress_bar(
     total: int | None, *, desc: str, unit: str, quiet: bool, stream: TextIO | None = None
 ) -> tqdm:
     """A tqdm bar on stream (stderr), disabled when quiet or when stream is not a TTY."""
+    from tqdm import tqdm
+
     stream = stream or sys.stderr
     return tqdm(
         total=total,
@@ -44,6 +47,8 @@ class StatusLine:
     """
 
     def __init__(self, *, quiet: bool, stream: TextIO | None = None) -> None:
+        from tqdm import tqdm
+
         stream = stream or sys.stderr
         self.enabled = not quiet and stream.isatty()
         self._bar = tqdm(

@@ -3,8 +3,8 @@
 import argparse
 from pathlib import Path
 
-from fmm_ros.constants import RECORDED_TOPICS
-from fmm_ros.io.bags.writer import STORAGES
+from fmm_ros.constants import BAG_STORAGES, RECORDED_TOPICS
+from fmm_ros.errors import BadInputError
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -24,7 +24,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=list(RECORDED_TOPICS),
         help='topics to record (default: the fmm topics)',
     )
-    parser.add_argument('--storage', choices=tuple(STORAGES), default='mcap')
+    parser.add_argument('--storage', choices=BAG_STORAGES, default='mcap')
     parser.set_defaults(func=run)
 
 
@@ -36,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
     from fmm_ros.ros.nodes.recorder import Recorder
 
     if args.bag.exists():
-        raise ValueError(f'{args.bag} exists: choose a new bag path (nothing is overwritten)')
+        raise BadInputError(f'{args.bag} exists: choose a new bag path (nothing is overwritten)')
     overrides = [
         Parameter('bag_path', value=str(args.bag)),
         Parameter('topics', value=list(args.topics)),

@@ -5,18 +5,14 @@ record to the same analysis as the live analyzer node, so what is printed is wha
 would have published on /fmm/impacts and /fmm/frf for that session.
 """
 
+from __future__ import annotations
+
 import argparse
 import json
 import time
 from pathlib import Path
 
 from fmm_ros.cli import options
-from fmm_ros.cli.formats import analysis_text
-from fmm_ros.cli.progress import progress_bar, report_problems
-from fmm_ros.io.bags import SAMPLE_BATCH, BagReader
-from fmm_ros.io.frf_files import level_curves, write_frfs
-from fmm_ros.workflows.replay import replay_bag
-from fmm_ros.workflows.results import analysis_dict
 
 
 def register(subparsers) -> None:
@@ -37,6 +33,13 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Replay, then print the analyzer's output and the replay speed."""
+    from fmm_ros.cli.formats import analysis_text
+    from fmm_ros.cli.progress import progress_bar, report_problems
+    from fmm_ros.io.bags import SAMPLE_BATCH, BagReader
+    from fmm_ros.io.frf_files import level_curves, write_frfs
+    from fmm_ros.workflows.replay import replay_bag
+    from fmm_ros.workflows.results import analysis_dict
+
     capture, analysis = options.analysis_configs(args)
     with BagReader(args.bag, strict=False) as reader:  # the batch count, for the progress bar
         total = sum(info.count for info in reader.topics.values() if info.msgtype == SAMPLE_BATCH)

@@ -13,9 +13,8 @@ import argparse
 import sys
 
 from fmm_ros.cli import options
-from fmm_ros.cli.progress import StatusLine, report_problems
 from fmm_ros.constants import REPORT_DPI
-from fmm_ros.workflows.session import SessionOptions, process_session
+from fmm_ros.errors import BadInputError
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -74,24 +73,26 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Write the page and print where it is; 1 if a bag was damaged or a fit was refused."""
+    from fmm_ros.cli.progress import StatusLine, report_problems
     from fmm_ros.report import build_report  # matplotlib: only once the flags are good
     from fmm_ros.report.paper import build_paper_report
+    from fmm_ros.workflows.session import SessionOptions, process_session
 
     dpi = args.dpi
     if dpi <= 0:
-        raise ValueError(f'--dpi must be positive, got {dpi:g}')
+        raise BadInputError(f'--dpi must be positive, got {dpi:g}')
     if args.output is None:
-        raise ValueError('give the directory to write the report to with -o DIR')
+        raise BadInputError('give the directory to write the report to with -o DIR')
     if args.paper:
         if args.inputs:
-            raise ValueError('--paper draws the simulations of the paper and takes no INPUT')
+            raise BadInputError('--paper draws the simulations of the paper and takes no INPUT')
         print(
             f'wrote {build_paper_report(args.output, dpi=dpi)} (figures embedded, and as '
             'PNG files beside it)'
         )
         return 0
     if not args.inputs:
-        raise ValueError('give the impact files or bags to report on, or --paper')
+        raise BadInputError('give the impact files or bags to report on, or --paper')
     capture, analysis = options.analysis_configs(args)
     session_options = SessionOptions(
         inputs=options.input_options(args, capture),

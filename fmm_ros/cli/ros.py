@@ -22,10 +22,9 @@ import sys
 from pathlib import Path
 
 from fmm_ros.cli import options
-from fmm_ros.cli.formats import diagnosis_text, friction_text
 from fmm_ros.constants import DIAGNOSE_SERVICE, FIT_SERVICE
-from fmm_ros.core.identify.friction import MU_BOUNDS
-from fmm_ros.core.identify.output_error import MISFITS
+from fmm_ros.core.identify.spec import MISFITS, MU_BOUNDS
+from fmm_ros.errors import BadInputError
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -108,6 +107,7 @@ def run_list(args: argparse.Namespace) -> int:
 def run_call(args: argparse.Namespace) -> int:
     """Call /fmm/fit_friction or /fmm/diagnose_model; print the answer (exit 1 if refused)."""
     from fmm_interfaces.srv import DiagnoseModel, FitFriction
+    from fmm_ros.cli.formats import diagnosis_text, friction_text
     from fmm_ros.ros import msgs
     from fmm_ros.ros.introspect import GraphProbe
 
@@ -166,6 +166,6 @@ def run_node(args: argparse.Namespace) -> int:
     executable = directory / args.node
     if not executable.is_file():
         known = ', '.join(sorted(path.name for path in directory.iterdir() if path.is_file()))
-        raise ValueError(f'fmm_ros has no executable {args.node!r}; it has: {known}')
+        raise BadInputError(f'fmm_ros has no executable {args.node!r}; it has: {known}')
     os.execv(executable, [str(executable), *args.node_args])
     return 0  # not reached: execv replaces the process

@@ -6,17 +6,20 @@ Examples (the paper's Fig. 2 oscillator; an FMM response to a recorded hit):
     fmm simulate --force-csv hit.csv -o response.csv
 """
 
+from __future__ import annotations
+
 import argparse
 import json
 import math
 from pathlib import Path
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from fmm_ros.cli import options
 from fmm_ros.constants import PAPER_MU, SAMPLE_RATE_HZ
-from fmm_ros.core._checks import sample_rate_from_times
-from fmm_ros.core.physics.model import record_length, simulate
+from fmm_ros.errors import BadInputError
+
+if TYPE_CHECKING:
+    import numpy as np
 
 DEFAULT_DURATION_S = 33.0
 FORCE_COLUMNS = ('time_s', 'force_n')
@@ -80,23 +83,30 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def read_force_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """(time_s, force_n) from a CSV with header time_s,force_n; ValueError naming the problem."""
+    import numpy as np
+
     with open(path, encoding='utf-8') as stream:
         header = [name.strip() for name in stream.readline().split(',')]
         if tuple(header) != FORCE_COLUMNS:
-            raise ValueError(
+            raise BadInputError(
                 f'{path}: expected the header {",".join(FORCE_COLUMNS)}, got {",".join(header)!r}'
             )
         try:
             table = np.loadtxt(stream, delimiter=',', ndmin=2)
         except ValueError as error:
-            raise ValueError(f'{path}: {error}') from None
+            raise BadInputError(f'{path}: {error}') from None
     if table.shape[1] != 2 or table.shape[0] < 2:
-        raise ValueError(f'{path}: need at least two rows of time_s,force_n')
+        raise BadInputError(f'{path}: need at least two rows of time_s,force_n')
     return table[:, 0], table[:, 1]
 
 
 def run(args: argparse.Namespace) -> int:
     """Simulate as the flags say, print the summary, optionally write the record."""
+    import numpy as np
+
+    from fmm_ros.core._checks import sample_rate_from_times
+    from fmm_ros.core.physics.model import record_length, simulate
+
     rig = options.rig_from_args(args)
     start_s = 0.0
     if args.force_csv is not None:
@@ -105,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
         if args.sample_rate_hz is not None and not math.isclose(
             args.sample_rate_hz, rate, rel_tol=1e-6
         ):
-            raise ValueError(
+            raise BadInputError(
                 f'--sample-rate-hz {args.sample_rate_hz:g} does not match the '
                 f"force record's {rate:.6g} Hz"
             )

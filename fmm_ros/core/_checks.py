@@ -1,30 +1,23 @@
-"""Argument checks shared by the core modules: each raises ValueError naming the argument."""
+"""Argument checks shared by the core modules: each raises ValueError naming the argument.
+
+The scalar checks are declared with the settings (`fmm_ros.core.settings`, numpy-free) and
+re-exported here; the array checks below need numpy.
+"""
 
 import math
 
 import numpy as np
 
+from fmm_ros.core.settings import require_finite, require_non_negative, require_positive
+from fmm_ros.errors import BadInputError
 
-def require_finite(name: str, value: float) -> None:
-    """A real, finite number (bools and strings are refused)."""
-    if not isinstance(value, (int, float, np.integer, np.floating)) or isinstance(value, bool):
-        raise ValueError(f'{name} must be a number, got {value!r}')
-    if not math.isfinite(value):
-        raise ValueError(f'{name} must be finite, got {value}')
-
-
-def require_positive(name: str, value: float) -> None:
-    """A finite number above zero."""
-    require_finite(name, value)
-    if value <= 0.0:
-        raise ValueError(f'{name} must be positive, got {value}')
-
-
-def require_non_negative(name: str, value: float) -> None:
-    """A finite number not below zero."""
-    require_finite(name, value)
-    if value < 0.0:
-        raise ValueError(f'{name} must not be negative, got {value}')
+__all__ = [
+    'finite_samples',
+    'require_finite',
+    'require_non_negative',
+    'require_positive',
+    'sample_rate_from_times',
+]
 
 
 def sample_rate_from_times(time_s: np.ndarray, rtol: float = 1e-3) -> float:
@@ -35,16 +28,16 @@ def sample_rate_from_times(time_s: np.ndarray, rtol: float = 1e-3) -> float:
     """
     time_s = np.asarray(time_s, dtype=float)
     if time_s.ndim != 1 or time_s.size < 2:
-        raise ValueError('a time column needs at least two samples')
+        raise BadInputError('a time column needs at least two samples')
     if not np.all(np.isfinite(time_s)):
-        raise ValueError(f'time_s is not finite at sample {int(np.argmin(np.isfinite(time_s)))}')
+        raise BadInputError(f'time_s is not finite at sample {int(np.argmin(np.isfinite(time_s)))}')
     steps = np.diff(time_s)
     step = (time_s[-1] - time_s[0]) / (time_s.size - 1)
     if step <= 0.0:
-        raise ValueError('time_s must increase')
+        raise BadInputError('time_s must increase')
     worst = int(np.argmax(np.abs(steps - step)))
     if abs(steps[worst] - step) > rtol * step:
-        raise ValueError(
+        raise BadInputError(
             f'non-uniform time step: {steps[worst]:.6g} s between samples {worst} '
             f'and {worst + 1}, against {step:.6g} s on average'
         )
@@ -60,13 +53,13 @@ def finite_samples(name: str, values: np.ndarray, overflow: str = 'sum') -> np.n
     """
     array = np.ascontiguousarray(values, dtype=np.float64)
     if array.ndim != 1:
-        raise ValueError(f'{name} must be one-dimensional, got shape {array.shape}')
+        raise BadInputError(f'{name} must be one-dimensional, got shape {array.shape}')
     if not math.isfinite(float(np.add.reduce(array))):
         bad = np.flatnonzero(~np.isfinite(array))
         if bad.size:
-            raise ValueError(
+            raise BadInputError(
                 f'{name} is not finite at sample {int(bad[0])} '
                 f'({array[bad[0]]}); {bad.size} bad sample(s)'
             )
-        raise ValueError(f'{name} is too large to {overflow} (its sum overflows)')
+        raise BadInputError(f'{name} is too large to {overflow} (its sum overflows)')
     return array

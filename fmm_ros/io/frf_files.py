@@ -17,7 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from fmm_ros.core.signal.analysis import ImpactResult, Summary
+from fmm_ros.core.signal.analysis import ImpactAnalysis, Summary
+from fmm_ros.errors import BadInputError
 
 
 @dataclass(frozen=True)
@@ -54,11 +55,11 @@ class FrfCurve:
 
     def __post_init__(self) -> None:
         if self.quantity not in QUANTITIES:
-            raise ValueError(
+            raise BadInputError(
                 f'{self.name}: unknown quantity {self.quantity!r}; known: {", ".join(QUANTITIES)}'
             )
         if np.shape(self.frequency_hz) != np.shape(self.values) or np.ndim(self.values) != 1:
-            raise ValueError(
+            raise BadInputError(
                 f'{self.name}: frequency axis and values must be 1-D and of equal length'
             )
 
@@ -83,7 +84,7 @@ def level_curves(summary: Summary) -> list[FrfCurve]:
     return curves
 
 
-def impact_curves(results: Iterable[ImpactResult]) -> list[FrfCurve]:
+def impact_curves(results: Iterable[ImpactAnalysis]) -> list[FrfCurve]:
     """Each impact's mobility, named by its id (and level, once assigned)."""
     return [
         FrfCurve(
@@ -108,7 +109,7 @@ def write_frfs(path: str | Path, curves: Sequence[FrfCurve]) -> None:
         '.json': write_frf_json,
     }
     if suffix not in writers:
-        raise ValueError(
+        raise BadInputError(
             f'{path}: unknown export format {suffix!r}; use .uff or .unv (UFF 58), .csv or .json'
         )
     writers[suffix](path, curves)
@@ -135,7 +136,7 @@ def write_uff58(path: str | Path, curves: Sequence[FrfCurve]) -> None:
     ]
     for number, curve in enumerate(_nonempty(curves), start=1):
         if curve.frequency_hz.size < 2:
-            raise ValueError(f'{curve.name}: UFF 58 needs at least 2 frequency points')
+            raise BadInputError(f'{curve.name}: UFF 58 needs at least 2 frequency points')
         quantity = QUANTITIES[curve.quantity]
         dataset = pyuff.prepare_58(
             binary=0,
@@ -181,7 +182,7 @@ def write_frf_csv(path: str | Path, curves: Sequence[FrfCurve]) -> None:
     axis = curves[0].frequency_hz
     for curve in curves[1:]:
         if curve.frequency_hz.shape != axis.shape or not np.allclose(curve.frequency_hz, axis):
-            raise ValueError(f'{curve.name}: CSV export needs one frequency axis for all curves')
+            raise BadInputError(f'{curve.name}: CSV export needs one frequency axis for all curves')
     names, columns = ['frequency_hz'], [axis]
     for curve in curves:
         label = re.sub(r'\W+', '_', curve.name).strip('_').lower()
@@ -231,5 +232,5 @@ def _json_list(values: np.ndarray) -> list[float | None]:
 
 def _nonempty(curves: Sequence[FrfCurve]) -> list[FrfCurve]:
     if not curves:
-        raise ValueError('nothing to export: no FRF curves (no level had an accepted impact?)')
+        raise BadInputError('nothing to export: no FRF curves (no level had an accepted impact?)')
     return list(curves)

@@ -38,6 +38,7 @@ import yaml
 
 from fmm_ros.core._checks import sample_rate_from_times
 from fmm_ros.core.signal.records import CSV_COLUMNS
+from fmm_ros.errors import BadInputError
 from fmm_ros.io import sniff
 from fmm_ros.io.bags.acquisitions import Acquisition, write_acquisitions
 from fmm_ros.io.bags.writer import DEFAULT_BATCH_SIZE, BagWriter
@@ -85,14 +86,14 @@ class ChannelMapping:
         known = lookup_unit(quantity, unit)
         if self.scale is not None:
             if known is not None:
-                raise ValueError(
+                raise BadInputError(
                     f'{quantity} {self.name!r}: unit {unit} already fixes the scale '
                     f'({known[1]:g} {si} per {unit}); drop scale, or give the raw sensor unit '
                     f'(e.g. V) with scale in {si} per that unit'
                 )
             return float(self.scale), f'× {self.scale:g} {si}/{unit or "unit"} (stated scale)'
         if known is None:
-            raise ValueError(
+            raise BadInputError(
                 f'{quantity} {self.name!r}: '
                 + (
                     f'unit {unit!r} is not a {quantity} unit ({", ".join(units)}); for a '
@@ -124,16 +125,16 @@ class ImportMapping:
     def from_dict(cls, spec: dict) -> 'ImportMapping':
         """A mapping from its YAML form; unknown keys are errors, not silently ignored."""
         if not isinstance(spec, dict):
-            raise ValueError(f'an import mapping is a YAML mapping, got {type(spec).__name__}')
+            raise BadInputError(f'an import mapping is a YAML mapping, got {type(spec).__name__}')
         unknown = set(spec) - {'force', 'velocity', 'sample_rate_hz', 'time'}
         if unknown:
-            raise ValueError(
+            raise BadInputError(
                 f'unknown mapping keys: {", ".join(sorted(unknown))} (known: '
                 'force, velocity, sample_rate_hz, time)'
             )
         for key in ('force', 'velocity'):
             if key not in spec:
-                raise ValueError(f'the mapping names no {key} channel ({key}: {{name: ...}})')
+                raise BadInputError(f'the mapping names no {key} channel ({key}: {{name: ...}})')
         rate = spec.get('sample_rate_hz')
         return cls(
             _channel(spec['force'], 'force'),
@@ -151,10 +152,10 @@ def _channel(spec, key: str) -> ChannelMapping:
     if isinstance(spec, str | int):
         return ChannelMapping(str(spec))
     if not isinstance(spec, dict) or 'name' not in spec:
-        raise ValueError(f'mapping entry {key} needs a name: {key}: {{name: ..., unit: ...}}')
+        raise BadInputError(f'mapping entry {key} needs a name: {key}: {{name: ..., unit: ...}}')
     unknown = set(spec) - set(CHANNEL_KEYS)
     if unknown:
-        raise ValueError(f'unknown keys in mapping entry {key}: {", ".join(sorted(unknown))}')
+        raise BadInputError(f'unknown keys in mapping entry {key}: {", ".join(sorted(unknown))}')
     scale, full_scale_si = spec.get('scale'), spec.get('full_scale_si')
     return ChannelMapping(
         str(spec['name']),
@@ -218,19 +219,19 @@ class LabFile(ABC):
         values = np.asarray(self.array(name))
         squeezed = np.squeeze(values)
         if squeezed.ndim != 1:
-            raise ValueError(
+            raise BadInputError(
                 f'{self.path}: {name!r} has shape {values.shape}; a channel must '
                 'be a vector (one trial per file)'
             )
         if not np.issubdtype(squeezed.dtype, np.number):
-            raise ValueError(f'{self.path}: {name!r} is not numeric ({squeezed.dtype})')
+            raise BadInputError(f'{self.path}: {name!r} is not numeric ({squeezed.dtype})')
         return squeezed.astype(np.float64, copy=False)
 
     def scalar(self, name: str) -> float:
         """A scalar variable (e.g. the sample rate)."""
         values = np.asarray(self.array(name), dtype=np.float64)
         if values.size != 1:
-            raise ValueError(
+            raise BadInputError(
                 f'{self.path}: {name!r} should be one number, has shape {values.shape}'
             )
         return float(values.reshape(-1)[0])
@@ -471,10 +472,10 @@ def _reading(path: Path, kind: str) -> Iterator[None]:
     except ValueError as error:  # the library's own words, with the file they are about
         if str(path) in str(error):
             raise
-        raise ValueError(f'{path} ({kind}): {error}') from None
+        raise BadInputError(f'{path} ({kind}): {error}') from None
     except Exception as error:  # noqa: BLE001 - the boundary to third-party parsers of bytes
         detail = str(error) or type(error).__name__
-        raise ValueError(f'{path}: not a readable {kind} file ({detail})') from None
+        raise BadInputError(f'{path}: not a readable {kind} file ({detail})') from None
 
 
 class _BoundedFile(io.FileIO):
@@ -495,7 +496,7 @@ def _check_declared_size(path: Path, name: str, declared_bytes: int) -> None:
     """ValueError when a channel declares more bytes than its file can hold."""
     size = os.stat(path).st_size
     if declared_bytes > DECLARED_SIZE_RATIO * size:
-        raise ValueError(
+        raise BadInputError(
             f'{path}: {name!r} declares {declared_bytes} bytes of data, more than '
             f'{DECLARED_SIZE_RATIO} times the file ({size} bytes): a corrupt length, not a '
             'measurement'
@@ -524,7 +525,7 @@ def open_lab_file(path: str | Path, text_format: TextFormat = DETECT) -> LabFile
     path = Path(path)
     kind = sniff.file_kind(path)
     if kind == sniff.BAG:
-        raise ValueError(f'{path} is a bag, not a lab file: give it to fmm analyze/fit/report')
+        raise BadInputError(f'{path} is a bag, not a lab file: give it to fmm analyze/fit/report')
     if kind == sniff.CSV:
         return CsvFile(path, text_format)
     if kind == sniff.NPZ:
@@ -588,7 +589,7 @@ def read_lab_file(
             )
     force, velocity = channels['force'][0], channels['velocity'][0]
     if len(force) != len(velocity):
-        raise ValueError(
+        raise BadInputError(
             f'{lab.path}: force {mapping.force.name!r} has {len(force)} samples '
             f'but velocity {mapping.velocity.name!r} has {len(velocity)}'
         )
@@ -641,7 +642,7 @@ def mapping_for(lab: LabFile, spec: dict) -> tuple[ImportMapping, list[str]]:
                 if not found
                 else f'{len(found)} channels are in {quantity} units ({", ".join(found)})'
             )
-            raise ValueError(
+            raise BadInputError(
                 f'{lab.path} ({lab.format}): which channel is the {quantity}? {problem}; '
                 f'name it with --{quantity} NAME (and --{quantity}-unit UNIT), or in a mapping '
                 f'file (-m); the file has: {listing or "nothing"}'
@@ -670,14 +671,14 @@ def _sample_rate(lab: LabFile, mapping: ImportMapping, length: int) -> tuple[flo
         name = mapping.time.name
         time_s = lab.vector(name) * mapping.time.factor('time', lab.channel_unit(name))[0]
         if len(time_s) != length:
-            raise ValueError(
+            raise BadInputError(
                 f'{lab.path}: time {name!r} has {len(time_s)} samples, the channels {length}'
             )
         try:
             # Over the whole span, so the rounding of each printed time stamp averages out.
             from_time = sample_rate_from_times(time_s, rtol=UNIFORM_TIME_TOLERANCE)
         except ValueError as error:
-            raise ValueError(
+            raise BadInputError(
                 f'{lab.path}: time {name!r} is not uniformly increasing ({error}; a dropped '
                 'or repeated sample?): the analysis needs a constant sample rate'
             ) from None
@@ -687,7 +688,7 @@ def _sample_rate(lab: LabFile, mapping: ImportMapping, length: int) -> tuple[flo
         if rate is None:
             rate, how = from_time, f'time channel {name!r}'
         elif abs(from_time - rate) > UNIFORM_TIME_TOLERANCE * rate:
-            raise ValueError(
+            raise BadInputError(
                 f'{lab.path}: sample rate {rate:g} Hz ({how}) disagrees with '
                 f'time channel {name!r} ({from_time:g} Hz)'
             )
@@ -698,17 +699,17 @@ def _sample_rate(lab: LabFile, mapping: ImportMapping, length: int) -> tuple[flo
         if None not in increments and len(increments) == 1:
             rate, how = 1.0 / increments.pop(), 'wf_increment in the file'
         elif len(increments - {None}) > 1:
-            raise ValueError(
+            raise BadInputError(
                 f'{lab.path}: force and velocity have different sample '
                 f'intervals {sorted(increments - {None})} s'
             )
     if rate is None:
-        raise ValueError(
+        raise BadInputError(
             f'{lab.path}: no sample rate; state sample_rate_hz (a number or a '
             'variable name) or a time channel'
         )
     if not np.isfinite(rate) or rate <= 0:
-        raise ValueError(f'{lab.path}: sample rate {rate} Hz is not a positive number')
+        raise BadInputError(f'{lab.path}: sample rate {rate} Hz is not a positive number')
     return rate, how
 
 
@@ -734,12 +735,12 @@ def read_lab_files(
 ) -> list[LabRecording]:
     """Every file read with one mapping (see `read_lab_file`); they must share one rate."""
     if not paths:
-        raise ValueError('no input files')
+        raise BadInputError('no input files')
     recordings = [read_lab_file(path, mapping, text_format) for path in paths]
     rate = recordings[0].sample_rate_hz
     for recording in recordings[1:]:
         if abs(recording.sample_rate_hz - rate) > 1e-9 * rate:
-            raise ValueError(
+            raise BadInputError(
                 f'{recording.source} is sampled at {recording.sample_rate_hz:g} '
                 f'Hz, {recordings[0].source} at {rate:g} Hz: one bag, one rate'
             )

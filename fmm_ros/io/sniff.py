@@ -10,6 +10,8 @@ signature, is known by its `.mat` suffix alone.
 import zipfile
 from pathlib import Path
 
+from fmm_ros.errors import BadInputError
+
 BAG = 'bag'
 CSV = 'CSV'
 NPZ = 'NPZ'
@@ -45,7 +47,9 @@ def file_kind(path: str | Path) -> str:
             or any(path.glob('*.db3'))
         ):
             return BAG
-        raise ValueError(f'{path} is a directory but not a bag (no metadata.yaml, .mcap or .db3)')
+        raise BadInputError(
+            f'{path} is a directory but not a bag (no metadata.yaml, .mcap or .db3)'
+        )
     if not path.is_file():
         raise FileNotFoundError(f'{path} does not exist')
     with path.open('rb') as stream:
@@ -64,7 +68,7 @@ def file_kind(path: str | Path) -> str:
         return CSV
     if path.suffix.lower() == '.mat':
         return MATLAB  # v4: no signature
-    raise ValueError(
+    raise BadInputError(
         f'{path}: unknown format {path.suffix!r} (the file starts with {head[:8]!r}); fmm '
         f'reads {SUPPORTED}'
     )
@@ -76,7 +80,7 @@ def _zip_kind(path: Path) -> str:
         with zipfile.ZipFile(path) as archive:
             names = archive.namelist()
     except zipfile.BadZipFile as error:
-        raise ValueError(f'{path}: a damaged zip archive ({error})') from None
+        raise BadInputError(f'{path}: a damaged zip archive ({error})') from None
     if any(name.endswith('.npy') for name in names):
         return NPZ
     what = (
@@ -84,7 +88,7 @@ def _zip_kind(path: Path) -> str:
         if any(name.startswith('xl/') for name in names)
         else 'a zip archive without NumPy arrays'
     )
-    raise ValueError(f'{path}: unknown format {path.suffix!r}: {what}; fmm reads {SUPPORTED}')
+    raise BadInputError(f'{path}: unknown format {path.suffix!r}: {what}; fmm reads {SUPPORTED}')
 
 
 def is_text(head: bytes) -> bool:

@@ -29,17 +29,14 @@ from pathlib import Path
 
 import numpy as np
 
-DELIMITERS = (',', ';', '\t', ' ', '|')
-"""Delimiters detected or accepted; ' ' stands for any run of blanks."""
-DELIMITER_NAMES = {
-    'comma': ',',
-    'semicolon': ';',
-    'tab': '\t',
-    'space': ' ',
-    'whitespace': ' ',
-    'pipe': '|',
-}
-DECIMALS = ('.', ',')
+from fmm_ros.errors import BadInputError
+from fmm_ros.io.textformat import (
+    DELIMITER_NAMES,
+    DELIMITERS,
+    DETECT,
+    TextFormat,
+)
+
 SNIFF_LINES = 40
 """Lines (after the preamble) the delimiter and decimal are detected from."""
 SNIFF_BYTES = 65_536
@@ -53,53 +50,6 @@ BOMS = (
 )
 _COMMA_NUMBER = re.compile(r'^[-+]?(\d+,\d*|,\d+)([eE][-+]?\d+)?$')
 _DOT_NUMBER = re.compile(r'^[-+]?(\d+\.\d*|\.\d+)([eE][-+]?\d+)?$')
-
-
-@dataclass(frozen=True)
-class TextFormat:
-    """How a delimited text file is laid out; None (or 0 rows) means: detect it.
-
-    delimiter: one of DELIMITERS (' ' is any run of blanks). decimal: '.' or ','.
-    skip_rows: lines to skip before the header (or the data). encoding: a Python codec name.
-    """
-
-    delimiter: str | None = None
-    decimal: str | None = None
-    skip_rows: int = 0
-    encoding: str | None = None
-
-    def __post_init__(self) -> None:
-        if self.delimiter is not None and self.delimiter not in DELIMITERS:
-            raise ValueError(
-                f'delimiter {self.delimiter!r} is not one of {", ".join(map(repr, DELIMITERS))} '
-                f'(or {", ".join(DELIMITER_NAMES)})'
-            )
-        if self.decimal is not None and self.decimal not in DECIMALS:
-            raise ValueError(f"decimal separator {self.decimal!r} must be '.' or ','")
-        if self.decimal is not None and self.decimal == self.delimiter:
-            raise ValueError(f'the delimiter and the decimal separator are both {self.decimal!r}')
-        if self.skip_rows < 0:
-            raise ValueError(f'skip_rows must not be negative, got {self.skip_rows}')
-        if self.encoding is not None:
-            try:
-                codecs.lookup(self.encoding)
-            except LookupError:
-                raise ValueError(f'unknown text encoding {self.encoding!r}') from None
-
-
-DETECT = TextFormat()
-"""Everything detected from the file."""
-
-
-def delimiter_from_name(text: str) -> str:
-    """A delimiter as a command line gives it: the character or its name (tab, semicolon...)."""
-    delimiter = DELIMITER_NAMES.get(text.strip().lower(), '\t' if text == '\\t' else text)
-    if delimiter not in DELIMITERS:
-        raise ValueError(
-            f'delimiter {text!r} is not one of {", ".join(DELIMITER_NAMES)} '
-            f'or {", ".join(map(repr, DELIMITERS))}'
-        )
-    return delimiter
 
 
 @dataclass(frozen=True, eq=False)
@@ -155,7 +105,7 @@ class TextTable:
                 comments='#',
             )
         except ValueError as error:
-            raise ValueError(
+            raise BadInputError(
                 f'{self.path}: {error} (data rows from line {self.data_line}, read as '
                 f'{self.describe()}; state --delimiter, --decimal or --skip-rows if that is '
                 'not how the file is laid out)'
@@ -204,12 +154,12 @@ def read_table(path: str | Path, text_format: TextFormat = DETECT) -> TextTable:
             if len(body) == SNIFF_LINES * 4:
                 break
     if not body:
-        raise ValueError(f'{path} holds no data')
+        raise BadInputError(f'{path} holds no data')
     sample = [line for _, line in body[:SNIFF_LINES]]
     delimiter = text_format.delimiter or _detect_delimiter(sample)
     decimal = text_format.decimal or _detect_decimal(sample, delimiter)
     if decimal == delimiter:
-        raise ValueError(
+        raise BadInputError(
             f'{path}: the delimiter and the decimal separator cannot both be {decimal!r}'
         )
     rows = [(number, _cells(line, delimiter)) for number, line in body]
@@ -217,7 +167,7 @@ def read_table(path: str | Path, text_format: TextFormat = DETECT) -> TextTable:
         (position for position, (_, cells) in enumerate(rows) if _numeric(cells, decimal)), None
     )
     if start is None:
-        raise ValueError(
+        raise BadInputError(
             f'{path}: no row of numbers in its first {len(rows)} lines (read with delimiter '
             f'{delimiter!r}, decimal {decimal!r}; state --delimiter, --decimal or --skip-rows)'
         )
@@ -229,7 +179,7 @@ def read_table(path: str | Path, text_format: TextFormat = DETECT) -> TextTable:
         header = _trimmed(above[0])
         names = [cell or str(column) for column, cell in enumerate(header)]
         if len(set(names)) != len(names):
-            raise ValueError(f'{path}: the header names a column twice: {names}')
+            raise BadInputError(f'{path}: the header names a column twice: {names}')
         if len(above) > 1:
             units = [cell or None for cell in _trimmed(above[1])]
     data_line = rows[start][0]
@@ -252,7 +202,7 @@ def decode_text(raw: bytes, encoding: str | None, path: Path) -> tuple[str, str]
         try:
             return raw.decode(encoding), encoding
         except UnicodeDecodeError as error:
-            raise ValueError(f'{path}: cannot be read as {encoding}: {error}') from None
+            raise BadInputError(f'{path}: cannot be read as {encoding}: {error}') from None
     for bom, name in BOMS:
         if raw.startswith(bom):
             return raw.decode(name), name

@@ -2,10 +2,16 @@
 
 ROS-free like the core (numpy, scipy, matplotlib without pyplot), and it only draws:
 `build_report` writes the page of a `SessionResult` computed by `fmm_ros.workflows.session`
-(`process_session` for files and bags, `run_session` for records in hand);
+(`process_session` for files and bags, `process_records` for records in hand);
 `build_paper_report` (in `paper`) reproduces the paper's simulation figures (Figs. 2-10).
 """
 
-from fmm_ros.report.session import FLAG_MEANINGS, build_report
+from fmm_ros._lazy import lazy_exports
 
-__all__ = ['FLAG_MEANINGS', 'build_report']
+_EXPORTS = {
+    'FLAG_MEANINGS': 'session',
+    'build_report': 'session',
+}
+
+__all__ = sorted(_EXPORTS)
+__getattr__ = lazy_exports(__name__, _EXPORTS)

@@ -21,6 +21,7 @@ from fmm_ros.constants import MM_PER_M, SAMPLE_RATE_HZ
 from fmm_ros.core.physics.model import Simulation, free_vibration, simulate
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.signal import frf
+from fmm_ros.errors import BadInputError
 from fmm_ros.report.html import Page
 from fmm_ros.report.plotting import (
     DEFAULT_DPI,
@@ -126,7 +127,7 @@ def rest_positions(
     for i, x0 in enumerate(x0_m):
         run = free_vibration(float(x0), duration_s, SAMPLE_RATE_HZ, mu=mu, rig=rig)
         if not run.at_rest:
-            raise ValueError(
+            raise BadInputError(
                 f'release from {x0 * MM_PER_M:g} mm has not come to rest after {duration_s:g} s'
             )
         finals[i] = run.rest_position_m

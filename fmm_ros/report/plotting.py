@@ -25,6 +25,7 @@ from matplotlib.ticker import FixedLocator, Locator
 from PIL import Image
 
 from fmm_ros.constants import MOBILITY_DISPLAY_UNIT, RECEPTANCE_DISPLAY_UNIT, REPORT_DPI
+from fmm_ros.errors import BadInputError
 
 # Inches: wide enough for two decades of ticks, narrow enough to sit in a page column.
 FIGURE_WIDTH_IN = 7.5
@@ -212,7 +213,7 @@ def _arrange(
     cell_width = (width - left_in - right_in - (columns - 1) * column_gap_in) / columns
     cell_height = (height - bottom_in - top_in - (rows - 1) * row_gap_in) / rows
     if min(cell_width, cell_height) < MIN_AXES_IN:
-        raise ValueError(
+        raise BadInputError(
             f'a {width:.3g} x {height:.3g} in figure of {rows} x {columns} axes '
             f'leaves {cell_width:.2g} x {cell_height:.2g} in an axes inside its '
             'labels: make it larger or its labels shorter'

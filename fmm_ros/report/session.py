@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from fmm_ros.constants import MM_PER_M
-from fmm_ros.core.signal.analysis import ImpactResult, Summary
+from fmm_ros.core.signal.analysis import ImpactAnalysis, Summary
 from fmm_ros.report import diagnosis_figures
 from fmm_ros.report import session_figures as figures
 from fmm_ros.report.html import Markup, Page, escape, link
@@ -525,7 +525,7 @@ def _one_per_level(summary: Summary, impact_ids: Sequence[int]) -> list[int]:
     return sorted(first.values())
 
 
-def _hit_name(impact: ImpactResult) -> str:
+def _hit_name(impact: ImpactAnalysis) -> str:
     return f'hit_{impact.impact_id:03d}'
 
 

@@ -1,6 +1,6 @@
 """Figures of one impact session, in the style of the paper's Figs. 12-24.
 
-Each function takes analysed data (records, `ImpactResult`s, `LevelSummary`s) and returns a
+Each function takes analysed data (records, `ImpactAnalysis`s, `LevelSummary`s) and returns a
 `matplotlib.figure.Figure`; nothing is computed here that the signal core already computes.
 Time is counted from each hit's trigger, so trials overlay; frequency axes stop where the
 figure's subject does (a few f_n for the resonance, 20 Hz for the odd harmonics).
@@ -15,9 +15,10 @@ from matplotlib.figure import Figure
 
 from fmm_ros.constants import MM_PER_M
 from fmm_ros.core.signal import frf
-from fmm_ros.core.signal.analysis import ImpactResult, LevelSummary, NominalLevel, Summary
+from fmm_ros.core.signal.analysis import ImpactAnalysis, LevelSummary, NominalLevel, Summary
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig
 from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.errors import BadInputError
 from fmm_ros.report.plotting import (
     FREQUENCY_LABEL,
     MEAN_COLOUR,
@@ -45,26 +46,6 @@ HARMONICS_TOP_HZ = 20.0
 VELOCITY_LABEL = 'velocity [mm/s]'
 
 
-def hit_figure(
-    record: ImpactRecord,
-    result: ImpactResult,
-    *,
-    capture: CaptureConfig = DEFAULT_CAPTURE,
-    model_velocity_m_s: np.ndarray | None = None,
-    model_label: str = '',
-    colour: str = 'tab:blue',
-) -> Figure:
-    """One hit (Figs. 18/20/22) in a Figure of its own; see `HitFigures.draw`."""
-    return HitFigures().draw(
-        record,
-        result,
-        capture=capture,
-        model_velocity_m_s=model_velocity_m_s,
-        model_label=model_label,
-        colour=colour,
-    )
-
-
 class HitFigures:
     """The figure of each hit (Figs. 18/20/22), drawn hit after hit into one reused Figure.
 
@@ -81,7 +62,7 @@ class HitFigures:
     def draw(
         self,
         record: ImpactRecord,
-        result: ImpactResult,
+        result: ImpactAnalysis,
         *,
         capture: CaptureConfig = DEFAULT_CAPTURE,
         model_velocity_m_s: np.ndarray | None = None,
@@ -170,7 +151,7 @@ class _HitPanels:
 def level_trials_figure(
     level: str,
     records: Sequence[ImpactRecord],
-    results: Sequence[ImpactResult],
+    results: Sequence[ImpactAnalysis],
     *,
     colour: str = 'tab:blue',
     capture: CaptureConfig = DEFAULT_CAPTURE,
@@ -203,7 +184,7 @@ def level_trials_figure(
 
 def frf_trials_figure(
     level: LevelSummary,
-    trials: Sequence[ImpactResult],
+    trials: Sequence[ImpactAnalysis],
     quantity: str,
     *,
     colour: str = 'tab:blue',
@@ -254,7 +235,7 @@ def frf_trials_figure(
 
 def coherence_figure(
     level: LevelSummary,
-    trials: Sequence[ImpactResult],
+    trials: Sequence[ImpactAnalysis],
     *,
     colour: str = 'tab:blue',
     top_hz: float | None = None,
@@ -326,7 +307,7 @@ def level_magnitude_figure(
 
 
 def impulse_figure(
-    impacts: Sequence[ImpactResult],
+    impacts: Sequence[ImpactAnalysis],
     levels: Sequence[LevelSummary],
     nominal: Sequence[NominalLevel] = (),
 ) -> Figure:
@@ -698,7 +679,7 @@ def _frf_unit(quantity: str) -> str:
         return MOBILITY_UNIT
     if quantity == 'receptance':
         return RECEPTANCE_UNIT
-    raise ValueError(f"unknown FRF quantity {quantity!r}; use 'mobility' or 'receptance'")
+    raise BadInputError(f"unknown FRF quantity {quantity!r}; use 'mobility' or 'receptance'")
 
 
 def source_name(source: str) -> str:

@@ -1,4 +1,8 @@
-"""What every fmm_ros node shares: QoS profiles, topic names and the `ros2 run` entry point."""
+"""What every fmm_ros node shares: the rig's parameters and the `ros2 run` entry point.
+
+The QoS profiles are declared in `fmm_ros.ros.qos` (SAMPLE_QOS and RESULT_QOS are re-exported
+here for code that took them from here).
+"""
 
 import importlib
 import signal
@@ -13,41 +17,16 @@ from rclpy.executors import (
     SingleThreadedExecutor,
 )
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
 from fmm_ros.core.physics.rig import Rig
-from fmm_ros.ros.params import Param
+from fmm_ros.ros.params import Param, params_from
+from fmm_ros.ros.qos import RESULT_QOS, SAMPLE_QOS  # noqa: F401 (re-exported)
 from fmm_ros.sim.daq import ChannelChain
 
-_RIG = Rig()
-
 # The rig constants of Eq. 3, as parameters (rig_sim simulates with them, the fitter fits
-# with them); defaults are the paper's FMM.
-RIG_PARAMS = (
-    Param('mass_kg', _RIG.mass_kg, 'Moving mass m [kg]', limits=(1e-3, 1e4), read_only=True),
-    Param(
-        'stiffness_n_per_m',
-        _RIG.stiffness_n_per_m,
-        'Flexure stiffness k [N/m]',
-        limits=(1e-3, 1e9),
-        read_only=True,
-    ),
-    Param(
-        'damping_n_s_per_m',
-        _RIG.damping_n_s_per_m,
-        'Viscous damping c [N*s/m] (the fitter starts from it when fitting c)',
-        limits=(0.0, 1e6),
-        read_only=True,
-    ),
-    Param(
-        'normal_force_n',
-        _RIG.normal_force_n,
-        'Normal force on the pin N [N] (0.680 kg x 9.81 m/s^2)',
-        limits=(0.0, 1e5),
-        read_only=True,
-    ),
-)
+# with them): the Rig's declared settings; defaults are the paper's FMM.
+RIG_PARAMS = params_from(Rig)
 
 
 def chain_params(channel: str, unit: str, suffix: str, offset_limit: float) -> tuple[Param, ...]:
@@ -114,22 +93,11 @@ def rig_from_parameters(config: dict) -> Rig:
     return Rig(**{param.name: config[param.name] for param in RIG_PARAMS})
 
 
-# Sample batches: every one matters (a lost batch is a gap in an FRF record), and a subscriber
-# may lag a burst of them, so RELIABLE with a deep queue.
-SAMPLE_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=100,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
+class SourceStartTimeout(RuntimeError):
+    """A source's consumers did not all appear in time: it stops rather than lose samples.
 
-# Results: a late subscriber (a plot, the fitter started later) still gets the latest ones.
-RESULT_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=10,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
+    `run_node` exits 1 with the reason; `fmm_ros.ros.flow.FlowGate` raises it.
+    """
 
 
 # The signals a process manager sends a node: Ctrl-C, systemd / docker stop / ros2 launch's
@@ -163,8 +131,6 @@ def run_node(
     threads > 1 spins a MultiThreadedExecutor, for nodes whose callback groups let a long
     service call run beside their stream callbacks.
     """
-    from fmm_ros.ros.flow import SourceStartTimeout
-
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop_requested = threading.Event()
     handlers = {
@@ -230,46 +196,3 @@ def message_class(msgtype: str) -> type:
     """The generated Python class of a ROS type name such as fmm_interfaces/msg/SampleBatch."""
     package, kind, name = msgtype.split('/')
     return getattr(importlib.import_module(f'{package}.{kind}'), name)
-
-
-class BatchPacer:
-    """Releases sample batches at a paced rate against the wall clock, a few per tick.
-
-    rclpy's executor takes one message per subscription per wait cycle, so a source that
-    publishes more than one batch a tick overruns subscribers spun by the same executor once
-    its timer is ready on every cycle (a speed-up the graph cannot keep): seen as queues
-    overflowing into gaps at x1000 with two a tick. So one batch a tick; further behind than
-    that (the graph is slow, or the flow window holds the source back), the clock is
-    re-anchored: the source runs slower than asked (`fell_behind` says so) instead of flooding.
-    """
-
-    def __init__(self, batches_per_s: float, max_per_tick: int = 1) -> None:
-        self.max_per_tick = max_per_tick
-        self.fell_behind = False
-        self.restart(batches_per_s, 0)
-
-    def restart(self, batches_per_s: float, released: int) -> None:
-        """Pace at a new rate from the next tick on, `released` batches already out."""
-        self._anchor = (None, released, batches_per_s)
-        self.batches_per_s = batches_per_s
-        self.released = released
-
-    def due(self) -> int:
-        """How many batches the clock lets go now; the caller counts each with `release()`.
-
-        The first call after (re)starting anchors the pace, so the time a graph spends on
-        discovery before it spins is not counted as lag.
-        """
-        wall0, released0, rate = self._anchor
-        now = time.monotonic()
-        if wall0 is None:
-            self._anchor = (wall0 := now, released0, rate)
-        behind = released0 + int((now - wall0) * rate) - self.released
-        self.fell_behind = behind > self.max_per_tick + 1
-        if self.fell_behind:
-            self._anchor = (now, self.released + self.max_per_tick, rate)
-        return max(0, min(behind, self.max_per_tick))
-
-    def release(self) -> None:
-        """One batch went out."""
-        self.released += 1

@@ -35,16 +35,16 @@ from fmm_ros.constants import (
 from fmm_ros.core.identify.running import RunningEstimate
 from fmm_ros.io.bags.reader import BagReader
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import RESULT_QOS
 from fmm_ros.ros.graph import InProcessGraph
-from fmm_ros.ros.health import DIAGNOSTICS_QOS, LEVEL_NAMES
+from fmm_ros.ros.health import LEVEL_NAMES
 from fmm_ros.ros.nodes import CONSUMERS
 from fmm_ros.ros.nodes.analyzer import Analyzer
 from fmm_ros.ros.nodes.fitter import Fitter
 from fmm_ros.ros.nodes.hammer_sim import HammerSim
 from fmm_ros.ros.nodes.recorder import Recorder
 from fmm_ros.ros.nodes.rig_sim import RigSim
-from fmm_ros.workflows.results import FrictionResult, json_safe
+from fmm_ros.ros.qos import DIAGNOSTICS_QOS, RESULT_QOS
+from fmm_ros.workflows.results import FrictionResult, hit_record, json_safe, level_record
 
 # A session stops waiting when no new sample has gone out for this long (wall time) [s].
 STALL_TIMEOUT_S = 60.0
@@ -183,7 +183,7 @@ class _Results(Node):
             }
 
 
-def run_session(
+def run_demo_session(
     config: SessionConfig, progress: Callable[[str], None] = lambda _: None
 ) -> DemoResult:
     """Run the session to its last impact, fit mu over it, close the bag; return the results."""
@@ -292,11 +292,16 @@ def run_session(
         levels=[
             {
                 'name': s.level,
-                'count': s.count,
-                'mean_impulse_n_s': s.mean_impulse_n_s,
-                'std_impulse_n_s': s.std_impulse_n_s,
-                'peak_receptance_m_per_n': s.peak_receptance_m_per_n,
-                'natural_frequency_hz': s.natural_frequency_hz,
+                **level_record(
+                    s,
+                    (
+                        'count',
+                        'mean_impulse_n_s',
+                        'std_impulse_n_s',
+                        'peak_receptance_m_per_n',
+                        'natural_frequency_hz',
+                    ),
+                ),
             }
             for s in ordered
         ],
@@ -313,14 +318,20 @@ def run_session(
         diagnose_s=diagnose_s,
         impacts=[
             {
-                'impact_id': m.impact_id,
-                'level': m.level,
-                'accepted': m.accepted,
+                **hit_record(
+                    m,
+                    (
+                        'impact_id',
+                        'level',
+                        'accepted',
+                        'flags',
+                        'peak_force_n',
+                        'impulse_n_s',
+                        'peak_receptance_m_per_n',
+                        'natural_frequency_hz',
+                    ),
+                ),
                 'flags': list(m.flags),
-                'peak_force_n': m.peak_force_n,
-                'impulse_n_s': m.impulse_n_s,
-                'peak_receptance_m_per_n': m.peak_receptance_m_per_n,
-                'natural_frequency_hz': m.natural_frequency_hz,
             }
             for m in impacts
         ],
@@ -354,7 +365,7 @@ def _report(
     from fmm_ros.report import build_report  # matplotlib: only when a report is asked for
     from fmm_ros.workflows.inputs import InputOptions
     from fmm_ros.workflows.replay import bag_impact_records
-    from fmm_ros.workflows.session import SessionOptions, run_session
+    from fmm_ros.workflows.session import SessionOptions, process_records
 
     records, problems = bag_impact_records(bag, capture)
     if friction is not None:  # the service names impacts by their stable ids; a session by position
@@ -362,7 +373,7 @@ def _report(
         friction = dataclasses.replace(
             friction, impact_ids=tuple(position[i] for i in friction.impact_ids)
         )
-    session = run_session(
+    session = process_records(
         records,
         SessionOptions(inputs=InputOptions(capture=capture), analysis=analysis),
         friction=friction,
@@ -410,3 +421,8 @@ def _until(done: Callable[[], bool], count: Callable[[], int], quiet_s: float) -
         if count() != last:
             last, moved = count(), time.monotonic()
     return True
+
+
+# Deprecated: the name before issue 23 (three functions were called run_session); use
+# run_demo_session. Kept one release so callers keep working.
+run_session = run_demo_session

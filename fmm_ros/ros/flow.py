@@ -27,32 +27,17 @@ import time
 from collections.abc import Callable, Sequence
 
 from rclpy.duration import Duration
-from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.publisher import Publisher
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from fmm_interfaces.msg import StreamProgress
 from fmm_ros.constants import STREAM_PROGRESS_TOPIC, resolve_name
-from fmm_ros.ros.common import SAMPLE_QOS, BatchPacer
+from fmm_ros.ros.common import SourceStartTimeout
 from fmm_ros.ros.health import OK, WARN
 from fmm_ros.ros.params import Param
+from fmm_ros.ros.qos import PROGRESS_LISTEN_QOS, PROGRESS_QOS, SAMPLE_QOS
 
-# A consumer keeps its last report for sources that start later (transient local, depth 1);
-# a source's queue is deep: depth counts per topic, not per writer, and one consumer's reports
-# must not push another's out before the source takes them.
-PROGRESS_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
-PROGRESS_LISTEN_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=100,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
 # A consumer reports once it has taken REPORT_SIGNAL_S of signal since its last report
 # (a sixteenth of the default window: the source never waits on the report's granularity),
 # at most once in REPORT_MIN_PERIOD_S [s] (a report held back by that goes out when it is
@@ -64,7 +49,6 @@ REPORT_MIN_PERIOD_S = 0.01
 REPORT_TAIL_S = 0.1
 # The flow-control topics are the package's own: no QoS event handlers in the wait sets
 # (rclpy's executor rebuilds them every cycle, and they cost more than the messages).
-QUIET_PUBLISHER = PublisherEventCallbacks(use_default_callbacks=False)
 QUIET_SUBSCRIPTION = SubscriptionEventCallbacks(use_default_callbacks=False)
 # How often a source looks which consumers are still in the graph [s], and how long one may
 # be missing from it before it stops counting [s] (discovery can blink). A consumer killed
@@ -87,10 +71,6 @@ def deliver_last_batches(publishers: Sequence[Publisher]) -> None:
     """
     for publisher in publishers:
         publisher.wait_for_all_acked(Duration(seconds=LAST_BATCHES_TIMEOUT_S))
-
-
-class SourceStartTimeout(RuntimeError):
-    """A source's consumers did not all appear in time: it stops rather than lose samples."""
 
 
 class ProgressReporter:
@@ -513,3 +493,46 @@ class PacedSource:
             f', held back by {self.gate.holding_for}' if self.gate.holding_for else ''
         )
         return level, message, values
+
+
+class BatchPacer:
+    """Releases sample batches at a paced rate against the wall clock, a few per tick.
+
+    rclpy's executor takes one message per subscription per wait cycle, so a source that
+    publishes more than one batch a tick overruns subscribers spun by the same executor once
+    its timer is ready on every cycle (a speed-up the graph cannot keep): seen as queues
+    overflowing into gaps at x1000 with two a tick. So one batch a tick; further behind than
+    that (the graph is slow, or the flow window holds the source back), the clock is
+    re-anchored: the source runs slower than asked (`fell_behind` says so) instead of flooding.
+    """
+
+    def __init__(self, batches_per_s: float, max_per_tick: int = 1) -> None:
+        self.max_per_tick = max_per_tick
+        self.fell_behind = False
+        self.restart(batches_per_s, 0)
+
+    def restart(self, batches_per_s: float, released: int) -> None:
+        """Pace at a new rate from the next tick on, `released` batches already out."""
+        self._anchor = (None, released, batches_per_s)
+        self.batches_per_s = batches_per_s
+        self.released = released
+
+    def due(self) -> int:
+        """How many batches the clock lets go now; the caller counts each with `release()`.
+
+        The first call after (re)starting anchors the pace, so the time a graph spends on
+        discovery before it spins is not counted as lag.
+        """
+        wall0, released0, rate = self._anchor
+        now = time.monotonic()
+        if wall0 is None:
+            self._anchor = (wall0 := now, released0, rate)
+        behind = released0 + int((now - wall0) * rate) - self.released
+        self.fell_behind = behind > self.max_per_tick + 1
+        if self.fell_behind:
+            self._anchor = (now, self.released + self.max_per_tick, rate)
+        return max(0, min(behind, self.max_per_tick))
+
+    def release(self) -> None:
+        """One batch went out."""
+        self.released += 1

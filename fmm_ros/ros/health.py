@@ -17,15 +17,14 @@ from dataclasses import dataclass, field
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from fmm_ros.constants import DIAGNOSTICS_TOPIC
 from fmm_ros.core.signal.stream import FAULTS, RESYNC_REASONS, ChannelLedger
 from fmm_ros.ros.faults import CallbackFaults
+from fmm_ros.ros.qos import DIAGNOSTICS_QOS
 
 OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
 LEVEL_NAMES = {OK: 'OK', WARN: 'WARN', ERROR: 'ERROR', DiagnosticStatus.STALE: 'STALE'}
-DIAGNOSTICS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 PERIOD_S = 1.0
 
 Check = Callable[[], tuple[bytes, str, dict[str, object]]]

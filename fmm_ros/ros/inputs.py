@@ -21,9 +21,9 @@ from fmm_ros.constants import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC
 from fmm_ros.core.signal.stream import AlignedStream, Batch
 from fmm_ros.errors import UnitError
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import SAMPLE_QOS
 from fmm_ros.ros.flow import ProgressReporter
 from fmm_ros.ros.health import ChannelRate, FaultLog, Health, stream_status
+from fmm_ros.ros.qos import SAMPLE_QOS
 from fmm_ros.ros.sources import SourceCheck
 
 

@@ -30,6 +30,7 @@ from pathlib import Path
 import yaml
 from rclpy.parameter import Parameter
 
+from fmm_ros.errors import BadInputError
 from fmm_ros.ros.graph import InProcessGraph
 from fmm_ros.ros.nodes import CONSUMERS, node_class
 
@@ -99,9 +100,9 @@ def parse_overrides(items: Sequence[str], nodes: Sequence[str]) -> dict[str, lis
         target, equals, text = item.partition('=')
         node, dot, name = target.partition('.')
         if not (equals and dot and name):
-            raise ValueError(f'override {item!r} is not node.param=value')
+            raise BadInputError(f'override {item!r} is not node.param=value')
         if node not in overrides:
-            raise ValueError(
+            raise BadInputError(
                 f'override {item!r}: no node {node!r} in this rig ({", ".join(nodes)})'
             )
         overrides[node].append(Parameter(name, value=yaml.safe_load(text)))

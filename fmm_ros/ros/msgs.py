@@ -19,6 +19,7 @@ from fmm_ros.core.identify.running import LevelEstimate, RunningEstimate
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.signal import analysis, frf
 from fmm_ros.core.signal.stream import Batch
+from fmm_ros.errors import BadInputError
 from fmm_ros.units import sample_si_factor
 from fmm_ros.workflows.results import FrictionResult, json_safe
 
@@ -110,59 +111,53 @@ def _set_complex(msg: object, name: str, values: np.ndarray) -> None:
     setattr(msg, f'{name}_imag', float64_field(values.imag))
 
 
+def fill_from(msg: object, result: object) -> object:
+    """Set every field of msg that the dataclass result has under the same name (returned).
+
+    The message types are declared to match the core's results (`ImpactAnalysis` and
+    ImpactResult.msg, `LevelSummary` and FrfSummary.msg): a field added to both is filled
+    here without a line of its own. Complex arrays go to the `<name>_real` / `<name>_imag`
+    float64[] pair; fields the message lacks (spectra kept for averaging) are left out.
+    """
+    types = msg.get_fields_and_field_types()
+    for field in dataclasses.fields(result):
+        name, value = field.name, getattr(result, field.name)
+        if f'{name}_real' in types and np.iscomplexobj(value):
+            _set_complex(msg, name, np.asarray(value))
+        elif name in types:
+            setattr(msg, name, _field_value(types[name], value))
+    return msg
+
+
+def _field_value(kind: str, value: object) -> object:
+    """Value as a message field of ROS type kind ('double', 'sequence<string>', ...) takes it."""
+    if kind.startswith('sequence<double'):
+        return float64_field(np.asarray(value, dtype=np.float64))
+    if kind.startswith('sequence<string'):
+        return [str(item) for item in value]
+    if kind.startswith('sequence<'):
+        return [int(item) for item in value]
+    if kind in ('double', 'float'):
+        return float(value)
+    if kind == 'boolean':
+        return bool(value)
+    if kind == 'string':
+        return str(value)
+    return int(value)
+
+
 def impact_result_msg(
-    result: analysis.ImpactResult, *, stamp: Time, frame_id: str = 'fmm'
+    result: analysis.ImpactAnalysis, *, stamp: Time, frame_id: str = 'fmm'
 ) -> ImpactResult:
     """An ImpactResult message from the signal core's result (same field names)."""
-    msg = _stamped(ImpactResult(), stamp, frame_id)
-    msg.impact_id = int(result.impact_id)
-    msg.trigger_sample_index = int(result.trigger_sample_index)
-    msg.record_start_sample_index = int(result.record_start_sample_index)
-    msg.level = result.level
-    msg.accepted = bool(result.accepted)
-    msg.flags = list(result.flags)
-    for name in (
-        'impulse_n_s',
-        'peak_force_n',
-        'contact_duration_s',
-        'record_duration_s',
-        'sample_rate_hz',
-        'natural_frequency_hz',
-        'peak_receptance_m_per_n',
-        'frequency_step_hz',
-        'force_window_s',
-        'exponential_window_decay_s',
-    ):
-        setattr(msg, name, float(getattr(result, name)))
-    msg.frequency_hz = float64_field(result.frequency_hz)
-    _set_complex(msg, 'mobility', result.mobility)
-    _set_complex(msg, 'receptance', result.receptance)
-    return msg
+    return fill_from(_stamped(ImpactResult(), stamp, frame_id), result)
 
 
 def frf_summary_msg(
     level: analysis.LevelSummary, linearity: frf.LinearFit, *, stamp: Time, frame_id: str = 'fmm'
 ) -> FrfSummary:
     """A FrfSummary message: one level's averages plus the linearity fit over all levels."""
-    msg = _stamped(FrfSummary(), stamp, frame_id)
-    msg.level = level.level
-    msg.count = int(level.count)
-    msg.impact_ids = [int(i) for i in level.impact_ids]
-    for name in (
-        'nominal_peak_force_n',
-        'mean_impulse_n_s',
-        'std_impulse_n_s',
-        'mean_peak_force_n',
-        'peak_receptance_m_per_n',
-        'natural_frequency_hz',
-        'frequency_step_hz',
-        'exponential_window_decay_s',
-    ):
-        setattr(msg, name, float(getattr(level, name)))
-    msg.frequency_hz = float64_field(level.frequency_hz)
-    for name in ('mobility', 'receptance', 'h1_mobility', 'h2_mobility'):
-        _set_complex(msg, name, getattr(level, name))
-    msg.coherence = float64_field(level.coherence)
+    msg = fill_from(_stamped(FrfSummary(), stamp, frame_id), level)
     msg.linearity_slope_m_per_n2_s = float(linearity.slope)
     msg.linearity_intercept_m_per_n = float(linearity.intercept)
     msg.linearity_r2 = float(linearity.r2)
@@ -315,7 +310,7 @@ def fill_fit_response(response: object, result: FrictionResult) -> object:
 def friction_result(response: object) -> FrictionResult:
     """The FrictionResult a successful FitFriction response carries (ValueError if refused)."""
     if not response.success:
-        raise ValueError(f'the fit was refused: {response.message}')
+        raise BadInputError(f'the fit was refused: {response.message}')
     ids = tuple(int(i) for i in response.impact_ids)
     return FrictionResult(
         mu=response.mu,
@@ -359,7 +354,7 @@ def diagnose_response_dict(response: object) -> dict:
     trend of fewer than four hits) are None.
     """
     if not response.success:
-        raise ValueError(f'the diagnosis was refused: {response.message}')
+        raise BadInputError(f'the diagnosis was refused: {response.message}')
     counts = list(response.candidate_parameter_counts)
     names, values = (
         response.candidate_parameter_names,

@@ -1,5 +1,9 @@
 """Declare a node's parameters from one table: description with unit, range, choices, read-only.
 
+Tables are written as `Param`s, or made from the core's declared settings (`params_from`), so
+a capture or rig setting has one default, unit, range and help in the package. The params
+file of every node is written above the nodes, by `fmm_ros.ros.params_file`.
+
 ROS descriptors carry numeric ranges for scalars only; ranges on float arrays and the
 allowed values of string parameters are enforced here by an on-set callback registered
 before declaration, so a bad value from a params file is refused at start-up with a reason
@@ -7,7 +11,7 @@ before declaration, so a bad value from a params file is refused at start-up wit
 the same way without touching the running node.
 """
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import yaml
@@ -19,6 +23,8 @@ from rcl_interfaces.msg import (
 )
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+
+from fmm_ros.core.settings import settings_of
 
 ParamValue = bool | int | float | str | list[float] | list[str] | list[int]
 
@@ -132,57 +138,27 @@ def _number(limit: float, default: ParamValue) -> str:
     return f'{limit:g}'.replace('e+0', 'e').replace('e+', 'e').replace('e-0', 'e-')
 
 
-PARAMS_FILE_HEADER = """\
-# fmm_ros parameters, in the standard `node_name: ros__parameters:` form.
-# ros2 run fmm_ros <node> --ros-args --params-file config/fmm_rig.yaml
-# Every value is the node's default (or names the default it replaces), with its description,
-# unit [in brackets], range or choices, and whether it can be set on a running node (the
-# others are read at start-up).
-# Made from the PARAMS tables in fmm_ros/ros/nodes/<node>.py by
-#   .venv/bin/python -m fmm_ros.ros.params > config/fmm_rig.yaml
-"""
+def params_from(
+    settings: type | object, names: Sequence[str] | None = None, *, read_only: bool = True
+) -> tuple[Param, ...]:
+    """The parameters of declared settings (`fmm_ros.core.settings`): one per field in names.
 
-
-def _rig_values() -> dict[str, dict[str, ParamValue]]:
-    """Where the package's params file departs from a node's default.
-
-    In a rig the sources hold their first sample until the rig's other nodes (other
-    processes, discovered later) take their batches, so nothing is lost at start-up.
+    settings: a settings dataclass, or an instance whose values become the defaults; names:
+    the fields a node exposes (default: all). A tuple becomes a list; an optional number
+    (None: off) becomes 0.0, '0 for none', as ROS parameters cannot be None.
     """
-    from fmm_ros.ros.nodes import CONSUMERS
-
-    return {
-        source: {'wait_for_consumers': list(CONSUMERS[source])}
-        for source in ('hammer_sim', 'rig_sim', 'daq')
-    }
-
-
-PARAMS_FILE_VALUES = _rig_values()
-
-
-def params_file_text(
-    tables: Mapping[str, Sequence[Param]],
-    values: Mapping[str, Mapping[str, ParamValue]] = PARAMS_FILE_VALUES,
-) -> str:
-    """A ROS params file of every node's parameters (config/fmm_rig.yaml is this text).
-
-    Each holds its default except where values gives another.
-    """
-    blocks = [
-        f'{node}:\n  ros__parameters:\n'
-        + ''.join(
-            f'    {param.yaml_line(values.get(node, {}).get(param.name))}\n' for param in params
-        )
-        for node, params in tables.items()
-    ]
-    return PARAMS_FILE_HEADER + '\n' + '\n'.join(blocks)
-
-
-def node_param_tables() -> dict[str, Sequence[Param]]:
-    """Every fmm_ros node's PARAMS table, by node name (`fmm_ros.ros.nodes.NODES`)."""
-    from fmm_ros.ros.nodes import NODES, node_module
-
-    return {name: node_module(name).PARAMS for name in NODES}
+    declared = {item.name: item for item in settings_of(settings)}
+    params = []
+    for name in names or tuple(declared):
+        item = declared[name]
+        default, description = item.default, item.described
+        if default is None:
+            default, description = 0.0, f'{description}; 0 for none'
+        elif isinstance(default, tuple):
+            default = list(default)
+        choices = item.choices if isinstance(default, str) else ()
+        params.append(Param(name, default, description, item.limits, choices, read_only))
+    return tuple(params)
 
 
 def declare_parameters(node: Node, params: Sequence[Param]) -> dict[str, ParamValue]:
@@ -201,7 +177,3 @@ def declare_parameters(node: Node, params: Sequence[Param]) -> dict[str, ParamVa
     for param in params:
         node.declare_parameter(param.name, param.default, param.descriptor())
     return {param.name: param.value(node.get_parameter(param.name)) for param in params}
-
-
-if __name__ == '__main__':
-    print(params_file_text(node_param_tables()), end='')

@@ -5,8 +5,14 @@ streams (`hammer`), a whole session as arrays or a bag (`session`), and sessions
 hidden in them, the diagnosis's proof data (`hidden_effects`).
 """
 
-from fmm_ros.sim.excitation import impact_record
-from fmm_ros.sim.hidden_effects import hidden_effect_case
-from fmm_ros.sim.session import simulated_session, write_session_bag
+from fmm_ros._lazy import lazy_exports
 
-__all__ = ['hidden_effect_case', 'impact_record', 'simulated_session', 'write_session_bag']
+_EXPORTS = {
+    'hidden_effect_case': 'hidden_effects',
+    'impact_record': 'excitation',
+    'simulated_session': 'session',
+    'write_session_bag': 'session',
+}
+
+__all__ = sorted(_EXPORTS)
+__getattr__ = lazy_exports(__name__, _EXPORTS)

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from fmm_ros.core.physics.rig import FMM_RIG
+from fmm_ros.errors import BadInputError
 from fmm_ros.sim.session import PAPER_LEVEL_ORDER, simulated_session, write_session_bag
 
 CAMPAIGN_TABLE = 'campaign.csv'
@@ -61,7 +62,7 @@ def simulated_campaign(
     cycle through the paper's levels; sessions are dated one a day in the order written.
     """
     if sessions_per_condition < 1 or hits < 1:
-        raise ValueError('a campaign needs at least one session a condition and one hit')
+        raise BadInputError('a campaign needs at least one session a condition and one hit')
     out_dir = Path(out_dir)
     rng = np.random.default_rng(seed)
     levels = tuple(PAPER_LEVEL_ORDER[i % len(PAPER_LEVEL_ORDER)] for i in range(hits))

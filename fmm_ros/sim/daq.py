@@ -17,6 +17,7 @@ import numpy as np
 import scipy.signal
 
 from fmm_ros.core._checks import require_non_negative, require_positive
+from fmm_ros.errors import BadInputError
 from fmm_ros.sim.hammer import NOISE_BLOCK_SAMPLES
 
 HUM_HARMONICS = (1, 2, 3, 5)
@@ -43,7 +44,7 @@ class ChannelChain:
 
     def __post_init__(self) -> None:
         if not 0 <= self.anti_alias_order <= 12:
-            raise ValueError(f'anti_alias_order must be 0 to 12, got {self.anti_alias_order}')
+            raise BadInputError(f'anti_alias_order must be 0 to 12, got {self.anti_alias_order}')
         require_positive('anti_alias_cutoff_hz', self.anti_alias_cutoff_hz)
         require_non_negative('drift_per_sqrt_s', self.drift_per_sqrt_s)
         require_non_negative('hum_amplitude', self.hum_amplitude)
@@ -68,7 +69,7 @@ class ChainStream:
         self._sos = None
         if chain.anti_alias_order:
             if not chain.anti_alias_cutoff_hz < 0.5 * sample_rate_hz:
-                raise ValueError(
+                raise BadInputError(
                     f'the anti-alias cutoff {chain.anti_alias_cutoff_hz:g} Hz is not below '
                     f'the Nyquist frequency {0.5 * sample_rate_hz:g} Hz'
                 )
@@ -99,7 +100,7 @@ class ChainStream:
         first may start anywhere.
         """
         if self._next_index is not None and first_index != self._next_index:
-            raise ValueError(
+            raise BadInputError(
                 f'batch {first_index} does not follow the last one (next is {self._next_index}): '
                 'the chain runs on consecutive samples'
             )

@@ -19,6 +19,7 @@ from fmm_ros.core._checks import require_finite, require_non_negative, require_p
 from fmm_ros.core.physics.model import Simulation, record_length, simulate
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import ModelTerm
+from fmm_ros.errors import BadInputError
 
 
 def paper_level(name: str) -> PaperLevel:
@@ -27,7 +28,7 @@ def paper_level(name: str) -> PaperLevel:
         if level.name == name:
             return level
     known = ', '.join(level.name for level in PAPER_LEVELS)
-    raise ValueError(f'unknown hammer level {name!r}; known: {known}')
+    raise BadInputError(f'unknown hammer level {name!r}; known: {known}')
 
 
 def level_contact_duration_s(level: PaperLevel) -> float:
@@ -110,7 +111,7 @@ def hammer_pulse(
     require_positive('peak_force_n', peak_force_n)
     require_positive('contact_duration_s', contact_duration_s)
     if not 0.0 < rise_fraction < 1.0:
-        raise ValueError(f'rise_fraction must be between 0 and 1, got {rise_fraction}')
+        raise BadInputError(f'rise_fraction must be between 0 and 1, got {rise_fraction}')
     time_s = _pulse_window(contact_duration_s, sample_rate_hz, duration_s, start_s)
     rise_s = rise_fraction * contact_duration_s
     local = time_s - start_s
@@ -143,7 +144,7 @@ def rectangular_pulse(
     first = round(start_s * sample_rate_hz)
     count = round(pulse_duration_s * sample_rate_hz)
     if count < 1:
-        raise ValueError(
+        raise BadInputError(
             f'pulse_duration_s {pulse_duration_s:g} is shorter than one sample '
             f'at {sample_rate_hz:g} Hz'
         )
@@ -159,7 +160,7 @@ def _pulse_window(
     n = record_length(duration_s, sample_rate_hz)
     require_non_negative('start_s', start_s)
     if start_s + contact_s > (n - 1) / sample_rate_hz:
-        raise ValueError(
+        raise BadInputError(
             f'the pulse ({start_s:g} s + {contact_s:g} s) does not fit in the '
             f'{duration_s:g} s record'
         )

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fmm_ros.core._checks import require_non_negative, require_positive
+from fmm_ros.errors import BadInputError
 from fmm_ros.sim.excitation import hammer_pulse, tip_contact_duration_s
 
 
@@ -52,9 +53,9 @@ def session_schedule(
     require_non_negative('spread_std_n', spread_std_n)
     require_positive('contact_scale', contact_scale)
     if hits_per_level < 1:
-        raise ValueError(f'hits_per_level must be at least 1, got {hits_per_level}')
+        raise BadInputError(f'hits_per_level must be at least 1, got {hits_per_level}')
     if not levels:
-        raise ValueError('a session needs at least one force level')
+        raise BadInputError('a session needs at least one force level')
     rng = np.random.default_rng(rng)
     hits = []
     for name, nominal_n in levels:

@@ -27,6 +27,7 @@ from fmm_ros.core._checks import require_non_negative, require_positive
 from fmm_ros.core.physics.model import Simulation, simulate
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import EFFECT_SIZE, MODEL_TERMS, ModelTerm, model_term
+from fmm_ros.errors import BadInputError
 from fmm_ros.sim.excitation import SimulatedImpact, impact_record, level_peak_force_n
 
 NO_EFFECT = 'none'
@@ -87,9 +88,9 @@ def hidden_effect_case(
     same rng (or seed) gives the same case.
     """
     if effect not in HIDDEN_EFFECTS:
-        raise ValueError(f'unknown effect {effect!r}; known: {", ".join(HIDDEN_EFFECTS)}')
+        raise BadInputError(f'unknown effect {effect!r}; known: {", ".join(HIDDEN_EFFECTS)}')
     if n_impacts < 1:
-        raise ValueError(f'n_impacts must be at least 1, got {n_impacts}')
+        raise BadInputError(f'n_impacts must be at least 1, got {n_impacts}')
     require_positive('velocity_noise_std_m_s', velocity_noise_std_m_s)
     require_non_negative('force_noise_std_n', force_noise_std_n)
     rng = np.random.default_rng(rng)
@@ -298,7 +299,7 @@ def regime_simulation(
     """
     extra = [term.name for term in effects if term.name not in _MECHANICAL]
     if extra:
-        raise ValueError(f'a friction law composes only with {", ".join(_MECHANICAL)}: {extra}')
+        raise BadInputError(f'a friction law composes only with {", ".join(_MECHANICAL)}: {extra}')
     n = force_n.size
     displacement, velocity = np.empty(n), np.empty(n)
     start, x, v = 0, float(x0_m), 0.0
@@ -366,16 +367,16 @@ def hidden_session(
     effects = tuple(effects)
     unknown = [e for e in effects if e not in SESSION_EFFECTS]
     if unknown or len(set(effects)) != len(effects):
-        raise ValueError(
+        raise BadInputError(
             f'effects must be distinct names of {", ".join(SESSION_EFFECTS)}; got {effects}'
         )
     laws = [e for e in effects if e in OUT_OF_VOCABULARY]
     if len(laws) > 1 or (laws and any(e in MODEL_TERMS and e not in _MECHANICAL for e in effects)):
-        raise ValueError(
+        raise BadInputError(
             f'at most one friction law, and only with {", ".join(_MECHANICAL)}; got {effects}'
         )
     if n_impacts < (2 if MU_DRIFT in effects else 1):
-        raise ValueError(f'n_impacts must be at least {2 if MU_DRIFT in effects else 1}')
+        raise BadInputError(f'n_impacts must be at least {2 if MU_DRIFT in effects else 1}')
     require_positive('velocity_noise_std_m_s', velocity_noise_std_m_s)
     require_non_negative('force_noise_std_n', force_noise_std_n)
     rng = np.random.default_rng(rng)

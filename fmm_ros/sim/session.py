@@ -15,6 +15,7 @@ import numpy as np
 from fmm_ros.constants import PAPER_LEVELS, PAPER_MU, SAMPLE_RATE_HZ
 from fmm_ros.core.physics.model import simulate
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
+from fmm_ros.errors import BadInputError
 from fmm_ros.io.bags.writer import BagWriter
 from fmm_ros.sim.excitation import (
     hammer_pulse,
@@ -63,7 +64,7 @@ def simulated_session(
     the plant's constants (another normal force, say).
     """
     if hits_per_level < 1:
-        raise ValueError(f'hits_per_level must be at least 1, got {hits_per_level}')
+        raise BadInputError(f'hits_per_level must be at least 1, got {hits_per_level}')
     rng = np.random.default_rng(seed)
     slot = int(round(spacing_s * sample_rate_hz))
     order = tuple(level for level in levels for _ in range(hits_per_level))

@@ -7,51 +7,34 @@ hit (`model`); `results` holds the one result type of a friction fit and the JSO
 result.
 """
 
-from fmm_ros.workflows.inputs import InputOptions, SessionInputs, read_inputs
-from fmm_ros.workflows.model import ModelComparison, ModelOverlay, compare_model
-from fmm_ros.workflows.replay import bag_impact_records, replay_bag
-from fmm_ros.workflows.results import (
-    FrictionResult,
-    analysis_dict,
-    diagnosis_dict,
-    selection_dict,
-)
-from fmm_ros.workflows.session import (
-    FitOptions,
-    SessionDiagnosis,
-    SessionOptions,
-    SessionResult,
-    analyse,
-    diagnose_impacts,
-    fit_impacts,
-    overlay_of,
-    process_session,
-    run_session,
-    select_records,
-)
+from fmm_ros._lazy import lazy_exports
 
-__all__ = [
-    'FitOptions',
-    'FrictionResult',
-    'InputOptions',
-    'ModelComparison',
-    'ModelOverlay',
-    'SessionDiagnosis',
-    'SessionInputs',
-    'SessionOptions',
-    'SessionResult',
-    'analyse',
-    'analysis_dict',
-    'bag_impact_records',
-    'compare_model',
-    'diagnose_impacts',
-    'diagnosis_dict',
-    'fit_impacts',
-    'overlay_of',
-    'process_session',
-    'read_inputs',
-    'replay_bag',
-    'run_session',
-    'select_records',
-    'selection_dict',
-]
+_EXPORTS = {
+    'FitOptions': 'session',
+    'FrictionResult': 'results',
+    'InputOptions': 'inputs',
+    'ModelComparison': 'model',
+    'ModelOverlay': 'model',
+    'SessionDiagnosis': 'session',
+    'SessionInputs': 'inputs',
+    'SessionOptions': 'session',
+    'SessionResult': 'session',
+    'analyse': 'session',
+    'analysis_dict': 'results',
+    'bag_impact_records': 'replay',
+    'compare_model': 'model',
+    'diagnose_impacts': 'session',
+    'diagnosis_dict': 'results',
+    'fit_impacts': 'session',
+    'overlay_of': 'session',
+    'process_session': 'session',
+    'read_inputs': 'inputs',
+    'replay_bag': 'replay',
+    'process_records': 'session',
+    'select_records': 'session',
+    'selection_dict': 'results',
+    'run_session': 'session',  # deprecated alias (issue 23)
+}
+
+__all__ = sorted(_EXPORTS)
+__getattr__ = lazy_exports(__name__, _EXPORTS)

@@ -28,6 +28,7 @@ import numpy as np
 
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, capture_impacts
 from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.errors import BadInputError
 from fmm_ros.io import sniff
 from fmm_ros.io.labfiles import LabRecording, read_lab_file
 from fmm_ros.io.textfiles import DETECT, TextFormat
@@ -87,7 +88,7 @@ def read_inputs(
     continuous file without an impact, and inputs of different sample rates.
     """
     if not paths:
-        raise ValueError('no inputs given')
+        raise BadInputError('no inputs given')
     records: list[ImpactRecord] = []
     problems: list[str] = []
     notes: list[str] = []
@@ -117,7 +118,7 @@ def _one_impact(recording: LabRecording) -> ImpactRecord:
     for quantity, values in channels:
         bad = np.flatnonzero(~np.isfinite(values))
         if bad.size:
-            raise ValueError(
+            raise BadInputError(
                 f'{recording.source}: {recording.channel_names[quantity]} is not finite '
                 f'({values[bad[0]]}) at data row {bad[0] + 1} and {bad.size - 1} more row(s): '
                 'a record with missing samples has no FRF (fmm import keeps them in a bag, '
@@ -151,7 +152,7 @@ def _cut(recording: LabRecording, capture: CaptureConfig) -> list[ImpactRecord]:
 def _some(records: list[ImpactRecord], path: Path, capture: CaptureConfig) -> list[ImpactRecord]:
     """The records of a recording of several hits, which must hold one at least."""
     if not records:
-        raise ValueError(
+        raise BadInputError(
             f'{path}: no impact in the recorded streams (the force never reaches the trigger '
             f'level {capture.trigger_level_n:g} N)'
         )
@@ -169,7 +170,7 @@ def _on_one_grid(records: list[ImpactRecord], options: InputOptions) -> list[Imp
         record for record in records if abs(record.sample_rate_hz - rate) > RATE_TOLERANCE * rate
     ]
     if odd:
-        raise ValueError(
+        raise BadInputError(
             f'mismatched sample rates: {records[0].source} is sampled at {rate:.6g} '
             f'Hz but {odd[0].source} at {odd[0].sample_rate_hz:.6g} Hz'
         )

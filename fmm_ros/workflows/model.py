@@ -24,7 +24,7 @@ from fmm_ros.core.identify.conditioning import FitError, condition_impact
 from fmm_ros.core.physics.model import simulate
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import ModelTerm
-from fmm_ros.core.signal.analysis import AnalysisConfig, ImpactResult, Summary, analyze_impact
+from fmm_ros.core.signal.analysis import AnalysisConfig, ImpactAnalysis, Summary, analyze_impact
 from fmm_ros.core.signal.capture import CaptureConfig
 from fmm_ros.core.signal.records import ImpactRecord
 
@@ -88,7 +88,7 @@ class ModelOverlay:
 class ModelHit:
     """One hit with the model's velocity in place of the measured one."""
 
-    result: ImpactResult
+    result: ImpactAnalysis
     """The model's velocity analysed by the measurement's pipeline (windows, band, trigger)."""
     residual_rms_m_s: float
     """RMS of measured minus model velocity from the trigger until both are at rest, over
@@ -150,7 +150,7 @@ def compare_model(
     return ModelComparison(model, hits, level_mobility)
 
 
-def trigger_offset(result: ImpactResult) -> int:
+def trigger_offset(result: ImpactAnalysis) -> int:
     """The trigger's position inside its record [samples]."""
     return result.trigger_sample_index - result.record_start_sample_index
 

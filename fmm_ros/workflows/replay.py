@@ -10,21 +10,30 @@ the stream refused or resynchronised on is returned as a problem, from its ledge
 """
 
 import dataclasses
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from fmm_ros.constants import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC
+from fmm_ros.constants import (
+    FORCE,
+    FORCE_TOPIC,
+    FRF_TOPIC,
+    LEVEL_TOLERANCE_N,
+    VELOCITY,
+    VELOCITY_TOPIC,
+)
 from fmm_ros.core.signal.analysis import (
     AnalysisConfig,
-    ImpactResult,
+    ImpactAnalysis,
     Summary,
     analyze_impact,
     summarize,
 )
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, ImpactCapture
+from fmm_ros.core.signal.config import NominalLevel
 from fmm_ros.core.signal.records import ImpactRecord, stable_impact_id
 from fmm_ros.core.signal.stream import ChannelLedger
+from fmm_ros.io import sniff
 from fmm_ros.io.bags.acquisitions import read_acquisitions
 from fmm_ros.io.bags.definitions import SAMPLE_BATCH
 from fmm_ros.io.bags.reader import BagReader, ChannelBatch
@@ -154,7 +163,7 @@ def bag_impact_records(
 class Replay:
     """What the analyzer would have published for a bag, and what it took to find out."""
 
-    results: list[ImpactResult]
+    results: list[ImpactAnalysis]
     summary: Summary
     signal_s: float
     batches: int
@@ -167,16 +176,16 @@ def replay_bag(
     capture: CaptureConfig = DEFAULT_CAPTURE,
     analysis: AnalysisConfig | None = None,
     *,
-    on_result: Callable[[ImpactResult], None] | None = None,
+    on_result: Callable[[ImpactAnalysis], None] | None = None,
     on_batch: Callable[[ChannelBatch], None] | None = None,
 ) -> Replay:
     """Capture and analyse every impact of a bag as the live analyzer does, then summarize.
 
-    on_result gets each ImpactResult as the analyzer would publish it (impact ids by
+    on_result gets each ImpactAnalysis as the analyzer would publish it (impact ids by
     `stable_impact_id`, as the analyzer gives them); on_batch sees every recorded batch.
     """
     analysis = analysis or AnalysisConfig()
-    results: list[ImpactResult] = []
+    results: list[ImpactAnalysis] = []
     fed = {'batches': 0, 'signal_s': 0.0}
     impacts = ImpactCapture(capture)
 
@@ -202,3 +211,27 @@ def replay_bag(
         problems,
         impacts.ledger,
     )
+
+
+def recorded_levels(
+    paths: Sequence[str | Path], tolerance_n: float = LEVEL_TOLERANCE_N
+) -> tuple[NominalLevel, ...]:
+    """The nominal levels the live analyzer grouped the bags' impacts into, by its names.
+
+    Read from the recorded FrfSummary messages (name and nominal peak force), in ascending
+    force, so `fmm analyze`, `replay` and `report` name a bag's levels as `bag-info` and
+    `export` show them (low, medium, high for the paper's). Empty when no input is a bag, a
+    bag recorded no levels, or its analyzer clustered the forces (no nominal peak).
+    """
+    levels: dict[str, float] = {}
+    for path in map(Path, paths):
+        if sniff.file_kind(path) != sniff.BAG:
+            continue
+        with BagReader(path, strict=False) as reader:
+            if not any(topic.endswith(FRF_TOPIC) for topic in reader.topics):
+                continue
+            for summary in reader.frf_summaries():
+                if summary.nominal_peak_force_n > 0:
+                    levels[summary.level] = float(summary.nominal_peak_force_n)
+    ordered = sorted(levels.items(), key=lambda item: item[1])
+    return tuple(NominalLevel(name, peak, tolerance_n) for name, peak in ordered)

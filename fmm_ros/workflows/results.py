@@ -9,6 +9,11 @@
 - `Summary` (`fmm_ros.core.signal.analysis`): `analysis_dict` is the JSON of `fmm analyze`.
 - `ImpactSelection` (`select_impacts`): `selection_dict` names the impacts a fit left out (and
   flagged ones taken on request), in `fmm fit --json` and a session's JSON.
+- A hit's and a level's record (`hit_record`, `level_record` over `HIT_FIELDS` and
+  `LEVEL_FIELDS`): the scalars of an `ImpactAnalysis` or an ImpactResult message (the same
+  names) and of a `LevelSummary` or FrfSummary message, as `fmm analyze --json`, the demo's
+  summary and a campaign's hit and level tables show them.
+- `RigIdentification`: `rig_identification_dict` is the JSON of `fmm identify-rig --json`.
 
 Undefined numbers (a standard error of something not fitted, R^2 of two levels) are NaN in
 the objects and null in JSON.
@@ -16,6 +21,7 @@ the objects and null in JSON.
 
 from __future__ import annotations
 
+import datetime as dt
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -34,10 +40,12 @@ from fmm_ros.core.diagnose.result import (
 )
 from fmm_ros.core.identify.chain import VelocityNuisance
 from fmm_ros.core.identify.friction import FrictionFit
+from fmm_ros.core.identify.rig import RigIdentification
 from fmm_ros.core.identify.running import RunningEstimate, running_estimates
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.physics.terms import ModelTerm
 from fmm_ros.core.signal.analysis import ImpactSelection, Summary
+from fmm_ros.errors import BadInputError
 from fmm_ros.io.frf_files import json_number
 
 
@@ -97,7 +105,7 @@ class FrictionResult:
             if getattr(self, name):
                 lengths.add(len(getattr(self, name)))
         if lengths != {count}:
-            raise ValueError(
+            raise BadInputError(
                 f'a friction result needs one value per impact: {count} impact '
                 f'ids but per-impact lengths {sorted(lengths)}'
             )
@@ -217,6 +225,55 @@ class FrictionResult:
         )
 
 
+HIT_FIELDS: tuple[str, ...] = (
+    'impact_id',
+    'level',
+    'accepted',
+    'flags',
+    'impulse_n_s',
+    'peak_force_n',
+    'contact_duration_s',
+    'natural_frequency_hz',
+    'peak_receptance_m_per_n',
+)
+"""A hit's record: its scalars, named as in ImpactAnalysis and ImpactResult.msg."""
+
+LEVEL_FIELDS: tuple[str, ...] = (
+    'level',
+    'count',
+    'mean_impulse_n_s',
+    'std_impulse_n_s',
+    'mean_peak_force_n',
+    'peak_receptance_m_per_n',
+    'natural_frequency_hz',
+)
+"""A level's record: its scalars, named as in LevelSummary and FrfSummary.msg."""
+
+
+def hit_record(result: object, fields: Sequence[str] = HIT_FIELDS) -> dict:
+    """The fields (in that order) of an ImpactAnalysis or an ImpactResult message.
+
+    As Python numbers, strings and a tuple of flags (`json_safe` makes it JSON).
+    """
+    return {name: _plain(getattr(result, name)) for name in fields}
+
+
+def level_record(level: object, fields: Sequence[str] = LEVEL_FIELDS) -> dict:
+    """The fields (in that order) of a LevelSummary or an FrfSummary message, as plain values."""
+    return {name: _plain(getattr(level, name)) for name in fields}
+
+
+def _plain(value: object) -> object:
+    """Numpy scalars as Python numbers, sequences of flags as a tuple of str."""
+    if isinstance(value, np.integer | np.bool_):
+        return value.item()
+    if isinstance(value, float | np.floating):
+        return float(value)
+    if isinstance(value, list | tuple) or hasattr(value, 'tolist'):
+        return tuple(value)
+    return value
+
+
 def analysis_dict(summary: Summary) -> dict:
     """The JSON of `fmm analyze`: impacts, levels and linearity (undefined numbers as null)."""
     return json_safe(
@@ -224,21 +281,24 @@ def analysis_dict(summary: Summary) -> dict:
             'impacts': [
                 {
                     'file': result.source,
-                    'accepted': result.accepted,
-                    'flags': list(result.flags),
-                    'impulse_n_s': result.impulse_n_s,
-                    'peak_force_n': result.peak_force_n,
-                    'peak_receptance_m_per_n': result.peak_receptance_m_per_n,
-                    'natural_frequency_hz': result.natural_frequency_hz,
+                    **hit_record(
+                        result,
+                        (
+                            'accepted',
+                            'flags',
+                            'impulse_n_s',
+                            'peak_force_n',
+                            'peak_receptance_m_per_n',
+                            'natural_frequency_hz',
+                        ),
+                    ),
                 }
                 for result in summary.impacts
             ],
             'levels': [
                 {
                     'name': level.level,
-                    'count': level.count,
-                    'mean_impulse_n_s': level.mean_impulse_n_s,
-                    'peak_receptance_m_per_n': level.peak_receptance_m_per_n,
+                    **level_record(level, ('count', 'mean_impulse_n_s', 'peak_receptance_m_per_n')),
                 }
                 for level in summary.levels
             ],
@@ -393,16 +453,51 @@ def _location_dict(location: ResidualLocation) -> dict:
     }
 
 
+def rig_identification_dict(result: RigIdentification) -> dict:
+    """The JSON of `fmm identify-rig --json`: the constants, their errors, how they were found."""
+    return json_safe(
+        {
+            'mass_kg': result.mass_kg,
+            'stiffness_n_per_m': result.stiffness_n_per_m,
+            'damping_n_s_per_m': result.damping_n_s_per_m,
+            'natural_frequency_hz': result.natural_frequency_hz,
+            'damping_ratio': result.damping_ratio,
+            'mass_stderr_kg': result.mass_stderr_kg,
+            'stiffness_stderr_n_per_m': result.stiffness_stderr_n_per_m,
+            'damping_stderr_n_s_per_m': result.damping_stderr_n_s_per_m,
+            'natural_frequency_stderr_hz': result.natural_frequency_stderr_hz,
+            'damping_ratio_stderr': result.damping_ratio_stderr,
+            'method': result.method,
+            'residual_rms_m_s': result.residual_rms_m_s,
+            'normalised_residual': result.normalised_residual,
+            'files': list(result.sources),
+            'free_decays': [
+                {
+                    'file': decay.source,
+                    'natural_frequency_hz': decay.natural_frequency_hz,
+                    'damping_ratio': decay.damping_ratio,
+                }
+                for decay in result.free_decays
+            ],
+        }
+    )
+
+
 def json_safe(value: object) -> object:
-    """Plain floats all the way down, NaN and infinities as None (JSON has neither)."""
+    """Plain floats all the way down, NaN and infinities as None (JSON has neither).
+
+    Tuples become lists, dates ISO text, keys text.
+    """
     if isinstance(value, dict):
-        return {key: json_safe(item) for key, item in value.items()}
+        return {str(key): json_safe(item) for key, item in value.items()}
     if isinstance(value, list | tuple):
         return [json_safe(item) for item in value]
     if isinstance(value, float | np.floating):
         return json_number(value)
     if isinstance(value, np.integer):
         return int(value)
+    if isinstance(value, dt.datetime | dt.date):
+        return value.isoformat()
     return value
 
 

@@ -7,7 +7,7 @@ runs per session): read the inputs (`fmm_ros.workflows.inputs`), analyse every i
 include_flagged), as the fitter node and `fmm fit` take them, optionally diagnose them, and
 run the resulting model for every hit. Its
 `SessionResult` holds the records and every result, and `to_dict()` is its JSON. The report
-(`fmm_ros.report`) draws a SessionResult and computes nothing. `run_session` does the same for
+(`fmm_ros.report`) draws a SessionResult and computes nothing. `process_records` does the same for
 records already in hand (the demo, from its bag) and takes a fit made elsewhere (the fitter
 service's answer) instead of fitting again.
 
@@ -25,7 +25,8 @@ from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ
 from fmm_ros.core.diagnose.result import Diagnosis
 from fmm_ros.core.diagnose.workflow import diagnose
 from fmm_ros.core.identify.conditioning import FitError
-from fmm_ros.core.identify.friction import MU_BOUNDS, fit_friction
+from fmm_ros.core.identify.friction import fit_friction
+from fmm_ros.core.identify.spec import FRICTION_FIT, MU_BOUNDS, FitSpec
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.signal.analysis import (
     AnalysisConfig,
@@ -38,6 +39,7 @@ from fmm_ros.core.signal.analysis import (
 )
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, with_trigger
 from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.errors import BadInputError
 from fmm_ros.workflows.inputs import DEFAULT_INPUTS, InputOptions, Progress, read_inputs
 from fmm_ros.workflows.model import ModelComparison, ModelOverlay, compare_model
 from fmm_ros.workflows.results import (
@@ -60,6 +62,16 @@ class FitOptions:
     mu_bounds: tuple[float, float] = MU_BOUNDS
     misfit: str = 'time'
     band_limit_hz: float = MISFIT_BAND_LIMIT_HZ
+
+    def spec(self) -> FitSpec:
+        """The FitSpec of a session's fit: `fit_friction`'s default with these choices."""
+        return FRICTION_FIT.but(
+            fit_damping=self.fit_damping,
+            fit_initial_position=self.fit_initial_position,
+            mu_bounds=self.mu_bounds,
+            misfit=self.misfit,
+            band_limit_hz=self.band_limit_hz,
+        )
 
 
 DEFAULT_FIT = FitOptions()
@@ -96,7 +108,7 @@ class SessionDiagnosis:
 
     def __post_init__(self) -> None:
         if len(self.diagnosis.base_residuals_m_s) != len(self.impact_ids):
-            raise ValueError(
+            raise BadInputError(
                 f'the diagnosis covers {len(self.diagnosis.base_residuals_m_s)} '
                 f'impacts but {len(self.impact_ids)} impact ids were given'
             )
@@ -139,7 +151,7 @@ class SessionResult:
             if not 0 <= impact.impact_id < len(self.records)
         ]
         if missing:
-            raise ValueError(
+            raise BadInputError(
                 f'the summary names impact(s) {missing} but only {len(self.records)} '
                 'record(s) were given (impact_id must be the record position)'
             )
@@ -147,7 +159,7 @@ class SessionResult:
         for name, result in (('friction fit', self.friction), ('diagnosis', self.diagnosis)):
             unknown = sorted(set(result.impact_ids) - known) if result is not None else []
             if unknown:
-                raise ValueError(f'the {name} names impact(s) {unknown} the session lacks')
+                raise BadInputError(f'the {name} names impact(s) {unknown} the session lacks')
 
     @property
     def model(self) -> ModelOverlay | None:
@@ -228,14 +240,7 @@ def fit_impacts(
     Raises FitError (a ValueError) when friction cannot explain them.
     """
     fit = fit_friction(
-        [records[i] for i in impact_ids],
-        rig=options.rig,
-        fit_damping=options.fit_damping,
-        fit_initial_position=options.fit_initial_position,
-        mu_bounds=options.mu_bounds,
-        misfit=options.misfit,
-        band_limit_hz=options.band_limit_hz,
-        progress=progress,
+        [records[i] for i in impact_ids], options.spec(), rig=options.rig, progress=progress
     )
     return FrictionResult.from_fit(fit, impact_ids)
 
@@ -265,7 +270,7 @@ def diagnose_impacts(
     )
 
 
-def run_session(
+def process_records(
     records: Sequence[ImpactRecord],
     options: SessionOptions | None = None,
     *,
@@ -286,7 +291,7 @@ def run_session(
     options = options or SessionOptions()
     records = list(records)
     if not records:
-        raise ValueError('a session needs at least one impact record')
+        raise BadInputError('a session needs at least one impact record')
     capture = options.inputs.capture
     summary = analyse(records, capture, options.analysis, progress=progress)
     try:
@@ -341,10 +346,10 @@ def process_session(
     *,
     progress: Progress | None = None,
 ) -> SessionResult:
-    """One session's input files (lab files, bags) through `run_session`."""
+    """One session's input files (lab files, bags) through `process_records`."""
     options = options or SessionOptions()
     read = read_inputs(paths, options.inputs, progress=progress)
-    return run_session(
+    return process_records(
         read.records,
         options,
         inputs=read.paths,
@@ -375,3 +380,8 @@ def overlay_of(friction: FrictionResult | None) -> ModelOverlay | None:
         dict(zip(friction.impact_ids, starts, strict=True)),
         dict(zip(friction.impact_ids, scales, strict=True)),
     )
+
+
+# Deprecated: the name before issue 23, when three functions were called run_session; use
+# process_records. Kept one release so callers keep working.
+run_session = process_records

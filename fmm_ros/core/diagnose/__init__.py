@@ -9,33 +9,25 @@ mu and its trend in hit order), `friction_map` (mu against speed and position by
 dynamics), `signatures` (plain functions on arrays that point at causes).
 """
 
-from fmm_ros.constants import MU_DRIFT
-from fmm_ros.core.diagnose.drift import MuTrend
-from fmm_ros.core.diagnose.friction_map import FrictionCurve, FrictionMap
-from fmm_ros.core.diagnose.result import (
-    Candidate,
-    Diagnosis,
-    NamedEffect,
-    ParameterEstimate,
-    ResidualLocation,
-    Where,
-)
-from fmm_ros.core.diagnose.workflow import EFFECTS, NONE, UNEXPLAINED, VOCABULARY, diagnose
+from fmm_ros._lazy import lazy_exports
+from fmm_ros.constants import MU_DRIFT as MU_DRIFT
 
-__all__ = [
-    'EFFECTS',
-    'MU_DRIFT',
-    'NONE',
-    'UNEXPLAINED',
-    'VOCABULARY',
-    'Candidate',
-    'Diagnosis',
-    'FrictionCurve',
-    'FrictionMap',
-    'MuTrend',
-    'NamedEffect',
-    'ParameterEstimate',
-    'ResidualLocation',
-    'Where',
-    'diagnose',
-]
+_EXPORTS = {
+    'Candidate': 'result',
+    'Diagnosis': 'result',
+    'EFFECTS': 'vocabulary',
+    'FrictionCurve': 'friction_map',
+    'FrictionMap': 'friction_map',
+    'MuTrend': 'drift',
+    'NONE': 'vocabulary',
+    'NamedEffect': 'result',
+    'ParameterEstimate': 'result',
+    'ResidualLocation': 'result',
+    'UNEXPLAINED': 'vocabulary',
+    'VOCABULARY': 'vocabulary',
+    'Where': 'result',
+    'diagnose': 'workflow',
+}
+
+__all__ = sorted([*_EXPORTS, 'MU_DRIFT'])
+__getattr__ = lazy_exports(__name__, _EXPORTS)

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.stats
 
+from fmm_ros.errors import BadInputError
+
 MIN_DRIFT_HITS = 4
 """A trend in hit order needs at least this many hits (two degrees of freedom left)."""
 
@@ -57,11 +59,11 @@ def mu_trend(mu: Sequence[float], mu_stderr: Sequence[float], *, refitted: bool)
     errors = np.asarray(mu_stderr, dtype=float)
     n = values.size
     if n < MIN_DRIFT_HITS:
-        raise ValueError(
+        raise BadInputError(
             f'a trend of mu in hit order needs at least {MIN_DRIFT_HITS} hits, got {n}'
         )
     if not (np.all(np.isfinite(values)) and np.all(errors > 0.0) and np.all(np.isfinite(errors))):
-        raise ValueError('per-hit mu and their standard errors must be finite, errors positive')
+        raise BadInputError('per-hit mu and their standard errors must be finite, errors positive')
     weights = 1.0 / errors**2
     mean = float(np.sum(weights * values) / np.sum(weights))
     consistency = float(np.sum(weights * (values - mean) ** 2))

@@ -34,6 +34,7 @@ from fmm_ros.core.diagnose.session_model import SessionModel
 from fmm_ros.core.identify.conditioning import ConditionedImpact
 from fmm_ros.core.identify.lsq import inner
 from fmm_ros.core.physics.terms import EFFECT_SIZE, MODEL_TERMS, ModelTerm
+from fmm_ros.errors import BadInputError
 
 RELATIVE_STEP = 1e-4
 """Forward-difference step of mu and of a start position, relative to their scale."""
@@ -257,7 +258,7 @@ def screen_drift(linear: Linearisation, noise_std_m_s: float) -> Screen:
     The linearisation must hold every hit.
     """
     if linear.scale != 1.0:
-        raise ValueError('mu_drift is screened on every hit')
+        raise BadInputError('mu_drift is screened on every hit')
     shared, own = linear.nuisance()
     before, _, _ = chi2_fall(linear.residuals, shared, own)
     per_hit = [

@@ -18,12 +18,24 @@ from fmm_ros.core.diagnose.result import ParameterEstimate
 from fmm_ros.core.identify.conditioning import ConditionedImpact
 from fmm_ros.core.identify.friction import ModelFit, fit_model
 from fmm_ros.core.identify.lsq import inner
+from fmm_ros.core.identify.spec import FitSpec
 from fmm_ros.core.physics.model import simulate
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.physics.terms import ModelTerm
 
+DIAGNOSTIC_FIT = FitSpec(judge_hit=True)
+"""How the diagnosis fits every model: `fit_model`'s spec with the hit windows judged."""
 
-def diagnostic_fit(impacts: Sequence[ConditionedImpact], **options) -> ModelFit:
+
+def diagnostic_fit(
+    impacts: Sequence[ConditionedImpact],
+    *,
+    rig: Rig,
+    fit_initial_position: bool,
+    mu0: float | None = None,
+    terms: Sequence[ModelTerm] = (),
+    fixed_effects: Sequence[ModelTerm] = (),
+) -> ModelFit:
     """`fit_model` as the diagnosis fits every model: the velocity judged while the hammer acts.
 
     `fit_model` leaves the hit windows (each pulse and 1 ms after it) out by default, since
@@ -32,7 +44,14 @@ def diagnostic_fit(impacts: Sequence[ConditionedImpact], **options) -> ModelFit:
     diagnosis compares models by their residuals over the whole motion (screen, gaps,
     information criteria), so every fit it makes judges the same samples.
     """
-    return fit_model(impacts, judge_hit=True, **options)
+    return fit_model(
+        impacts,
+        DIAGNOSTIC_FIT.but(fit_initial_position=fit_initial_position),
+        rig=rig,
+        mu0=mu0,
+        terms=terms,
+        fixed_effects=fixed_effects,
+    )
 
 
 @dataclass(frozen=True)

@@ -18,6 +18,7 @@ from fmm_ros.core.diagnose.result import Where
 from fmm_ros.core.identify.conditioning import ConditionedImpact
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.physics.terms import EFFECT_SIZE, MODEL_TERMS, ModelTerm, model_term
+from fmm_ros.errors import BadInputError
 
 STRIBECK_PROBE_SPEEDS_M_S = (1e-3, 3e-3, 1e-2)
 """Stribeck speeds v_s probed: the plausible range (0.1-50 mm/s) where a decay of a few
@@ -149,4 +150,4 @@ def start_term(
         return clipped(
             delay if math.isfinite(delay) and delay > 0.0 else 1.0 / impacts[0].sample_rate_hz
         )
-    raise ValueError(f'no start rule for {effect!r}')
+    raise BadInputError(f'no start rule for {effect!r}')

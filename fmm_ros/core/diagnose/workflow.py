@@ -71,6 +71,12 @@ from fmm_ros.core.diagnose.session_model import (
     without,
 )
 from fmm_ros.core.diagnose.starts import probes
+from fmm_ros.core.diagnose.vocabulary import (  # noqa: F401 (VOCABULARY re-exported)
+    EFFECTS,
+    NONE,
+    UNEXPLAINED,
+    VOCABULARY,
+)
 from fmm_ros.core.diagnose.where import locate_misfit, locate_residual
 from fmm_ros.core.identify.conditioning import (
     ConditionedImpact,
@@ -81,20 +87,7 @@ from fmm_ros.core.identify.conditioning import (
 )
 from fmm_ros.core.identify.lsq import inner
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
-from fmm_ros.core.physics.terms import MODEL_TERMS
-
-EFFECTS: tuple[str, ...] = (*MODEL_TERMS, MU_DRIFT)
-"""Candidate effects: the model terms by name, and mu drifting from hit to hit."""
-
-
-NONE = 'none'
-
-
-UNEXPLAINED = 'unexplained'
-
-
-VOCABULARY: tuple[str, ...] = (*EFFECTS, NONE, UNEXPLAINED)
-
+from fmm_ros.errors import BadInputError
 
 BIC_EVIDENCE = 10.0
 """A BIC difference of 10 is 'very strong' evidence (Kass and Raftery 1995)."""
@@ -196,10 +189,10 @@ def _checked_impacts(impacts: Sequence, rig: Rig) -> list[ConditionedImpact]:
         impacts = [impacts]
     conditioned = [as_conditioned(impact) for impact in impacts]
     if not conditioned:
-        raise ValueError('no impacts to diagnose')
+        raise BadInputError('no impacts to diagnose')
     rates = {impact.sample_rate_hz for impact in conditioned}
     if len(rates) > 1:
-        raise ValueError(
+        raise BadInputError(
             f'the impacts have different sample rates ({", ".join(f"{r:g}" for r in rates)} '
             'Hz): diagnose records of one rate together'
         )
@@ -207,7 +200,7 @@ def _checked_impacts(impacts: Sequence, rig: Rig) -> list[ConditionedImpact]:
     for impact in conditioned:
         after_s = (impact.force_n.size - impact.hit_end_index) / impact.sample_rate_hz
         if after_s < need_s:
-            raise ValueError(
+            raise BadInputError(
                 f'{source_prefix(impact.source)}the record runs only {after_s:.3g} s after '
                 f'the hit: too short to see a decay (need {need_s:.3g} s, '
                 f'{MIN_DECAY_PERIODS:g} natural periods of the rig)'
@@ -222,12 +215,12 @@ def _checked_candidates(candidates: Sequence[str] | None, hits: int) -> tuple[st
         candidates = (candidates,)
     unknown = [name for name in candidates if name not in EFFECTS]
     if unknown:
-        raise ValueError(
+        raise BadInputError(
             f'unknown candidate effect(s) {", ".join(map(repr, unknown))}; '
             f'known: {", ".join(EFFECTS)}'
         )
     if MU_DRIFT in candidates and hits < MIN_DRIFT_HITS:
-        raise ValueError(
+        raise BadInputError(
             f'{MU_DRIFT} needs at least {MIN_DRIFT_HITS} impacts to see a trend in hit '
             f'order, got {hits}'
         )

@@ -28,6 +28,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from fmm_ros.errors import BadInputError
+
 MAINS_FREQUENCIES_HZ = (50.0, 60.0)
 """The mains frequencies a lab may have; the one with hum is found from the data."""
 
@@ -89,7 +91,7 @@ class VelocityNuisance:
         hum = self.hum or more.hum
         if self.hum is not None and more.hum is not None:
             if more.hum.mains_hz != self.hum.mains_hz:
-                raise ValueError(
+                raise BadInputError(
                     f'hum at {more.hum.mains_hz:g} Hz added to hum at {self.hum.mains_hz:g} Hz'
                 )
             hum = replace(self.hum, waveforms=self.hum.waveforms + more.hum.waveforms)

@@ -29,7 +29,7 @@ import numpy as np
 from fmm_ros.core._checks import finite_samples, require_positive
 from fmm_ros.core.signal.frf import impulse
 from fmm_ros.core.signal.quality import robust_center_and_std, white_noise_std
-from fmm_ros.errors import FmmError
+from fmm_ros.errors import BadInputError, FmmError
 
 HIT_THRESHOLD_SIGMA = 10.0
 """A hit departs from the force baseline by more than this many noise deviations (Gaussian
@@ -68,7 +68,7 @@ class FitError(FmmError):
 
     def __init__(self, reason: str, message: str, source: str = '') -> None:
         if reason not in FIT_FAILURES:
-            raise ValueError(f'unknown fit failure reason {reason!r}')
+            raise BadInputError(f'unknown fit failure reason {reason!r}')
         self.reason = reason
         self.source = source
         super().__init__(f'{source}: {message}' if source else message)
@@ -151,12 +151,12 @@ def condition_impact(
     velocity = checked_channel('velocity_m_s', velocity_m_s, source)
     require_positive('sample_rate_hz', sample_rate_hz)
     if force.size != velocity.size:
-        raise ValueError(
+        raise BadInputError(
             f'{source_prefix(source)}force has {force.size} samples but velocity has '
             f'{velocity.size}: the channels must be sample-aligned'
         )
     if force.size < 16:
-        raise ValueError(
+        raise BadInputError(
             f'{source_prefix(source)}a record needs at least 16 samples, got {force.size}'
         )
     center, noise_n = robust_center_and_std(force)
@@ -214,7 +214,7 @@ def cropped_impact(impact: ConditionedImpact, stop_index: int) -> ConditionedImp
     """
     stop = int(stop_index)
     if not impact.hit_end_index <= stop <= impact.force_n.size:
-        raise ValueError(
+        raise BadInputError(
             f'{source_prefix(impact.source)}cannot crop at sample {stop}: the hit ends at '
             f'{impact.hit_end_index} and the record has {impact.force_n.size} samples'
         )
@@ -243,7 +243,7 @@ def as_conditioned(impact) -> ConditionedImpact:
     try:
         force, velocity, rate = impact.force_n, impact.velocity_m_s, impact.sample_rate_hz
     except AttributeError:
-        raise ValueError(
+        raise BadInputError(
             f'an impact must have force_n, velocity_m_s and sample_rate_hz, got '
             f'{type(impact).__name__}'
         ) from None
@@ -255,7 +255,7 @@ def checked_channel(name: str, values: np.ndarray, source: str) -> np.ndarray:
     try:
         return finite_samples(name, values)
     except ValueError as error:
-        raise ValueError(f'{source_prefix(source)}{error}') from None
+        raise BadInputError(f'{source_prefix(source)}{error}') from None
 
 
 def _gate(hit: np.ndarray, sample_rate_hz: float) -> tuple[tuple[int, int], ...]:

@@ -12,12 +12,13 @@ own mu beside it, and a chi^2 test of whether one mu serves them all.
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 import scipy.fft
 import scipy.stats
 
-from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ, PAPER_MU
+from fmm_ros.constants import PAPER_MU
 from fmm_ros.core._checks import require_positive
 from fmm_ros.core.identify.chain import DriftBasis, VelocityNuisance, estimate_nuisance
 from fmm_ros.core.identify.conditioning import (
@@ -35,20 +36,22 @@ from fmm_ros.core.identify.lsq import (
     normal_inverse,
 )
 from fmm_ros.core.identify.output_error import (
-    JACOBIANS,
-    MISFITS,
-    UNCERTAINTIES,
     BuiltModel,
     OutputError,
     fit_uncertainty,
 )
+from fmm_ros.core.identify.spec import (  # noqa: F401 (MU_BOUNDS re-exported)
+    FRICTION_FIT,
+    JACOBIANS,
+    MISFITS,
+    MU_BOUNDS,
+    UNCERTAINTIES,
+    FitSpec,
+)
 from fmm_ros.core.physics.model import INTEGRATORS, Simulation, simulate
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import MODEL_TERMS, ModelTerm
-
-MU_BOUNDS = (1e-3, 1.0)
-"""Default search range of the friction coefficient; a best fit on either end is a failure."""
-
+from fmm_ros.errors import BadInputError
 
 DAMPING_BOUNDS_N_S_PER_M = (0.0, 50.0)
 """Search range of the viscous damping c when it is fitted [N*s/m]."""
@@ -130,7 +133,7 @@ class ModelFit:
     def index(self, name: str) -> int:
         """Position of a parameter in `names`; ValueError naming the known ones."""
         if name not in self.names:
-            raise ValueError(f'no fitted parameter {name!r}; fitted: {", ".join(self.names)}')
+            raise BadInputError(f'no fitted parameter {name!r}; fitted: {", ".join(self.names)}')
         return self.names.index(name)
 
     def value(self, name: str) -> float:
@@ -244,7 +247,7 @@ def _space(
     fixed = tuple(fixed_effects)
     for effect in fixed:
         if not isinstance(effect, ModelTerm):
-            raise ValueError(f'fixed_effects must be model terms, got {effect!r}')
+            raise BadInputError(f'fixed_effects must be model terms, got {effect!r}')
     classes = []
     for term in terms:
         if isinstance(term, ModelTerm):
@@ -253,9 +256,9 @@ def _space(
             cls = MODEL_TERMS[term]
             values = np.array([p.default for p in cls.parameters])
         else:
-            raise ValueError(f'unknown model term {term!r}; known: {", ".join(MODEL_TERMS)}')
+            raise BadInputError(f'unknown model term {term!r}; known: {", ".join(MODEL_TERMS)}')
         if cls in classes or any(isinstance(effect, cls) for effect in fixed):
-            raise ValueError(f'model term {cls.name} given twice')
+            raise BadInputError(f'model term {cls.name} given twice')
         classes.append(cls)
         low, high = cls.bounds()
         for parameter, value, lo, hi in zip(cls.parameters, values, low, high, strict=True):
@@ -266,7 +269,7 @@ def _space(
             upper.append(hi)
             typical.append(max(abs(parameter.default), 1e-3 * (hi - lo)))
     if fit_damping and MODEL_TERMS['viscous_damping'] in classes:
-        raise ValueError(
+        raise BadInputError(
             'fit_damping and a fitted viscous_damping term are the same parameter; choose one'
         )
     # Where the mass can rest before a hit: inside the friction band of the largest mu searched.
@@ -325,30 +328,21 @@ def energy_balance_mu(impacts: Sequence[ConditionedImpact], rig: Rig = FMM_RIG) 
 
 def fit_model(
     impacts: Sequence,
+    spec: FitSpec | None = None,
     *,
     rig: Rig = FMM_RIG,
     mu0: float | None = None,
-    mu_bounds: tuple[float, float] = MU_BOUNDS,
-    fit_damping: bool = False,
     terms: Sequence[str | ModelTerm] = (),
     fixed_effects: Sequence[ModelTerm] = (),
-    fit_initial_position: bool = False,
-    fit_impulse_scale: bool = False,
-    remove_mains_hum: bool = False,
-    fit_velocity_drift: bool = False,
-    mains_hz: float | None = None,
-    misfit: str = 'time',
-    band_limit_hz: float = MISFIT_BAND_LIMIT_HZ,
-    integrator: str = 'exact',
-    jacobian: str = 'blocks',
-    judge_hit: bool = False,
-    uncertainty: str = 'spectral',
     start_values: Mapping[str, float] | None = None,
+    **changes: Any,
 ) -> ModelFit:
     """Fit one mu (and c, and the parameters of `terms`) to every impact at once.
 
     impacts: ConditionedImpacts, or records with force_n, velocity_m_s, sample_rate_hz (they
-    are conditioned here). terms: names of model terms to fit (started at their defaults) or
+    are conditioned here). spec: what the fit frees and how it runs (`FitSpec`, whose fields
+    may also be given as keywords, which change it: `fit_model(records, fit_damping=True)`).
+    terms: names of model terms to fit (started at their defaults) or
     term instances (started at their values); fixed_effects: terms held as given. mu0: start
     value (default: the energy balance). fit_initial_position: also fit where each impact's
     mass rested before the hit (a nuisance parameter per impact, `initial_position_m[i]`):
@@ -371,23 +365,11 @@ def fit_model(
     """
     return _fit(
         _conditioned_list(impacts),
+        (spec or FitSpec()).but(**changes),
         rig=rig,
         mu0=mu0,
-        mu_bounds=mu_bounds,
-        fit_damping=fit_damping,
         terms=terms,
         fixed_effects=fixed_effects,
-        fit_initial_position=fit_initial_position,
-        fit_impulse_scale=fit_impulse_scale,
-        remove_mains_hum=remove_mains_hum,
-        fit_velocity_drift=fit_velocity_drift,
-        mains_hz=mains_hz,
-        misfit=misfit,
-        band_limit_hz=band_limit_hz,
-        integrator=integrator,
-        jacobian=jacobian,
-        judge_hit=judge_hit,
-        uncertainty=uncertainty,
         start_values=start_values,
     ).fit
 
@@ -404,24 +386,12 @@ class _Fitted:
 
 def _fit(
     conditioned: list[ConditionedImpact],
+    spec: FitSpec,
     *,
     rig: Rig,
     mu0: float | None,
-    mu_bounds: tuple[float, float],
-    fit_damping: bool,
     terms: Sequence[str | ModelTerm],
     fixed_effects: Sequence[ModelTerm],
-    fit_initial_position: bool,
-    fit_impulse_scale: bool,
-    remove_mains_hum: bool,
-    fit_velocity_drift: bool,
-    mains_hz: float | None,
-    misfit: str,
-    band_limit_hz: float,
-    integrator: str,
-    jacobian: str,
-    judge_hit: bool,
-    uncertainty: str,
     start_values: Mapping[str, float] | None,
     start: tuple[np.ndarray, tuple[np.ndarray, ...]] | None = None,
     drift_estimated: bool = False,
@@ -433,16 +403,17 @@ def _fit(
     drift_estimated: the velocities' drift was taken off by an earlier fit (its degrees of
     freedom count in the errors, as with fit_velocity_drift).
     """
-    _check_options(rig, misfit, band_limit_hz, integrator, jacobian)
+    _check_options(rig, spec.misfit, spec.band_limit_hz, spec.integrator, spec.jacobian)
+    uncertainty, mains_hz, mu_bounds = spec.uncertainty, spec.mains_hz, spec.mu_bounds
     if uncertainty not in UNCERTAINTIES:
-        raise ValueError(
+        raise BadInputError(
             f'unknown uncertainty {uncertainty!r}; choose one of {", ".join(UNCERTAINTIES)}'
         )
     if mains_hz is not None and not mains_hz > 0:
-        raise ValueError(f'mains_hz must be > 0 (or None to find it), got {mains_hz}')
+        raise BadInputError(f'mains_hz must be > 0 (or None to find it), got {mains_hz}')
     low, high = (float(bound) for bound in mu_bounds)
     if not 0.0 <= low < high or not math.isfinite(high):
-        raise ValueError(f'mu_bounds must be 0 <= lower < upper, finite; got {mu_bounds}')
+        raise BadInputError(f'mu_bounds must be 0 <= lower < upper, finite; got {mu_bounds}')
     require_positive('normal_force_n (to fit mu)', rig.normal_force_n)
     _check_durations(conditioned, rig)
     if mu0 is None:
@@ -454,28 +425,28 @@ def _fit(
         rig,
         mu0,
         (low, high),
-        fit_damping,
+        spec.fit_damping,
         terms,
         fixed_effects,
-        len(conditioned) if fit_initial_position else 0,
-        len(conditioned) if fit_impulse_scale else 0,
+        len(conditioned) if spec.fit_initial_position else 0,
+        len(conditioned) if spec.fit_impulse_scale else 0,
     )
     for name, value in (start_values or {}).items():
         if name not in space.names:
-            raise ValueError(f'start value for {name!r}, which is not fitted: {space.names}')
+            raise BadInputError(f'start value for {name!r}, which is not fitted: {space.names}')
         at = space.names.index(name)
         space.start[at] = min(max(float(value), space.lower[at]), space.upper[at])
     problem = OutputError(
         conditioned,
         space.build,
-        misfit,
-        band_limit_hz,
-        integrator,
+        spec.misfit,
+        spec.band_limit_hz,
+        spec.integrator,
         rig.natural_frequency_hz,
-        judge_hit=judge_hit,
+        judge_hit=spec.judge_hit,
         uncertainty=uncertainty,
     )
-    blocks = space.blocks(problem.segments, jacobian)
+    blocks = space.blocks(problem.segments, spec.jacobian)
     residual0, jacobian0 = None, None
     if start is not None:
         residual0, jacobian0 = start[0], BlockJacobian(blocks, start[1])
@@ -490,11 +461,11 @@ def _fit(
         residual0=residual0,
         jacobian0=jacobian0,
     )
-    chain = _VelocityChain(remove_mains_hum, fit_velocity_drift, mains_hz)
-    problem, solution, nuisances, projected = chain.fit(problem, solution, space, jacobian)
+    chain = _VelocityChain(spec.remove_mains_hum, spec.fit_velocity_drift, mains_hz)
+    problem, solution, nuisances, projected = chain.fit(problem, solution, space, spec.jacobian)
     # Or rows handed in from a fit that took its drift off them, still the last Jacobian.
     projected = projected or (jacobian0 is not None and solution.jacobian is jacobian0)
-    drift = fit_velocity_drift or drift_estimated
+    drift = spec.fit_velocity_drift or drift_estimated
     fit = _model_fit(space, problem, solution, nuisances, drift, projected)
     _require_explained(fit, solution, conditioned)
     if 'mu' in fit.at_bounds:
@@ -766,7 +737,7 @@ def _conditioned_list(impacts: Sequence) -> list[ConditionedImpact]:
         impacts = [impacts]
     conditioned = [as_conditioned(impact) for impact in impacts]
     if not conditioned:
-        raise ValueError('no impacts to fit')
+        raise BadInputError('no impacts to fit')
     return conditioned
 
 
@@ -774,23 +745,23 @@ def _check_options(
     rig: Rig, misfit: str, band_limit_hz: float, integrator: str, jacobian: str
 ) -> None:
     if not isinstance(rig, Rig):
-        raise ValueError(f'rig must be a Rig, got {rig!r}')
+        raise BadInputError(f'rig must be a Rig, got {rig!r}')
     if misfit not in MISFITS:
-        raise ValueError(f'unknown misfit {misfit!r}; choose one of {", ".join(MISFITS)}')
+        raise BadInputError(f'unknown misfit {misfit!r}; choose one of {", ".join(MISFITS)}')
     require_positive('band_limit_hz', band_limit_hz)
     if integrator not in INTEGRATORS:
-        raise ValueError(
+        raise BadInputError(
             f'unknown integrator {integrator!r}; choose one of {", ".join(INTEGRATORS)}'
         )
     if jacobian not in JACOBIANS:
-        raise ValueError(f'unknown jacobian {jacobian!r}; choose one of {", ".join(JACOBIANS)}')
+        raise BadInputError(f'unknown jacobian {jacobian!r}; choose one of {", ".join(JACOBIANS)}')
 
 
 def _check_durations(impacts: Sequence[ConditionedImpact], rig: Rig) -> None:
     period_s = 1.0 / rig.natural_frequency_hz
     for impact in impacts:
         if impact.duration_s < 2.0 * period_s:
-            raise ValueError(
+            raise BadInputError(
                 f'{source_prefix(impact.source)}the record lasts {impact.duration_s:.3g} '
                 f's, less than two natural periods ({2 * period_s:.3g} s) of the '
                 'rig: too short to fit'
@@ -835,7 +806,7 @@ class FrictionFit:
         return self.joint.error('damping_n_s_per_m')
 
 
-def _own_fit(joint: _Fitted, index: int, options: dict) -> ModelFit:
+def _own_fit(joint: _Fitted, index: int, spec: FitSpec) -> ModelFit:
     """Impact `index` fitted alone: mu (c and terms held at the joint values), its start, scale.
 
     It continues from the joint solution, where this impact's residual and its Jacobian rows
@@ -854,87 +825,56 @@ def _own_fit(joint: _Fitted, index: int, options: dict) -> ModelFit:
     residual = solution.residual[joint.problem.segments[index]].copy()  # taken over by the fit
     for start, stop in joint.problem.impacts[index].hit_windows:  # the misfit's, not the fit's
         residual[start:stop] = 0.0
-    own = dict(options, remove_mains_hum=False, fit_velocity_drift=False)
+    own = spec.but(fit_damping=False, remove_mains_hum=False, fit_velocity_drift=False)
     return _fit(
         [joint.problem.impacts[index]],
+        own,
         rig=joint.fit.rig,
         mu0=joint.fit.mu,
-        fit_damping=False,
         terms=(),
         fixed_effects=joint.fit.effects,
         start_values={
             name.replace(f'[{index}]', '[0]'): joint.fit.value(name) for name in wanted[1:]
         },
         start=(residual, (solution.jacobian.rows[index][rows],)),
-        drift_estimated=options['fit_velocity_drift'],
-        **own,
+        drift_estimated=spec.fit_velocity_drift,
     ).fit
 
 
 def fit_friction(
     impacts: Sequence,
+    spec: FitSpec | None = None,
     *,
     rig: Rig = FMM_RIG,
-    fit_damping: bool = False,
-    fit_initial_position: bool = False,
-    fit_impulse_scale: bool = True,
-    remove_mains_hum: bool = True,
-    fit_velocity_drift: bool = True,
-    mains_hz: float | None = None,
-    mu_bounds: tuple[float, float] = MU_BOUNDS,
-    misfit: str = 'time',
-    band_limit_hz: float = MISFIT_BAND_LIMIT_HZ,
-    integrator: str = 'exact',
-    jacobian: str = 'blocks',
-    judge_hit: bool = False,
-    uncertainty: str = 'spectral',
     progress: Callable[[str], None] | None = None,
+    **changes: Any,
 ) -> FrictionFit:
     """The paper's fit: one mu (and optionally c) over all impacts, plus each impact's own mu.
 
-    The records as a data acquisition delivers them: by default each hit's impulse scale is
-    fitted and mains hum, velocity offset and drift are taken off (options as in
-    `fit_model`); each impact's own fit continues from the joint solution (`_own_fit`).
+    The records as a data acquisition delivers them: by default (`FRICTION_FIT`) each hit's
+    impulse scale is fitted and mains hum, velocity offset and drift are taken off (spec and
+    keyword changes as in `fit_model`); each impact's own fit continues from the joint
+    solution (`_own_fit`).
     progress, when given, is told of each fit as it starts (a line of text).
     Raises ValueError for bad input and FitError (naming the impact) for any impact, or the
     set, that friction cannot explain.
     """
     say = progress or (lambda _: None)
     conditioned = _conditioned_list(impacts)
-    options = dict(
-        mu_bounds=mu_bounds,
-        fit_initial_position=fit_initial_position,
-        fit_impulse_scale=fit_impulse_scale,
-        remove_mains_hum=remove_mains_hum,
-        fit_velocity_drift=fit_velocity_drift,
-        mains_hz=mains_hz,
-        misfit=misfit,
-        band_limit_hz=band_limit_hz,
-        integrator=integrator,
-        jacobian=jacobian,
-        judge_hit=judge_hit,
-        uncertainty=uncertainty,
-    )
+    spec = (spec or FRICTION_FIT).but(**changes)
     count = len(conditioned)
     say(f'fitting one mu to {count} impact{"s" if count > 1 else ""}')
     fitted = _fit(
-        conditioned,
-        rig=rig,
-        mu0=None,
-        fit_damping=fit_damping,
-        terms=(),
-        fixed_effects=(),
-        start_values=None,
-        **options,
+        conditioned, spec, rig=rig, mu0=None, terms=(), fixed_effects=(), start_values=None
     )
     joint = fitted.fit
-    if count == 1 and not fit_damping:
+    if count == 1 and not spec.fit_damping:
         per_impact = (joint,)
     else:
         fits = []
         for index in range(count):
             say(f'fitting mu of impact {index + 1}/{count} alone')
-            fits.append(_own_fit(fitted, index, options))
+            fits.append(_own_fit(fitted, index, spec))
         per_impact = tuple(fits)
     mus = np.array([fit.mu for fit in per_impact])
     errors = np.array([fit.mu_stderr for fit in per_impact])

@@ -30,6 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fmm_ros.errors import BadInputError
+
 
 def inner(a: np.ndarray, b: np.ndarray) -> np.ndarray | float:
     """Products over the last (sample) axis, a . b or a @ b.T, by einsum's own loop, not BLAS.
@@ -236,7 +238,7 @@ def levenberg_marquardt(
         try:
             evaluate(x, residual)
         except Infeasible as error:
-            raise ValueError(
+            raise BadInputError(
                 f'the model cannot be evaluated at the start point {x}: {error}'
             ) from None
         evaluations = len(every)

@@ -39,22 +39,7 @@ from fmm_ros.core.physics.model import Simulation, simulate
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.physics.terms import ModelTerm
 from fmm_ros.core.signal.frf import band_bins, mobility, spectra
-
-MISFITS = ('time', 'frf')
-
-
-UNCERTAINTIES = ('spectral', 'blocks')
-"""How the velocity residuals' share of a time fit's covariance is found: from the residual's
-spectrum over the whole record (default), or from block sums of the score over the motion
-(the way before issue 14: noisy where the motion lasts a few periods; kept as the reference
-the uncertainty benchmark compares with)."""
-
-
-JACOBIANS = ('blocks', 'dense')
-"""How fit_model builds its Jacobian: 'blocks' runs and stores an impact's own parameters
-(its start position) on that impact alone; 'dense' runs every column over every impact (the
-plain way, kept as the reference the blocks are checked and benchmarked against)."""
-
+from fmm_ros.errors import BadInputError
 
 """Upper end of the mobility misfit band: f_n and its odd harmonics to the 9th (paper Fig. 24)."""
 
@@ -134,7 +119,7 @@ class OutputError:
                 force_spectrum, velocity_spectrum = spectra(impact.force_n, impact.velocity_m_s)
                 target = mobility(force_spectrum[:bins], velocity_spectrum[:bins])
                 if np.isnan(target).any():
-                    raise ValueError(
+                    raise BadInputError(
                         f'{source_prefix(impact.source)}the force spectrum is zero inside '
                         f'the {band_limit_hz:g} Hz band: no mobility there'
                     )

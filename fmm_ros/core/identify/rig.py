@@ -41,6 +41,7 @@ from fmm_ros.core.identify.output_error import (
 )
 from fmm_ros.core.physics.model import INTEGRATORS
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
+from fmm_ros.errors import BadInputError
 
 
 @dataclass(frozen=True)
@@ -87,7 +88,7 @@ def fit_free_decay(
         magnitude = np.abs(velocity)
         start_index = int(np.argmax(magnitude >= 0.5 * magnitude.max()))
     if not 0 <= start_index < velocity.size:
-        raise ValueError(
+        raise BadInputError(
             f'start_index {start_index} lies outside the record ({velocity.size} samples)'
         )
     segment = velocity[start_index:]
@@ -233,7 +234,7 @@ def identify_rig(
     if isinstance(records, ConditionedImpact) or hasattr(records, 'force_n'):
         records = [records]
     if integrator not in INTEGRATORS:
-        raise ValueError(
+        raise BadInputError(
             f'unknown integrator {integrator!r}; choose one of {", ".join(INTEGRATORS)}'
         )
     impacts, decays = [], []
@@ -251,11 +252,11 @@ def identify_rig(
                 )
             )
     if not impacts and not decays:
-        raise ValueError('no records to identify the rig from')
+        raise BadInputError('no records to identify the rig from')
     if impacts:
         return _rig_from_impacts(impacts, tuple(decays), integrator)
     if mass_kg is None:
-        raise ValueError('free decays alone do not determine the mass: give mass_kg')
+        raise BadInputError('free decays alone do not determine the mass: give mass_kg')
     return _rig_from_decays(decays, float(mass_kg))
 
 

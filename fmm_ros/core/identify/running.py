@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 
 import scipy.stats
 
+from fmm_ros.errors import BadInputError
+
 
 @dataclass(frozen=True)
 class LevelEstimate:
@@ -84,7 +86,7 @@ class RunningFriction:
         no weight to give).
         """
         if not (math.isfinite(mu) and math.isfinite(mu_stderr) and mu_stderr > 0.0):
-            raise ValueError(
+            raise BadInputError(
                 f'impact {impact_id}: mu {mu} +- {mu_stderr} cannot be weighted (a positive, '
                 'finite standard error is needed)'
             )

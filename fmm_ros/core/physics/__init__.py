@@ -1,38 +1,24 @@
 """The FMM as a friction oscillator: Eq. 3 of the paper, its composable terms, and integrators."""
 
-from fmm_ros.core.physics.model import (
-    INTEGRATORS,
-    OscillatorStream,
-    Simulation,
-    coulomb_peak_mobility,
-    free_vibration,
-    record_length,
-    simulate,
-)
-from fmm_ros.core.physics.rig import FMM_RIG, Rig
-from fmm_ros.core.physics.terms import (
-    EFFECT_SIZE,
-    MODEL_TERMS,
-    ModelTerm,
-    Parameter,
-    model_term,
-    parse_model_term,
-)
+from fmm_ros._lazy import lazy_exports
 
-__all__ = [
-    'EFFECT_SIZE',
-    'FMM_RIG',
-    'INTEGRATORS',
-    'MODEL_TERMS',
-    'ModelTerm',
-    'OscillatorStream',
-    'Parameter',
-    'Rig',
-    'Simulation',
-    'coulomb_peak_mobility',
-    'free_vibration',
-    'model_term',
-    'parse_model_term',
-    'record_length',
-    'simulate',
-]
+_EXPORTS = {
+    'EFFECT_SIZE': 'terms',
+    'FMM_RIG': 'rig',
+    'INTEGRATORS': 'model',
+    'MODEL_TERMS': 'terms',
+    'ModelTerm': 'terms',
+    'OscillatorStream': 'model',
+    'Parameter': 'terms',
+    'Rig': 'rig',
+    'Simulation': 'model',
+    'coulomb_peak_mobility': 'model',
+    'free_vibration': 'model',
+    'model_term': 'terms',
+    'parse_model_term': 'terms',
+    'record_length': 'model',
+    'simulate': 'model',
+}
+
+__all__ = sorted(_EXPORTS)
+__getattr__ = lazy_exports(__name__, _EXPORTS)

@@ -39,6 +39,7 @@ from fmm_ros.core._checks import (
 from fmm_ros.core.physics import _kernels as kernels
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import ModelSpec, ModelTerm, model_spec
+from fmm_ros.errors import BadInputError
 
 MIN_SAMPLES_PER_PERIOD = 20
 """Sampling must resolve the rig's natural period this finely (event location, FRFs)."""
@@ -140,10 +141,10 @@ class OscillatorStream:
         integrator: str = 'exact',
     ) -> None:
         if not isinstance(rig, Rig):
-            raise ValueError(f'rig must be a Rig, got {rig!r}')
+            raise BadInputError(f'rig must be a Rig, got {rig!r}')
         require_positive('sample_rate_hz', sample_rate_hz)
         if integrator not in INTEGRATORS:
-            raise ValueError(
+            raise BadInputError(
                 f'unknown integrator {integrator!r}; choose one of {", ".join(INTEGRATORS)}'
             )
         require_finite('x0_m', x0_m)
@@ -152,7 +153,7 @@ class OscillatorStream:
         spec = model_spec(rig, mu, effects)
         needed_hz = MIN_SAMPLES_PER_PERIOD * rig.natural_frequency_hz
         if sample_rate_hz < needed_hz:
-            raise ValueError(
+            raise BadInputError(
                 f'time step too coarse: sample_rate_hz {sample_rate_hz:g} gives fewer than '
                 f'{MIN_SAMPLES_PER_PERIOD} samples per period of the {rig.natural_frequency_hz:.4g}'
                 f' Hz natural frequency (need >= {needed_hz:.4g} Hz)'
@@ -173,7 +174,7 @@ class OscillatorStream:
         self._mode = None
         if spec.second_mode is not None:
             if spec.second_mode.frequency_hz >= 0.5 * self.sample_rate_hz:
-                raise ValueError(
+                raise BadInputError(
                     f'time step too coarse: second_mode.frequency_hz '
                     f'{spec.second_mode.frequency_hz:g} is at or above the Nyquist frequency '
                     f'{0.5 * self.sample_rate_hz:g} Hz'
@@ -232,7 +233,7 @@ class OscillatorStream:
                     or not array.flags.c_contiguous
                     or not array.flags.writeable
                 ):
-                    raise ValueError(
+                    raise BadInputError(
                         f'out {name} buffer must be a writable contiguous float64 '
                         f'array of shape ({n},)'
                     )
@@ -336,7 +337,7 @@ def coulomb_peak_mobility(impulse_n_s: float, *, rig: Rig = FMM_RIG, mu: float =
     require_positive('impulse_n_s', impulse_n_s)
     require_positive('mu', mu)
     if rig.normal_force_n <= 0.0:
-        raise ValueError('coulomb_peak_mobility needs a positive normal force')
+        raise BadInputError('coulomb_peak_mobility needs a positive normal force')
     return math.pi * impulse_n_s / (8.0 * rig.mass_kg * mu * rig.normal_force_n)
 
 

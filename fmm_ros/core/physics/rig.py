@@ -8,10 +8,7 @@ c = 0.275 N*s/m and N = 0.680 kg x g.
 import math
 from dataclasses import dataclass
 
-from fmm_ros.core._checks import (
-    require_non_negative,
-    require_positive,
-)
+from fmm_ros.core.settings import require_non_negative, require_positive, setting
 
 STANDARD_GRAVITY_M_S2 = 9.81
 
@@ -24,10 +21,23 @@ FMM_NORMAL_LOAD_KG = 0.680
 class Rig:
     """Linear constants of the friction oscillator; defaults are the paper's FMM (Sec. 4)."""
 
-    mass_kg: float = 10.391
-    stiffness_n_per_m: float = 1982.0
-    damping_n_s_per_m: float = 0.275
-    normal_force_n: float = FMM_NORMAL_LOAD_KG * STANDARD_GRAVITY_M_S2
+    mass_kg: float = setting(10.391, unit='kg', help='Moving mass m', limits=(1e-3, 1e4))
+    stiffness_n_per_m: float = setting(
+        1982.0, unit='N/m', help='Flexure stiffness k', limits=(1e-3, 1e9)
+    )
+    damping_n_s_per_m: float = setting(
+        0.275,
+        unit='N*s/m',
+        help='Viscous damping c (a fit of c starts from it)',
+        limits=(0.0, 1e6),
+    )
+    normal_force_n: float = setting(
+        FMM_NORMAL_LOAD_KG * STANDARD_GRAVITY_M_S2,
+        unit='N',
+        help=f'Normal force on the pin N ({FMM_NORMAL_LOAD_KG:.3f} kg x '
+        f'{STANDARD_GRAVITY_M_S2} m/s^2 on the FMM)',
+        limits=(0.0, 1e5),
+    )
 
     def __post_init__(self) -> None:
         require_positive('mass_kg', self.mass_kg)

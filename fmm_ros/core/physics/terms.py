@@ -7,19 +7,23 @@ SI units and plausible fitting bounds (`Parameter`), and is rebuilt from a param
 the flat `ModelSpec` the compiled kernels are built from; a term given twice is an error.
 """
 
+from __future__ import annotations
+
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, fields
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
-import numpy as np
-
-from fmm_ros.core._checks import (
+from fmm_ros.core.physics.rig import Rig
+from fmm_ros.core.settings import (
     require_finite,
     require_non_negative,
     require_positive,
 )
-from fmm_ros.core.physics.rig import Rig
+from fmm_ros.errors import BadInputError
+
+if TYPE_CHECKING:
+    import numpy as np
 
 
 @dataclass(frozen=True)
@@ -60,7 +64,7 @@ class ModelSpec:
     mu_static_excess: float = 0.0
     stribeck_velocity_m_s: float = 1.0
     cubic_stiffness_n_per_m3: float = 0.0
-    second_mode: 'SecondMode | None' = None
+    second_mode: SecondMode | None = None
     velocity_offset_m_s: float = 0.0
     delay_s: float = 0.0
 
@@ -90,11 +94,11 @@ class ModelTerm:
         raise NotImplementedError
 
     @classmethod
-    def from_vector(cls, values: Sequence[float]) -> 'ModelTerm':
+    def from_vector(cls, values: Sequence[float]) -> ModelTerm:
         """The term with its parameters in `parameters` order (what a fitter varies)."""
         values = [float(v) for v in values]
         if len(values) != len(cls.parameters):
-            raise ValueError(
+            raise BadInputError(
                 f'{cls.name} takes {len(cls.parameters)} parameter(s) '
                 f'({", ".join(p.name for p in cls.parameters)}), got {len(values)}'
             )
@@ -102,11 +106,15 @@ class ModelTerm:
 
     def to_vector(self) -> np.ndarray:
         """The parameter values in `parameters` order."""
+        import numpy as np  # here: the terms are declared for `fmm --help` without numpy
+
         return np.array([getattr(self, p.name) for p in self.parameters])
 
     @classmethod
     def bounds(cls) -> tuple[np.ndarray, np.ndarray]:
         """(lower, upper) plausible bounds in `parameters` order, as scipy.optimize wants."""
+        import numpy as np
+
         return (
             np.array([p.lower for p in cls.parameters]),
             np.array([p.upper for p in cls.parameters]),
@@ -174,7 +182,7 @@ class AsymmetricFriction(ModelTerm):
         spec.mu_positive += 0.5 * self.mu_difference
         spec.mu_negative -= 0.5 * self.mu_difference
         if min(spec.mu_positive, spec.mu_negative) < 0.0:
-            raise ValueError(
+            raise BadInputError(
                 f'asymmetric_friction.mu_difference {self.mu_difference} makes a '
                 f'friction coefficient negative (mu+ {spec.mu_positive:.4g}, '
                 f'mu- {spec.mu_negative:.4g})'
@@ -262,16 +270,16 @@ grows): zero size is no effect, and the second mode's response scales as 1 / its
 def model_term(name: str, values: Sequence[float] | None = None, **parameters: float) -> ModelTerm:
     """Build a term by name: from a parameter vector, from keywords, or with its defaults."""
     if name not in MODEL_TERMS:
-        raise ValueError(f'unknown model term {name!r}; known: {", ".join(MODEL_TERMS)}')
+        raise BadInputError(f'unknown model term {name!r}; known: {", ".join(MODEL_TERMS)}')
     cls = MODEL_TERMS[name]
     if values is not None:
         if parameters:
-            raise ValueError(f'{name}: give a parameter vector or keywords, not both')
+            raise BadInputError(f'{name}: give a parameter vector or keywords, not both')
         return cls.from_vector(values)
     known = {p.name for p in cls.parameters}
     unknown = sorted(set(parameters) - known)
     if unknown:
-        raise ValueError(
+        raise BadInputError(
             f'{name} has no parameter {", ".join(unknown)}; '
             f'its parameters: {", ".join(sorted(known))}'
         )
@@ -293,7 +301,7 @@ def parse_model_term(text: str) -> ModelTerm:
         except ValueError:
             equals = ''
         if not equals:
-            raise ValueError(f'model term {text!r}: {assignment!r} is not param=number')
+            raise BadInputError(f'model term {text!r}: {assignment!r} is not param=number')
     return model_term(name.strip(), **parameters)
 
 
@@ -304,11 +312,11 @@ def model_spec(rig: Rig, mu: float, effects: Iterable[ModelTerm]) -> ModelSpec:
     seen = set()
     for effect in effects:
         if not isinstance(effect, ModelTerm):
-            raise ValueError(
+            raise BadInputError(
                 f'effects must be model terms ({", ".join(MODEL_TERMS)}), got {effect!r}'
             )
         if effect.name in seen:
-            raise ValueError(f'model term {effect.name} given twice')
+            raise BadInputError(f'model term {effect.name} given twice')
         seen.add(effect.name)
         effect._apply(spec)
     return spec

@@ -1,53 +1,37 @@
 """From force and velocity samples to impacts, flags, impulses, FRFs, level averages, linearity.
 
-`records` (the `ImpactRecord` type), `capture` (the trigger rule, streaming capture and quality
-flags), `quality` (the signs of damaged samples those flags use), `frf` (scipy.signal-style
-functions), `analysis` (per impact and per level, and which impacts a fit takes),
-`history` (the recent past of both streams, for cutting records by sample index).
+`config` (the declared settings: capture, stream rules, levels, FRFs; numpy-free), `records`
+(the `ImpactRecord` type), `capture` (the trigger rule and streaming capture), `quality` (the
+signs of damaged samples and the quality flags they raise), `frf` (scipy.signal-style
+functions), `levels` (nominal levels and clustering), `analysis` (per impact and per level,
+and which impacts a fit takes), `history` (the recent past of both streams, for cutting
+records by sample index).
 """
 
-from fmm_ros.core.signal.analysis import (
-    AnalysisConfig,
-    ImpactResult,
-    ImpactSelection,
-    LevelSummary,
-    NominalLevel,
-    SelectionError,
-    Summary,
-    analyze_impact,
-    select_impacts,
-    summarize,
-)
-from fmm_ros.core.signal.capture import (
-    DEFAULT_CAPTURE,
-    FLAGS,
-    CaptureConfig,
-    ImpactCapture,
-    capture_impacts,
-    find_triggers,
-    quality_flags,
-)
-from fmm_ros.core.signal.history import SampleHistory
-from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros._lazy import lazy_exports
 
-__all__ = [
-    'DEFAULT_CAPTURE',
-    'FLAGS',
-    'AnalysisConfig',
-    'CaptureConfig',
-    'ImpactCapture',
-    'ImpactRecord',
-    'ImpactResult',
-    'ImpactSelection',
-    'LevelSummary',
-    'NominalLevel',
-    'SampleHistory',
-    'SelectionError',
-    'Summary',
-    'analyze_impact',
-    'capture_impacts',
-    'find_triggers',
-    'quality_flags',
-    'select_impacts',
-    'summarize',
-]
+_EXPORTS = {
+    'AnalysisConfig': 'config',
+    'CaptureConfig': 'config',
+    'DEFAULT_CAPTURE': 'config',
+    'FLAGS': 'config',
+    'ImpactCapture': 'capture',
+    'ImpactRecord': 'records',
+    'ImpactAnalysis': 'analysis',
+    'ImpactResult': 'analysis',  # deprecated alias of ImpactAnalysis (issue 23)
+    'ImpactSelection': 'analysis',
+    'LevelSummary': 'analysis',
+    'NominalLevel': 'config',
+    'SampleHistory': 'history',
+    'SelectionError': 'analysis',
+    'Summary': 'analysis',
+    'analyze_impact': 'analysis',
+    'capture_impacts': 'capture',
+    'find_triggers': 'capture',
+    'quality_flags': 'quality',
+    'select_impacts': 'analysis',
+    'summarize': 'analysis',
+}
+
+__all__ = sorted(_EXPORTS)
+__getattr__ = lazy_exports(__name__, _EXPORTS)

@@ -1,12 +1,12 @@
 """From impact records to per-impact results, per-level averaged FRFs and the linearity law.
 
 This is the pipeline the analyzer node, `fmm analyze` and the fitter share: `analyze_impact`
-turns one `ImpactRecord` into an `ImpactResult` (flags, impulse, peak force, contact duration,
+turns one `ImpactRecord` into an `ImpactAnalysis` (flags, impulse, peak force, contact duration,
 band-limited mobility and receptance), and `summarize` groups results into force levels,
 averages each level (the paper's plain mean, H1, H2, coherence) and fits peak |receptance|
 against impulse (the paper's Fig. 17). `select_impacts` is the one rule every fit and
 diagnosis (CLI, workflows, fitter node) takes its impacts by: the flagged ones are left out
-and named, unless asked for. `ImpactResult` and `LevelSummary` carry the fields of
+and named, unless asked for. `ImpactAnalysis` and `LevelSummary` carry the fields of
 `fmm_interfaces/ImpactResult.msg` and `FrfSummary.msg` under the same names (complex arrays
 split into `_real`/`_imag` there), so the ROS shell converts them field by field.
 """
@@ -20,93 +20,29 @@ from typing import Protocol
 
 import numpy as np
 
-from fmm_ros.constants import LEVEL_TOLERANCE_N, PAPER_LEVELS
 from fmm_ros.core.signal import frf
 from fmm_ros.core.signal.capture import (
-    DEFAULT_CAPTURE,
-    FLAGS,
-    CaptureConfig,
     contact_start_index,
-    quality_flags,
     resting_force_level,
     with_trigger,
 )
+from fmm_ros.core.signal.config import (  # noqa: F401 (re-exported: declared in config)
+    DEFAULT_ANALYSIS,
+    DEFAULT_CAPTURE,
+    FLAGS,
+    AnalysisConfig,
+    CaptureConfig,
+    NominalLevel,
+    paper_levels,
+)
+from fmm_ros.core.signal.levels import assign_nominal_levels, cluster_levels
+from fmm_ros.core.signal.quality import quality_flags
 from fmm_ros.core.signal.records import ImpactRecord
-from fmm_ros.errors import NoCleanImpactError
-
-
-@dataclass(frozen=True)
-class NominalLevel:
-    """A force level the operator aims for: name, nominal peak force [N] and tolerance [N]."""
-
-    name: str
-    peak_force_n: float
-    tolerance_n: float = LEVEL_TOLERANCE_N
-
-
-def paper_levels(tolerance_n: float = LEVEL_TOLERANCE_N) -> tuple[NominalLevel, ...]:
-    """The paper's three levels (Sec. 4: 450, 1000 and 1450 N) as nominal levels, +-50 N."""
-    return tuple(
-        NominalLevel(level.name, level.peak_force_n, tolerance_n) for level in PAPER_LEVELS
-    )
-
-
-@dataclass(frozen=True)
-class AnalysisConfig:
-    """How records become FRFs and how results are grouped and judged."""
-
-    # FRF arrays in results stop at this frequency [Hz] (None: Nyquist). The FMM's mode is at
-    # 2.2 Hz and its odd harmonics matter up to ~20 Hz; 100 Hz keeps results small.
-    band_limit_hz: float | None = 100.0
-    # Where the peak |receptance| is searched [Hz]. Its lower
-    # end keeps out the lowest bins, where the rest offset friction leaves in the displacement
-    # (x_final != 0) makes |mobility / (i omega)| large. Its upper end is lowered further to
-    # where the force spectrum has dropped by excitation_drop_db (`frf.excitation_bandwidth`).
-    peak_band_hz: tuple[float, float] = (1.0, 100.0)
-    excitation_drop_db: float = 20.0
-    # Optional force window: keep the force this long after the trigger [s], then a
-    # half-cosine taper [s]; the pre-contact mean is subtracted first. None: no window.
-    force_window_s: float | None = None
-    force_window_taper_s: float = 0.0
-    # Optional exponential window on both channels, decay time constant [s]. None: no window
-    # (the paper's method: friction brings the rig to rest inside the record).
-    exponential_decay_s: float | None = None
-    # Nominal force levels; empty: cluster peak forces instead (`frf.cluster_levels`).
-    levels: tuple[NominalLevel, ...] = ()
-    cluster_relative_gap: float = 0.15
-    # Flags that reject an impact from averaging; the others are still reported.
-    reject_flags: tuple[str, ...] = FLAGS
-
-    def __post_init__(self) -> None:
-        unknown = sorted(set(self.reject_flags) - set(FLAGS))
-        if unknown:
-            raise ValueError(
-                f'unknown quality flag(s) {", ".join(unknown)}; known: {", ".join(FLAGS)}'
-            )
-        low, high = self.peak_band_hz
-        if not 0 <= low < high:
-            raise ValueError(
-                f'peak_band_hz must be (low, high) with 0 <= low < high, got {self.peak_band_hz}'
-            )
-        if self.band_limit_hz is not None and self.band_limit_hz <= low:
-            raise ValueError(
-                f'band_limit_hz ({self.band_limit_hz} Hz) leaves no room for the '
-                f'peak band starting at {low} Hz'
-            )
-        for name in ('force_window_s', 'exponential_decay_s'):
-            value = getattr(self, name)
-            if value is not None and not value > 0:
-                raise ValueError(f'{name} must be > 0 or None, got {value}')
-        names = [level.name for level in self.levels]
-        if len(set(names)) != len(names) or '' in names:
-            raise ValueError(f'level names must be unique and non-empty, got {names}')
-
-
-DEFAULT_ANALYSIS = AnalysisConfig()
+from fmm_ros.errors import BadInputError, NoCleanImpactError
 
 
 @dataclass(frozen=True, eq=False)
-class ImpactResult:
+class ImpactAnalysis:
     """One impact analysed: the fields of ImpactResult.msg plus the spectra averaging needs."""
 
     impact_id: int
@@ -142,6 +78,11 @@ class ImpactResult:
         return frf.accelerance_from_mobility(self.mobility, self.frequency_hz)
 
 
+# Deprecated: the name before issue 23, which it shared with the message type
+# fmm_interfaces/msg/ImpactResult; use ImpactAnalysis. Kept one release so callers keep working.
+ImpactResult = ImpactAnalysis
+
+
 @dataclass(frozen=True, eq=False)
 class LevelSummary:
     """One force level's averaged FRF: the per-level fields of FrfSummary.msg."""
@@ -173,7 +114,7 @@ class LevelSummary:
 class Summary:
     """Every impact with its level and verdict, each level's average, and the linearity fit."""
 
-    impacts: tuple[ImpactResult, ...]
+    impacts: tuple[ImpactAnalysis, ...]
     levels: tuple[LevelSummary, ...]
     # Peak |receptance| [m/N] against mean impulse [N*s] over the levels.
     linearity: frf.LinearFit
@@ -185,7 +126,7 @@ def analyze_impact(
     analysis: AnalysisConfig = DEFAULT_ANALYSIS,
     *,
     impact_id: int = 0,
-) -> ImpactResult:
+) -> ImpactAnalysis:
     """Flags, impulse, peak force, contact duration and FRFs of one impact record.
 
     The DFT runs over the whole record zero-padded to `record.window_samples` (the paper's
@@ -232,7 +173,7 @@ def analyze_impact(
         receptance, frequency, _peak_band(force_spectrum, frequency, analysis)
     )
     natural_frequency = frf.natural_frequency(record.velocity_m_s, rate)
-    return ImpactResult(
+    return ImpactAnalysis(
         impact_id=impact_id,
         trigger_sample_index=record.trigger_sample_index,
         record_start_sample_index=record.record_start_sample_index,
@@ -261,7 +202,7 @@ def analyze_impact(
 
 
 def summarize(
-    results: Sequence[ImpactResult], analysis: AnalysisConfig = DEFAULT_ANALYSIS
+    results: Sequence[ImpactAnalysis], analysis: AnalysisConfig = DEFAULT_ANALYSIS
 ) -> Summary:
     """Assign levels, judge every impact, average each level and fit |receptance| vs impulse.
 
@@ -271,7 +212,7 @@ def summarize(
     """
     peaks = np.array([result.peak_force_n for result in results], dtype=float)
     if analysis.levels:
-        index = frf.assign_nominal_levels(
+        index = assign_nominal_levels(
             peaks,
             [level.peak_force_n for level in analysis.levels],
             [level.tolerance_n for level in analysis.levels],
@@ -279,7 +220,7 @@ def summarize(
         names = [analysis.levels[i].name if i >= 0 else '' for i in index]
         level_order = [(level.name, level.peak_force_n) for level in analysis.levels]
     else:
-        labels = frf.cluster_levels(peaks, analysis.cluster_relative_gap)
+        labels = cluster_levels(peaks, analysis.cluster_relative_gap)
         names = [f'level_{label + 1}' if label >= 0 else '' for label in labels]
         level_order = [(f'level_{label + 1}', 0.0) for label in range(labels.max(initial=-1) + 1)]
 
@@ -308,7 +249,7 @@ def summarize(
 
 
 def _level_summary(
-    name: str, nominal_peak_force_n: float, members: list[ImpactResult], analysis: AnalysisConfig
+    name: str, nominal_peak_force_n: float, members: list[ImpactAnalysis], analysis: AnalysisConfig
 ) -> LevelSummary:
     """Average one level's accepted impacts (which must share one frequency grid)."""
     first = members[0]
@@ -316,7 +257,7 @@ def _level_summary(
         if result.frequency_hz.size != first.frequency_hz.size or not np.isclose(
             result.frequency_step_hz, first.frequency_step_hz, rtol=1e-9
         ):
-            raise ValueError(
+            raise BadInputError(
                 f'level {name}: impacts {first.impact_id} and {result.impact_id} have different '
                 f'frequency grids ({first.frequency_step_hz:.6g} Hz x {first.frequency_hz.size} vs '
                 f'{result.frequency_step_hz:.6g} Hz x {result.frequency_hz.size}); records must '
@@ -368,7 +309,7 @@ def _peak_band(
 
 
 class JudgedImpact(Protocol):
-    """What selection needs of an impact: an `ImpactResult`, or the fitter's held impact."""
+    """What selection needs of an impact: an `ImpactAnalysis`, or the fitter's held impact."""
 
     impact_id: int
     accepted: bool

@@ -23,130 +23,25 @@ long session touches warm memory only.
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
 
 import numpy as np
 
 from fmm_ros.constants import FORCE, VELOCITY
-from fmm_ros.core.signal import quality
+from fmm_ros.core.signal.config import (  # noqa: F401 (re-exported: declared in config)
+    DEFAULT_CAPTURE,
+    FLAGS,
+    CaptureConfig,
+    CaptureSamples,
+)
 from fmm_ros.core.signal.frf import first_true
 from fmm_ros.core.signal.records import Gaps, ImpactRecord
 from fmm_ros.core.signal.stream import (
-    DEFAULT_RULES,
     MAX_STEP_SAMPLES,
     AlignedStream,
     Batch,
     ChannelLedger,
-    StreamRules,
 )
-
-# Every quality flag, in the order they are reported. All but the last are properties of the
-# record (`quality_flags`); `out_of_tolerance` is set when impacts are grouped into levels.
-FLAGS: tuple[str, ...] = (
-    'double_hit',
-    'clipped',
-    'saturated',
-    'no_response',
-    'dropout',
-    'gap',
-    'interrupted',
-    'truncated_start',
-    'nan',
-    'unsettled',
-    'overlap',
-    'out_of_tolerance',
-)
-
-
-@dataclass(frozen=True)
-class CaptureConfig:
-    """How impacts are triggered, how long a record runs, and what counts as rest."""
-
-    # Force that starts an impact [N], and the force it must fall below before the next [N].
-    trigger_level_n: float = 20.0
-    rearm_level_n: float = 5.0
-    # Samples kept before the trigger [s] (the rise of the pulse and the rest before it).
-    pretrigger_s: float = 0.010
-    # Record length including the pre-trigger [s]: 33 s as in the paper (df = 1/33 Hz).
-    window_s: float = 33.0
-    # End the record once the rig has been at rest for rest_time_s (the FRF grid stays that
-    # of window_s: the analysis zero-pads). Off by default, as in the paper.
-    end_at_rest: bool = False
-    # |velocity| at or below this is rest [m/s]; rest must last this long [s] (> 1 period).
-    # Every sample is tested, so the level must clear the vibrometer's noise peaks (>= 5 noise
-    # standard deviations: 1e-4 m/s noise, as in the paper-scale tests, peaks near 4.5e-4)
-    # while staying well under the motion that makes an FRF leak (a paper-level hit starts at
-    # ~0.1 m/s; a record ending at 1 mm/s leaks at the 1 % level).
-    rest_velocity_m_s: float = 1e-3
-    rest_time_s: float = 0.5
-    # A force pulse closer than this to the trigger is part of the same impact (double hit);
-    # a later one is the next impact (and overlaps this one if inside its window) [s].
-    min_spacing_s: float = 0.5
-    # How far one channel may run ahead of the other [s]; beyond it the lagging channel's
-    # samples are declared missing, so a dead sensor cannot make the capture hoard memory.
-    max_skew_s: float = 5.0
-    # The stream's other tolerances (see fmm_ros.core.signal.stream): the largest index jump
-    # that is a gap or a repeat rather than a discontinuity [s], and how far apart two
-    # batches' acquisition clocks may be and still be one acquisition [s].
-    max_gap_s: float = DEFAULT_RULES.max_gap_s
-    clock_tolerance_s: float = DEFAULT_RULES.clock_tolerance_s
-
-    def __post_init__(self) -> None:
-        if not self.rearm_level_n < self.trigger_level_n:
-            raise ValueError(
-                f'rearm_level_n ({self.rearm_level_n} N) must be below '
-                f'trigger_level_n ({self.trigger_level_n} N) for hysteresis'
-            )
-        for name in ('window_s', 'rest_velocity_m_s', 'rest_time_s', 'min_spacing_s'):
-            if not getattr(self, name) > 0:
-                raise ValueError(f'{name} must be > 0, got {getattr(self, name)}')
-        for name in ('pretrigger_s', 'max_skew_s', 'max_gap_s', 'clock_tolerance_s'):
-            if not getattr(self, name) >= 0:
-                raise ValueError(f'{name} must be >= 0, got {getattr(self, name)}')
-        if not self.pretrigger_s < self.window_s:
-            raise ValueError(
-                f'pretrigger_s ({self.pretrigger_s} s) must be shorter than '
-                f'window_s ({self.window_s} s)'
-            )
-
-    @property
-    def rules(self) -> StreamRules:
-        """The stream rules this capture aligns its channels by."""
-        return StreamRules(self.max_skew_s, self.max_gap_s, self.clock_tolerance_s)
-
-    def samples(self, sample_rate_hz: float) -> CaptureSamples:
-        """The durations of this config as whole sample counts at `sample_rate_hz`."""
-
-        def count(seconds: float) -> int:
-            return int(round(seconds * sample_rate_hz))
-
-        result = CaptureSamples(
-            pretrigger=count(self.pretrigger_s),
-            window=count(self.window_s),
-            rest=max(1, count(self.rest_time_s)),
-            min_spacing=max(1, count(self.min_spacing_s)),
-            max_skew=count(self.max_skew_s),
-        )
-        if result.window <= result.pretrigger:
-            raise ValueError(
-                f'at {sample_rate_hz} Hz the window ({result.window} samples) '
-                f'leaves nothing after the pre-trigger ({result.pretrigger})'
-            )
-        return result
-
-
-DEFAULT_CAPTURE = CaptureConfig()
-
-
-@dataclass(frozen=True)
-class CaptureSamples:
-    """`CaptureConfig` durations in samples at one sample rate."""
-
-    pretrigger: int
-    window: int
-    rest: int
-    min_spacing: int
-    max_skew: int
+from fmm_ros.errors import BadInputError
 
 
 class TriggerDetector:
@@ -194,9 +89,9 @@ class TriggerDetector:
                 continue
             if self._last is not None:
                 pos = max(pos, self._last + self._spacing - first_sample_index)
-            above = first_true(_reaches(force_n[pos:], self._baseline_n + self._trigger_n))
+            above = first_true(reaches_level(force_n[pos:], self._baseline_n + self._trigger_n))
             if not self._seen_rest:
-                rest = first_true(_below(force_n[pos:], self._baseline_n + self._rearm_n))
+                rest = first_true(below_level(force_n[pos:], self._baseline_n + self._rearm_n))
                 self._seen_rest = 0 <= rest < above or (rest >= 0 and above < 0)
             if above < 0:
                 break
@@ -211,7 +106,7 @@ class TriggerDetector:
 
     def _rearm(self, force_n: np.ndarray, first_sample_index: int, pos: int) -> int:
         """Re-arm from pos if the block allows: the position after it, or -1 (not in block)."""
-        below = first_true(_below(force_n[pos:], self._baseline_n + self._rearm_n))
+        below = first_true(below_level(force_n[pos:], self._baseline_n + self._rearm_n))
         relock = None if self._last is None else self._last + self._spacing - first_sample_index
         if below >= 0 and (relock is None or pos + below <= relock):
             pos += below
@@ -253,93 +148,13 @@ def with_trigger(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE) 
     triggers = TriggerDetector(config, record.sample_rate_hz).scan(record.force_n, 0)
     if not triggers:
         where = f'{record.source}: ' if record.source else ''
-        raise ValueError(
+        raise BadInputError(
             f'{where}the force never reaches the trigger level '
             f'{config.trigger_level_n} N (peak {np.nanmax(record.force_n):.4g} N)'
         )
     return dataclasses.replace(
         record, trigger_sample_index=record.record_start_sample_index + triggers[0]
     )
-
-
-def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE) -> tuple[str, ...]:
-    """The quality flags a record raises, in `FLAGS` order (see the module docstring for rules).
-
-    - double_hit: after the force falls below the re-arm level, it reaches the trigger level
-      again within min_spacing_s of the trigger (a hammer bounce: two inputs in one FRF).
-    - clipped: the force reaches its known full-scale range, or its peak is a flat top no
-      smooth pulse makes (`quality.flat_extreme`: clipping with the range unknown).
-    - saturated: the velocity reaches its known range, or its maximum or minimum is such a
-      flat top (the vibrometer's range exceeded).
-    - no_response: the velocity does not depart from its level before the hit by more than
-      its noise and its own spread there (`quality.responds`): a dead or disconnected
-      vibrometer.
-    - dropout: a noisy channel holds one exact value for longer than chance allows
-      (`quality.stuck_stretch`): samples dropped and filled by zeros or the last value.
-    - gap: samples that never arrived inside the record (they are NaN).
-    - interrupted: a new acquisition began before the record was complete (its tail is a gap).
-    - truncated_start: the acquisition began after the record's start: mid-hit (the force
-      never below the re-arm level before the trigger, or above the trigger level from its
-      first sample: an offset) or inside the pre-trigger; the record starts at the
-      acquisition's first sample.
-    - nan: received samples that are NaN or infinite.
-    - unsettled: |velocity - its level before the hit| (the level removes a vibrometer
-      offset) above rest_velocity_m_s in the last rest_time_s of the record, or before the
-      hammer touched, so the record is not one whole transient and its DFT leaks.
-    - overlap: the next impact triggers inside this record.
-    """
-    record = with_trigger(record, config)
-    trigger = record.trigger_offset
-    force = record.force_n - resting_force_level(record.force_n, trigger, config)
-    velocity = record.velocity_m_s
-    samples = config.samples(record.sample_rate_hz)
-    flags = set()
-    force_noise = quality.white_noise_std(force)
-    velocity_noise = quality.white_noise_std(velocity)
-
-    after_contact = first_true(_below(force[trigger:], config.rearm_level_n))
-    contact_end = force.size if after_contact < 0 else trigger + after_contact
-    bounce = force[contact_end : trigger + samples.min_spacing]
-    if np.any(_reaches(bounce, config.trigger_level_n)):
-        flags.add('double_hit')
-    force_plateaus = _plateaus(force, (1.0,), force_noise)
-    velocity_plateaus = _plateaus(velocity, (1.0, -1.0), velocity_noise)
-    if _beyond(force, record.force_full_scale_n) or force_plateaus:
-        flags.add('clipped')
-    if _beyond(velocity, record.velocity_full_scale_m_s) or velocity_plateaus:
-        flags.add('saturated')
-    contact_start = contact_start_index(force, trigger, config)
-    if not quality.responds(
-        velocity, contact_start, contact_end, samples.min_spacing, velocity_noise
-    ):
-        flags.add('no_response')
-    if quality.stuck_stretch(force, force_plateaus) or quality.stuck_stretch(
-        velocity, velocity_plateaus
-    ):
-        flags.add('dropout')
-    if record.force_gaps or record.velocity_gaps:
-        flags.add('gap')
-    if record.interrupted:
-        flags.add('interrupted')
-    if record.truncated_start:
-        flags.add('truncated_start')
-    if _non_finite_outside(force, record.force_gaps) or _non_finite_outside(
-        velocity, record.velocity_gaps
-    ):
-        flags.add('nan')
-    # Motion is judged about the level at rest before the hit: a vibrometer's offset is not.
-    before = velocity[:contact_start]
-    finite_before = before[np.isfinite(before)]
-    rest_level = float(np.median(finite_before)) if finite_before.size else 0.0
-    tail = velocity[max(trigger + 1, velocity.size - samples.rest) :]
-    if np.any(np.abs(before - rest_level) > config.rest_velocity_m_s) or np.any(
-        np.abs(tail - rest_level) > config.rest_velocity_m_s
-    ):
-        flags.add('unsettled')
-    follower = TriggerDetector(config, record.sample_rate_hz, last_trigger=trigger)
-    if follower.scan(force[trigger + 1 :], trigger + 1):
-        flags.add('overlap')
-    return tuple(flag for flag in FLAGS if flag in flags)
 
 
 def resting_force_level(
@@ -367,39 +182,18 @@ def contact_start_index(
     """
     if trigger_offset <= 0:
         return 0
-    back = first_true(_below(force_n[trigger_offset - 1 :: -1], config.rearm_level_n))
+    back = first_true(below_level(force_n[trigger_offset - 1 :: -1], config.rearm_level_n))
     return trigger_offset - back if back >= 0 else 0
 
 
-def _reaches(force_n: np.ndarray, level_n: float) -> np.ndarray:
-    """Finite samples at or above a level (the trigger test)."""
+def reaches_level(force_n: np.ndarray, level_n: float) -> np.ndarray:
+    """Finite samples at or above a level (the trigger test; `quality` tests bounces by it)."""
     return (force_n >= level_n) & (force_n < np.inf)
 
 
-def _below(force_n: np.ndarray, level_n: float) -> np.ndarray:
+def below_level(force_n: np.ndarray, level_n: float) -> np.ndarray:
     """Finite samples below a level (the re-arm test)."""
     return (force_n < level_n) & (force_n > -np.inf)
-
-
-def _plateaus(samples: np.ndarray, signs: tuple[float, ...], noise_std: float) -> tuple[float, ...]:
-    """Levels of the channel's clipped extremes (`quality.flat_extreme`) on the given sides."""
-    levels = (quality.flat_extreme(samples, sign, noise_std) for sign in signs)
-    return tuple(level for level in levels if level is not None)
-
-
-def _beyond(samples: np.ndarray, full_scale: float) -> bool:
-    """Whether any sample reaches a known full-scale range (0: unknown, never)."""
-    return full_scale > 0 and bool(np.any(np.abs(samples) >= full_scale))
-
-
-def _non_finite_outside(samples: np.ndarray, gaps: Gaps) -> bool:
-    """Whether a sample outside the gap ranges is NaN or infinite."""
-    if np.isfinite(np.sum(samples)):
-        return False
-    bad = ~np.isfinite(samples)
-    for start, stop in gaps:
-        bad[start:stop] = False
-    return bool(bad.any())
 
 
 class _Ring:
@@ -552,7 +346,7 @@ class ImpactCapture:
         force_n = np.asarray(force_n, dtype=float)
         velocity_m_s = np.asarray(velocity_m_s, dtype=float)
         if force_n.shape != velocity_m_s.shape:
-            raise ValueError(
+            raise BadInputError(
                 f'force has {force_n.size} samples but velocity has '
                 f'{velocity_m_s.size}: feed_both needs aligned blocks'
             )
@@ -620,7 +414,7 @@ class ImpactCapture:
             or force.shape != (self._samples.window,)
             or any(force is pooled for pooled, _ in self._pool)
         ):
-            raise ValueError('only a record completed by this capture can be recycled, once')
+            raise BadInputError('only a record completed by this capture can be recycled, once')
         self._pool.append((force, velocity))
 
     def _completed(self) -> list[ImpactRecord]:

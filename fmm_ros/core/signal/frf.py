@@ -1,4 +1,6 @@
-"""Impulse, contact, FRFs, windows, averaging, force levels and the linear-in-impulse law.
+"""Impulse, contact, FRFs, windows, averaging and the linear-in-impulse law.
+
+(Hits are grouped into force levels by `levels`.)
 
 Plain functions in the style of scipy.signal: arrays in, arrays out, SI units (named where not
 obvious). The FRF method is the paper's (Kossack, Ziegert, Schmitz 2019, Sec. 5): the DFT of the
@@ -17,6 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft
+
+from fmm_ros.errors import BadInputError
 
 
 def frequency_axis(n_fft: int, sample_rate_hz: float) -> np.ndarray:
@@ -164,7 +168,7 @@ def force_window(
     the pre-trigger offset is subtracted by the caller) so the force spectrum is the pulse's.
     """
     if width_s <= 0 or taper_s < 0:
-        raise ValueError(
+        raise BadInputError(
             f'force window width must be > 0 and taper >= 0, got {width_s} s, {taper_s} s'
         )
     window = np.zeros(n_samples)
@@ -191,7 +195,7 @@ def exponential_window(
     ratio to subtract from a mode fitted to such an FRF (the usual correction).
     """
     if decay_time_s <= 0:
-        raise ValueError(f'exponential window decay time must be > 0, got {decay_time_s} s')
+        raise BadInputError(f'exponential window decay time must be > 0, got {decay_time_s} s')
     t_s = (np.arange(n_samples) - start_index) / sample_rate_hz
     return np.exp(-t_s / decay_time_s)
 
@@ -223,7 +227,7 @@ def average_frf(force_spectra: np.ndarray, velocity_spectra: np.ndarray) -> FrfA
     force = np.atleast_2d(force_spectra)
     velocity = np.atleast_2d(velocity_spectra)
     if force.shape != velocity.shape:
-        raise ValueError(
+        raise BadInputError(
             f'force spectra {force.shape} and velocity spectra {velocity.shape} '
             'must have the same shape (trials, bins)'
         )
@@ -342,46 +346,6 @@ def excitation_bandwidth(
     floor = np.max(power) * 10 ** (-drop_db / 10)
     below = first_true(~(power >= floor))
     return float(frequency_hz[-1] if below < 0 else frequency_hz[max(below - 1, 0)])
-
-
-def assign_nominal_levels(
-    peak_force_n: np.ndarray, nominal_peak_force_n: np.ndarray, tolerance_n: np.ndarray | float
-) -> np.ndarray:
-    """Index of the nearest nominal level within its tolerance for each peak force, else -1.
-
-    The paper accepted impacts within +-50 N of the nominal 450/1000/1450 N (Sec. 4).
-    """
-    peaks = np.asarray(peak_force_n, dtype=float)[:, None]
-    nominal = np.asarray(nominal_peak_force_n, dtype=float)[None, :]
-    if nominal.size == 0:
-        return np.full(peaks.shape[0], -1)
-    distance = np.abs(peaks - nominal)
-    inside = distance <= np.broadcast_to(np.asarray(tolerance_n, dtype=float), nominal.shape)
-    distance = np.where(inside, distance, np.inf)
-    nearest = np.argmin(distance, axis=1)
-    return np.where(np.isfinite(distance[np.arange(peaks.shape[0]), nearest]), nearest, -1)
-
-
-def cluster_levels(peak_force_n: np.ndarray, relative_gap: float = 0.15) -> np.ndarray:
-    """Group peak forces into levels when no nominal levels are given: labels 0, 1, ... by force.
-
-    Sorted peak forces are split wherever two neighbours differ by more than `relative_gap`
-    times the larger one (single-linkage clustering in one dimension: deterministic, no level
-    count to guess). Hand-held hammer levels spread by a few percent and sit tens of percent
-    apart, so the default of 15 % separates 450/1000/1450 N while keeping each level whole.
-    Non-finite forces get -1.
-    """
-    peaks = np.asarray(peak_force_n, dtype=float)
-    labels = np.full(peaks.size, -1)
-    finite = np.flatnonzero(np.isfinite(peaks))
-    if finite.size == 0:
-        return labels
-    order = finite[np.argsort(peaks[finite], kind='stable')]
-    sorted_peaks = peaks[order]
-    upper = np.maximum(np.abs(sorted_peaks[1:]), np.abs(sorted_peaks[:-1]))
-    breaks = np.diff(sorted_peaks) > relative_gap * upper
-    labels[order] = np.concatenate(([0], np.cumsum(breaks)))
-    return labels
 
 
 @dataclass(frozen=True)

@@ -19,6 +19,7 @@ from fmm_ros.core.signal.stream import (
     ChannelLedger,
     StreamRules,
 )
+from fmm_ros.errors import BadInputError
 
 QUANTITIES = tuple(channel.quantity for channel in CHANNELS)
 
@@ -28,7 +29,7 @@ class SampleHistory:
 
     def __init__(self, history_s: float, rules: StreamRules = DEFAULT_RULES) -> None:
         if not history_s > 0:
-            raise ValueError(f'history_s must be positive, got {history_s}')
+            raise BadInputError(f'history_s must be positive, got {history_s}')
         self.history_s = float(history_s)
         self.capacity = 0  # samples a ring holds: set by the first batch's rate
         self.sample_rate_hz: float | None = None
@@ -137,9 +138,9 @@ class SampleHistory:
         """
         stop = start + length
         if not self.covers(start, stop):
-            raise ValueError(f'samples up to {stop} have not all arrived yet')
+            raise BadInputError(f'samples up to {stop} have not all arrived yet')
         if not self.holds(start) or length > self.capacity:
-            raise ValueError(
+            raise BadInputError(
                 f'samples from {start} are no longer held (the history keeps '
                 f'{self.capacity} samples)'
             )

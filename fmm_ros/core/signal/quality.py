@@ -1,9 +1,9 @@
 """Signs of damaged samples in one channel: a flat top, a stuck stretch, no response to a hit.
 
-Plain functions on arrays, used by `capture.quality_flags` (so the analyzer node, `fmm analyze`,
-bag replay and every fit see the same verdict). None of them needs to know the sensor: a
-full-scale range, a quantisation step or a noise level, where they matter, are read from the
-samples themselves.
+Plain functions on arrays, and `quality_flags`, the record's verdict they make (so the analyzer
+node, `fmm analyze`, bag replay and every fit see the same one). None of them needs to know
+the sensor: a full-scale range, a quantisation step or a noise level, where they matter, are
+read from the samples themselves.
 
 - Noise: the white-noise deviation of a channel is the MAD deviation of its second differences
   over sqrt(6) (`white_noise_std`): a few-Hz motion barely changes over two samples at 10 kHz,
@@ -40,7 +40,17 @@ import math
 
 import numpy as np
 
+from fmm_ros.core.signal.capture import (
+    TriggerDetector,
+    below_level,
+    contact_start_index,
+    reaches_level,
+    resting_force_level,
+    with_trigger,
+)
+from fmm_ros.core.signal.config import DEFAULT_CAPTURE, FLAGS, CaptureConfig
 from fmm_ros.core.signal.frf import first_true
+from fmm_ros.core.signal.records import Gaps, ImpactRecord
 
 MAD_TO_STD = 1.482602218505602
 """1 / Phi^-1(3/4): the MAD of Gaussian noise times this is its standard deviation."""
@@ -289,3 +299,100 @@ def responds(
     spread = float(np.percentile(np.abs(before - level), RESPONSE_PERCENTILE))
     noise = white_noise_std(velocity) if noise_std is None else noise_std
     return departure > RESPONSE_RATIO * max(spread, noise if np.isfinite(noise) else 0.0)
+
+
+def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE) -> tuple[str, ...]:
+    """The quality flags a record raises, in `FLAGS` order (see the module docstring for rules).
+
+    - double_hit: after the force falls below the re-arm level, it reaches the trigger level
+      again within min_spacing_s of the trigger (a hammer bounce: two inputs in one FRF).
+    - clipped: the force reaches its known full-scale range, or its peak is a flat top no
+      smooth pulse makes (`flat_extreme`: clipping with the range unknown).
+    - saturated: the velocity reaches its known range, or its maximum or minimum is such a
+      flat top (the vibrometer's range exceeded).
+    - no_response: the velocity does not depart from its level before the hit by more than
+      its noise and its own spread there (`responds`): a dead or disconnected
+      vibrometer.
+    - dropout: a noisy channel holds one exact value for longer than chance allows
+      (`stuck_stretch`): samples dropped and filled by zeros or the last value.
+    - gap: samples that never arrived inside the record (they are NaN).
+    - interrupted: a new acquisition began before the record was complete (its tail is a gap).
+    - truncated_start: the acquisition began after the record's start: mid-hit (the force
+      never below the re-arm level before the trigger, or above the trigger level from its
+      first sample: an offset) or inside the pre-trigger; the record starts at the
+      acquisition's first sample.
+    - nan: received samples that are NaN or infinite.
+    - unsettled: |velocity - its level before the hit| (the level removes a vibrometer
+      offset) above rest_velocity_m_s in the last rest_time_s of the record, or before the
+      hammer touched, so the record is not one whole transient and its DFT leaks.
+    - overlap: the next impact triggers inside this record.
+    """
+    record = with_trigger(record, config)
+    trigger = record.trigger_offset
+    force = record.force_n - resting_force_level(record.force_n, trigger, config)
+    velocity = record.velocity_m_s
+    samples = config.samples(record.sample_rate_hz)
+    flags = set()
+    force_noise = white_noise_std(force)
+    velocity_noise = white_noise_std(velocity)
+
+    after_contact = first_true(below_level(force[trigger:], config.rearm_level_n))
+    contact_end = force.size if after_contact < 0 else trigger + after_contact
+    bounce = force[contact_end : trigger + samples.min_spacing]
+    if np.any(reaches_level(bounce, config.trigger_level_n)):
+        flags.add('double_hit')
+    force_plateaus = _plateaus(force, (1.0,), force_noise)
+    velocity_plateaus = _plateaus(velocity, (1.0, -1.0), velocity_noise)
+    if _beyond(force, record.force_full_scale_n) or force_plateaus:
+        flags.add('clipped')
+    if _beyond(velocity, record.velocity_full_scale_m_s) or velocity_plateaus:
+        flags.add('saturated')
+    contact_start = contact_start_index(force, trigger, config)
+    if not responds(velocity, contact_start, contact_end, samples.min_spacing, velocity_noise):
+        flags.add('no_response')
+    if stuck_stretch(force, force_plateaus) or stuck_stretch(velocity, velocity_plateaus):
+        flags.add('dropout')
+    if record.force_gaps or record.velocity_gaps:
+        flags.add('gap')
+    if record.interrupted:
+        flags.add('interrupted')
+    if record.truncated_start:
+        flags.add('truncated_start')
+    if _non_finite_outside(force, record.force_gaps) or _non_finite_outside(
+        velocity, record.velocity_gaps
+    ):
+        flags.add('nan')
+    # Motion is judged about the level at rest before the hit: a vibrometer's offset is not.
+    before = velocity[:contact_start]
+    finite_before = before[np.isfinite(before)]
+    rest_level = float(np.median(finite_before)) if finite_before.size else 0.0
+    tail = velocity[max(trigger + 1, velocity.size - samples.rest) :]
+    if np.any(np.abs(before - rest_level) > config.rest_velocity_m_s) or np.any(
+        np.abs(tail - rest_level) > config.rest_velocity_m_s
+    ):
+        flags.add('unsettled')
+    follower = TriggerDetector(config, record.sample_rate_hz, last_trigger=trigger)
+    if follower.scan(force[trigger + 1 :], trigger + 1):
+        flags.add('overlap')
+    return tuple(flag for flag in FLAGS if flag in flags)
+
+
+def _plateaus(samples: np.ndarray, signs: tuple[float, ...], noise_std: float) -> tuple[float, ...]:
+    """Levels of the channel's clipped extremes (`flat_extreme`) on the given sides."""
+    levels = (flat_extreme(samples, sign, noise_std) for sign in signs)
+    return tuple(level for level in levels if level is not None)
+
+
+def _beyond(samples: np.ndarray, full_scale: float) -> bool:
+    """Whether any sample reaches a known full-scale range (0: unknown, never)."""
+    return full_scale > 0 and bool(np.any(np.abs(samples) >= full_scale))
+
+
+def _non_finite_outside(samples: np.ndarray, gaps: Gaps) -> bool:
+    """Whether a sample outside the gap ranges is NaN or infinite."""
+    if np.isfinite(np.sum(samples)):
+        return False
+    bad = ~np.isfinite(samples)
+    for start, stop in gaps:
+        bad[start:stop] = False
+    return bool(bad.any())

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from fmm_ros.core._checks import sample_rate_from_times
+from fmm_ros.errors import BadInputError
 
 CSV_COLUMNS: tuple[str, str, str] = ('time_s', 'force_n', 'velocity_m_s')
 
@@ -67,24 +68,24 @@ class ImpactRecord:
         force = np.asarray(self.force_n, dtype=float)
         velocity = np.asarray(self.velocity_m_s, dtype=float)
         if force.ndim != 1 or velocity.ndim != 1:
-            raise ValueError('force and velocity must be one-dimensional sample arrays')
+            raise BadInputError('force and velocity must be one-dimensional sample arrays')
         if force.shape != velocity.shape:
-            raise ValueError(
+            raise BadInputError(
                 f'force has {force.size} samples but velocity has {velocity.size}: '
                 'the two channels of a record must be sample-aligned'
             )
         if force.size < 2:
-            raise ValueError(f'a record needs at least 2 samples, got {force.size}')
+            raise BadInputError(f'a record needs at least 2 samples, got {force.size}')
         if not np.isfinite(self.sample_rate_hz) or self.sample_rate_hz <= 0:
-            raise ValueError(f'sample_rate_hz must be positive, got {self.sample_rate_hz}')
+            raise BadInputError(f'sample_rate_hz must be positive, got {self.sample_rate_hz}')
         window = self.window_samples or force.size
         if window < force.size:
-            raise ValueError(
+            raise BadInputError(
                 f'window_samples ({window}) is shorter than the record ({force.size} samples)'
             )
         offset = self.trigger_offset
         if offset is not None and not 0 <= offset < force.size:
-            raise ValueError(
+            raise BadInputError(
                 f'trigger sample {self.trigger_sample_index} lies outside the record '
                 f'({self.record_start_sample_index} + {force.size} samples)'
             )
@@ -134,18 +135,18 @@ def read_impact_csv(path: str | Path) -> ImpactRecord:
             line = handle.readline(MAX_HEADER_CHARS + 1)
         header = next(csv.reader([line]), None) if line else None
     except (UnicodeDecodeError, csv.Error) as error:
-        raise ValueError(f'{path}: not a text CSV file ({error})') from None
+        raise BadInputError(f'{path}: not a text CSV file ({error})') from None
     if len(line) > MAX_HEADER_CHARS:
-        raise ValueError(
+        raise BadInputError(
             f'{path}: the first line is longer than {MAX_HEADER_CHARS} characters: not the '
             f'header {",".join(CSV_COLUMNS)}'
         )
     if header is None:
-        raise ValueError(f'{path}: empty file, expected a header {",".join(CSV_COLUMNS)}')
+        raise BadInputError(f'{path}: empty file, expected a header {",".join(CSV_COLUMNS)}')
     names = [name.strip() for name in header]
     missing = [name for name in CSV_COLUMNS if name not in names]
     if missing:
-        raise ValueError(
+        raise BadInputError(
             f'{path}: missing column(s) {", ".join(missing)}; the header must name '
             f'{",".join(CSV_COLUMNS)}'
         )
@@ -153,20 +154,20 @@ def read_impact_csv(path: str | Path) -> ImpactRecord:
     try:
         data = np.loadtxt(path, delimiter=',', skiprows=1, usecols=columns, ndmin=2)
     except ValueError as error:
-        raise ValueError(f'{path}: {error}') from None
+        raise BadInputError(f'{path}: {error}') from None
     if data.shape[0] < 2:
-        raise ValueError(f'{path}: needs at least 2 samples, found {data.shape[0]}')
+        raise BadInputError(f'{path}: needs at least 2 samples, found {data.shape[0]}')
     for column, name in enumerate(CSV_COLUMNS):
         bad = np.flatnonzero(~np.isfinite(data[:, column]))
         if bad.size:
-            raise ValueError(
+            raise BadInputError(
                 f'{path}: {name} is not finite ({data[bad[0], column]}) at data row '
                 f'{bad[0] + 1} and {bad.size - 1} more row(s)'
             )
     try:
         sample_rate_hz = sample_rate_from_times(data[:, 0], rtol=TIME_STEP_TOLERANCE)
     except ValueError as error:
-        raise ValueError(f'{path}: {error} (a dropped or repeated sample?)') from None
+        raise BadInputError(f'{path}: {error} (a dropped or repeated sample?)') from None
     return ImpactRecord(
         force_n=np.ascontiguousarray(data[:, 1]),
         velocity_m_s=np.ascontiguousarray(data[:, 2]),
@@ -182,7 +183,7 @@ def write_impact_csv(
     force = np.asarray(force_n, dtype=float)
     velocity = np.asarray(velocity_m_s, dtype=float)
     if force.shape != velocity.shape or force.ndim != 1:
-        raise ValueError('force and velocity must be one-dimensional arrays of equal length')
+        raise BadInputError('force and velocity must be one-dimensional arrays of equal length')
     time_s = np.arange(force.size) / sample_rate_hz
     np.savetxt(
         path,

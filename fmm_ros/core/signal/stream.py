@@ -51,6 +51,11 @@ from typing import Protocol
 import numpy as np
 
 from fmm_ros.constants import CHANNELS
+from fmm_ros.core.signal.config import (  # noqa: F401 (re-exported: declared in config)
+    DEFAULT_RULES,
+    StreamRules,
+)
+from fmm_ros.errors import BadInputError
 
 # Largest block a sink is handed in one step: bounds the buffers a huge batch would need.
 MAX_STEP_SAMPLES = 4096
@@ -75,29 +80,6 @@ FAULTS: dict[str, str] = {
     'clock': 'a new acquisition: the clock says sample 0 was taken at another time',
 }
 RESYNC_REASONS = ('reset', 'jump', 'rate', 'sender', 'clock')
-
-
-@dataclass(frozen=True)
-class StreamRules:
-    """The tolerances of the stream's rules, in seconds of signal."""
-
-    # How far one channel may run ahead of the other before its lag is declared missing [s].
-    max_skew_s: float = 5.0
-    # Largest jump of the index (ahead or back) that is a gap or a past batch rather than a
-    # discontinuity, when the batches' clocks cannot tell [s].
-    max_gap_s: float = 10.0
-    # Acquisition origins (stamp - index / rate) further apart than this belong to different
-    # acquisitions [s]; fmm sources stamp exactly, a source stamping on arrival jitters less.
-    clock_tolerance_s: float = 0.5
-
-    def __post_init__(self) -> None:
-        for name in ('max_skew_s', 'max_gap_s', 'clock_tolerance_s'):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0):
-                raise ValueError(f'{name} must be a finite number >= 0, got {value}')
-
-
-DEFAULT_RULES = StreamRules()
 
 
 @dataclass(frozen=True, eq=False)
@@ -393,7 +375,7 @@ class AlignedStream:
             return self._channels[quantity]
         except KeyError:
             names = ' or '.join(repr(q) for q in self._channels)
-            raise ValueError(f'quantity must be {names}, got {quantity!r}') from None
+            raise BadInputError(f'quantity must be {names}, got {quantity!r}') from None
 
     def _judge(self, channel: _Channel, batch: Batch) -> None:
         """A batch with nothing held: take it, refuse it, or hold it as a discontinuity."""
@@ -579,12 +561,14 @@ class LedgerOnly:
 def check(quantity: str, batch: Batch) -> None:
     """Malformed input is a caller's mistake, not a fault of the stream: ValueError."""
     if batch.samples.ndim != 1:
-        raise ValueError(
+        raise BadInputError(
             f'{quantity} samples must be one-dimensional, got shape {batch.samples.shape}'
         )
     if not 0 < batch.sample_rate_hz < math.inf:  # also refuses NaN
-        raise ValueError(f'{quantity} sample_rate_hz must be positive, got {batch.sample_rate_hz}')
+        raise BadInputError(
+            f'{quantity} sample_rate_hz must be positive, got {batch.sample_rate_hz}'
+        )
     if batch.first_sample_index < 0:
-        raise ValueError(
+        raise BadInputError(
             f'{quantity} first_sample_index must be >= 0, got {batch.first_sample_index}'
         )

@@ -5,45 +5,28 @@ writer takes numpy arrays or raw CDR bytes (writer.py); the reader yields aligne
 velocity batches and decoded results, and recovers what a crash or damage left (reader.py).
 """
 
-from fmm_ros.io.bags.definitions import (
-    FRF_SUMMARY,
-    IMPACT_RESULT,
-    SAMPLE_BATCH,
-    find_definitions,
-    fmm_typestore,
-    new_message,
-)
-from fmm_ros.io.bags.errors import BagDamagedError, BagError, MessageTypeError, MissingTopicError
-from fmm_ros.io.bags.reader import (
-    AlignedBatch,
-    BagMessage,
-    BagReader,
-    BatchAligner,
-    ChannelBatch,
-    TopicInfo,
-)
-from fmm_ros.io.bags.writer import (
-    DEFAULT_BATCH_SIZE,
-    BagWriter,
-)
+from fmm_ros._lazy import lazy_exports
 
-__all__ = [
-    'AlignedBatch',
-    'BagDamagedError',
-    'BagError',
-    'BagMessage',
-    'BagReader',
-    'BagWriter',
-    'BatchAligner',
-    'ChannelBatch',
-    'DEFAULT_BATCH_SIZE',
-    'FRF_SUMMARY',
-    'IMPACT_RESULT',
-    'MissingTopicError',
-    'SAMPLE_BATCH',
-    'TopicInfo',
-    'MessageTypeError',
-    'find_definitions',
-    'fmm_typestore',
-    'new_message',
-]
+_EXPORTS = {
+    'AlignedBatch': 'reader',
+    'BagDamagedError': 'errors',
+    'BagError': 'errors',
+    'BagMessage': 'reader',
+    'BagReader': 'reader',
+    'BagWriter': 'writer',
+    'BatchAligner': 'reader',
+    'ChannelBatch': 'reader',
+    'DEFAULT_BATCH_SIZE': 'writer',
+    'FRF_SUMMARY': 'definitions',
+    'IMPACT_RESULT': 'definitions',
+    'MessageTypeError': 'errors',
+    'MissingTopicError': 'errors',
+    'SAMPLE_BATCH': 'definitions',
+    'TopicInfo': 'reader',
+    'find_definitions': 'definitions',
+    'fmm_typestore': 'definitions',
+    'new_message': 'definitions',
+}
+
+__all__ = sorted(_EXPORTS)
+__getattr__ = lazy_exports(__name__, _EXPORTS)

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import yaml
 
+from fmm_ros.errors import BadInputError
 from fmm_ros.io.bags.writer import BagWriter
 
 ACQUISITIONS_KEY = 'fmm.acquisitions'
@@ -64,7 +65,7 @@ def read_acquisitions(bag: str | Path) -> tuple[Acquisition, ...]:
             for e in entries
         )
     except (yaml.YAMLError, ValueError, AttributeError, KeyError, TypeError) as error:
-        raise ValueError(
+        raise BadInputError(
             f'{bag}: unreadable {ACQUISITIONS_KEY} in metadata.yaml: {error}'
         ) from None
     return tuple(sorted(acquisitions, key=lambda a: a.first_sample_index))

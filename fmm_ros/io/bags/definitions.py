@@ -22,6 +22,8 @@ from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
+from fmm_ros.errors import BadInputError
+
 INTERFACES_PACKAGE = 'fmm_interfaces'
 SAMPLE_BATCH = 'fmm_interfaces/msg/SampleBatch'
 IMPACT_RESULT = 'fmm_interfaces/msg/ImpactResult'
@@ -134,10 +136,10 @@ def new_message(store: Typestore, msgtype: str, **fields):
         cls = store.types[msgtype]
         _, field_defs = store.fielddefs[msgtype]
     except KeyError:
-        raise ValueError(f'unknown message type {msgtype!r}') from None
+        raise BadInputError(f'unknown message type {msgtype!r}') from None
     names = [name for name, _ in field_defs]
     if unknown := sorted(set(fields) - set(names)):
-        raise ValueError(
+        raise BadInputError(
             f'{msgtype} has no field {", ".join(unknown)} (fields: {", ".join(names)})'
         )
     values = {

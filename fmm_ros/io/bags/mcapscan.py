@@ -17,6 +17,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from fmm_ros.errors import BadInputError
+
 MAGIC = b'\x89MCAP0\r\n'
 
 HEADER, FOOTER, SCHEMA, CHANNEL, MESSAGE, CHUNK = 0x01, 0x02, 0x03, 0x04, 0x05, 0x06
@@ -287,4 +289,4 @@ def _decompress(compression: str, data: memoryview, size: int) -> bytes:
         import lz4.frame
 
         return lz4.frame.decompress(bytes(data))
-    raise ValueError(f'unknown chunk compression {compression!r}')
+    raise BadInputError(f'unknown chunk compression {compression!r}')

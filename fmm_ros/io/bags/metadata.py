@@ -15,6 +15,7 @@ import yaml
 from rosbags.interfaces import Qos
 
 from fmm_ros.core.signal.stream import ChannelLedger
+from fmm_ros.errors import BadInputError
 from fmm_ros.io.bags.definitions import BASE_STORE
 
 ROSBAG2_VERSION = 9  # the metadata version rosbag2 on Jazzy writes
@@ -138,7 +139,7 @@ def custom_ledger(custom_data: dict[str, str] | None) -> dict[str, ChannelLedger
         data = json.loads(text)
         return {topic: ChannelLedger.from_dict(entry) for topic, entry in data.items()}
     except (ValueError, TypeError, AttributeError) as error:
-        raise ValueError(f'custom_data {LEDGER_KEY} is not a ledger: {error}') from None
+        raise BadInputError(f'custom_data {LEDGER_KEY} is not a ledger: {error}') from None
 
 
 def read_information(bag: Path) -> dict:

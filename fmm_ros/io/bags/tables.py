@@ -15,6 +15,8 @@ import numpy as np
 from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
+from fmm_ros.constants import FRF_FORMATS
+from fmm_ros.errors import BadInputError
 from fmm_ros.io.bags.definitions import FRF_SUMMARY, IMPACT_RESULT, fmm_typestore
 from fmm_ros.io.frf_files import FrfCurve, write_frfs
 
@@ -102,9 +104,6 @@ def _safe(name: str) -> str:
     return re.sub(r'[^A-Za-z0-9_.-]+', '_', name) or 'unnamed'
 
 
-FRF_FORMATS = ('csv', 'uff', 'json')
-
-
 def export_results(
     impacts: Iterable, summaries: Iterable, out_dir: str | Path, *, frf_format: str = 'csv'
 ) -> list[Path]:
@@ -115,7 +114,9 @@ def export_results(
     H1, H2, coherence) for the newest FrfSummary of each level.
     """
     if frf_format not in FRF_FORMATS:
-        raise ValueError(f'unknown FRF format {frf_format!r}; use one of {", ".join(FRF_FORMATS)}')
+        raise BadInputError(
+            f'unknown FRF format {frf_format!r}; use one of {", ".join(FRF_FORMATS)}'
+        )
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written = []

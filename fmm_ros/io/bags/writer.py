@@ -24,7 +24,15 @@ from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, Qo
 from rosbags.interfaces import QosTime as _QosTime
 from rosbags.typesys.store import Typestore
 
-from fmm_ros.constants import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC, resolve_name
+from fmm_ros.constants import (
+    BAG_STORAGES,
+    FORCE,
+    FORCE_TOPIC,
+    VELOCITY,
+    VELOCITY_TOPIC,
+    resolve_name,
+)
+from fmm_ros.errors import BadInputError
 from fmm_ros.io.bags.definitions import SAMPLE_BATCH, fmm_typestore
 from fmm_ros.io.bags.errors import BagError, MessageTypeError
 from fmm_ros.io.bags.metadata import (
@@ -39,7 +47,7 @@ from fmm_ros.io.bags.storage import McapStorage, Sqlite3Storage, TopicRecord
 DEFAULT_BATCH_SIZE = 500
 # What writing a bag raises when the storage fails under it (disk full, read-only, gone).
 WRITE_ERRORS = (OSError, sqlite3.Error)
-STORAGES = ('mcap', 'sqlite3')
+STORAGES = BAG_STORAGES
 
 _NO_TIME = _QosTime(0, 0)
 
@@ -109,7 +117,7 @@ class BagWriter:
         if storage not in STORAGES:
             raise BagError(f'unknown bag storage {storage!r}: use one of {", ".join(STORAGES)}')
         if flush_interval_s is not None and flush_interval_s <= 0:
-            raise ValueError(f'flush_interval_s must be positive, got {flush_interval_s}')
+            raise BadInputError(f'flush_interval_s must be positive, got {flush_interval_s}')
         self.path = Path(path)
         if self.path.exists():
             raise BagError(f'cannot create bag {self.path}: it exists already, not overwriting')
@@ -321,12 +329,12 @@ class BagWriter:
         number of samples written per batch. Returns the index after the last sample.
         """
         if len(force) != len(velocity):
-            raise ValueError(
+            raise BadInputError(
                 f'force has {len(force)} samples but velocity {len(velocity)}: '
                 'the two channels of one acquisition must be equally long'
             )
         if batch_size < 1:
-            raise ValueError(f'batch_size must be at least 1, got {batch_size}')
+            raise BadInputError(f'batch_size must be at least 1, got {batch_size}')
         for start in range(0, len(force), batch_size):
             index = first_sample_index + start
             stop = start + batch_size

@@ -8,6 +8,8 @@ so starting one node never imports the others.
 import importlib
 from types import ModuleType
 
+from fmm_ros.errors import BadInputError
+
 NODES: dict[str, str] = {
     'hammer_sim': 'HammerSim',
     'rig_sim': 'RigSim',
@@ -32,7 +34,7 @@ CONSUMERS: dict[str, tuple[str, ...]] = {
 def node_module(name: str) -> ModuleType:
     """The module of node `name` (ValueError naming the known nodes for any other name)."""
     if name not in NODES:
-        raise ValueError(f'no fmm_ros node {name!r}; the nodes are {", ".join(NODES)}')
+        raise BadInputError(f'no fmm_ros node {name!r}; the nodes are {", ".join(NODES)}')
     return importlib.import_module(f'{__name__}.{name}')
 
 

@@ -10,117 +10,39 @@ averages and the peak-receptance-vs-impulse law over all levels so far go out on
 one FrfSummary per level, transient-local for late subscribers. Health on /diagnostics.
 """
 
+import dataclasses
 from collections import deque
 
 from builtin_interfaces.msg import Time
 from rclpy.node import Node
 
 from fmm_interfaces.msg import FrfSummary, ImpactResult
-from fmm_ros.constants import FRF_TOPIC, IMPACTS_TOPIC, LEVEL_TOLERANCE_N, PAPER_LEVELS
-from fmm_ros.core.signal.analysis import AnalysisConfig, NominalLevel, analyze_impact, summarize
-from fmm_ros.core.signal.analysis import ImpactResult as CoreImpactResult
+from fmm_ros.constants import FRF_TOPIC, IMPACTS_TOPIC, PAPER_LEVELS
+from fmm_ros.core.settings import settings_of
+from fmm_ros.core.signal.analysis import (
+    AnalysisConfig,
+    ImpactAnalysis,
+    NominalLevel,
+    analyze_impact,
+    summarize,
+)
 from fmm_ros.core.signal.capture import FLAGS, CaptureConfig, ImpactCapture
 from fmm_ros.core.signal.records import ImpactRecord, stable_impact_id
 from fmm_ros.core.signal.stream import Batch
+from fmm_ros.errors import BadInputError
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import RESULT_QOS, run_node
 from fmm_ros.ros.health import OK, Health
 from fmm_ros.ros.inputs import SampleInputs
-from fmm_ros.ros.params import Param, declare_parameters
+from fmm_ros.ros.params import Param, declare_parameters, params_from
 
-_CAPTURE = CaptureConfig()
-_ANALYSIS = AnalysisConfig()
-
+# The capture's and the FRFs' settings as declared in the core (`core.signal.config`), then
+# the levels, which a params file gives as parallel lists.
 PARAMS = (
-    Param(
-        'trigger_level_n',
-        _CAPTURE.trigger_level_n,
-        'Force that starts an impact [N]',
-        limits=(0.0, 1e5),
-        read_only=True,
-    ),
-    Param(
-        'rearm_level_n',
-        _CAPTURE.rearm_level_n,
-        'Force the signal must fall below before the next trigger [N]',
-        limits=(-1e5, 1e5),
-        read_only=True,
-    ),
-    Param(
-        'pretrigger_s',
-        _CAPTURE.pretrigger_s,
-        'Record kept before the trigger [s]',
-        limits=(0.0, 10.0),
-        read_only=True,
-    ),
-    Param(
-        'window_s',
-        _CAPTURE.window_s,
-        'Record length, pre-trigger included [s]',
-        limits=(0.01, 3600.0),
-        read_only=True,
-    ),
-    Param(
-        'end_at_rest',
-        _CAPTURE.end_at_rest,
-        'End a record early once the rig has rested rest_time_s',
-        read_only=True,
-    ),
-    Param(
-        'rest_velocity_m_s',
-        _CAPTURE.rest_velocity_m_s,
-        '|velocity| counted as rest [m/s]',
-        limits=(0.0, 10.0),
-        read_only=True,
-    ),
-    Param(
-        'rest_time_s',
-        _CAPTURE.rest_time_s,
-        'How long rest must last [s]',
-        limits=(1e-3, 600.0),
-        read_only=True,
-    ),
-    Param(
-        'min_spacing_s',
-        _CAPTURE.min_spacing_s,
-        'A pulse closer than this to the trigger is a double hit [s]',
-        limits=(1e-3, 600.0),
-        read_only=True,
-    ),
-    Param(
-        'max_skew_s',
-        _CAPTURE.max_skew_s,
-        'How far one channel may run ahead of the other before samples count as missing [s]',
-        limits=(0.0, 600.0),
-        read_only=True,
-    ),
-    Param(
-        'band_limit_hz',
-        _ANALYSIS.band_limit_hz,
-        'Highest FRF frequency published [Hz]',
-        limits=(0.1, 1e6),
-        read_only=True,
-    ),
-    Param(
-        'peak_band_hz',
-        list(_ANALYSIS.peak_band_hz),
-        'Band [low, high] searched for the peak |receptance| [Hz]',
-        limits=(0.0, 1e6),
-        read_only=True,
-    ),
-    Param(
-        'force_window_s',
-        0.0,
-        'Force window length after the trigger [s]; 0 for none',
-        limits=(0.0, 3600.0),
-        read_only=True,
-    ),
-    Param(
-        'exponential_decay_s',
-        0.0,
-        'Exponential window decay time constant [s]; 0 for none (the paper)',
-        limits=(0.0, 3600.0),
-        read_only=True,
+    *params_from(CaptureConfig),
+    *params_from(
+        AnalysisConfig,
+        ('band_limit_hz', 'peak_band_hz', 'force_window_s', 'exponential_decay_s'),
     ),
     Param(
         'level_names',
@@ -135,19 +57,8 @@ PARAMS = (
         limits=(0.0, 1e6),
         read_only=True,
     ),
-    Param(
-        'level_tolerance_n',
-        LEVEL_TOLERANCE_N,
-        'Acceptance band around each nominal peak [N]',
-        limits=(0.0, 1e6),
-        read_only=True,
-    ),
-    Param(
-        'reject_flags',
-        list(FLAGS),
-        'Quality flags that reject an impact from averaging',
-        read_only=True,
-    ),
+    dataclasses.replace(params_from(NominalLevel, ('tolerance_n',))[0], name='level_tolerance_n'),
+    *params_from(AnalysisConfig, ('reject_flags',)),
     Param(
         'keep_last_impacts',
         300,
@@ -161,34 +72,19 @@ PARAMS = (
 
 def configs_from_parameters(config: dict) -> tuple[CaptureConfig, AnalysisConfig]:
     """The core's capture and analysis configs from the analyzer's parameter values."""
-    capture = CaptureConfig(
-        **{
-            name: config[name]
-            for name in (
-                'trigger_level_n',
-                'rearm_level_n',
-                'pretrigger_s',
-                'window_s',
-                'end_at_rest',
-                'rest_velocity_m_s',
-                'rest_time_s',
-                'min_spacing_s',
-                'max_skew_s',
-            )
-        }
-    )
+    capture = CaptureConfig(**{item.name: config[item.name] for item in settings_of(CaptureConfig)})
     names = [name for name in config['level_names'] if name]
     peaks = config['level_peak_forces_n']
     if names and len(names) != len(peaks):
-        raise ValueError(
+        raise BadInputError(
             f'level_names has {len(names)} entries but level_peak_forces_n has '
             f'{len(peaks)}: give one peak force per level'
         )
     unknown = sorted(set(config['reject_flags']) - set(FLAGS))
     if unknown:
-        raise ValueError(f'reject_flags: unknown flag(s) {unknown}; known: {list(FLAGS)}')
+        raise BadInputError(f'reject_flags: unknown flag(s) {unknown}; known: {list(FLAGS)}')
     if len(config['peak_band_hz']) != 2:
-        raise ValueError(f'peak_band_hz must be [low, high], got {config["peak_band_hz"]}')
+        raise BadInputError(f'peak_band_hz must be [low, high], got {config["peak_band_hz"]}')
     analysis = AnalysisConfig(
         band_limit_hz=config['band_limit_hz'],
         peak_band_hz=tuple(config['peak_band_hz']),
@@ -211,7 +107,7 @@ class Analyzer(Node):
         self.config = declare_parameters(self, PARAMS)
         self.capture_config, self.analysis_config = configs_from_parameters(self.config)
         self.capture = ImpactCapture(self.capture_config)
-        self.results: deque[CoreImpactResult] = deque(maxlen=self.config['keep_last_impacts'])
+        self.results: deque[ImpactAnalysis] = deque(maxlen=self.config['keep_last_impacts'])
         self.impacts_reported = 0
         self.impacts_accepted = 0
         self._impact_pub = self.create_publisher(ImpactResult, IMPACTS_TOPIC, RESULT_QOS)

@@ -26,12 +26,14 @@ from rclpy.node import Node
 
 from fmm_interfaces.msg import SampleBatch
 from fmm_ros.constants import FORCE, FORCE_TOPIC, SAMPLE_RATE_HZ, VELOCITY, VELOCITY_TOPIC
+from fmm_ros.errors import BadInputError
 from fmm_ros.io.labfiles import ChannelMapping, ImportMapping, load_mapping, read_lab_file
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import SAMPLE_QOS, run_node
+from fmm_ros.ros.common import run_node
 from fmm_ros.ros.flow import SOURCE_PARAMS, PacedSource, deliver_last_batches
 from fmm_ros.ros.health import Health
 from fmm_ros.ros.params import Param, declare_parameters
+from fmm_ros.ros.qos import SAMPLE_QOS
 
 INSTALL_HINT = (
     'the nidaqmx backend needs NI-DAQmx: `pip install nidaqmx` into the environment '
@@ -279,7 +281,7 @@ class FileBackend:
     def __init__(self, node: Daq, publish: Publish) -> None:
         cfg = node.config
         if not cfg['file_path']:
-            raise ValueError(
+            raise BadInputError(
                 'daq: the file backend needs file_path (a CSV, NPZ, MAT or TDMS recording)'
             )
         path = Path(cfg['file_path'])

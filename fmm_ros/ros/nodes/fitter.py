@@ -36,28 +36,26 @@ from fmm_interfaces.srv import DiagnoseModel, FitFriction
 from fmm_ros.constants import DIAGNOSE_SERVICE, FIT_SERVICE, FRICTION_TOPIC, IMPACTS_TOPIC
 from fmm_ros.core.diagnose.workflow import diagnose
 from fmm_ros.core.identify.conditioning import FitError
-from fmm_ros.core.identify.friction import MU_BOUNDS, fit_friction
+from fmm_ros.core.identify.friction import fit_friction
 from fmm_ros.core.identify.running import RunningFriction
+from fmm_ros.core.identify.spec import MU_BOUNDS, FitSpec
 from fmm_ros.core.signal.analysis import ImpactSelection, select_impacts
 from fmm_ros.core.signal.history import SampleHistory
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.core.signal.stream import Batch
+from fmm_ros.errors import BadInputError
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import RESULT_QOS, RIG_PARAMS, rig_from_parameters, run_node
+from fmm_ros.ros.common import RIG_PARAMS, rig_from_parameters, run_node
 from fmm_ros.ros.health import OK, Health
 from fmm_ros.ros.inputs import SampleInputs
-from fmm_ros.ros.params import Param, declare_parameters
+from fmm_ros.ros.params import Param, declare_parameters, params_from
+from fmm_ros.ros.qos import RESULT_QOS
 from fmm_ros.workflows.results import FrictionResult
 
 PARAMS = (
     *RIG_PARAMS,
-    Param(
-        'fit_initial_position',
-        True,
-        'Fit where each record starts: in a continuous session a hit finds the rig where '
-        'friction stopped the last one (up to mu N / k off centre), which is not measured',
-        read_only=True,
-    ),
+    # In a continuous session a hit finds the rig where friction stopped the last one.
+    *params_from(FitSpec(fit_initial_position=True), ('fit_initial_position',)),
     Param(
         'live_mu',
         True,
@@ -290,14 +288,14 @@ class Fitter(Node):
             impact_ids = list(dict.fromkeys(impact_ids))  # an id named twice counts once
             missing = [i for i in impact_ids if i not in by_id]
             if missing:
-                raise ValueError(
+                raise BadInputError(
                     f'impacts {missing} are not held (held: '
                     f'{sorted(by_id) or "none"}; the fitter keeps the last '
                     f'{self.config["keep_last_impacts"]})'
                 )
             held = [by_id[i] for i in impact_ids]
         elif not held:
-            raise ValueError(f'no impact held yet ({len(self._waiting)} still arriving)')
+            raise BadInputError(f'no impact held yet ({len(self._waiting)} still arriving)')
         selection = select_impacts(held, include_flagged=include_flagged)
         return [by_id[i] for i in selection.chosen], selection
 

@@ -18,11 +18,13 @@ from rclpy.parameter import Parameter
 
 from fmm_interfaces.msg import SampleBatch
 from fmm_ros.constants import APPLIED_FORCE_TOPIC, FORCE, FORCE_TOPIC, PAPER_LEVELS, SAMPLE_RATE_HZ
+from fmm_ros.errors import BadInputError
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import SAMPLE_QOS, chain_from_parameters, chain_params, run_node
+from fmm_ros.ros.common import chain_from_parameters, chain_params, run_node
 from fmm_ros.ros.flow import SOURCE_PARAMS, PacedSource
 from fmm_ros.ros.health import Health
 from fmm_ros.ros.params import Param, declare_parameters
+from fmm_ros.ros.qos import SAMPLE_QOS
 from fmm_ros.sim.daq import ChainStream
 from fmm_ros.sim.hammer import HammerStream, session_schedule
 from fmm_ros.units import si_factor
@@ -132,7 +134,7 @@ class HammerSim(Node):
         self.config = declare_parameters(self, PARAMS)
         names, peaks = self.config['level_names'], self.config['level_peak_forces_n']
         if len(names) != len(peaks):
-            raise ValueError(
+            raise BadInputError(
                 f'level_names has {len(names)} entries but level_peak_forces_n '
                 f'has {len(peaks)}: give one peak force per level'
             )

@@ -21,12 +21,14 @@ from fmm_ros.constants import (
     IMPACTS_TOPIC,
     VELOCITY_TOPIC,
 )
+from fmm_ros.errors import BadInputError
 from fmm_ros.io.bags.definitions import SAMPLE_BATCH
 from fmm_ros.io.bags.reader import BagReader
-from fmm_ros.ros.common import RESULT_QOS, SAMPLE_QOS, message_class, run_node
+from fmm_ros.ros.common import message_class, run_node
 from fmm_ros.ros.flow import SOURCE_PARAMS, PacedSource
 from fmm_ros.ros.health import OK, WARN, Health
 from fmm_ros.ros.params import Param, declare_parameters
+from fmm_ros.ros.qos import RESULT_QOS, SAMPLE_QOS
 
 # As for hammer_sim: rclpy takes one message per subscription per wait cycle, so a tick
 # sends only a few messages; further behind than that the pace is re-anchored.
@@ -63,14 +65,14 @@ class Player(Node):
         super().__init__('player', **kwargs)
         self.config = declare_parameters(self, PARAMS)
         if not self.config['bag_path']:
-            raise ValueError('player: set the bag_path parameter to the bag to play')
+            raise BadInputError('player: set the bag_path parameter to the bag to play')
         self.reader = BagReader(self.config['bag_path'], strict=False)
         self.reader.open()
         wanted = [topic for topic in self.config['topics'] if topic] or list(self.reader.topics)
         missing = sorted(set(wanted) - set(self.reader.topics))
         if missing:
             self.reader.close()
-            raise ValueError(
+            raise BadInputError(
                 f'bag {self.config["bag_path"]} has no topic {", ".join(missing)}; '
                 f'it has {", ".join(sorted(self.reader.topics))}'
             )

@@ -45,10 +45,9 @@ from fmm_ros.io.bags.errors import BagError
 from fmm_ros.io.bags.metadata import LEDGER_KEY, ledger_text
 from fmm_ros.io.bags.writer import STORAGES, WRITE_ERRORS, BagWriter, bag_qos, free_bag_path
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import RESULT_QOS, SAMPLE_QOS, message_class, run_node
+from fmm_ros.ros.common import message_class, run_node
 from fmm_ros.ros.flow import ProgressReporter
 from fmm_ros.ros.health import (
-    DIAGNOSTICS_QOS,
     ERROR,
     OK,
     WARN,
@@ -58,6 +57,7 @@ from fmm_ros.ros.health import (
     stream_status,
 )
 from fmm_ros.ros.params import Param, declare_parameters
+from fmm_ros.ros.qos import DIAGNOSTICS_QOS, RESULT_QOS, SAMPLE_QOS, recording_qos
 
 PARAMS = (
     Param(
@@ -265,7 +265,7 @@ class Recorder(Node):
                 )
                 continue
             self._subscribe(
-                topic, types.pop(), _subscription_qos([info.qos_profile for info in publishers])
+                topic, types.pop(), recording_qos([info.qos_profile for info in publishers])
             )
             self._pending.remove(topic)
 
@@ -353,17 +353,6 @@ class Recorder(Node):
         except WRITE_ERRORS as error:  # the storage failed as the bag closed
             self._fail(error)
         super().destroy_node()
-
-
-def _subscription_qos(offered: list[QoSProfile]) -> QoSProfile:
-    """The strongest QoS every publisher can serve, with a deep queue (as ros2 bag record)."""
-    reliable = all(q.reliability == ReliabilityPolicy.RELIABLE for q in offered)
-    durable = all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
-    return QoSProfile(
-        depth=1000,
-        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL if durable else DurabilityPolicy.VOLATILE,
-    )
 
 
 def main(args: list[str] | None = None) -> int:

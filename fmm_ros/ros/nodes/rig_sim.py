@@ -30,7 +30,6 @@ from fmm_ros.errors import UnitError
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import (
     RIG_PARAMS,
-    SAMPLE_QOS,
     chain_from_parameters,
     chain_params,
     rig_from_parameters,
@@ -39,6 +38,7 @@ from fmm_ros.ros.common import (
 from fmm_ros.ros.flow import SOURCE_PARAMS, FlowGate, ProgressReporter, deliver_last_batches
 from fmm_ros.ros.health import ChannelRate, FaultLog, Health, stream_status
 from fmm_ros.ros.params import Param, declare_parameters
+from fmm_ros.ros.qos import SAMPLE_QOS
 from fmm_ros.ros.sources import SourceCheck
 from fmm_ros.sim.daq import ChainStream
 from fmm_ros.sim.hammer import add_indexed_noise

@@ -1,0 +1,413 @@
+"""Friction of a one-axis drive without a spring: inverse dynamics least squares (IDIM-LS).
+
+A positioning axis (a ball-screw or linear-motor stage) has no flexure, runs in closed loop and
+reports an encoder's position. Its drive force obeys
+
+    F(t) = M a(t) + Fv v(t) + Fc sign(v(t)) + offset + k x(t),
+
+with M the moving mass [kg], Fv viscous friction [N s/m], Fc Coulomb friction [N], offset a
+constant force (gravity on an inclined axis, a force-sensor zero) and k a known spring
+[N/m] (0 for a free axis). The model is linear in (M, Fv, Fc, offset), so one least-squares
+solve identifies them from one record of force and motion, open or closed loop (Gautier 1991;
+Janot, Gautier and Brunot 2019, the EMPS benchmark).
+
+How the motion is differentiated, and why it does not bias the estimate:
+- The position is low-passed by a zero-phase Butterworth filter (forward and backward, so no
+  lag between force and motion), then differentiated by central differences: velocity and
+  acceleration with the same zero phase ("band-pass filtering").
+- The regressors and the force then go through one and the same low-pass and decimation
+  ("parallel filtering"). A linear filter applied to both sides of a linear-in-parameters
+  equation leaves the parameters unchanged, while it removes the drive's high-frequency
+  ripple and makes the remaining residuals closer to independent.
+- Samples near standstill are left out: there sign(v) is not defined, the contact sticks, and
+  quantisation noise decides the sign.
+- The encoder quantisation is estimated from the position record, and its noise carried
+  through the same filters: `velocity_noise_m_s` and `acceleration_noise_m_s2` state how
+  well the derivatives are known, and `attenuation_*` how much errors-in-variables could
+  shrink M and Fv (the fraction of a regressor's variance that is noise).
+- Standard errors are heteroscedasticity- and autocorrelation-consistent (Newey-West, Bartlett
+  kernel): the residuals of a filtered record are correlated, and the classic formula would
+  state them too small. The classic ones are reported beside them.
+
+From an acceleration record the velocity is an integral, known only up to a constant and a
+ramp (an accelerometer's offset). The ramp is fitted as a nuisance regressor; the constant,
+times Fv, is a force no record can tell from the offset, so the offset is reported as unknown
+(NaN) and a wider standstill band keeps the drift from deciding sign(v).
+
+Per-direction friction (Fv+, Fc+ for v > 0; Fv-, Fc- for v < 0) is fitted as a second model.
+There the offset cannot be told from the difference of the two Coulomb forces, so it is left
+out, as in the published asymmetric model.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import signal
+
+from fmm_ros.errors import BadInputError
+
+DEFAULT_CUTOFF_FRACTION = 0.1
+"""Position low-pass cut-off as a fraction of the sample rate (100 Hz at 1 kHz, as EMPS)."""
+PARALLEL_BAND_FRACTION = 0.4
+"""The parallel filter keeps this fraction of the position cut-off (40 Hz of 100 Hz)."""
+STANDSTILL_NOISE_FACTOR = 5.0
+"""Samples slower than this many velocity-noise levels are standstill (sign undefined)."""
+MIN_STANDSTILL_SPEED_FRACTION = 0.02
+"""... and never slower than this fraction of the record's RMS speed."""
+DRIFT_STANDSTILL_SPEED_FRACTION = 0.25
+"""The same for a velocity integrated from an acceleration, which is known only up to a drift."""
+FRICTION_MAP_BINS = 24
+MIN_SAMPLES_PER_BIN = 8
+MOTION_KINDS = ('position', 'velocity', 'acceleration')
+
+
+@dataclass(frozen=True)
+class AxisSpec:
+    """How to identify an axis: known spring, filters, and what to fit (all SI units).
+
+    stiffness_n_per_m: a known spring between the axis and the frame (0: none).
+    cutoff_hz: position low-pass cut-off (None: a tenth of the sample rate).
+    decimation: keep one sample in this many after the parallel filter (None: from the band).
+    per_direction: also fit viscous and Coulomb friction for each direction of motion.
+    """
+
+    stiffness_n_per_m: float = 0.0
+    cutoff_hz: float | None = None
+    decimation: int | None = None
+    per_direction: bool = True
+
+    def __post_init__(self) -> None:
+        if not math.isfinite(self.stiffness_n_per_m) or self.stiffness_n_per_m < 0.0:
+            raise BadInputError(
+                f'stiffness_n_per_m must be finite and >= 0, got {self.stiffness_n_per_m}'
+            )
+        if self.cutoff_hz is not None and not (self.cutoff_hz > 0.0):
+            raise BadInputError(f'cutoff_hz must be positive, got {self.cutoff_hz}')
+        if self.decimation is not None and self.decimation < 1:
+            raise BadInputError(f'decimation must be at least 1, got {self.decimation}')
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """One identified parameter with its Newey-West and classic standard errors."""
+
+    value: float
+    stderr: float
+    stderr_classic: float
+
+
+@dataclass(frozen=True)
+class FrictionMap:
+    """Friction force against sliding speed: the drive force less inertia, offset and spring.
+
+    speed_m_s: signed bin centres; friction_n: median friction force in each bin (positive
+    for positive speed); count: samples in each bin.
+    """
+
+    speed_m_s: np.ndarray
+    friction_n: np.ndarray
+    count: np.ndarray
+
+
+@dataclass(frozen=True)
+class AxisFriction:
+    """The identified axis: parameters, per-direction friction, fit quality and how it was done."""
+
+    mass_kg: Estimate
+    viscous_n_s_per_m: Estimate
+    coulomb_n: Estimate
+    offset_n: Estimate
+    directions: dict[str, Estimate] = field(default_factory=dict)
+    residual_rms_n: float = math.nan
+    relative_error: float = math.nan
+    samples_used: int = 0
+    samples_standstill: int = 0
+    sample_rate_hz: float = math.nan
+    cutoff_hz: float = math.nan
+    decimation: int = 1
+    motion: str = 'position'
+    encoder_step_m: float = math.nan
+    velocity_noise_m_s: float = math.nan
+    acceleration_noise_m_s2: float = math.nan
+    attenuation_mass: float = math.nan
+    attenuation_viscous: float = math.nan
+    condition_number: float = math.nan
+    friction_map: FrictionMap | None = None
+
+
+def encoder_step(position_m: np.ndarray) -> float:
+    """The quantisation step of a position record [m]: its smallest common non-zero change.
+
+    Differences below 1e-9 of the travel are treated as floating-point noise. Returns
+    NaN when the record is not visibly quantised (most changes are not whole multiples of the
+    smallest one), e.g. a simulated or an analogue position.
+    """
+    position_m = np.asarray(position_m, dtype=float)
+    travel = float(np.ptp(position_m)) if position_m.size else 0.0
+    steps = np.abs(np.diff(position_m))
+    steps = steps[steps > 1e-9 * travel]
+    if steps.size < 10:
+        return math.nan
+    smallest = float(steps.min())
+    multiples = steps / smallest
+    whole = np.abs(multiples - np.round(multiples)) < 0.05
+    return smallest if whole.mean() > 0.9 else math.nan
+
+
+def differentiate(
+    values: np.ndarray, sample_rate_hz: float, cutoff_hz: float, times: int
+) -> list[np.ndarray]:
+    """`values` low-passed at cutoff_hz with zero phase, and its first `times` derivatives.
+
+    A 4th-order Butterworth run forward and backward (no lag), then central differences
+    (np.gradient, second order inside, first order at the ends).
+    """
+    sos = signal.butter(4, cutoff_hz, fs=sample_rate_hz, output='sos')
+    smooth = signal.sosfiltfilt(sos, values)
+    out = [smooth]
+    for _ in range(times):
+        out.append(np.gradient(out[-1], 1.0 / sample_rate_hz))
+    return out
+
+
+def _integrate(values: np.ndarray, sample_rate_hz: float) -> np.ndarray:
+    """Trapezoidal running integral starting at zero."""
+    steps = 0.5 * (values[1:] + values[:-1]) / sample_rate_hz
+    return np.concatenate(([0.0], np.cumsum(steps)))
+
+
+def _detrended_integral(values: np.ndarray, sample_rate_hz: float) -> np.ndarray:
+    """Integral of an acceleration with its straight-line drift removed.
+
+    A constant accelerometer offset integrates to a ramp in velocity; an axis that moves back
+    and forth has no such ramp, so the best straight line through the integral is removed.
+    """
+    integral = _integrate(values, sample_rate_hz)
+    t = np.arange(values.size) / sample_rate_hz
+    return integral - np.polyval(np.polyfit(t, integral, 1), t)
+
+
+def motion_states(
+    motion: np.ndarray, kind: str, sample_rate_hz: float, cutoff_hz: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Position [m], velocity [m/s] and acceleration [m/s^2] from one measured motion channel.
+
+    Position is differentiated twice; velocity once (and integrated for the position, which
+    only a spring needs); acceleration is integrated once with its drift removed (and twice for
+    the position). Every channel passes the same zero-phase low-pass.
+    """
+    if kind == 'position':
+        x, v, a = differentiate(motion, sample_rate_hz, cutoff_hz, 2)
+    elif kind == 'velocity':
+        v, a = differentiate(motion, sample_rate_hz, cutoff_hz, 1)
+        x = _integrate(v, sample_rate_hz)
+    elif kind == 'acceleration':
+        (a,) = differentiate(motion, sample_rate_hz, cutoff_hz, 0)
+        v = _detrended_integral(a, sample_rate_hz)
+        x = _integrate(v, sample_rate_hz)
+    else:
+        raise BadInputError(f'motion kind {kind!r} is none of {", ".join(MOTION_KINDS)}')
+    return x, v, a
+
+
+def _derivative_gains(
+    sample_rate_hz: float, cutoff_hz: float, decimation: int, band_hz: float
+) -> tuple[float, float]:
+    """RMS gain from white position noise to velocity and to acceleration, after all filters."""
+    n = 8192
+    impulse = np.zeros(n)
+    impulse[n // 2] = 1.0
+    _, v, a = differentiate(impulse, sample_rate_hz, cutoff_hz, 2)
+    if decimation > 1:
+        sos = signal.butter(8, band_hz, fs=sample_rate_hz, output='sos')
+        v = signal.sosfiltfilt(sos, v)
+        a = signal.sosfiltfilt(sos, a)
+    return float(np.sqrt(np.sum(v**2))), float(np.sqrt(np.sum(a**2)))
+
+
+def _parallel_filter(
+    columns: np.ndarray, sample_rate_hz: float, band_hz: float, decimation: int
+) -> np.ndarray:
+    """The same zero-phase low-pass on every column, then one sample in `decimation` kept."""
+    if decimation == 1:
+        return columns
+    sos = signal.butter(8, band_hz, fs=sample_rate_hz, output='sos')
+    return signal.sosfiltfilt(sos, columns, axis=0)[::decimation]
+
+
+def _least_squares(
+    regressors: np.ndarray, target: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Parameters, residuals, Newey-West and classic standard errors of target ~ regressors."""
+    theta, *_ = np.linalg.lstsq(regressors, target, rcond=None)
+    residual = target - regressors @ theta
+    n, p = regressors.shape
+    bread = np.linalg.inv(regressors.T @ regressors)
+    sigma2 = float(residual @ residual) / max(n - p, 1)
+    classic = np.sqrt(np.diag(bread) * sigma2)
+    scores = regressors * residual[:, None]
+    meat = scores.T @ scores
+    lags = int(math.ceil(4.0 * (n / 100.0) ** (2.0 / 9.0)))
+    for lag in range(1, lags + 1):
+        weight = 1.0 - lag / (lags + 1.0)
+        cross = scores[lag:].T @ scores[:-lag]
+        meat += weight * (cross + cross.T)
+    hac = np.sqrt(np.abs(np.diag(bread @ meat @ bread)) * n / max(n - p, 1))
+    return theta, residual, hac, classic
+
+
+def _friction_map(speed: np.ndarray, friction: np.ndarray) -> FrictionMap:
+    """Median friction in equal-count speed bins on each side of zero."""
+    centres: list[float] = []
+    medians: list[float] = []
+    counts: list[int] = []
+    for side in (-1.0, 1.0):
+        mask = side * speed > 0.0
+        if mask.sum() < MIN_SAMPLES_PER_BIN:
+            continue
+        s, f = speed[mask], friction[mask]
+        bins = max(1, min(FRICTION_MAP_BINS // 2, int(mask.sum() // MIN_SAMPLES_PER_BIN)))
+        edges = np.quantile(s, np.linspace(0.0, 1.0, bins + 1))
+        index = np.clip(np.searchsorted(edges, s, side='right') - 1, 0, bins - 1)
+        for b in range(bins):
+            inside = index == b
+            if inside.sum() >= MIN_SAMPLES_PER_BIN:
+                centres.append(float(np.median(s[inside])))
+                medians.append(float(np.median(f[inside])))
+                counts.append(int(inside.sum()))
+    order = np.argsort(centres)
+    return FrictionMap(
+        speed_m_s=np.asarray(centres)[order],
+        friction_n=np.asarray(medians)[order],
+        count=np.asarray(counts, dtype=int)[order],
+    )
+
+
+def _check_record(force_n: np.ndarray, motion: np.ndarray, sample_rate_hz: float) -> None:
+    if not (math.isfinite(sample_rate_hz) and sample_rate_hz > 0.0):
+        raise BadInputError(f'sample rate must be positive and finite, got {sample_rate_hz}')
+    if force_n.ndim != 1 or motion.ndim != 1 or force_n.size != motion.size:
+        raise BadInputError(
+            f'force and motion must be vectors of one length, got {force_n.shape} and '
+            f'{motion.shape}'
+        )
+    for name, values in (('force', force_n), ('motion', motion)):
+        bad = ~np.isfinite(values)
+        if bad.any():
+            raise BadInputError(f'{name} is not finite at sample {int(np.argmax(bad))}')
+
+
+def identify_axis_friction(
+    force_n: np.ndarray,
+    motion: np.ndarray,
+    sample_rate_hz: float,
+    *,
+    motion_kind: str = 'position',
+    spec: AxisSpec = AxisSpec(),
+) -> AxisFriction:
+    """Identify M, Fv, Fc and offset of a drive from its force [N] and motion (SI units).
+
+    motion is a position [m], velocity [m/s] or acceleration [m/s^2] record, as motion_kind
+    says, sampled with the force at sample_rate_hz. BadInputError when the record cannot
+    identify the axis (too short, never moving, or moving one way only).
+    """
+    force_n = np.asarray(force_n, dtype=float)
+    motion = np.asarray(motion, dtype=float)
+    _check_record(force_n, motion, sample_rate_hz)
+    nyquist = 0.5 * sample_rate_hz
+    cutoff = spec.cutoff_hz or DEFAULT_CUTOFF_FRACTION * sample_rate_hz
+    if cutoff >= nyquist:
+        raise BadInputError(
+            f'cutoff {cutoff:g} Hz must lie below the Nyquist frequency {nyquist:g} Hz'
+        )
+    band = PARALLEL_BAND_FRACTION * cutoff
+    decimation = spec.decimation or max(1, round(0.8 * nyquist / band))
+    border = int(math.ceil(5.0 * sample_rate_hz / cutoff))
+    if force_n.size < 2 * border + 20 * decimation:
+        raise BadInputError(
+            f'{force_n.size} samples are too few to identify an axis at {sample_rate_hz:g} Hz '
+            f'(filters need {2 * border + 20 * decimation})'
+        )
+
+    x, v, a = motion_states(motion, motion_kind, sample_rate_hz, cutoff)
+    target = force_n - spec.stiffness_n_per_m * x
+    sign = np.sign(v)
+    core = slice(border, force_n.size - border)
+    columns = np.column_stack((a, v, sign, np.ones_like(v), target))[core]
+    filtered = _parallel_filter(columns, sample_rate_hz, band, decimation)
+    a_d, v_d, sign_d, ones_d, target_d = filtered.T
+
+    step = encoder_step(motion) if motion_kind == 'position' else math.nan
+    gain_v, gain_a = _derivative_gains(sample_rate_hz, cutoff, decimation, band)
+    quantisation = step / math.sqrt(12.0) if math.isfinite(step) else 0.0
+    noise_v, noise_a = quantisation * gain_v, quantisation * gain_a
+    rms_speed = float(np.sqrt(np.mean(v_d**2)))
+    drifting = motion_kind == 'acceleration'
+    fraction = DRIFT_STANDSTILL_SPEED_FRACTION if drifting else MIN_STANDSTILL_SPEED_FRACTION
+    standstill_speed = max(STANDSTILL_NOISE_FACTOR * noise_v, fraction * rms_speed)
+    moving = np.abs(v_d) > standstill_speed
+    if moving.sum() < 10 or not ((v_d[moving] > 0).any() and (v_d[moving] < 0).any()):
+        raise BadInputError(
+            'the axis must move both ways for friction to be told from the offset: '
+            f'{int((v_d > standstill_speed).sum())} samples move forward and '
+            f'{int((v_d < -standstill_speed).sum())} backward above {standstill_speed:.3g} m/s'
+        )
+
+    # From an acceleration, the velocity is known up to a constant, which Fv turns into a
+    # force indistinguishable from the offset, and up to a ramp (an accelerometer offset),
+    # fitted as a nuisance column: the offset is then reported as not identifiable.
+    time_d = np.linspace(-1.0, 1.0, v_d.size)
+    nuisance = (time_d,) if drifting else ()
+    regressors = np.column_stack((a_d, v_d, sign_d, ones_d, *nuisance))[moving]
+    theta, residual, hac, classic = _least_squares(regressors, target_d[moving])
+    estimates = [
+        Estimate(float(t), float(h), float(c))
+        for t, h, c in zip(theta[:4], hac[:4], classic[:4], strict=True)
+    ]
+    if drifting:
+        estimates[3] = Estimate(math.nan, math.nan, math.nan)
+
+    directions: dict[str, Estimate] = {}
+    if spec.per_direction:
+        forward = (v_d > 0.0).astype(float)
+        backward = 1.0 - forward
+        split = np.column_stack(
+            (a_d, v_d * forward, forward, v_d * backward, -backward, *nuisance)
+        )[moving]
+        theta2, _, hac2, classic2 = _least_squares(split, target_d[moving])
+        names = ('mass_kg', 'viscous_positive', 'coulomb_positive', 'viscous_negative')
+        names += ('coulomb_negative',)
+        directions = {
+            name: Estimate(float(t), float(h), float(c))
+            for name, t, h, c in zip(names, theta2, hac2, classic2, strict=False)
+        }
+
+    mass, viscous, coulomb, offset = estimates
+    friction = target_d - mass.value * a_d - (0.0 if drifting else offset.value)
+    var_a = float(np.var(a_d[moving]))
+    var_v = float(np.var(v_d[moving]))
+    return AxisFriction(
+        mass_kg=mass,
+        viscous_n_s_per_m=viscous,
+        coulomb_n=coulomb,
+        offset_n=offset,
+        directions=directions,
+        residual_rms_n=float(np.sqrt(np.mean(residual**2))),
+        relative_error=float(np.linalg.norm(residual) / np.linalg.norm(target_d[moving])),
+        samples_used=int(moving.sum()),
+        samples_standstill=int((~moving).sum()),
+        sample_rate_hz=float(sample_rate_hz),
+        cutoff_hz=float(cutoff),
+        decimation=int(decimation),
+        motion=motion_kind,
+        encoder_step_m=step,
+        velocity_noise_m_s=noise_v,
+        acceleration_noise_m_s2=noise_a,
+        attenuation_mass=noise_a**2 / var_a if var_a > 0 else math.nan,
+        attenuation_viscous=noise_v**2 / var_v if var_v > 0 else math.nan,
+        condition_number=float(np.linalg.cond(regressors)),
+        friction_map=_friction_map(v_d[moving], friction[moving]),
+    )

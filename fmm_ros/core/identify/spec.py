@@ -1,0 +1,94 @@
+"""What a friction fit is asked for (`FitSpec`): what it frees, its misfit, how it runs.
+
+One typed, declared object (`fmm_ros.core.settings`) travels from the caller to the solver
+instead of a dozen keyword arguments forwarded through `fit_model`, `fit_friction` and the
+diagnosis. numpy-free, so the `fmm fit` options, the fitter's parameters and the docs can show
+these without importing the fit.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ
+from fmm_ros.core.settings import setting
+
+MU_BOUNDS = (1e-3, 1.0)
+"""Default search range of the friction coefficient; a best fit on either end is a failure."""
+
+MISFITS = ('time', 'frf')
+"""What a fit minimises: the velocity's time residual, or the mobility's misfit in a band."""
+
+UNCERTAINTIES = ('spectral', 'blocks')
+"""How the velocity residuals' share of a time fit's covariance is found: from the residual's
+spectrum over the whole record (default), or from block sums of the score over the motion
+(the way before issue 14: noisy where the motion lasts a few periods; kept as the reference
+the uncertainty benchmark compares with)."""
+
+JACOBIANS = ('blocks', 'dense')
+"""How fit_model builds its Jacobian: 'blocks' runs and stores an impact's own parameters
+(its start position) on that impact alone; 'dense' runs every column over every impact (the
+plain way, kept as the reference the blocks are checked and benchmarked against)."""
+
+
+@dataclass(frozen=True)
+class FitSpec:
+    """What a friction fit frees besides mu, what it minimises and how (`fit_model`).
+
+    The defaults are `fit_model`'s: the paper's fit of mu alone on clean records.
+    `fit_friction` starts from `FRICTION_FIT` (the records as an acquisition delivers them).
+    """
+
+    mu_bounds: tuple[float, float] = setting(
+        MU_BOUNDS,
+        help='Search range of mu; a best fit on either end is refused',
+        limits=(0.0, 10.0),
+    )
+    fit_damping: bool = setting(False, help='Fit the viscous damping c too')
+    fit_initial_position: bool = setting(
+        False,
+        help='Fit where the rig rested before each hit (friction leaves it off centre after '
+        'the previous one); off: every hit starts at x = 0, as in the paper',
+    )
+    fit_impulse_scale: bool = setting(
+        False,
+        help="Fit a factor on each hit's measured force (sampling, filtering and noise "
+        'misstate the impulse by 1e-4 to 1e-2)',
+    )
+    remove_mains_hum: bool = setting(
+        False, help='Estimate the mains hum in the velocity and take it off, refitting'
+    )
+    fit_velocity_drift: bool = setting(
+        False, help='Estimate a drifting velocity offset and take it off, refitting'
+    )
+    mains_hz: float | None = setting(
+        None, unit='Hz', help='Mains frequency (None: found, 50 or 60 Hz)', limits=(1.0, 1000.0)
+    )
+    misfit: str = setting('time', help='What the fit minimises', choices=MISFITS)
+    band_limit_hz: float = setting(
+        MISFIT_BAND_LIMIT_HZ,
+        unit='Hz',
+        help="Top of the mobility band of the 'frf' misfit",
+        limits=(0.1, 1e6),
+    )
+    integrator: str = setting(
+        'exact', help='How the model is integrated', choices=('exact', 'rk4', 'euler')
+    )
+    jacobian: str = setting('blocks', help='How the Jacobian is built', choices=JACOBIANS)
+    judge_hit: bool = setting(
+        False, help='Judge the velocity inside each hit window too (the diagnosis does)'
+    )
+    uncertainty: str = setting(
+        'spectral', help="How a time fit's uncertainty is found", choices=UNCERTAINTIES
+    )
+
+    def but(self, **changes: Any) -> FitSpec:
+        """A copy with some fields changed (TypeError naming an unknown one)."""
+        return dataclasses.replace(self, **changes) if changes else self
+
+
+FRICTION_FIT = FitSpec(fit_impulse_scale=True, remove_mains_hum=True, fit_velocity_drift=True)
+"""`fit_friction`'s default: each hit's impulse scale fitted, mains hum, velocity offset and
+drift taken off (the records as a data acquisition delivers them)."""
