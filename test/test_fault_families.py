@@ -91,6 +91,7 @@ def test_a_force_offset_of_any_size_loses_no_later_hit(offset_n):
     assert all(r.record_start_sample_index >= 0 for r in results)
 
 
+@pytest.mark.slow
 def test_the_flagged_record_converts_to_a_message():
     """The record that began before the acquisition no longer overflows the uint64 fields."""
     from fmm_ros.ros import msgs  # the message layer (rclpy types), as the analyzer uses it
@@ -120,6 +121,7 @@ def test_a_capture_joining_late_gives_each_hit_the_id_the_first_gave(join_s):
     assert not {stable_impact_id(r) for r in other} & set(whole.values())
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ('quantity', 'unit', 'factor'),
     [('force', unit, factor) for unit, factor in FORCE_UNITS.items()]
@@ -149,6 +151,7 @@ def test_every_unit_of_the_table_replays_as_si(tmp_path, quantity, unit, factor)
         assert a.impulse_n_s == pytest.approx(b.impulse_n_s, rel=1e-9, nan_ok=True)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ('quantity', 'unit'), [('force', 'kp'), ('velocity', 'm/s^2'), ('force', 'm/s')]
 )
