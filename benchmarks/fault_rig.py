@@ -48,6 +48,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from results_file import write_section  # noqa: E402
 from stress_rig import fresh_domain, ledgers  # noqa: E402
 
+from fmm_ros.io.bags.definitions import SAMPLE_BATCH  # noqa: E402
 from fmm_ros.io.bags.reader import BagReader  # noqa: E402
 from fmm_ros.ros.launch import (  # noqa: E402
     SIMULATED_RIG,
@@ -198,7 +199,9 @@ def run(
         rig.wait_for('analyzer', last, 30.0)
     finally:
         rig.stop()
-    return outcome(rig, fault, named, recovers)
+    result = outcome(rig, fault, named, recovers)
+    print(result.row(), flush=True)  # as it goes: a long run shows its rows at once
+    return result
 
 
 def outcome(rig: Rig, fault: str, named: str, recovers: bool) -> Outcome:
@@ -326,16 +329,23 @@ def units(work: Path, force_units, velocity_units, rate: float) -> list[Outcome]
 
 def two_sources(work: Path, rate: float) -> Outcome:
     def second(rig: Rig) -> None:
+        logs = rig.work / 'second'
+        logs.mkdir()
         rig.extra += start_processes(
-            ['hammer_sim'], rig.params, {'hammer_sim': rig.overrides['hammer_sim']}
+            ['hammer_sim'], rig.params, {'hammer_sim': rig.overrides['hammer_sim']}, logs
         )
+        deadline = time.monotonic() + 60.0
+        while 'starting' not in (logs / 'hammer_sim.log').read_text(errors='replace'):
+            if time.monotonic() > deadline:
+                break
+            time.sleep(0.1)
         time.sleep(3.0)
         rig.extra[-1].send_signal(signal.SIGINT)
         rig.extra[-1].wait(10)
 
     return run(
         work / 'two_sources',
-        'a second hammer_sim for 3 s',
+        'a second hammer_sim publishing for 3 s',
         second,
         named='2 sources on',
         rate=rate,
@@ -365,7 +375,11 @@ def disk_full(work: Path, rate: float) -> Outcome:
             extra=(f'recorder.bag_path={mount / "bag"}',),
         )
         with BagReader(mount / 'bag', strict=False) as reader:
-            result.note = f'bag readable to {reader.duration_ns / 1e9:.1f} s'
+            ends = [
+                batch.first_sample_index + len(batch.samples)
+                for batch in reader.sample_batches([reader.find('fmm/force', SAMPLE_BATCH)])
+            ]
+        result.note = f'bag readable to sample {max(ends, default=0)}'
         return result
     finally:
         subprocess.run(['umount', str(mount)], check=False)
@@ -391,6 +405,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     work = Path(tempfile.mkdtemp(prefix='fault_rig_'))
     rate = RATE
+    print(HEADER, flush=True)
     try:
         if args.quick:
             rows = quick_rows(work)
@@ -408,7 +423,6 @@ def main(argv: list[str] | None = None) -> int:
         shutil.rmtree(work, ignore_errors=True)
     table = report(rows)
     print(f'load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores, x{rate:g}')
-    print(table)
     write_section('fault_rig', table, quick=args.quick)
     return 0
 
