@@ -31,6 +31,7 @@ node, tries every unit of the table, and writes its table to RESULTS.md.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import re
 import shutil
@@ -266,6 +267,8 @@ def stalls(work: Path, nodes, lengths, rate: float) -> list[Outcome]:
                     lambda rig, node=node, seconds=seconds: rig.stall(node, seconds),
                     named='has said nothing' if seconds > 5 and node != 'hammer_sim' else '',
                     rate=rate,
+                    # The session goes on well past the stall (hits after it to recover).
+                    hits_per_level=math.ceil((seconds * rate / HIT_SPACING_S + 6) / 3),
                 )
             )
     return rows

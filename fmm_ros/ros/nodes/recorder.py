@@ -213,14 +213,15 @@ class Recorder(Node):
         return list(self._pending)
 
     def _bound_silence(self, final: bool = False) -> None:
-        """A channel silent while another of its acquisition runs on: its samples are missing.
+        """A channel silent while another of its acquisition runs on: named, then counted.
 
-        Each topic has its own stream here, so nothing else would count them (issue 25: the
-        bag of a stalled rig_sim held velocity to sample 726,500 and force to 6,890,000, its
-        ledger 0 missing). Channels of one acquisition (one rate, one clock) are partners; a
-        channel more than the stream's max_skew_s behind its leading partner is declared
-        missing up to that lag, and at the end (final) up to the partner's end. Logged once
-        per stretch with the span.
+        Each topic has its own stream here, so nothing else would count it (issue 25: the bag
+        of a stalled rig_sim held velocity to sample 726,500 and force to 6,890,000, its
+        ledger 0 missing). Channels of one acquisition (one rate, one clock) are partners.
+        While recording, a channel more than the stream's max_skew_s behind its leading
+        partner is named in the log with the span (it may still come: a stalled relay
+        delivers its backlog, which must not then be refused); at the close (final) what it
+        still lacks up to the partner's end is declared missing in its ledger.
         """
         started = [(topic, stream) for topic, stream in self._streams.items() if stream.started]
         for topic, stream in started:
@@ -234,14 +235,16 @@ class Recorder(Node):
             ]
             if not ends:
                 continue
-            lag = 0 if final else round(stream.rules.max_skew_s * stream.sample_rate_hz)
-            stop = max(ends) - lag
-            start = stream.next_index(topic)
-            if stop > start:
-                stream.declare_missing(topic, stop)
+            start, lead = stream.next_index(topic), max(ends)
+            if final and lead > start:
+                stream.declare_missing(topic, lead)
                 self.get_logger().warning(
-                    f'{topic}: samples {start}..{stop} missing (nothing came while another '
-                    'channel of the acquisition ran on)',
+                    f'{topic}: samples {start}..{lead} missing at the close (its partner ran on)'
+                )
+            elif lead - start > stream.rules.max_skew_s * stream.sample_rate_hz:
+                self.get_logger().warning(
+                    f'{topic}: nothing from sample {start} on while another channel of the '
+                    f'acquisition is at {lead}',
                     throttle_duration_sec=10.0,
                 )
 
