@@ -85,6 +85,14 @@ def si_factor(quantity: str, unit: str) -> float:
     return known[1]
 
 
+def sample_si_factor(quantity: str, unit: str) -> float:
+    """SI factor of a sample channel's stated unit (SampleBatch.unit); '' means SI.
+
+    The live nodes and replay convert every batch through this, once, at their input.
+    """
+    return si_factor(quantity, unit) if unit.strip() else 1.0
+
+
 def _units_of(quantity: str) -> dict[str, float]:
     try:
         return QUANTITY_UNITS[quantity]

@@ -42,7 +42,8 @@ def test_demo_json_reports_the_session_and_fits_the_plant_mu(tmp_path, capsys):
     # The page shows the fit service's answer (not a fit of its own): its mu and errors.
     shown = f'μ = {value_with_error(summary["mu"], summary["mu_stderr"])} fitted to 3 impacts'
     assert shown in text
-    assert [entry['impact_id'] for entry in summary['per_file']] == [0, 1, 2]
+    impact_ids = [entry['impact_id'] for entry in summary['impacts']]
+    assert [entry['impact_id'] for entry in summary['per_file']] == impact_ids
 
 
 def test_demo_refuses_to_overwrite_a_bag(tmp_path, capsys):

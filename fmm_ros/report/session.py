@@ -47,6 +47,8 @@ FLAG_MEANINGS: dict[str, str] = {
     'dropout': 'a channel holds one exact value too long: samples dropped and filled',
     'gap': 'samples never arrived (lost batch, end of stream): the DFT is undefined',
     'interrupted': 'the acquisition restarted before the record was complete (its tail is a gap)',
+    'truncated_start': 'the acquisition began mid-hit or inside the pre-trigger (the record '
+    'starts at its first sample)',
     'nan': 'a received sample is NaN or infinite',
     'unsettled': 'the rig moved before the hit or had not come to rest at the end of the '
     'record: not one whole transient, the DFT leaks',

@@ -126,7 +126,8 @@ def run_node(
     (`_drain`), and the node goes before the context, so a node stopped by any of
     STOP_SIGNALS closes what it holds (the recorder its bag) and exits 0. The handlers
     replace whatever was inherited, also SIG_IGN (a script's background job ignores SIGINT).
-    A source whose consumers never appeared (`SourceStartTimeout`) exits 1 with the reason.
+    A source whose consumers never appeared (`SourceStartTimeout`) exits 1 with the reason;
+    any other exception a callback raises is survived (`_spin_guarded`).
     threads > 1 spins a MultiThreadedExecutor, for nodes whose callback groups let a long
     service call run beside their stream callbacks.
     """
@@ -144,7 +145,7 @@ def run_node(
         node = node_factory()
         executor.add_node(node)
         while not stop_requested.is_set() and rclpy.ok():
-            executor.spin_once(timeout_sec=stop_poll_s)
+            _spin_guarded(executor, node, stop_poll_s)
         _drain(executor, node)
     except ExternalShutdownException:
         pass
@@ -161,6 +162,25 @@ def run_node(
     return status
 
 
+def _spin_guarded(executor, node: Node, timeout_s: float) -> None:
+    """One spin; an exception a callback raised is the node's to survive (`CallbackFaults`).
+
+    Logged once, ERROR on /diagnostics, and the node goes on (issue 25). A source whose
+    consumers never came (`SourceStartTimeout`) and an external shutdown still end the loop.
+    """
+    from fmm_ros.ros.flow import SourceStartTimeout
+
+    try:
+        executor.spin_once(timeout_sec=timeout_s)
+    except (ExternalShutdownException, SourceStartTimeout):
+        raise
+    except Exception as error:  # the last resort: any fault of a callback
+        faults = getattr(node, 'callback_faults', None)
+        if faults is None:
+            raise
+        faults.record('callback', error)
+
+
 def _drain(executor, node: Node) -> None:
     """Take what is queued for a consumer of batches (`last_batch_at` set) before it stops."""
     if getattr(node, 'last_batch_at', None) is None:
@@ -169,7 +189,7 @@ def _drain(executor, node: Node) -> None:
     while rclpy.ok() and time.monotonic() < deadline:
         if time.monotonic() - node.last_batch_at > DRAIN_QUIET_S:
             return
-        executor.spin_once(timeout_sec=DRAIN_QUIET_S / 2)
+        _spin_guarded(executor, node, DRAIN_QUIET_S / 2)
 
 
 def message_class(msgtype: str) -> type:

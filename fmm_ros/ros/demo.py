@@ -8,6 +8,8 @@ are taken from what the graph publishes (/fmm/impacts, /fmm/frf, the live mu on
 (`msgs.friction_result`), not a second fit. `fmm demo` and launch_scripts/sim_rig.py run it.
 """
 
+import dataclasses
+import itertools
 import math
 import time
 from collections.abc import Callable
@@ -223,10 +225,11 @@ def run_demo_session(
             Recorder, cli_args=cli_args, parameter_overrides=overrides(bag_path=str(bag))
         )
         total = len(hammer.schedule)
+        reported = itertools.count(1)  # ids are stable, not a count (stable_impact_id)
         results = graph.add(
             _Results,
             on_impact=lambda msg: progress(
-                f'impact {msg.impact_id + 1}/{total}: {msg.level or "no level"} '
+                f'impact {next(reported)}/{total} (id {msg.impact_id}): {msg.level or "no level"} '
                 f'{msg.peak_force_n:.0f} N, {msg.impulse_n_s:.3f} N*s, '
                 f'|X/F| {msg.peak_receptance_m_per_n * 1e3:.3f} mm/N at '
                 f'{msg.natural_frequency_hz:.2f} Hz, '
@@ -358,12 +361,18 @@ def _report(
     fit: FitFriction.Response,
 ) -> Path:
     """The session report from the bag: analysed as the analyzer did, the fit service's mu."""
+    from fmm_ros.core.signal.records import stable_impact_id
     from fmm_ros.report import build_report  # matplotlib: only when a report is asked for
     from fmm_ros.workflows.inputs import InputOptions
     from fmm_ros.workflows.replay import bag_impact_records
     from fmm_ros.workflows.session import SessionOptions, process_records
 
     records, problems = bag_impact_records(bag, capture)
+    if friction is not None:  # the service names impacts by their stable ids; a session by position
+        position = {stable_impact_id(record): k for k, record in enumerate(records)}
+        friction = dataclasses.replace(
+            friction, impact_ids=tuple(position[i] for i in friction.impact_ids)
+        )
     session = process_records(
         records,
         SessionOptions(inputs=InputOptions(capture=capture), analysis=analysis),

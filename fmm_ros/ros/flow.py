@@ -209,7 +209,11 @@ class FlowGate:
             self._progress[message.node] = mine
             self._seen[message.node] = self._heard[message.node] = time.monotonic()
             if self._silent.pop(message.node, None):
-                self._node.get_logger().warning(f'consumer {message.node} reports again')
+                self._node.get_logger().warning(
+                    f'consumer {message.node} reports again, at '
+                    + ', '.join(f'{topic} {index}' for topic, index in mine.items())
+                    + f' (published up to {self.published_end})'
+                )
             if self._on_progress_hook:
                 self._on_progress_hook()
 
@@ -294,9 +298,11 @@ class FlowGate:
             if behind > 0 and now - self._heard.get(name, now) > SILENT_AFTER_S:
                 if not self._silent.get(name):
                     self._silent[name] = True
-                    self._node.get_logger().error(
+                    self._node.get_logger().warning(
                         f'consumer {name} has said nothing for {SILENT_AFTER_S:g} s with '
-                        f'{behind} samples outstanding: no longer waited for'
+                        f'{behind} samples outstanding (from sample '
+                        f'{self.published_end - behind} on, while the others go on): no '
+                        'longer waited for; what it misses its own ledger names'
                     )
                 continue
             lags[name] = behind

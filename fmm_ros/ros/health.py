@@ -22,6 +22,7 @@ from rclpy.node import Node
 from fmm_ros.constants import DIAGNOSTICS_TOPIC
 from fmm_ros.core.signal.stream import FAULTS, RESYNC_REASONS, ChannelLedger
 from fmm_ros.ros import msgs
+from fmm_ros.ros.faults import CallbackFaults
 from fmm_ros.ros.qos import DIAGNOSTICS_QOS
 from fmm_ros.ros.timebase import SignalClock
 
@@ -48,6 +49,9 @@ class Health:
         )
         self._clock = SignalClock(node)
         node.create_timer(period_s, self.publish)
+        node.health = self
+        node.callback_faults = self.faults = CallbackFaults(node)
+        self.add('faults', self.faults.status)
 
     def add(self, part: str, check: Check) -> None:
         """Report a part of the node (e.g. 'stream', 'recorder') by calling check each time."""
@@ -102,7 +106,10 @@ class ChannelRate:
 def stream_status(
     ledgers: dict[str, ChannelLedger], rates: dict[str, ChannelRate]
 ) -> tuple[bytes, str, dict[str, object]]:
-    """A consumer's stream part: WARN on any missing or refused sample, per channel values."""
+    """A consumer's stream part: WARN on any missing or refused sample, per channel values.
+
+    ERROR on a unit no table knows: nothing of that channel can be used.
+    """
     values: dict[str, object] = {}
     lines = []
     level = OK
@@ -125,8 +132,10 @@ def stream_status(
         )
         for kind, count in sorted(ledger.faults.items()):
             values[f'{name} fault {kind}'] = count
-        if ledger.missing_samples or ledger.refused_samples or ledger.refused_batches:
-            level = WARN
+        if ledger.faults.get('unit'):  # nothing of the channel can be used: a setup error
+            level = ERROR
+        elif ledger.missing_samples or ledger.refused_samples or ledger.refused_batches:
+            level = max(level, WARN)
         lines.append(
             f'{name} {ledger.received_samples} received, {ledger.missing_samples} missing, '
             f'{ledger.refused_batches} refused'

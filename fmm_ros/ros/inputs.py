@@ -7,7 +7,9 @@ the log once per kind. The topic a batch arrives on says which channel it is; a 
 own `quantity` disagrees, or that is no sample batch at all, is refused and counted. The
 response topic carries a velocity, an acceleration or a displacement (`RESPONSE_CHANNELS`):
 the first batch's quantity is the sensor's (`response_quantity`), fed where the velocity goes,
-and a later batch of another quantity is refused.
+and a later batch of another quantity is refused. Samples are converted to SI once, here,
+from the batch's `unit` by the one unit table (`fmm_ros.units`); a unit it does not know is
+refused by name (fault `unit`: ERROR on /diagnostics, one log line), never read as if it were SI.
 """
 
 import time
@@ -19,10 +21,12 @@ from rclpy.node import Node
 from fmm_interfaces.msg import SampleBatch
 from fmm_ros.constants import FORCE, FORCE_TOPIC, RESPONSE_CHANNELS, VELOCITY, VELOCITY_TOPIC
 from fmm_ros.core.signal.stream import AlignedStream, Batch
+from fmm_ros.errors import UnitError
 from fmm_ros.ros import msgs
 from fmm_ros.ros.flow import ProgressReporter
 from fmm_ros.ros.health import ChannelRate, FaultLog, Health, stream_status
 from fmm_ros.ros.qos import SAMPLE_QOS
+from fmm_ros.ros.sources import SourceCheck
 
 
 class SampleInputs:
@@ -57,7 +61,9 @@ class SampleInputs:
             )
             self.topics[channel.quantity] = subscription.topic_name
         self.reporter = ProgressReporter(node, list(self.topics.values()))
+        self.sources = SourceCheck(node, self.topics)
         health.add('stream', lambda: stream_status(stream.ledger, self._rates))
+        health.add('sources', self.sources.status)
 
     def log_ledger(self) -> None:
         """Log each channel's ledger (a node does on stopping: its final account)."""
@@ -66,23 +72,29 @@ class SampleInputs:
 
     def _on_batch(self, quantity: str, msg: SampleBatch) -> None:
         self._node.last_batch_at = time.monotonic()
-        batch = msgs.stream_batch(msg)
+        self.sources.saw(quantity, msg.sample_rate_hz)
+        detail = f'last from {msg.header.frame_id!r} at {msg.first_sample_index}'
         if quantity == VELOCITY.quantity and not self._response_known:
             if msg.quantity in {channel.quantity for channel in RESPONSE_CHANNELS}:
                 self.response_quantity, self._response_known = msg.quantity, True
         expected = self.response_quantity if quantity == VELOCITY.quantity else quantity
-        if msg.quantity != expected:
-            self._stream.refuse_malformed(quantity, len(batch.samples))
+        try:
+            batch = msgs.si_stream_batch(msg, expected)
+        except UnitError as error:  # refused by name: never read as if it were SI
+            self._stream.refuse_malformed(quantity, len(msg.samples), kind='unit')
+            detail = str(error)
         else:
-            try:
-                self._take(quantity, batch)
-            except ValueError:  # not even a sample batch: counted, the stream unchanged
+            if msg.quantity != expected:
                 self._stream.refuse_malformed(quantity, len(batch.samples))
             else:
-                self._rates.setdefault(quantity, ChannelRate()).newest_stamp_ns = batch.stamp_ns
+                try:
+                    self._take(quantity, batch)
+                except ValueError:  # not even a sample batch: counted, the stream unchanged
+                    self._stream.refuse_malformed(quantity, len(batch.samples))
+                else:
+                    rate = self._rates.setdefault(quantity, ChannelRate())
+                    rate.newest_stamp_ns = batch.stamp_ns
         next_index = self._stream.next_index(quantity)
         if next_index is not None:
             self.reporter.update(self.topics[quantity], next_index, self._stream.sample_rate_hz)
-        self._faults.check(
-            self._stream.ledger, f'last from {msg.header.frame_id!r} at {msg.first_sample_index}'
-        )
+        self._faults.check(self._stream.ledger, detail)

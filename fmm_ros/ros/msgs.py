@@ -28,6 +28,7 @@ from fmm_ros.core.signal import analysis, frf, judging
 from fmm_ros.core.signal.stream import Batch
 from fmm_ros.errors import BadInputError
 from fmm_ros.io.session_info import FIELDS, SessionInfo
+from fmm_ros.units import sample_si_factor
 from fmm_ros.workflows.results import FrictionResult, json_safe
 
 
@@ -94,6 +95,21 @@ def stream_batch(msg: SampleBatch) -> Batch:
         msg.full_scale,
         msg.header.frame_id,
         stamp_ns(msg.header.stamp),
+    )
+
+
+def si_stream_batch(msg: SampleBatch, quantity: str) -> Batch:
+    """`stream_batch` in SI: samples and range converted from msg.unit (`units.sample_si_factor`).
+
+    Raises UnitError, naming the unit, for a unit the table does not know as a `quantity` unit.
+    A batch already in SI is viewed, not copied.
+    """
+    batch = stream_batch(msg)
+    factor = sample_si_factor(quantity, msg.unit)
+    if factor == 1.0:
+        return batch
+    return dataclasses.replace(
+        batch, samples=batch.samples * factor, full_scale=batch.full_scale * factor
     )
 
 

@@ -125,6 +125,8 @@ def _yaml_value(value: ParamValue) -> str:
         )
     if isinstance(value, float):
         value = float(f'{value:.12g}')  # 0.680 * 9.81 shown as 6.6708, not 6.670800000000001
+    if isinstance(value, str) and value.lower() in ('y', 'n'):
+        return f"'{value}'"  # rcl reads a bare y or n (a force in N) as a bool; PyYAML does not
     return yaml.safe_dump(value, default_flow_style=True).removesuffix('...\n').strip()
 
 

@@ -118,6 +118,15 @@ class ChainStream:
             samples += self._drift(first_index, samples.size)
         return samples
 
+    def skip(self, to_index: int) -> None:
+        """The samples up to to_index never pass the chain (a gap): the next batch starts there.
+
+        The filter's state carries over (the signal was at rest), the drift walks on.
+        """
+        if self._next_index is not None and to_index < self._next_index:
+            raise ValueError(f'cannot skip back from {self._next_index} to {to_index}')
+        self._next_index = int(to_index)
+
     def _drift(self, first_index: int, count: int) -> np.ndarray:
         """The random walk at samples [first_index, first_index + count).
 

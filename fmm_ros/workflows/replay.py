@@ -36,13 +36,14 @@ from fmm_ros.core.signal.analysis import (
 )
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, ImpactCapture
 from fmm_ros.core.signal.config import NominalLevel
-from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.core.signal.records import ImpactRecord, stable_impact_id
 from fmm_ros.core.signal.response import RESPONSE_QUANTITIES, as_measured
 from fmm_ros.core.signal.stream import ChannelLedger
 from fmm_ros.io import sniff
 from fmm_ros.io.bags.acquisitions import read_acquisitions
 from fmm_ros.io.bags.definitions import SAMPLE_BATCH
 from fmm_ros.io.bags.reader import BagReader, ChannelBatch
+from fmm_ros.units import sample_si_factor
 
 # Samples of each channel fed to the capture at once when a recording is read whole: large
 # enough that the per-call cost vanishes, small enough that records complete (and their
@@ -85,6 +86,8 @@ def capture_records(
     named in the reader's problems.
     fed, if given, counts what was fed. Without on_batch, a clean recording given a fresh
     capture is read whole and fed in blocks (see the module docstring): the same records.
+    Samples are converted to SI from each batch's unit (`units.sample_si_factor`); a unit the
+    table does not know raises UnitError naming it.
     """
     impacts = capture if isinstance(capture, ImpactCapture) else ImpactCapture(capture)
     quantity = {
@@ -132,13 +135,15 @@ def capture_records(
             held.append(batch)
             return
         reached[batch.topic] = batch.first_sample_index + len(batch.samples)
+        measured = response[0] if quantity[batch.topic] == VELOCITY.quantity else FORCE.quantity
+        factor = sample_si_factor(measured, batch.unit)  # UnitError: refused by name
         yield from tagged(
             impacts.feed(
                 quantity[batch.topic],
                 batch.first_sample_index,
-                batch.samples,
+                batch.samples * factor if factor != 1.0 else batch.samples,
                 batch.sample_rate_hz,
-                batch.full_scale,
+                batch.full_scale * factor,
                 sender=batch.frame_id,
                 stamp_ns=batch.stamp_ns,
             )
@@ -245,8 +250,9 @@ def replay_bag(
 ) -> Replay:
     """Capture and analyse every impact of a bag as the live analyzer does, then summarize.
 
-    on_result gets each ImpactAnalysis as the analyzer would publish it (impact ids count from
-    0 in capture order); on_progress gets the number of batches fed since its last call.
+    on_result gets each ImpactAnalysis as the analyzer would publish it (impact ids by
+    `stable_impact_id`, as the analyzer gives them); on_progress gets the number of batches
+    fed since its last call.
     """
     analysis = analysis or AnalysisConfig()
     results: list[ImpactAnalysis] = []
@@ -259,7 +265,7 @@ def replay_bag(
             if on_progress:
                 on_progress(fed.batches - reported)
                 reported = fed.batches
-            result = analyze_impact(record, capture, analysis, impact_id=len(results))
+            result = analyze_impact(record, capture, analysis, impact_id=stable_impact_id(record))
             results.append(result)
             if on_result:
                 on_result(result)

@@ -24,6 +24,7 @@ from fmm_ros.core.settings import result_field, setting
 from fmm_ros.core.signal import frf, pulse, response
 from fmm_ros.core.signal.capture import (
     contact_start_index,
+    resting_force_level,
     with_trigger,
 )
 from fmm_ros.core.signal.config import (  # noqa: F401 (re-exported: declared in config)
@@ -164,7 +165,7 @@ def analyze_impact(
     flags = quality_flags(record, capture)
     rate = record.sample_rate_hz
     trigger = record.trigger_offset
-    raw_force = record.force_n
+    raw_force = record.force_n - resting_force_level(record.force_n, trigger, capture)
     contact_start = contact_start_index(raw_force, trigger, capture)
     interval = frf.contact_interval(raw_force, capture.rearm_level_n, contact_start)
     peak_force = float(np.max(raw_force[interval[0] : interval[1]])) if interval else float('nan')

@@ -50,6 +50,14 @@ class TriggerDetector:
     `scan` may be called with blocks of any size; the triggers found depend only on the
     samples and their indices, not on how they were split. Non-finite samples (missing or
     corrupt data) neither trigger nor re-arm.
+
+    Two cases of an acquisition that began at a bad moment (issue 25): a trigger fired within
+    `min_spacing_s` of the first sample scanned, before any sample below the re-arm level,
+    began mid-hit (or on an offset above the trigger level); its index goes into `truncated`.
+    And a force that stays at or above the re-arm level for `min_spacing_s` after a trigger
+    sits on an offset (an amplifier not reset): the detector takes the force there as its
+    baseline and re-arms, trigger and re-arm levels counting above it from then on, so later
+    hits still trigger; a re-arm below the absolute re-arm level drops the baseline again.
     """
 
     def __init__(
@@ -61,30 +69,59 @@ class TriggerDetector:
         self._spacing = config.samples(sample_rate_hz).min_spacing
         self._last = last_trigger
         self._armed = last_trigger is None
+        self._baseline_n = 0.0
+        self._seen_rest = last_trigger is not None
+        self._start: int | None = None  # the first index scanned
+        self.truncated: set[int] = set()
+        """Triggers that fired before the force was ever seen below the re-arm level."""
 
     def scan(self, force_n: np.ndarray, first_sample_index: int) -> list[int]:
         """Sample indices of the triggers in this block (which follows the previous one)."""
         triggers = []
         pos = 0
+        if self._start is None:
+            self._start = first_sample_index
         while pos < force_n.size:
             if not self._armed:
-                below = first_true(below_level(force_n[pos:], self._rearm_n))
-                if below < 0:
+                pos = self._rearm(force_n, first_sample_index, pos)
+                if pos < 0:
                     break
-                pos += below + 1
-                self._armed = True
                 continue
             if self._last is not None:
                 pos = max(pos, self._last + self._spacing - first_sample_index)
-            above = first_true(reaches_level(force_n[pos:], self._trigger_n))
+            above = first_true(reaches_level(force_n[pos:], self._baseline_n + self._trigger_n))
+            if not self._seen_rest:
+                rest = first_true(below_level(force_n[pos:], self._baseline_n + self._rearm_n))
+                self._seen_rest = 0 <= rest < above or (rest >= 0 and above < 0)
             if above < 0:
                 break
             pos += above
             self._last = first_sample_index + pos
+            if not self._seen_rest and self._last - self._start < self._spacing:
+                self.truncated.add(self._last)
             self._armed = False
             triggers.append(self._last)
             pos += 1
         return triggers
+
+    def _rearm(self, force_n: np.ndarray, first_sample_index: int, pos: int) -> int:
+        """Re-arm from pos if the block allows: the position after it, or -1 (not in block)."""
+        below = first_true(below_level(force_n[pos:], self._baseline_n + self._rearm_n))
+        relock = None if self._last is None else self._last + self._spacing - first_sample_index
+        if below >= 0 and (relock is None or pos + below <= relock):
+            pos += below
+            if force_n[pos] < self._rearm_n:
+                self._baseline_n = 0.0
+            self._armed = self._seen_rest = True
+            return pos + 1
+        if relock is not None and relock < force_n.size:
+            at = max(relock, pos)
+            finite = first_true(np.isfinite(force_n[at:]))
+            if finite >= 0:  # still in contact a whole min_spacing on: an offset
+                self._baseline_n = float(force_n[at + finite])
+                self._armed = self._seen_rest = True
+                return at + finite + 1
+        return -1
 
 
 def find_triggers(
@@ -118,6 +155,22 @@ def with_trigger(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE) 
     return dataclasses.replace(
         record, trigger_sample_index=record.record_start_sample_index + triggers[0]
     )
+
+
+def resting_force_level(
+    force_n: np.ndarray, trigger_offset: int, config: CaptureConfig = DEFAULT_CAPTURE
+) -> float:
+    """The force the record rests at before its hit [N]: 0, unless it sits on an offset.
+
+    A record whose force before the trigger never falls below the re-arm level sits on an
+    offset (an amplifier not reset; the trigger detector re-armed on it): its pre-trigger
+    median, which the analysis subtracts, so impulse, peak, contact and FRF are the hit's.
+    """
+    before = force_n[:trigger_offset]
+    finite = before[np.isfinite(before)]
+    if finite.size == 0 or np.any(finite < config.rearm_level_n):
+        return 0.0
+    return float(np.median(finite))
 
 
 def contact_start_index(
@@ -185,6 +238,7 @@ class _OpenImpact:
         self.end = force.size
         self.end_found = False
         self.interrupted = False
+        self.truncated_start = False
         self.buffers = {FORCE.quantity: force, VELOCITY.quantity: velocity}
         self.gaps: dict[str, list[tuple[int, int]]] = {FORCE.quantity: [], VELOCITY.quantity: []}
         # Rest search: next record index to examine and the at-rest run ending just before it.
@@ -425,13 +479,23 @@ class ImpactCapture:
     # -- records ----------------------------------------------------------------------------------
 
     def _open_impact(self, trigger: int) -> None:
-        """Start a record at `trigger`, filling what both channels already hold."""
+        """Start a record at `trigger`, filling what both channels already hold.
+
+        A record never starts before its acquisition's first sample (there are none): a
+        trigger closer to it than the pre-trigger, or one fired mid-hit, is `truncated_start`.
+        """
         force, velocity = (
             self._pool.pop()
             if self._pool
             else (np.empty(self._samples.window), np.empty(self._samples.window))
         )
-        impact = _OpenImpact(trigger, self._samples.pretrigger, force, velocity)
+        origin = self._channels[FORCE.quantity].origin
+        pretrigger = min(self._samples.pretrigger, trigger - origin)
+        impact = _OpenImpact(trigger, pretrigger, force, velocity)
+        impact.truncated_start = (
+            pretrigger < self._samples.pretrigger or trigger in self._detector.truncated
+        )
+        self._detector.truncated.discard(trigger)
         for channel in self._channels.values():
             buffer = impact.buffers[channel.name]
             before_origin = min(max(channel.origin - impact.start, 0), impact.end)
@@ -506,6 +570,8 @@ class ImpactCapture:
             force_gaps=gaps(FORCE.quantity),
             velocity_gaps=gaps(VELOCITY.quantity),
             interrupted=impact.interrupted,
+            truncated_start=impact.truncated_start,
+            acquisition_origin_s=self.stream.origin_s,
         )
 
 

@@ -31,6 +31,7 @@ FLAGS: tuple[str, ...] = (
     'dropout',
     'gap',
     'interrupted',
+    'truncated_start',
     'nan',
     'unsettled',
     'overlap',

@@ -45,6 +45,7 @@ from fmm_ros.core.signal.capture import (
     TriggerDetector,
     below_level,
     contact_start_index,
+    resting_force_level,
     with_trigger,
 )
 from fmm_ros.core.signal.config import DEFAULT_CAPTURE, FLAGS, CaptureConfig
@@ -325,6 +326,10 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
       (`stuck_stretch`): samples dropped and filled by zeros or the last value.
     - gap: samples that never arrived inside the record (they are NaN).
     - interrupted: a new acquisition began before the record was complete (its tail is a gap).
+    - truncated_start: the acquisition began after the record's start: mid-hit (the force
+      never below the re-arm level before the trigger, or above the trigger level from its
+      first sample: an offset) or inside the pre-trigger; the record starts at the
+      acquisition's first sample.
     - nan: received samples that are NaN or infinite.
     - unsettled: |velocity - its level before the hit| (the level removes a vibrometer
       offset) above rest_velocity_m_s in the last rest_time_s of the record, or before the
@@ -338,10 +343,10 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
     sensor measured (`ImpactRecord.measured`), in its own units and range.
     """
     record = with_trigger(record, config)
-    force = record.force_n
+    trigger = record.trigger_offset
+    force = record.force_n - resting_force_level(record.force_n, trigger, config)
     velocity, response_full_scale = record.measured
     samples = config.samples(record.sample_rate_hz)
-    trigger = record.trigger_offset
     flags = set()
     force_noise = white_noise_std(force)
     velocity_noise = white_noise_std(velocity)
@@ -378,6 +383,8 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
         flags.add('gap')
     if record.interrupted:
         flags.add('interrupted')
+    if record.truncated_start:
+        flags.add('truncated_start')
     if _non_finite_outside(force, record.force_gaps) or _non_finite_outside(
         velocity, record.velocity_gaps
     ):

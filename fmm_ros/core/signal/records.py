@@ -66,6 +66,11 @@ class ImpactRecord:
     # The response sensor's range in SI units of response_quantity (0: unknown), when that
     # is not velocity (a velocity sensor's is velocity_full_scale_m_s).
     response_full_scale: float = 0.0
+    # The acquisition began after the record's start (mid-hit, or inside the pre-trigger).
+    truncated_start: bool = False
+    # Time of sample 0 of the record's acquisition [s] by its clock (None: no clock); with
+    # the trigger index it names the impact for good (`stable_impact_id`).
+    acquisition_origin_s: float | None = None
 
     def __post_init__(self) -> None:
         force = np.asarray(self.force_n, dtype=float)
@@ -117,6 +122,26 @@ class ImpactRecord:
         if self.trigger_sample_index is None:
             return None
         return self.trigger_sample_index - self.record_start_sample_index
+
+
+IMPACT_ID_MODULUS = 2**32
+"""Impact ids are ImpactResult.impact_id, a uint32: milliseconds wrap after 49.7 days."""
+
+
+def stable_impact_id(record: ImpactRecord) -> int:
+    """The impact's id: its trigger's acquisition time in ms, modulo 2**32.
+
+    Derived from the trigger's sample index and the acquisition's clock (the time of its
+    sample 0, `acquisition_origin_s`; without a clock, ms since sample 0), never a counter:
+    an analyzer restarted mid-session, `fmm replay` of the bag and the live analyzer give one
+    hit the same id, and two hits never share one (triggers lie at least `min_spacing_s`,
+    >= 1 ms, apart; another acquisition has another clock).
+    """
+    if record.trigger_sample_index is None:
+        raise ValueError('an impact id needs the trigger sample index')
+    trigger_ms = round(record.trigger_sample_index * 1000 / record.sample_rate_hz)
+    origin_ms = round(record.acquisition_origin_s * 1000) if record.acquisition_origin_s else 0
+    return (origin_ms + trigger_ms) % IMPACT_ID_MODULUS
 
 
 def read_impact_csv(path: str | Path) -> ImpactRecord:

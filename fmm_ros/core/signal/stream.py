@@ -71,6 +71,7 @@ FAULTS: dict[str, str] = {
     'stale': 'a batch of the previous acquisition after the stream had resynchronised',
     'mismatch': 'a batch at another sample rate than the acquisition the stream follows',
     'malformed': 'a batch that is no sample batch (rate not positive, wrong shape or channel)',
+    'unit': 'a batch in a unit the unit table (fmm_ros.units) does not know for its channel',
     'unconfirmed': 'a discontinuous batch at the end of the stream, never confirmed',
     'reset': 'a new acquisition: the index went back',
     'jump': 'a new acquisition: the index jumped far ahead',
@@ -335,9 +336,12 @@ class AlignedStream:
         if self.started:
             self._bound_skew()
 
-    def refuse_malformed(self, quantity: str, samples: int) -> None:
-        """Count a batch the caller could not even make a Batch of (see `check` for why)."""
-        self._channel(quantity).ledger._refuse('malformed', samples)
+    def refuse_malformed(self, quantity: str, samples: int, kind: str = 'malformed') -> None:
+        """Count a batch the caller could not even make a Batch of (see `check` for why).
+
+        kind: the FAULTS kind ('unit': a unit no table converts).
+        """
+        self._channel(quantity).ledger._refuse(kind, samples)
 
     def finish(self) -> None:
         """End of stream: a batch still held was never confirmed, so it is refused."""

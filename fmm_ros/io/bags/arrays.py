@@ -37,6 +37,7 @@ from fmm_ros.constants import FORCE, VELOCITY
 from fmm_ros.core.signal.stream import StreamRules
 from fmm_ros.io.bags.definitions import SAMPLE_BATCH, fmm_typestore
 from fmm_ros.io.bags.mcapscan import CHANNEL, CHUNK, DATA_END, MAGIC, MESSAGE, _parse_channel
+from fmm_ros.units import sample_si_factor
 
 _RECORD_HEAD = struct.Struct('<BQ')
 _CHUNK_HEAD = struct.Struct('<QQQI')  # start time, end time, uncompressed size, crc32
@@ -46,8 +47,8 @@ QUANTITIES = (FORCE.quantity, VELOCITY.quantity)
 _LAYOUT_TYPES = (SAMPLE_BATCH, 'std_msgs/msg/Header', 'builtin_interfaces/msg/Time')
 # What `_batch_layout` reports per message (int64 columns).
 _FIRST, _COUNT, _SAMPLES_AT, _FRAME_AT, _FRAME_LEN, _QUANTITY_AT, _QUANTITY_LEN = range(7)
-_RATE_AT, _SCALE_AT, _BAD = range(7, 10)
-_COLUMNS = 10
+_RATE_AT, _SCALE_AT, _BAD, _UNIT_AT, _UNIT_LEN = range(7, 12)
+_COLUMNS = 12
 
 
 @dataclass(frozen=True)
@@ -129,12 +130,15 @@ def _read(buf: np.ndarray, topics: tuple[str, str], rules: StreamRules) -> Chann
         starts, ends = first[mine], first[mine] + count[mine]
         frames = layout[mine][:, (_FRAME_AT, _FRAME_LEN)]
         quantities = layout[mine][:, (_QUANTITY_AT, _QUANTITY_LEN)]
+        units = layout[mine][:, (_UNIT_AT, _UNIT_LEN)]
         if (
             (starts[1:] != ends[:-1]).any()
             or not _same_strings(buf, frames)
             or not _same_strings(buf, quantities)
             or _string(buf, quantities[0]) != QUANTITIES[index]
-        ):
+            or not _same_strings(buf, units)
+            or sample_si_factor(QUANTITIES[index], _string(buf, units[0])) != 1.0
+        ):  # anything but one SI unit a channel is converted batch by batch
             return None
         spans.append((int(starts[0]), int(ends[-1]), float(scales[mine][0])))
     (start, force_end, force_scale), (velocity_start, velocity_end, velocity_scale) = spans
@@ -329,7 +333,10 @@ def _batch_layout(buf, offsets, lengths):
         out[row, _QUANTITY_AT] = quantity + 4
         out[row, _QUANTITY_LEN] = pos - quantity - 4
         if pos >= 0:
-            pos = _string_end(buf, origin, pos, end)  # unit
+            unit = origin + ((pos - origin + 3) & ~3)
+            pos = _string_end(buf, origin, pos, end)
+            out[row, _UNIT_AT] = unit + 4
+            out[row, _UNIT_LEN] = pos - unit - 4
         if pos < 0:
             out[row, _BAD] = 1
             continue

@@ -76,6 +76,16 @@ class McapStorage:
         self._writer.finish()
         self._file.close()
 
+    def abandon(self) -> None:
+        """Close the file as it stands after a failed write (the reader recovers it by scanning).
+
+        The buffered rest may fail to reach the disk too; the file is closed all the same.
+        """
+        try:
+            self._file.close()
+        except OSError:
+            pass  # the disk refuses the rest: the bag reads up to what reached it
+
 
 class Sqlite3Storage:
     """A rosbag2 .db3 file: rosbag2's tables, one transaction per flush interval."""
@@ -150,3 +160,10 @@ class Sqlite3Storage:
         self._db.commit()
         self._db.execute('PRAGMA optimize')
         self._db.close()
+
+    def abandon(self) -> None:
+        """Close the database after a failed write: what was committed stays readable."""
+        try:
+            self._db.close()
+        except sqlite3.Error:
+            pass  # the uncommitted rest is lost; the committed transactions remain

@@ -14,6 +14,7 @@ Every MCAP chunk carries its CRC-32, so a flipped bit in a stored sample is repo
 damage instead of read as data.
 """
 
+import sqlite3
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -45,6 +46,8 @@ from fmm_ros.io.bags.metadata import (
 from fmm_ros.io.bags.storage import McapStorage, Sqlite3Storage, TopicRecord
 
 DEFAULT_BATCH_SIZE = 500
+# What writing a bag raises when the storage fails under it (disk full, read-only, gone).
+WRITE_ERRORS = (OSError, sqlite3.Error)
 STORAGES = BAG_STORAGES
 
 _NO_TIME = _QosTime(0, 0)
@@ -73,6 +76,19 @@ def bag_qos(*, depth: int, reliable: bool, transient_local: bool) -> Qos:
         _NO_TIME,
         False,
     )
+
+
+def free_bag_path(path: Path) -> Path:
+    """path, or the first of path_1, path_2, ... that does not exist.
+
+    A respawned recorder starts a new bag beside the one it wrote before, never over it.
+    """
+    number = 0
+    candidate = path
+    while candidate.exists():
+        number += 1
+        candidate = path.with_name(f'{path.name}_{number}')
+    return candidate
 
 
 def sample_stamp_ns(time_origin_ns: int, sample_index: int, sample_rate_hz: float) -> int:
@@ -169,6 +185,17 @@ class BagWriter:
         partial = target.with_suffix('.yaml.tmp')
         partial.write_text(metadata_yaml(information), encoding='utf-8')
         partial.replace(target)
+
+    def abandon(self) -> None:
+        """Close the storage file as it is, after a write failed.
+
+        Disk full, path read-only, mount gone: no summary, no metadata.yaml, nothing more
+        written; the reader recovers the bag by scanning up to where it got (as after a crash).
+        """
+        if self._file is None:
+            return
+        storage, self._file = self._file, None
+        storage.abandon()
 
     def set_custom_data(self, key: str, value: str) -> None:
         """One custom_data entry (a string), stored when the bag closes."""

@@ -31,7 +31,7 @@ from fmm_ros.core.signal.analysis import (
 )
 from fmm_ros.core.signal.capture import FLAGS, CaptureConfig, ImpactCapture
 from fmm_ros.core.signal.judging import Decision
-from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.core.signal.records import ImpactRecord, stable_impact_id
 from fmm_ros.core.signal.response import as_measured
 from fmm_ros.core.signal.stream import Batch
 from fmm_ros.errors import BadInputError, FmmError
@@ -142,10 +142,19 @@ class Analyzer(Node):
         return self.capture.ledger
 
     def _on_batch(self, quantity: str, batch: Batch) -> None:
-        origin_before = self.capture.stream.origin_s  # an interrupted record's acquisition
+        if not self.capture.stream.started and batch.first_sample_index > 0:
+            self.get_logger().warning(
+                f'joined an acquisition under way at sample {batch.first_sample_index} '
+                f'({batch.first_sample_index / batch.sample_rate_hz:.1f} s in, {quantity}): '
+                'samples before it were not analysed here (a restart?); an impact in them is '
+                'not reported by this analyzer'
+            )
         for record in self.capture.feed_batch(quantity, batch):
-            origin = origin_before if record.interrupted else self.capture.stream.origin_s
-            self._report(record, _trigger_stamp(record, origin, batch))
+            # One broken record is dropped, named once and on /diagnostics; the rest go on.
+            with self.callback_faults.guard(
+                f'impact at sample {record.trigger_sample_index} dropped'
+            ):
+                self._report(record, _trigger_stamp(record, batch))
 
     def _impacts_status(self) -> tuple:
         last = self.results[-1] if self.results else None
@@ -166,11 +175,16 @@ class Analyzer(Node):
 
     def _report(self, record: ImpactRecord, stamp: Time) -> None:
         """Analyse one completed record, publish it and the updated level summaries."""
-        measured = as_measured(record, self.inputs.response_quantity, self.capture_config)
-        result = analyze_impact(
-            measured, self.capture_config, self.analysis_config, impact_id=self.impacts_reported
-        )
-        self.capture.recycle(record)
+        try:
+            measured = as_measured(record, self.inputs.response_quantity, self.capture_config)
+            result = analyze_impact(
+                measured,
+                self.capture_config,
+                self.analysis_config,
+                impact_id=stable_impact_id(record),
+            )
+        finally:
+            self.capture.recycle(record)
         self.results.append(result)
         summary = summarize(list(self.results), self.analysis_config, self.decisions)
         judged = summary.impacts[-1]
@@ -220,11 +234,12 @@ class Analyzer(Node):
         super().destroy_node()
 
 
-def _trigger_stamp(record: ImpactRecord, origin_s: float | None, batch: Batch) -> Time:
+def _trigger_stamp(record: ImpactRecord, batch: Batch) -> Time:
     """Acquisition time of the trigger sample by its acquisition's clock (else the batch's).
 
     The fitter tells by it which acquisition a reported impact belongs to.
     """
+    origin_s = record.acquisition_origin_s
     if origin_s is None:
         return msgs.time_msg(batch.stamp_ns)
     return msgs.time_msg(

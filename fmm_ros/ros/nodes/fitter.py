@@ -10,7 +10,9 @@ processor. Impacts are taken by the signal core's `select_impacts`: those the an
 flagged and rejected are left out and named in the response's message unless the request
 sets include_flagged. A request that cannot be answered (no impacts yet, unknown ids, no
 clean impact, a record friction cannot explain) gets success = false and the reason, never
-a number.
+a number. An impact named more than once in a request counts once (the message says so);
+requests queue without limit and are answered in order (SERVICE_QOS). A held impact is never
+replaced by another with its id.
 
 After every accepted impact it also fits that impact alone and publishes the running mu (the
 impacts' own mus, inverse-variance weighted: `core.identify.running`) on fmm/friction, so the
@@ -27,11 +29,12 @@ executor) the streams keep flowing while a fit runs.
 
 import queue
 import threading
-from collections import OrderedDict
+from collections import Counter, OrderedDict
 from dataclasses import dataclass
 
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from fmm_interfaces.msg import FrictionEstimate, ImpactDecision, ImpactResult
 from fmm_interfaces.srv import DiagnoseModel, FitFriction
@@ -91,6 +94,16 @@ PARAMS = (
 )
 
 
+# Requests queue without limit and are answered in order, one at a time: rclpy's default
+# service queue (keep last 10) dropped 9 of 20 clients asking at once, who then waited for
+# ever (issue 25).
+SERVICE_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_ALL,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+
+
 @dataclass(frozen=True)
 class HeldImpact:
     """An analyzer-reported impact and its record, cut from the history."""
@@ -144,9 +157,19 @@ class Fitter(Node):
             self._worker = threading.Thread(target=self._fit_live, name='live_mu', daemon=True)
             self._worker.start()
         services = MutuallyExclusiveCallbackGroup()
-        self.create_service(FitFriction, FIT_SERVICE, self._on_fit, callback_group=services)
         self.create_service(
-            DiagnoseModel, DIAGNOSE_SERVICE, self._on_diagnose, callback_group=services
+            FitFriction,
+            FIT_SERVICE,
+            self._on_fit,
+            qos_profile=SERVICE_QOS,
+            callback_group=services,
+        )
+        self.create_service(
+            DiagnoseModel,
+            DIAGNOSE_SERVICE,
+            self._on_diagnose,
+            qos_profile=SERVICE_QOS,
+            callback_group=services,
         )
         self.get_logger().info(
             f'{FIT_SERVICE} and {DIAGNOSE_SERVICE} ready on '
@@ -193,6 +216,15 @@ class Fitter(Node):
             msgs.stamp_ns(msg.header.stamp),
         )
         with self._lock:
+            known = self.impacts.get(msg.impact_id)
+            if known is not None:  # held impacts are never overwritten
+                if known.record.trigger_sample_index != msg.trigger_sample_index:
+                    self.get_logger().error(
+                        f'impact {msg.impact_id} at sample {msg.trigger_sample_index} has '
+                        f'the id of the impact held at {known.record.trigger_sample_index}:'
+                        ' not held (the held one is kept)'
+                    )
+                return
             self.impacts[msg.impact_id] = held
             while len(self.impacts) > self.config['keep_last_impacts']:
                 self.impacts.popitem(last=False)
@@ -298,6 +330,7 @@ class Fitter(Node):
             held = list(self.impacts.values())
         by_id = {impact.impact_id: impact for impact in held}
         if impact_ids:
+            impact_ids = list(dict.fromkeys(impact_ids))  # an id named twice counts once
             missing = [i for i in impact_ids if i not in by_id]
             if missing:
                 raise BadInputError(
@@ -333,8 +366,9 @@ class Fitter(Node):
             return _refused(response, str(error))
         result = FrictionResult.from_fit(fit, [impact.impact_id for impact in impacts])
         msgs.fill_fit_response(response, result)
-        if selection.note:
-            response.message = f'{response.message}; {selection.note}'
+        for note in (selection.note, repeated_note(request.impact_ids)):
+            if note:
+                response.message = f'{response.message}; {note}'
         self.last_fit = response.message
         self.get_logger().info(response.message)
         return response
@@ -356,9 +390,17 @@ class Fitter(Node):
             return _refused(response, str(error))
         self.get_logger().info(f'diagnosis of {len(impacts)} impacts: {result.verdict}')
         response = msgs.fill_diagnose_response(response, result)
-        if selection.note:
-            response.message = f'{response.message}; {selection.note}'
+        for note in (selection.note, repeated_note(request.impact_ids)):
+            if note:
+                response.message = f'{response.message}; {note}'
         return response
+
+
+def repeated_note(impact_ids) -> str:
+    """What a request named more than once ('' if nothing): each such impact counts once."""
+    counts = Counter(impact_ids)
+    repeated = [f'{impact_id} ({count} times)' for impact_id, count in counts.items() if count > 1]
+    return f'impacts named more than once, counted once: {", ".join(repeated)}' if repeated else ''
 
 
 def _refused(response: object, reason: str) -> object:

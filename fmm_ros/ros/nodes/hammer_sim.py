@@ -28,6 +28,7 @@ from fmm_ros.ros.qos import SAMPLE_QOS
 from fmm_ros.ros.timebase import CLOCK_PARAM, ClockPublisher
 from fmm_ros.sim.daq import ChainStream
 from fmm_ros.sim.hammer import HammerStream, session_schedule
+from fmm_ros.units import si_factor
 
 PARAMS = (
     Param(
@@ -115,6 +116,13 @@ PARAMS = (
         read_only=True,
     ),
     Param('frame_id', 'hammer', 'Sensor name in the message header', read_only=True),
+    Param(
+        'force_unit',
+        'N',
+        'Unit the measured force is published in, as a lab DAQ may be set (any force unit '
+        'of fmm_ros.units; the applied force to rig_sim stays in N)',
+        read_only=True,
+    ),
     *SOURCE_PARAMS,
     CLOCK_PARAM,
 )
@@ -150,6 +158,7 @@ class HammerSim(Node):
             chain_from_parameters(self.config, 'n'), rate, seed=self.config['seed']
         )
         self.next_index = 0
+        self._per_unit = 1.0 / si_factor(FORCE.quantity, self.config['force_unit'])
         self._measured_pub = self.create_publisher(SampleBatch, FORCE_TOPIC, SAMPLE_QOS)
         self._applied_pub = self.create_publisher(SampleBatch, APPLIED_FORCE_TOPIC, SAMPLE_QOS)
         batch = self._batch = self.config['batch_size']
@@ -231,7 +240,12 @@ class HammerSim(Node):
             full_scale=self.config['full_scale_n'],
         )
         self._applied_pub.publish(msgs.sample_batch(self._applied, **common))
-        self._measured_pub.publish(msgs.sample_batch(self._measured, **common))
+        if self._per_unit != 1.0:  # as a DAQ set to another unit publishes it
+            self._measured *= self._per_unit
+            common['full_scale'] *= self._per_unit
+        measured = msgs.sample_batch(self._measured, **common)
+        measured.unit = self.config['force_unit']
+        self._measured_pub.publish(measured)
         self.next_index = first + self._applied.size
         self.source.sent(self.next_index)
         done = self.next_index >= self.stream.end_index > first

@@ -15,6 +15,10 @@ the bag states its own completeness, which `fmm bag-info` shows. rosbag2 logs on
 dropped count at close and keeps no per-topic loss in the bag (ros2/rosbag2#2007).
 The newest session metadata the station published (fmm/session_info) goes into the
 metadata too (key fmm.session), so a campaign reads a bag's conditions without decoding it.
+
+A `bag_path` that exists already (a respawned recorder) is never overwritten: the recording
+goes to the first free `<bag_path>_<n>` beside it. Storage that fails under the recorder
+(disk full, a read-only path, a vanished mount) ends the recording, not the node (`_fail`).
 """
 
 import json
@@ -44,13 +48,15 @@ from fmm_ros.constants import (
 from fmm_ros.core.signal.stream import AlignedStream, LedgerOnly
 from fmm_ros.errors import FmmError
 from fmm_ros.io.bags.definitions import SAMPLE_BATCH
+from fmm_ros.io.bags.errors import BagError
 from fmm_ros.io.bags.metadata import LEDGER_KEY, ledger_text
-from fmm_ros.io.bags.writer import STORAGES, BagWriter, bag_qos
+from fmm_ros.io.bags.writer import STORAGES, WRITE_ERRORS, BagWriter, bag_qos, free_bag_path
 from fmm_ros.io.session_info import SESSION_KEY, from_message, to_json
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import message_class, run_node
 from fmm_ros.ros.flow import ProgressReporter
 from fmm_ros.ros.health import (
+    ERROR,
     OK,
     WARN,
     ChannelRate,
@@ -116,16 +122,27 @@ class Recorder(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__('recorder', **kwargs)
         self.config = declare_parameters(self, PARAMS)
-        path = self.config['bag_path'] or datetime.now().strftime('fmm_%Y%m%d_%H%M%S')
+        asked = Path(self.config['bag_path'] or datetime.now().strftime('fmm_%Y%m%d_%H%M%S'))
         self.writer = BagWriter(
-            Path(path),
+            free_bag_path(asked),
             storage=self.config['storage'],
             flush_interval_s=self.config['flush_interval_s'],
         )
-        self.writer.open()
         self.bag_path = self.writer.path
+        if self.bag_path != asked:
+            self.get_logger().warning(
+                f'{asked} exists already (a recorder before this one): recording to '
+                f'{self.bag_path} beside it'
+            )
+        self.failed = ''
+        """Why the bag stopped being written ('' while it is written)."""
         self.messages_recorded = 0
         self._session_info: bytes | None = None  # the newest, serialized
+        self.messages_not_recorded = 0
+        try:
+            self.writer.open()
+        except BagError as error:
+            self._fail(error)
         self._pending = []
         self._raw_subscriptions = []
         # Per SampleBatch topic (resolved name): the stream rules, for the ledger alone.
@@ -156,7 +173,33 @@ class Recorder(Node):
         """Each SampleBatch topic's ledger, by resolved topic name."""
         return {topic: stream.ledger[topic] for topic, stream in self._streams.items()}
 
+    def _fail(self, error: Exception) -> None:
+        """The storage failed (disk full, read-only path, mount gone): close the bag as it is.
+
+        One log line and ERROR on /diagnostics, no traceback; the bag stays readable up to
+        where it got (the reader recovers it by scanning); the recorder goes on consuming and
+        reporting its progress, so the sources and the other nodes go on.
+        """
+        self.failed = f'{type(error).__name__}: {error}'
+        self.writer.abandon()
+        self.get_logger().error(
+            f'recording to {self.bag_path} stopped: {self.failed}; the bag is closed as it '
+            'stands (readable up to here), the rig goes on unrecorded'
+        )
+
     def _status(self) -> tuple:
+        if self.failed:
+            return (
+                ERROR,
+                f'not recording: {self.failed} (bag {self.bag_path} closed after '
+                f'{self.writer.messages_written} messages; {self.messages_not_recorded} since)',
+                {
+                    'bag': str(self.bag_path),
+                    'messages written': self.writer.messages_written,
+                    'messages not recorded': self.messages_not_recorded,
+                    'failure': self.failed,
+                },
+            )
         since_flush = (
             (time.time_ns() - self.writer.last_flush_wall_ns) / 1e9
             if self.writer.last_flush_wall_ns
@@ -190,9 +233,50 @@ class Recorder(Node):
         """Topics asked for that no publisher has offered yet."""
         return list(self._pending)
 
+    def _bound_silence(self, final: bool = False) -> None:
+        """A channel silent while another of its acquisition runs on: named, then counted.
+
+        Each topic has its own stream here, so nothing else would count it (issue 25: the bag
+        of a stalled rig_sim held velocity to sample 726,500 and force to 6,890,000, its
+        ledger 0 missing). Channels of one acquisition (one rate, one clock) are partners.
+        While recording, a channel more than the stream's max_skew_s behind its leading
+        partner is named in the log with the span (it may still come: a stalled relay
+        delivers its backlog, which must not then be refused); at the close (final) what it
+        still lacks up to the partner's end is declared missing in its ledger.
+        """
+        started = [(topic, stream) for topic, stream in self._streams.items() if stream.started]
+        for topic, stream in started:
+            ends = [
+                other.next_index(name)
+                for name, other in started
+                if other is not stream
+                and other.sample_rate_hz == stream.sample_rate_hz
+                and abs((other.origin_s or 0.0) - (stream.origin_s or 0.0))
+                <= stream.rules.clock_tolerance_s
+            ]
+            if not ends:
+                continue
+            start, lead = stream.next_index(topic), max(ends)
+            if final and lead > start:
+                stream.declare_missing(topic, lead)
+                self.get_logger().warning(
+                    f'{topic}: samples {start}..{lead} missing at the close (its partner ran on)'
+                )
+            elif lead - start > stream.rules.max_skew_s * stream.sample_rate_hz:
+                self.get_logger().warning(
+                    f'{topic}: nothing from sample {start} on while another channel of the '
+                    f'acquisition is at {lead}',
+                    throttle_duration_sec=10.0,
+                )
+
     def _discover(self) -> None:
         """Subscribe to every pending topic that now has a publisher; flush what waited."""
-        self.writer.flush_if_due()
+        self._bound_silence()
+        if not self.failed:
+            try:
+                self.writer.flush_if_due()
+            except WRITE_ERRORS as error:
+                self._fail(error)
         for topic in list(self._pending):
             publishers = self.get_publishers_info_by_topic(topic)
             types = {info.topic_type for info in publishers}
@@ -211,10 +295,10 @@ class Recorder(Node):
 
     def _subscribe(self, topic: str, msgtype: str, qos: QoSProfile) -> None:
         resolved = self.resolve_topic_name(topic)
-        self.writer.add_topic(
+        self._declare(
             resolved,
             msgtype,
-            qos=bag_qos(
+            bag_qos(
                 depth=qos.depth,
                 reliable=qos.reliability == ReliabilityPolicy.RELIABLE,
                 transient_local=qos.durability == DurabilityPolicy.TRANSIENT_LOCAL,
@@ -235,8 +319,25 @@ class Recorder(Node):
             )
         )
 
+    def _declare(self, topic: str, msgtype: str, qos) -> None:
+        """Declare a topic in the bag (nothing once the storage failed)."""
+        if self.failed:
+            return
+        try:
+            self.writer.add_topic(topic, msgtype, qos=qos)
+        except WRITE_ERRORS as error:
+            self._fail(error)
+
     def _store(self, topic: str, msgtype: str, data: bytes) -> None:
-        self.writer.write_raw(topic, msgtype, data, time.time_ns())
+        if self.failed:
+            self.messages_not_recorded += 1
+            return
+        try:
+            self.writer.write_raw(topic, msgtype, data, time.time_ns())
+        except WRITE_ERRORS as error:
+            self.messages_not_recorded += 1
+            self._fail(error)
+            return
         self.messages_recorded += 1
         if msgtype == 'fmm_interfaces/msg/SessionInfo':
             self._session_info = data
@@ -259,6 +360,7 @@ class Recorder(Node):
         """Close the bag (MCAP summary, metadata.yaml with the ledger) before the node goes."""
         for stream in self._streams.values():
             stream.finish()
+        self._bound_silence(final=True)
         self.writer.set_custom_data(LEDGER_KEY, ledger_text(self.ledger))
         if self._session_info is not None:
             try:
@@ -278,7 +380,10 @@ class Recorder(Node):
                 }
             ),
         )
-        self.writer.close()
+        try:
+            self.writer.close()
+        except WRITE_ERRORS as error:  # the storage failed as the bag closed
+            self._fail(error)
         super().destroy_node()
 
 

@@ -26,6 +26,7 @@ from fmm_ros.constants import APPLIED_FORCE_TOPIC, FORCE, PAPER_MU, VELOCITY, VE
 from fmm_ros.core.physics.model import INTEGRATORS, OscillatorStream
 from fmm_ros.core.physics.terms import parse_model_term
 from fmm_ros.core.signal.stream import AlignedStream
+from fmm_ros.errors import UnitError
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import (
     RIG_PARAMS,
@@ -38,8 +39,10 @@ from fmm_ros.ros.flow import SOURCE_PARAMS, FlowGate, ProgressReporter, deliver_
 from fmm_ros.ros.health import ChannelRate, FaultLog, Health, stream_status
 from fmm_ros.ros.params import Param, declare_parameters
 from fmm_ros.ros.qos import SAMPLE_QOS
+from fmm_ros.ros.sources import SourceCheck
 from fmm_ros.sim.daq import ChainStream
 from fmm_ros.sim.hammer import add_indexed_noise
+from fmm_ros.units import si_factor
 
 PARAMS = (
     Param(
@@ -84,6 +87,13 @@ PARAMS = (
     ),
     Param('seed', 1, 'Seed of the vibrometer noise [-]', limits=(0, 2**31 - 1), read_only=True),
     Param('frame_id', 'vibrometer', 'Sensor name in the message header', read_only=True),
+    Param(
+        'velocity_unit',
+        'm/s',
+        'Unit the velocity is published in, as a vibrometer may be set (any velocity unit of '
+        'fmm_ros.units)',
+        read_only=True,
+    ),
     *(param for param in SOURCE_PARAMS if param.name != 'flow_window_s'),
 )
 
@@ -107,6 +117,7 @@ class RigSim(Node):
         self._chain = chain_from_parameters(cfg, 'm_s')
         self._chain_stream: ChainStream | None = None
         self._runs: list[tuple[int, np.ndarray]] = []  # velocity taken in this callback
+        self._per_unit = 1.0 / si_factor(VELOCITY.quantity, cfg['velocity_unit'])
         self._publisher = self.create_publisher(SampleBatch, cfg['output_topic'], SAMPLE_QOS)
         self.stream = AlignedStream(self, quantities=(FORCE.quantity,))
         self.gate = FlowGate(
@@ -127,7 +138,9 @@ class RigSim(Node):
         self.last_batch_at = 0.0  # a consumer of batches: drained before it stops
         self._rates: dict[str, ChannelRate] = {}
         self._faults = FaultLog(self)
-        Health(self).add('stream', lambda: stream_status(self.stream.ledger, self._rates))
+        health = Health(self)
+        health.add('stream', lambda: stream_status(self.stream.ledger, self._rates))
+        health.add('sources', SourceCheck(self, {FORCE.quantity: self._input}).status)
         terms = ', '.join(str(effect) for effect in self.effects) or 'none'
         self.get_logger().info(
             f'plant m={self.rig.mass_kg} kg k={self.rig.stiffness_n_per_m} N/m '
@@ -152,31 +165,37 @@ class RigSim(Node):
 
     def _on_force(self, msg: SampleBatch) -> None:
         self.last_batch_at = time.monotonic()
-        batch = msgs.stream_batch(msg)
+        detail = f'last at {msg.first_sample_index}'
         try:
-            self.stream.feed(FORCE.quantity, batch)
-        except ValueError:
-            self.stream.refuse_malformed(FORCE.quantity, len(batch.samples))
-        self._rates.setdefault(FORCE.quantity, ChannelRate()).newest_stamp_ns = batch.stamp_ns
+            batch = msgs.si_stream_batch(msg, FORCE.quantity)
+        except UnitError as error:  # refused by name, never read as if it were N
+            self.stream.refuse_malformed(FORCE.quantity, len(msg.samples), kind='unit')
+            detail = str(error)
+        else:
+            try:
+                self.stream.feed(FORCE.quantity, batch)
+            except ValueError:
+                self.stream.refuse_malformed(FORCE.quantity, len(batch.samples))
+            self._rates.setdefault(FORCE.quantity, ChannelRate()).newest_stamp_ns = batch.stamp_ns
         for first, velocity in self._runs:  # in index order, each sample once
-            stamp = batch.stamp_ns + round(
-                (first - batch.first_sample_index) / batch.sample_rate_hz * 1e9
+            stamp = msgs.stamp_ns(msg.header.stamp) + round(
+                (first - msg.first_sample_index) / msg.sample_rate_hz * 1e9
             )
-            self._publisher.publish(
-                msgs.sample_batch(
-                    velocity,
-                    quantity=VELOCITY,
-                    sample_rate_hz=batch.sample_rate_hz,
-                    first_sample_index=first,
-                    stamp=msgs.time_msg(stamp),
-                    frame_id=self.config['frame_id'],
-                    full_scale=self.config['full_scale_m_s'],
-                )
+            out = msgs.sample_batch(
+                velocity * self._per_unit if self._per_unit != 1.0 else velocity,
+                quantity=VELOCITY,
+                sample_rate_hz=msg.sample_rate_hz,
+                first_sample_index=first,
+                stamp=msgs.time_msg(stamp),
+                frame_id=self.config['frame_id'],
+                full_scale=self.config['full_scale_m_s'] * self._per_unit,
             )
+            out.unit = self.config['velocity_unit']
+            self._publisher.publish(out)
             self.gate.sent(first + velocity.size)
         self._runs = []
         self._report()
-        self._faults.check(self.stream.ledger, f'last at {msg.first_sample_index}')
+        self._faults.check(self.stream.ledger, detail)
 
     def destroy_node(self) -> None:
         """Deliver the last velocity, log the final ledger of its input."""
@@ -222,6 +241,9 @@ class RigSim(Node):
         limit = int(UNFORCED_LIMIT_S * self.stream.sample_rate_hz)
         self._step(np.zeros(min(stop - start, limit)))
         self.next_index = stop
+        # The sensor chain goes on after the gap, however long (a stall of any length: a gap
+        # past the limit once left the chain behind, and every later batch was refused).
+        self._chain_stream.skip(stop)
 
     def _step(self, force_n: np.ndarray) -> np.ndarray:
         """Advance the plant over force_n and return the noisy vibrometer output (reused buffer)."""

@@ -1,0 +1,37 @@
+"""The fault-injection benchmark's quick run (benchmarks/fault_rig.py --quick), as CI runs it.
+
+A few short faults on the multi-process rig (a stalled rig_sim, a killed and respawned
+analyzer, a force offset above the trigger, force in kN and velocity in in/s): every loss is
+named in the ledgers, every fault that should be named is, the graph recovers, no impact id
+is given to two hits, and no node prints a traceback.
+"""
+
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'benchmarks'))
+
+import fault_rig  # noqa: E402
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+
+def test_quick_faults_are_named_and_recovered(tmp_path):
+    rows = fault_rig.quick_rows(tmp_path / 'work')
+    assert [row.fault for row in rows] == [
+        'rig_sim stalled 3 s',
+        'analyzer SIGKILL + respawn',
+        'force offset 30 N (above the trigger)',
+        'force in kN',
+        'velocity in in/s',
+    ]
+    for row in rows:
+        assert row.tracebacks == 0, row.row()
+        assert row.missing_named and row.fault_named and row.recovered, row.row()
+        assert row.reused_ids == 0, row.row()
+    stall, restart, early, force_unit, velocity_unit = rows
+    assert early.flags.get('truncated_start') == 1 and early.reported == early.hits_sent + 1
+    for unit in (force_unit, velocity_unit):
+        assert unit.reported == unit.accepted == unit.hits_sent == 3, unit.row()
