@@ -33,15 +33,18 @@ LAYERS: dict[str, set[str]] = {
     'workflows': BASE | CORE | {'io'},
     # The report draws what the workflows computed; it takes the core's result types and
     # declarations directly, and the paper's figures simulate (sim).
-    'report': BASE | CORE | {'sim', 'workflows'},
+    'report': BASE | CORE | {'io', 'sim', 'workflows'},
     'campaign': BASE | CORE | {'io', 'workflows', 'report'},
-    'ros': BASE | CORE | {'io', 'sim', 'workflows', 'report'},
+    # The station's page (state and server), ROS-free, beneath its node in ros/.
+    'station': BASE | CORE | {'io', 'workflows'},
+    'ros': BASE | CORE | {'io', 'sim', 'workflows', 'report', 'station'},
     # The command is the top: it parses options into the core's settings and calls any layer.
     'cli': BASE | CORE | {'io', 'sim', 'workflows', 'report', 'campaign', 'ros'},
 }
 
 NODES_IMPORTED_BY = {
     'fmm_ros.cli.record',
+    'fmm_ros.cli.station',
     'fmm_ros.ros.demo',
     'fmm_ros.ros.launch',
     'fmm_ros.ros.params_file',

@@ -15,6 +15,7 @@ import pytest
 from fmm_ros.constants import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC
 from fmm_ros.core.signal.analysis import AnalysisConfig, analyze_impact, paper_levels
 from fmm_ros.core.signal.capture import CaptureConfig, ImpactCapture
+from fmm_ros.core.signal.records import stable_impact_id
 from fmm_ros.io.bags import BagReader, BagWriter
 from fmm_ros.sim.session import simulated_session, write_session_bag
 from fmm_ros.workflows.replay import Fed, bag_impact_records, capture_records, replay_bag
@@ -41,7 +42,9 @@ def batch_by_batch(bag, capture=CAPTURE):
         for record in capture_records(
             reader, impacts, reuse_buffers=True, on_batch=lambda _: None, fed=fed
         ):
-            results.append(analyze_impact(record, capture, ANALYSIS, impact_id=len(results)))
+            results.append(
+                analyze_impact(record, capture, ANALYSIS, impact_id=stable_impact_id(record))
+            )
         problems = list(reader.problems)
     return results, impacts.ledger, fed, problems
 

@@ -168,8 +168,6 @@ def _spin_guarded(executor, node: Node, timeout_s: float) -> None:
     Logged once, ERROR on /diagnostics, and the node goes on (issue 25). A source whose
     consumers never came (`SourceStartTimeout`) and an external shutdown still end the loop.
     """
-    from fmm_ros.ros.flow import SourceStartTimeout
-
     try:
         executor.spin_once(timeout_sec=timeout_s)
     except (ExternalShutdownException, SourceStartTimeout):
