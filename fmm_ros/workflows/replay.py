@@ -176,6 +176,7 @@ def capture_records(
                     rate,
                     force_scale,
                     velocity_scale,
+                    stamp_ns=whole.stamp_ns + round(low * 1e9 / rate) if whole.stamp_ns else 0,
                 )
             )
         yield from tagged(impacts.flush())

@@ -338,10 +338,12 @@ class ImpactCapture:
         sample_rate_hz: float,
         force_full_scale_n: float = 0.0,
         velocity_full_scale_m_s: float = 0.0,
+        stamp_ns: int = 0,
     ) -> list[ImpactRecord]:
         """Add sample-aligned blocks of both channels (e.g. a whole recording) at once.
 
         Equivalent to feeding the two channels batch by batch, whatever the block length.
+        stamp_ns: time of the first sample [ns] (0: none), the acquisition's clock.
         """
         force_n = np.asarray(force_n, dtype=float)
         velocity_m_s = np.asarray(velocity_m_s, dtype=float)
@@ -361,6 +363,9 @@ class ImpactCapture:
                             samples[low : low + MAX_STEP_SAMPLES],
                             sample_rate_hz,
                             float(full_scale),
+                            stamp_ns=stamp_ns + round(low * 1e9 / sample_rate_hz)
+                            if stamp_ns
+                            else 0,
                         ),
                     )
                     for quantity, samples, full_scale in (

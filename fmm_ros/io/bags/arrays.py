@@ -56,6 +56,8 @@ class ChannelArrays:
     """Force and velocity of a clean recording, whole, with the batches they came in.
 
     force / velocity: samples from `first_sample_index` on (force [N], velocity [m/s]).
+    stamp_ns: header stamp of the first force batch, the time of sample first_sample_index
+    (0: none), so the acquisition's clock, and the impact ids it gives, match a batch read.
     fed: the batches in the order a batch-by-batch reader delivers them, as rows of
     (channel 0 force / 1 velocity, sample count).
     """
@@ -67,6 +69,7 @@ class ChannelArrays:
     sample_rate_hz: float
     full_scale: tuple[float, float]
     fed: np.ndarray
+    stamp_ns: int = 0
 
     @property
     def batches(self) -> int:
@@ -149,6 +152,9 @@ def _read(buf: np.ndarray, topics: tuple[str, str], rules: StreamRules) -> Chann
     force = np.empty(force_end - start)
     velocity = np.empty(velocity_end - start)
     _copy_samples(buf, layout, channel, start, [force, velocity])
+    head = int(offsets[np.flatnonzero(channel == 0)[0]]) + 4  # CDR header.stamp: sec, nanosec
+    seconds = int.from_bytes(bytes(buf[head : head + 4]), 'little', signed=True)
+    nanoseconds = int.from_bytes(bytes(buf[head + 4 : head + 8]), 'little')
     return ChannelArrays(
         topics,
         start,
@@ -157,6 +163,7 @@ def _read(buf: np.ndarray, topics: tuple[str, str], rules: StreamRules) -> Chann
         rate,
         (force_scale, velocity_scale),
         np.column_stack((channel, count)),
+        seconds * 1_000_000_000 + nanoseconds,
     )
 
 
