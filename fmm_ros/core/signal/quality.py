@@ -354,6 +354,9 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
     after_contact = first_true(below_level(force[trigger:], config.rearm_level_n))
     contact_end = force.size if after_contact < 0 else trigger + after_contact
     contact_start = contact_start_index(force, trigger, config)
+    # A pulse that is over within its first sample (a record's resting level taken off, or a
+    # spike) still has one sample of contact: never an empty span.
+    contact_end = max(contact_end, min(contact_start + 1, force.size))
     peak = float(np.nanmax(force[contact_start:contact_end]))
     if pulse.rebounds(
         force,
