@@ -54,10 +54,11 @@ _EXTERNAL = (
     'foxglove|np|numpy|npt|matplotlib|rclpy|rcl_interfaces|builtin_interfaces|diagnostic_msgs|std_msgs',
     'fmm_interfaces|rosbags|tqdm|dask|distributed|pyarrow|yaml|argparse|pathlib|subprocess',
     'os|array|types|abc|collections|typing|dataclasses|enum|datetime|io|logging|threading',
+    'tornado|asyncio',
 )
 nitpick_ignore_regex = [
     (r'py:(class|obj|data|exc|func)', rf'({"|".join(_EXTERNAL)})(\..*)?'),
-    (r'py:(class|obj|data|exc)', r'Path|PathLike'),
+    (r'py:(class|obj|data|exc)', r'Path|PathLike|Application'),
     (r'py:(class|obj|data|exc)', r'fmm_ros(\.\w+)*\._\w+'),
     (r'py:(class|obj|data|exc)', r'fmm_ros\.ros\.graph\.NodeT'),
 ]
@@ -86,10 +87,21 @@ def _skip_foreign(app, what, name, obj, skip, options) -> bool | None:
     return None
 
 
+def _drop_timing_pages(app, exception) -> None:
+    """Remove sphinx-gallery's execution-time pages, which load DataTables from a CDN.
+
+    Lab PCs are offline: nothing of the site may load from the network.
+    """
+    if exception is None:
+        for page in Path(app.outdir).rglob('sg_execution_times.html'):
+            page.unlink()
+
+
 def setup(app) -> None:
-    """Connect the docstring hooks."""
+    """Connect the docstring hooks, and drop the pages that would reach the network."""
     app.connect('autodoc-process-docstring', _bars_as_text)
     app.connect('autodoc-skip-member', _skip_foreign)
+    app.connect('build-finished', _drop_timing_pages)
 
 
 sphinx_gallery_conf = {
