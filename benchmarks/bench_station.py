@@ -58,17 +58,21 @@ NODES = ('analyzer', 'fitter', 'station')
 
 
 class Arrivals(Node):
-    """When each ImpactResult reached the benchmark (wall clock)."""
+    """When each ImpactResult reached the benchmark (wall clock), in arrival order.
+
+    Impact ids are stable (the trigger's time in the acquisition), so a bag played again
+    reports the same ids: arrivals are counted, and `at` holds each id's latest arrival.
+    """
 
     def __init__(self, **kwargs):
         super().__init__('bench_arrivals', **kwargs)
         self.at: dict[int, float] = {}
-        self.create_subscription(
-            ImpactResult,
-            IMPACTS_TOPIC,
-            lambda m: self.at.setdefault(m.impact_id, time.time()),
-            RESULT_QOS,
-        )
+        self.order: list[int] = []
+        self.create_subscription(ImpactResult, IMPACTS_TOPIC, self._arrived, RESULT_QOS)
+
+    def _arrived(self, msg: ImpactResult) -> None:
+        self.at[msg.impact_id] = time.time()
+        self.order.append(msg.impact_id)
 
 
 def cpu_s(pid: int) -> float:
@@ -118,14 +122,14 @@ class Bench:
         The player stays up once the bag is played (as `ros2 bag play` without --loop would
         not): it is stopped here.
         """
-        expected = len(arrivals.at) + hits
+        expected = len(arrivals.order) + hits
         self.start(('player',), rate_factor)
         deadline = time.monotonic() + 3600
-        while len(arrivals.at) < expected and time.monotonic() < deadline:
+        while len(arrivals.order) < expected and time.monotonic() < deadline:
             time.sleep(0.05)
         stop_processes([self.processes.pop('player')], nodes=['player'])
-        if len(arrivals.at) < expected:
-            raise RuntimeError(f'{expected - len(arrivals.at)} hits never reported')
+        if len(arrivals.order) < expected:
+            raise RuntimeError(f'{expected - len(arrivals.order)} hits never reported')
 
     def stop(self) -> None:
         """Stop every node still running."""
@@ -203,12 +207,12 @@ def run(quick: bool, soak_s: float) -> str:
             f'{analyzer_share:.1%}; station idle (no page, nothing playing) {idle_share:.1%} |'
         )
         # 2. x20: memory, and did the page keep up?
-        before = len(arrivals.at)
+        before = len(arrivals.order)
         bench.play(20.0, arrivals, hits)
         time.sleep(3.0)
         heap, uss, rss = page_memory(cdp)
         seen = page.evaluate('window.stationPage.hitSeen')
-        new = list(arrivals.at)[before:]
+        new = arrivals.order[before:]
         missing = [i for i in new if str(i) not in seen]
         late = max((seen[str(i)] / 1e3 - arrivals.at[i] for i in new if str(i) in seen), default=0)
         rows.append(
