@@ -23,7 +23,7 @@ from fmm_ros.core.identify.axis import (
 from fmm_ros.errors import BadInputError
 from fmm_ros.io.frf_files import json_number
 from fmm_ros.io.labfiles import LabFile, open_lab_file
-from fmm_ros.units import si_factor
+from fmm_ros.units import SI_UNITS, si_factor
 
 TIME_NAMES = ('time_s', 'time', 't')
 """Channels taken as the time base [s] when none is named."""
@@ -105,9 +105,7 @@ def read_axis_record(
         raise BadInputError(f'motion kind {motion_kind!r} is none of {", ".join(MOTION_KINDS)}')
     lab = open_lab_file(path)
     quantity = MOTION_QUANTITY[motion_kind]
-    unit = (
-        motion_unit or {'displacement': 'm', 'velocity': 'm/s', 'acceleration': 'm/s^2'}[quantity]
-    )
+    unit = motion_unit or SI_UNITS[quantity]
     force_n = lab.vector(force) * si_factor('force', force_unit) * _scale(lab, force_scale)
     values = lab.vector(motion) * si_factor(quantity, unit)
     if values.size != force_n.size:
