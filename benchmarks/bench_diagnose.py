@@ -15,11 +15,14 @@ vocabulary (answer 'unexplained'); clean sessions of three and eight hits. `worl
 anti-alias filter, hum, drift and an ADC; run-in over eight hits of a continuous recording;
 three laws outside the vocabulary.
 
-Held out (`test/heldout`, H of each kind): `events` (event-located DOP853, half-sine and
+The `test/heldout` worlds (H of each kind): `events` (event-located DOP853, half-sine and
 Hertzian hits with sub-sample onsets, white noise, a Butterworth chain with a 0.22 N force
-offset) and `steps` (fixed-step RK4, Hertzian and two-exponential hits, white plus coloured
-noise, a Bessel chain, 60 Hz hum, random-walk drift): each of the seven effects alone, a pair,
-mu drifting 4-7 % a hit over three hits, a wear track (answer 'unexplained'), clean sessions.
+offset), `steps` (fixed-step RK4, Hertzian and two-exponential hits, white plus coloured
+noise, a Bessel chain, 60 Hz hum, random-walk drift; a tuning world since the calibration of
+'unexplained' was designed against it) and `ivp` (LSODA phases of a stick-slip state machine,
+haversine and gamma pulses, a sigma-delta FIR, white plus pink noise): each of the seven
+effects alone, a pair, mu drifting 4-7 % a hit over three hits, a wear track (answer
+'unexplained'), clean sessions. Their roles are `heldout.ROLES`.
 Issue 24's targets, on held-out worlds: single effects >= 15 of 16 per world, pairs >= 5 of
 6, false alarms <= 5 %, drift >= 90 %, the gap at least halved whenever an effect is named.
 
@@ -50,6 +53,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'test'))
 from heldout import HELD_OUT, ROLES  # noqa: E402
 from heldout.cases import KINDS as HELDOUT_KINDS  # noqa: E402
 from heldout.cases import case as heldout_case  # noqa: E402
+from heldout.ivp import IVP  # noqa: E402
 from heldout.lab import EVENTS, STEPS  # noqa: E402
 from world_cases import OUTSIDE_KINDS, VOCABULARY_KINDS, world_case  # noqa: E402
 
@@ -152,6 +156,7 @@ SOURCES = (
     Source('worlds', WORLD_ROWS, draw_world),
     Source('events', HELDOUT_KINDS, draw_held_out(EVENTS)),
     Source('steps', HELDOUT_KINDS, draw_held_out(STEPS)),
+    Source('ivp', HELDOUT_KINDS, draw_held_out(IVP)),
 )
 
 

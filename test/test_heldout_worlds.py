@@ -20,13 +20,14 @@ from heldout import HELD_OUT, ROLES
 from heldout.cases import case
 from heldout.chain import Channel, Daq, acquire
 from heldout.forces import SHAPES, Hit
-from heldout.lab import EVENTS, STEPS
+from heldout.ivp import IVP, Law, Pulse, motion
+from heldout.lab import EVENTS, STEPS, Effects
 from heldout.plant import Contact, Plant, solve_events, solve_steps
 
 from fmm_ros.core.diagnose import NONE, UNEXPLAINED, diagnose
 
 HELDOUT_DIR = Path(__file__).resolve().parent / 'heldout'
-WORLDS = {'events': EVENTS, 'steps': STEPS}
+WORLDS = {'events': EVENTS, 'steps': STEPS, 'ivp': IVP}
 
 
 def test_the_held_out_generators_import_neither_the_product_nor_worlds():
@@ -44,7 +45,7 @@ def test_the_held_out_generators_import_neither_the_product_nor_worlds():
 
 def test_every_generator_has_one_role_and_some_are_held_out():
     assert set(ROLES) == {'ours', 'worlds', *WORLDS}
-    assert {ROLES[name] for name in WORLDS} == {HELD_OUT}
+    assert sum(ROLES[name] == HELD_OUT for name in WORLDS) >= 2
 
 
 @pytest.mark.parametrize('shape', SHAPES)
@@ -99,29 +100,59 @@ def test_the_closed_form_coulomb_path_matches_dop853():
     assert closed.rest_m == pytest.approx(general.rest_m, abs=1e-11)
 
 
+@pytest.mark.slow
+def test_the_ivp_state_machine_agrees_with_the_event_solver():
+    """ivp's LSODA phases and lab's DOP853 slides share no code: same hit, same motion."""
+    pulse = Pulse('haversine', 1000.0, 3e-3, 0.2 + 0.37e-4)
+
+    class SameHit(Hit):
+        def force_at(self, time_s: float) -> float:
+            return float(pulse.force(time_s))
+
+        def force_n(self, time_s):
+            return pulse.force(time_s)
+
+    hit = SameHit('half_sine', 1000.0, 3e-3, pulse.onset_s)
+    times = np.linspace(0.19, 6.0, 60_001)
+    cases = (
+        (Effects(), Contact(0.11), Plant()),
+        (
+            Effects(asymmetry=0.02, static_excess=0.04, stribeck_speed_m_s=3e-3),
+            Contact(0.11, asymmetry=0.02, static_excess=0.04, stribeck_speed_m_s=3e-3),
+            Plant(),
+        ),
+        (Effects(cubic_n_per_m3=6e4), Contact(0.11), Plant(cubic_n_per_m3=6e4)),
+    )
+    for effects, contact, plant in cases:
+        velocity, rest = motion(Law(0.11, effects), pulse, 1e-4, 8.0)
+        exact = solve_events(plant, contact, hit, 1e-4, 8.0)
+        assert np.abs(velocity(times) - exact.evaluate(times)[1]).max() < 1e-8, effects
+        assert rest == pytest.approx(exact.rest_m, abs=1e-9)
+
+
+def test_ivp_pulse_impulses_are_exact():
+    for shape, time_s in (('haversine', 2.5e-3), ('gamma', 0.3e-3)):
+        pulse = Pulse(shape, 1000.0, time_s, 0.2)
+        area, _ = scipy.integrate.quad(
+            lambda t, p=pulse: float(p.force(t)), pulse.onset_s, pulse.end_s, limit=400
+        )
+        assert area == pytest.approx(pulse.impulse_n_s, rel=1e-9)
+
+
 def diagnosed(world: str, kind: str, index: int):
     records, hidden, fit_starts = case(WORLDS[world], kind, np.random.default_rng([2424, index]))
     return records, hidden, diagnose(records, fit_initial_position=fit_starts)
 
 
-UNCALIBRATED = pytest.mark.xfail(
-    strict=True,
-    reason='issue 24 open: under coloured noise and drift a clean steps session is called '
-    'unexplained (its residual 0.6x the noise beyond it); strict, so a fix shows here',
-)
-
-
 @pytest.mark.slow
-@pytest.mark.parametrize(
-    'world', [pytest.param(w, marks=UNCALIBRATED) if w == 'steps' else w for w in sorted(WORLDS)]
-)
+@pytest.mark.parametrize('world', sorted(WORLDS))
 def test_held_out_sessions_get_the_right_answer(world):
-    """What holds on the held-out worlds today (issue 24 is open: see heldout-validation.md).
-
-    Clean sessions name nothing (no false alarm), and a friction varying along a wear track
-    is left unexplained with its friction map rather than forced into the vocabulary. Effects
-    named behind `unexplained` under coloured noise, and mu drifting over three hits, are
-    not held here: the benchmark reports their rates.
+    """Clean sessions name nothing (no false alarm, coloured and pink noise, drift and the
+    sampled force's impulse error included), and a friction varying along a wear track is left
+    unexplained with its friction map rather than forced into the vocabulary. The benchmark
+    reports the rates of every kind (see heldout-validation.md); `steps` is a tuning world
+    since the calibration of 'unexplained' (issue 24) was designed against it, kept here so
+    it does not regress.
     """
     wrong = []
     for index, kind in enumerate(('none', 'none', 'wear_track')):

@@ -12,6 +12,7 @@ the base fit, as a lab would meet them.
 
 import numpy as np
 
+from heldout.ivp import IvpWorld
 from heldout.lab import Effects, World, session
 
 VOCABULARY_KINDS = (
@@ -69,7 +70,7 @@ def effect_fields(kind: str, mu: float, rng: np.random.Generator) -> dict:
     raise ValueError(f'unknown kind {kind!r}')
 
 
-def case(world: World, kind: str, rng: np.random.Generator):
+def case(world: World | IvpWorld, kind: str, rng: np.random.Generator):
     """(records, hidden effects in the diagnosis's names, whether starts are to be fitted)."""
     mu = float(rng.uniform(*MU_RANGE))
     if kind == 'none':
@@ -83,5 +84,8 @@ def case(world: World, kind: str, rng: np.random.Generator):
         hidden = (kind,)
         fields = effect_fields(kind, mu, rng)
     levels = rng.permutation((450.0, 1000.0, 1450.0))
-    records = session(world, Effects(**fields), mu, rng, levels)
+    if isinstance(world, IvpWorld):
+        records = world.session(Effects(**fields), mu, rng, levels)
+    else:
+        records = session(world, Effects(**fields), mu, rng, levels)
     return records, () if kind == 'wear_track' else hidden, False

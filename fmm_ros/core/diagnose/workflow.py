@@ -35,6 +35,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from fmm_ros.constants import MU_DRIFT
+from fmm_ros.core.diagnose.calibration import rest_noise_std, without_impulse_error
 from fmm_ros.core.diagnose.drift import MIN_DRIFT_HITS, MuTrend, mu_trend
 from fmm_ros.core.diagnose.friction_map import (
     HIT_GUARD_S,
@@ -175,7 +176,8 @@ def diagnose(
         f'base model fitted to {len(cropped)} impact(s), {stop / cropped[0].sample_rate_hz:.1f} s '
         f'each: mu = {base.joint.mu:.5f}'
     )
-    session = _Session(cropped, base, rig, fit_initial_position, say)
+    rest_noise = rest_noise_std(conditioned, stop, base.joint.noise_std_m_s)
+    session = _Session(cropped, base, rig, fit_initial_position, rest_noise, say)
     selection = session.select(candidates)
     return session.conclude(conditioned, selection, MU_DRIFT in candidates)
 
@@ -258,6 +260,7 @@ class _Session:
         base: SessionModel,
         rig: Rig,
         fit_initial_position: bool,
+        rest_noise: float,
         say: Progress,
     ) -> None:
         self.impacts = impacts
@@ -266,6 +269,8 @@ class _Session:
         self.fit_initial_position = fit_initial_position
         self.say = say
         self.noise = base.joint.noise_std_m_s
+        self.rest_noise = rest_noise
+        """The noise where the rig rests, which the verdict judges against (`calibration`)."""
         self.n_samples = base.joint.n_samples
         self.rate = impacts[0].sample_rate_hz
         self.models = [i.velocity_m_s - r for i, r in zip(impacts, base.residuals_m_s, strict=True)]
@@ -552,13 +557,13 @@ class _Session:
         ]
         location = locate_residual(
             self.impacts,
-            explained.residuals_m_s,
+            without_impulse_error(self.impacts, explained, explained.residuals_m_s, self.windows),
             final_models,
             explained.positions_m,
             self.windows,
             self.hits,
             self.rig,
-            self.noise,
+            self.rest_noise,
         )
         unexplained = location.excess_to_noise >= MIN_EXCESS
         named = []
