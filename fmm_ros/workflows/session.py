@@ -273,6 +273,7 @@ def diagnose_impacts(
             [records[i] for i in impact_ids],
             rig=options.rig,
             fit_initial_position=options.fit_initial_position,
+            friction_spec=options.spec(),
             progress=progress,
         ),
         tuple(impact_ids),

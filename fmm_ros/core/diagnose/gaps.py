@@ -42,14 +42,26 @@ MOVING_SIGMAS = 6.0
 many of their standard errors."""
 
 
+MIN_REST_BLOCKS = 8
+"""Blocks at rest needed to measure the spread of their means and variances (fewer: the
+spread white noise would give is used)."""
+
+
+def _robust_spread(values: np.ndarray) -> float:
+    """Standard deviation of values from their median absolute deviation."""
+    return 1.4826 * float(np.median(np.abs(values - np.median(values))))
+
+
 def measured_motion_stop(impact: ConditionedImpact, natural_frequency_hz: float) -> int:
     """Samples up to the end of the measured motion, plus SETTLE_S and STOP_MARGIN_S.
 
     At most the record's length.
     The velocity is cut into quarter-period blocks; the last quarter of the record, where the
     rig rests, gives the level at rest (an offset included) and the variance there (noise,
-    hum and all). The motion ends with the last block whose mean or variance departs from
-    them by MOVING_SIGMAS standard errors. A record still moving at its end (its last quarter
+    hum and all), and, from MIN_REST_BLOCKS blocks on, how much block means and variances
+    spread at rest (coloured noise and drift spread them more than white noise). The motion
+    ends with the last block whose mean or variance departs from them by MOVING_SIGMAS
+    standard errors. A record still moving at its end (its last quarter
     louder than twice the second-difference noise) is kept whole.
     """
     velocity = impact.velocity_m_s
@@ -66,8 +78,15 @@ def measured_motion_stop(impact: ConditionedImpact, natural_frequency_hz: float)
     rest_variance = float(np.median(variances[tail]))
     if rest_variance > 4.0 * impact.velocity_noise_std_m_s**2:
         return velocity.size
-    moving = (np.abs(means - rest_mean) > MOVING_SIGMAS * math.sqrt(rest_variance / size)) | (
-        variances > rest_variance * (1.0 + MOVING_SIGMAS * math.sqrt(2.0 / size))
+    mean_spread = math.sqrt(rest_variance / size)
+    variance_spread = rest_variance * math.sqrt(2.0 / size)
+    if tail.stop - tail.start >= MIN_REST_BLOCKS:
+        # Coloured noise and drift move block means and variances more than white noise of
+        # the same variance would: their spread at rest is measured, not assumed.
+        mean_spread = max(mean_spread, _robust_spread(means[tail]))
+        variance_spread = max(variance_spread, _robust_spread(variances[tail]))
+    moving = (np.abs(means - rest_mean) > MOVING_SIGMAS * mean_spread) | (
+        variances > rest_variance + MOVING_SIGMAS * variance_spread
     )
     moving[: impact.hit_end_index // size + 1] = True
     last = int(np.flatnonzero(moving)[-1]) + 1

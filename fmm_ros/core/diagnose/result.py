@@ -116,7 +116,9 @@ class Diagnosis:
     parameters: tuple[ParameterEstimate, ...]
     """The final model's fitted parameters (the base model's when nothing is named)."""
     mu: float
-    """Friction coefficient of the base fit [-]."""
+    """Friction coefficient of `fmm fit`'s fit of the same records [-]: each hit's impulse
+    scale, mains hum and velocity drift fitted (`FRICTION_FIT`). The selection's base model
+    fits mu alone (its value is among `parameters` when nothing is named)."""
     mu_stderr: float
     gap_before: float
     """Normalised RMS velocity residual beyond the noise, base model [-]."""

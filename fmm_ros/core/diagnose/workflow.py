@@ -86,7 +86,9 @@ from fmm_ros.core.identify.conditioning import (
     cropped_impact,
     source_prefix,
 )
+from fmm_ros.core.identify.friction import fit_model
 from fmm_ros.core.identify.lsq import inner
+from fmm_ros.core.identify.spec import FRICTION_FIT, FitSpec
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.errors import BadInputError
 
@@ -149,6 +151,7 @@ def diagnose(
     rig: Rig = FMM_RIG,
     candidates: Sequence[str] | None = None,
     fit_initial_position: bool = False,
+    friction_spec: FitSpec | None = None,
     progress: Progress | None = None,
 ) -> Diagnosis:
     """Find the effects the base model (Eq. 3, mu fitted) misses in these impacts, if any.
@@ -158,7 +161,10 @@ def diagnose(
     one is fitted at once. candidates: effects to consider (default: every one of EFFECTS,
     mu_drift only from MIN_DRIFT_HITS hits). fit_initial_position: every model also fits
     where each impact starts (a hit that found the rig held off centre by friction), as
-    `fmm fit --fit-initial-position` does. progress: called with a line of text after each
+    `fmm fit --fit-initial-position` does. friction_spec: the fit `fmm fit` makes of these
+    records (default `FRICTION_FIT`: each hit's impulse scale, mains hum and velocity drift
+    fitted, starts as fit_initial_position), whose mu the diagnosis reports as its `mu`, so
+    the two never disagree on the same records. progress: called with a line of text after each
     screen, refit and selection step. Raises ValueError naming the problem for bad input
     (no impacts, a non-finite sample, a record too short to show a decay, mixed sample rates,
     an unknown candidate, mu_drift with too few hits), and FitError (a ValueError) when the
@@ -176,10 +182,17 @@ def diagnose(
         f'base model fitted to {len(cropped)} impact(s), {stop / cropped[0].sample_rate_hz:.1f} s '
         f'each: mu = {base.joint.mu:.5f}'
     )
+    friction = fit_model(
+        cropped,
+        friction_spec or FRICTION_FIT.but(fit_initial_position=fit_initial_position),
+        rig=rig,
+    )
+    say(f"fmm fit's base fit (impulse scales, hum, drift): mu = {friction.mu:.6f}")
     rest_noise = rest_noise_std(conditioned, stop, base.joint.noise_std_m_s)
     session = _Session(cropped, base, rig, fit_initial_position, rest_noise, say)
     selection = session.select(candidates)
-    return session.conclude(conditioned, selection, MU_DRIFT in candidates)
+    diagnosis = session.conclude(conditioned, selection, MU_DRIFT in candidates)
+    return replace(diagnosis, mu=friction.mu, mu_stderr=friction.mu_stderr)
 
 
 def _silent(_message: str) -> None:
