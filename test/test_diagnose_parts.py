@@ -85,9 +85,9 @@ def test_scatter_without_a_trend_rarely_fakes_one_even_with_optimistic_errors():
     assert 0.4 < np.mean(np.array(p_values) < 0.5) < 0.6  # about uniform under no trend
 
 
-def test_a_trend_needs_four_hits_and_finite_errors():
-    with pytest.raises(ValueError, match='at least 4 hits, got 3'):
-        mu_trend([0.1, 0.11, 0.12], [1e-3] * 3, refitted=True)
+def test_a_trend_needs_three_hits_and_finite_errors():
+    with pytest.raises(ValueError, match='at least 3 hits, got 2'):
+        mu_trend([0.1, 0.11], [1e-3] * 2, refitted=True)
     with pytest.raises(ValueError, match='finite'):
         mu_trend([0.1, 0.11, 0.12, math.nan], [1e-3] * 4, refitted=True)
 
@@ -187,7 +187,7 @@ def test_bad_input_gets_a_clear_error_naming_the_problem():
         diagnose([small_record(velocity_m_s=velocity)])
     with pytest.raises(ValueError, match=r'hit1\.csv: the record runs only .* too short to see'):
         diagnose([small_record(duration_s=1.0)])
-    with pytest.raises(ValueError, match='mu_drift needs at least 4 impacts .* got 1'):
+    with pytest.raises(ValueError, match='mu_drift needs at least 3 impacts .* got 1'):
         diagnose([good], candidates=('mu_drift',))
     with pytest.raises(ValueError, match='different sample rates'):
         slow = small_record(seed=2)

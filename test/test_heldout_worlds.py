@@ -6,7 +6,7 @@ closed-form Coulomb path matches DOP853, impulses are exact, the chain passes a 
 through) and to independence (they import neither the product nor test/worlds). Then a
 modest number of sessions from each held-out world (`heldout.ROLES`): clean sessions are
 'none', mu drifting over three hits is
-'mu_drift', a wear track is 'unexplained', single effects are named. The benchmark
+'mu_drift', a wear track is 'unexplained'. The benchmark
 (`benchmarks/bench_diagnose.py`) measures the rates over many more cases.
 """
 
@@ -149,13 +149,14 @@ def diagnosed(world: str, kind: str, index: int):
 def test_held_out_sessions_get_the_right_answer(world):
     """Clean sessions name nothing (no false alarm, coloured and pink noise, drift and the
     sampled force's impulse error included), and a friction varying along a wear track is left
-    unexplained with its friction map rather than forced into the vocabulary. The benchmark
+    unexplained with its friction map rather than forced into the vocabulary, and mu drifting
+    4-7 % a hit over three hits (one a level) is `mu_drift`. The benchmark
     reports the rates of every kind (see heldout-validation.md); `steps` is a tuning world
     since the calibration of 'unexplained' (issue 24) was designed against it, kept here so
     it does not regress.
     """
     wrong = []
-    for index, kind in enumerate(('none', 'none', 'wear_track')):
+    for index, kind in enumerate(('none', 'none', 'wear_track', 'mu_drift')):
         records, hidden, result = diagnosed(world, kind, index)
         named = result.named_effects
         right = named[:1] == (UNEXPLAINED,) if kind == 'wear_track' else set(named) == set(hidden)

@@ -22,8 +22,13 @@ import scipy.stats
 
 from fmm_ros.errors import BadInputError
 
-MIN_DRIFT_HITS = 4
-"""A trend in hit order needs at least this many hits (two degrees of freedom left)."""
+MIN_DRIFT_HITS = 3
+"""mu_drift is considered from this many hits (one a level, as the demo diagnoses): each hit's
+own mu against their errors, and a line through them with one degree of freedom left."""
+
+
+MIN_TREND_HITS = 4
+"""From this many hits a drift must also trend in hit order (two degrees of freedom left)."""
 
 
 @dataclass(frozen=True)
@@ -54,7 +59,7 @@ class MuTrend:
 
 
 def mu_trend(mu: Sequence[float], mu_stderr: Sequence[float], *, refitted: bool) -> MuTrend:
-    """Consistency and trend of per-hit mu (module doc); ValueError for fewer than 4 hits."""
+    """Consistency and trend of per-hit mu (module doc); ValueError for fewer than 3 hits."""
     values = np.asarray(mu, dtype=float)
     errors = np.asarray(mu_stderr, dtype=float)
     n = values.size

@@ -15,7 +15,10 @@
    explains, the required score), removes at least `MIN_STEP_SHARE` of the squared gap left
    at that step, accounts for at least `MIN_EXCESS` of the noise RMS (sqrt of the fall of
    the squared excess over the motion), and, for `mu_drift`, the refitted per-hit mu trend
-   in hit order (p < `DRIFT_P_VALUE`). Repeat until no candidate qualifies.
+   in hit order (p < `DRIFT_P_VALUE`) from `MIN_TREND_HITS` hits; with fewer (one hit a
+   level), the hits' own mu differing beyond their errors (p < `DRIFT_P_VALUE`) and no hit's
+   own friction map changing with speed (p < `SPEED_LAW_P_VALUE`: a speed law, not a drift).
+   Repeat until no candidate qualifies.
 5. Backward check: with two or more named, each is taken out in turn (the rest refitted);
    one whose removal costs less than the required score is dropped, and the check repeats.
 6. Verdict. The named set must at least halve the gap (`EXPLAINED_GAP`), or no vocabulary
@@ -33,12 +36,14 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
+import scipy.stats
 
 from fmm_ros.constants import MU_DRIFT
 from fmm_ros.core.diagnose.calibration import rest_noise_std, without_impulse_error
-from fmm_ros.core.diagnose.drift import MIN_DRIFT_HITS, MuTrend, mu_trend
+from fmm_ros.core.diagnose.drift import MIN_DRIFT_HITS, MIN_TREND_HITS, MuTrend, mu_trend
 from fmm_ros.core.diagnose.friction_map import (
     HIT_GUARD_S,
+    FrictionCurve,
     FrictionMap,
     MapRecord,
     friction_map,
@@ -121,7 +126,13 @@ is not what a diagnosis of the rig is for; a right answer leaves 0.0-0.15.)"""
 
 
 DRIFT_P_VALUE = 1e-3
-"""mu_drift is named only when the per-hit mu trend in hit order at least this significantly."""
+"""mu_drift is named only when the per-hit mu trend in hit order at least this significantly
+(from MIN_TREND_HITS hits; with fewer, when they differ beyond their errors this much)."""
+
+
+SPEED_LAW_P_VALUE = 1e-3
+"""With fewer than MIN_TREND_HITS hits, mu_drift is not named when the friction map of any
+one hit changes with speed this significantly (a speed law, not a drift)."""
 
 
 SCREEN_FRACTION = 0.5
@@ -236,8 +247,8 @@ def _checked_candidates(candidates: Sequence[str] | None, hits: int) -> tuple[st
         )
     if MU_DRIFT in candidates and hits < MIN_DRIFT_HITS:
         raise BadInputError(
-            f'{MU_DRIFT} needs at least {MIN_DRIFT_HITS} impacts to see a trend in hit '
-            f'order, got {hits}'
+            f'{MU_DRIFT} needs at least {MIN_DRIFT_HITS} impacts to tell a drift from a '
+            f'speed law, got {hits}'
         )
     return tuple(dict.fromkeys(candidates))
 
@@ -511,14 +522,41 @@ class _Session:
                     f'{candidate.effect} scores {candidate.score:.0f} but accounts for only '
                     f'{size:.2f}x the noise RMS'
                 )
-            elif candidate.effect == MU_DRIFT and (trend := _trend(model)).p_value >= DRIFT_P_VALUE:
+            elif candidate.effect == MU_DRIFT and (refusal := self._not_a_drift(model)):
                 reasons.append(
-                    f'one mu does not serve every hit (score {candidate.score:.0f}), but the '
-                    f'per-hit mu show no trend in hit order (p = {trend.p_value:.2g})'
+                    f'one mu does not serve every hit (score {candidate.score:.0f}), but {refusal}'
                 )
             else:
                 return (candidate, model), ''
         return None, 'nothing more qualifies: ' + '; '.join(reasons)
+
+    def _not_a_drift(self, model: SessionModel) -> str:
+        """Why a model with one mu per hit is not a drift ('' when it is; module doc, step 4).
+
+        From MIN_TREND_HITS hits the per-hit mu must trend in hit order. With fewer (one hit
+        a level) the hits' own mu must differ beyond their errors, and no hit may show a
+        speed law of its own: with one hit a level, friction that varies with speed makes
+        the hits' mu differ just as a drift does, but only a speed law varies within a hit.
+        """
+        trend = _trend(model)
+        if len(self.impacts) >= MIN_TREND_HITS:
+            if trend.p_value >= DRIFT_P_VALUE:
+                return f'the per-hit mu show no trend in hit order (p = {trend.p_value:.2g})'
+            return ''
+        if trend.consistency_p_value >= DRIFT_P_VALUE:
+            return (
+                f"the hits' own mu agree within their errors (p = {trend.consistency_p_value:.2g})"
+            )
+        records, rig, cubic = self._map_records(model)
+        for index, record in enumerate(records):
+            curve = friction_map([record], self.rate, self.noise, rig, cubic).speed
+            p_value = _flatness_p_value(curve)
+            if p_value < SPEED_LAW_P_VALUE:
+                return (
+                    f'the friction within hit {index} changes with sliding speed '
+                    f'(p = {p_value:.2g}): a speed law, not a drift'
+                )
+        return ''
 
     def _backward(
         self, current: SessionModel, steps: list[_Step], log: list[str]
@@ -697,6 +735,15 @@ class _Session:
 
     def _friction_map(self, model: SessionModel) -> FrictionMap:
         """The friction map, the model's non-friction terms taken off the velocity first."""
+        records, rig, cubic = self._map_records(model)
+        return friction_map(records, self.rate, self.noise, rig, cubic)
+
+    def _map_records(self, model: SessionModel) -> tuple[list[MapRecord], Rig, float]:
+        """Each hit as the friction map takes it, with the rig and cubic stiffness of the model.
+
+        The model's non-friction terms (an offset, a second mode) are taken off the velocity,
+        its added damping and cubic stiffness are the map's.
+        """
         terms = {term.name: term for term in model.terms}
         records = []
         for index, impact in enumerate(self.impacts):
@@ -728,7 +775,19 @@ class _Session:
         cubic = (
             terms['cubic_stiffness'].cubic_stiffness_n_per_m3 if 'cubic_stiffness' in terms else 0.0
         )
-        return friction_map(records, self.rate, self.noise, rig, cubic)
+        return records, rig, cubic
+
+
+def _flatness_p_value(curve: FrictionCurve) -> float:
+    """Chance of mu this spread over a curve's speed bins if it did not change with speed."""
+    mu, error = np.asarray(curve.mu), np.asarray(curve.mu_stderr)
+    usable = np.isfinite(mu) & np.isfinite(error) & (error > 0.0)
+    if np.count_nonzero(usable) < 2:
+        return 1.0
+    weights = 1.0 / error[usable] ** 2
+    mean = float(np.sum(weights * mu[usable]) / np.sum(weights))
+    chi2 = float(np.sum(weights * (mu[usable] - mean) ** 2))
+    return float(scipy.stats.chi2.sf(chi2, np.count_nonzero(usable) - 1))
 
 
 def _trend(model: SessionModel) -> MuTrend:
