@@ -12,9 +12,11 @@ from signal_records import (
     linear_velocity,
 )
 
+from fmm_ros.constants import PAPER_MU
+from fmm_ros.core.physics.model import simulate
 from fmm_ros.core.physics.rig import FMM_RIG
 from fmm_ros.core.signal import frf, levels
-from fmm_ros.sim.excitation import impact_record
+from fmm_ros.sim.excitation import hammer_pulse, impact_record
 
 RATE_HZ = 10_000.0
 N_SAMPLES = 330_000  # the paper's 33 s at 10 kHz
@@ -224,6 +226,24 @@ def test_natural_frequency_from_reversals_is_f_n_not_an_fft_bin(level):
     ]
     # Within 2e-4 of the rig's f_n (2.1981 Hz), where the bins are 1/33 Hz (1.4 %) apart.
     assert estimates == pytest.approx([FMM_RIG.natural_frequency_hz] * 3, rel=2e-4)
+
+
+@pytest.mark.slow
+def test_a_low_hits_slow_reversals_through_the_noise_still_give_f_n():
+    """A 450 N hit from a hard tip (1.55 ms, 0.05 m/s) turns at a few 1e-4 m/s a block near its last
+    reversals, the size of 1e-4 m/s of noise: noise crossing zero there again once made
+    weak half cycles that broke the run of strong reversals, and f_n came out NaN for about
+    one such hit in seven (the fitter node's lab-chain test saw its low hit `undetermined`)."""
+    estimates = []
+    for seed in range(40):
+        rng = np.random.default_rng(seed)
+        force = np.zeros(60_000)
+        pulse = hammer_pulse(454.0, 1.55e-3, RATE_HZ, 3e-3, start_s=rng.uniform(0.0, 1e-4))
+        force[1000 : 1000 + pulse.size] = pulse
+        velocity = simulate(force, RATE_HZ, mu=PAPER_MU).velocity_m_s
+        velocity = velocity + rng.normal(0.0, 1e-4, force.size)
+        estimates.append(frf.natural_frequency(velocity, RATE_HZ))
+    assert estimates == pytest.approx([FMM_RIG.natural_frequency_hz] * 40, rel=5e-3)
 
 
 def test_natural_frequency_of_a_viscous_decay_is_its_damped_frequency():

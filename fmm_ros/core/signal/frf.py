@@ -294,6 +294,10 @@ MIN_REVERSAL_RUN = 2
 """Consecutive strong reversals (after the first) a half period is measured over."""
 
 
+REVERSAL_HYSTERESIS_SIGMA = 4.0
+"""A reversal passes from this many noise deviations below zero to as many above, or back."""
+
+
 REVERSAL_MIN_PEAK_SIGMA = 30.0
 """A half cycle counts when its peak speed exceeds this many noise deviations (its reversal
 times are then good to a few 1e-4 of a period)."""
@@ -326,14 +330,11 @@ def natural_frequency(velocity_m_s: np.ndarray, sample_rate_hz: float) -> float:
     smooth = velocity[: m * factor].reshape(m, factor).mean(axis=1)
     second = np.diff(smooth, n=2)
     noise = 1.4826 * float(np.median(np.abs(second - np.median(second)))) / np.sqrt(6.0)
-    sign = np.signbit(smooth)
-    crossings = np.flatnonzero(sign[1:] != sign[:-1])
-    if crossings.size < 3:
+    times, ends = _reversals(smooth, REVERSAL_HYSTERESIS_SIGMA * noise)
+    if times.size < 3:
         return float('nan')
-    before, after = smooth[crossings], smooth[crossings + 1]
-    times = crossings + before / (before - after)
-    # Peak speed of the half cycle after each crossing (up to the next crossing).
-    peaks = np.maximum.reduceat(np.abs(smooth), crossings + 1)
+    # Peak speed of the half cycle after each reversal (up to the next one).
+    peaks = np.maximum.reduceat(np.abs(smooth), ends)
     strong = peaks > REVERSAL_MIN_PEAK_SIGMA * noise
     # A reversal counts when the half cycles on both sides of it are strong.
     valid = strong[1:] & strong[:-1]
@@ -343,6 +344,34 @@ def natural_frequency(velocity_m_s: np.ndarray, sample_rate_hz: float) -> float:
     kept = times[1:][run[0] : run[1]]
     half_period = float(np.polyfit(np.arange(kept.size), kept, 1)[0])
     return rate / (2.0 * half_period)
+
+
+def _reversals(smooth: np.ndarray, hysteresis: float) -> tuple[np.ndarray, np.ndarray]:
+    """Reversal times [block indices, fractional] and the first block past each.
+
+    A reversal is the velocity passing from beyond -hysteresis to beyond +hysteresis or back
+    (a Schmitt trigger): noise crossing zero again near a slow reversal (a low hit's last
+    half cycles turn at a few 1e-4 m/s a block, the noise's size) is one reversal, not three
+    with two weak half cycles between them that would break a run of strong ones. Its time
+    is the mean of the zero crossings (each interpolated between two blocks) from the last
+    block beyond the band on the old side to the first beyond it on the new: the one
+    crossing of a clean reversal, the average of noise's several near a slow one. (Not a
+    line through the band: the acceleration jumps by 2 mu N / m at the reversal.)
+    """
+    side = np.where(smooth > hysteresis, 1, np.where(smooth < -hysteresis, -1, 0))
+    beyond = np.flatnonzero(side)
+    change = np.flatnonzero(side[beyond][1:] != side[beyond][:-1])
+    starts, ends = beyond[change], beyond[change + 1]
+    sign = np.signbit(smooth)
+    crossings = np.flatnonzero(sign[1:] != sign[:-1])
+    before, after = smooth[crossings], smooth[crossings + 1]
+    zeros = crossings + before / (before - after)
+    # Each reversal's zero crossings lie between its start and end: their mean.
+    first = np.searchsorted(crossings, starts)
+    last = np.searchsorted(crossings, ends)
+    sums = np.concatenate(([0.0], np.cumsum(zeros)))
+    times = (sums[last] - sums[first]) / np.maximum(last - first, 1)
+    return times, ends
 
 
 def _first_run(mask: np.ndarray, length: int = 1) -> tuple[int, int] | None:
