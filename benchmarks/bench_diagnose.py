@@ -403,16 +403,11 @@ def main() -> None:
         help='which worlds to sweep (each role writes its own section)',
     )
     args = parser.parse_args()
-    counts = {
-        'ours': args.cases,
-        'worlds': args.world_cases,
-        'events': args.heldout_cases,
-        'steps': args.heldout_cases,
-    }
+    counts = {'ours': args.cases, 'worlds': args.world_cases}
     for role in ('tuning', HELD_OUT) if args.role == 'all' else (args.role.replace('-', ' '),):
         sweeps = []
         for source in (s for s in SOURCES if s.role == role and not args.skip_sweep):
-            cases = 1 if args.quick else counts[source.name]
+            cases = 1 if args.quick else counts.get(source.name, args.heldout_cases)
             if not cases:
                 continue
             rows = tuple(k for k in source.rows if k in QUICK_KINDS) if args.quick else None
