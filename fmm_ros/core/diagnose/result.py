@@ -135,7 +135,7 @@ class Diagnosis:
     residual_where: ResidualLocation
     """Where the final model's residual sits."""
     mu_trend: MuTrend | None
-    """Each hit's mu and its trend in hit order (None for fewer than 4 hits)."""
+    """Each hit's mu and its trend in hit order (None for fewer than 3 hits)."""
     friction_map: FrictionMap
     """mu against sliding speed and position, from the records by inverse dynamics."""
     noise_std_m_s: float

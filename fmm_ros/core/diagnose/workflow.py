@@ -16,8 +16,9 @@
    at that step, accounts for at least `MIN_EXCESS` of the noise RMS (sqrt of the fall of
    the squared excess over the motion), and, for `mu_drift`, the refitted per-hit mu trend
    in hit order (p < `DRIFT_P_VALUE`) from `MIN_TREND_HITS` hits; with fewer (one hit a
-   level), the hits' own mu differing beyond their errors (p < `DRIFT_P_VALUE`) and no hit's
-   own friction map changing with speed (p < `SPEED_LAW_P_VALUE`: a speed law, not a drift).
+   level), the hits' own mu differing beyond their errors and `MU_SPREAD_FLOOR` of mu
+   (p < `DRIFT_P_VALUE`) and no hit's own friction map changing with speed
+   (p < `SPEED_LAW_P_VALUE`: a speed law, not a drift).
    Repeat until no candidate qualifies.
 5. Backward check: with two or more named, each is taken out in turn (the rest refitted);
    one whose removal costs less than the required score is dropped, and the check repeats.
@@ -128,6 +129,14 @@ is not what a diagnosis of the rig is for; a right answer leaves 0.0-0.15.)"""
 DRIFT_P_VALUE = 1e-3
 """mu_drift is named only when the per-hit mu trend in hit order at least this significantly
 (from MIN_TREND_HITS hits; with fewer, when they differ beyond their errors this much)."""
+
+
+MU_SPREAD_FLOOR = 5e-3
+"""With fewer than MIN_TREND_HITS hits, the hits' own mu must differ beyond their errors
+combined with this fraction of mu: a hit's own mu takes up its impulse misstatement (a
+sampled, filtered, gated pulse misstates it by up to 2e-3) and more of the noise's colour
+than its standard error says (the per-hit mu of a cubic `steps` session spread 0.5 % with
+1e-5 errors; a drift of 4 % a hit is eight times that)."""
 
 
 SPEED_LAW_P_VALUE = 1e-3
@@ -534,7 +543,8 @@ class _Session:
         """Why a model with one mu per hit is not a drift ('' when it is; module doc, step 4).
 
         From MIN_TREND_HITS hits the per-hit mu must trend in hit order. With fewer (one hit
-        a level) the hits' own mu must differ beyond their errors, and no hit may show a
+        a level) the hits' own mu must differ beyond their errors and MU_SPREAD_FLOOR of mu,
+        and no hit may show a
         speed law of its own: with one hit a level, friction that varies with speed makes
         the hits' mu differ just as a drift does, but only a speed law varies within a hit.
         """
@@ -543,9 +553,12 @@ class _Session:
             if trend.p_value >= DRIFT_P_VALUE:
                 return f'the per-hit mu show no trend in hit order (p = {trend.p_value:.2g})'
             return ''
-        if trend.consistency_p_value >= DRIFT_P_VALUE:
+        floored = np.hypot(model.mu_stderrs, MU_SPREAD_FLOOR * model.mus)
+        consistency = mu_trend(model.mus, floored, refitted=True).consistency_p_value
+        if consistency >= DRIFT_P_VALUE:
             return (
-                f"the hits' own mu agree within their errors (p = {trend.consistency_p_value:.2g})"
+                f"the hits' own mu agree within their errors and {100 * MU_SPREAD_FLOOR:g} % "
+                f'of mu (p = {consistency:.2g})'
             )
         records, rig, cubic = self._map_records(model)
         for index, record in enumerate(records):
