@@ -61,7 +61,7 @@ def test_json_names_the_effect_with_the_issues_keys(offset_files, capsys, tmp_pa
     )
     assert payload['gap_after'] <= 0.5 * payload['gap_before']
     assert payload['files'] == paths
-    assert len(payload['candidates']) == 7
+    assert len(payload['candidates']) == 8  # every effect: mu_drift too, from three hits
     assert payload['candidates'][0]['effect'] == 'velocity_offset'
     assert 'velocity at rest' in payload['where']['summary']
     for name in ('residual_before_after.png', 'frf_overlay.png', 'friction_map.png'):

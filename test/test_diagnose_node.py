@@ -6,7 +6,7 @@ from rig_graph import FAST_ANALYZER, FAST_HAMMER, params, wait_for
 
 from fmm_interfaces.srv import DiagnoseModel
 from fmm_ros.constants import DIAGNOSE_SERVICE
-from fmm_ros.core.diagnose.workflow import EFFECTS, MU_DRIFT
+from fmm_ros.core.diagnose.workflow import EFFECTS
 from fmm_ros.ros import msgs
 from fmm_ros.ros.nodes.analyzer import Analyzer
 from fmm_ros.ros.nodes.fitter import Fitter
@@ -36,7 +36,7 @@ def test_an_offset_in_the_rig_is_named_over_the_service(ros_graph):
     assert values['velocity_offset.offset_m_s'] == pytest.approx(OFFSET_M_S, rel=0.05)
     assert dict(zip(names, response.parameter_units, strict=True))['mu'] == '1'
     assert response.gap_after <= 0.5 * response.gap_before
-    assert set(response.candidate_effects) == set(EFFECTS) - {MU_DRIFT}  # 3 hits: no trend
+    assert set(response.candidate_effects) == set(EFFECTS)  # mu_drift too, from 3 hits
     assert list(response.missing_effects) == ['velocity_offset'] and not response.unexplained
     counts = list(response.missing_effect_parameter_counts)
     assert counts == [1] and list(response.missing_effect_parameter_names) == [
@@ -44,7 +44,8 @@ def test_an_offset_in_the_rig_is_named_over_the_service(ros_graph):
     ]
     assert len(response.friction_speed_mu) == len(response.friction_speed_m_s) > 3
     assert len(response.friction_position_mu_stderr) == len(response.friction_position_m) > 3
-    assert list(response.mu_per_hit) == [] and list(response.selection)
+    # each hit's mu (and their trend) from three hits on
+    assert len(response.mu_per_hit) == 3 and list(response.selection)
     counts = list(response.candidate_parameter_counts)
     assert (
         sum(counts)
