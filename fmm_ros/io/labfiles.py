@@ -37,14 +37,13 @@ import numpy as np
 import yaml
 
 from fmm_ros.constants import RESPONSE_CHANNELS
-from fmm_ros.core._checks import sample_rate_from_times
+from fmm_ros.core._checks import time_base
 from fmm_ros.core.signal.records import CSV_COLUMNS
 from fmm_ros.core.signal.response import RESPONSE_QUANTITIES, VELOCITY
 from fmm_ros.errors import BadInputError
 from fmm_ros.io import sniff
 from fmm_ros.io.bags.acquisitions import Acquisition, write_acquisitions
 from fmm_ros.io.bags.writer import DEFAULT_BATCH_SIZE, BagWriter
-from fmm_ros.io.stamps import backwards, stamp_rate
 from fmm_ros.io.textfiles import DETECT, TextFormat, read_table
 from fmm_ros.units import QUANTITY_UNITS, SI_UNITS, lookup_unit
 
@@ -752,35 +751,24 @@ def _sample_rate(lab: LabFile, mapping: ImportMapping, length: int) -> tuple[flo
             raise BadInputError(
                 f'{lab.path}: time {name!r} has {len(time_s)} samples, the channels {length}'
             )
-        backwards(time_s, f'{lab.path}: time {name!r}')
-        if lab.stamped(name):
-            stamped = stamp_rate(time_s, f'{lab.path}: time {name!r}')
-            if rate is None:
-                return stamped.sample_rate_hz, f'time channel {name!r} {stamped.describe()}'
-            if abs(stamped.sample_rate_hz - rate) > UNIFORM_TIME_TOLERANCE * rate:
-                raise BadInputError(
-                    f'{lab.path}: sample rate {rate:g} Hz ({how}) disagrees with the '
-                    f'stamps of {name!r} ({stamped.sample_rate_hz:.6g} Hz)'
-                )
-            return rate, f'{how}; stamps of {name!r} agree, {stamped.describe()}'
-        try:
-            # Over the whole span, so the rounding of each printed time stamp averages out.
-            from_time = sample_rate_from_times(time_s, rtol=UNIFORM_TIME_TOLERANCE)
-        except ValueError as error:
-            raise BadInputError(
-                f'{lab.path}: time {name!r} is not uniformly increasing ({error}; a dropped '
-                'or repeated sample?): the analysis needs a constant sample rate'
-            ) from None
+        stamped = lab.stamped(name)
+        # Stamps from a PC clock scatter: only dropped samples are refused there.
+        clock = time_base(
+            time_s, f'{lab.path}: time {name!r}', None if stamped else UNIFORM_TIME_TOLERANCE
+        )
+        from_time = clock.sample_rate_hz
         # Within a millionth of a whole number of Hz (what DAQs run at), that number.
-        if abs(from_time - round(from_time)) < 1e-6 * from_time:
+        if not stamped and abs(from_time - round(from_time)) < 1e-6 * from_time:
             from_time = float(round(from_time))
+        source = f'the date-time stamps of {name!r}' if stamped else f'time channel {name!r}'
         if rate is None:
-            rate, how = from_time, f'time channel {name!r}'
-        elif abs(from_time - rate) > UNIFORM_TIME_TOLERANCE * rate:
+            return from_time, f'from {source}, {clock.describe()}'
+        if abs(from_time - rate) > UNIFORM_TIME_TOLERANCE * rate:
             raise BadInputError(
-                f'{lab.path}: sample rate {rate:g} Hz ({how}) disagrees with '
-                f'time channel {name!r} ({from_time:g} Hz)'
+                f'{lab.path}: sample rate {rate:g} Hz ({how}) disagrees with {source} '
+                f'({from_time:.6g} Hz)'
             )
+        how = f'{how}; {source} agree(s), {clock.describe()}'
     if rate is None:
         increments = {
             lab.channel_increment_s(spec.name)
