@@ -760,15 +760,15 @@ def _sample_rate(lab: LabFile, mapping: ImportMapping, length: int) -> tuple[flo
         # Within a millionth of a whole number of Hz (what DAQs run at), that number.
         if not stamped and abs(from_time - round(from_time)) < 1e-6 * from_time:
             from_time = float(round(from_time))
-        source = f'the date-time stamps of {name!r}' if stamped else f'time channel {name!r}'
+        source = f'date-time stamps of {name!r}' if stamped else f'time channel {name!r}'
         if rate is None:
-            return from_time, f'from {source}, {clock.describe()}'
+            return from_time, f'{source}, {clock.describe()}'
         if abs(from_time - rate) > UNIFORM_TIME_TOLERANCE * rate:
             raise BadInputError(
                 f'{lab.path}: sample rate {rate:g} Hz ({how}) disagrees with {source} '
                 f'({from_time:.6g} Hz)'
             )
-        how = f'{how}; {source} agree(s), {clock.describe()}'
+        how = f'{how}; the {source} agree, {clock.describe()}'
     if rate is None:
         increments = {
             lab.channel_increment_s(spec.name)
