@@ -1,6 +1,7 @@
 """Held-out generators of FMM impact data, written from scratch, never used to tune the product.
 
-Two worlds (`lab.EVENTS`, `lab.STEPS`), each another way of making the data a lab records:
+Worlds (`lab.EVENTS`, `lab.STEPS`, and `lab.ACCELEROMETER`: the events world read by an
+accelerometer), each another way of making the data a lab records:
 hits as continuous-time forces (half-sine, Hertzian, two exponentials) with a sub-sample
 onset, sampled afterwards; the rig's stick-slip motion by an event-located DOP853 solver or a
 fine fixed RK4 step; an acquisition chain (anti-alias filter on a fine grid, offset, drift,
@@ -23,5 +24,10 @@ ROLES: dict[str, str] = {
     'worlds': TUNING,  # test/worlds: issue 13's independent generator, tuned against since
     'events': HELD_OUT,  # heldout.lab.EVENTS
     'steps': HELD_OUT,  # heldout.lab.STEPS
+    # heldout.lab.ACCELEROMETER: how an integrated acceleration's noise is described to the
+    # diagnosis (issue 26) was worked out looking at its sessions
+    'accelerometer': TUNING,
+    # test/accelerometer_records.py: closed-form Coulomb oscillator read by an accelerometer
+    'accelerometer_records': HELD_OUT,
 }
 """Every generator by name, and whether the product was tuned on it (see the module doc)."""

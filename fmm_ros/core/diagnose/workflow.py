@@ -78,6 +78,7 @@ from fmm_ros.core.diagnose.vocabulary import (  # noqa: F401 (VOCABULARY re-expo
     VOCABULARY,
 )
 from fmm_ros.core.diagnose.where import locate_misfit, locate_residual
+from fmm_ros.core.identify.chain import DRIFT_KNOT_S
 from fmm_ros.core.identify.conditioning import (
     ConditionedImpact,
     FitError,
@@ -85,8 +86,11 @@ from fmm_ros.core.identify.conditioning import (
     cropped_impact,
     source_prefix,
 )
+from fmm_ros.core.identify.friction import fit_model
 from fmm_ros.core.identify.lsq import inner
+from fmm_ros.core.identify.spec import FitSpec
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
+from fmm_ros.core.signal.response import VELOCITY, ConvertedNoise, converted_noise
 from fmm_ros.errors import BadInputError
 
 BIC_EVIDENCE = 10.0
@@ -164,7 +168,11 @@ def diagnose(
     base model cannot be fitted at all.
     """
     say = progress or _silent
-    conditioned = _checked_impacts(impacts, rig)
+    if isinstance(impacts, ConditionedImpact) or hasattr(impacts, 'force_n'):
+        impacts = [impacts]
+    conditioned, residual_noise = _integrated_as_judged(
+        impacts, _checked_impacts(impacts, rig), rig, fit_initial_position
+    )
     candidates = _checked_candidates(candidates, len(conditioned))
     stop = max(measured_motion_stop(impact, rig.natural_frequency_hz) for impact in conditioned)
     cropped = [cropped_impact(impact, stop) for impact in conditioned]
@@ -175,7 +183,7 @@ def diagnose(
         f'base model fitted to {len(cropped)} impact(s), {stop / cropped[0].sample_rate_hz:.1f} s '
         f'each: mu = {base.joint.mu:.5f}'
     )
-    session = _Session(cropped, base, rig, fit_initial_position, say)
+    session = _Session(cropped, base, rig, fit_initial_position, residual_noise, say)
     selection = session.select(candidates)
     return session.conclude(conditioned, selection, MU_DRIFT in candidates)
 
@@ -185,8 +193,6 @@ def _silent(_message: str) -> None:
 
 
 def _checked_impacts(impacts: Sequence, rig: Rig) -> list[ConditionedImpact]:
-    if isinstance(impacts, ConditionedImpact) or hasattr(impacts, 'force_n'):
-        impacts = [impacts]
     conditioned = [as_conditioned(impact) for impact in impacts]
     if not conditioned:
         raise BadInputError('no impacts to diagnose')
@@ -206,6 +212,59 @@ def _checked_impacts(impacts: Sequence, rig: Rig) -> list[ConditionedImpact]:
                 f'{MIN_DECAY_PERIODS:g} natural periods of the rig)'
             )
     return conditioned
+
+
+def _integrated_as_judged(
+    records: Sequence, conditioned: list[ConditionedImpact], rig: Rig, fit_initial_position: bool
+) -> tuple[list[ConditionedImpact], float]:
+    """Velocities made from an accelerometer (or a displacement sensor) as the diagnosis judges.
+
+    Such a record carries the sensor's own samples in `response`. Integrating leaves a
+    velocity whose offset and slow drift are the sensor's, not the rig's (the offset taken
+    before the hit is never exact, and the sensor's zero creeps): the chain's drift handling
+    takes them off once, fitted with the base model (`INTEGRATED_FIT`). Its noise is then
+    described by `converted_noise`: as the white noise of equal density at the rig's natural
+    frequency (the impact's velocity_noise_std_m_s, which every chi^2 is judged against),
+    not the white noise its sample-to-sample changes show (the integral of white noise is a
+    random walk, far stronger at the rig's few hertz); and, apart, the much smaller variance
+    it leaves in a residual, which a misfit's excess beyond the noise is taken over.
+
+    Returns the impacts and that residual noise, pooled over them [m/s] (the velocity
+    noise itself where no record is integrated).
+    """
+    described = []
+    for record, impact in zip(records, conditioned, strict=True):
+        quantity = getattr(record, 'response_quantity', VELOCITY)
+        response = getattr(record, 'response', None)
+        if quantity == VELOCITY or response is None:
+            noise = ConvertedNoise(impact.velocity_noise_std_m_s, impact.velocity_noise_std_m_s)
+        else:
+            noise = converted_noise(
+                response, quantity, impact.sample_rate_hz, rig.natural_frequency_hz, DRIFT_KNOT_S
+            )
+        described.append((impact, quantity, noise))
+    if any(quantity != VELOCITY for _, quantity, _ in described):
+        spec = INTEGRATED_FIT.but(fit_initial_position=fit_initial_position)
+        fit = fit_model(conditioned, spec, rig=rig)
+        conditioned = [
+            impact
+            if quantity == VELOCITY
+            else replace(
+                impact,
+                velocity_m_s=impact.velocity_m_s - nuisance.values_m_s,
+                velocity_noise_std_m_s=noise.band_std_m_s,
+            )
+            for (impact, quantity, noise), nuisance in zip(
+                described, fit.velocity_nuisance, strict=True
+            )
+        ]
+    samples = sum(impact.force_n.size for impact in conditioned)
+    residual = sum(noise.residual_std_m_s**2 * i.force_n.size for i, _, noise in described)
+    return conditioned, math.sqrt(residual / samples)
+
+
+INTEGRATED_FIT = FitSpec(remove_mains_hum=True, fit_velocity_drift=True)
+"""The fit whose chain estimate (hum, offset and drift) is taken off an integrated velocity."""
 
 
 def _checked_candidates(candidates: Sequence[str] | None, hits: int) -> tuple[str, ...]:
@@ -258,6 +317,7 @@ class _Session:
         base: SessionModel,
         rig: Rig,
         fit_initial_position: bool,
+        residual_noise: float,
         say: Progress,
     ) -> None:
         self.impacts = impacts
@@ -266,6 +326,9 @@ class _Session:
         self.fit_initial_position = fit_initial_position
         self.say = say
         self.noise = base.joint.noise_std_m_s
+        self.residual_noise = residual_noise
+        """The noise's deviation in a residual sample by sample (`_integrated_as_judged`):
+        the velocity noise itself unless a record is integrated."""
         self.n_samples = base.joint.n_samples
         self.rate = impacts[0].sample_rate_hz
         self.models = [i.velocity_m_s - r for i, r in zip(impacts, base.residuals_m_s, strict=True)]
@@ -287,7 +350,7 @@ class _Session:
 
     def gap(self, residuals: Sequence[np.ndarray]) -> float:
         """Normalised RMS residual beyond the noise over the motion windows [-]."""
-        return gap(residuals, self.windows, self.noise, self.peak)
+        return gap(residuals, self.windows, self.residual_noise, self.peak)
 
     def frf_gap(self, residuals: Sequence[np.ndarray]) -> float:
         """Normalised mobility misfit beyond the noise [-]."""
@@ -309,7 +372,7 @@ class _Session:
         """The gap once chi2_gain is removed from inside the motion windows [-]."""
         inside = sum(inner(r[w], r[w]) for r, w in zip(residuals, self.windows, strict=True))
         mean = (inside - chi2_gain * self.noise**2) / self.motion_samples
-        return math.sqrt(max(mean - self.noise**2, 0.0)) / self.peak
+        return math.sqrt(max(mean - self.residual_noise**2, 0.0)) / self.peak
 
     # Forward selection and backward check
 
