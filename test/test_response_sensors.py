@@ -146,6 +146,15 @@ def test_a_channel_of_an_unknown_kind_is_refused_by_name(tmp_path, capsys):
     assert 'unknown mapping keys: jerk' in capsys.readouterr().err
 
 
+def test_an_accelerometer_named_as_the_velocity_is_pointed_to_its_flag(tmp_path, capsys):
+    path = tmp_path / 'hit.csv'
+    path.write_text('time_s,force_n,acceleration_m_s2\n0,0,0\n0.001,1,1\n')
+    assert main(['analyze', str(path), '--velocity', 'acceleration_m_s2']) == 2
+    error = capsys.readouterr().err
+    assert "unit 'm/s^2' is not a velocity unit" in error
+    assert '--acceleration acceleration_m_s2' in error
+
+
 def test_a_position_without_a_time_base_is_refused(tmp_path, capsys):
     path = tmp_path / 'position.csv'
     path.write_text('force_n,displacement_m\n' + '\n'.join(f'{i},{i * 1e-6}' for i in range(50)))

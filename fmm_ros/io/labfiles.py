@@ -45,7 +45,7 @@ from fmm_ros.io import sniff
 from fmm_ros.io.bags.acquisitions import Acquisition, write_acquisitions
 from fmm_ros.io.bags.writer import DEFAULT_BATCH_SIZE, BagWriter
 from fmm_ros.io.textfiles import DETECT, TextFormat, read_table
-from fmm_ros.units import QUANTITY_UNITS, SI_UNITS, lookup_unit
+from fmm_ros.units import QUANTITY_UNITS, SI_UNITS, lookup_unit, quantity_of_unit
 
 CANONICAL_NAMES = {
     **dict(zip(('time', 'force', 'velocity'), CSV_COLUMNS, strict=True)),
@@ -100,11 +100,17 @@ class ChannelMapping:
                 )
             return float(self.scale), f'× {self.scale:g} {si}/{unit or "unit"} (stated scale)'
         if known is None:
+            other = quantity_of_unit(unit, quantity)
             raise BadInputError(
                 f'{quantity} {self.name!r}: '
                 + (
-                    f'unit {unit!r} is not a {quantity} unit ({", ".join(units)}); for a '
-                    f'sensor unit give scale in {si} per {unit}'
+                    f'unit {unit!r} is not a {quantity} unit ({", ".join(units)}); '
+                    + (
+                        f'it is a unit of {other}: if the channel measures {other}, '
+                        f'name it with --{other} {self.name} (or {other}: in a mapping file)'
+                        if other
+                        else f'for a sensor unit give scale in {si} per {unit}'
+                    )
                     if unit
                     else f'no unit given; give unit (one of {", ".join(units)}) or a scale in '
                     f'{si} per file unit'
