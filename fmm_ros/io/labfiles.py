@@ -680,7 +680,9 @@ def mapping_for(
     A channel the spec does not name is the file's one channel whose unit (stated in the
     file, `LabFile.channel_unit`) is a unit of that quantity; several or none is an error
     that lists the channels. The response is velocity, acceleration or displacement: the one
-    channel of those kinds (canonical names first), unless the spec says which kind. Without
+    channel of those kinds (canonical names first, and of several canonical names the first
+    of RESPONSE_QUANTITIES: `fmm simulate -o` writes velocity_m_s beside displacement_m),
+    unless the spec says which kind. Without
     a stated rate, the one channel in time units becomes the time channel, else a scalar
     variable `sample_rate_hz`, else TDMS's own increments. force_only: no response is sought.
     """
@@ -715,6 +717,13 @@ def mapping_for(
             spec[kinds[0]] = entry
             continue
         found = channels_of(kinds)
+        also = ''
+        if len(found) > 1 and all(name == CANONICAL_NAMES[kind] for kind, name in found):
+            # fmm's own records (fmm simulate -o) hold velocity_m_s and displacement_m: the
+            # first of RESPONSE_QUANTITIES (velocity: measured, neither integrated nor
+            # differentiated) is the response, and the note says what else was there.
+            also = f' (also {", ".join(name for _, name in found[1:])}: name one with --KIND)'
+            found = found[:1]
         if len(found) != 1:
             names = ', '.join(CANONICAL_NAMES[kind] for kind in kinds)
             problem = (
@@ -731,7 +740,7 @@ def mapping_for(
             )
         kind, name = found[0]
         spec[kind] = {**entry, 'name': name}
-        notes.append(f'{kind}: {name!r}, the one channel in {kind} units')
+        notes.append(f'{kind}: {name!r}, the one channel in {kind} units{also}')
     if spec.get('sample_rate_hz') is None and not spec.get('time'):
         times = [name for _, name in channels_of(('time',))]
         if len(times) == 1:
