@@ -90,7 +90,7 @@ from fmm_ros.core.identify.friction import fit_model
 from fmm_ros.core.identify.lsq import inner
 from fmm_ros.core.identify.spec import FitSpec
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
-from fmm_ros.core.signal.response import VELOCITY, ConvertedNoise, converted_noise
+from fmm_ros.core.signal.response import VELOCITY, converted_noise
 from fmm_ros.errors import BadInputError
 
 BIC_EVIDENCE = 10.0
@@ -216,7 +216,7 @@ def _checked_impacts(impacts: Sequence, rig: Rig) -> list[ConditionedImpact]:
 
 def _integrated_as_judged(
     records: Sequence, conditioned: list[ConditionedImpact], rig: Rig, fit_initial_position: bool
-) -> tuple[list[ConditionedImpact], float]:
+) -> tuple[list[ConditionedImpact], tuple[float, ...] | None]:
     """Velocities made from an accelerometer (or a displacement sensor) as the diagnosis judges.
 
     Such a record carries the sensor's own samples in `response`. Integrating leaves a
@@ -229,38 +229,39 @@ def _integrated_as_judged(
     random walk, far stronger at the rig's few hertz); and, apart, the much smaller variance
     it leaves in a residual, which a misfit's excess beyond the noise is taken over.
 
-    Returns the impacts and that residual noise, pooled over them [m/s] (the velocity
-    noise itself where no record is integrated).
+    Returns the impacts and each one's residual noise [m/s], or None when no record is
+    integrated (the velocity noise is then both).
     """
     described = []
     for record, impact in zip(records, conditioned, strict=True):
         quantity = getattr(record, 'response_quantity', VELOCITY)
         response = getattr(record, 'response', None)
-        if quantity == VELOCITY or response is None:
-            noise = ConvertedNoise(impact.velocity_noise_std_m_s, impact.velocity_noise_std_m_s)
-        else:
+        if quantity != VELOCITY and response is not None:
             noise = converted_noise(
                 response, quantity, impact.sample_rate_hz, rig.natural_frequency_hz, DRIFT_KNOT_S
             )
-        described.append((impact, quantity, noise))
-    if any(quantity != VELOCITY for _, quantity, _ in described):
-        spec = INTEGRATED_FIT.but(fit_initial_position=fit_initial_position)
-        fit = fit_model(conditioned, spec, rig=rig)
-        conditioned = [
-            impact
-            if quantity == VELOCITY
-            else replace(
-                impact,
-                velocity_m_s=impact.velocity_m_s - nuisance.values_m_s,
-                velocity_noise_std_m_s=noise.band_std_m_s,
-            )
-            for (impact, quantity, noise), nuisance in zip(
-                described, fit.velocity_nuisance, strict=True
-            )
-        ]
-    samples = sum(impact.force_n.size for impact in conditioned)
-    residual = sum(noise.residual_std_m_s**2 * i.force_n.size for i, _, noise in described)
-    return conditioned, math.sqrt(residual / samples)
+            described.append((impact, noise))
+        else:
+            described.append((impact, None))
+    if all(noise is None for _, noise in described):
+        return conditioned, None
+    spec = INTEGRATED_FIT.but(fit_initial_position=fit_initial_position)
+    fit = fit_model(conditioned, spec, rig=rig)
+    judged = [
+        impact
+        if noise is None
+        else replace(
+            impact,
+            velocity_m_s=impact.velocity_m_s - nuisance.values_m_s,
+            velocity_noise_std_m_s=noise.band_std_m_s,
+        )
+        for (impact, noise), nuisance in zip(described, fit.velocity_nuisance, strict=True)
+    ]
+    residual = tuple(
+        impact.velocity_noise_std_m_s if noise is None else noise.residual_std_m_s
+        for impact, noise in described
+    )
+    return judged, residual
 
 
 INTEGRATED_FIT = FitSpec(remove_mains_hum=True, fit_velocity_drift=True)
@@ -317,7 +318,7 @@ class _Session:
         base: SessionModel,
         rig: Rig,
         fit_initial_position: bool,
-        residual_noise: float,
+        residual_noise: Sequence[float] | None,
         say: Progress,
     ) -> None:
         self.impacts = impacts
@@ -326,9 +327,13 @@ class _Session:
         self.fit_initial_position = fit_initial_position
         self.say = say
         self.noise = base.joint.noise_std_m_s
-        self.residual_noise = residual_noise
-        """The noise's deviation in a residual sample by sample (`_integrated_as_judged`):
-        the velocity noise itself unless a record is integrated."""
+        self.residual_noise = self.noise
+        """The noise's deviation in a residual sample by sample, pooled as the noise is: the
+        velocity noise itself unless a record is integrated (`_integrated_as_judged`)."""
+        if residual_noise is not None:
+            sizes = [impact.force_n.size for impact in impacts]
+            squares = sum(s**2 * n for s, n in zip(residual_noise, sizes, strict=True))
+            self.residual_noise = math.sqrt(squares / sum(sizes))
         self.n_samples = base.joint.n_samples
         self.rate = impacts[0].sample_rate_hz
         self.models = [i.velocity_m_s - r for i, r in zip(impacts, base.residuals_m_s, strict=True)]
