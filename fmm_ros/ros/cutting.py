@@ -5,8 +5,10 @@ velocity streams themselves (`SampleHistory`) and cut each impact the analyzer r
 fmm/impacts out of them by sample index, once every sample of its record has arrived. So
 no record travels over the network, and a bag played into the graph works like a live
 session. An impact stamped with another acquisition's clock (the source restarted in
-between) is not cut from this one's samples, and impacts still waiting when a new
-acquisition begins can no longer be cut: both are said in the log.
+between) is not cut from this one's samples, and impacts of another clock still waiting
+when a new acquisition begins can no longer be cut: both are said in the log. An impact heard
+before any sample (a station started while results were held for late joiners) waits for
+its acquisition's first batch and is judged by its clock then.
 """
 
 from rclpy.impl.rcutils_logger import RcutilsLogger
@@ -32,29 +34,35 @@ class ImpactCutter:
         """After a batch went into the history: the records it completed."""
         if self.history.acquisitions != self._acquisition:
             self._acquisition = self.history.acquisitions
-            if self.waiting:
+            lost = [m.impact_id for m in self.waiting if not self._same_clock(m)]
+            if lost:
                 self._logger.warning(
-                    f'a new acquisition began: impacts {[m.impact_id for m in self.waiting]} '
-                    'of the previous one cannot be cut any more'
+                    f'a new acquisition began: impacts {lost} of the previous one cannot be '
+                    'cut any more'
                 )
-                self.waiting.clear()
+                self.waiting = [m for m in self.waiting if self._same_clock(m)]
         return self._cut()
 
     def impact(self, msg: ImpactResult) -> list[Cut]:
         """An impact reported: its record at once if its samples are held, else later."""
-        origin = self.history.origin_s
-        if origin is not None and msg.sample_rate_hz > 0:
-            impact_origin = msgs.stamp_ns(msg.header.stamp) / 1e9 - (
-                msg.trigger_sample_index / msg.sample_rate_hz
+        if not self._same_clock(msg):
+            self._logger.warning(
+                f'impact {msg.impact_id} belongs to another acquisition than the samples '
+                'held (its clock differs): not held'
             )
-            if abs(impact_origin - origin) > self.history.stream.rules.clock_tolerance_s:
-                self._logger.warning(
-                    f'impact {msg.impact_id} belongs to another acquisition than the samples '
-                    'held (its clock differs): not held'
-                )
-                return []
+            return []
         self.waiting.append(msg)
         return self._cut()
+
+    def _same_clock(self, msg: ImpactResult) -> bool:
+        """Whether the impact's clock is the held acquisition's (true while none is held)."""
+        origin = self.history.origin_s
+        if origin is None or msg.sample_rate_hz <= 0:
+            return True
+        impact_origin = msgs.stamp_ns(msg.header.stamp) / 1e9 - (
+            msg.trigger_sample_index / msg.sample_rate_hz
+        )
+        return abs(impact_origin - origin) <= self.history.stream.rules.clock_tolerance_s
 
     def _cut(self) -> list[Cut]:
         """The records of reported impacts whose samples have all arrived."""
