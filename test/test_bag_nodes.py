@@ -161,6 +161,20 @@ def test_recorder_refuses_an_unknown_storage(ros_graph, tmp_path):
         )
 
 
+def test_the_bag_is_closed_when_its_closing_metadata_fails(ros_graph, tmp_path, monkeypatch):
+    """A fault while writing the ledger into the metadata must not leave the bag unclosed."""
+    bag = tmp_path / 'bag'
+    recorder = ros_graph.add(Recorder, parameter_overrides=params(bag_path=str(bag)))
+
+    def broken_ledger_text(ledger):
+        raise RuntimeError('ledger unwritable')
+
+    monkeypatch.setattr('fmm_ros.ros.nodes.recorder.ledger_text', broken_ledger_text)
+    recorder.destroy_node()
+    with BagReader(bag) as reader:
+        assert not reader.recovered
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize('signum', ['SIGINT', 'SIGTERM'])
 def test_fmm_record_records_live_topics_until_interrupted(tmp_path, signum):

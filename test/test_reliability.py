@@ -189,14 +189,16 @@ def test_the_launcher_stops_its_nodes_however_it_is_stopped(tmp_path, domain, ho
         *(item for option in [*SESSION, f'recorder.bag_path={bag}'] for item in ('--set', option)),
     ]
     ignore_sigint = how == 'SIGINT ignored'  # a script's background job inherits SIG_IGN
-    launcher = subprocess.Popen(
-        command,
-        preexec_fn=(lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
-        if ignore_sigint
-        else None,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
+    log = tmp_path / 'rig.log'  # the nodes inherit it: their last words outlive the launcher
+    with log.open('wb') as out:
+        launcher = subprocess.Popen(
+            command,
+            preexec_fn=(lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+            if ignore_sigint
+            else None,
+            stdout=subprocess.DEVNULL,
+            stderr=out,
+        )
     try:
         assert wait_for(lambda: _mcap_size(bag) > 100_000, timeout_s=60.0), 'the rig never recorded'
         children = _children(launcher.pid)
@@ -216,7 +218,9 @@ def test_the_launcher_stops_its_nodes_however_it_is_stopped(tmp_path, domain, ho
     assert launcher.returncode == (-signal.SIGKILL if how == 'SIGKILL' else 0)
     assert elapsed < 10.0
     with BagReader(bag) as reader:  # closed: metadata.yaml and the MCAP summary written
-        assert not reader.recovered and reader.recorded_ledger['/fmm/force'].missing_samples == 0
+        last_words = '\n'.join(log.read_text(errors='replace').splitlines()[-15:])
+        assert not reader.recovered, f'the bag was not closed; the rig said:\n{last_words}'
+        assert reader.recorded_ledger['/fmm/force'].missing_samples == 0
 
 
 @pytest.mark.slow

@@ -357,7 +357,23 @@ class Recorder(Node):
         self._faults.check(stream.ledger, f'at {batch.first_sample_index}')
 
     def destroy_node(self) -> None:
-        """Close the bag (MCAP summary, metadata.yaml with the ledger) before the node goes."""
+        """Close the bag (MCAP summary, metadata.yaml with the ledger) before the node goes.
+
+        The bag is closed whatever goes wrong in writing its metadata: a fault there is logged
+        and the samples stay readable without a recovery scan.
+        """
+        try:
+            self._write_closing_metadata()
+        except Exception as error:  # the last resort: the bag must still be closed
+            self.get_logger().error(f'bag metadata incomplete: {type(error).__name__}: {error}')
+        try:
+            self.writer.close()
+        except WRITE_ERRORS as error:  # the storage failed as the bag closed
+            self._fail(error)
+        super().destroy_node()
+
+    def _write_closing_metadata(self) -> None:
+        """The ledger, the session's metadata and the recorder's own line, for metadata.yaml."""
         for stream in self._streams.values():
             stream.finish()
         self._bound_silence(final=True)
@@ -380,11 +396,6 @@ class Recorder(Node):
                 }
             ),
         )
-        try:
-            self.writer.close()
-        except WRITE_ERRORS as error:  # the storage failed as the bag closed
-            self._fail(error)
-        super().destroy_node()
 
 
 def main(args: list[str] | None = None) -> int:
