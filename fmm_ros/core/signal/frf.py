@@ -323,7 +323,7 @@ def natural_frequency(velocity_m_s: np.ndarray, sample_rate_hz: float) -> float:
     rate = sample_rate_hz / factor
     if m < 16 or not np.isfinite(velocity).all():
         return float('nan')
-    smooth = velocity[: m * factor].reshape(m, factor).mean(axis=1)
+    smooth = block_means(velocity[: m * factor], factor)
     second = np.diff(smooth, n=2)
     noise = 1.4826 * float(np.median(np.abs(second - np.median(second)))) / np.sqrt(6.0)
     sign = np.signbit(smooth)
@@ -343,6 +343,18 @@ def natural_frequency(velocity_m_s: np.ndarray, sample_rate_hz: float) -> float:
     kept = times[1:][run[0] : run[1]]
     half_period = float(np.polyfit(np.arange(kept.size), kept, 1)[0])
     return rate / (2.0 * half_period)
+
+
+def block_means(samples: np.ndarray, factor: int) -> np.ndarray:
+    """Means of consecutive blocks of `factor` samples: `samples.reshape(-1, factor).mean(1)`.
+
+    The same numbers to the bit (a -0.0 included), and for pairs (10 kHz to
+    `REVERSAL_RATE_HZ`) over 10x faster: numpy reduces rows of two slowly, and sums a row as its
+    first element plus (0.0 + the rest), which the pair sum below repeats.
+    """
+    if factor == 2:
+        return (samples[0::2] + (0.0 + samples[1::2])) / 2
+    return samples.reshape(-1, factor).mean(axis=1)
 
 
 def _first_run(mask: np.ndarray, length: int = 1) -> tuple[int, int] | None:
