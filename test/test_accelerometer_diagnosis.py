@@ -23,6 +23,7 @@ from fmm_ros.core.identify.chain import DRIFT_KNOT_S, DriftBasis
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.core.signal.response import (
     ACCELERATION,
+    DISPLACEMENT,
     VELOCITY,
     as_measured,
     converted_noise,
@@ -53,6 +54,19 @@ def test_integrated_white_noise_is_described_by_its_density_and_what_the_drift_l
     assert described.residual_std_m_s > 20 * SIGMA_M_S2 / fs
     plain = converted_noise(acceleration, VELOCITY, fs, 2.2, DRIFT_KNOT_S)
     assert plain.band_std_m_s == plain.residual_std_m_s == pytest.approx(SIGMA_M_S2, rel=0.05)
+
+
+def test_differentiated_white_noise_is_described_alike():
+    rng = np.random.default_rng(5)
+    fs, sigma_m = 10_000.0, 1e-7
+    position = rng.normal(0.0, sigma_m, 200_000)
+    velocity = velocity_from_response(position, DISPLACEMENT, fs, 0)
+    frequency, power = scipy.signal.welch(velocity, fs, nperseg=20_000)
+    band = (frequency > 1.5) & (frequency < 3.0)
+    white = power[band] * (2.2 / frequency[band]) ** 2  # the f^2 slope taken out
+    described = converted_noise(position, DISPLACEMENT, fs, 2.2, DRIFT_KNOT_S)
+    assert np.sqrt(np.mean(white) * fs / 2.0) == pytest.approx(described.band_std_m_s, rel=0.1)
+    assert np.std(velocity) == pytest.approx(described.residual_std_m_s, rel=0.05)
 
 
 def as_read(records) -> list:
