@@ -1,7 +1,10 @@
 """Campaign: serial against Dask on 2 workers, per-session cost, scaling, honest statistics.
 
 Run: .venv/bin/python benchmarks/bench_campaign.py [--sessions-per-condition 4] [--hits 10]
-     [--workers 2] [--campaigns 2000] [--keep DIR]
+     [--workers 2] [--campaigns 2000] [--keep DIR] [--quick]
+
+--quick (CI: every step still runs, in about a minute): one session a condition of one hit,
+every Dask run on one cluster started once, no ceiling, 20 campaigns for the statistics.
 
 1. A generated campaign (`fmm_ros.sim.campaign`): lubricants A (mu 0.113), B (0.101) and
    C (0.113, no real difference from A) x normal forces 6.67 and 9.81 N x 4 sessions, 10 hits
@@ -23,6 +26,7 @@ Run: .venv/bin/python benchmarks/bench_campaign.py [--sessions-per-condition 4] 
 """
 
 import argparse
+import contextlib
 import dataclasses
 import math
 import os
@@ -87,6 +91,23 @@ def machine_ceiling(workers: int, tasks: int = 8) -> float:
 
 
 def speed(folder: Path, args) -> None:
+    """The campaign's runs, timed; quick: every Dask run on one cluster started once."""
+    if not args.quick:
+        measure(folder, args, None)
+        return
+    # Each Dask cluster costs a start (seconds, and half a minute on a busy machine): the
+    # quick run, which only shows that every step still runs, starts one.
+    with contextlib.ExitStack() as stack:
+        cluster, start_s = timed(lambda: stack.enter_context(local_cluster(args.workers)))
+        measure(folder, args, (cluster.scheduler_address, start_s))
+
+
+def measure(folder: Path, args, shared: tuple[str, float] | None) -> None:
+    """Serial against Dask, the cache, per-session cost, scaling and correctness.
+
+    shared: (address, start seconds) of one running cluster every Dask run takes (quick;
+    the ceiling is then left out), or None: each run starts its own, as a campaign does.
+    """
     print(
         f'campaign: {len(LUBRICANTS)} lubricants x {len(LOADS_N)} loads x '
         f'{args.sessions_per_condition} sessions, {args.hits} hits of 33 s each'
@@ -126,42 +147,60 @@ def speed(folder: Path, args) -> None:
     # Serial and parallel runs alternate, so a change in the other jobs' load falls on both;
     # each is reported, and the speed-up of the pair with the least load.
     rows, pairs = [], []
+    own = shared[0] if shared else None  # the scheduler of a run that would start its own
     for _ in range(args.repeats):
-        ceiling = machine_ceiling(args.workers)
+        if not shared:
+            rows.append(
+                (
+                    f'  ceiling: plain numpy work in {args.workers} processes',
+                    None,
+                    machine_ceiling(args.workers),
+                )
+            )
         serial_load = os.getloadavg()[0]
         serial, serial_s = timed(lambda: campaign(SERIAL, None))
-        parallel_load = os.getloadavg()[0]
-        parallel, parallel_s = timed(lambda: campaign(None, None))
+        rows.append((f'serial, in this process (load {serial_load:.1f})', serial_s, None))
+        if not shared:
+            parallel_load = os.getloadavg()[0]
+            parallel, parallel_s = timed(lambda: campaign(None, None))
+            rows.append(
+                (
+                    f'Dask, {args.workers} workers, start included (load {parallel_load:.1f})',
+                    parallel_s,
+                    serial_s / parallel_s,
+                )
+            )
         # The same graph on a cluster already running (a lab's `--scheduler ADDRESS`): its
         # workers started and warmed by one session each, outside the time.
-        with local_cluster(args.workers) as cluster:
-            address = cluster.scheduler_address
+        with contextlib.ExitStack() as stack:
+            address = (
+                shared[0]
+                if shared
+                else stack.enter_context(local_cluster(args.workers)).scheduler_address
+            )
             run_sessions(
                 [s.spec for s in table.sessions[: args.workers]], SETTINGS, scheduler=address
             )
             running_load = os.getloadavg()[0]
-            running_s = timed(lambda address=address: campaign(address, None))[1]
-        rows += [
-            (f'  ceiling: plain numpy work in {args.workers} processes', None, ceiling),
-            (f'serial, in this process (load {serial_load:.1f})', serial_s, None),
-            (
-                f'Dask, {args.workers} workers, start included (load {parallel_load:.1f})',
-                parallel_s,
-                serial_s / parallel_s,
-            ),
+            running, running_s = timed(lambda address=address: campaign(address, None))
+        rows.append(
             (
                 f'Dask, {args.workers} workers already running (load {running_load:.1f})',
                 running_s,
                 serial_s / running_s,
-            ),
-        ]
+            )
+        )
+        if shared:  # the one Dask run stands for both
+            parallel, parallel_s, parallel_load = running, running_s, running_load
         pairs.append(
             (serial_load + parallel_load, serial, serial_s, parallel, parallel_s, running_s)
         )
     _, serial, serial_s, parallel, parallel_s, running_s = min(pairs, key=lambda pair: pair[0])
-    start_s = timed(lambda: run_sessions([], SETTINGS, workers=args.workers))[1]
-    _, cold_s = timed(lambda: campaign(None, folder / 'cache'))
-    _, cached_s = timed(lambda: campaign(None, folder / 'cache'))
+    start_s = (
+        shared[1] if shared else timed(lambda: run_sessions([], SETTINGS, workers=args.workers))[1]
+    )
+    _, cold_s = timed(lambda: campaign(own, folder / 'cache'))
+    _, cached_s = timed(lambda: campaign(own, folder / 'cache'))
     speedup = serial_s / parallel_s
     print(f'\n{"run (no cache unless said)":<52} {"wall s":>7} {"speed-up":>9}')
     for label, seconds, ratio in rows:

@@ -47,7 +47,10 @@ def whole_graph(batch_size: int, tmp: str, hits_per_level: int = 2) -> tuple[flo
         hammer = graph.add(
             HammerSim,
             parameter_overrides=p(
-                rate_factor=1000.0, batch_size=batch_size, hits_per_level=hits_per_level
+                rate_factor=1000.0,
+                batch_size=batch_size,
+                max_batches_per_s=0.0,  # the batch size compared, not the one the pace picks
+                hits_per_level=hits_per_level,
             ),
         )
         graph.add(RigSim)

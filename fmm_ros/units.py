@@ -72,12 +72,19 @@ def lookup_unit(quantity: str, unit: str | None) -> tuple[str, float] | None:
     return None
 
 
+def quantity_of_unit(unit: str | None, besides: str) -> str | None:
+    """The quantity other than `besides` that `unit` is a unit of, or None (for hints)."""
+    return next(
+        (kind for kind in QUANTITY_UNITS if kind != besides and lookup_unit(kind, unit)), None
+    )
+
+
 def si_factor(quantity: str, unit: str) -> float:
     """SI units per one `unit` of `quantity` (1000.0 for force in kN); UnitError if unknown."""
     known = lookup_unit(quantity, unit)
     if known is None:
-        other = [kind for kind in QUANTITY_UNITS if kind != quantity and lookup_unit(kind, unit)]
-        hint = f' ({unit!r} is a {other[0]} unit)' if other else ''
+        other = quantity_of_unit(unit, quantity)
+        hint = f' ({unit!r} is a {other} unit)' if other else ''
         raise UnitError(
             f'{quantity} in unit {unit!r} cannot be converted to SI{hint}; '
             f'known {quantity} units: {", ".join(_units_of(quantity))}'

@@ -9,6 +9,8 @@ accelerometer reads m x'' exactly at each sample, plus white noise and an offset
 product must take off before integrating; the force sensor adds its own noise.
 """
 
+import dataclasses
+
 import numpy as np
 
 from fmm_ros.core.physics.rig import FMM_RIG
@@ -116,9 +118,16 @@ def _free_motion(acceleration, start, x, v, mu, rig):
         v, t0, index = 0.0, t0 + tau_end, stop
 
 
-def session(mu, seed):
-    """Three hits (the paper's levels) of one session: (force N, measured m/s^2) each."""
+def session(mu, seed, added_damping_n_s_per_m=0.0):
+    """Three hits (the paper's levels) of one session: (force N, measured m/s^2) each.
+
+    seed: an int or a numpy Generator. added_damping_n_s_per_m: viscous damping hidden on top
+    of the rig's (the diagnosis should name it).
+    """
     rng = np.random.default_rng(seed)
+    rig = dataclasses.replace(
+        FMM_RIG, damping_n_s_per_m=FMM_RIG.damping_n_s_per_m + added_damping_n_s_per_m
+    )
     hits = []
     for peak in (450.0, 1000.0, 1450.0):
         force, acceleration = fmm_accelerometer_record(
@@ -127,6 +136,7 @@ def session(mu, seed):
             rng.uniform(0.2, 0.5) + rng.uniform(0, 1 / RATE_HZ),
             mu,
             rng.uniform(-0.8, 0.8) * mu * FMM_RIG.normal_force_n / FMM_RIG.stiffness_n_per_m,
+            rig,
         )
         force = force + rng.normal(0, FORCE_NOISE_N, force.size)
         offset = rng.uniform(-0.02, 0.02)

@@ -137,7 +137,7 @@ def test_emps_with_a_numeric_drive_gain_and_text_output(capsys) -> None:
     ('extra', 'message'),
     [
         (['--position', 'nothing'], "no channel 'nothing'"),
-        (['--position', 'qm', '--time', 'qg'], 'go backwards'),
+        (['--position', 'qm', '--time', 'qg'], 'goes backwards'),
         (['--position', 'qm', '--force-unit', 'furlong'], "unit 'furlong'"),
         (['--position', 'qm', '--sample-rate-hz', '-5'], 'sample rate must be positive'),
     ],

@@ -314,3 +314,24 @@ def test_the_fitter_service_leaves_flagged_impacts_out_unless_asked(ros_graph):
     response = ros_graph.call(client, only_flagged, timeout_s=120.0)
     assert not response.success
     assert response.message.startswith('no clean impact to fit: impact 2 (no_response)')
+
+
+@pytest.mark.parametrize('size', [0, 1, 2, 3, 9, 40_001, 40_002, 40_003, 40_010, 330_000])
+def test_noise_measures_read_the_differences_numpy_would_give(size):
+    """white_noise_std and has_white_noise compute only the differences they read (every 8th
+    of a long channel): the same numbers as np.diff's, corrupt samples and all."""
+    rng = np.random.default_rng(size)
+    samples = rng.normal(0.0, 0.2, size).round(3)  # quantised: some differences exactly 0
+    samples[rng.integers(0, max(size, 1), size // 50)] = np.nan
+    samples[rng.integers(0, max(size, 1), size // 50)] = np.inf
+
+    def spread(values):
+        return quality.robust_center_and_std(values)[1]
+
+    with np.errstate(invalid='ignore'):
+        first, second = np.diff(samples), np.diff(samples, n=2)
+    expected_noise = spread(second) / np.sqrt(6.0) if second.size else 0.0
+    np.testing.assert_equal(quality.white_noise_std(samples), expected_noise)
+    assert quality.has_white_noise(samples) == bool(
+        spread(first) > 0 and spread(second) >= spread(first)
+    )

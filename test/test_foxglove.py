@@ -77,6 +77,7 @@ def _client(url: str, seconds: float, counts: dict[str, int]) -> subprocess.Pope
 @pytest.mark.ros
 @pytest.mark.slow
 def test_foxglove_s_own_client_decodes_force_impacts_and_mu_from_a_running_graph(ros_graph):
+    from fmm_ros.ros.flow import PacedSource
     from fmm_ros.ros.nodes.analyzer import Analyzer
     from fmm_ros.ros.nodes.fitter import Fitter
     from fmm_ros.ros.nodes.foxglove_server import FoxgloveServer
@@ -115,9 +116,10 @@ def test_foxglove_s_own_client_decodes_force_impacts_and_mu_from_a_running_graph
     assert 0.10 < friction[-1]['mu'] < 0.13
 
     start_ns = hammer._start_stamp.nanoseconds
+    size = PacedSource.paced_batch(hammer.config, 1e4, FAST_HAMMER['batch_size'], 20.0)
     for batch in (m['message'] for m in by_topic['/fmm/force']):
         assert (batch['quantity'], batch['unit'], batch['sample_rate_hz']) == ('force', 'N', 1e4)
-        assert batch['samples']['length'] == 1000 and batch['first_sample_index'] % 1000 == 0
+        assert batch['samples']['length'] == size and batch['first_sample_index'] % size == 0
         stamp_ns = batch['header']['stamp']['sec'] * 10**9 + batch['header']['stamp']['nanosec']
         assert stamp_ns == start_ns + batch['first_sample_index'] * 100_000
     points = [m['message'] for m in by_topic['/fmm/live/force']]

@@ -230,8 +230,8 @@ def test_natural_frequency_from_reversals_is_f_n_not_an_fft_bin(level):
 
 @pytest.mark.slow
 def test_a_low_hits_slow_reversals_through_the_noise_still_give_f_n():
-    """A 450 N hit from a hard tip (1.55 ms, 0.05 m/s) turns at a few 1e-4 m/s a block near its last
-    reversals, the size of 1e-4 m/s of noise: noise crossing zero there again once made
+    """A 450 N hit from a hard tip (1.55 ms, 0.05 m/s) turns at a few 1e-4 m/s a block near
+    its last reversals, the size of 1e-4 m/s of noise: noise crossing zero there again made
     weak half cycles that broke the run of strong reversals, and f_n came out NaN for about
     one such hit in seven (the fitter node's lab-chain test saw its low hit `undetermined`)."""
     estimates = []
@@ -244,6 +244,22 @@ def test_a_low_hits_slow_reversals_through_the_noise_still_give_f_n():
         velocity = velocity + rng.normal(0.0, 1e-4, force.size)
         estimates.append(frf.natural_frequency(velocity, RATE_HZ))
     assert estimates == pytest.approx([FMM_RIG.natural_frequency_hz] * 40, rel=5e-3)
+
+
+@pytest.mark.parametrize('factor', [1, 2, 3, 4, 8, 10])
+def test_block_means_are_numpys_block_means_to_the_bit(factor):
+    """The pair sum natural_frequency takes at 10 kHz gives numpy's mean, signs of zero too
+    (a crossing is found by the sign bit, so a -0.0 mean in place of 0.0 would move it)."""
+    rng = np.random.default_rng(factor)
+    samples = rng.standard_normal(40_000 * factor) * 10.0 ** rng.integers(-8, 3, 40_000 * factor)
+    for special in (-0.0, 0.0, 1e308, -1e308, 5e-324):
+        samples[rng.integers(0, samples.size, 500)] = special
+    samples[: 2 * factor] = -0.0  # whole blocks of -0.0 (numpy's mean of them is 0.0)
+    with np.errstate(over='ignore'):  # two 1e308 in a block: inf either way
+        ours = frf.block_means(samples, factor)
+        theirs = samples.reshape(-1, factor).mean(axis=1)
+    np.testing.assert_array_equal(ours, theirs)
+    np.testing.assert_array_equal(np.signbit(ours), np.signbit(theirs))
 
 
 def test_natural_frequency_of_a_viscous_decay_is_its_damped_frequency():

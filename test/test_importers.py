@@ -246,7 +246,7 @@ def test_inconsistent_files_are_refused(tmp_path):
         'velocity': {'name': 'V', 'unit': 'm/s'},
         'time': {'name': 't', 'unit': 's'},
     }
-    with pytest.raises(ValueError, match='not uniformly increasing'):
+    with pytest.raises(ValueError, match='non-uniform time step'):
         read_lab_file(path, ImportMapping.from_dict(mapping))
     np.savetxt(
         path,

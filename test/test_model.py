@@ -8,7 +8,7 @@ import scipy.signal
 from reference_solver import Oscillator, solve
 
 from fmm_ros.constants import PAPER_MU
-from fmm_ros.core._checks import sample_rate_from_times
+from fmm_ros.core._checks import time_base
 from fmm_ros.core.physics.model import INTEGRATORS, OscillatorStream, free_vibration, simulate
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import MODEL_TERMS, ModelTerm, Parameter, model_term
@@ -473,12 +473,30 @@ def test_bad_input_raises_a_value_error_naming_the_problem(call, message):
 
 def test_time_columns_must_be_uniform():
     t = np.arange(1000) / RATE_HZ
-    assert sample_rate_from_times(t) == pytest.approx(RATE_HZ)
-    assert sample_rate_from_times(t + np.round(t * 1e6) * 0) == pytest.approx(RATE_HZ)
+    assert time_base(t).sample_rate_hz == pytest.approx(RATE_HZ)
+    assert time_base(t).jitter_max_s == pytest.approx(0.0, abs=1e-15)
     gap = np.delete(t, 500)
     with pytest.raises(ValueError, match='non-uniform time step: 0.0002 s between samples 499'):
-        sample_rate_from_times(gap)
-    with pytest.raises(ValueError, match='time_s must increase'):
-        sample_rate_from_times(t[::-1])
+        time_base(gap)
+    with pytest.raises(ValueError, match='samples were dropped'):
+        time_base(gap, rtol=None)
+    with pytest.raises(ValueError, match='time_s goes backwards at data row 2'):
+        time_base(t[::-1])
     with pytest.raises(ValueError, match='at least two samples'):
-        sample_rate_from_times(t[:1])
+        time_base(t[:1])
+    with pytest.raises(ValueError, match='not finite at sample 3'):
+        time_base(np.where(np.arange(1000) == 3, np.nan, t))
+
+
+def test_scattered_stamps_give_their_rate_and_jitter():
+    t = np.arange(16_000) / 1600.0  # a PC clock's stamps of a 1.6 kHz record
+    scatter = np.random.default_rng(0).uniform(-20e-6, 20e-6, t.size)
+    clock = time_base(t + scatter, 'stamps', rtol=None)
+    assert clock.sample_rate_hz == pytest.approx(1600.0, rel=1e-5)
+    # steps of uniform +-20 us stamps: 20e-6 * sqrt(2 / 3) rms, at most 40 us
+    assert clock.jitter_rms_s == pytest.approx(16.3e-6, rel=0.1)
+    assert 30e-6 < clock.jitter_max_s < 40e-6
+    assert 'jitter 16' in clock.describe()
+    assert time_base(t).describe() == 'uniform steps'
+    with pytest.raises(ValueError, match='non-uniform time step'):
+        time_base(t + scatter)

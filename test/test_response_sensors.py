@@ -146,6 +146,31 @@ def test_a_channel_of_an_unknown_kind_is_refused_by_name(tmp_path, capsys):
     assert 'unknown mapping keys: jerk' in capsys.readouterr().err
 
 
+def test_fmm_simulate_output_is_analysed_by_its_velocity(tmp_path, capsys):
+    """`fmm simulate -o` writes velocity_m_s and displacement_m: the velocity is the response."""
+    time_s = np.arange(30_000) / 10_000.0
+    phase = (time_s - 0.5) / 0.003
+    force = np.where((phase > 0) & (phase < 1), 1000 * np.sin(np.pi * np.clip(phase, 0, 1)), 0)
+    force_csv = tmp_path / 'force.csv'
+    np.savetxt(force_csv, np.column_stack((time_s, force)), delimiter=',', comments='',
+               header='time_s,force_n')  # fmt: skip
+    simulated = tmp_path / 'sim.csv'
+    assert main(['simulate', '--force-csv', str(force_csv), '-o', str(simulated), '--json']) == 0
+    capsys.readouterr()
+    assert main(['analyze', str(simulated), '--json']) == 0
+    (impact,) = json.loads(capsys.readouterr().out)['impacts']
+    assert impact['impulse_n_s'] == pytest.approx(2 * 1000 * 0.003 / np.pi, rel=1e-3)
+
+
+def test_an_accelerometer_named_as_the_velocity_is_pointed_to_its_flag(tmp_path, capsys):
+    path = tmp_path / 'hit.csv'
+    path.write_text('time_s,force_n,acceleration_m_s2\n0,0,0\n0.001,1,1\n')
+    assert main(['analyze', str(path), '--velocity', 'acceleration_m_s2']) == 2
+    error = capsys.readouterr().err
+    assert "unit 'm/s^2' is not a velocity unit" in error
+    assert '--acceleration acceleration_m_s2' in error
+
+
 def test_a_position_without_a_time_base_is_refused(tmp_path, capsys):
     path = tmp_path / 'position.csv'
     path.write_text('force_n,displacement_m\n' + '\n'.join(f'{i},{i * 1e-6}' for i in range(50)))

@@ -105,14 +105,14 @@ def run(args: argparse.Namespace) -> int:
     """Simulate as the flags say, print the summary, optionally write the record."""
     import numpy as np
 
-    from fmm_ros.core._checks import sample_rate_from_times
+    from fmm_ros.core._checks import time_base
     from fmm_ros.core.physics.model import record_length, simulate
 
     rig = options.rig_from_args(args)
     start_s = 0.0
     if args.force_csv is not None:
         time_s, force = read_force_csv(args.force_csv)
-        rate = sample_rate_from_times(time_s)
+        rate = time_base(time_s, f'{args.force_csv}: time_s').sample_rate_hz
         if args.sample_rate_hz is not None and not math.isclose(
             args.sample_rate_hz, rate, rel_tol=1e-6
         ):

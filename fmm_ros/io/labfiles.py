@@ -37,16 +37,15 @@ import numpy as np
 import yaml
 
 from fmm_ros.constants import RESPONSE_CHANNELS
-from fmm_ros.core._checks import sample_rate_from_times
+from fmm_ros.core._checks import time_base
 from fmm_ros.core.signal.records import CSV_COLUMNS
 from fmm_ros.core.signal.response import RESPONSE_QUANTITIES, VELOCITY
 from fmm_ros.errors import BadInputError
 from fmm_ros.io import sniff
 from fmm_ros.io.bags.acquisitions import Acquisition, write_acquisitions
 from fmm_ros.io.bags.writer import DEFAULT_BATCH_SIZE, BagWriter
-from fmm_ros.io.stamps import backwards, stamp_rate
 from fmm_ros.io.textfiles import DETECT, TextFormat, read_table
-from fmm_ros.units import QUANTITY_UNITS, SI_UNITS, lookup_unit
+from fmm_ros.units import QUANTITY_UNITS, SI_UNITS, lookup_unit, quantity_of_unit
 
 CANONICAL_NAMES = {
     **dict(zip(('time', 'force', 'velocity'), CSV_COLUMNS, strict=True)),
@@ -101,11 +100,17 @@ class ChannelMapping:
                 )
             return float(self.scale), f'× {self.scale:g} {si}/{unit or "unit"} (stated scale)'
         if known is None:
+            other = quantity_of_unit(unit, quantity)
             raise BadInputError(
                 f'{quantity} {self.name!r}: '
                 + (
-                    f'unit {unit!r} is not a {quantity} unit ({", ".join(units)}); for a '
-                    f'sensor unit give scale in {si} per {unit}'
+                    f'unit {unit!r} is not a {quantity} unit ({", ".join(units)}); '
+                    + (
+                        f'it is a unit of {other}: if the channel measures {other}, '
+                        f'name it with --{other} {self.name} (or {other}: in a mapping file)'
+                        if other
+                        else f'for a sensor unit give scale in {si} per {unit}'
+                    )
                     if unit
                     else f'no unit given; give unit (one of {", ".join(units)}) or a scale in '
                     f'{si} per file unit'
@@ -675,7 +680,9 @@ def mapping_for(
     A channel the spec does not name is the file's one channel whose unit (stated in the
     file, `LabFile.channel_unit`) is a unit of that quantity; several or none is an error
     that lists the channels. The response is velocity, acceleration or displacement: the one
-    channel of those kinds (canonical names first), unless the spec says which kind. Without
+    channel of those kinds (canonical names first, and of several canonical names the first
+    of RESPONSE_QUANTITIES: `fmm simulate -o` writes velocity_m_s beside displacement_m),
+    unless the spec says which kind. Without
     a stated rate, the one channel in time units becomes the time channel, else a scalar
     variable `sample_rate_hz`, else TDMS's own increments. force_only: no response is sought.
     """
@@ -710,6 +717,13 @@ def mapping_for(
             spec[kinds[0]] = entry
             continue
         found = channels_of(kinds)
+        also = ''
+        if len(found) > 1 and all(name == CANONICAL_NAMES[kind] for kind, name in found):
+            # fmm's own records (fmm simulate -o) hold velocity_m_s and displacement_m: the
+            # first of RESPONSE_QUANTITIES (velocity: measured, neither integrated nor
+            # differentiated) is the response, and the note says what else was there.
+            also = f' (also {", ".join(name for _, name in found[1:])}: name one with --KIND)'
+            found = found[:1]
         if len(found) != 1:
             names = ', '.join(CANONICAL_NAMES[kind] for kind in kinds)
             problem = (
@@ -726,7 +740,7 @@ def mapping_for(
             )
         kind, name = found[0]
         spec[kind] = {**entry, 'name': name}
-        notes.append(f'{kind}: {name!r}, the one channel in {kind} units')
+        notes.append(f'{kind}: {name!r}, the one channel in {kind} units{also}')
     if spec.get('sample_rate_hz') is None and not spec.get('time'):
         times = [name for _, name in channels_of(('time',))]
         if len(times) == 1:
@@ -752,35 +766,24 @@ def _sample_rate(lab: LabFile, mapping: ImportMapping, length: int) -> tuple[flo
             raise BadInputError(
                 f'{lab.path}: time {name!r} has {len(time_s)} samples, the channels {length}'
             )
-        backwards(time_s, f'{lab.path}: time {name!r}')
-        if lab.stamped(name):
-            stamped = stamp_rate(time_s, f'{lab.path}: time {name!r}')
-            if rate is None:
-                return stamped.sample_rate_hz, f'time channel {name!r} {stamped.describe()}'
-            if abs(stamped.sample_rate_hz - rate) > UNIFORM_TIME_TOLERANCE * rate:
-                raise BadInputError(
-                    f'{lab.path}: sample rate {rate:g} Hz ({how}) disagrees with the '
-                    f'stamps of {name!r} ({stamped.sample_rate_hz:.6g} Hz)'
-                )
-            return rate, f'{how}; stamps of {name!r} agree, {stamped.describe()}'
-        try:
-            # Over the whole span, so the rounding of each printed time stamp averages out.
-            from_time = sample_rate_from_times(time_s, rtol=UNIFORM_TIME_TOLERANCE)
-        except ValueError as error:
-            raise BadInputError(
-                f'{lab.path}: time {name!r} is not uniformly increasing ({error}; a dropped '
-                'or repeated sample?): the analysis needs a constant sample rate'
-            ) from None
+        stamped = lab.stamped(name)
+        # Stamps from a PC clock scatter: only dropped samples are refused there.
+        clock = time_base(
+            time_s, f'{lab.path}: time {name!r}', None if stamped else UNIFORM_TIME_TOLERANCE
+        )
+        from_time = clock.sample_rate_hz
         # Within a millionth of a whole number of Hz (what DAQs run at), that number.
-        if abs(from_time - round(from_time)) < 1e-6 * from_time:
+        if not stamped and abs(from_time - round(from_time)) < 1e-6 * from_time:
             from_time = float(round(from_time))
+        source = f'date-time stamps of {name!r}' if stamped else f'time channel {name!r}'
         if rate is None:
-            rate, how = from_time, f'time channel {name!r}'
-        elif abs(from_time - rate) > UNIFORM_TIME_TOLERANCE * rate:
+            return from_time, f'{source}, {clock.describe()}'
+        if abs(from_time - rate) > UNIFORM_TIME_TOLERANCE * rate:
             raise BadInputError(
-                f'{lab.path}: sample rate {rate:g} Hz ({how}) disagrees with '
-                f'time channel {name!r} ({from_time:g} Hz)'
+                f'{lab.path}: sample rate {rate:g} Hz ({how}) disagrees with {source} '
+                f'({from_time:.6g} Hz)'
             )
+        how = f'{how}; the {source} agree, {clock.describe()}'
     if rate is None:
         increments = {
             lab.channel_increment_s(spec.name)

@@ -3,10 +3,11 @@
 LabVIEW and NI's loggers export `27/03/2025 10:51:38,2226056` (day first, a decimal comma in
 a European locale) or `2025-03-27 10:51:38.2226056`, one per sample. Such a column is read as
 seconds since the first stamp (`StampParser`, exact to the 100 ns the stamps carry: seconds
-since 1970 would keep only about 0.2 us in a float), and the sample rate comes from the
-stamps (`stamp_rate`): their mean step over the whole span, with their jitter reported,
-since a PC clock stamps blocks of samples and its steps scatter. Stamps that go backwards
-are refused, naming the row; a step well beyond the mean is samples that were dropped.
+since 1970 would keep only about 0.2 us in a float). The sample rate comes from the stamps
+by the one check of a time column (`fmm_ros.core._checks.time_base`, told they scatter): their
+mean step over the whole span, with their jitter reported, since a PC clock stamps blocks of
+samples and its steps scatter. Stamps that go backwards are refused, naming the row; a step
+well beyond the mean is samples that were dropped.
 
 Day and month: `D/M/Y` and `D.M.Y` are read day first (the locales that write a decimal
 comma); ISO `Y-M-D` as written. Only differences of stamps are used, so the order matters
@@ -17,11 +18,6 @@ from __future__ import annotations
 
 import datetime
 import re
-from dataclasses import dataclass
-
-import numpy as np
-
-from fmm_ros.errors import BadInputError
 
 _TIME = r'(?P<h>\d{1,2}):(?P<mi>\d{2}):(?P<s>\d{2})(?:[.,](?P<frac>\d+))?'
 STAMP = re.compile(
@@ -29,9 +25,6 @@ STAMP = re.compile(
     r'|(?P<iy>\d{4})-(?P<im>\d{1,2})-(?P<id>\d{1,2}))[ T]' + _TIME + r'\s*$'
 )
 """A date and a time of day, to any fraction of a second."""
-
-GAP_STEP_RATIO = 1.5
-"""A step this many times the mean step is a dropped sample (a dropped one makes it 2)."""
 
 
 def is_stamp(cell: str) -> bool:
@@ -65,54 +58,3 @@ class StampParser:
         if self.origin is None:
             self.origin = (day, seconds)
         return (day - self.origin[0]) * 86400.0 + (seconds - self.origin[1])
-
-
-@dataclass(frozen=True)
-class StampRate:
-    """The sample rate the stamps give, and how much their steps scatter."""
-
-    sample_rate_hz: float
-    jitter_rms_s: float
-    """Standard deviation of the steps about their mean [s]."""
-    jitter_max_s: float
-    """Largest departure of a step from the mean [s]."""
-
-    def describe(self) -> str:
-        """'1600 Hz from the stamps, jitter 3.1 us rms, 12 us at most (0.5 % / 1.9 % of a step)'."""
-        step = 1.0 / self.sample_rate_hz
-        return (
-            f'from the date-time stamps, jitter {self.jitter_rms_s * 1e6:.3g} us rms, '
-            f'{self.jitter_max_s * 1e6:.3g} us at most ({100 * self.jitter_rms_s / step:.2g} % / '
-            f'{100 * self.jitter_max_s / step:.2g} % of a step)'
-        )
-
-
-def backwards(time_s: np.ndarray, what: str) -> None:
-    """BadInputError naming the first data row where a time column does not increase."""
-    steps = np.diff(np.asarray(time_s, dtype=float))
-    bad = np.flatnonzero(~(steps > 0))
-    if bad.size:
-        row = int(bad[0])
-        raise BadInputError(
-            f'{what} goes backwards at data row {row + 2} ({time_s[row + 1]:.9g} s after the '
-            f'first, after {time_s[row]:.9g} s at row {row + 1}; {bad.size} such step(s)): '
-            'the samples are out of order or the clock was reset'
-        )
-
-
-def stamp_rate(time_s: np.ndarray, what: str) -> StampRate:
-    """The rate of stamped samples: mean step over the span, jitter, refusals (module doc)."""
-    time_s = np.asarray(time_s, dtype=float)
-    if time_s.size < 2:
-        raise BadInputError(f'{what}: a time column needs at least two samples')
-    backwards(time_s, what)
-    steps = np.diff(time_s)
-    step = (time_s[-1] - time_s[0]) / (time_s.size - 1)
-    worst = int(np.argmax(steps))
-    if steps[worst] > GAP_STEP_RATIO * step:
-        raise BadInputError(
-            f'{what}: a step of {steps[worst]:.6g} s at data row {worst + 2}, '
-            f'{steps[worst] / step:.2g} times the mean {step:.6g} s: samples were dropped'
-        )
-    deviation = steps - step
-    return StampRate(1.0 / step, float(np.std(deviation)), float(np.max(np.abs(deviation))))

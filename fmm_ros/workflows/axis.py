@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fmm_ros.core._checks import time_base
 from fmm_ros.core.identify.axis import (
     MOTION_KINDS,
     AxisFriction,
@@ -69,19 +70,8 @@ def _sample_rate(lab: LabFile, time: str | None, rate_hz: float | None) -> tuple
             f'{lab.path}: no time base: name the time channel with --time NAME or give '
             f'--sample-rate-hz (channels: {", ".join(names) or "none"})'
         )
-    stamps = lab.vector(name)
-    steps = np.diff(stamps)
-    if steps.size < 1 or not np.all(np.isfinite(stamps)):
-        raise BadInputError(f'{lab.path}: time channel {name!r} is too short or not finite')
-    backwards = np.flatnonzero(steps <= 0.0)
-    if backwards.size:
-        i = int(backwards[0])
-        raise BadInputError(
-            f'{lab.path}: time stamps in {name!r} go backwards or repeat at sample {i + 1} '
-            f'({stamps[i]:.9g} s, then {stamps[i + 1]:.9g} s)'
-        )
-    step = (stamps[-1] - stamps[0]) / (stamps.size - 1)
-    return 1.0 / step, float(np.std(steps))
+    clock = time_base(lab.vector(name), f'{lab.path}: time {name!r}', rtol=None)
+    return clock.sample_rate_hz, clock.jitter_rms_s
 
 
 def read_axis_record(

@@ -1,12 +1,13 @@
 """Held-out generators of FMM impact data, written from scratch, never used to tune the product.
 
-Three worlds (`lab.EVENTS`, `lab.STEPS`, `ivp.IVP`), each another way of making the data a
-lab records: hits as continuous-time forces (half-sine, Hertzian, two exponentials; haversine
-and gamma pulses in `ivp`) with a sub-sample onset, sampled afterwards; the rig's stick-slip
-motion by an event-located DOP853 solver, a fine fixed RK4 step, or LSODA phases of a
-stick-slip state machine (`ivp`); an acquisition chain (anti-alias filter on a fine grid,
-offset, drift, mains hum, white and coloured noise, ADC; a sigma-delta FIR and pink noise in
-`ivp`). Hidden effects are implemented here as physics, not
+Worlds (`lab.EVENTS`, `lab.STEPS`, `lab.ACCELEROMETER`: the events world read by an
+accelerometer, and `ivp.IVP`), each another way of making the data a lab records: hits as
+continuous-time forces (half-sine, Hertzian, two exponentials; haversine and gamma pulses in
+`ivp`) with a sub-sample onset, sampled afterwards; the rig's stick-slip motion by an
+event-located DOP853 solver, a fine fixed RK4 step, or LSODA phases of a stick-slip state
+machine (`ivp`); an acquisition chain (anti-alias filter on a fine grid, offset, drift, mains
+hum, white and coloured noise, ADC; a sigma-delta FIR and pink noise in `ivp`). Hidden
+effects are implemented here as physics, not
 through the product's model terms. Nothing here imports the product (a test holds it to that).
 
 `ROLES` is the one declaration of which worlds the product's thresholds were tuned on and
@@ -29,5 +30,10 @@ ROLES: dict[str, str] = {
     # against its clean sessions (their residual was the impulse the sampled force misstates)
     'steps': TUNING,
     'ivp': HELD_OUT,  # heldout.ivp.IVP: written after steps became a tuning world
+    # heldout.lab.ACCELEROMETER: how an integrated acceleration's noise is described to the
+    # diagnosis (issue 26) was worked out looking at its sessions
+    'accelerometer': TUNING,
+    # test/accelerometer_records.py: closed-form Coulomb oscillator read by an accelerometer
+    'accelerometer_records': HELD_OUT,
 }
 """Every generator by name, and whether the product was tuned on it (see the module doc)."""

@@ -1,13 +1,13 @@
 """Diagnosis cases from the held-out generators: one kind of session, its size drawn at random.
 
-Kinds: each effect the diagnosis has a name for, hidden alone; `pair` (two distinct ones);
-`mu_drift` (mu changing 4-7 % a hit over three hits); `wear_track` (friction varying along
-the track: outside the vocabulary, the right answer is 'unexplained'); `none` (the plain
-rig). Three hits a session, one at each paper level in random order, every one from rest at
-the centre, except `asymmetric_chained` (and pairs holding asymmetric friction): a continuous
-session where each hit starts where the previous came to rest (the diagnosis fits starts).
-Sizes are drawn from ranges that leave a misfit of about 1-5 velocity-noise deviations after
-the base fit, as a lab would meet them.
+Kinds (`kinds_of` a world): each effect the diagnosis has a name for, hidden alone; `pair` (two
+distinct ones); `mu_drift` (mu changing 4-7 % a hit over three hits); `wear_track` (friction
+varying along the track: outside the vocabulary, the right answer is 'unexplained'); `none` (the
+plain rig). Three hits a session, one at each paper level in random order, every one from rest
+at the centre, except `asymmetric_chained` (and pairs holding asymmetric friction): a continuous
+session where each hit starts where the previous came to rest (the diagnosis fits starts). Sizes
+are drawn from ranges that leave a misfit of about 1-5 velocity-noise deviations after the base
+fit, as a lab would meet them.
 """
 
 import numpy as np
@@ -25,6 +25,17 @@ VOCABULARY_KINDS = (
     'sensor_delay',
 )
 KINDS = (*VOCABULARY_KINDS, 'pair', 'mu_drift', 'wear_track', 'none')
+VIBROMETER_KINDS = ('velocity_offset',)
+"""Effects of a vibrometer's own, which a world measured by an accelerometer cannot hide."""
+
+
+def kinds_of(world: World) -> tuple[str, ...]:
+    """The kinds of session a world can make (no vibrometer effect under an accelerometer)."""
+    if world.sensor == 'velocity':
+        return KINDS
+    return tuple(kind for kind in KINDS if kind not in VIBROMETER_KINDS)
+
+
 MU_RANGE = (0.08, 0.16)
 
 
@@ -76,7 +87,8 @@ def case(world: World | IvpWorld, kind: str, rng: np.random.Generator):
     if kind == 'none':
         hidden, fields = (), {}
     elif kind == 'pair':
-        hidden = tuple(str(k) for k in rng.choice(VOCABULARY_KINDS, size=2, replace=False))
+        vocabulary = [k for k in VOCABULARY_KINDS if k in kinds_of(world)]
+        hidden = tuple(str(k) for k in rng.choice(vocabulary, size=2, replace=False))
         fields = {}
         for name in hidden:
             fields.update(effect_fields(name, mu, rng))

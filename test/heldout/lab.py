@@ -1,7 +1,10 @@
 """Worlds, hidden effects and records: what a held-out session looks like, and its truth.
 
 A `World` is one way of making data: an integrator (`plant.solve_events` or
-`plant.solve_steps`), the hit shapes it draws, and an acquisition (`chain.Daq`). `Effects`
+`plant.solve_steps`), the hit shapes it draws, an acquisition (`chain.Daq`) and the response
+sensor: a vibrometer (velocity) or an accelerometer (acceleration, the derivative of the
+motion's velocity read before the anti-alias filter, with the chain's noise, offset and drift
+in m/s^2, as an IEPE accelerometer's DC-coupled chain gives them). `Effects`
 hold what is hidden in a session, each as the physics it is (not as the product's model
 terms): added viscous damping, a Stribeck contact, direction-dependent friction, a cubic
 spring, a second structural mode seen by the vibrometer, a vibrometer zero offset, a
@@ -21,6 +24,8 @@ from heldout.chain import Channel, Daq, acquire, digitise
 from heldout.forces import LEVELS_N, Hit, random_hit
 from heldout.plant import Contact, Motion, Plant, solve_events, solve_steps
 
+DIFFERENCE_S = 1e-6
+"""Half the step of the central difference an accelerometer world reads the velocity by [s]."""
 PRETRIGGER_S = 0.1
 """Time from a record's first sample to the hit's onset (plus a random fraction of a sample)."""
 
@@ -33,6 +38,9 @@ class World:
     solver: Callable[..., Motion]
     shapes: tuple[str, ...]
     daq: Daq
+    """Its `velocity` channel is the response sensor's, in that sensor's units."""
+    sensor: str = 'velocity'
+    """What the response sensor measures: 'velocity' or 'acceleration'."""
 
 
 EVENTS = World(
@@ -72,6 +80,26 @@ STEPS = World(
 a Bessel chain, 60 Hz mains, random-walk drift."""
 
 
+ACCELEROMETER = World(
+    'accelerometer',
+    solve_events,
+    ('half_sine', 'hertz', 'double_exponential'),
+    Daq(
+        force=Channel(0.2, offset=0.15, drift=0.05, hum=0.05, full_scale=5000.0),
+        velocity=Channel(1.5e-3, offset=0.02, drift=2e-4, walk=True, hum=2e-3),
+        filter_kind='butter',
+        filter_order=6,
+        cutoff_hz=3500.0,
+        mains_hz=50.0,
+    ),
+    sensor='acceleration',
+)
+"""Event-located DOP853 measured by an accelerometer: white noise of 1.5e-3 m/s^2 (a common
+100 mV/g sensor's broadband resolution, 0.00015 g), a zero offset and a random-walk drift of
+the acceleration (integrated, a random walk and a wandering slope of the velocity), mains hum,
+a Butterworth chain, and no rounding (a 24-bit IEPE module steps far below its noise)."""
+
+
 @dataclass(frozen=True)
 class Effects:
     """What a session hides (all zero: the plain Coulomb rig)."""
@@ -99,6 +127,7 @@ class Record:
 
     force_n: np.ndarray
     velocity_m_s: np.ndarray
+    """The response sensor's samples: m/s, or m/s^2 when `quantity` is acceleration."""
     sample_rate_hz: float
     hit: Hit
     """The hit, its onset on the record's clock [s]."""
@@ -106,6 +135,8 @@ class Record:
     start_m: float
     rest_m: float
     source: str = ''
+    quantity: str = 'velocity'
+    """What the response sensor measured (the world's sensor)."""
 
 
 def _mode_velocity(effects: Effects, hit: Hit) -> Callable[[np.ndarray], np.ndarray]:
@@ -184,6 +215,15 @@ def record(
     def velocity(t: np.ndarray) -> np.ndarray:
         return motion.evaluate(t - lag)[1] + mode(t - lag)
 
+    response = velocity
+    if world.sensor == 'acceleration':
+        if effects.velocity_offset_m_s:
+            raise ValueError('a velocity offset is a vibrometer effect, not an accelerometer one')
+
+        def response(t: np.ndarray) -> np.ndarray:
+            """The velocity's central difference over 2 us: its derivative on the fine grid."""
+            return (velocity(t + DIFFERENCE_S) - velocity(t - DIFFERENCE_S)) / (2 * DIFFERENCE_S)
+
     daq = world.daq
     samples = round(duration_s * daq.rate_hz)
     end = motion.rest_s if math.isfinite(motion.rest_s) else duration_s
@@ -195,7 +235,7 @@ def record(
         ring = max(ring, 0.0) / decay
     velocity_active = (hit.onset_s, min(duration_s, max(end, hit.end_s + ring) + lag + 0.01))
     force = acquire(daq, hit.force_n, daq.force, samples, 0.0, (hit.onset_s, hit.end_s), rng)
-    speed = acquire(daq, velocity, daq.velocity, samples, 0.0, velocity_active, rng)
+    speed = acquire(daq, response, daq.velocity, samples, 0.0, velocity_active, rng)
     speed = speed + effects.velocity_offset_m_s
     return Record(
         digitise(force, daq.force),
@@ -206,6 +246,7 @@ def record(
         start_m,
         motion.rest_m,
         source,
+        world.sensor,
     )
 
 

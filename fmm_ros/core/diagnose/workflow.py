@@ -85,6 +85,7 @@ from fmm_ros.core.diagnose.vocabulary import (  # noqa: F401 (VOCABULARY re-expo
     VOCABULARY,
 )
 from fmm_ros.core.diagnose.where import locate_misfit, locate_residual
+from fmm_ros.core.identify.chain import DRIFT_KNOT_S
 from fmm_ros.core.identify.conditioning import (
     ConditionedImpact,
     FitError,
@@ -96,6 +97,7 @@ from fmm_ros.core.identify.friction import fit_model
 from fmm_ros.core.identify.lsq import inner
 from fmm_ros.core.identify.spec import FRICTION_FIT, FitSpec
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
+from fmm_ros.core.signal.response import VELOCITY, converted_noise
 from fmm_ros.errors import BadInputError
 
 BIC_EVIDENCE = 10.0
@@ -191,7 +193,11 @@ def diagnose(
     base model cannot be fitted at all.
     """
     say = progress or _silent
-    conditioned = _checked_impacts(impacts, rig)
+    if isinstance(impacts, ConditionedImpact) or hasattr(impacts, 'force_n'):
+        impacts = [impacts]
+    conditioned, residual_noise = _integrated_as_judged(
+        impacts, _checked_impacts(impacts, rig), rig, fit_initial_position
+    )
     candidates = _checked_candidates(candidates, len(conditioned))
     stop = max(measured_motion_stop(impact, rig.natural_frequency_hz) for impact in conditioned)
     cropped = [cropped_impact(impact, stop) for impact in conditioned]
@@ -209,7 +215,7 @@ def diagnose(
     )
     say(f"fmm fit's base fit (impulse scales, hum, drift): mu = {friction.mu:.6f}")
     rest_noise = rest_noise_std(conditioned, stop, base.joint.noise_std_m_s)
-    session = _Session(cropped, base, rig, fit_initial_position, rest_noise, say)
+    session = _Session(cropped, base, rig, fit_initial_position, residual_noise, rest_noise, say)
     selection = session.select(candidates)
     diagnosis = session.conclude(conditioned, selection, MU_DRIFT in candidates)
     return replace(diagnosis, mu=friction.mu, mu_stderr=friction.mu_stderr)
@@ -220,8 +226,6 @@ def _silent(_message: str) -> None:
 
 
 def _checked_impacts(impacts: Sequence, rig: Rig) -> list[ConditionedImpact]:
-    if isinstance(impacts, ConditionedImpact) or hasattr(impacts, 'force_n'):
-        impacts = [impacts]
     conditioned = [as_conditioned(impact) for impact in impacts]
     if not conditioned:
         raise BadInputError('no impacts to diagnose')
@@ -241,6 +245,60 @@ def _checked_impacts(impacts: Sequence, rig: Rig) -> list[ConditionedImpact]:
                 f'{MIN_DECAY_PERIODS:g} natural periods of the rig)'
             )
     return conditioned
+
+
+def _integrated_as_judged(
+    records: Sequence, conditioned: list[ConditionedImpact], rig: Rig, fit_initial_position: bool
+) -> tuple[list[ConditionedImpact], tuple[float, ...] | None]:
+    """Velocities made from an accelerometer (or a displacement sensor) as the diagnosis judges.
+
+    Such a record carries the sensor's own samples in `response`. Integrating leaves a
+    velocity whose offset and slow drift are the sensor's, not the rig's (the offset taken
+    before the hit is never exact, and the sensor's zero creeps): the chain's drift handling
+    takes them off once, fitted with the base model (`INTEGRATED_FIT`). Its noise is then
+    described by `converted_noise`: as the white noise of equal density at the rig's natural
+    frequency (the impact's velocity_noise_std_m_s, which every chi^2 is judged against),
+    not the white noise its sample-to-sample changes show (the integral of white noise is a
+    random walk, far stronger at the rig's few hertz); and, apart, the much smaller variance
+    it leaves in a residual, which a misfit's excess beyond the noise is taken over.
+
+    Returns the impacts and each one's residual noise [m/s], or None when no record is
+    integrated (the velocity noise is then both).
+    """
+    described = []
+    for record, impact in zip(records, conditioned, strict=True):
+        quantity = getattr(record, 'response_quantity', VELOCITY)
+        response = getattr(record, 'response', None)
+        if quantity != VELOCITY and response is not None:
+            noise = converted_noise(
+                response, quantity, impact.sample_rate_hz, rig.natural_frequency_hz, DRIFT_KNOT_S
+            )
+            described.append((impact, noise))
+        else:
+            described.append((impact, None))
+    if all(noise is None for _, noise in described):
+        return conditioned, None
+    spec = INTEGRATED_FIT.but(fit_initial_position=fit_initial_position)
+    fit = fit_model(conditioned, spec, rig=rig)
+    judged = [
+        impact
+        if noise is None
+        else replace(
+            impact,
+            velocity_m_s=impact.velocity_m_s - nuisance.values_m_s,
+            velocity_noise_std_m_s=noise.band_std_m_s,
+        )
+        for (impact, noise), nuisance in zip(described, fit.velocity_nuisance, strict=True)
+    ]
+    residual = tuple(
+        impact.velocity_noise_std_m_s if noise is None else noise.residual_std_m_s
+        for impact, noise in described
+    )
+    return judged, residual
+
+
+INTEGRATED_FIT = FitSpec(remove_mains_hum=True, fit_velocity_drift=True)
+"""The fit whose chain estimate (hum, offset and drift) is taken off an integrated velocity."""
 
 
 def _checked_candidates(candidates: Sequence[str] | None, hits: int) -> tuple[str, ...]:
@@ -293,6 +351,7 @@ class _Session:
         base: SessionModel,
         rig: Rig,
         fit_initial_position: bool,
+        residual_noise: Sequence[float] | None,
         rest_noise: float,
         say: Progress,
     ) -> None:
@@ -302,6 +361,13 @@ class _Session:
         self.fit_initial_position = fit_initial_position
         self.say = say
         self.noise = base.joint.noise_std_m_s
+        self.residual_noise = self.noise
+        """The noise's deviation in a residual sample by sample, pooled as the noise is: the
+        velocity noise itself unless a record is integrated (`_integrated_as_judged`)."""
+        if residual_noise is not None:
+            sizes = [impact.force_n.size for impact in impacts]
+            squares = sum(s**2 * n for s, n in zip(residual_noise, sizes, strict=True))
+            self.residual_noise = math.sqrt(squares / sum(sizes))
         self.rest_noise = rest_noise
         """The noise where the rig rests, which the verdict judges against (`calibration`)."""
         self.n_samples = base.joint.n_samples
@@ -325,7 +391,7 @@ class _Session:
 
     def gap(self, residuals: Sequence[np.ndarray]) -> float:
         """Normalised RMS residual beyond the noise over the motion windows [-]."""
-        return gap(residuals, self.windows, self.noise, self.peak)
+        return gap(residuals, self.windows, self.residual_noise, self.peak)
 
     def frf_gap(self, residuals: Sequence[np.ndarray]) -> float:
         """Normalised mobility misfit beyond the noise [-]."""
@@ -347,7 +413,7 @@ class _Session:
         """The gap once chi2_gain is removed from inside the motion windows [-]."""
         inside = sum(inner(r[w], r[w]) for r, w in zip(residuals, self.windows, strict=True))
         mean = (inside - chi2_gain * self.noise**2) / self.motion_samples
-        return math.sqrt(max(mean - self.noise**2, 0.0)) / self.peak
+        return math.sqrt(max(mean - self.residual_noise**2, 0.0)) / self.peak
 
     # Forward selection and backward check
 

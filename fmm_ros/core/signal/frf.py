@@ -327,7 +327,7 @@ def natural_frequency(velocity_m_s: np.ndarray, sample_rate_hz: float) -> float:
     rate = sample_rate_hz / factor
     if m < 16 or not np.isfinite(velocity).all():
         return float('nan')
-    smooth = velocity[: m * factor].reshape(m, factor).mean(axis=1)
+    smooth = block_means(velocity[: m * factor], factor)
     second = np.diff(smooth, n=2)
     noise = 1.4826 * float(np.median(np.abs(second - np.median(second)))) / np.sqrt(6.0)
     times, ends = _reversals(smooth, REVERSAL_HYSTERESIS_SIGMA * noise)
@@ -372,6 +372,18 @@ def _reversals(smooth: np.ndarray, hysteresis: float) -> tuple[np.ndarray, np.nd
     sums = np.concatenate(([0.0], np.cumsum(zeros)))
     times = (sums[last] - sums[first]) / np.maximum(last - first, 1)
     return times, ends
+
+
+def block_means(samples: np.ndarray, factor: int) -> np.ndarray:
+    """Means of consecutive blocks of `factor` samples: `samples.reshape(-1, factor).mean(1)`.
+
+    The same numbers to the bit (a -0.0 included), and for pairs (10 kHz to
+    `REVERSAL_RATE_HZ`) over 10x faster: numpy reduces rows of two slowly, and sums a row as its
+    first element plus (0.0 + the rest), which the pair sum below repeats.
+    """
+    if factor == 2:
+        return (samples[0::2] + (0.0 + samples[1::2])) / 2
+    return samples.reshape(-1, factor).mean(axis=1)
 
 
 def _first_run(mask: np.ndarray, length: int = 1) -> tuple[int, int] | None:

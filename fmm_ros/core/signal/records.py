@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fmm_ros.core._checks import sample_rate_from_times
+from fmm_ros.core._checks import time_base
 from fmm_ros.errors import BadInputError
 
 CSV_COLUMNS: tuple[str, str, str] = ('time_s', 'force_n', 'velocity_m_s')
@@ -187,10 +187,7 @@ def read_impact_csv(path: str | Path) -> ImpactRecord:
                 f'{path}: {name} is not finite ({data[bad[0], column]}) at data row '
                 f'{bad[0] + 1} and {bad.size - 1} more row(s)'
             )
-    try:
-        sample_rate_hz = sample_rate_from_times(data[:, 0], rtol=TIME_STEP_TOLERANCE)
-    except ValueError as error:
-        raise BadInputError(f'{path}: {error} (a dropped or repeated sample?)') from None
+    sample_rate_hz = time_base(data[:, 0], f'{path}: time_s', TIME_STEP_TOLERANCE).sample_rate_hz
     return ImpactRecord(
         force_n=np.ascontiguousarray(data[:, 1]),
         velocity_m_s=np.ascontiguousarray(data[:, 2]),

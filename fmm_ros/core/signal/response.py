@@ -14,6 +14,14 @@ views of one measurement:
   differences). What the integration leaves (a sensor offset that creeps after the hit) is a
   slow drift of the velocity, which the fit's drift basis (`fmm_ros.core.identify.chain`)
   estimates and removes as it does a vibrometer's.
+
+The velocity made from an accelerometer is not white: its noise is the integral of the
+sensor's white noise, a random walk whose spectrum falls as 1/f^2 (the drift handling takes
+its slowest part). The diagnosis judges residuals against white velocity noise, so such a
+record's noise is described to it by `converted_noise`: the white velocity noise with the same
+spectral density at the rig's natural frequency, where its motion and every candidate
+effect's signature lie, and the smaller variance it leaves in a residual once the drift is
+taken off (a displacement, differentiated, likewise: its noise is blue).
 """
 
 from __future__ import annotations
@@ -29,6 +37,7 @@ from fmm_ros.core.signal.capture import (
     contact_start_index,
     find_triggers,
 )
+from fmm_ros.core.signal.quality import white_noise_std
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.errors import BadInputError
 
@@ -99,6 +108,57 @@ def velocity_from_response(
     offset = float(np.median(before)) if before.size else 0.0
     steps = 0.5 * (values[1:] + values[:-1] - 2 * offset) / sample_rate_hz
     return np.concatenate(([0.0], np.cumsum(steps)))
+
+
+@dataclasses.dataclass(frozen=True)
+class ConvertedNoise:
+    """How a sensor's white noise looks in the velocity made from it [m/s].
+
+    For a velocity sensor both are its white-noise deviation. Integrated or differentiated,
+    the noise is coloured, and the one number a white-noise judgement takes splits in two.
+    """
+
+    band_std_m_s: float
+    """The white velocity noise of equal spectral density at the band's frequency: the
+    yardstick of evidence (chi^2) for signatures in that band."""
+    residual_std_m_s: float
+    """The deviation the noise leaves in a residual sample by sample: what a misfit's mean
+    square holds beyond the model's error."""
+
+
+DRIFT_RESIDUAL_FRACTION = 0.1
+"""A random walk of variance q per second, less a drift linear between knots L seconds apart
+fitted by least squares, keeps q L times this on average (0.09-0.11 measured, records of
+1.5 to 8 knot spans; a straight line over a span L keeps 1/15, a line through its ends 1/6)."""
+
+
+def converted_noise(
+    samples: np.ndarray,
+    quantity: str,
+    sample_rate_hz: float,
+    frequency_hz: float,
+    drift_knot_s: float,
+) -> ConvertedNoise:
+    """The noise of the velocity made from a `quantity` sensor's samples (`ConvertedNoise`).
+
+    The sensor's white noise sigma (`white_noise_std` of its samples, SI units of quantity):
+
+    - integrated (acceleration): a random walk, of spectral density 2 sigma^2 / f_s /
+      (2 pi f)^2; white velocity noise of deviation s has 2 s^2 / f_s, so s = sigma /
+      (2 pi f) at the band's frequency f (stronger below it, weaker above). Its variance
+      grows without bound, but the drift handling (knots drift_knot_s apart) takes the walk's
+      slow part, and leaves sigma^2 / f_s x drift_knot_s x DRIFT_RESIDUAL_FRACTION.
+    - differentiated (displacement, central differences): s = sigma 2 pi f at f, and
+      sigma^2 f_s^2 / 2 sample by sample.
+    """
+    sigma = white_noise_std(samples)
+    omega = 2.0 * np.pi * frequency_hz
+    if checked_quantity(quantity) == VELOCITY:
+        return ConvertedNoise(sigma, sigma)
+    if quantity == ACCELERATION:
+        walk = sigma * np.sqrt(drift_knot_s * DRIFT_RESIDUAL_FRACTION / sample_rate_hz)
+        return ConvertedNoise(float(sigma / omega), float(walk))
+    return ConvertedNoise(float(sigma * omega), float(sigma * sample_rate_hz / np.sqrt(2.0)))
 
 
 def as_measured(

@@ -44,7 +44,7 @@ from fmm_ros.errors import BadInputError
 from fmm_ros.io.labfiles import ImportMapping, load_mapping, read_lab_file
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import run_node
-from fmm_ros.ros.flow import SOURCE_PARAMS, PacedSource, deliver_last_batches
+from fmm_ros.ros.flow import MAX_BATCHES_PARAM, SOURCE_PARAMS, PacedSource, deliver_last_batches
 from fmm_ros.ros.health import Health
 from fmm_ros.ros.params import Param, declare_parameters
 from fmm_ros.ros.qos import SAMPLE_QOS
@@ -165,6 +165,7 @@ PARAMS = (
         read_only=True,
     ),
     *SOURCE_PARAMS,
+    MAX_BATCHES_PARAM,
     CLOCK_PARAM,
 )
 
@@ -331,7 +332,7 @@ class NidaqmxBackend:
             window_samples=PacedSource.window_samples(cfg, self.sample_rate_hz, batch),
             pace_label='the hardware clock',
         )
-        node.health.add('source', lambda: self._source.status(self.sample_rate_hz, batch, 1.0))
+        node.health.add('source', lambda: self._source.status(self.sample_rate_hz, 1.0))
         self._daq_error = nidaqmx.errors.DaqError
         self._starting = node.create_timer(0.1, self._start_when_ready)
         self._node = node
@@ -381,7 +382,9 @@ class FileBackend:
         self.force_full_scale = recording.full_scale_force_n
         self.velocity_full_scale = recording.full_scale_response
         self._path, self._loop, self._publish = path, cfg['loop'], publish
-        self._batch = cfg['batch_size']
+        self._batch = PacedSource.paced_batch(
+            cfg, self.sample_rate_hz, cfg['batch_size'], cfg['rate_factor']
+        )
         self.next_index = 0
         self.finished = False
         batches_per_s = self.sample_rate_hz * cfg['rate_factor'] / self._batch
@@ -396,7 +399,7 @@ class FileBackend:
         )
         node.health.add(
             'source',
-            lambda: self.source.status(self.sample_rate_hz, self._batch, cfg['rate_factor']),
+            lambda: self.source.status(self.sample_rate_hz, cfg['rate_factor']),
         )
         self._log = node.get_logger()
         self._timer = node.create_timer(1.0 / batches_per_s, self._on_tick)

@@ -21,7 +21,7 @@ from fmm_ros.constants import APPLIED_FORCE_TOPIC, FORCE, FORCE_TOPIC, PAPER_LEV
 from fmm_ros.errors import BadInputError
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import chain_from_parameters, chain_params, run_node
-from fmm_ros.ros.flow import SOURCE_PARAMS, PacedSource
+from fmm_ros.ros.flow import MAX_BATCHES_PARAM, SOURCE_PARAMS, PacedSource
 from fmm_ros.ros.health import Health
 from fmm_ros.ros.params import Param, declare_parameters
 from fmm_ros.ros.qos import SAMPLE_QOS
@@ -124,6 +124,7 @@ PARAMS = (
         read_only=True,
     ),
     *SOURCE_PARAMS,
+    MAX_BATCHES_PARAM,
     CLOCK_PARAM,
 )
 
@@ -161,7 +162,7 @@ class HammerSim(Node):
         self._per_unit = 1.0 / si_factor(FORCE.quantity, self.config['force_unit'])
         self._measured_pub = self.create_publisher(SampleBatch, FORCE_TOPIC, SAMPLE_QOS)
         self._applied_pub = self.create_publisher(SampleBatch, APPLIED_FORCE_TOPIC, SAMPLE_QOS)
-        batch = self._batch = self.config['batch_size']
+        batch = self._batch = self.config['batch_size']  # at x1; _pace sizes it to the pace
         self._applied = np.empty(batch)
         self._measured = np.empty(batch)
         self._start_stamp = self.get_clock().now()
@@ -181,11 +182,11 @@ class HammerSim(Node):
         self.add_post_set_parameters_callback(self._on_parameters)
         Health(self).add(
             'source',
-            lambda: self.source.status(rate, batch, self.config['rate_factor']),
+            lambda: self.source.status(rate, self.config['rate_factor']),
         )
         self.get_logger().info(
             f'{len(self.schedule)} hits at {", ".join(names)} ({peaks} N), '
-            f'{self.config["hit_spacing_s"]} s apart, {rate:g} Hz in batches of {batch}, '
+            f'{self.config["hit_spacing_s"]} s apart, {rate:g} Hz in batches of {self._batch}, '
             f'x{self.config["rate_factor"]:g} real time'
         )
 
@@ -200,10 +201,21 @@ class HammerSim(Node):
         return self.next_index >= self.stream.end_index
 
     def _pace(self, rate_factor: float) -> None:
-        """(Re)start the timer at one batch of sample time per tick, paced from now."""
-        rate = self.config['sample_rate_hz'] * rate_factor
+        """(Re)start the timer at one batch of sample time per tick, paced from now.
+
+        Above max_batches_per_s a batch holds a whole multiple of batch_size samples
+        (`PacedSource.paced_batch`), so the messages a second, and their cost, stay bounded.
+        """
+        sample_rate = self.config['sample_rate_hz']
+        rate = sample_rate * rate_factor
         self.config['rate_factor'] = rate_factor
         self.source.label = f'x{rate_factor:g} real time'
+        self._batch = PacedSource.paced_batch(
+            self.config, sample_rate, self.config['batch_size'], rate_factor
+        )
+        if self._applied.size != self._batch:
+            self._applied, self._measured = np.empty(self._batch), np.empty(self._batch)
+        self.source.window = PacedSource.window_samples(self.config, sample_rate, self._batch)
         self.source.pacer.restart(rate / self._batch, self.source.pacer.released)
         if self._timer is not None:
             self.destroy_timer(self._timer)
