@@ -214,7 +214,13 @@ def diagnose(
         rig=rig,
     )
     say(f"fmm fit's base fit (impulse scales, hum, drift): mu = {friction.mu:.6f}")
-    rest_noise = rest_noise_std(conditioned, stop, base.joint.noise_std_m_s)
+    # An integrated record's noise is described by `converted_noise` (_integrated_as_judged);
+    # a measured velocity's is measured where the rig rests (`calibration`).
+    rest_noise = (
+        rest_noise_std(conditioned, stop, base.joint.noise_std_m_s)
+        if residual_noise is None
+        else base.joint.noise_std_m_s
+    )
     session = _Session(cropped, base, rig, fit_initial_position, residual_noise, rest_noise, say)
     selection = session.select(candidates)
     diagnosis = session.conclude(conditioned, selection, MU_DRIFT in candidates)
