@@ -93,29 +93,30 @@ def without_impulse_error(
     count = len(impacts)
     own_mu = bool(model.per_hit)
     columns = 2 * count if own_mu else count + 1
-    design, targets = [], []
+    # Each hit's rows touch two columns (its impulse error, its or the shared mu): the normal
+    # equations are summed hit by hit, never the (samples x columns) design.
+    normal = np.zeros((columns, columns))
+    projected = np.zeros(columns)
+    blocks = []
     for index, (impact, residual, window) in enumerate(
         zip(impacts, residuals, windows, strict=True)
     ):
         rate = impact.sample_rate_hz
         nominal = impact.velocity_m_s - residual
-        block = np.zeros((columns, window.stop - window.start))
         scaled = model.velocity(index, impact.force_n * (1.0 + IMPULSE_STEP), rate)
-        block[index] = ((scaled - nominal) / IMPULSE_STEP)[window]
         mu = float(model.mus[index])
         step = MU_STEP * mu
         shifted = model.velocity(index, impact.force_n, rate, mu=mu + step)
-        block[count + index if own_mu else count] = ((shifted - nominal) / step)[window]
-        design.append(block)
-        targets.append(residual[window])
-    jacobian = np.concatenate(design, axis=1)
-    target = np.concatenate(targets)
+        pair = np.stack(((scaled - nominal) / IMPULSE_STEP, (shifted - nominal) / step))[:, window]
+        where = [index, count + index if own_mu else count]
+        normal[np.ix_(where, where)] += inner(pair, pair)
+        projected[where] += inner(pair, residual[window])
+        blocks.append((where, pair))
     values = np.zeros(columns)
     free = np.ones(columns, dtype=bool)
     for _ in range(count + 1):
-        rest = target - jacobian[~free].T @ values[~free]
-        solved, *_ = np.linalg.lstsq(jacobian[free].T, rest, rcond=None)
-        values[free] = solved
+        rest = projected[free] - normal[np.ix_(free, ~free)] @ values[~free]
+        values[free] = np.linalg.lstsq(normal[np.ix_(free, free)], rest, rcond=None)[0]
         beyond = free.copy()
         beyond[count:] = False
         beyond &= np.abs(values) > IMPULSE_SCALE_TOLERANCE
@@ -124,8 +125,8 @@ def without_impulse_error(
         values[beyond] = np.clip(values[beyond], -IMPULSE_SCALE_TOLERANCE, IMPULSE_SCALE_TOLERANCE)
         free &= ~beyond
     out = []
-    for residual, window, block in zip(residuals, windows, design, strict=True):
+    for residual, window, (where, pair) in zip(residuals, windows, blocks, strict=True):
         corrected = residual.copy()
-        corrected[window] -= values @ block
+        corrected[window] -= values[where] @ pair
         out.append(corrected)
     return tuple(out)
