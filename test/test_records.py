@@ -37,7 +37,7 @@ def test_columns_in_any_order_with_extras(tmp_path):
         ('time_s,force_n,velocity_m_s\n0,1,0\n0.001,nan,0\n0.002,3,0\n', 'force_n is not finite'),
         ('time_s,force_n,velocity_m_s\n0,1,0\n0.001,oops,0\n', 'b.csv'),
         ('time_s,force_n,velocity_m_s\n0,1,0\n', 'at least 2 samples'),
-        ('time_s,force_n,velocity_m_s\n0.002,1,0\n0.001,1,0\n0.000,1,0\n', 'must increase'),
+        ('time_s,force_n,velocity_m_s\n0.002,1,0\n0.001,1,0\n0.000,1,0\n', 'goes backwards'),
     ],
 )
 def test_bad_files_are_refused_naming_the_problem(tmp_path, text, message):
