@@ -574,7 +574,13 @@ def launcher_signal(work: Path, signum: int) -> tuple[str, str, str]:
     for option in ('hammer_sim.rate_factor=10', f'recorder.bag_path={work / "bag"}'):
         command += ['--set', option]
     launcher = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    time.sleep(10.0)
+    # Signalled once the rig records (on busy cores 10 s did not always see the recorder's
+    # bag begun, and a node still starting up has nothing to close).
+    deadline = time.monotonic() + 60.0
+    while time.monotonic() < deadline and not any(
+        path.stat().st_size > 100_000 for path in (work / 'bag').glob('*.mcap')
+    ):
+        time.sleep(0.1)
     children = [
         int(p.parent.name) for p in Path('/proc').glob('[0-9]*/stat') if _parent(p) == launcher.pid
     ]
