@@ -34,13 +34,15 @@ class ImpactCutter:
         """After a batch went into the history: the records it completed."""
         if self.history.acquisitions != self._acquisition:
             self._acquisition = self.history.acquisitions
-            lost = [m.impact_id for m in self.waiting if not self._same_clock(m)]
+            kept, lost = [], []
+            for msg in self.waiting:
+                (kept if self._same_clock(msg) else lost).append(msg)
             if lost:
                 self._logger.warning(
-                    f'a new acquisition began: impacts {lost} of the previous one cannot be '
-                    'cut any more'
+                    f'a new acquisition began: impacts {[m.impact_id for m in lost]} of the '
+                    'previous one cannot be cut any more'
                 )
-                self.waiting = [m for m in self.waiting if self._same_clock(m)]
+            self.waiting = kept
         return self._cut()
 
     def impact(self, msg: ImpactResult) -> list[Cut]:
