@@ -302,32 +302,22 @@ def early_trigger(work: Path, rate: float) -> Outcome:
 
 
 def units(work: Path, force_units, velocity_units, rate: float) -> list[Outcome]:
-    rows = []
-    for unit in force_units:
-        rows.append(
-            run(
-                work / f'force_{unit.replace("/", "_")}',
-                f'force in {unit}',
-                lambda rig: None,
-                named='',
-                rate=rate,
-                hits_per_level=1,
-                extra=(f'hammer_sim.force_unit={unit}',),
-            )
+    return [
+        run(
+            work / f'{quantity}_{unit.replace("/", "_")}',
+            f'{quantity} in {unit}',
+            lambda rig: None,
+            named='',
+            rate=rate,
+            hits_per_level=1,
+            extra=(f'{node}.{quantity}_unit={unit}',),
         )
-    for unit in velocity_units:
-        rows.append(
-            run(
-                work / f'velocity_{unit.replace("/", "_")}',
-                f'velocity in {unit}',
-                lambda rig: None,
-                named='',
-                rate=rate,
-                hits_per_level=1,
-                extra=(f'rig_sim.velocity_unit={unit}',),
-            )
+        for node, quantity, unit_list in (
+            ('hammer_sim', 'force', force_units),
+            ('rig_sim', 'velocity', velocity_units),
         )
-    return rows
+        for unit in unit_list
+    ]
 
 
 def two_sources(work: Path, rate: float) -> Outcome:
