@@ -8,10 +8,13 @@ another storage), so every fault keeps its rule.
 """
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
+from reference_analysis import use_numpy_steps
 
+from fmm_ros.cli import main
 from fmm_ros.constants import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC
 from fmm_ros.core.signal.analysis import AnalysisConfig, analyze_impact, paper_levels
 from fmm_ros.core.signal.capture import CaptureConfig, ImpactCapture
@@ -117,6 +120,28 @@ def test_replay_of_a_clean_bag_equals_replay_batch_by_batch(session_bag):
     for mine, theirs in zip(records, old, strict=True):
         np.testing.assert_array_equal(mine.velocity_m_s, theirs.velocity_m_s)
         assert mine.source == theirs.source and mine.force_gaps == theirs.force_gaps
+
+
+@pytest.mark.slow
+def test_fmm_replay_prints_what_it_printed_before_its_analysis_was_made_faster(
+    session_bag, monkeypatch, capsys
+):
+    """Issue 28: the faster analysis steps swapped back for their numpy definitions
+    (`reference_analysis`), replay gives the same results to the bit and prints the same JSON
+    (all but how fast it ran)."""
+    argv = ['replay', str(session_bag), '--paper-levels', '--window-s', '5', '--json']
+
+    def replayed():
+        assert main(argv) == 0
+        document = json.loads(capsys.readouterr().out)
+        del document['replay']['times_real_time'], document['replay']['wall_s']
+        return replay_bag(session_bag, CAPTURE, ANALYSIS), document
+
+    fast, printed = replayed()
+    use_numpy_steps(monkeypatch)
+    numpy_defined, printed_before = replayed()
+    assert_same_results(fast.results, numpy_defined.results)
+    assert printed == printed_before and len(printed['impacts']) == 6
 
 
 @pytest.mark.slow

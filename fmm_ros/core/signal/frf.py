@@ -328,8 +328,9 @@ def natural_frequency(velocity_m_s: np.ndarray, sample_rate_hz: float) -> float:
     if m < 16 or not np.isfinite(velocity).all():
         return float('nan')
     smooth = block_means(velocity[: m * factor], factor)
-    second = np.diff(smooth, n=2)
-    noise = 1.4826 * float(np.median(np.abs(second - np.median(second)))) / np.sqrt(6.0)
+    second = np.diff(smooth, n=2)  # the MAD of it, in place (np.median's numbers)
+    np.subtract(second, median_in_place(second), out=second)
+    noise = 1.4826 * median_in_place(np.abs(second, out=second)) / np.sqrt(6.0)
     times, ends = _reversals(smooth, REVERSAL_HYSTERESIS_SIGMA * noise)
     if times.size < 3:
         return float('nan')
@@ -384,6 +385,21 @@ def block_means(samples: np.ndarray, factor: int) -> np.ndarray:
     if factor == 2:
         return (samples[0::2] + (0.0 + samples[1::2])) / 2
     return samples.reshape(-1, factor).mean(axis=1)
+
+
+def median_in_place(values: np.ndarray) -> float:
+    """np.median of some finite values (reordered in place): the same value, one partition.
+
+    The middle value of an odd count; of an even count the mean of the two middle ones as
+    np.median takes it (the first plus 0.0 plus the second, halved), the lower one being the
+    largest value left of the partition point.
+    """
+    middle = values.size // 2
+    values.partition(middle)
+    upper = values[middle]
+    if values.size % 2:
+        return float(upper)
+    return float((values[:middle].max() + (0.0 + upper)) / 2)
 
 
 def _first_run(mask: np.ndarray, length: int = 1) -> tuple[int, int] | None:

@@ -49,7 +49,7 @@ from fmm_ros.core.signal.capture import (
     with_trigger,
 )
 from fmm_ros.core.signal.config import DEFAULT_CAPTURE, FLAGS, CaptureConfig
-from fmm_ros.core.signal.frf import contact_duration, first_true, runs
+from fmm_ros.core.signal.frf import contact_duration, first_true, median_in_place, runs
 from fmm_ros.core.signal.records import Gaps, ImpactRecord
 
 MAD_TO_STD = 1.482602218505602
@@ -131,6 +131,24 @@ def _center_and_std(values: np.ndarray) -> tuple[float, float]:
     return center, MAD_TO_STD * float(np.median(np.abs(values - center)))
 
 
+def mad_std(scratch: np.ndarray) -> float:
+    """`robust_center_and_std(values)[1]` of values already subsampled, overwriting them.
+
+    The same number to the bit, about five times faster: each median is one in-place
+    partition (`frf.median_in_place`), where np.median copies the values and partitions for
+    three ranks. The centre may differ from np.median's in the sign of a zero, which no
+    |value - centre| tells apart, so the deviation never does.
+    """
+    finite = np.isfinite(scratch)
+    values = scratch if finite.all() else scratch[finite]
+    if values.size == 0:
+        return math.nan
+    center = median_in_place(values)
+    np.subtract(values, center, out=values)
+    np.abs(values, out=values)
+    return MAD_TO_STD * median_in_place(values)
+
+
 def white_noise_std(samples: np.ndarray) -> float:
     """White-noise deviation of a channel, blind to slow motion and to a few pulses.
 
@@ -140,7 +158,12 @@ def white_noise_std(samples: np.ndarray) -> float:
     samples = np.asarray(samples, dtype=float)
     if samples.size <= 2:
         return 0.0
-    return _center_and_std(_read_differences(samples, 2))[1] / math.sqrt(6.0)
+    return _difference_spread(samples, 2) / math.sqrt(6.0)
+
+
+def _difference_spread(samples: np.ndarray, order: int) -> float:
+    """MAD deviation of the channel's differences of an order (1 or 2), as noise reads them."""
+    return mad_std(_read_differences(samples, order))
 
 
 def _read_differences(samples: np.ndarray, order: int) -> np.ndarray:
@@ -207,18 +230,20 @@ def _run_around(values: np.ndarray, peak_at: int, tolerance: float) -> tuple[int
     )
 
 
-def has_white_noise(samples: np.ndarray) -> bool:
+def has_white_noise(samples: np.ndarray, second_spread: float | None = None) -> bool:
     """Whether white noise, not the signal, makes most of the sample-to-sample changes.
 
     For white noise the MAD of second differences is sqrt(3) times that of first differences
     (quantised noise of about one step: both one step); for a signal smooth at the sample rate
     (a noise-free simulation, a quantised slow signal) it is far smaller, or the first
-    differences are mostly zero.
+    differences are mostly zero. second_spread: the MAD deviation of the second differences,
+    if already known (`white_noise_std` times sqrt(6) is not always it to the bit).
     """
     samples = np.asarray(samples, dtype=float)
-    spread_first = _center_and_std(_read_differences(samples, 1))[1]
-    spread_second = _center_and_std(_read_differences(samples, 2))[1]
-    return bool(spread_first > 0 and spread_second >= spread_first)
+    spread_first = _difference_spread(samples, 1)
+    if second_spread is None:
+        second_spread = _difference_spread(samples, 2)
+    return bool(spread_first > 0 and second_spread >= spread_first)
 
 
 def quantum(samples: np.ndarray) -> float:
@@ -227,11 +252,13 @@ def quantum(samples: np.ndarray) -> float:
     return float(np.min(np.diff(values))) if values.size > 1 else 0.0
 
 
-def stuck_stretch(samples: np.ndarray, plateaus: tuple[float, ...] = ()) -> bool:
+def stuck_stretch(
+    samples: np.ndarray, plateaus: tuple[float, ...] = (), second_spread: float | None = None
+) -> bool:
     """Whether a channel holds one value where its samples say it cannot.
 
     See the module docstring for the rule. plateaus: levels already judged clipping
-    (`flat_extreme`), whose runs are not counted again.
+    (`flat_extreme`), whose runs are not counted again. second_spread: as `has_white_noise`.
     """
     values = np.asarray(samples, dtype=float)
     if values.size < STUCK_MIN_SAMPLES:
@@ -239,7 +266,7 @@ def stuck_stretch(samples: np.ndarray, plateaus: tuple[float, ...] = ()) -> bool
     # NaN never equals; inf does, but a corrupt stretch is the nan flag's: not a dropout.
     equal = (values[1:] == values[:-1]) & np.isfinite(values[1:])
     starts, stops = runs(equal)
-    if not has_white_noise(values):
+    if not has_white_noise(values, second_spread):
         return _foreign_stretch(values, starts, stops, plateaus)
     chance = float(np.count_nonzero(equal)) / equal.size
     if chance > STUCK_MAX_EQUAL_FRACTION:
@@ -368,8 +395,12 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
     velocity, response_full_scale = record.measured
     samples = config.samples(record.sample_rate_hz)
     flags = set()
-    force_noise = white_noise_std(force)
-    velocity_noise = white_noise_std(velocity)
+    # Each channel's second-difference spread once: its noise, and half the noise test.
+    force_spread, velocity_spread = _second_spread(force), _second_spread(velocity)
+    force_noise, velocity_noise = (
+        0.0 if spread is None else spread / math.sqrt(6.0)
+        for spread in (force_spread, velocity_spread)
+    )
 
     after_contact = first_true(below_level(force[trigger:], config.rearm_level_n))
     contact_end = force.size if after_contact < 0 else trigger + after_contact
@@ -400,7 +431,9 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
         flags.add('saturated')
     if not responds(velocity, contact_start, contact_end, samples.min_spacing, velocity_noise):
         flags.add('no_response')
-    if stuck_stretch(force, force_plateaus) or stuck_stretch(velocity, velocity_plateaus):
+    if stuck_stretch(force, force_plateaus, force_spread) or stuck_stretch(
+        velocity, velocity_plateaus, velocity_spread
+    ):
         flags.add('dropout')
     if record.force_gaps or record.velocity_gaps:
         flags.add('gap')
@@ -430,6 +463,11 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
     if follower.scan(force[trigger + 1 :], trigger + 1):
         flags.add('overlap')
     return tuple(flag for flag in FLAGS if flag in flags)
+
+
+def _second_spread(samples: np.ndarray) -> float | None:
+    """`has_white_noise`'s second spread of a channel (None when `white_noise_std` is 0)."""
+    return None if samples.size <= 2 else _difference_spread(samples, 2)
 
 
 def _plateaus(samples: np.ndarray, signs: tuple[float, ...], noise_std: float) -> tuple[float, ...]:
