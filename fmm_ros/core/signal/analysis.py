@@ -193,7 +193,7 @@ def analyze_impact(
     force_spectrum, velocity_spectrum = frf.spectra(force, velocity, n_fft)
     # Copies, so the full-length spectra are freed rather than kept alive by the slices.
     force_spectrum = force_spectrum[:bins].copy()
-    frequency = frf.frequency_axis(n_fft, rate)[:bins]
+    frequency = frf.frequency_axis(n_fft, rate, bins)
     velocity_spectrum = response.convert_spectrum(
         velocity_spectrum[:bins], frequency, record.response_quantity, response.VELOCITY
     ).copy()

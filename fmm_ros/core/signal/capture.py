@@ -33,7 +33,7 @@ from fmm_ros.core.signal.config import (  # noqa: F401 (re-exported: declared in
     CaptureConfig,
     CaptureSamples,
 )
-from fmm_ros.core.signal.frf import first_true
+from fmm_ros.core.signal.frf import first_true, first_where
 from fmm_ros.core.signal.records import Gaps, ImpactRecord
 from fmm_ros.core.signal.stream import (
     MAX_STEP_SAMPLES,
@@ -182,7 +182,9 @@ def contact_start_index(
     """
     if trigger_offset <= 0:
         return 0
-    back = first_true(below_level(force_n[trigger_offset - 1 :: -1], config.rearm_level_n))
+    back = first_where(
+        lambda chunk: below_level(chunk, config.rearm_level_n), force_n[trigger_offset - 1 :: -1]
+    )
     return trigger_offset - back if back >= 0 else 0
 
 

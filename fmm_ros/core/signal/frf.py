@@ -15,6 +15,7 @@ has velocity i w X, and receptance = mobility / (i w), accelerance = i w * mobil
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,9 +24,14 @@ import scipy.fft
 from fmm_ros.errors import BadInputError
 
 
-def frequency_axis(n_fft: int, sample_rate_hz: float) -> np.ndarray:
-    """Frequencies [Hz] of the one-sided DFT bins of an `n_fft`-sample record."""
-    return np.fft.rfftfreq(n_fft, d=1.0 / sample_rate_hz)
+def frequency_axis(n_fft: int, sample_rate_hz: float, bins: int | None = None) -> np.ndarray:
+    """Frequencies [Hz] of the one-sided DFT bins of an `n_fft`-sample record (the first bins).
+
+    np.fft.rfftfreq's numbers (bin index times 1 / (n_fft d)), only the bins asked for.
+    """
+    if bins is None:
+        return np.fft.rfftfreq(n_fft, d=1.0 / sample_rate_hz)
+    return np.arange(min(bins, n_fft // 2 + 1)) * (1.0 / (n_fft * (1.0 / sample_rate_hz)))
 
 
 def band_bins(n_fft: int, sample_rate_hz: float, band_limit_hz: float | None) -> int:
@@ -42,6 +48,27 @@ def first_true(mask: np.ndarray) -> int:
         return -1
     index = int(np.argmax(mask))
     return index if mask[index] else -1
+
+
+FIRST_CHUNK = 1024
+"""`first_where` tests this many values first, then 16 times more at each step."""
+
+
+def first_where(test: Callable[[np.ndarray], np.ndarray], values: np.ndarray) -> int:
+    """`first_true(test(values))` for an elementwise test, testing little past the first True.
+
+    The test runs over chunks growing 16-fold from `FIRST_CHUNK` values: the end of a pulse a
+    few samples on costs a thousand values tested, not the whole record's (the same index, as
+    each value's verdict is its own). values may be a view, reversed or not.
+    """
+    low, chunk = 0, FIRST_CHUNK
+    while low < values.size:
+        high = min(values.size, low + chunk)
+        found = first_true(test(values[low:high]))
+        if found >= 0:
+            return low + found
+        low, chunk = high, 16 * chunk
+    return -1
 
 
 def impulse(force_n: np.ndarray, sample_rate_hz: float) -> float:
@@ -83,9 +110,10 @@ def pulse_extent(
     start, stop = interval
     with np.errstate(invalid='ignore'):  # NaN or infinite samples: the extent stops there
         baseline = float(np.mean(force_n[:start])) if start else 0.0
-        before = first_true(force_n[start - 1 :: -1] - baseline <= 0.0) if start else -1
+        back = force_n[start - 1 :: -1] if start else force_n[:0]
+        before = first_where(lambda chunk: chunk - baseline <= 0.0, back)
         low = start - 1 - before if before >= 0 else 0
-        after = first_true(force_n[stop:] - baseline <= 0.0)
+        after = first_where(lambda chunk: chunk - baseline <= 0.0, force_n[stop:])
         high = stop + after + 1 if after >= 0 else force_n.size
     return low, high, baseline
 
@@ -118,11 +146,11 @@ def contact_interval(
     None when the force never reaches the threshold. A run still going at the end of the
     record stops at its length.
     """
-    above = first_true(force_n[start_index:] >= threshold_n)
+    above = first_where(lambda chunk: chunk >= threshold_n, force_n[start_index:])
     if above < 0:
         return None
     start = start_index + above
-    below = first_true(~(force_n[start:] >= threshold_n))
+    below = first_where(lambda chunk: ~(chunk >= threshold_n), force_n[start:])
     stop = start + below if below >= 0 else force_n.size
     return start, stop
 

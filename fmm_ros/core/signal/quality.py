@@ -49,7 +49,7 @@ from fmm_ros.core.signal.capture import (
     with_trigger,
 )
 from fmm_ros.core.signal.config import DEFAULT_CAPTURE, FLAGS, CaptureConfig
-from fmm_ros.core.signal.frf import contact_duration, first_true, median_in_place, runs
+from fmm_ros.core.signal.frf import contact_duration, first_where, median_in_place, runs
 from fmm_ros.core.signal.records import Gaps, ImpactRecord
 
 MAD_TO_STD = 1.482602218505602
@@ -192,41 +192,63 @@ def flat_extreme(
     See the module docstring for the rule. noise_std: the channel's white-noise deviation, if
     already known. Non-finite samples are never part of a plateau.
     """
-    values = sign * np.asarray(samples, dtype=float)
-    finite = np.isfinite(values)
-    if not finite.any():
+    samples = np.asarray(samples, dtype=float)
+    peak_at = _extreme_index(samples, sign)
+    if peak_at < 0:
         return None
-    peak_at = int(np.argmax(np.where(finite, values, -np.inf)))
-    level = values[peak_at]
+    level = sign * samples[peak_at]
     noise = white_noise_std(samples) if noise_std is None else noise_std
     noise = noise if np.isfinite(noise) else 0.0
-    near = values[max(0, peak_at - ROBUST_SUBSAMPLE_MIN) : peak_at + ROBUST_SUBSAMPLE_MIN]
+    near = sign * samples[max(0, peak_at - ROBUST_SUBSAMPLE_MIN) : peak_at + ROBUST_SUBSAMPLE_MIN]
     floor = max(0.5 * quantum(near), 1e-12 * abs(level))
     tolerance = max(floor, FLAT_NOISE_WIDTH * noise)
-    start, stop = _run_around(values, peak_at, tolerance)
+    start, stop = _run_around(samples, sign, peak_at, tolerance)
     if stop - start < FLAT_SHORT_SAMPLES:
         # A few samples in the wide band can be a sharp peak's top, or its tip's ringing: a
         # short plateau must hold within the noise of a few samples.
         tolerance = max(floor, FLAT_SHORT_NOISE_WIDTH * noise)
-        start, stop = _run_around(values, peak_at, tolerance)
+        start, stop = _run_around(samples, sign, peak_at, tolerance)
     run = stop - start
     if run < FLAT_MIN_SAMPLES:
         return None
     # One stretch-length beyond each end, or the record's first or last sample: nearer the
     # plateau a smooth peak has dropped less, so the clamp never makes one look clipped.
-    left, right = max(start - run + 1, 0), min(stop + run - 2, values.size - 1)
-    drop = min(level - values[left], level - values[right])
+    left, right = max(start - run + 1, 0), min(stop + run - 2, samples.size - 1)
+    drop = min(level - sign * samples[left], level - sign * samples[right])
     return float(sign * level) if drop > FLAT_DROP_FACTOR * tolerance else None
 
 
-def _run_around(values: np.ndarray, peak_at: int, tolerance: float) -> tuple[int, int]:
-    """[start, stop) of the samples around peak_at within tolerance of it (NaN never is)."""
-    off = ~(values[peak_at] - values <= tolerance)
-    after = first_true(off[peak_at:])
-    before = first_true(off[peak_at::-1])
+def _extreme_index(samples: np.ndarray, sign: float) -> int:
+    """Index of the first largest finite value of sign * samples; -1 when none is finite.
+
+    A channel without a NaN or infinity (its sum finite) takes one argmax or argmin pass.
+    """
+    if sign in (1.0, -1.0) and samples.size and np.isfinite(np.sum(samples)):
+        return int(np.argmax(samples) if sign > 0 else np.argmin(samples))
+    values = sign * samples
+    finite = np.isfinite(values)
+    if not finite.any():
+        return -1
+    return int(np.argmax(np.where(finite, values, -np.inf)))
+
+
+def _run_around(
+    samples: np.ndarray, sign: float, peak_at: int, tolerance: float
+) -> tuple[int, int]:
+    """[start, stop) of sign * samples around peak_at within tolerance of it (NaN never is).
+
+    Tested outward from peak_at, so a plateau costs its neighbourhood, not the channel.
+    """
+    level = sign * samples[peak_at]
+
+    def off(chunk: np.ndarray) -> np.ndarray:
+        return ~(level - sign * chunk <= tolerance)
+
+    after = first_where(off, samples[peak_at:])
+    before = first_where(off, samples[peak_at::-1])
     return (
         0 if before < 0 else peak_at - before + 1,
-        values.size if after < 0 else peak_at + after,
+        samples.size if after < 0 else peak_at + after,
     )
 
 
@@ -402,7 +424,9 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
         for spread in (force_spread, velocity_spread)
     )
 
-    after_contact = first_true(below_level(force[trigger:], config.rearm_level_n))
+    after_contact = first_where(
+        lambda chunk: below_level(chunk, config.rearm_level_n), force[trigger:]
+    )
     contact_end = force.size if after_contact < 0 else trigger + after_contact
     contact_start = contact_start_index(force, trigger, config)
     # A pulse that is over within its first sample (a record's resting level taken off, or a
