@@ -9,7 +9,7 @@ equal to the bit.
 import numpy as np
 import pytest
 
-from fmm_ros.core.signal import frf, quality
+from fmm_ros.core.signal import _kernels, frf, quality
 
 
 def median(values: np.ndarray) -> float:
@@ -22,9 +22,37 @@ def mad_deviation(values: np.ndarray) -> float:
     return quality._center_and_std(values)[1]
 
 
+def equal_runs(values: np.ndarray, min_length: int) -> tuple[int, np.ndarray, np.ndarray]:
+    """Equal finite neighbours: their count, and the runs of them at least min_length long."""
+    equal = (values[1:] == values[:-1]) & np.isfinite(values[1:])
+    starts, stops = frf.runs(equal)
+    long = stops - starts >= min_length
+    return int(np.count_nonzero(equal)), starts[long], stops[long]
+
+
+def reversals(smooth: np.ndarray, hysteresis: float) -> tuple[np.ndarray, ...]:
+    """Reversal times and ends, and each half cycle's peak speed, in numpy steps."""
+    side = np.where(smooth > hysteresis, 1, np.where(smooth < -hysteresis, -1, 0))
+    beyond = np.flatnonzero(side)
+    change = np.flatnonzero(side[beyond][1:] != side[beyond][:-1])
+    starts, ends = beyond[change], beyond[change + 1]
+    sign = np.signbit(smooth)
+    crossings = np.flatnonzero(sign[1:] != sign[:-1])
+    before, after = smooth[crossings], smooth[crossings + 1]
+    zeros = crossings + before / (before - after)
+    first = np.searchsorted(crossings, starts)
+    last = np.searchsorted(crossings, ends)
+    sums = np.concatenate(([0.0], np.cumsum(zeros)))
+    times = (sums[last] - sums[first]) / np.maximum(last - first, 1)
+    peaks = np.maximum.reduceat(np.abs(smooth), ends) if ends.size else np.zeros(0)
+    return times, ends, peaks
+
+
 NUMPY_STEPS = {
     (frf, 'median_in_place'): median,
     (quality, 'mad_std'): mad_deviation,
+    (_kernels, 'equal_runs'): equal_runs,
+    (_kernels, 'reversals'): reversals,
 }
 """(module, name) of each faster step -> its numpy definition."""
 

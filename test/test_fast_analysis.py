@@ -14,12 +14,13 @@ import math
 
 import numpy as np
 import pytest
+import reference_analysis
 from damaged_records import FAULTS, session
 from heldout.lab import EVENTS, Effects
 from heldout.lab import session as lab_session
 from reference_analysis import mad_deviation, use_numpy_steps
 
-from fmm_ros.core.signal import frf, quality
+from fmm_ros.core.signal import _kernels, frf, quality
 from fmm_ros.core.signal.analysis import analyze_impact
 from fmm_ros.core.signal.records import ImpactRecord
 
@@ -50,6 +51,48 @@ def test_mad_std_is_robust_center_and_stds_deviation_to_the_bit():
             np.testing.assert_equal(quality.mad_std(values.copy()), mad_deviation(values))
     assert math.isnan(quality.mad_std(np.array([np.nan, np.inf])))
     assert math.isnan(quality.mad_std(np.zeros(0)))
+
+
+@pytest.mark.slow  # the first call compiles the kernel (cold cache: ~1 s)
+def test_equal_runs_are_the_runs_of_numpys_equal_mask():
+    rng = np.random.default_rng(29)
+    cases = [np.zeros(0), np.zeros(1), np.zeros(2), np.array([1.0, np.nan, np.nan])]
+    cases += [np.full(30, np.inf), np.full(30, 0.25), np.array([-0.0, 0.0] * 20)]
+    for size in (24, 25, 26, 1000, 330_000):
+        values = rng.normal(0.0, 1.0, size).round(1)  # short runs by chance
+        for _ in range(4):  # held stretches, at the ends too
+            at, length = int(rng.integers(0, size)), int(rng.integers(1, 60))
+            values[max(at - length, 0) : at] = rng.choice([0.0, values[at - 1], np.nan, np.inf])
+        values[:25] = values[0]
+        cases.append(values)
+    for values in cases:
+        for min_length in (0, 1, 24):
+            ours = _kernels.equal_runs(values, min_length)
+            theirs = reference_analysis.equal_runs(values, min_length)
+            assert ours[0] == theirs[0]
+            np.testing.assert_array_equal(ours[1], theirs[1])
+            np.testing.assert_array_equal(ours[2], theirs[2])
+
+
+@pytest.mark.slow  # the first call compiles the kernel (cold cache: ~1 s)
+def test_reversals_are_numpys_reversals_to_the_bit():
+    rng = np.random.default_rng(30)
+    t = np.arange(20_000) / 5000.0
+    decay = np.sin(2 * np.pi * 2.2 * t) * np.maximum(0.0, 0.3 - 0.05 * t)
+    cases = [np.zeros(3), np.full(100, 1.0), np.array([-0.0, 0.0, -1.0, 1.0, -0.0, 2.0, -2.0])]
+    for noise in (0.0, 1e-4, 3e-3):
+        noisy = decay + rng.normal(0.0, noise, t.size)
+        noisy[rng.integers(0, t.size, 50)] = rng.choice([0.0, -0.0])  # signed zeros
+        cases.append(noisy)
+    cases.append(rng.choice([-1.0, -0.0, 0.0, 1.0, 1e-300], 5000))
+    for smooth in cases:
+        for hysteresis in (0.0, 1e-3, 0.05, 2.0):
+            ours = _kernels.reversals(smooth, hysteresis)
+            with np.errstate(invalid='ignore'):  # 0 / 0 between -0.0 and 0.0
+                theirs = reference_analysis.reversals(smooth, hysteresis)
+            for mine, numpys in zip(ours, theirs, strict=True):
+                np.testing.assert_array_equal(mine, numpys)
+                np.testing.assert_array_equal(np.signbit(mine), np.signbit(numpys))
 
 
 def records():

@@ -69,7 +69,7 @@ def test_the_running_mu_is_published_after_every_accepted_impact(ros_graph):
     )
     accepted = [m for m in listener.impacts if m.accepted]
     # The low hit's f_n was NaN here (noise crossing zero again at its slow reversals, now
-    # one reversal: `frf._reversals`), which flagged it `undetermined`.
+    # one reversal: `_kernels.reversals`), which flagged it `undetermined`.
     assert len(accepted) == 3, [list(m.flags) for m in listener.impacts]
     estimates = [msgs.running_estimate(msg) for msg in listener.friction]
     assert [e.impact_id for e in estimates] == [m.impact_id for m in accepted]

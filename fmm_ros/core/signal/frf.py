@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.fft
 
+from fmm_ros.core.signal import _kernels
 from fmm_ros.errors import BadInputError
 
 
@@ -359,11 +360,10 @@ def natural_frequency(velocity_m_s: np.ndarray, sample_rate_hz: float) -> float:
     second = np.diff(smooth, n=2)  # the MAD of it, in place (np.median's numbers)
     np.subtract(second, median_in_place(second), out=second)
     noise = 1.4826 * median_in_place(np.abs(second, out=second)) / np.sqrt(6.0)
-    times, ends = _reversals(smooth, REVERSAL_HYSTERESIS_SIGMA * noise)
+    # Reversal times, and the peak speed of the half cycle after each (up to the next one).
+    times, _, peaks = _kernels.reversals(smooth, REVERSAL_HYSTERESIS_SIGMA * noise)
     if times.size < 3:
         return float('nan')
-    # Peak speed of the half cycle after each reversal (up to the next one).
-    peaks = np.maximum.reduceat(np.abs(smooth), ends)
     strong = peaks > REVERSAL_MIN_PEAK_SIGMA * noise
     # A reversal counts when the half cycles on both sides of it are strong.
     valid = strong[1:] & strong[:-1]
@@ -373,34 +373,6 @@ def natural_frequency(velocity_m_s: np.ndarray, sample_rate_hz: float) -> float:
     kept = times[1:][run[0] : run[1]]
     half_period = float(np.polyfit(np.arange(kept.size), kept, 1)[0])
     return rate / (2.0 * half_period)
-
-
-def _reversals(smooth: np.ndarray, hysteresis: float) -> tuple[np.ndarray, np.ndarray]:
-    """Reversal times [block indices, fractional] and the first block past each.
-
-    A reversal is the velocity passing from beyond -hysteresis to beyond +hysteresis or back
-    (a Schmitt trigger): noise crossing zero again near a slow reversal (a low hit's last
-    half cycles turn at a few 1e-4 m/s a block, the noise's size) is one reversal, not three
-    with two weak half cycles between them that would break a run of strong ones. Its time
-    is the mean of the zero crossings (each interpolated between two blocks) from the last
-    block beyond the band on the old side to the first beyond it on the new: the one
-    crossing of a clean reversal, the average of noise's several near a slow one. (Not a
-    line through the band: the acceleration jumps by 2 mu N / m at the reversal.)
-    """
-    side = np.where(smooth > hysteresis, 1, np.where(smooth < -hysteresis, -1, 0))
-    beyond = np.flatnonzero(side)
-    change = np.flatnonzero(side[beyond][1:] != side[beyond][:-1])
-    starts, ends = beyond[change], beyond[change + 1]
-    sign = np.signbit(smooth)
-    crossings = np.flatnonzero(sign[1:] != sign[:-1])
-    before, after = smooth[crossings], smooth[crossings + 1]
-    zeros = crossings + before / (before - after)
-    # Each reversal's zero crossings lie between its start and end: their mean.
-    first = np.searchsorted(crossings, starts)
-    last = np.searchsorted(crossings, ends)
-    sums = np.concatenate(([0.0], np.cumsum(zeros)))
-    times = (sums[last] - sums[first]) / np.maximum(last - first, 1)
-    return times, ends
 
 
 def block_means(samples: np.ndarray, factor: int) -> np.ndarray:

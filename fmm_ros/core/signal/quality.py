@@ -40,7 +40,7 @@ import math
 
 import numpy as np
 
-from fmm_ros.core.signal import pulse
+from fmm_ros.core.signal import _kernels, pulse
 from fmm_ros.core.signal.capture import (
     TriggerDetector,
     below_level,
@@ -49,7 +49,7 @@ from fmm_ros.core.signal.capture import (
     with_trigger,
 )
 from fmm_ros.core.signal.config import DEFAULT_CAPTURE, FLAGS, CaptureConfig
-from fmm_ros.core.signal.frf import contact_duration, first_where, median_in_place, runs
+from fmm_ros.core.signal.frf import contact_duration, first_where, median_in_place
 from fmm_ros.core.signal.records import Gaps, ImpactRecord
 
 MAD_TO_STD = 1.482602218505602
@@ -286,11 +286,11 @@ def stuck_stretch(
     if values.size < STUCK_MIN_SAMPLES:
         return False
     # NaN never equals; inf does, but a corrupt stretch is the nan flag's: not a dropout.
-    equal = (values[1:] == values[:-1]) & np.isfinite(values[1:])
-    starts, stops = runs(equal)
+    # Only runs of at least STUCK_MIN_SAMPLES equal samples can count, here or as foreign.
+    equal, starts, stops = _kernels.equal_runs(values, STUCK_MIN_SAMPLES - 1)
     if not has_white_noise(values, second_spread):
         return _foreign_stretch(values, starts, stops, plateaus)
-    chance = float(np.count_nonzero(equal)) / equal.size
+    chance = float(equal) / (values.size - 1)
     if chance > STUCK_MAX_EQUAL_FRACTION:
         return False
     need = STUCK_MIN_SAMPLES
