@@ -4,6 +4,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from bag_helpers import assert_same, random_message
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
@@ -19,6 +20,7 @@ from fmm_ros.io.bags import (
     fmm_typestore,
     new_message,
 )
+from fmm_ros.io.bags.metadata import load_yaml
 
 # A bag holds the names a node in the root namespace resolves the relative topics to.
 FORCE_TOPIC, VELOCITY_TOPIC, IMPACTS_TOPIC, FRF_TOPIC = map(
@@ -144,3 +146,17 @@ def test_batches_are_views_of_the_stored_bytes(tmp_path):
 def test_new_message_names_an_unknown_field():
     with pytest.raises(ValueError, match='has no field impulse_ns'):
         new_message(fmm_typestore(), IMPACT_RESULT, impulse_ns=1.0)
+
+
+def test_metadata_is_parsed_to_what_yaml_safe_load_gives(tmp_path):
+    """load_yaml (libyaml where PyYAML has it, issue 28) reads a bag's metadata.yaml, its
+    custom_data included, to yaml.safe_load's document; a damaged one is a YAMLError."""
+    bag = tmp_path / 'session'
+    write_session(bag, storage='mcap')
+    text = (bag / 'metadata.yaml').read_text(encoding='utf-8')
+    assert load_yaml(text) == yaml.safe_load(text) != {}
+    for damaged in (text[: len(text) // 2] + ': [', 'a: b: c', '\t- x'):
+        with pytest.raises(yaml.YAMLError):
+            yaml.safe_load(damaged)
+        with pytest.raises(yaml.YAMLError):
+            load_yaml(damaged)

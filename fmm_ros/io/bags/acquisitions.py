@@ -16,6 +16,7 @@ from pathlib import Path
 import yaml
 
 from fmm_ros.errors import BadInputError
+from fmm_ros.io.bags.metadata import load_yaml
 from fmm_ros.io.bags.writer import BagWriter
 
 ACQUISITIONS_KEY = 'fmm.acquisitions'
@@ -53,7 +54,7 @@ def read_acquisitions(bag: str | Path) -> tuple[Acquisition, ...]:
     if not metadata.is_file():
         return ()
     try:
-        info = yaml.safe_load(metadata.read_bytes().decode('utf-8')) or {}
+        info = load_yaml(metadata.read_bytes().decode('utf-8')) or {}
         text = ((info.get('rosbag2_bagfile_information') or {}).get('custom_data') or {}).get(
             ACQUISITIONS_KEY
         )

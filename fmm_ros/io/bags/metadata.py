@@ -142,13 +142,22 @@ def custom_ledger(custom_data: dict[str, str] | None) -> dict[str, ChannelLedger
         raise BadInputError(f'custom_data {LEDGER_KEY} is not a ledger: {error}') from None
 
 
+def load_yaml(text: str) -> object:
+    """yaml.safe_load's document, parsed by libyaml where PyYAML has it (CSafeLoader).
+
+    The same objects (the safe constructor and resolver are shared), ten times faster: a
+    replay read metadata.yaml twice, and the pure-Python parser cost it ~30 ms each time.
+    """
+    return yaml.load(text, Loader=getattr(yaml, 'CSafeLoader', yaml.SafeLoader))
+
+
 def read_information(bag: Path) -> dict:
     """A bag directory's `rosbag2_bagfile_information` (empty without a readable metadata.yaml)."""
     path = Path(bag) / 'metadata.yaml'
     if not path.is_file():
         return {}
     try:
-        document = yaml.safe_load(path.read_text(encoding='utf-8'))
+        document = load_yaml(path.read_text(encoding='utf-8'))
     except (yaml.YAMLError, UnicodeDecodeError):
         return {}
     information = (
