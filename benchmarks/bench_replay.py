@@ -9,6 +9,8 @@ one by one), the bare read of the same file (the mcap library iterating its mess
 nothing decoded: the floor a replay cannot beat), a naive reader that decodes every message
 into per-sample Python lists, and the parts of the replay alone (down to the three DFTs
 of each 33 s record, which the analysis cannot go below while its FRF is the whole record's).
+The process keeps freed memory for reuse as the `fmm` command does (`fmm_ros.memory`), so
+every row runs under the allocator `fmm replay` runs under.
 
     .venv/bin/python benchmarks/bench_replay.py [--repeats 5] [--quick]
 """
@@ -32,6 +34,7 @@ from fmm_ros.constants import FORCE_TOPIC, VELOCITY_TOPIC
 from fmm_ros.core.signal.analysis import AnalysisConfig, analyze_impact, paper_levels, summarize
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, capture_impacts
 from fmm_ros.io.bags import SAMPLE_BATCH, BagReader, fmm_typestore
+from fmm_ros.memory import keep_freed_memory
 from fmm_ros.sim.session import simulated_session, write_session_bag
 from fmm_ros.workflows.replay import bag_impact_records, capture_records, replay_bag
 
@@ -136,6 +139,7 @@ def main() -> int:
     parser.add_argument('--quick', action='store_true', help=QUICK_HELP)
     args = parser.parse_args()
     hits_per_level, repeats = (1, 1) if args.quick else (10, args.repeats)
+    keep_freed_memory()  # as `fmm` does
 
     session = simulated_session(hits_per_level)
     work = Path(tempfile.mkdtemp(prefix='bench_replay_'))
