@@ -23,31 +23,26 @@ def equal_runs(values, min_length):
     indices) of every run of them at least min_length pairs long: `frf.runs` of the pair
     mask, only its long runs.
     """
+    size = values.size - 1  # pairs
     count = 0
-    starts = np.empty(0, np.int64)
-    stops = np.empty(0, np.int64)
-    found_starts = []
-    found_stops = []
-    run_start = -1
-    for i in range(values.size - 1):
+    for i in range(size):  # a vectorised count first: a noisy channel has few equal pairs
         after = values[i + 1]
-        if after == values[i] and math.isfinite(after):
-            count += 1
-            if run_start < 0:
-                run_start = i
-        elif run_start >= 0:
-            if i - run_start >= min_length:
-                found_starts.append(run_start)
-                found_stops.append(i)
-            run_start = -1
-    end = max(values.size - 1, 0)
-    if run_start >= 0 and end - run_start >= min_length:
-        found_starts.append(run_start)
-        found_stops.append(end)
-    if found_starts:
-        starts = np.array(found_starts, dtype=np.int64)
-        stops = np.array(found_stops, dtype=np.int64)
-    return count, starts, stops
+        count += (after == values[i]) & (abs(after) < math.inf)
+    edges = np.empty(max(size, 0) + 1, np.int64)  # where runs start and stop, alternately
+    found = 0
+    previous = False
+    for i in range(size if count >= max(min_length, 1) else 0):  # else no run is long
+        after = values[i + 1]
+        equal = (after == values[i]) & (abs(after) < math.inf)
+        edges[found] = i  # branch-free: in a quantised channel equal pairs come at random
+        found += equal != previous
+        previous = equal
+    if previous:
+        edges[found] = size
+        found += 1
+    starts, stops = edges[0:found:2], edges[1:found:2]
+    long = stops - starts >= min_length
+    return count, starts[long], stops[long]
 
 
 @njit(cache=True, error_model='numpy')  # 0 / 0 between a -0.0 and a 0.0: NaN, as numpy
@@ -68,18 +63,19 @@ def reversals(smooth, hysteresis):
     the next one's (to the end for the last): the peak speed of each half cycle.
     """
     n = smooth.size
-    crossings = np.empty(n, np.float64)  # zero-crossing times, in order
-    sums = np.empty(n + 1, np.float64)  # their cumulative sum, from 0
-    sums[0] = 0.0
+    bits = smooth.view(np.int64)  # a sign bit is the top bit: negative as an int64
+    crossings = np.empty(n, np.int64)  # blocks i whose sign bit differs from block i + 1's
     seen = 0
-    crossings_before = np.empty(n, np.int64)  # crossings with index below each block
-    for i in range(n):
-        crossings_before[i] = seen
-        if i + 1 < n and np.signbit(smooth[i + 1]) != np.signbit(smooth[i]):
-            before, after = smooth[i], smooth[i + 1]
-            crossings[seen] = i + before / (before - after)
-            sums[seen + 1] = sums[seen] + crossings[seen]
-            seen += 1
+    for i in range(n - 1):  # branch-free: at rest the sign flips at random
+        crossings[seen] = i
+        seen += (bits[i] ^ bits[i + 1]) < 0
+    crossings = crossings[:seen]
+    sums = np.empty(seen + 1, np.float64)  # running sum of the crossing times, from 0
+    sums[0] = 0.0
+    for k in range(seen):
+        i = crossings[k]
+        before, after = smooth[i], smooth[i + 1]
+        sums[k + 1] = sums[k] + (i + before / (before - after))
     times = np.empty(n, np.float64)
     ends = np.empty(n, np.int64)
     count = 0
@@ -89,7 +85,8 @@ def reversals(smooth, hysteresis):
         if side == 0:
             continue
         if last_beyond >= 0 and side != last_side:
-            first, last = crossings_before[last_beyond], crossings_before[i]
+            first = np.searchsorted(crossings, last_beyond)
+            last = np.searchsorted(crossings, i)
             times[count] = (sums[last] - sums[first]) / max(last - first, 1)
             ends[count] = i
             count += 1
