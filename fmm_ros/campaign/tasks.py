@@ -23,6 +23,7 @@ import logging
 import os
 from collections.abc import Callable, Sequence
 
+from fmm_ros import memory
 from fmm_ros.campaign.cache import ResultCache, session_key
 from fmm_ros.campaign.session import (
     FAILED,
@@ -116,12 +117,14 @@ def local_cluster(workers: int | None = None):
     # Dask starts workers with glibc's trim threshold at 64 KiB, so they hand freed memory
     # back at once; a session allocates and frees many 2.6 MB record arrays, each then
     # faulted in afresh (15x the page faults, 7x the system time measured). The workers
-    # keep glibc's own adaptive threshold instead.
+    # keep freed memory as `fmm` itself does (`fmm_ros.memory`; glibc's adaptive
+    # thresholds still gave a replay ~200,000 faults).
     # Nor do they run Dask's statistical profiler (a stack sample every 10 ms, under the
     # interpreter lock, for a dashboard no one opens here).
     with dask.config.set(
         {
-            f'{PRE_SPAWN_ENVIRON}.MALLOC_TRIM_THRESHOLD_': None,
+            f'{PRE_SPAWN_ENVIRON}.MALLOC_TRIM_THRESHOLD_': str(memory.TRIM_BYTES),
+            f'{PRE_SPAWN_ENVIRON}.MALLOC_MMAP_THRESHOLD_': str(memory.HEAP_BLOCK_BYTES),
             'distributed.worker.profile.enabled': False,
         }
     ):
