@@ -1,5 +1,7 @@
 """Per-impact work in threads: order kept, serial in a worker, the GIL released by the model."""
 
+import os
+import signal
 import threading
 import time
 
@@ -44,3 +46,22 @@ def test_model_runs_in_threads_give_the_serial_numbers():
 
 def test_available_threads_is_within_the_cores_and_the_cap():
     assert 1 <= _threads.available_threads() <= _threads.MAX_THREADS
+
+
+def test_a_forked_child_gets_pools_of_its_own():
+    # The parent's pool has both its threads, idle: a child handed that pool would take
+    # them for ready and start none.
+    _threads.thread_map(time.sleep, [0.05, 0.05], threads=2)
+    time.sleep(0.1)
+    read, write = os.pipe()
+    child = os.fork()
+    if child == 0:  # pragma: no cover (the child reports through the pipe)
+        signal.alarm(20)  # a child waiting on threads it does not have is killed: '' below
+        try:
+            os.write(write, repr(_threads.thread_map(abs, [-1, -2], threads=2)).encode())
+        finally:
+            os._exit(0)
+    os.close(write)
+    with os.fdopen(read) as pipe:
+        assert pipe.read() == '[1, 2]'
+    os.waitpid(child, 0)

@@ -9,7 +9,6 @@ import os
 import threading
 from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
-from functools import cache
 from typing import TypeVar
 
 MAX_THREADS = 4
@@ -25,10 +24,21 @@ def available_threads() -> int:
     return max(1, min(MAX_THREADS, len(os.sched_getaffinity(0))))
 
 
-@cache
+_pools: dict[tuple[int, int], ThreadPoolExecutor] = {}
+_pools_lock = threading.Lock()
+
+
 def pool(threads: int) -> ThreadPoolExecutor:
-    """One pool of worker threads a size, kept for the process (fits are many and short)."""
-    return ThreadPoolExecutor(max_workers=threads, thread_name_prefix=_PREFIX)
+    """One pool of worker threads a size, kept for the process (fits are many and short).
+
+    Keyed by process id too: a forked child (a campaign's worker process) inherits the pool
+    object but not its threads, and work submitted to it would never run.
+    """
+    key = (os.getpid(), threads)
+    with _pools_lock:
+        if key not in _pools:
+            _pools[key] = ThreadPoolExecutor(max_workers=threads, thread_name_prefix=_PREFIX)
+        return _pools[key]
 
 
 def in_worker() -> bool:
