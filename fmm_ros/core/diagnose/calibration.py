@@ -29,6 +29,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from fmm_ros.core._threads import thread_map
 from fmm_ros.core.diagnose.session_model import SessionModel
 from fmm_ros.core.identify.conditioning import ConditionedImpact
 from fmm_ros.core.identify.lsq import inner
@@ -98,16 +99,20 @@ def without_impulse_error(
     normal = np.zeros((columns, columns))
     projected = np.zeros(columns)
     blocks = []
-    for index, (impact, residual, window) in enumerate(
-        zip(impacts, residuals, windows, strict=True)
-    ):
+
+    def sensitivities(index: int) -> np.ndarray:
+        """The hit's velocity per relative impulse error and per unit of mu, in its window."""
+        impact, window = impacts[index], windows[index]
         rate = impact.sample_rate_hz
-        nominal = impact.velocity_m_s - residual
+        nominal = impact.velocity_m_s - residuals[index]
         scaled = model.velocity(index, impact.force_n * (1.0 + IMPULSE_STEP), rate)
         mu = float(model.mus[index])
         step = MU_STEP * mu
         shifted = model.velocity(index, impact.force_n, rate, mu=mu + step)
-        pair = np.stack(((scaled - nominal) / IMPULSE_STEP, (shifted - nominal) / step))[:, window]
+        return np.stack(((scaled - nominal) / IMPULSE_STEP, (shifted - nominal) / step))[:, window]
+
+    pairs = thread_map(sensitivities, range(count))
+    for index, (pair, residual, window) in enumerate(zip(pairs, residuals, windows, strict=True)):
         where = [index, count + index if own_mu else count]
         normal[np.ix_(where, where)] += inner(pair, pair)
         projected[where] += inner(pair, residual[window])
