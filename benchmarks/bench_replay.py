@@ -9,6 +9,8 @@ one by one), the bare read of the same file (the mcap library iterating its mess
 nothing decoded: the floor a replay cannot beat), a naive reader that decodes every message
 into per-sample Python lists, and the parts of the replay alone (down to the three DFTs
 of each 33 s record, which the analysis cannot go below while its FRF is the whole record's).
+Also the replay with each faster analysis step swapped back for the numpy it replaced
+(`test/reference_analysis.py`: the same results, the analysis as it was before its kernels).
 The process keeps freed memory for reuse as the `fmm` command does (`fmm_ros.memory`), so
 every row runs under the allocator `fmm replay` runs under.
 
@@ -28,6 +30,9 @@ import numpy as np
 import scipy.fft
 from mcap.reader import make_reader
 from results_file import QUICK_HELP, recorded
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
+from reference_analysis import numpy_steps  # noqa: E402
 from rosbags.rosbag2 import Reader
 
 from fmm_ros.constants import FORCE_TOPIC, VELOCITY_TOPIC
@@ -43,12 +48,19 @@ TARGET_OF_BARE = 1.5  # replay time over the bare read's
 ANALYSIS = AnalysisConfig(levels=paper_levels())
 REPLAY = 'replay (fmm replay: read whole, capture, analyse)'
 BEFORE = 'replay before issue 28 (batch by batch)'
+NUMPY = 'replay, analysis steps as numpy (no kernels)'
 BARE = 'bare read: mcap library, every message'
 NAIVE = 'naive: samples via Python lists, then same'
 
 
 def replay(bag: Path) -> int:
     return len(replay_bag(bag, DEFAULT_CAPTURE, ANALYSIS).results)
+
+
+def replay_numpy_steps(bag: Path) -> int:
+    """The replay with every faster analysis step run as its numpy definition."""
+    with numpy_steps():
+        return replay(bag)
 
 
 def read_whole(bag: Path) -> int:
@@ -153,6 +165,7 @@ def main() -> int:
             '  of which: read whole and capture': capture_only,
             '  of which: analyse the records': analysis_only(records),
             '    of which: their DFTs (3 a record)': dfts_only(records),
+            NUMPY: replay_numpy_steps,
             BEFORE: before,
             '  of which: read batches only': read_batches,
             BARE: bare,
@@ -166,7 +179,7 @@ def main() -> int:
                 start = time.perf_counter()
                 value = run(bag)
                 times[name].append(time.perf_counter() - start)
-                if run in (replay, before, naive):
+                if run in (replay, replay_numpy_steps, before, naive):
                     assert value == len(session.hit_levels), (name, value)
         print(
             f'session: {len(session.hit_levels)} hits, {session.duration_s:.1f} s '
@@ -184,6 +197,11 @@ def main() -> int:
             f'\nreplay: {speed:.0f}x real time (target >= {TARGET_X:.0f}x: '
             f'{"met" if speed >= TARGET_X else "NOT met"}); {of_bare:.2f}x the bare read '
             f'(target <= {TARGET_OF_BARE:g}x: {"met" if of_bare <= TARGET_OF_BARE else "NOT met"})'
+        )
+        print(
+            f'{seconds[NUMPY] / ours:.2f}x faster than with the numpy analysis steps '
+            f'({session.duration_s / seconds[NUMPY]:.0f}x real time, '
+            f'{seconds[NUMPY] / seconds[BARE]:.2f}x the bare read)'
         )
         print(
             f'{seconds[BEFORE] / ours:.1f}x faster than the replay before issue 28, '

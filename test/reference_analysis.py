@@ -1,13 +1,15 @@
 """The per-record analysis steps as numpy defines them, before they were made faster (issue 28).
 
 Each faster step of a record's analysis (`quality.mad_std`, `frf.median_in_place`, ...) has
-its definition here: the numpy expression it replaced. `use_numpy_steps` swaps every one
-for its definition, so a test can analyse the same records both ways and hold the results
-equal to the bit.
+its definition here: the numpy expression it replaced. Inside `numpy_steps` every one runs
+as its definition, so a test can analyse the same records both ways and hold the results
+equal to the bit, and bench_replay can time the analysis as it was in the same run.
 """
 
+import contextlib
+from collections.abc import Iterator
+
 import numpy as np
-import pytest
 
 from fmm_ros.core.signal import _kernels, frf, quality
 
@@ -57,7 +59,14 @@ NUMPY_STEPS = {
 """(module, name) of each faster step -> its numpy definition."""
 
 
-def use_numpy_steps(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Run every faster step as its numpy definition until the test ends."""
-    for (module, name), definition in NUMPY_STEPS.items():
-        monkeypatch.setattr(module, name, definition)
+@contextlib.contextmanager
+def numpy_steps() -> Iterator[None]:
+    """Run every faster step as its numpy definition inside the block (then restore them)."""
+    faster = {key: getattr(*key) for key in NUMPY_STEPS}
+    try:
+        for (module, name), definition in NUMPY_STEPS.items():
+            setattr(module, name, definition)
+        yield
+    finally:
+        for (module, name), step in faster.items():
+            setattr(module, name, step)

@@ -12,7 +12,7 @@ import json
 
 import numpy as np
 import pytest
-from reference_analysis import use_numpy_steps
+from reference_analysis import numpy_steps
 
 from fmm_ros.cli import main
 from fmm_ros.constants import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC
@@ -123,9 +123,7 @@ def test_replay_of_a_clean_bag_equals_replay_batch_by_batch(session_bag):
 
 
 @pytest.mark.slow
-def test_fmm_replay_prints_what_it_printed_before_its_analysis_was_made_faster(
-    session_bag, monkeypatch, capsys
-):
+def test_fmm_replay_prints_what_it_printed_before_its_analysis_was_made_faster(session_bag, capsys):
     """Issue 28: the faster analysis steps swapped back for their numpy definitions
     (`reference_analysis`), replay gives the same results to the bit and prints the same JSON
     (all but how fast it ran)."""
@@ -138,8 +136,8 @@ def test_fmm_replay_prints_what_it_printed_before_its_analysis_was_made_faster(
         return replay_bag(session_bag, CAPTURE, ANALYSIS), document
 
     fast, printed = replayed()
-    use_numpy_steps(monkeypatch)
-    numpy_defined, printed_before = replayed()
+    with numpy_steps():
+        numpy_defined, printed_before = replayed()
     assert_same_results(fast.results, numpy_defined.results)
     assert printed == printed_before and len(printed['impacts']) == 6
 
