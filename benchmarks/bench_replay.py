@@ -11,7 +11,7 @@ into per-sample Python lists, and the parts of the replay alone (down to the thr
 of each 33 s record, which the analysis cannot go below while its FRF is the whole record's).
 Also the replay with each faster analysis step swapped back for the numpy it replaced
 (`test/reference_analysis.py`: the same results, the analysis as it was before its kernels).
-The process keeps freed memory for reuse as the `fmm` command does (`fmm_ros.memory`), so
+The process keeps freed memory for reuse as the `fmm` command does (`fmm_ros.core.memory`), so
 every row runs under the allocator `fmm replay` runs under.
 
     .venv/bin/python benchmarks/bench_replay.py [--repeats 5] [--quick]
@@ -36,10 +36,10 @@ from reference_analysis import numpy_steps  # noqa: E402
 from rosbags.rosbag2 import Reader
 
 from fmm_ros.constants import FORCE_TOPIC, VELOCITY_TOPIC
+from fmm_ros.core.memory import keep_freed_memory
 from fmm_ros.core.signal.analysis import AnalysisConfig, analyze_impact, paper_levels, summarize
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, capture_impacts
 from fmm_ros.io.bags import SAMPLE_BATCH, BagReader, fmm_typestore
-from fmm_ros.memory import keep_freed_memory
 from fmm_ros.sim.session import simulated_session, write_session_bag
 from fmm_ros.workflows.replay import bag_impact_records, capture_records, replay_bag
 

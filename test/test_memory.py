@@ -1,8 +1,8 @@
 """The `fmm` process keeps freed memory for reuse (issue 28: a replay's page faults)."""
 
 import fmm_ros.cli
-from fmm_ros import memory
 from fmm_ros.cli import main
+from fmm_ros.core import memory
 
 
 def test_glibc_keeps_freed_blocks_here():

@@ -23,7 +23,6 @@ import logging
 import os
 from collections.abc import Callable, Sequence
 
-from fmm_ros import memory
 from fmm_ros.campaign.cache import ResultCache, session_key
 from fmm_ros.campaign.session import (
     FAILED,
@@ -31,6 +30,7 @@ from fmm_ros.campaign.session import (
     SessionSpec,
     compute_session,
 )
+from fmm_ros.core import memory
 from fmm_ros.errors import BadInputError, FmmError
 from fmm_ros.workflows.session import SessionOptions
 
@@ -117,7 +117,7 @@ def local_cluster(workers: int | None = None):
     # Dask starts workers with glibc's trim threshold at 64 KiB, so they hand freed memory
     # back at once; a session allocates and frees many 2.6 MB record arrays, each then
     # faulted in afresh (15x the page faults, 7x the system time measured). The workers
-    # keep freed memory as `fmm` itself does (`fmm_ros.memory`; glibc's adaptive
+    # keep freed memory as `fmm` itself does (`fmm_ros.core.memory`; glibc's adaptive
     # thresholds still gave a replay ~200,000 faults).
     # Nor do they run Dask's statistical profiler (a stack sample every 10 ms, under the
     # interpreter lock, for a dashboard no one opens here).

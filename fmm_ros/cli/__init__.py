@@ -10,7 +10,7 @@ import os
 import sys
 
 from fmm_ros import __version__
-from fmm_ros.memory import keep_freed_memory
+from fmm_ros.core.memory import keep_freed_memory
 
 # Subcommand modules, in the order `fmm --help` lists them.
 SUBCOMMANDS: tuple[str, ...] = (
@@ -61,7 +61,7 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, 'func', None):
         parser.print_help()
         return 2
-    keep_freed_memory()  # a record's arrays reuse the last one's pages (fmm_ros.memory)
+    keep_freed_memory()  # a record's arrays reuse the last one's pages (fmm_ros.core.memory)
     try:
         status = args.func(args)
         sys.stdout.flush()  # here, so a closed pipe is caught below and not at exit
