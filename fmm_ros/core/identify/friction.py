@@ -25,6 +25,7 @@ from fmm_ros.core.identify.conditioning import (
     ConditionedImpact,
     FitError,
     as_conditioned,
+    chained_starts,
     source_prefix,
 )
 from fmm_ros.core.identify.lsq import (
@@ -41,6 +42,7 @@ from fmm_ros.core.identify.output_error import (
     fit_uncertainty,
 )
 from fmm_ros.core.identify.spec import (  # noqa: F401 (MU_BOUNDS re-exported)
+    FITTED,
     FRICTION_FIT,
     JACOBIANS,
     MISFITS,
@@ -416,6 +418,11 @@ def _fit(
         raise BadInputError(f'mu_bounds must be 0 <= lower < upper, finite; got {mu_bounds}')
     require_positive('normal_force_n (to fit mu)', rig.normal_force_n)
     _check_durations(conditioned, rig)
+    if spec.chain_starts:
+        conditioned = chained_starts(conditioned)
+    if any(impact.follows_previous for impact in conditioned):
+        # A hit's own parameters (its impulse scale) move every later hit's start too.
+        spec, start = spec.but(jacobian='dense'), None
     if mu0 is None:
         mu0 = energy_balance_mu(conditioned, rig)
         if not math.isfinite(mu0):
@@ -428,7 +435,7 @@ def _fit(
         spec.fit_damping,
         terms,
         fixed_effects,
-        len(conditioned) if spec.fit_initial_position else 0,
+        len(conditioned) if spec.starts == FITTED else 0,
         len(conditioned) if spec.fit_impulse_scale else 0,
     )
     for name, value in (start_values or {}).items():
@@ -641,7 +648,7 @@ def _model_fit(
     uncertainty = fit_uncertainty(
         solution, problem, force_noise=not space.impulse_scales, drift=drift, projected=projected
     )
-    model = space.build(solution.x)
+    model = problem.model(solution.x)
     # The hit windows too, in the solution's own residual (its last use as the misfit's).
     residuals = problem.time_residuals(solution.x, solution.residual)
     squares = [inner(r, r) for r in residuals]

@@ -27,6 +27,13 @@ spectrum over the whole record (default), or from block sums of the score over t
 (the way before issue 14: noisy where the motion lasts a few periods; kept as the reference
 the uncertainty benchmark compares with)."""
 
+CENTRE, FITTED, CHAINED = 'centre', 'fitted', 'chained'
+STARTS = (CENTRE, FITTED, CHAINED)
+"""Where a fit starts each hit's model: at the centre (x = 0, the paper's isolated hits), at a
+fitted start (a nuisance per hit, which absorbs a direction-dependent friction: see
+`chained_starts`), or chained (the first hit at the centre, each later one where the model's
+own run of the hit before came to rest)."""
+
 JACOBIANS = ('blocks', 'dense')
 """How fit_model builds its Jacobian: 'blocks' runs and stores an impact's own parameters
 (its start position) on that impact alone; 'dense' runs every column over every impact (the
@@ -51,6 +58,14 @@ class FitSpec:
         False,
         help='Fit where the rig rested before each hit (friction leaves it off centre after '
         'the previous one); off: every hit starts at x = 0, as in the paper',
+    )
+    chain_starts: bool = setting(
+        False,
+        help='Chain the starts: the first hit starts at the centre (lift the pin and let the '
+        'flexure centre the rig before it), each later one where the model left the rig after '
+        'the hit before; for one continuous session in hit order, nothing moving the rig '
+        'between records. Replaces fit_initial_position: fitted starts absorb a '
+        'direction-dependent friction, chained ones let it show',
     )
     fit_impulse_scale: bool = setting(
         False,
@@ -83,6 +98,13 @@ class FitSpec:
     uncertainty: str = setting(
         'spectral', help="How a time fit's uncertainty is found", choices=UNCERTAINTIES
     )
+
+    @property
+    def starts(self) -> str:
+        """Where each hit's model starts: one of STARTS ('chained' wins over 'fitted')."""
+        if self.chain_starts:
+            return CHAINED
+        return FITTED if self.fit_initial_position else CENTRE
 
     def but(self, **changes: Any) -> FitSpec:
         """A copy with some fields changed (TypeError naming an unknown one)."""
