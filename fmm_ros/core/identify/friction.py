@@ -832,9 +832,15 @@ def _own_fit(joint: _Fitted, index: int, spec: FitSpec) -> ModelFit:
     residual = solution.residual[joint.problem.segments[index]].copy()  # taken over by the fit
     for start, stop in joint.problem.impacts[index].hit_windows:  # the misfit's, not the fit's
         residual[start:stop] = 0.0
-    own = spec.but(fit_damping=False, remove_mains_hum=False, fit_velocity_drift=False)
+    own = spec.but(
+        fit_damping=False, remove_mains_hum=False, fit_velocity_drift=False, chain_starts=False
+    )
+    impact = joint.problem.impacts[index]
+    if impact.follows_previous:  # alone, a chained hit starts where the joint chain put it
+        start_m = joint.fit.initial_positions_m[index]
+        impact = replace(impact, start_m=start_m, follows_previous=False)
     return _fit(
-        [joint.problem.impacts[index]],
+        [impact],
         own,
         rig=joint.fit.rig,
         mu0=joint.fit.mu,

@@ -14,6 +14,7 @@ from typing import Any
 
 from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ
 from fmm_ros.core.settings import setting
+from fmm_ros.errors import BadInputError
 
 MU_BOUNDS = (1e-3, 1.0)
 """Default search range of the friction coefficient; a best fit on either end is a failure."""
@@ -33,6 +34,14 @@ STARTS = (CENTRE, FITTED, CHAINED)
 fitted start (a nuisance per hit, which absorbs a direction-dependent friction: see
 `chained_starts`), or chained (the first hit at the centre, each later one where the model's
 own run of the hit before came to rest)."""
+
+
+def start_options(starts: str) -> dict[str, bool]:
+    """The FitSpec fields (and `diagnose` keywords) of one of STARTS: `FitSpec.starts` undone."""
+    if starts not in STARTS:
+        raise BadInputError(f'unknown starts {starts!r}; choose one of {", ".join(STARTS)}')
+    return {'fit_initial_position': starts == FITTED, 'chain_starts': starts == CHAINED}
+
 
 JACOBIANS = ('blocks', 'dense')
 """How fit_model builds its Jacobian: 'blocks' runs and stores an impact's own parameters
