@@ -833,12 +833,19 @@ def _own_fit(joint: _Fitted, index: int, spec: FitSpec) -> ModelFit:
     for start, stop in joint.problem.impacts[index].hit_windows:  # the misfit's, not the fit's
         residual[start:stop] = 0.0
     own = spec.but(
-        fit_damping=False, remove_mains_hum=False, fit_velocity_drift=False, chain_starts=False
+        fit_damping=False,
+        remove_mains_hum=False,
+        fit_velocity_drift=False,
+        fit_initial_position=spec.starts == FITTED,
+        chain_starts=False,
     )
     impact = joint.problem.impacts[index]
-    if impact.follows_previous:  # alone, a chained hit starts where the joint chain put it
+    start = (residual, (solution.jacobian.rows[index][rows],))
+    if impact.follows_previous:
+        # Alone, a chained hit starts where the joint chain put it; its joint rows moved its
+        # start with mu and the earlier hits' scales too, so they are no start for this fit.
         start_m = joint.fit.initial_positions_m[index]
-        impact = replace(impact, start_m=start_m, follows_previous=False)
+        impact, start = replace(impact, start_m=start_m, follows_previous=False), None
     return _fit(
         [impact],
         own,
@@ -849,7 +856,7 @@ def _own_fit(joint: _Fitted, index: int, spec: FitSpec) -> ModelFit:
         start_values={
             name.replace(f'[{index}]', '[0]'): joint.fit.value(name) for name in wanted[1:]
         },
-        start=(residual, (solution.jacobian.rows[index][rows],)),
+        start=start,
         drift_estimated=spec.fit_velocity_drift,
     ).fit
 
