@@ -55,7 +55,6 @@ from results_file import QUICK_HELP, write_section
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'test'))
 from heldout import HELD_OUT, ROLES  # noqa: E402
-from heldout.cases import CHAINED_KINDS  # noqa: E402
 from heldout.cases import KINDS as HELDOUT_KINDS  # noqa: E402
 from heldout.cases import case as heldout_case  # noqa: E402
 from heldout.ivp import IVP  # noqa: E402
@@ -221,15 +220,6 @@ class Sweep:
             f'single effects: worst kind {worst} of {self.cases} right',
             f'false alarms on clean sessions: {clean - clean_right} of {clean}',
         ]
-        if any(kind in self.rows for kind in CHAINED_KINDS):
-            lines.append(
-                'chained starts: '
-                + '; '.join(
-                    f'{kind} {self.exact[kind]} of {self.cases}'
-                    for kind in CHAINED_KINDS
-                    if kind in self.rows
-                )
-            )
         if 'pair' in self.rows:
             lines.append(f'pairs: both named in {self.exact["pair"]} of {self.cases}')
         if MU_DRIFT in self.rows:
