@@ -141,9 +141,6 @@ def measure(folder: Path, args, shared: tuple[str, float] | None) -> None:
             cache_dir=cache,
         )
 
-    def load() -> str:
-        return f'(load {os.getloadavg()[0]:.1f})'
-
     # Serial and parallel runs alternate, so a change in the other jobs' load falls on both;
     # each is reported, and the speed-up of the pair with the least load.
     rows, pairs = [], []

@@ -2,6 +2,7 @@
 
 import dataclasses
 import math
+import threading
 
 import numpy as np
 import pytest
@@ -205,15 +206,17 @@ def _count_jacobian_runs(monkeypatch) -> list[tuple[int, int]]:
     runs = [0]
     counted = []
     simulate_for_real, jacobian_for_real = output_error.simulate, _lsq._forward_jacobian
+    lock = threading.Lock()  # the columns of a Jacobian run in threads
 
     def counting_simulate(*args, **kwargs):
-        runs[0] += 1
+        with lock:
+            runs[0] += 1
         return simulate_for_real(*args, **kwargs)
 
     def counting_jacobian(*args):
         before = runs[0]
         evaluations = jacobian_for_real(*args)
-        stored = sum(rows.size for rows in args[-1].rows)
+        stored = sum(rows.size for rows in args[8].rows)  # out
         assert evaluations == runs[0] - before
         counted.append((runs[0] - before, stored))
         return evaluations
@@ -239,6 +242,20 @@ def test_a_start_position_runs_and_stores_only_its_own_impact(session_set, monke
         counts == ((n_global + n_impacts) * n_impacts, (n_global + n_impacts) * samples)
         for counts in counted
     )
+
+
+@pytest.mark.parametrize('threads', [2, 3])
+def test_the_thread_count_does_not_change_a_fit(session_set, monkeypatch, threads):
+    from fmm_ros.core.identify import friction
+
+    monkeypatch.setattr(friction, 'available_threads', lambda: 1)
+    serial = fit.fit_model(session_set[:3], fit_damping=True, fit_initial_position=True)
+    monkeypatch.setattr(friction, 'available_threads', lambda: threads)
+    shared = fit.fit_model(session_set[:3], fit_damping=True, fit_initial_position=True)
+    for part in ('values', 'stderr', 'covariance'):
+        np.testing.assert_array_equal(getattr(shared, part), getattr(serial, part))
+    for a, b in zip(shared.residuals_m_s, serial.residuals_m_s, strict=True):
+        np.testing.assert_array_equal(a, b)
 
 
 def test_block_jacobian_is_the_dense_one_without_its_zeros():

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 import scipy.integrate
 from heldout import HELD_OUT, ROLES
-from heldout.cases import case
+from heldout.cases import KINDS, case, kinds_of
 from heldout.chain import Channel, Daq, acquire
 from heldout.forces import SHAPES, Hit
 from heldout.ivp import IVP, Law, Pulse, motion
@@ -138,6 +138,13 @@ def test_ivp_pulse_impulses_are_exact():
             lambda t, p=pulse: float(p.force(t)), pulse.onset_s, pulse.end_s, limit=400
         )
         assert area == pytest.approx(pulse.impulse_n_s, rel=1e-9)
+
+
+@pytest.mark.parametrize('world', sorted(WORLDS))
+def test_every_world_offers_every_kind_to_the_benchmark(world):
+    """bench_diagnose sweeps `kinds_of` each world: a world lacking what the cases read (the
+    ivp world had no `sensor`, and the full sweep crashed at its first pair) fails here."""
+    assert kinds_of(WORLDS[world]) == KINDS
 
 
 def diagnosed(world: str, kind: str, index: int):

@@ -278,6 +278,8 @@ class IvpWorld:
     """The `ivp` world: its noise levels (white and pink, force and velocity) and offset."""
 
     name: str = 'ivp'
+    sensor: str = 'velocity'
+    """What the response sensor measures (as `lab.World.sensor`): a vibrometer."""
     force_white_n: float = 0.15
     force_pink_n: float = 0.1
     force_offset_n: float = 0.1

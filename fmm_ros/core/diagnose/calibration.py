@@ -29,6 +29,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from fmm_ros.core._threads import thread_map
 from fmm_ros.core.diagnose.session_model import SessionModel
 from fmm_ros.core.identify.conditioning import ConditionedImpact
 from fmm_ros.core.identify.lsq import inner
@@ -104,15 +105,29 @@ def without_impulse_error(
     rests = _nominal_rests(impacts, model)
     mus = [float(mu) for mu in model.mus]
     hits = [[index] for index in range(count)]
-    for column, changed in enumerate(hits + (hits if own_mu else [list(range(count))])):
+
+    def sensitivities(column: int, changed: list[int]) -> dict[int, np.ndarray]:
+        """Each moved hit's velocity per unit of a column, in its window.
+
+        Columns below `count` are a hit's relative impulse error, the others a mu.
+        """
         impulse = column < count
         step = IMPULSE_STEP if impulse else MU_STEP * mus[changed[0]]
         change = {
             index: (1.0 + step, mus[index]) if impulse else (1.0, mus[index] + step)
             for index in changed
         }
-        for index, velocity in _responses(impacts, model, rests, change).items():
-            rows[index][column] = ((velocity - nominal[index]) / step)[windows[index]]
+        return {
+            index: ((velocity - nominal[index]) / step)[windows[index]]
+            for index, velocity in _responses(impacts, model, rests, change).items()
+        }
+
+    changes = list(enumerate(hits + (hits if own_mu else [list(range(count))])))
+    for (column, _), moved in zip(
+        changes, thread_map(lambda item: sensitivities(*item), changes), strict=True
+    ):
+        for index, row in moved.items():
+            rows[index][column] = row
     normal = np.zeros((columns, columns))
     projected = np.zeros(columns)
     blocks = []

@@ -30,6 +30,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from fmm_ros.constants import MU_DRIFT
+from fmm_ros.core._threads import thread_map
 from fmm_ros.core.diagnose.session_model import SessionModel
 from fmm_ros.core.identify.conditioning import ConditionedImpact
 from fmm_ros.core.identify.lsq import inner
@@ -98,16 +99,20 @@ class Linearisation:
         rig = model.rig
         position_scale = max(float(np.mean(mus)), 0.01) * rig.normal_force_n
         position_scale /= rig.stiffness_n_per_m
-        self.mu_columns, self.position_columns = [], []
-        for place, hit in enumerate(self.hits):
+
+        def columns(place: int) -> tuple[np.ndarray, list[np.ndarray]]:
+            hit = self.hits[place]
             step = RELATIVE_STEP * mus[hit]
-            self.mu_columns.append(self._difference(place, step, mu=mus[hit] + step))
-            if fit_initial_position:
-                x0 = model.positions_m[hit]
-                step = RELATIVE_STEP * max(abs(x0), position_scale)
-                self.position_columns.append([self._difference(place, step, x0_m=x0 + step)])
-            else:
-                self.position_columns.append([])
+            mu_column = self._difference(place, step, mu=mus[hit] + step)
+            if not fit_initial_position:
+                return mu_column, []
+            x0 = model.positions_m[hit]
+            step = RELATIVE_STEP * max(abs(x0), position_scale)
+            return mu_column, [self._difference(place, step, x0_m=x0 + step)]
+
+        made = thread_map(columns, range(len(self.hits)))
+        self.mu_columns = [mu_column for mu_column, _ in made]
+        self.position_columns = [position for _, position in made]
 
     def _difference(self, place: int, step: float, **change) -> np.ndarray:
         impact = self.impacts[place]
@@ -216,7 +221,9 @@ def screen_term(
     before, _, _ = chi2_fall(linear.residuals, shared, own)
     best = Screen(effect, 0.0, len(cls.parameters), None, note='no probe')
     for probe in probes:
-        responses = [linear.response(index, probe) for index in range(len(linear.impacts))]
+        responses = thread_map(
+            lambda index, probe=probe: linear.response(index, probe), range(len(linear.impacts))
+        )
         if not any(np.any(response) for response in responses):
             continue
         fall, solution, _ = chi2_fall(

@@ -40,6 +40,7 @@ import numpy as np
 import scipy.stats
 
 from fmm_ros.constants import MU_DRIFT
+from fmm_ros.core._threads import thread_map
 from fmm_ros.core.diagnose.calibration import rest_noise_std, without_impulse_error
 from fmm_ros.core.diagnose.drift import MIN_DRIFT_HITS, MIN_TREND_HITS, MuTrend, mu_trend
 from fmm_ros.core.diagnose.friction_map import (
@@ -818,8 +819,13 @@ class _Session:
     ) -> tuple[np.ndarray, ...]:
         """Measured minus model velocity over each whole record [m/s]."""
         return tuple(
-            record.velocity_m_s - model.velocity(index, record.force_n, record.sample_rate_hz)
-            for index, record in enumerate(records)
+            thread_map(
+                lambda index: (
+                    records[index].velocity_m_s
+                    - model.velocity(index, records[index].force_n, records[index].sample_rate_hz)
+                ),
+                range(len(records)),
+            )
         )
 
     def _friction_map(self, model: SessionModel) -> FrictionMap:

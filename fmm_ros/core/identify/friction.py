@@ -20,6 +20,7 @@ import scipy.stats
 
 from fmm_ros.constants import PAPER_MU
 from fmm_ros.core._checks import require_positive
+from fmm_ros.core._threads import available_threads
 from fmm_ros.core.identify.chain import DriftBasis, VelocityNuisance, estimate_nuisance
 from fmm_ros.core.identify.conditioning import (
     ConditionedImpact,
@@ -467,6 +468,7 @@ def _fit(
         blocks=blocks,
         residual0=residual0,
         jacobian0=jacobian0,
+        threads=available_threads(),
     )
     chain = _VelocityChain(spec.remove_mains_hum, spec.fit_velocity_drift, mains_hz)
     problem, solution, nuisances, projected = chain.fit(problem, solution, space, spec.jacobian)
@@ -581,6 +583,7 @@ class _VelocityChain:
                 blocks=space.blocks(problem.segments, jacobian),
                 residual0=residual0,
                 jacobian0=solution.jacobian if time_misfit else None,
+                threads=available_threads(),
             )
         return problem, solution, nuisances, solution.jacobian is projected
 

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fmm_ros.core._threads import in_worker, pool, thread_map
 from fmm_ros.errors import BadInputError
 
 
@@ -61,6 +62,34 @@ ResidualFunction = Callable[[np.ndarray, np.ndarray], None]
 BlockResidualFunction = Callable[[np.ndarray, Sequence[int], Sequence[np.ndarray]], None]
 """fun(x, blocks, outs): write the residuals of each block in blocks at x into the matching
 out; raise Infeasible if it cannot."""
+
+
+def _run_blocks(
+    fun: BlockResidualFunction,
+    x: np.ndarray,
+    which: Sequence[int],
+    outs: Sequence[np.ndarray],
+    threads: int,
+) -> None:
+    """Run fun over some blocks, shared out between threads (each a share of the blocks).
+
+    The caller's thread runs the first share; an Infeasible from any share is raised here,
+    after every share has finished (no thread still writes into outs).
+    """
+    if threads <= 1 or len(which) < 2 or in_worker():
+        fun(x, which, outs)
+        return
+    shares = min(threads, len(which))
+    futures = [
+        pool(threads).submit(fun, x, which[i::shares], outs[i::shares]) for i in range(1, shares)
+    ]
+    try:
+        fun(x, which[0::shares], outs[0::shares])
+    finally:
+        errors = [future.exception() for future in futures]
+    for error in errors:
+        if error is not None:
+            raise error
 
 
 @dataclass(frozen=True)
@@ -198,6 +227,7 @@ def levenberg_marquardt(
     max_iterations: int = 60,
     residual0: np.ndarray | None = None,
     jacobian0: BlockJacobian | None = None,
+    threads: int = 1,
 ) -> LsqSolution:
     """Minimise sum(fun(x)^2) over lower <= x <= upper from x0.
 
@@ -213,6 +243,10 @@ def levenberg_marquardt(
     residual0, jacobian0: the residuals and the Jacobian (of `blocks`' pattern) at x0 where
     the caller has them (a fit continued from another's solution): no model run is spent on
     them. residual0 is taken over (later trials overwrite it); jacobian0 is left as it is.
+    threads: blocks evaluated in this many threads at once (Jacobian columns, and the blocks
+    of a trial point): fun must then be safe to call from several threads on disjoint blocks
+    and outs (`OutputError` is). The numbers are the same whatever the count: every block is
+    computed alone, and the sums over blocks keep their order.
     """
     lower, upper, typical = (np.asarray(a, dtype=float) for a in (lower, upper, typical))
     x = np.clip(np.asarray(x0, dtype=float), lower, upper)
@@ -228,7 +262,7 @@ def levenberg_marquardt(
     touched = [blocks.touched_by(j) for j in range(p)]
 
     def evaluate(x: np.ndarray, out: np.ndarray) -> None:
-        fun(x, every, [out[segment] for segment in blocks.segments])
+        _run_blocks(fun, x, every, [out[segment] for segment in blocks.segments], threads)
 
     evaluations = 0
     if residual0 is not None:
@@ -265,7 +299,7 @@ def levenberg_marquardt(
             if jacobian is None or jacobian is jacobian0:
                 jacobian = blocks.empty_jacobian()
             evaluations += _forward_jacobian(
-                fun, x, residual, lower, upper, typical, relative_step, touched, jacobian
+                fun, x, residual, lower, upper, typical, relative_step, touched, jacobian, threads
             )
         block_normals = jacobian.block_normals()
         normal = jacobian.normal(block_normals)
@@ -332,24 +366,25 @@ def _forward_jacobian(
     relative_step: float,
     touched: Sequence[Sequence[tuple[int, int]]],
     out: BlockJacobian,
+    threads: int = 1,
 ) -> int:
     """Fill d r_k / d x_j = (r_k(x + h_j e_j) - r_k(x)) / h_j on the blocks k x_j touches.
 
     touched[j]: (block, row) pairs of parameter j (`Blocks.touched_by`). Steps inward at an
     upper bound. Returns the number of block evaluations. Where neither side of x_j is
-    feasible the rows are 0.
+    feasible the rows are 0. threads: columns computed in this many threads at once (each
+    column writes its own rows only).
     """
-    evaluations = 0
     segments = out.blocks.segments
-    for j in range(x.size):
-        if not touched[j]:
-            continue
+
+    def column(j: int) -> int:
         which = [k for k, _ in touched[j]]
         rows = [out.rows[k][row] for k, row in touched[j]]
         h = relative_step * max(abs(x[j]), typical[j])
         if x[j] + h > upper[j]:
             h = -h
         shifted = x.copy()
+        evaluations = 0
         for signed_step in (h, -h):
             shifted[j] = x[j] + signed_step
             evaluations += len(which)
@@ -364,7 +399,10 @@ def _forward_jacobian(
         else:
             for row in rows:
                 row[:] = 0.0
-    return evaluations
+        return evaluations
+
+    columns = [j for j in range(x.size) if touched[j]]
+    return sum(thread_map(column, columns, threads))
 
 
 def _damped_step(

@@ -21,6 +21,7 @@ The standard errors were checked against the scatter of fits over noise seeds (t
 """
 
 import math
+import threading
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, replace
 
@@ -71,14 +72,25 @@ ModelBuilder = Callable[[np.ndarray], BuiltModel]
 """theta -> the model a parameter vector stands for."""
 
 
+class _Lane:
+    """One thread's buffers for `OutputError`: a run's output and the force that drives it."""
+
+    def __init__(self, longest: int) -> None:
+        self.output = np.empty((2, longest))
+        # The force that drives a run: zero but for one impact's gates, scaled (`drive`).
+        self.force = np.zeros(longest)
+        self.driving: tuple[int, float] | None = None
+
+
 class OutputError:
     """Residuals of the model driven by each impact's conditioned force, stacked over impacts.
 
     Time misfit: measured minus simulated velocity, every sample. FRF misfit: measured minus
     simulated mobility, (V_meas - V_model) / F, on the bins from DC to band_limit_hz, real and
     imaginary parts interleaved. Each impact is a block of residuals (`_lsq.Blocks`): a call
-    runs one simulation for each impact asked for, into one buffer allocated once and shared
-    (each run is consumed before the next).
+    runs one simulation for each impact asked for, into buffers allocated once a thread and
+    shared by its runs (each run is consumed before the next), so threads may evaluate
+    disjoint blocks at once (`levenberg_marquardt(threads=...)`).
     """
 
     def __init__(
@@ -101,11 +113,8 @@ class OutputError:
         self.natural_frequency_hz = natural_frequency_hz
         self.judge_hit = judge_hit
         self.uncertainty = uncertainty
-        longest = max(impact.force_n.size for impact in self.impacts)
-        self.buffer = np.empty((2, longest))
-        # The force that drives a run: zero but for one impact's gates, scaled (`drive`).
-        self.force_buffer = np.zeros(longest)
-        self._driving: tuple[int, float] | None = None
+        self._longest = max(impact.force_n.size for impact in self.impacts)
+        self._lanes = threading.local()
         self.targets: list[np.ndarray] = []
         self.inverse_force: list[np.ndarray] = []
         self.segments: list[slice] = []
@@ -146,6 +155,13 @@ class OutputError:
             judge_hit=self.judge_hit,
             uncertainty=self.uncertainty,
         )
+
+    def _lane(self) -> '_Lane':
+        """The calling thread's buffers, made on its first run."""
+        lane = getattr(self._lanes, 'lane', None)
+        if lane is None:
+            lane = self._lanes.lane = _Lane(self._longest)
+        return lane
 
     def model(self, theta: np.ndarray) -> BuiltModel:
         """The model at theta, or Infeasible where it cannot be built.
@@ -208,25 +224,26 @@ class OutputError:
         residual /= force_scale  # the measured mobility's denominator scales with the force
 
     def drive(self, index: int, scale: float) -> np.ndarray:
-        """Impact `index`'s conditioned force times `scale`, in the shared force buffer.
+        """Impact `index`'s conditioned force times `scale`, in this thread's force buffer.
 
         The conditioned force is zero outside its gates, so only the gates are written (and
         the previous impact's cleared): a few dozen samples, not the record.
         """
         impact = self.impacts[index]
-        if self._driving != (index, scale):
-            if self._driving is not None:
-                for start, stop in self.impacts[self._driving[0]].gate:
-                    self.force_buffer[start:stop] = 0.0
+        lane = self._lane()
+        if lane.driving != (index, scale):
+            if lane.driving is not None:
+                for start, stop in self.impacts[lane.driving[0]].gate:
+                    lane.force[start:stop] = 0.0
             for start, stop in impact.gate:
-                np.multiply(impact.force_n[start:stop], scale, out=self.force_buffer[start:stop])
-            self._driving = (index, scale)
-        return self.force_buffer[: impact.force_n.size]
+                np.multiply(impact.force_n[start:stop], scale, out=lane.force[start:stop])
+            lane.driving = (index, scale)
+        return lane.force[: impact.force_n.size]
 
     def simulate(
         self, index: int, model: BuiltModel, force_n: np.ndarray | None = None, samples: int = 0
     ) -> Simulation:
-        """Run one impact (or force_n in its place) through the model into the shared buffer.
+        """Run one impact (or force_n in its place) through the model into this thread's buffer.
 
         samples: run only the first this many (the model is causal: they are the whole
         run's); 0 for all.
@@ -235,6 +252,7 @@ class OutputError:
         n = samples or impact.force_n.size
         if force_n is None:
             force_n = self.drive(index, model.impulse_scale(index))
+        output = self._lane().output
         try:
             return simulate(
                 force_n[:n],
@@ -244,7 +262,7 @@ class OutputError:
                 effects=model.effects,
                 x0_m=model.initial_position_m(index),
                 integrator=self.integrator,
-                out=(self.buffer[0, :n], self.buffer[1, :n]),
+                out=(output[0, :n], output[1, :n]),
             )
         except ValueError as error:  # e.g. a term that makes one direction's friction < 0
             raise Infeasible(str(error)) from None

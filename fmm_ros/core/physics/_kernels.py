@@ -378,7 +378,7 @@ def _rest_until(force, i, spring, band_neg, band_pos, x, x_out, v_out):
     return stop
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def oscillator_exact(force, x_out, v_out, state, p):
     """Event-located solution over a force batch: closed form (linear) or RK4 (nonlinear).
 
@@ -431,7 +431,7 @@ def oscillator_exact(force, x_out, v_out, state, p):
     _store(state, x, v, mode, rest_time, f0, index0 + force.shape[0])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def oscillator_euler(force, x_out, v_out, state, p):
     """The paper's fixed-step method: acceleration each step, then Euler updates.
 
@@ -477,7 +477,7 @@ def _store(state, x, v, mode, rest_time, force_last, index):
     state[STATE_INDEX] = index
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def add_linear_mode(force, force_before, first_call, x_out, v_out, mode):
     """Add a decoupled linear mode driven by the same force (exact first-order-hold steps).
 
@@ -511,7 +511,7 @@ def add_linear_mode(force, force_before, first_call, x_out, v_out, mode):
     mode[MODE_V] = v
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def delay_in_place(signal, history, whole, fraction):
     """Delay `signal` by (whole + fraction) samples, linear between samples, in place.
 
