@@ -35,6 +35,7 @@ import accelerometer_records  # noqa: E402
 from heldout.cases import case, kinds_of  # noqa: E402
 from heldout.lab import ACCELEROMETER  # noqa: E402
 
+from fmm_ros.core.identify.spec import FITTED
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.core.signal.response import ACCELERATION, as_measured
 
@@ -54,13 +55,13 @@ def measured(force_n: np.ndarray, acceleration_m_s2: np.ndarray, rate_hz: float,
 
 
 def draw_world(kind: str, rng: np.random.Generator):
-    """A session of the accelerometer world: (records, hidden, sizes, starts to be fitted)."""
-    records, hidden, fit_starts = case(ACCELEROMETER, kind, rng)
+    """A session of the accelerometer world: (records, hidden, sizes, where hits start)."""
+    records, hidden, starts = case(ACCELEROMETER, kind, rng)
     return (
         [measured(r.force_n, r.velocity_m_s, r.sample_rate_hz, r.source) for r in records],
         hidden,
         {},
-        fit_starts,
+        starts,
     )
 
 
@@ -72,7 +73,7 @@ def draw_records(kind: str, rng: np.random.Generator):
         measured(force, acceleration, accelerometer_records.RATE_HZ, f'hit {number}')
         for number, (force, acceleration) in enumerate(hits)
     ]
-    return records, (kind,) if added else (), {}, True
+    return records, (kind,) if added else (), {}, FITTED
 
 
 SOURCES = (

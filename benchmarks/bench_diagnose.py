@@ -2,6 +2,7 @@
 
 Run: .venv/bin/python benchmarks/bench_diagnose.py [--quick] [--cases N] [--world-cases W]
      [--heldout-cases H] [--seed S] [--repeats R] [--session-hits K] [--skip-sweep]
+     [--kinds K,...]
 
 Four generators of sessions, each with its role declared once in `test/heldout` (`ROLES`):
 tuning worlds, which the diagnosis's thresholds were chosen on, and held-out worlds, never
@@ -22,7 +23,9 @@ noise, a Bessel chain, 60 Hz hum, random-walk drift; a tuning world since the ca
 'unexplained' was designed against it) and `ivp` (LSODA phases of a stick-slip state machine,
 haversine and gamma pulses, a sigma-delta FIR, white plus pink noise): each of the seven
 effects alone, a pair, mu drifting 4-7 % a hit over three hits, a wear track (answer
-'unexplained'), clean sessions. Their roles are `heldout.ROLES`.
+'unexplained'), clean sessions; and continuous sessions whose starts the diagnosis chains
+(`asymmetric_chained`, `none_chained`: each hit from where the one before left the rig, the
+first from the centre). Their roles are `heldout.ROLES`.
 Issue 24's targets, on held-out worlds: single effects >= 15 of 16 per world, pairs >= 5 of
 6, false alarms <= 5 %, drift >= 90 %, the gap at least halved whenever an effect is named.
 
@@ -32,7 +35,8 @@ the vocabulary) and every miss. Then the time of one diagnosis of three 33 s imp
 Stribeck) and of a 30-hit session with each start fitted, against issue 8's closed-world
 algorithm (`issue8_diagnose.py`) in the same run, and a 30-hit Stribeck session (<= 5 s).
 A full run writes its sections of RESULTS.md (`results_file`: tuning worlds, held-out worlds
-and time, each replaced only by a run that made it; --role sweeps one role); --quick (one
+and time, each replaced only by a run that made it; --role sweeps one role; --kinds sweeps
+only those kinds of every world that makes them, into a section of their own); --quick (one
 session of a few kinds per world, three-hit timing) writes nothing.
 """
 
@@ -60,6 +64,7 @@ from world_cases import OUTSIDE_KINDS, VOCABULARY_KINDS, world_case  # noqa: E40
 from fmm_ros.constants import MU_DRIFT
 from fmm_ros.core.diagnose.workflow import MIN_EXCESS, NONE, UNEXPLAINED, diagnose
 from fmm_ros.core.identify.conditioning import as_conditioned
+from fmm_ros.core.identify.spec import CENTRE, FITTED, start_options
 from fmm_ros.core.physics.terms import MODEL_TERMS
 from fmm_ros.core.signal.capture import capture_impacts
 from fmm_ros.sim.hidden_effects import (
@@ -94,21 +99,25 @@ SHORT = {
     'wear_patch': 'patch',
     'none': 'none',
     'none8': 'none8',
+    'asymmetric_chained': 'asym ch',
+    'none_chained': 'none ch',
     UNEXPLAINED: 'unexpl',
 }
 OURS_ROWS = (*MODEL_TERMS, 'pair', MU_DRIFT, *OUT_OF_VOCABULARY, 'none', 'none8')
 WORLD_ROWS = (*VOCABULARY_KINDS, 'pair', MU_DRIFT, *OUTSIDE_KINDS, 'none', 'none8')
 COLUMNS = (*MODEL_TERMS, MU_DRIFT, UNEXPLAINED, NONE)
 OUTSIDE = (*OUT_OF_VOCABULARY, *OUTSIDE_KINDS)
-CLEAN = ('none', 'none8')
+CLEAN = ('none', 'none8', 'none_chained')
+SINGLES = (*MODEL_TERMS, 'asymmetric_chained')
+"""Rows hiding one vocabulary effect (a chained session's asymmetry too)."""
 
 
 def draw_ours(kind: str, rng: np.random.Generator):
-    """(records, hidden effects, drawn sizes, starts to be fitted) of one session of ours."""
+    """(records, hidden effects, drawn sizes, where the hits start) of a session of ours."""
     if kind in MODEL_TERMS or kind == 'none':
         drawn = hidden_effect_case(kind, rng)
         hidden = () if kind == 'none' else (kind,)
-        return drawn.records, hidden, {kind: drawn.ratio}, False
+        return drawn.records, hidden, {kind: drawn.ratio}, CENTRE
     if kind == 'pair':
         pair = tuple(str(e) for e in rng.choice(list(MODEL_TERMS), size=2, replace=False))
         session = hidden_session(pair, rng, ratio_range=PAIR_RATIOS)
@@ -118,21 +127,21 @@ def draw_ours(kind: str, rng: np.random.Generator):
         session = hidden_session((), rng, n_impacts=DRIFT_HITS)
     else:
         session = hidden_session((kind,), rng, ratio_range=PAIR_RATIOS)
-    return session.records, session.effects, session.ratios, False
+    return session.records, session.effects, session.ratios, CENTRE
 
 
 def draw_world(kind: str, rng: np.random.Generator):
-    """A worlds session: (records, hidden, sizes unknown beforehand, starts to be fitted)."""
+    """A worlds session: (records, hidden, sizes unknown beforehand, where the hits start)."""
     records, hidden, fit_starts = world_case(kind, rng)
-    return records, hidden, {}, fit_starts
+    return records, hidden, {}, FITTED if fit_starts else CENTRE
 
 
 def draw_held_out(world) -> Callable:
     """The session drawer of a held-out world."""
 
     def draw(kind: str, rng: np.random.Generator):
-        records, hidden, fit_starts = heldout_case(world, kind, rng)
-        return records, hidden, {}, fit_starts
+        records, hidden, starts = heldout_case(world, kind, rng)
+        return records, hidden, {}, starts
 
     return draw
 
@@ -204,7 +213,7 @@ class Sweep:
         """The figures under the table, one a line."""
         total, sessions = self.rate(self.rows)
         clean_right, clean = self.rate(CLEAN)
-        singles = [k for k in self.rows if k in MODEL_TERMS]
+        singles = [k for k in self.rows if k in SINGLES]
         worst = min((self.exact[k] for k in singles), default=0)
         lines = [
             f'right: {total} of {sessions} sessions ({100 * total / sessions:.1f} %)',
@@ -235,7 +244,7 @@ class Sweep:
 
     def targets(self) -> list[str]:
         """Issue 24's targets for a held-out world, each met or not."""
-        singles = [k for k in self.rows if k in (*MODEL_TERMS, 'none')]
+        singles = [k for k in self.rows if k in (*SINGLES, *CLEAN)]
         worst = min(self.exact[k] / self.cases for k in singles)
         clean_right, clean = self.rate(CLEAN)
         checks = [
@@ -262,9 +271,9 @@ def sweep(source: Source, cases: int, seed: int, rows: tuple[str, ...] | None = 
         found.confusion[kind], found.sizes[kind] = Counter(), []
         for number in range(cases):
             rng = np.random.default_rng([seed, source.rows.index(kind), number])
-            records, hidden, ratios, fit_starts = source.draw(kind, rng)
+            records, hidden, ratios, starts = source.draw(kind, rng)
             start = time.perf_counter()
-            result = diagnose(records, fit_initial_position=fit_starts)
+            result = diagnose(records, **start_options(starts))
             found.seconds.append(time.perf_counter() - start)
             peak = max(float(np.max(np.abs(r.velocity_m_s))) for r in records)
             found.sizes[kind].append(result.gap_before * peak / result.noise_std_m_s)
@@ -397,6 +406,13 @@ def main() -> None:
     parser.add_argument('--skip-sweep', action='store_true', help='time only')
     parser.add_argument('--skip-timing', action='store_true', help='sweeps only')
     parser.add_argument(
+        '--kinds',
+        type=lambda text: tuple(text.split(',')),
+        default=(),
+        help='sweep only these kinds (comma-separated) of every world that makes them, into '
+        'a RESULTS.md section of their own',
+    )
+    parser.add_argument(
         '--role',
         choices=('all', 'tuning', 'held-out'),
         default='all',
@@ -410,11 +426,18 @@ def main() -> None:
             cases = 1 if args.quick else counts.get(source.name, args.heldout_cases)
             if not cases:
                 continue
-            rows = tuple(k for k in source.rows if k in QUICK_KINDS) if args.quick else None
+            rows = None
+            if args.kinds or args.quick:
+                rows = tuple(k for k in source.rows if k in (args.kinds or QUICK_KINDS))
+                if not rows:
+                    continue
             print(f'\nsweep: {cases} sessions a kind, {source.name} ({source.role} world)')
             sweeps.append(sweep(source, cases, args.seed, rows))
         if sweeps:
-            write_section(f'bench_diagnose, {role} worlds', markdown(sweeps), quick=args.quick)
+            kinds = f' ({", ".join(args.kinds)})' if args.kinds else ''
+            write_section(
+                f'bench_diagnose, {role} worlds{kinds}', markdown(sweeps), quick=args.quick
+            )
     if not args.skip_timing:
         times = timing(
             1 if args.quick else args.repeats, args.seed, 1 if args.quick else args.session_hits

@@ -20,6 +20,7 @@ from heldout.lab import ACCELEROMETER
 from fmm_ros.cli import main
 from fmm_ros.core.diagnose import NONE, UNEXPLAINED, diagnose
 from fmm_ros.core.identify.chain import DRIFT_KNOT_S, DriftBasis
+from fmm_ros.core.identify.spec import start_options
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.core.signal.response import (
     ACCELERATION,
@@ -87,8 +88,8 @@ def as_read(records) -> list:
 )
 def test_accelerometer_sessions_get_the_vibrometer_answers(kind, seeds):
     for seed in seeds:
-        records, hidden, fit_starts = case(ACCELEROMETER, kind, np.random.default_rng([26, seed]))
-        result = diagnose(as_read(records), fit_initial_position=fit_starts)
+        records, hidden, starts = case(ACCELEROMETER, kind, np.random.default_rng([26, seed]))
+        result = diagnose(as_read(records), **start_options(starts))
         if kind == 'wear_track':
             assert result.named_effects[:1] == (UNEXPLAINED,), result.verdict
         elif kind == 'none':

@@ -63,3 +63,19 @@ def test_a_diagnosis_without_impacts_is_refused_with_the_reason(ros_graph):
     assert not response.success and 'no impact held yet' in response.message
     response = ros_graph.call(client, DiagnoseModel.Request(impact_ids=[2]))
     assert not response.success and 'impacts [2] are not held' in response.message
+
+
+def test_the_fitter_chains_the_starts_when_asked(ros_graph):
+    """chain_starts: no start is fitted, each hit's impulse scale is (the chain follows it)."""
+    ros_graph.add(HammerSim, parameter_overrides=params(**FAST_HAMMER))
+    ros_graph.add(RigSim)
+    ros_graph.add(Analyzer, parameter_overrides=params(**FAST_ANALYZER))
+    fitter = ros_graph.add(Fitter, parameter_overrides=params(chain_starts=True))
+    client = ros_graph.add(Node, node_name='caller').create_client(DiagnoseModel, DIAGNOSE_SERVICE)
+    ros_graph.start()
+    assert wait_for(lambda: len(fitter.impacts) == 3)
+    response = ros_graph.call(client, DiagnoseModel.Request(), timeout_s=120.0)
+    assert response.success, response.message
+    names = list(response.parameter_names)
+    assert 'impulse_scale[2]' in names
+    assert not any(name.startswith('initial_position_m') for name in names)

@@ -25,6 +25,7 @@ from heldout.lab import EVENTS, STEPS, Effects
 from heldout.plant import Contact, Plant, solve_events, solve_steps
 
 from fmm_ros.core.diagnose import NONE, UNEXPLAINED, diagnose
+from fmm_ros.core.identify.spec import start_options
 
 HELDOUT_DIR = Path(__file__).resolve().parent / 'heldout'
 WORLDS = {'events': EVENTS, 'steps': STEPS, 'ivp': IVP}
@@ -147,8 +148,8 @@ def test_every_world_offers_every_kind_to_the_benchmark(world):
 
 
 def diagnosed(world: str, kind: str, index: int):
-    records, hidden, fit_starts = case(WORLDS[world], kind, np.random.default_rng([2424, index]))
-    return records, hidden, diagnose(records, fit_initial_position=fit_starts)
+    records, hidden, starts = case(WORLDS[world], kind, np.random.default_rng([2424, index]))
+    return records, hidden, diagnose(records, **start_options(starts))
 
 
 @pytest.mark.slow

@@ -32,6 +32,7 @@ from fmm_ros.campaign.results import CampaignResult, named_effects, session_mus
 from fmm_ros.campaign.stats import CONFIDENCE
 from fmm_ros.campaign.table import DATE, format_value
 from fmm_ros.constants import MM_PER_M
+from fmm_ros.core.identify.spec import CENTRE, CHAINED, FITTED
 from fmm_ros.report.html import Page
 from fmm_ros.report.plotting import (
     DEFAULT_DPI,
@@ -47,6 +48,14 @@ from fmm_ros.report.plotting import (
 ROW_HEIGHT_IN = 0.32
 # Beyond this many sessions the hit bars keep every n-th session's name on the axis.
 MAX_SESSION_LABELS = 40
+
+
+STARTS_SAID = {
+    CENTRE: 'at rest at 0',
+    FITTED: 'fitted',
+    CHAINED: 'chained: each from where the model left the rig',
+}
+"""How the report names each way the fit starts a hit (`FitSpec.starts`)."""
 
 
 def write_campaign_report(
@@ -89,7 +98,7 @@ def _overview(page: Page, campaign: CampaignResult) -> None:
             f'{options.inputs.capture.window_s:g} s',
             "fit: one mu over each session's accepted hits, with the normal force of its row "
             f'(damping {"fitted" if model.fit_damping else "the rig constant"}, start '
-            f'positions {"fitted" if model.fit_initial_position else "at rest at 0"}); '
+            f'positions {STARTS_SAID[model.spec().starts]}); '
             f'diagnosis {"run" if options.diagnose else "not run"}',
             f'run time: {campaign.seconds:.1f} s',
         ]

@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from fmm_ros.constants import RESPONSE_CHANNELS
+from fmm_ros.core.identify.spec import FitSpec
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.settings import Setting, setting_of
 from fmm_ros.core.signal.config import (
@@ -448,6 +449,7 @@ def add_model(parser: argparse.ArgumentParser, *, damping: bool = True) -> None:
         help='fit where the rig rested before each hit (default: friction leaves it off '
         'centre after the previous one); --no-fit-initial-position starts each at x = 0',
     )
+    add_setting(group, FitSpec, 'chain_starts')
 
 
 def rig_from_args(args: argparse.Namespace) -> Rig:
@@ -475,6 +477,7 @@ def fit_options(args: argparse.Namespace) -> FitOptions:
         rig=rig_from_args(args),
         fit_damping=getattr(args, 'fit_damping', False),
         fit_initial_position=args.fit_initial_position,
+        chain_starts=args.chain_starts,
         **extra,
     )
 

@@ -61,6 +61,8 @@ class FitOptions:
     fit_damping: bool = False
     fit_initial_position: bool = True
     """Fit each record's start (in a session a hit finds the rig where friction left it)."""
+    chain_starts: bool = False
+    """Chain the starts instead (`FitSpec.chain_starts`): one continuous session in hit order."""
     mu_bounds: tuple[float, float] = MU_BOUNDS
     misfit: str = 'time'
     band_limit_hz: float = MISFIT_BAND_LIMIT_HZ
@@ -70,6 +72,7 @@ class FitOptions:
         return FRICTION_FIT.but(
             fit_damping=self.fit_damping,
             fit_initial_position=self.fit_initial_position,
+            chain_starts=self.chain_starts,
             mu_bounds=self.mu_bounds,
             misfit=self.misfit,
             band_limit_hz=self.band_limit_hz,
@@ -273,6 +276,7 @@ def diagnose_impacts(
             [records[i] for i in impact_ids],
             rig=options.rig,
             fit_initial_position=options.fit_initial_position,
+            chain_starts=options.chain_starts,
             friction_spec=options.spec(),
             progress=progress,
         ),
@@ -317,6 +321,8 @@ def process_records(
         refusal = ''
     except SelectionError as error:  # the result says why there is no fit, naming the hits
         selection, refusal = error.selection, str(error)
+    if options.model.chain_starts and not refusal:
+        refusal = selection.chain_refusal
     if friction is None and not fit_failure and options.mu is None and options.fit:
         try:
             friction = fit_impacts(

@@ -4,10 +4,11 @@ Kinds (`kinds_of` a world): each effect the diagnosis has a name for, hidden alo
 distinct ones); `mu_drift` (mu changing 4-7 % a hit over three hits); `wear_track` (friction
 varying along the track: outside the vocabulary, the right answer is 'unexplained'); `none` (the
 plain rig). Three hits a session, one at each paper level in random order, every one from rest
-at the centre, except `asymmetric_chained` (and pairs holding asymmetric friction): a continuous
-session where each hit starts where the previous came to rest (the diagnosis fits starts). Sizes
-are drawn from ranges that leave a misfit of about 1-5 velocity-noise deviations after the base
-fit, as a lab would meet them.
+at the centre, except the `CHAINED_KINDS`: `asymmetric_chained` and `none_chained` are one
+continuous session each, the first hit from rest at the centre and each later one where the one
+before it came to rest (the diagnosis chains the starts: `STARTS`). Sizes are drawn from ranges
+that leave a misfit of about 1-5 velocity-noise deviations after the base fit, as a lab would
+meet them.
 """
 
 import numpy as np
@@ -24,16 +25,26 @@ VOCABULARY_KINDS = (
     'velocity_offset',
     'sensor_delay',
 )
-KINDS = (*VOCABULARY_KINDS, 'pair', 'mu_drift', 'wear_track', 'none')
+CHAINED_KINDS = {'asymmetric_chained': 'asymmetric_friction', 'none_chained': 'none'}
+"""Kinds made as one continuous session, and the kind of effect each hides."""
+KINDS = (*VOCABULARY_KINDS, 'pair', 'mu_drift', 'wear_track', 'none', *CHAINED_KINDS)
+CENTRE, CHAINED = 'centre', 'chained'
+STARTS = {kind: CHAINED if kind in CHAINED_KINDS else CENTRE for kind in KINDS}
+"""Where the diagnosis is to start each kind's hits: at the centre, or chained (`fmm_ros`'s
+`FitSpec.starts`, spelled here again: this package imports nothing of the product)."""
 VIBROMETER_KINDS = ('velocity_offset',)
 """Effects of a vibrometer's own, which a world measured by an accelerometer cannot hide."""
 
 
 def kinds_of(world: World) -> tuple[str, ...]:
-    """The kinds of session a world can make (no vibrometer effect under an accelerometer)."""
+    """The kinds of session a world is swept over.
+
+    No vibrometer effect under an accelerometer, and no chained session there (chained
+    starts are measured on vibrometer worlds only).
+    """
     if world.sensor == 'velocity':
         return KINDS
-    return tuple(kind for kind in KINDS if kind not in VIBROMETER_KINDS)
+    return tuple(k for k in KINDS if k not in VIBROMETER_KINDS and k not in CHAINED_KINDS)
 
 
 MU_RANGE = (0.08, 0.16)
@@ -82,7 +93,12 @@ def effect_fields(kind: str, mu: float, rng: np.random.Generator) -> dict:
 
 
 def case(world: World | IvpWorld, kind: str, rng: np.random.Generator):
-    """(records, hidden effects in the diagnosis's names, whether starts are to be fitted)."""
+    """(records, hidden effects in the diagnosis's names, where the diagnosis starts the hits).
+
+    Where it starts them: one of `STARTS`' values.
+    """
+    chained = kind in CHAINED_KINDS
+    kind = CHAINED_KINDS.get(kind, kind)
     mu = float(rng.uniform(*MU_RANGE))
     if kind == 'none':
         hidden, fields = (), {}
@@ -97,7 +113,7 @@ def case(world: World | IvpWorld, kind: str, rng: np.random.Generator):
         fields = effect_fields(kind, mu, rng)
     levels = rng.permutation((450.0, 1000.0, 1450.0))
     if isinstance(world, IvpWorld):
-        records = world.session(Effects(**fields), mu, rng, levels)
+        records = world.session(Effects(**fields), mu, rng, levels, chained=chained)
     else:
-        records = session(world, Effects(**fields), mu, rng, levels)
-    return records, () if kind == 'wear_track' else hidden, False
+        records = session(world, Effects(**fields), mu, rng, levels, chained=chained)
+    return records, () if kind == 'wear_track' else hidden, CHAINED if chained else CENTRE

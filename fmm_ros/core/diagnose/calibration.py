@@ -89,31 +89,51 @@ def without_impulse_error(
     over the windows in a relative impulse error per hit and a shift of mu (one for the
     session, or each hit's own once mu_drift is named), as `fmm fit`'s impulse scales would
     move the fit; an impulse error beyond +-IMPULSE_SCALE_TOLERANCE is held at the bound and
-    the rest solved again.
+    the rest solved again. In a chained session (`ConditionedImpact.follows_previous`) a hit's
+    impulse and mu also move where it leaves the rig, so the later hits' starts: their
+    responses count too (`_responses`).
     """
     count = len(impacts)
     own_mu = bool(model.per_hit)
     columns = 2 * count if own_mu else count + 1
-    # Each hit's rows touch two columns (its impulse error, its or the shared mu): the normal
-    # equations are summed hit by hit, never the (samples x columns) design.
+    # Sensitivities of each hit's velocity over its window, by column; the normal equations
+    # are summed hit by hit, never the (samples x columns) design.
+    rows: list[dict[int, np.ndarray]] = [{} for _ in impacts]
+    nominal = [
+        impact.velocity_m_s - residual for impact, residual in zip(impacts, residuals, strict=True)
+    ]
+    rests = _nominal_rests(impacts, model)
+    mus = [float(mu) for mu in model.mus]
+    hits = [[index] for index in range(count)]
+
+    def sensitivities(column: int, changed: list[int]) -> dict[int, np.ndarray]:
+        """Each moved hit's velocity per unit of a column, in its window.
+
+        Columns below `count` are a hit's relative impulse error, the others a mu.
+        """
+        impulse = column < count
+        step = IMPULSE_STEP if impulse else MU_STEP * mus[changed[0]]
+        change = {
+            index: (1.0 + step, mus[index]) if impulse else (1.0, mus[index] + step)
+            for index in changed
+        }
+        return {
+            index: ((velocity - nominal[index]) / step)[windows[index]]
+            for index, velocity in _responses(impacts, model, rests, change).items()
+        }
+
+    changes = list(enumerate(hits + (hits if own_mu else [list(range(count))])))
+    for (column, _), moved in zip(
+        changes, thread_map(lambda item: sensitivities(*item), changes), strict=True
+    ):
+        for index, row in moved.items():
+            rows[index][column] = row
     normal = np.zeros((columns, columns))
     projected = np.zeros(columns)
     blocks = []
-
-    def sensitivities(index: int) -> np.ndarray:
-        """The hit's velocity per relative impulse error and per unit of mu, in its window."""
-        impact, window = impacts[index], windows[index]
-        rate = impact.sample_rate_hz
-        nominal = impact.velocity_m_s - residuals[index]
-        scaled = model.velocity(index, impact.force_n * (1.0 + IMPULSE_STEP), rate)
-        mu = float(model.mus[index])
-        step = MU_STEP * mu
-        shifted = model.velocity(index, impact.force_n, rate, mu=mu + step)
-        return np.stack(((scaled - nominal) / IMPULSE_STEP, (shifted - nominal) / step))[:, window]
-
-    pairs = thread_map(sensitivities, range(count))
-    for index, (pair, residual, window) in enumerate(zip(pairs, residuals, windows, strict=True)):
-        where = [index, count + index if own_mu else count]
+    for own, residual, window in zip(rows, residuals, windows, strict=True):
+        where = list(own)
+        pair = np.stack([own[column] for column in where])
         normal[np.ix_(where, where)] += inner(pair, pair)
         projected[where] += inner(pair, residual[window])
         blocks.append((where, pair))
@@ -135,3 +155,45 @@ def without_impulse_error(
         corrected[window] -= values[where] @ pair
         out.append(corrected)
     return tuple(out)
+
+
+def _nominal_rests(impacts: Sequence[ConditionedImpact], model: SessionModel) -> tuple[float, ...]:
+    """Where the model leaves the rig after each hit [m] (needed only in a chained session)."""
+    if not any(impact.follows_previous for impact in impacts):
+        return ()
+    return tuple(
+        model.run(index, impact.force_n, impact.sample_rate_hz).end_position_m
+        for index, impact in enumerate(impacts)
+    )
+
+
+def _responses(
+    impacts: Sequence[ConditionedImpact],
+    model: SessionModel,
+    rests: Sequence[float],
+    change: dict[int, tuple[float, float]],
+) -> dict[int, np.ndarray]:
+    """The velocity of every hit a change moves [m/s]: hit -> (factor on its force, its mu).
+
+    The changed hits, and after each, while the hits follow their previous one, the hits
+    whose start the change moved (by as much as it moved the rest before them).
+    """
+    moved: dict[int, np.ndarray] = {}
+    shift = 0.0
+    for index, impact in enumerate(impacts):
+        if not impact.follows_previous:
+            shift = 0.0
+        if index not in change and shift == 0.0:
+            continue
+        factor, mu = change.get(index, (1.0, float(model.mus[index])))
+        run = model.run(
+            index,
+            impact.force_n * factor,
+            impact.sample_rate_hz,
+            mu=mu,
+            x0_m=model.positions_m[index] + shift,
+        )
+        moved[index] = run.velocity_m_s
+        if rests:
+            shift = run.end_position_m - rests[index]
+    return moved

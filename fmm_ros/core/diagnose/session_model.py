@@ -9,7 +9,7 @@ information criteria count every fitted parameter, start positions included.
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -19,7 +19,7 @@ from fmm_ros.core.identify.conditioning import ConditionedImpact
 from fmm_ros.core.identify.friction import ModelFit, fit_model
 from fmm_ros.core.identify.lsq import inner
 from fmm_ros.core.identify.spec import FitSpec
-from fmm_ros.core.physics.model import simulate
+from fmm_ros.core.physics.model import Simulation, simulate
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.physics.terms import ModelTerm
 
@@ -43,10 +43,20 @@ def diagnostic_fit(
     channel delay shifts the velocity most where it changes fastest, in the hit. The
     diagnosis compares models by their residuals over the whole motion (screen, gaps,
     information criteria), so every fit it makes judges the same samples.
+
+    In a chained session (`ConditionedImpact.follows_previous`) every model also fits each
+    hit's impulse scale: the rest a hit leaves moves with its amplitude, e times 20 mm for a
+    relative impulse error e, so the measured impulse's 1e-4 to 2e-3 misstate the next start
+    by as much as a friction asymmetry moves it (1e-5 to 7e-5 m). Measured on `steps`, a
+    tuning world: with measured impulses 16 of 24 asymmetric chained sessions were named,
+    with fitted scales 22 of 24, clean ones 16 of 16 `none` either way.
     """
     return fit_model(
         impacts,
-        DIAGNOSTIC_FIT.but(fit_initial_position=fit_initial_position),
+        DIAGNOSTIC_FIT.but(
+            fit_initial_position=fit_initial_position,
+            fit_impulse_scale=any(impact.follows_previous for impact in impacts),
+        ),
         rig=rig,
         mu0=mu0,
         terms=terms,
@@ -97,6 +107,13 @@ class SessionModel:
         return self.joint.initial_positions_m
 
     @property
+    def impulse_scales(self) -> tuple[float, ...]:
+        """The factor on each hit's measured force (1 where not fitted) [-]."""
+        if self.per_hit:
+            return tuple(fit.impulse_scales[0] for fit in self.per_hit)
+        return self.joint.impulse_scales
+
+    @property
     def residuals_m_s(self) -> tuple[np.ndarray, ...]:
         """Measured minus model velocity of each cropped impact [m/s]."""
         if self.per_hit:
@@ -133,14 +150,30 @@ class SessionModel:
 
         effects, mu and x0_m replace the model's own (a candidate's response, a derivative).
         """
+        return self.run(index, force_n, sample_rate_hz, effects, mu, x0_m).velocity_m_s
+
+    def run(
+        self,
+        index: int,
+        force_n: np.ndarray,
+        sample_rate_hz: float,
+        effects: Sequence[ModelTerm] | None = None,
+        mu: float | None = None,
+        x0_m: float | None = None,
+    ) -> Simulation:
+        """The model's run of hit `index` driven by force_n, as `velocity` (its rest too).
+
+        force_n is a measured force: the model scales it by the hit's impulse scale, where it
+        fits one (a chained session's models do).
+        """
         return simulate(
-            force_n,
+            force_n * self.impulse_scales[index],
             sample_rate_hz,
             rig=self.rig,
             mu=float(self.mus[index]) if mu is None else mu,
             effects=self.terms if effects is None else tuple(effects),
             x0_m=self.positions_m[index] if x0_m is None else x0_m,
-        ).velocity_m_s
+        )
 
     def estimates(self) -> tuple[ParameterEstimate, ...]:
         """Fitted parameters: the joint fit's (mu, terms, starts), then each hit's mu."""
@@ -195,15 +228,18 @@ def with_mu_per_hit(
     add: name mu_drift as the newest effect (False: it is named already). Raises FitError when
     the fitter refuses a hit.
     """
+    # A chained hit fitted alone starts where the joint model's chain put it.
     per_hit = tuple(
         diagnostic_fit(
-            [impact],
+            [replace(impact, start_m=start) if impact.follows_previous else impact],
             rig=model.rig,
             mu0=float(mu0),
             fixed_effects=model.terms,
             fit_initial_position=fit_initial_position,
         )
-        for impact, mu0 in zip(impacts, mu_starts, strict=True)
+        for impact, mu0, start in zip(
+            impacts, mu_starts, model.joint.initial_positions_m, strict=True
+        )
     )
     effects = (*model.effects, MU_DRIFT) if add else model.effects
     return SessionModel(effects, model.joint, per_hit)

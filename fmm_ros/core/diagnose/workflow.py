@@ -91,6 +91,7 @@ from fmm_ros.core.identify.conditioning import (
     ConditionedImpact,
     FitError,
     as_conditioned,
+    chained_starts,
     cropped_impact,
     source_prefix,
 )
@@ -174,6 +175,7 @@ def diagnose(
     rig: Rig = FMM_RIG,
     candidates: Sequence[str] | None = None,
     fit_initial_position: bool = False,
+    chain_starts: bool = False,
     friction_spec: FitSpec | None = None,
     progress: Progress | None = None,
 ) -> Diagnosis:
@@ -184,7 +186,11 @@ def diagnose(
     one is fitted at once. candidates: effects to consider (default: every one of EFFECTS,
     mu_drift only from MIN_DRIFT_HITS hits). fit_initial_position: every model also fits
     where each impact starts (a hit that found the rig held off centre by friction), as
-    `fmm fit --fit-initial-position` does. friction_spec: the fit `fmm fit` makes of these
+    `fmm fit --fit-initial-position` does. chain_starts: the impacts are one continuous
+    session in hit order, nothing moving the rig between records, the first hit from rest
+    at the centre: every model starts each later hit where its own run of the hit before
+    came to rest (`chained_starts`; replaces fit_initial_position, whose fitted starts
+    absorb a direction-dependent friction). friction_spec: the fit `fmm fit` makes of these
     records (default `FRICTION_FIT`: each hit's impulse scale, mains hum and velocity drift
     fitted, starts as fit_initial_position), whose mu the diagnosis reports as its `mu`, so
     the two never disagree on the same records. progress: called with a line of text after each
@@ -196,9 +202,10 @@ def diagnose(
     say = progress or _silent
     if isinstance(impacts, ConditionedImpact) or hasattr(impacts, 'force_n'):
         impacts = [impacts]
-    conditioned, residual_noise = _integrated_as_judged(
-        impacts, _checked_impacts(impacts, rig), rig, fit_initial_position
-    )
+    checked = _checked_impacts(impacts, rig)
+    if chain_starts:
+        checked, fit_initial_position = chained_starts(checked), False
+    conditioned, residual_noise = _integrated_as_judged(impacts, checked, rig, fit_initial_position)
     candidates = _checked_candidates(candidates, len(conditioned))
     stop = max(measured_motion_stop(impact, rig.natural_frequency_hz) for impact in conditioned)
     cropped = [cropped_impact(impact, stop) for impact in conditioned]
@@ -209,11 +216,8 @@ def diagnose(
         f'base model fitted to {len(cropped)} impact(s), {stop / cropped[0].sample_rate_hz:.1f} s '
         f'each: mu = {base.joint.mu:.5f}'
     )
-    friction = fit_model(
-        cropped,
-        friction_spec or FRICTION_FIT.but(fit_initial_position=fit_initial_position),
-        rig=rig,
-    )
+    spec = friction_spec or FRICTION_FIT.but(fit_initial_position=fit_initial_position)
+    friction = fit_model(cropped, spec.but(chain_starts=True) if chain_starts else spec, rig=rig)
     say(f"fmm fit's base fit (impulse scales, hum, drift): mu = {friction.mu:.6f}")
     # An integrated record's noise is described by `converted_noise` (_integrated_as_judged);
     # a measured velocity's is measured where the rig rests (`calibration`).

@@ -23,6 +23,7 @@ friction cannot explain is a `FitError` (a ValueError too) whose `reason` is one
 """
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -100,6 +101,13 @@ class ConditionedImpact:
     peak_velocity_m_s: float
     """Largest |measured velocity| [m/s]."""
     source: str = ''
+    start_m: float = 0.0
+    """Where the mass rests before the hit [m], when known: the model starts there unless the
+    fit frees the start or chains it (0: the centre, as in the paper)."""
+    follows_previous: bool = False
+    """The hit found the rig where the hit before it in the same fit left it (a continuous
+    session, nothing moving the rig between records): the model starts it where its own run
+    of that hit came to rest (`OutputError.starts`)."""
 
     @property
     def hit_end_index(self) -> int:
@@ -277,3 +285,20 @@ def _gate(hit: np.ndarray, sample_rate_hz: float) -> tuple[tuple[int, int], ...]
 def source_prefix(source: str) -> str:
     """'<source>: ' to start an error message about a named record ('' when unnamed)."""
     return f'{source}: ' if source else ''
+
+
+def chained_starts(impacts: Sequence[ConditionedImpact]) -> list[ConditionedImpact]:
+    """One continuous session's impacts (in hit order), each after the first chained.
+
+    Each later impact `follows_previous`: its model starts where the model's run of the one
+    before it came to rest.
+
+    Why: with velocities alone, friction mu+ forward and mu- backward is exactly a symmetric
+    contact with their mean and the spring's centre moved by (mu+ - mu-) N / (2 k) (with
+    y = x + that shift the equation of motion and the stick rule are symmetric, and the
+    velocities the same). A start fitted per hit takes the shift up, and so does a chain
+    whose first start is fitted: the asymmetry shows only against one known position. So the
+    first hit keeps its own `start_m` (the centre: a lab lifts the pin and lets the flexure
+    centre the rig before the session's first hit), and each later one follows the model.
+    """
+    return [replace(impact, follows_previous=index > 0) for index, impact in enumerate(impacts)]

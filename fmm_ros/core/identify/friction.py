@@ -26,6 +26,7 @@ from fmm_ros.core.identify.conditioning import (
     ConditionedImpact,
     FitError,
     as_conditioned,
+    chained_starts,
     source_prefix,
 )
 from fmm_ros.core.identify.lsq import (
@@ -42,6 +43,7 @@ from fmm_ros.core.identify.output_error import (
     fit_uncertainty,
 )
 from fmm_ros.core.identify.spec import (  # noqa: F401 (MU_BOUNDS re-exported)
+    FITTED,
     FRICTION_FIT,
     JACOBIANS,
     MISFITS,
@@ -417,6 +419,11 @@ def _fit(
         raise BadInputError(f'mu_bounds must be 0 <= lower < upper, finite; got {mu_bounds}')
     require_positive('normal_force_n (to fit mu)', rig.normal_force_n)
     _check_durations(conditioned, rig)
+    if spec.chain_starts:
+        conditioned = chained_starts(conditioned)
+    if any(impact.follows_previous for impact in conditioned):
+        # A hit's own parameters (its impulse scale) move every later hit's start too.
+        spec, start = spec.but(jacobian='dense'), None
     if mu0 is None:
         mu0 = energy_balance_mu(conditioned, rig)
         if not math.isfinite(mu0):
@@ -429,7 +436,7 @@ def _fit(
         spec.fit_damping,
         terms,
         fixed_effects,
-        len(conditioned) if spec.fit_initial_position else 0,
+        len(conditioned) if spec.starts == FITTED else 0,
         len(conditioned) if spec.fit_impulse_scale else 0,
     )
     for name, value in (start_values or {}).items():
@@ -644,7 +651,7 @@ def _model_fit(
     uncertainty = fit_uncertainty(
         solution, problem, force_noise=not space.impulse_scales, drift=drift, projected=projected
     )
-    model = space.build(solution.x)
+    model = problem.model(solution.x)
     # The hit windows too, in the solution's own residual (its last use as the misfit's).
     residuals = problem.time_residuals(solution.x, solution.residual)
     squares = [inner(r, r) for r in residuals]
@@ -828,9 +835,22 @@ def _own_fit(joint: _Fitted, index: int, spec: FitSpec) -> ModelFit:
     residual = solution.residual[joint.problem.segments[index]].copy()  # taken over by the fit
     for start, stop in joint.problem.impacts[index].hit_windows:  # the misfit's, not the fit's
         residual[start:stop] = 0.0
-    own = spec.but(fit_damping=False, remove_mains_hum=False, fit_velocity_drift=False)
+    own = spec.but(
+        fit_damping=False,
+        remove_mains_hum=False,
+        fit_velocity_drift=False,
+        fit_initial_position=spec.starts == FITTED,
+        chain_starts=False,
+    )
+    impact = joint.problem.impacts[index]
+    start = (residual, (solution.jacobian.rows[index][rows],))
+    if impact.follows_previous:
+        # Alone, a chained hit starts where the joint chain put it; its joint rows moved its
+        # start with mu and the earlier hits' scales too, so they are no start for this fit.
+        start_m = joint.fit.initial_positions_m[index]
+        impact, start = replace(impact, start_m=start_m, follows_previous=False), None
     return _fit(
-        [joint.problem.impacts[index]],
+        [impact],
         own,
         rig=joint.fit.rig,
         mu0=joint.fit.mu,
@@ -839,7 +859,7 @@ def _own_fit(joint: _Fitted, index: int, spec: FitSpec) -> ModelFit:
         start_values={
             name.replace(f'[{index}]', '[0]'): joint.fit.value(name) for name in wanted[1:]
         },
-        start=(residual, (solution.jacobian.rows[index][rows],)),
+        start=start,
         drift_estimated=spec.fit_velocity_drift,
     ).fit
 

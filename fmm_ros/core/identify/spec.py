@@ -14,6 +14,7 @@ from typing import Any
 
 from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ
 from fmm_ros.core.settings import setting
+from fmm_ros.errors import BadInputError
 
 MU_BOUNDS = (1e-3, 1.0)
 """Default search range of the friction coefficient; a best fit on either end is a failure."""
@@ -26,6 +27,21 @@ UNCERTAINTIES = ('spectral', 'blocks')
 spectrum over the whole record (default), or from block sums of the score over the motion
 (the way before issue 14: noisy where the motion lasts a few periods; kept as the reference
 the uncertainty benchmark compares with)."""
+
+CENTRE, FITTED, CHAINED = 'centre', 'fitted', 'chained'
+STARTS = (CENTRE, FITTED, CHAINED)
+"""Where a fit starts each hit's model: at the centre (x = 0, the paper's isolated hits), at a
+fitted start (a nuisance per hit, which absorbs a direction-dependent friction: see
+`chained_starts`), or chained (the first hit at the centre, each later one where the model's
+own run of the hit before came to rest)."""
+
+
+def start_options(starts: str) -> dict[str, bool]:
+    """The FitSpec fields (and `diagnose` keywords) of one of STARTS: `FitSpec.starts` undone."""
+    if starts not in STARTS:
+        raise BadInputError(f'unknown starts {starts!r}; choose one of {", ".join(STARTS)}')
+    return {'fit_initial_position': starts == FITTED, 'chain_starts': starts == CHAINED}
+
 
 JACOBIANS = ('blocks', 'dense')
 """How fit_model builds its Jacobian: 'blocks' runs and stores an impact's own parameters
@@ -51,6 +67,14 @@ class FitSpec:
         False,
         help='Fit where the rig rested before each hit (friction leaves it off centre after '
         'the previous one); off: every hit starts at x = 0, as in the paper',
+    )
+    chain_starts: bool = setting(
+        False,
+        help='Chain the starts: the first hit starts at the centre (lift the pin and let the '
+        'flexure centre the rig before it), each later one where the model left the rig after '
+        'the hit before; for one continuous session in hit order, nothing moving the rig '
+        'between records. Replaces fit_initial_position: fitted starts absorb a '
+        'direction-dependent friction, chained ones let it show',
     )
     fit_impulse_scale: bool = setting(
         False,
@@ -83,6 +107,13 @@ class FitSpec:
     uncertainty: str = setting(
         'spectral', help="How a time fit's uncertainty is found", choices=UNCERTAINTIES
     )
+
+    @property
+    def starts(self) -> str:
+        """Where each hit's model starts: one of STARTS ('chained' wins over 'fitted')."""
+        if self.chain_starts:
+            return CHAINED
+        return FITTED if self.fit_initial_position else CENTRE
 
     def but(self, **changes: Any) -> FitSpec:
         """A copy with some fields changed (TypeError naming an unknown one)."""

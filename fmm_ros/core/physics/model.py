@@ -117,6 +117,16 @@ class Simulation:
         return np.arange(self.displacement_m.size) / self.sample_rate_hz
 
     @property
+    def end_position_m(self) -> float:
+        """Where the rig is left for the next hit [m].
+
+        Its rest, or where it is at the end if still sliding (a chained start,
+        `ConditionedImpact.follows_previous`).
+        """
+        rest = self.rest_position_m
+        return float(rest if math.isfinite(rest) else self.displacement_m[-1])
+
+    @property
     def at_rest(self) -> bool:
         """Whether the friction oscillator is at rest at the end of the record."""
         return not math.isnan(self.rest_time_s)

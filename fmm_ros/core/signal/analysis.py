@@ -397,6 +397,21 @@ class ImpactSelection:
     judged: tuple[Decision, ...] = ()
 
     @property
+    def chain_refusal(self) -> str:
+        """Why chained starts cannot take these impacts ('' when they can).
+
+        A chain holds over every hit of one continuous session: a hit left out moved the rig
+        between two records that are taken (`FitSpec.chain_starts`).
+        """
+        if not self.excluded:
+            return ''
+        return (
+            f'chained starts need every hit of the session, in order: {len(self.excluded)} '
+            f'flagged impact(s) were left out ({_named(self.excluded)}); take them '
+            '(--include-flagged) or do not chain the starts'
+        )
+
+    @property
     def note(self) -> str:
         """One line naming what was left out or taken despite its flags ('' when neither)."""
         parts = []

@@ -69,7 +69,7 @@ from fmm_ros.workflows.results import FrictionResult
 PARAMS = (
     *RIG_PARAMS,
     # In a continuous session a hit finds the rig where friction stopped the last one.
-    *params_from(FitSpec(fit_initial_position=True), ('fit_initial_position',)),
+    *params_from(FitSpec(fit_initial_position=True), ('fit_initial_position', 'chain_starts')),
     Param(
         'live_mu',
         True,
@@ -346,6 +346,14 @@ class Fitter(Node):
         selection = select_impacts(held, include_flagged=include_flagged, decisions=decisions)
         return [by_id[i] for i in selection.chosen], selection
 
+    def _chained(self, selection: ImpactSelection) -> bool:
+        """Whether starts are chained (chain_starts); BadInputError if the selection breaks it."""
+        if not self.config['chain_starts']:
+            return False
+        if selection.chain_refusal:
+            raise BadInputError(selection.chain_refusal)
+        return True
+
     def _on_fit(
         self, request: FitFriction.Request, response: FitFriction.Response
     ) -> FitFriction.Response:
@@ -359,6 +367,7 @@ class Fitter(Node):
                 mu_bounds=bounds,
                 misfit=request.misfit or 'time',
                 fit_initial_position=self.config['fit_initial_position'],
+                chain_starts=self._chained(selection),
             )
         except FitError as error:
             return _refused(response, f'{error.reason}: {error}')
@@ -383,6 +392,7 @@ class Fitter(Node):
                 [impact.record for impact in impacts],
                 rig=self.rig,
                 fit_initial_position=self.config['fit_initial_position'],
+                chain_starts=self._chained(selection),
             )
         except FitError as error:
             return _refused(response, f'{error.reason}: {error}')
