@@ -11,6 +11,7 @@ from rig_graph import FAST_ANALYZER, Listener, params, wait_for
 from fmm_interfaces.srv import FitFriction
 from fmm_ros.constants import FIT_SERVICE
 from fmm_ros.core.signal.records import write_impact_csv
+from fmm_ros.ros.flow import PacedSource
 from fmm_ros.ros.nodes.analyzer import Analyzer
 from fmm_ros.ros.nodes.daq import Daq
 from fmm_ros.ros.nodes.fitter import Fitter
@@ -50,8 +51,11 @@ def test_file_backend_streams_a_recording_into_the_analyzer(ros_graph, tmp_path,
     assert (impact.level, impact.accepted) == ('medium', True)
     assert impact.impulse_n_s == pytest.approx(hit.impulse_n_s, rel=0.005)
     assert wait_for(lambda: daq.backend.finished)
-    # 80,000 samples at x100: 10,000-sample messages (100 a second), not 1000-sample ones
-    assert daq.batches_published == 8
+    # 80,000 samples at x100: messages of the size the pace picks (max_batches_per_s a
+    # second at most), a whole multiple of 1000 samples and larger than it
+    size = PacedSource.paced_batch(daq.config, RATE_HZ, 1000, 100.0)
+    assert size > 1000 and size % 1000 == 0
+    assert daq.batches_published == -(-hit.force_n.size // size)
 
 
 def test_file_backend_without_a_file_says_so(ros_graph):
