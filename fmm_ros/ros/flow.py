@@ -376,13 +376,10 @@ SOURCE_PARAMS = (
 )
 
 # The sources that make their own batches (hammer_sim, the daq's file source): how many
-# messages a second a topic may carry before batches grow with the pace. The five-node graph
-# carries about 80-90 messages a second a topic on idle cores and 60 on busy ones, whatever
-# their size (stress_rig: asked x50 at 100 a second it kept x45 idle, x30 busy), so the cap
-# sits well below that.
+# messages a second a topic may carry before batches grow with the pace.
 MAX_BATCHES_PARAM = Param(
     'max_batches_per_s',
-    40.0,
+    100.0,
     'Messages a second per topic at most [1/s]: at a faster pace a message carries a whole '
     'multiple of batch_size (rclpy costs per message; within the flow window); 0: always '
     'batch_size',
