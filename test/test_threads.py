@@ -6,6 +6,7 @@ import threading
 import time
 
 import numpy as np
+import pytest
 
 from fmm_ros.core import _threads
 from fmm_ros.core.physics.model import simulate
@@ -65,3 +66,17 @@ def test_a_forked_child_gets_pools_of_its_own():
     with os.fdopen(read) as pipe:
         assert pipe.read() == '[1, 2]'
     os.waitpid(child, 0)
+
+
+def test_an_error_is_raised_once_every_call_has_finished():
+    finished = []
+
+    def call(k: int) -> None:
+        if k == 0:
+            raise ValueError('the first call fails at once')
+        time.sleep(0.1)
+        finished.append(k)
+
+    with pytest.raises(ValueError, match='fails at once'):
+        _threads.thread_map(call, range(3), threads=2)
+    assert sorted(finished) == [1, 2]

@@ -8,7 +8,7 @@ computed alone and returned in order: the numbers are the same whatever the thre
 import os
 import threading
 from collections.abc import Callable, Iterable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, wait
 from typing import TypeVar
 
 MAX_THREADS = 4
@@ -52,10 +52,14 @@ def thread_map(
     """[function(item) for item in items], the calls shared out between threads.
 
     threads: default `available_threads()`. Serial with one thread, one item, or when called
-    from a pool's worker (a worker waiting on its own pool could wait for ever).
+    from a pool's worker (a worker waiting on its own pool could wait for ever). Every call
+    has finished before a call's error is raised (the first in order): none still writes into
+    what the caller reuses after catching it.
     """
     items = list(items)
     threads = available_threads() if threads is None else threads
     if threads <= 1 or len(items) < 2 or in_worker():
         return [function(item) for item in items]
-    return list(pool(threads).map(function, items))
+    futures = [pool(threads).submit(function, item) for item in items]
+    wait(futures)
+    return [future.result() for future in futures]

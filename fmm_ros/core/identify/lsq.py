@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fmm_ros.core._threads import in_worker, pool, thread_map
+from fmm_ros.core._threads import thread_map
 from fmm_ros.errors import BadInputError
 
 
@@ -73,23 +73,13 @@ def _run_blocks(
 ) -> None:
     """Run fun over some blocks, shared out between threads (each a share of the blocks).
 
-    The caller's thread runs the first share; an Infeasible from any share is raised here,
-    after every share has finished (no thread still writes into outs).
+    An Infeasible from any share is raised here, after every share has finished (no thread
+    still writes into outs: `thread_map`).
     """
-    if threads <= 1 or len(which) < 2 or in_worker():
-        fun(x, which, outs)
-        return
-    shares = min(threads, len(which))
-    futures = [
-        pool(threads).submit(fun, x, which[i::shares], outs[i::shares]) for i in range(1, shares)
-    ]
-    try:
-        fun(x, which[0::shares], outs[0::shares])
-    finally:
-        errors = [future.exception() for future in futures]
-    for error in errors:
-        if error is not None:
-            raise error
+    shares = max(1, min(threads, len(which)))
+    thread_map(
+        lambda share: fun(x, which[share::shares], outs[share::shares]), range(shares), threads
+    )
 
 
 @dataclass(frozen=True)
