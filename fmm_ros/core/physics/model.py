@@ -34,6 +34,7 @@ import scipy.linalg
 from fmm_ros.constants import PAPER_MU
 from fmm_ros.core._checks import (
     finite_samples,
+    one_dimensional_samples,
     require_finite,
     require_positive,
 )
@@ -229,12 +230,18 @@ class OscillatorStream:
         overwritten) by the next call: copy them to keep them. A bad batch raises ValueError
         before the state changes.
         """
-        return self._step_checked(_checked_force(force_n), out)
+        return self._step_samples(_checked_force(force_n), out)
 
-    def _step_checked(
+    def _step_samples(
         self, force: np.ndarray, out: tuple[np.ndarray, np.ndarray] | None
     ) -> tuple[np.ndarray, np.ndarray]:
-        """`step` for a force already checked (`_checked_force`): a record is checked once."""
+        """`step` for contiguous float64 samples (`_samples`), checked as the kernel reads them.
+
+        The kernel flags a non-finite or huge sample; only then is the batch checked in full
+        (`_checked_force`, whose error names the sample), before the second mode and the delay
+        line change. `simulate`'s record is thus read once, not once more to be checked; `step`
+        checks first all the same, since a stream must not change on a bad batch.
+        """
         n = force.size
         if out is None:
             if self._buffers[0].size < n:
@@ -258,7 +265,8 @@ class OscillatorStream:
             return displacement, velocity
         force_before = self._state[kernels.STATE_FORCE]
         first_call = self.samples_done == 0
-        self._advance(force, displacement, velocity, self._state, self._params)
+        if self._advance(force, displacement, velocity, self._state, self._params):
+            _checked_force(force)
         if self._mode is not None:
             kernels.add_linear_mode(
                 force, force_before, first_call, displacement, velocity, self._mode
@@ -288,10 +296,11 @@ def simulate(
 
     `effects` are model terms (`model_term(name, ...)`; one term alone is accepted too).
     `out` may pass two float64 arrays of the record's length to fill (no allocation: the
-    fitter's hot loop). Raises ValueError on bad input (non-finite force, bad rig constants,
-    negative mu, a sample rate too coarse for the natural frequency).
+    fitter's hot loop; its content is undefined if the force is refused). Raises ValueError on
+    bad input (non-finite force, bad rig constants, negative mu, a sample rate too coarse for
+    the natural frequency).
     """
-    force = _checked_force(force_n)
+    force = _samples(force_n)
     stream = OscillatorStream(
         sample_rate_hz,
         rig=rig,
@@ -303,7 +312,7 @@ def simulate(
     )
     if out is None:
         out = tuple(_output_block(force.size))
-    displacement, velocity = stream._step_checked(force, out)
+    displacement, velocity = stream._step_samples(force, out)
     return Simulation(
         displacement, velocity, stream.sample_rate_hz, stream.rest_position_m, stream.rest_time_s
     )
@@ -376,3 +385,8 @@ def _output_block(n: int) -> np.ndarray:
 
 def _checked_force(force_n: np.ndarray) -> np.ndarray:
     return finite_samples('force_n', force_n, overflow='integrate')
+
+
+def _samples(force_n: np.ndarray) -> np.ndarray:
+    """The force as contiguous one-dimensional float64 samples, not yet checked to be finite."""
+    return one_dimensional_samples('force_n', force_n)
