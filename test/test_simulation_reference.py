@@ -191,3 +191,15 @@ def test_a_force_too_large_to_sum_is_refused_but_one_large_sample_is_not():
     force = np.zeros(330)
     force[100] = 1e306  # beyond the kernel's quick test, yet its sum is finite: simulated
     assert simulate(force, RATE_HZ).velocity_m_s.size == 330
+
+
+def test_streams_of_one_model_share_a_read_only_plan_and_every_refusal_stays():
+    """The checked constants are built once per model and rate (a fitter builds many streams)."""
+    first, second = OscillatorStream(RATE_HZ, mu=1), OscillatorStream(RATE_HZ, mu=1)
+    assert first._params is second._params and not first._params.flags.writeable
+    with pytest.raises(ValueError, match='mu must be a number, got True'):
+        OscillatorStream(RATE_HZ, mu=True)  # equal to the cached 1, yet refused
+    with pytest.raises(ValueError, match='effects must be model terms'):
+        OscillatorStream(RATE_HZ, effects=[['second_mode']])  # unhashable: refused uncached
+    listed = OscillatorStream(RATE_HZ, effects=[model_term('second_mode')])
+    assert listed._mode is not None

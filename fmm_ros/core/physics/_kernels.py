@@ -61,6 +61,9 @@ MODE_SIZE = 10
 # Samples a stretch at rest is tested in at once (without a branch per sample).
 REST_BLOCK = 64
 
+# Velocity samples zeroed ahead for each sliding step (`oscillator_exact`).
+ZERO_AHEAD = 16
+
 # Samples of a delayed signal computed at once (their sources copied to a buffer first).
 DELAY_CHUNK = 1024
 
@@ -358,7 +361,7 @@ def _rest_end(force, i, spring, band_neg, band_pos):
     rig rests for most of a record, so this scan is most of a simulation's reading: whole
     blocks are tested without a branch per sample (the loop vectorizes); the block with a
     sample leaving the band is redone sample by sample up to that sample. The stretch is
-    written afterwards in one pass (`_fill_rest`): testing and writing in one loop was slower.
+    written afterwards, in one pass: testing and writing in one loop was slower.
     Every sample inside passes the sample-by-sample rule's test, so it gets what that rule
     gives it.
     """
@@ -379,13 +382,6 @@ def _rest_end(force, i, spring, band_neg, band_pos):
             break
         stop += 1
     return stop
-
-
-@njit(cache=True)
-def _fill_rest(start, stop, x, x_out, v_out):
-    """Write a stretch at rest, samples start to stop: the fixed position, and zero velocity."""
-    x_out[start:stop] = x
-    v_out[start:stop] = 0.0
 
 
 @njit(cache=True)
@@ -423,6 +419,7 @@ def oscillator_exact(force, x_out, v_out, state, p):
     ga0, ga1 = p[GAMMA_U0], p[GAMMA_U0 + 1]
     gb0, gb1 = p[GAMMA_DU], p[GAMMA_DU + 1]
     i = first
+    zeroed = first  # v_out[i:zeroed] is zero already: written ahead while sliding
     while i < n:
         f1 = force[i]
         suspect |= not abs(f1) <= limit
@@ -431,7 +428,8 @@ def oscillator_exact(force, x_out, v_out, state, p):
             g = f1 - spring
             if band_neg <= g <= band_pos:  # stays at rest: the net force is linear in time
                 stop = _rest_end(force, i, spring, band_neg, band_pos)
-                _fill_rest(i, stop, x, x_out, v_out)
+                x_out[i:stop] = x
+                v_out[max(i, zeroed) : stop] = 0.0
                 suspect |= not abs(spring) + band_size <= 0.5 * limit
                 f0 = force[stop - 1]
                 i = stop
@@ -441,6 +439,7 @@ def oscillator_exact(force, x_out, v_out, state, p):
             # whose interval holds a reversal or a stop (left to `_interval` below).
             sigma = float(mode)
             friction = sigma * (p[FRICTION_POS] if mode > 0 else p[FRICTION_NEG])
+            zeroed = max(zeroed, i + 1)
             while True:
                 u0 = f0 - friction
                 du = f1 - f0
@@ -456,6 +455,14 @@ def oscillator_exact(force, x_out, v_out, state, p):
                 v = v1
                 x_out[i] = x
                 v_out[i] = v
+                # The step waits on the previous one's result (a chain of dependent multiplies
+                # and adds): meanwhile the store units zero the velocity of samples ahead, the
+                # rest that most likely follows the motion.
+                if zeroed + ZERO_AHEAD <= n:
+                    ahead = v_out[zeroed:]
+                    for t in range(ZERO_AHEAD):
+                        ahead[t] = 0.0
+                    zeroed += ZERO_AHEAD
                 f0 = f1
                 i += 1
                 if i == n:

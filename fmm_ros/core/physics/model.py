@@ -25,7 +25,7 @@ Integrators:
 
 import functools
 import math
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -99,6 +99,72 @@ def _kernel_params(rig: Rig, spec: ModelSpec, step_s: float, integrator: str) ->
 
 
 @dataclass(frozen=True)
+class _Plan:
+    """What every stream of one model at one sample rate is built from."""
+
+    sample_rate_hz: float
+    params: np.ndarray
+    """The kernels' constants (`_kernel_params`), read-only: streams and threads share them."""
+    advance: Callable[..., bool]
+    """The oscillator kernel of the integrator."""
+    mode_step: np.ndarray | None
+    """The second mode's exact step (the MODE_PHI slots on), None without a second mode."""
+    delay: bool
+    delay_whole: int
+    delay_fraction: float
+    offset: float
+
+
+def _plan(
+    sample_rate_hz: float, rig: Rig, mu: float, effects: tuple[ModelTerm, ...], integrator: str
+) -> _Plan:
+    """Check a model at a checked sample rate and integrator, and build its `_Plan`.
+
+    Raises ValueError naming a bad input (mu, a term, a rate too coarse for the model).
+    """
+    spec = model_spec(rig, mu, effects)
+    needed_hz = MIN_SAMPLES_PER_PERIOD * rig.natural_frequency_hz
+    if sample_rate_hz < needed_hz:
+        raise BadInputError(
+            f'time step too coarse: sample_rate_hz {sample_rate_hz:g} gives fewer than '
+            f'{MIN_SAMPLES_PER_PERIOD} samples per period of the {rig.natural_frequency_hz:.4g}'
+            f' Hz natural frequency (need >= {needed_hz:.4g} Hz)'
+        )
+    sample_rate_hz = float(sample_rate_hz)
+    step_s = 1.0 / sample_rate_hz
+    params = _kernel_params(rig, spec, step_s, integrator)
+    params.flags.writeable = False
+    mode_step = None
+    if spec.second_mode is not None:
+        if spec.second_mode.frequency_hz >= 0.5 * sample_rate_hz:
+            raise BadInputError(
+                f'time step too coarse: second_mode.frequency_hz '
+                f'{spec.second_mode.frequency_hz:g} is at or above the Nyquist frequency '
+                f'{0.5 * sample_rate_hz:g} Hz'
+            )
+        mode_step = _foh_step(*spec.second_mode.constants(), step_s)
+    delay_samples = spec.delay_s * sample_rate_hz
+    if abs(delay_samples - round(delay_samples)) < 1e-9:
+        delay_samples = round(delay_samples)  # 3e-4 s at 10 kHz is 3 samples, not 2.999...
+    whole = int(math.floor(delay_samples))
+    return _Plan(
+        sample_rate_hz,
+        params,
+        kernels.oscillator_euler if integrator == 'euler' else kernels.oscillator_exact,
+        mode_step,
+        spec.delay_s > 0.0,
+        whole,
+        delay_samples - whole,
+        spec.velocity_offset_m_s,
+    )
+
+
+# A fitter or a campaign builds a stream per record and trial of the same few models. Typed:
+# a bool is refused where the equal int is accepted, so the two must not share an entry.
+_cached_plan = functools.lru_cache(maxsize=256, typed=True)(_plan)
+
+
+@dataclass(frozen=True)
 class Simulation:
     """A simulated record on the sample grid (sample 0 is the initial condition)."""
 
@@ -162,46 +228,28 @@ class OscillatorStream:
         require_finite('x0_m', x0_m)
         require_finite('v0_m_s', v0_m_s)
         effects = (effects,) if isinstance(effects, ModelTerm) else tuple(effects)
-        spec = model_spec(rig, mu, effects)
-        needed_hz = MIN_SAMPLES_PER_PERIOD * rig.natural_frequency_hz
-        if sample_rate_hz < needed_hz:
-            raise BadInputError(
-                f'time step too coarse: sample_rate_hz {sample_rate_hz:g} gives fewer than '
-                f'{MIN_SAMPLES_PER_PERIOD} samples per period of the {rig.natural_frequency_hz:.4g}'
-                f' Hz natural frequency (need >= {needed_hz:.4g} Hz)'
-            )
-        self.sample_rate_hz = float(sample_rate_hz)
+        try:
+            plan = _cached_plan(sample_rate_hz, rig, mu, effects, integrator)
+        except TypeError:  # an unhashable argument: built, and refused, without the cache
+            plan = _plan(sample_rate_hz, rig, mu, effects, integrator)
+        self.sample_rate_hz = plan.sample_rate_hz
         self.rig = rig
         self.mu = float(mu)
         self.effects = effects
         self.integrator = integrator
-        step_s = 1.0 / self.sample_rate_hz
-        self._params = _kernel_params(rig, spec, step_s, integrator)
-        self._advance = (
-            kernels.oscillator_euler if integrator == 'euler' else kernels.oscillator_exact
-        )
+        self._params = plan.params
+        self._advance = plan.advance
         self._state = np.zeros(kernels.STATE_SIZE)
         self._state[kernels.STATE_X] = x0_m
         self._state[kernels.STATE_V] = v0_m_s
         self._mode = None
-        if spec.second_mode is not None:
-            if spec.second_mode.frequency_hz >= 0.5 * self.sample_rate_hz:
-                raise BadInputError(
-                    f'time step too coarse: second_mode.frequency_hz '
-                    f'{spec.second_mode.frequency_hz:g} is at or above the Nyquist frequency '
-                    f'{0.5 * self.sample_rate_hz:g} Hz'
-                )
+        if plan.mode_step is not None:
             self._mode = np.zeros(kernels.MODE_SIZE)
-            self._mode[kernels.MODE_PHI :] = _foh_step(*spec.second_mode.constants(), step_s)
-        delay_samples = spec.delay_s * self.sample_rate_hz
-        if abs(delay_samples - round(delay_samples)) < 1e-9:
-            delay_samples = round(delay_samples)  # 3e-4 s at 10 kHz is 3 samples, not 2.999...
-        self._delay_whole = int(math.floor(delay_samples))
-        self._delay_fraction = delay_samples - self._delay_whole
-        self._delay_line = (
-            np.full(self._delay_whole + 1, float(v0_m_s)) if spec.delay_s > 0.0 else None
-        )
-        self._offset = spec.velocity_offset_m_s
+            self._mode[kernels.MODE_PHI :] = plan.mode_step
+        self._delay_whole = plan.delay_whole
+        self._delay_fraction = plan.delay_fraction
+        self._delay_line = np.full(plan.delay_whole + 1, float(v0_m_s)) if plan.delay else None
+        self._offset = plan.offset
         self._buffers = (np.empty(0), np.empty(0))
 
     @property
