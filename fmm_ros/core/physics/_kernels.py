@@ -534,12 +534,29 @@ def _store(state, x, v, mode, rest_time, force_last, index):
 
 
 @njit(cache=True, nogil=True)
-def add_linear_mode(force, force_before, first_call, x_out, v_out, mode):
+def add_linear_mode(
+    force, force_before, first_call, x_out, v_out, mode, history, whole, fraction, offset
+):
     """Add a decoupled linear mode driven by the same force (exact first-order-hold steps).
 
     `force_before` is the sample preceding force[0]; on the first call sample 0 is the
-    mode's initial state instead.
+    mode's initial state instead. The vibrometer's terms follow in the same pass: with a
+    `history` (see `delay_in_place`; an empty one for no delay) the summed velocity is then
+    delayed, and a non-zero `offset` [m/s] added. The mode's step waits on the previous
+    one's result (a chain of dependent multiplies and adds), and the delay's loads and stores
+    fit in the wait; the summed velocities of the last whole + 2 samples are kept in a ring.
+    Each sample gets the very operations of the separate passes, in their order.
     """
+    n = force.shape[0]
+    size = history.shape[0]
+    delayed = size > 0
+    keep = 1.0 - fraction
+    ring_size = 1
+    while ring_size < size + 1:
+        ring_size *= 2
+    mask = ring_size - 1
+    ring = np.empty(ring_size)  # summed velocity of sample j at ring[(j + size) & mask]
+    ring[:size] = history
     x = mode[MODE_X]
     v = mode[MODE_V]
     phi0, phi1 = mode[MODE_PHI], mode[MODE_PHI + 1]
@@ -547,22 +564,27 @@ def add_linear_mode(force, force_before, first_call, x_out, v_out, mode):
     ga0, ga1 = mode[MODE_GAMMA_U0], mode[MODE_GAMMA_U0 + 1]
     gb0, gb1 = mode[MODE_GAMMA_DU], mode[MODE_GAMMA_DU + 1]
     f0 = force_before
-    first = 0
-    if first_call and force.shape[0] > 0:
-        x_out[0] += x
-        v_out[0] += v
-        f0 = force[0]
-        first = 1
-    for i in range(first, force.shape[0]):
-        f1 = force[i]
-        du = f1 - f0
-        x, v = (
-            phi0 * x + phi1 * v + ga0 * f0 + gb0 * du,
-            phi2 * x + phi3 * v + ga1 * f0 + gb1 * du,
-        )
+    for i in range(n):
+        if i == 0 and first_call:
+            f0 = force[0]
+        else:
+            f1 = force[i]
+            du = f1 - f0
+            x, v = (
+                phi0 * x + phi1 * v + ga0 * f0 + gb0 * du,
+                phi2 * x + phi3 * v + ga1 * f0 + gb1 * du,
+            )
+            f0 = f1
         x_out[i] += x
-        v_out[i] += v
-        f0 = f1
+        summed = v_out[i] + v
+        if delayed:
+            ring[(i + size) & mask] = summed
+            summed = keep * ring[(i + 1) & mask] + fraction * ring[i & mask]
+        if offset != 0.0:
+            summed += offset
+        v_out[i] = summed
+    for j in range(size):
+        history[j] = ring[(n + j) & mask]
     mode[MODE_X] = x
     mode[MODE_V] = v
 

@@ -159,6 +159,9 @@ def _plan(
     )
 
 
+_NO_DELAY = np.empty(0)
+"""The delay line `add_linear_mode` is given for no delay (it holds nothing, so is shared)."""
+
 # A fitter or a campaign builds a stream per record and trial of the same few models. Typed:
 # a bool is refused where the equal int is accepted, so the two must not share an entry.
 _cached_plan = functools.lru_cache(maxsize=256, typed=True)(_plan)
@@ -315,10 +318,20 @@ class OscillatorStream:
         first_call = self.samples_done == 0
         if self._advance(force, displacement, velocity, self._state, self._params):
             _checked_force(force)
-        if self._mode is not None:
+        if self._mode is not None:  # the delay and the offset in the mode's pass
             kernels.add_linear_mode(
-                force, force_before, first_call, displacement, velocity, self._mode
+                force,
+                force_before,
+                first_call,
+                displacement,
+                velocity,
+                self._mode,
+                _NO_DELAY if self._delay_line is None else self._delay_line,
+                self._delay_whole,
+                self._delay_fraction,
+                self._offset,
             )
+            return displacement, velocity
         if self._delay_line is not None:
             kernels.delay_in_place(
                 velocity, self._delay_line, self._delay_whole, self._delay_fraction
