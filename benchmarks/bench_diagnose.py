@@ -18,17 +18,17 @@ three laws outside the vocabulary.
 
 The `test/heldout` worlds (H of each kind): `events` (event-located DOP853, half-sine and
 Hertzian hits with sub-sample onsets, white noise, a Butterworth chain with a 0.22 N force
-offset), `steps` (fixed-step RK4, Hertzian and two-exponential hits, white plus coloured
-noise, a Bessel chain, 60 Hz hum, random-walk drift; a tuning world since the calibration of
+offset), `steps` (fixed-step RK4, Hertzian and two-exponential hits, white plus coloured noise,
+a Bessel chain, 60 Hz hum, random-walk drift; a tuning world since the calibration of
 'unexplained' was designed against it), `ivp` (LSODA phases of a stick-slip state machine,
-haversine and gamma pulses, a sigma-delta FIR, white plus pink noise; a tuning world since
-the further refits were built after a miss on it) and `analytic` (closed-form slides and Radau, rubber-tip pulses with a rebound, 10, 10.24 or 12.8 kHz a
-session, a Chebyshev chain, 1/f^alpha noise, hits from rest in the friction band with fitted
-starts; its table also counts right answers per sample rate): each of the seven
-effects alone, a pair, mu drifting 4-7 % a hit over three hits, a wear track (answer
-'unexplained'), clean sessions; and continuous sessions whose starts the diagnosis chains
-(`asymmetric_chained`, `none_chained`: each hit from where the one before left the rig, the
-first from the centre). Their roles are `heldout.ROLES`.
+haversine and gamma pulses, a sigma-delta FIR, white plus pink noise; a tuning world since the
+further refits were built after a miss on it) and `analytic` (closed-form slides and Radau,
+rubber-tip pulses with a rebound, 10, 10.24 or 12.8 kHz a session, a Chebyshev chain, 1/f^alpha
+noise, hits from rest in the friction band with fitted starts; its table also counts right
+answers per sample rate): each of the seven effects alone, a pair, mu drifting 4-7 % a hit over
+three hits, a wear track (answer 'unexplained'), clean sessions; and continuous sessions whose
+starts the diagnosis chains (`asymmetric_chained`, `none_chained`: each hit from where the one
+before left the rig, the first from the centre). Their roles are `heldout.ROLES`.
 Issue 24's targets, on held-out worlds: single effects >= 15 of 16 per world, pairs >= 5 of
 6, false alarms <= 5 %, drift >= 90 %, the gap at least halved whenever an effect is named.
 
