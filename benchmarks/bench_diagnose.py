@@ -444,6 +444,12 @@ def main() -> None:
         help='which worlds to sweep (each role writes its own section)',
     )
     args = parser.parse_args()
+    unknown = sorted(set(args.worlds) - {source.name for source in SOURCES})
+    if unknown:
+        parser.error(
+            f'unknown world(s) {", ".join(unknown)}; known: '
+            + ', '.join(source.name for source in SOURCES)
+        )
     counts = {'ours': args.cases, 'worlds': args.world_cases}
     for role in ('tuning', HELD_OUT) if args.role == 'all' else (args.role.replace('-', ' '),):
         sweeps = []
