@@ -84,7 +84,10 @@ def _kernel_params(rig: Rig, spec: ModelSpec, step_s: float, integrator: str) ->
     p[kernels.STATIC_EXCESS] = spec.mu_static_excess * rig.normal_force_n
     p[kernels.STRIBECK_V] = spec.stribeck_velocity_m_s
     p[kernels.STEP] = step_s
-    p[kernels.NONLINEAR] = float(spec.nonlinear or integrator == 'rk4')
+    if integrator == 'rk4' or spec.cubic_stiffness_n_per_m3 != 0.0:
+        p[kernels.NONLINEAR] = 1.0
+    elif spec.mu_static_excess != 0.0:
+        p[kernels.NONLINEAR] = 2.0  # a Stribeck contact alone: RK4 only nearer rest
     # Fastest rate the RK4 segments must resolve: the mode itself, and the steepest slope of
     # the Stribeck curve, dmu N max|d exp(-(v/vs)^2)/dv| / m = 0.858 dmu N / (vs m).
     rate = max(
