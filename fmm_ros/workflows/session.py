@@ -205,12 +205,14 @@ def analyse(
     *,
     decisions: Mapping[int, Decision] | None = None,
     progress: Progress | None = None,
+    threads: int | None = None,
 ) -> Summary:
     """The signal core's verdict on every record, impact i being record i.
 
     decisions (by record position) decide which hits the level averages take (`summarize`).
-    The records are analysed side by side in threads (`thread_imap`; each alone, so the
-    same results whatever the count), as a replay analyses them.
+    The records are analysed side by side in threads, as a replay analyses them (`threads`,
+    default the cores there are: `thread_imap`); each alone, so the results are the same
+    whatever the count.
     """
     analysis = analysis or AnalysisConfig()
 
@@ -223,7 +225,7 @@ def analyse(
     def analysed(item: tuple[int, ImpactRecord]) -> ImpactAnalysis:
         return analyze_impact(item[1], capture, analysis, impact_id=item[0])
 
-    return summarize(list(thread_imap(analysed, numbered())), analysis, decisions)
+    return summarize(list(thread_imap(analysed, numbered(), threads)), analysis, decisions)
 
 
 def select_records(
