@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
+from damaged_records import session
 from heldout.cases import CHAINED, case
 from heldout.ivp import IVP
 from heldout.lab import EVENTS
@@ -38,6 +39,7 @@ from fmm_ros.core.signal.analysis import ImpactSelection
 from fmm_ros.core.signal.records import write_impact_csv
 from fmm_ros.errors import BadInputError
 from fmm_ros.sim.excitation import half_sine_pulse
+from fmm_ros.workflows.session import FitOptions, SessionOptions, process_records
 
 RATE_HZ = 10_000.0
 MU = 0.12
@@ -163,6 +165,28 @@ def test_a_chain_refuses_a_session_with_a_hit_left_out():
     assert whole.chain_refusal == ''
     gapped = ImpactSelection(chosen=(0, 2), excluded=((1, ('clipped',), 'hit 1'),))
     assert 'every hit of the session' in gapped.chain_refusal
+    assert whole.chained(True) and not gapped.chained(False)
+    with pytest.raises(BadInputError, match='every hit of the session'):
+        gapped.chained(True)
+
+
+@pytest.mark.slow
+def test_every_boundary_refuses_a_chain_with_a_flagged_hit_left_out(tmp_path, capsys):
+    """The CLI and the session workflow (campaigns, report) refuse it, naming the gap."""
+    hits, _ = session('clipped', seed=3, damaged=(1,))
+    paths = []
+    for index, hit in enumerate(hits):
+        paths.append(str(tmp_path / f'hit{index}.csv'))
+        write_impact_csv(paths[-1], hit.record.force_n, hit.record.velocity_m_s, RATE_HZ)
+    assert main(['fit', *paths, '--json', '--chain-starts']) == 2  # bad input, said on stderr
+    assert 'every hit of the session' in capsys.readouterr().err
+    assert main(['fit', *paths, '--json']) == 0  # fitted starts take the two whole hits
+    capsys.readouterr()
+    options = SessionOptions(model=FitOptions(chain_starts=True), diagnose=True)
+    result = process_records([hit.record for hit in hits], options)
+    assert result.friction is None and result.diagnosis is None
+    assert 'every hit of the session' in result.fit_failure
+    assert 'every hit of the session' in result.diagnosis_failure
 
 
 @pytest.mark.slow

@@ -42,7 +42,6 @@ def fit_and_report(
     from fmm_ros.core.identify.conditioning import FitError
     from fmm_ros.core.signal.analysis import SelectionError
     from fmm_ros.core.signal.capture import CaptureConfig
-    from fmm_ros.errors import BadInputError
     from fmm_ros.workflows.inputs import read_inputs
     from fmm_ros.workflows.results import selection_dict
     from fmm_ros.workflows.session import select_records
@@ -63,8 +62,8 @@ def fit_and_report(
                     decisions=read.decisions,
                     progress=progress,
                 )
-            if selection and getattr(args, 'chain_starts', False) and selection.chain_refusal:
-                raise BadInputError(selection.chain_refusal)
+            if selection:
+                selection.chained(getattr(args, 'chain_starts', False))
             ids = selection.chosen if selection else tuple(range(len(records)))
             result = fit(records, ids, progress)
         except (FitError, SelectionError) as failure:

@@ -79,14 +79,24 @@ def deliver_last_batches(publishers: Sequence[Publisher]) -> None:
 class ProgressReporter:
     """A consumer's side: reports, per SampleBatch topic it takes, the next index it expects."""
 
-    def __init__(self, node: Node, topics: Sequence[str], *, announce: bool = True) -> None:
+    def __init__(
+        self,
+        node: Node,
+        topics: Sequence[str],
+        *,
+        announce: bool = True,
+        max_skew_s: float = 0.0,
+    ) -> None:
         """Report progress on topics (the resolved names of the node's subscriptions).
 
         announce=False: report only after `announce()` (a relay first waits for its own
-        consumers).
+        consumers). max_skew_s: how far its channels may part before it counts samples
+        missing (its `StreamRules.max_skew_s`; 0 when it pairs none), which caps the
+        sources' flow window (`PacedSource.window_now`).
         """
         self._node = node
         self._name = node.get_fully_qualified_name()
+        self._max_skew_s = float(max_skew_s)
         self._next = dict.fromkeys(topics, -1)
         self._reported: dict[str, int] = {}
         self._publisher = node.create_publisher(StreamProgress, STREAM_PROGRESS_TOPIC, PROGRESS_QOS)
@@ -152,6 +162,7 @@ class ProgressReporter:
         message.node = self._name
         message.topics = list(self._next)
         message.next_sample_indices = list(self._next.values())
+        message.max_skew_s = self._max_skew_s
         self._publisher.publish(message)
         self._reported = dict(self._next)
         self._last_report = time.monotonic()
@@ -185,6 +196,7 @@ class FlowGate:
         self._progress: dict[str, dict[str, int]] = {}
         self._seen: dict[str, float] = {}
         self._heard: dict[str, float] = {}  # when each last reported
+        self._skews: dict[str, float] = {}  # each consumer's max_skew_s (0: none)
         self._silent: dict[str, bool] = {}  # consumers not waited for while silent
         self._graph_checked = 0.0
         self.first_index = 0  # where the source's current acquisition began
@@ -208,6 +220,7 @@ class FlowGate:
         }
         if mine:
             self._progress[message.node] = mine
+            self._skews[message.node] = message.max_skew_s
             self._seen[message.node] = self._heard[message.node] = time.monotonic()
             if self._silent.pop(message.node, None):
                 self._node.get_logger().warning(
@@ -317,6 +330,18 @@ class FlowGate:
         self.holding_for = slowest if behind > window else ''
         return not self.holding_for
 
+    def tightest_skew(self) -> tuple[float, str]:
+        """The smallest max_skew_s a consumer counting now reported [s], and its name.
+
+        (inf, '') when none pairs channels.
+        """
+        limits = [
+            (self._skews.get(name, 0.0), name)
+            for name in self._progress
+            if self._skews.get(name, 0.0) > 0.0 and not self._silent.get(name)
+        ]
+        return min(limits, default=(math.inf, ''))
+
     def slowest_index(self, topic: str) -> int:
         """The lowest index the consumers of topic expect (published_end without any)."""
         lags = self.lag(topic)
@@ -369,7 +394,8 @@ SOURCE_PARAMS = (
         'flow_window_s',
         4.0,
         'Signal a consumer may lag behind before the source holds back [s] (also capped at '
-        'half the sample QoS depth in batches; keep it under the analyzer max_skew_s)',
+        'half the sample QoS depth in batches, and a batch under the smallest max_skew_s a '
+        'consumer reports)',
         limits=(0.01, 600.0),
         read_only=True,
     ),
@@ -405,11 +431,14 @@ class PacedSource:
         window_samples: int,
         pace_label: str,
         release: Callable[[], None] | None = None,
+        sample_rate_hz: float = 0.0,
     ) -> None:
         """Pace a source's publishers under its config (SOURCE_PARAMS values).
 
         release: the source's own release step (its timer callback), also run when a report
         arrives while the window held it back, so it need not wait for its next tick.
+        sample_rate_hz: its rate, to hold the window under the consumers' max_skew_s
+        (`window_now`); 0 for a source that paces by other means (the player).
         """
         self._node = node
         self._release = release
@@ -422,7 +451,9 @@ class PacedSource:
         )
         self.pacer = BatchPacer(batches_per_s)
         self.window = int(window_samples)
+        self.sample_rate_hz = float(sample_rate_hz)
         self.label = pace_label
+        self._skew_logged: tuple[float, str] = (math.inf, '')
         self._waiting_logged = 0.0
         self._began = time.monotonic()
         self._published_at_start = 0
@@ -475,12 +506,35 @@ class PacedSource:
             self._node.get_logger().info(f'holding the first sample: {self.gate.describe_wait()}')
         return False
 
+    def window_now(self, batch_samples: int) -> int:
+        """The flow window [samples], held a batch under every consumer's max_skew_s.
+
+        A source runs at most the window ahead of the slowest consumer of any of its
+        channels, which is as far as one channel can run ahead of another in a consumer:
+        past that consumer's max_skew_s it counts the lagging channel's samples missing.
+        Measured (issue 28): hammer_sim at x50 with flow_window_s 8 cost the fitter, whose
+        max_skew_s is 5, 180,000 velocity samples declared missing and 36 batches refused.
+        """
+        skew_s, name = self.gate.tightest_skew()
+        if not self.sample_rate_hz or not math.isfinite(skew_s):
+            return self.window
+        cap = max(batch_samples, int(skew_s * self.sample_rate_hz) - batch_samples)
+        if cap < self.window and (skew_s, name) != self._skew_logged:
+            self._skew_logged = (skew_s, name)
+            self._node.get_logger().warning(
+                f'flow window held to {cap / self.sample_rate_hz:g} s of signal, under the '
+                f'max_skew_s {skew_s:g} s of {name} (flow_window_s asks '
+                f'{self.window / self.sample_rate_hz:g} s)'
+            )
+        return min(self.window, cap)
+
     def due(self, batch_samples: int) -> int:
         """How many batches of batch_samples may go now (clock and flow window)."""
         count = 0
+        window = self.window_now(batch_samples)
         for _ in range(self.pacer.due()):
             end = self.gate.published_end + (count + 1) * batch_samples
-            if not self.gate.allows(end, self.window):
+            if not self.gate.allows(end, window):
                 break
             count += 1
         if self.pacer.fell_behind:

@@ -60,7 +60,9 @@ class SampleInputs:
                 callback_group=callback_group,
             )
             self.topics[channel.quantity] = subscription.topic_name
-        self.reporter = ProgressReporter(node, list(self.topics.values()))
+        self.reporter = ProgressReporter(
+            node, list(self.topics.values()), max_skew_s=stream.rules.max_skew_s
+        )
         self.sources = SourceCheck(node, self.topics)
         health.add('stream', lambda: stream_status(stream.ledger, self._rates))
         health.add('sources', self.sources.status)

@@ -332,8 +332,11 @@ def process_records(
         refusal = ''
     except SelectionError as error:  # the result says why there is no fit, naming the hits
         selection, refusal = error.selection, str(error)
-    if options.model.chain_starts and not refusal:
-        refusal = selection.chain_refusal
+    if not refusal:
+        try:
+            selection.chained(options.model.chain_starts)
+        except BadInputError as error:  # the result says why the chain cannot be fitted
+            refusal = str(error)
     if friction is None and not fit_failure and options.mu is None and options.fit:
         try:
             friction = fit_impacts(

@@ -115,6 +115,7 @@ class OutputError:
         self.uncertainty = uncertainty
         self._longest = max(impact.force_n.size for impact in self.impacts)
         self._lanes = threading.local()
+        self._chained = any(impact.follows_previous for impact in self.impacts[1:])
         self.targets: list[np.ndarray] = []
         self.inverse_force: list[np.ndarray] = []
         self.segments: list[slice] = []
@@ -168,13 +169,20 @@ class OutputError:
 
         Unless theta holds the starts, each impact starts where `starts` puts it.
         """
-        try:
-            model = self.build(theta)
-        except ValueError as error:
-            raise Infeasible(str(error)) from None
+        return self._placed(self._built(theta))
+
+    def _placed(self, model: BuiltModel) -> BuiltModel:
+        """The model with its starts: theta's own, or those `starts` gives."""
         if model.initial_positions_m:
             return model
         return replace(model, initial_positions_m=self.starts(model))
+
+    def _built(self, theta: np.ndarray) -> BuiltModel:
+        """The model theta builds, its starts as theta has them (Infeasible if it cannot)."""
+        try:
+            return self.build(theta)
+        except ValueError as error:
+            raise Infeasible(str(error)) from None
 
     def starts(self, model: BuiltModel) -> tuple[float, ...]:
         """Where each impact starts in this model [m].
@@ -199,29 +207,52 @@ class OutputError:
     def __call__(
         self, theta: np.ndarray, blocks: Sequence[int], outs: Sequence[np.ndarray]
     ) -> None:
-        """The residuals of the impacts `blocks` at theta, into outs (a BlockResidualFunction)."""
-        model = self.model(theta)
-        for index, out in zip(blocks, outs, strict=True):
-            self.impact_residual(index, model, out)
+        """The residuals of the impacts `blocks` at theta, into outs (a BlockResidualFunction).
+
+        With chained starts, the impacts up to the last asked for run in order, each once: an
+        asked impact's residual run is also where the next one starts.
+        """
+        model = self._built(theta)
+        if model.initial_positions_m or not self._chained:
+            model = self._placed(model)
+            for index, out in zip(blocks, outs, strict=True):
+                self.impact_residual(index, model, out)
+            return
+        wanted = dict(zip(blocks, outs, strict=True))
+        starts: list[float] = []
+        end = math.nan
+        for index, impact in enumerate(self.impacts[: max(blocks) + 1]):
+            chained = impact.follows_previous and index
+            starts.append(end if chained else impact.start_m)
+            here = replace(model, initial_positions_m=tuple(starts))
+            if index in wanted:
+                end = self.impact_residual(index, here, wanted[index]).end_position_m
+            elif index < max(blocks) and self.impacts[index + 1].follows_previous:
+                end = self.simulate(index, here).end_position_m
 
     def impact_residual(
         self, index: int, model: BuiltModel, out: np.ndarray, force_scale: float = 1.0
-    ) -> None:
-        """One impact's residual segment; force_scale multiplies its force (a sensitivity)."""
+    ) -> Simulation:
+        """One impact's residual segment into out, and its run (valid until the next run).
+
+        force_scale multiplies its force (a sensitivity).
+        """
         impact = self.impacts[index]
         force = self.drive(index, model.impulse_scale(index) * force_scale)
-        velocity = self.simulate(index, model, force).velocity_m_s
+        run = self.simulate(index, model, force)
+        velocity = run.velocity_m_s
         if self.misfit == 'time':
             np.subtract(impact.velocity_m_s, velocity, out=out)
             if not self.judge_hit:
                 _clear_hit_windows(impact, out)
-            return
+            return run
         target = self.targets[index]
         spectrum = scipy.fft.rfft(velocity)[: target.size]
         spectrum *= self.inverse_force[index]
         residual = out.view(complex)
         np.subtract(target, spectrum, out=residual)
         residual /= force_scale  # the measured mobility's denominator scales with the force
+        return run
 
     def drive(self, index: int, scale: float) -> np.ndarray:
         """Impact `index`'s conditioned force times `scale`, in this thread's force buffer.

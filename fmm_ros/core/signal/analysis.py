@@ -411,6 +411,16 @@ class ImpactSelection:
             '(--include-flagged) or do not chain the starts'
         )
 
+    def chained(self, chain_starts: bool) -> bool:
+        """Whether these impacts are fitted with chained starts; BadInputError if they cannot be.
+
+        The one check every boundary (CLI, fitter node, session workflow) makes before a
+        chained fit or diagnosis: `chain_refusal` names what breaks the chain.
+        """
+        if chain_starts and self.chain_refusal:
+            raise BadInputError(self.chain_refusal)
+        return chain_starts
+
     @property
     def note(self) -> str:
         """One line naming what was left out or taken despite its flags ('' when neither)."""

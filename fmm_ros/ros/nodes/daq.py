@@ -331,6 +331,7 @@ class NidaqmxBackend:
             batches_per_s=self.sample_rate_hz / batch,
             window_samples=PacedSource.window_samples(cfg, self.sample_rate_hz, batch),
             pace_label='the hardware clock',
+            sample_rate_hz=self.sample_rate_hz,
         )
         node.health.add('source', lambda: self._source.status(self.sample_rate_hz, 1.0))
         self._daq_error = nidaqmx.errors.DaqError
@@ -396,6 +397,7 @@ class FileBackend:
             window_samples=PacedSource.window_samples(cfg, self.sample_rate_hz, self._batch),
             pace_label=f'x{cfg["rate_factor"]:g} the file rate',
             release=self._on_tick,
+            sample_rate_hz=self.sample_rate_hz,
         )
         node.health.add(
             'source',

@@ -346,14 +346,6 @@ class Fitter(Node):
         selection = select_impacts(held, include_flagged=include_flagged, decisions=decisions)
         return [by_id[i] for i in selection.chosen], selection
 
-    def _chained(self, selection: ImpactSelection) -> bool:
-        """Whether starts are chained (chain_starts); BadInputError if the selection breaks it."""
-        if not self.config['chain_starts']:
-            return False
-        if selection.chain_refusal:
-            raise BadInputError(selection.chain_refusal)
-        return True
-
     def _on_fit(
         self, request: FitFriction.Request, response: FitFriction.Response
     ) -> FitFriction.Response:
@@ -367,7 +359,7 @@ class Fitter(Node):
                 mu_bounds=bounds,
                 misfit=request.misfit or 'time',
                 fit_initial_position=self.config['fit_initial_position'],
-                chain_starts=self._chained(selection),
+                chain_starts=selection.chained(self.config['chain_starts']),
             )
         except FitError as error:
             return _refused(response, f'{error.reason}: {error}')
@@ -392,7 +384,7 @@ class Fitter(Node):
                 [impact.record for impact in impacts],
                 rig=self.rig,
                 fit_initial_position=self.config['fit_initial_position'],
-                chain_starts=self._chained(selection),
+                chain_starts=selection.chained(self.config['chain_starts']),
             )
         except FitError as error:
             return _refused(response, f'{error.reason}: {error}')

@@ -177,6 +177,7 @@ class HammerSim(Node):
             window_samples=PacedSource.window_samples(self.config, rate, batch),
             pace_label=f'x{self.config["rate_factor"]:g} real time',
             release=self._on_tick,
+            sample_rate_hz=rate,
         )
         self._pace(self.config['rate_factor'])
         self.add_post_set_parameters_callback(self._on_parameters)

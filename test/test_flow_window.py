@@ -1,0 +1,77 @@
+"""The flow window held under every consumer's max_skew_s (ros/flow.py, issue 28).
+
+A source runs at most its window ahead of the slowest consumer of any of its channels, and
+that is as far as one channel can run ahead of another inside a consumer. Past the
+consumer's max_skew_s the lagging channel's samples are declared missing: measured on the
+multi-process rig at x50 with flow_window_s 8, the fitter (max_skew_s 5) lost 180,000
+velocity samples and refused 36 batches. So each consumer reports its max_skew_s with its
+progress, and a source holds its window a batch under the smallest.
+"""
+
+import pytest
+from rclpy.node import Node
+from rig_graph import params, wait_for
+
+from fmm_interfaces.msg import SampleBatch, StreamProgress
+from fmm_ros.constants import STREAM_PROGRESS_TOPIC
+from fmm_ros.ros.flow import PacedSource
+from fmm_ros.ros.nodes.analyzer import Analyzer
+from fmm_ros.ros.qos import PROGRESS_LISTEN_QOS, PROGRESS_QOS, SAMPLE_QOS
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+RATE_HZ = 10_000.0
+BATCH = 500
+CONFIG = dict(wait_for_consumers=[''], start_timeout_s=0.0, flow_window_s=8.0)
+
+
+class Reports(Node):
+    """Publishes consumers' progress reports and keeps every report it hears."""
+
+    def __init__(self, **kwargs):
+        super().__init__('reports', **kwargs)
+        self.publisher = self.create_publisher(StreamProgress, STREAM_PROGRESS_TOPIC, PROGRESS_QOS)
+        self.heard: list[StreamProgress] = []
+        self.create_subscription(
+            StreamProgress, STREAM_PROGRESS_TOPIC, self.heard.append, PROGRESS_LISTEN_QOS
+        )
+
+    def report(self, node: str, topic: str, max_skew_s: float) -> None:
+        message = StreamProgress(node=node, topics=[topic], next_sample_indices=[0])
+        message.max_skew_s = max_skew_s
+        self.publisher.publish(message)
+
+
+def test_a_source_holds_its_window_a_batch_under_the_tightest_consumer_skew(ros_graph):
+    source = ros_graph.add(Node, node_name='source')
+    publisher = source.create_publisher(SampleBatch, 'fmm/test_batches', SAMPLE_QOS)
+    reports = ros_graph.add(Reports)
+    ros_graph.start()
+    paced = PacedSource(
+        source,
+        [publisher],
+        CONFIG,
+        batches_per_s=1.0,
+        window_samples=PacedSource.window_samples(CONFIG, RATE_HZ, BATCH),
+        pace_label='test',
+        sample_rate_hz=RATE_HZ,
+    )
+    asked = paced.window
+    assert paced.window_now(BATCH) == asked  # nobody reported
+    for node, skew_s, expected in (
+        ('/recorder', 0.0, asked),  # pairs no channels: no limit
+        ('/fitter', 5.0, min(asked, 50_000 - BATCH)),
+        ('/analyzer', 2.0, 20_000 - BATCH),
+        ('/tiny', 0.01, BATCH),  # never under one batch
+    ):
+        reports.report(node, publisher.topic_name, skew_s)
+        assert wait_for(lambda node=node: node in paced.gate.consumers, 10.0), node
+        assert paced.window_now(BATCH) == expected, node
+
+
+def test_a_consumer_reports_its_own_max_skew(ros_graph):
+    ros_graph.add(Analyzer, parameter_overrides=params(max_skew_s=3.0))
+    reports = ros_graph.add(Reports)
+    ros_graph.start()
+    assert wait_for(lambda: any(m.node == '/analyzer' for m in reports.heard), 10.0)
+    assert {m.max_skew_s for m in reports.heard if m.node == '/analyzer'} == {3.0}
