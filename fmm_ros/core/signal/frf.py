@@ -332,6 +332,12 @@ REVERSAL_MIN_PEAK_SIGMA = 30.0
 times are then good to a few 1e-4 of a period)."""
 
 
+MAX_HALF_PERIOD_RATIO = 2.0
+"""Two neighbouring half cycles of one decay last the same (between reversals the motion is
+the free linear oscillator's): lengths further apart than this factor end a run of
+reversals, as where a hit's decay meets the mains hum of a resting rig."""
+
+
 def natural_frequency(velocity_m_s: np.ndarray, sample_rate_hz: float) -> float:
     """The rig's natural frequency [Hz] from the time between velocity reversals.
 
@@ -346,7 +352,11 @@ def natural_frequency(velocity_m_s: np.ndarray, sample_rate_hz: float) -> float:
     changes with the amplitude: the acceleration jumps by 2 mu N / m there), reversal times
     are interpolated between block means, and the half period is the slope of a line through
     the consecutive reversals of the half cycles that peak above `REVERSAL_MIN_PEAK_SIGMA`
-    noise deviations (the first run of at least three: a stick at a reversal ends a run).
+    noise deviations and last as long as their neighbours (`MAX_HALF_PERIOD_RATIO`), of the
+    runs of at least three the one with the fastest half cycle: a stick at a reversal ends a
+    run, and mains hum far above a quiet vibrometer's noise makes runs of its own while the
+    rig rests (1e-6 m/s of noise under 5e-5 m/s of 50 Hz hum read 49.8 Hz, the hum's
+    reversals and the hit's taken as one run).
     NaN when no three such reversals follow each other (a record that barely moves or never
     reverses).
     """
@@ -367,7 +377,10 @@ def natural_frequency(velocity_m_s: np.ndarray, sample_rate_hz: float) -> float:
     strong = peaks > REVERSAL_MIN_PEAK_SIGMA * noise
     # A reversal counts when the half cycles on both sides of it are strong.
     valid = strong[1:] & strong[:-1]
-    run = _first_run(valid, MIN_REVERSAL_RUN)
+    lengths = np.diff(times)  # of the half cycles between reversals
+    ratio = lengths[1:] / lengths[:-1]
+    valid[:-1] &= (ratio <= MAX_HALF_PERIOD_RATIO) & (ratio >= 1.0 / MAX_HALF_PERIOD_RATIO)
+    run = _strongest_run(valid, peaks, MIN_REVERSAL_RUN)
     if run is None:
         return float('nan')
     kept = times[1:][run[0] : run[1]]
@@ -402,15 +415,19 @@ def median_in_place(values: np.ndarray) -> float:
     return float((values[:middle].max() + (0.0 + upper)) / 2)
 
 
-def _first_run(mask: np.ndarray, length: int = 1) -> tuple[int, int] | None:
-    """[start, stop) of the first run of True at least `length` long in a boolean array, or None.
+def _strongest_run(valid: np.ndarray, peaks: np.ndarray, length: int = 1) -> tuple[int, int] | None:
+    """[start, stop) of the run of valid reversals (at least `length`) with the fastest half.
 
-    A stick inside a decay (the rig held for a moment at a reversal, noise crossing zero
-    there) ends a run of strong reversals; a later run is as good.
+    Its half cycles are peaks[start : stop + 1]; None without such a run. A stick inside a
+    decay (the rig held for a moment at a reversal, noise crossing zero there) ends a run of
+    strong reversals; the hit's own run holds its fastest half cycle.
     """
-    starts, stops = runs(mask)
+    starts, stops = runs(valid)
     long = np.flatnonzero(stops - starts >= length)
-    return None if long.size == 0 else (int(starts[long[0]]), int(stops[long[0]]))
+    if long.size == 0:
+        return None
+    best = max(long, key=lambda k: float(peaks[starts[k] : stops[k] + 1].max()))
+    return int(starts[best]), int(stops[best])
 
 
 def runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
