@@ -1,7 +1,9 @@
 """Per-impact work shared out between threads.
 
 The model runs of a fit or a diagnosis are one impact each, in numba kernels that release the
-GIL (`nogil`), so the impacts of a session run side by side on as many cores. Every result is
+GIL (`nogil`), so the impacts of a session run side by side on as many cores; so do the
+analyses of a replay's or a session's records (DFTs, numpy reductions and kernels that
+release it too), a replay's while its capture goes on (`thread_imap`). Every result is
 computed alone and returned in order: the numbers are the same whatever the thread count.
 """
 
