@@ -2,7 +2,7 @@
 
 Run: .venv/bin/python benchmarks/bench_diagnose.py [--quick] [--cases N] [--world-cases W]
      [--heldout-cases H] [--seed S] [--repeats R] [--session-hits K] [--skip-sweep]
-     [--kinds K,...]
+     [--kinds K,...] [--worlds W,...] [--role all|tuning|held-out]
 
 Four generators of sessions, each with its role declared once in `test/heldout` (`ROLES`):
 tuning worlds, which the diagnosis's thresholds were chosen on, and held-out worlds, never
@@ -18,14 +18,17 @@ three laws outside the vocabulary.
 
 The `test/heldout` worlds (H of each kind): `events` (event-located DOP853, half-sine and
 Hertzian hits with sub-sample onsets, white noise, a Butterworth chain with a 0.22 N force
-offset), `steps` (fixed-step RK4, Hertzian and two-exponential hits, white plus coloured
-noise, a Bessel chain, 60 Hz hum, random-walk drift; a tuning world since the calibration of
-'unexplained' was designed against it) and `ivp` (LSODA phases of a stick-slip state machine,
-haversine and gamma pulses, a sigma-delta FIR, white plus pink noise): each of the seven
-effects alone, a pair, mu drifting 4-7 % a hit over three hits, a wear track (answer
-'unexplained'), clean sessions; and continuous sessions whose starts the diagnosis chains
-(`asymmetric_chained`, `none_chained`: each hit from where the one before left the rig, the
-first from the centre). Their roles are `heldout.ROLES`.
+offset), `steps` (fixed-step RK4, Hertzian and two-exponential hits, white plus coloured noise,
+a Bessel chain, 60 Hz hum, random-walk drift; a tuning world since the calibration of
+'unexplained' was designed against it), `ivp` (LSODA phases of a stick-slip state machine,
+haversine and gamma pulses, a sigma-delta FIR, white plus pink noise; a tuning world since the
+further refits were built after a miss on it) and `analytic` (closed-form slides and Radau,
+rubber-tip pulses with a rebound, 10, 10.24 or 12.8 kHz a session, a Chebyshev chain, 1/f^alpha
+noise, hits from rest in the friction band with fitted starts; its table also counts right
+answers per sample rate): each of the seven effects alone, a pair, mu drifting 4-7 % a hit over
+three hits, a wear track (answer 'unexplained'), clean sessions; and continuous sessions whose
+starts the diagnosis chains (`asymmetric_chained`, `none_chained`: each hit from where the one
+before left the rig, the first from the centre). Their roles are `heldout.ROLES`.
 Issue 24's targets, on held-out worlds: single effects >= 15 of 16 per world, pairs >= 5 of
 6, false alarms <= 5 %, drift >= 90 %, the gap at least halved whenever an effect is named.
 
@@ -36,7 +39,8 @@ Stribeck) and of a 30-hit session with each start fitted, against issue 8's clos
 algorithm (`issue8_diagnose.py`) in the same run, and a 30-hit Stribeck session (<= 5 s).
 A full run writes its sections of RESULTS.md (`results_file`: tuning worlds, held-out worlds
 and time, each replaced only by a run that made it; --role sweeps one role; --kinds sweeps
-only those kinds of every world that makes them, into a section of their own); --quick (one
+only those kinds of every world that makes them, into a section of their own; --worlds
+sweeps only the worlds named, into a section of their own too); --quick (one
 session of a few kinds per world, three-hit timing) writes nothing.
 """
 
@@ -55,6 +59,7 @@ from results_file import QUICK_HELP, write_section
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'test'))
 from heldout import HELD_OUT, ROLES  # noqa: E402
+from heldout.analytic import ANALYTIC  # noqa: E402
 from heldout.cases import KINDS as HELDOUT_KINDS  # noqa: E402
 from heldout.cases import case as heldout_case  # noqa: E402
 from heldout.ivp import IVP  # noqa: E402
@@ -166,6 +171,7 @@ SOURCES = (
     Source('events', HELDOUT_KINDS, draw_held_out(EVENTS)),
     Source('steps', HELDOUT_KINDS, draw_held_out(STEPS)),
     Source('ivp', HELDOUT_KINDS, draw_held_out(IVP)),
+    Source('analytic', HELDOUT_KINDS, draw_held_out(ANALYTIC)),
 )
 
 
@@ -192,6 +198,10 @@ class Sweep:
     not_halved: int = 0
     named_sessions: int = 0
     left: list = field(default_factory=list)
+    rates: dict = field(default_factory=dict)
+    slowest: tuple[float, str] = (0.0, '')
+    """The longest diagnosis [s] and which session it was."""
+    """Sample rate [Hz] -> [right, sessions] (a world recording at more than one)."""
 
     def rate(self, kinds) -> tuple[int, int]:
         """(right, sessions) over some rows."""
@@ -236,9 +246,14 @@ class Sweep:
                 f'{np.median(self.left):.2f}, largest {max(self.left):.2f} noise RMS '
                 f'(unexplained from {MIN_EXCESS})'
             )
+        if len(self.rates) > 1:
+            lines.append(
+                'per sample rate: '
+                + ', '.join(f'{r:g} Hz {n[0]} of {n[1]}' for r, n in sorted(self.rates.items()))
+            )
         lines.append(
             f'diagnosis time per session: median {statistics.median(self.seconds):.2f} s, '
-            f'longest {max(self.seconds):.2f} s'
+            f'longest {self.slowest[0]:.2f} s ({self.slowest[1]})'
         )
         return lines
 
@@ -275,6 +290,7 @@ def sweep(source: Source, cases: int, seed: int, rows: tuple[str, ...] | None = 
             start = time.perf_counter()
             result = diagnose(records, **start_options(starts))
             found.seconds.append(time.perf_counter() - start)
+            found.slowest = max(found.slowest, (found.seconds[-1], f'{kind} case {number}'))
             peak = max(float(np.max(np.abs(r.velocity_m_s))) for r in records)
             found.sizes[kind].append(result.gap_before * peak / result.noise_std_m_s)
             named = result.named_effects
@@ -282,8 +298,11 @@ def sweep(source: Source, cases: int, seed: int, rows: tuple[str, ...] | None = 
             vocabulary = kind not in OUTSIDE and bool(hidden)
             if vocabulary and right(kind, hidden, named):
                 found.left.append(result.residual_where.excess_to_noise)
+            tally = found.rates.setdefault(records[0].sample_rate_hz, [0, 0])
+            tally[1] += 1
             if right(kind, hidden, named):
                 found.exact[kind] += 1
+                tally[0] += 1
             else:
                 drawn = ', '.join(f'{SHORT[e]} {r:.1f}x' for e, r in ratios.items())
                 found.misses.append(
@@ -413,16 +432,29 @@ def main() -> None:
         'a RESULTS.md section of their own',
     )
     parser.add_argument(
+        '--worlds',
+        type=lambda text: tuple(text.split(',')),
+        default=(),
+        help='sweep only these worlds (comma-separated names of heldout.ROLES)',
+    )
+    parser.add_argument(
         '--role',
         choices=('all', 'tuning', 'held-out'),
         default='all',
         help='which worlds to sweep (each role writes its own section)',
     )
     args = parser.parse_args()
+    unknown = sorted(set(args.worlds) - {source.name for source in SOURCES})
+    if unknown:
+        parser.error(
+            f'unknown world(s) {", ".join(unknown)}; known: '
+            + ', '.join(source.name for source in SOURCES)
+        )
     counts = {'ours': args.cases, 'worlds': args.world_cases}
     for role in ('tuning', HELD_OUT) if args.role == 'all' else (args.role.replace('-', ' '),):
         sweeps = []
-        for source in (s for s in SOURCES if s.role == role and not args.skip_sweep):
+        chosen = [s for s in SOURCES if s.role == role and s.name in (args.worlds or ROLES)]
+        for source in chosen if not args.skip_sweep else ():
             cases = 1 if args.quick else counts.get(source.name, args.heldout_cases)
             if not cases:
                 continue
@@ -435,8 +467,11 @@ def main() -> None:
             sweeps.append(sweep(source, cases, args.seed, rows))
         if sweeps:
             kinds = f' ({", ".join(args.kinds)})' if args.kinds else ''
+            worlds = f' [{", ".join(args.worlds)}]' if args.worlds else ''
             write_section(
-                f'bench_diagnose, {role} worlds{kinds}', markdown(sweeps), quick=args.quick
+                f'bench_diagnose, {role} worlds{worlds}{kinds}',
+                markdown(sweeps),
+                quick=args.quick,
             )
     if not args.skip_timing:
         times = timing(

@@ -115,24 +115,29 @@ def test_exact_agrees_with_the_paper_euler_method_at_a_tiny_step():
 
 
 @pytest.mark.slow
+def _stribeck_reference(asymmetric: float, cubic: float = 0.0) -> Oscillator:
+    """The reference solver's rig with the Stribeck contact these tests use (0.03 excess,
+    vs 5 mm/s) and mu PAPER_MU +- asymmetric / 2 by direction."""
+    return Oscillator(
+        FMM_RIG.mass_kg,
+        FMM_RIG.damping_n_s_per_m,
+        FMM_RIG.stiffness_n_per_m,
+        FMM_RIG.normal_force_n,
+        PAPER_MU + asymmetric / 2,
+        PAPER_MU - asymmetric / 2,
+        cubic=cubic,
+        static_excess=0.03,
+        stribeck_velocity=5e-3,
+    )
+
+
 def test_nonlinear_terms_agree_with_an_event_located_ode_solution():
     rate = 2000.0
     stribeck = model_term('stribeck', mu_static_excess=0.03, stribeck_velocity_m_s=5e-3)
     cubic = model_term('cubic_stiffness', cubic_stiffness_n_per_m3=5e6)
     asymmetric = model_term('asymmetric_friction', mu_difference=0.02)
     force = impact(rate_hz=rate, duration_s=4.0)
-    osc = Oscillator(
-        FMM_RIG.mass_kg,
-        FMM_RIG.damping_n_s_per_m,
-        FMM_RIG.stiffness_n_per_m,
-        FMM_RIG.normal_force_n,
-        PAPER_MU + 0.01,
-        PAPER_MU - 0.01,
-        cubic=5e6,
-        static_excess=0.03,
-        stribeck_velocity=5e-3,
-    )
-    ref_x, ref_v = solve(osc, force, rate)
+    ref_x, ref_v = solve(_stribeck_reference(0.02, cubic=5e6), force, rate)
     sim = simulate(force, rate, effects=(stribeck, cubic, asymmetric))
     # RK4 is fourth order, not exact, but its segments resolve the Stribeck curve near zero
     # speed (also when leaving rest, where the friction starts at its static value).
@@ -195,6 +200,26 @@ def test_break_away_is_located_inside_the_sample_interval():
     np.testing.assert_allclose(
         sim.velocity_m_s, ramp / rig.stiffness_n_per_m * (1 - np.cos(w * tau)), rtol=0, atol=1e-13
     )
+
+
+@pytest.mark.parametrize('asymmetric', [0.0, 0.02])
+def test_a_stribeck_contact_alone_slides_exactly_where_its_excess_is_below_rounding(asymmetric):
+    """Without a cubic spring, a Stribeck contact takes the closed form above 6 vs (its excess
+    there is below the rounding of the kinetic friction) and RK4 nearer rest: the event-located
+    ODE solution to 1e-7 of the peak, and the pure RK4 path (integrator='rk4') to RK4's own
+    truncation error (1e-9 of the peak at 2 kHz)."""
+    rate = 2000.0
+    stribeck = model_term('stribeck', mu_static_excess=0.03, stribeck_velocity_m_s=5e-3)
+    effects = (stribeck, model_term('asymmetric_friction', mu_difference=asymmetric))
+    force = impact(rate_hz=rate, duration_s=4.0)
+    ref_x, ref_v = solve(_stribeck_reference(asymmetric), force, rate)
+    sim = simulate(force, rate, effects=effects)
+    peak = np.max(np.abs(ref_v))
+    assert peak > 4 * 6 * 5e-3  # much of the motion is on the closed-form path
+    assert np.max(np.abs(sim.velocity_m_s - ref_v)) <= 1e-7 * peak
+    assert sim.rest_position_m == pytest.approx(ref_x[-1], abs=1e-10)
+    rk4 = simulate(force, rate, effects=effects, integrator='rk4')
+    assert np.max(np.abs(sim.velocity_m_s - rk4.velocity_m_s)) <= 1e-8 * peak
 
 
 def test_stribeck_raises_the_break_away_force_to_static_friction():

@@ -16,6 +16,7 @@ from fmm_ros.errors import BadInputError
 
 __all__ = [
     'finite_samples',
+    'one_dimensional_samples',
     'require_finite',
     'require_non_negative',
     'require_positive',
@@ -107,10 +108,10 @@ def finite_samples(name: str, values: np.ndarray, overflow: str = 'sum') -> np.n
     then are the bad samples located, and the first named. `overflow` says what a sum that
     overflows on finite samples stops (in the message).
     """
-    array = np.ascontiguousarray(values, dtype=np.float64)
-    if array.ndim != 1:
-        raise BadInputError(f'{name} must be one-dimensional, got shape {array.shape}')
-    if not math.isfinite(float(np.add.reduce(array))):
+    array = one_dimensional_samples(name, values)
+    with np.errstate(over='ignore'):  # an overflow is refused below, by name
+        total = float(np.add.reduce(array))
+    if not math.isfinite(total):
         bad = np.flatnonzero(~np.isfinite(array))
         if bad.size:
             raise BadInputError(
@@ -118,4 +119,12 @@ def finite_samples(name: str, values: np.ndarray, overflow: str = 'sum') -> np.n
                 f'({array[bad[0]]}); {bad.size} bad sample(s)'
             )
         raise BadInputError(f'{name} is too large to {overflow} (its sum overflows)')
+    return array
+
+
+def one_dimensional_samples(name: str, values: np.ndarray) -> np.ndarray:
+    """The values as a contiguous one-dimensional float64 array (not checked to be finite)."""
+    array = np.ascontiguousarray(values, dtype=np.float64)
+    if array.ndim != 1:
+        raise BadInputError(f'{name} must be one-dimensional, got shape {array.shape}')
     return array

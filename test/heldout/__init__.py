@@ -16,6 +16,8 @@ then on, and `ROLES` says so.
 
 Modules: `forces` (hits), `plant` (the rig and both integrators), `chain` (the DAQ), `lab`
 (worlds, effects, records, sessions), `ivp` (the third world, sharing only `lab.Effects`),
+`analytic` (the fourth: closed-form and Radau motion, rubber-tip pulses, lab DAQ rates, a
+Chebyshev chain, 1/f^alpha noise, starts in the friction band; sharing only `lab.Effects`),
 `cases` (diagnosis cases by kind).
 """
 
@@ -33,6 +35,9 @@ ROLES: dict[str, str] = {
     # refits further screens (`_Session._further`), built after a large softening spring on
     # it was called unexplained
     'ivp': TUNING,
+    # heldout.analytic.ANALYTIC: written for issue 24 when ivp was about to become a tuning
+    # world; never tuned on (no threshold chosen or changed looking at it)
+    'analytic': HELD_OUT,
     # heldout.lab.ACCELEROMETER: how an integrated acceleration's noise is described to the
     # diagnosis (issue 26) was worked out looking at its sessions
     'accelerometer': TUNING,

@@ -13,6 +13,7 @@ meet them.
 
 import numpy as np
 
+from heldout.analytic import AnalyticWorld, re_centred
 from heldout.ivp import IvpWorld
 from heldout.lab import Effects, World, session
 
@@ -28,10 +29,12 @@ VOCABULARY_KINDS = (
 CHAINED_KINDS = {'asymmetric_chained': 'asymmetric_friction', 'none_chained': 'none'}
 """Kinds made as one continuous session, and the kind of effect each hides."""
 KINDS = (*VOCABULARY_KINDS, 'pair', 'mu_drift', 'wear_track', 'none', *CHAINED_KINDS)
-CENTRE, CHAINED = 'centre', 'chained'
+CENTRE, FITTED, CHAINED = 'centre', 'fitted', 'chained'
 STARTS = {kind: CHAINED if kind in CHAINED_KINDS else CENTRE for kind in KINDS}
 """Where the diagnosis is to start each kind's hits: at the centre, or chained (`fmm_ros`'s
-`FitSpec.starts`, spelled here again: this package imports nothing of the product)."""
+`FitSpec.starts`, spelled here again: this package imports nothing of the product). The
+`analytic` world starts isolated hits from rest in the friction band, so its isolated hits
+are FITTED unless the session is re-centred (`analytic.re_centred`)."""
 VIBROMETER_KINDS = ('velocity_offset',)
 """Effects of a vibrometer's own, which a world measured by an accelerometer cannot hide."""
 
@@ -92,10 +95,11 @@ def effect_fields(kind: str, mu: float, rng: np.random.Generator) -> dict:
     raise ValueError(f'unknown kind {kind!r}')
 
 
-def case(world: World | IvpWorld, kind: str, rng: np.random.Generator):
+def case(world: World | IvpWorld | AnalyticWorld, kind: str, rng: np.random.Generator):
     """(records, hidden effects in the diagnosis's names, where the diagnosis starts the hits).
 
-    Where it starts them: one of `STARTS`' values.
+    Where it starts them: CENTRE, FITTED (an `analytic` session's hits from rest in the
+    friction band) or CHAINED.
     """
     chained = kind in CHAINED_KINDS
     kind = CHAINED_KINDS.get(kind, kind)
@@ -112,8 +116,13 @@ def case(world: World | IvpWorld, kind: str, rng: np.random.Generator):
         hidden = (kind,)
         fields = effect_fields(kind, mu, rng)
     levels = rng.permutation((450.0, 1000.0, 1450.0))
-    if isinstance(world, IvpWorld):
-        records = world.session(Effects(**fields), mu, rng, levels, chained=chained)
+    effects = Effects(**fields)
+    starts = CHAINED if chained else CENTRE
+    if isinstance(world, AnalyticWorld):
+        records = world.session(effects, mu, rng, levels, chained=chained)
+        starts = starts if chained or re_centred(effects) else FITTED
+    elif isinstance(world, IvpWorld):
+        records = world.session(effects, mu, rng, levels, chained=chained)
     else:
-        records = session(world, Effects(**fields), mu, rng, levels, chained=chained)
-    return records, () if kind == 'wear_track' else hidden, CHAINED if chained else CENTRE
+        records = session(world, effects, mu, rng, levels, chained=chained)
+    return records, () if kind == 'wear_track' else hidden, starts

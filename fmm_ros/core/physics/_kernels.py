@@ -35,7 +35,7 @@ STATIC_EXCESS = 6  # Stribeck: static minus kinetic friction force [N], both dir
 STRIBECK_V = 7  # Stribeck velocity [m/s]
 STEP = 8  # sample period h [s]
 SUBSTEPS = 9  # RK4 segments per sample interval (nonlinear path)
-NONLINEAR = 10  # 0: closed-form path (piecewise linear), 1: RK4 path
+NONLINEAR = 10  # 0: closed-form path (piecewise linear), 1: RK4 path, 2: RK4 near rest only
 PHI = 11  # 4 slots: exact step matrix, row-major (x, v) <- (x, v)
 GAMMA_U0 = 15  # 2 slots: response of (x, v) to the input at the interval start
 GAMMA_DU = 17  # 2 slots: response of (x, v) to the input change over the interval
@@ -61,6 +61,14 @@ MODE_SIZE = 10
 # Samples a stretch at rest is tested in at once (without a branch per sample).
 REST_BLOCK = 64
 
+# Velocity samples zeroed ahead for each sliding step (`oscillator_exact`).
+ZERO_AHEAD = 16
+
+# Samples of a delayed signal computed at once (their sources copied to a buffer first).
+DELAY_CHUNK = 1024
+
+MAX_FLOAT = 1.7976931348623157e308  # the largest finite float64
+
 # More events than this inside one sample interval means chattering at rounding level: the
 # mass is then held at rest for the rest of that interval.
 MAX_EVENTS_PER_INTERVAL = 64
@@ -69,6 +77,12 @@ MAX_EVENTS_PER_INTERVAL = 64
 # takes to cross vs, over which the Stribeck excess exp(-(v/vs)^2) changes appreciably.
 STRIBECK_ZONE = 4.0
 STRIBECK_STEP = 0.2
+
+# Above STRIBECK_FLAT * vs the Stribeck excess, exp(-36) = 2.3e-16 of itself, is below the
+# rounding of the kinetic friction it is added to: a Stribeck contact without a cubic spring
+# (NONLINEAR 2) slides there on the closed-form path (exact where RK4 errs by a few 1e-13
+# m/s), and only nearer rest on RK4. The RK4 path ran a 30-hit Stribeck diagnosis's refit.
+STRIBECK_FLAT = 6.0
 
 
 @njit(cache=True)
@@ -83,7 +97,8 @@ def _friction(sigma, v, p):
     force = p[FRICTION_POS] if sigma > 0 else p[FRICTION_NEG]
     if p[STATIC_EXCESS] != 0.0:
         ratio = v / p[STRIBECK_V]
-        force += p[STATIC_EXCESS] * math.exp(-ratio * ratio)
+        if ratio * ratio < STRIBECK_FLAT * STRIBECK_FLAT:  # else below rounding (above)
+            force += p[STATIC_EXCESS] * math.exp(-ratio * ratio)
     return force
 
 
@@ -153,7 +168,18 @@ def _rk4(x, v, f0, df_dt, tau, sigma, p):
 
 @njit(cache=True)
 def _slide(x, v, f0, df_dt, tau, sigma, p):
-    """State after sliding for tau in direction sigma: closed form or RK4, per the path."""
+    """State after sliding for tau in direction sigma: closed form or RK4, per the path.
+
+    On NONLINEAR 2 the closed form where the speed stays above STRIBECK_FLAT * vs.
+    """
+    if p[NONLINEAR] == 2.0:
+        flat = STRIBECK_FLAT * p[STRIBECK_V]
+        if sigma * v >= flat:
+            u0 = f0 - sigma * (p[FRICTION_POS] if sigma > 0 else p[FRICTION_NEG])
+            xe, ve = _closed_form(x, v, u0, df_dt, tau, p[MASS], p[DAMPING], p[STIFFNESS])
+            if sigma * ve >= flat:
+                return xe, ve
+        return _rk4(x, v, f0, df_dt, tau, sigma, p)
     if p[NONLINEAR] != 0.0:
         return _rk4(x, v, f0, df_dt, tau, sigma, p)
     u0 = f0 - sigma * _friction(sigma, 0.0, p)
@@ -346,89 +372,140 @@ def _start(force, x_out, v_out, state, p):
 
 
 @njit(cache=True)
-def _rest_until(force, i, spring, band_neg, band_pos, x, x_out, v_out):
-    """Fill the stretch at rest that starts at sample i (which is in the band); return its end.
+def _rest_end(force, i, spring, band_neg, band_pos):
+    """End of the stretch at rest that starts at sample i (which is in the band).
 
-    The rig rests for most of a record, so this is most of a simulation's work: whole blocks
-    are tested without a branch per sample (the loop vectorizes) and written as they go; a
-    block with a sample leaving the band is redone sample by sample up to that sample.
-    Every sample inside gets what the sample-by-sample rule gives it: x, and v = 0.
+    Returns the first sample after i whose net force leaves the band, or the batch's end. The
+    rig rests for most of a record, so this scan is most of a simulation's reading: whole
+    blocks are tested without a branch per sample (the loop vectorizes); the block with a
+    sample leaving the band is redone sample by sample up to that sample. The stretch is
+    written afterwards, in one pass: testing and writing in one loop was slower.
+    Every sample inside passes the sample-by-sample rule's test, so it gets what that rule
+    gives it.
     """
     n = force.shape[0]
-    x_out[i] = x
-    v_out[i] = 0.0
     stop = i + 1
     while stop + REST_BLOCK <= n:
+        block = force[stop : stop + REST_BLOCK]  # a view indexed from 0: no wrap-around test
         inside = 0
-        for k in range(stop, stop + REST_BLOCK):
-            g = force[k] - spring
+        for k in range(REST_BLOCK):
+            g = block[k] - spring
             inside += (band_neg <= g) & (g <= band_pos)
         if inside < REST_BLOCK:
             break
-        x_out[stop : stop + REST_BLOCK] = x
-        v_out[stop : stop + REST_BLOCK] = 0.0
         stop += REST_BLOCK
     while stop < n:
         g = force[stop] - spring
         if not band_neg <= g <= band_pos:
             break
-        x_out[stop] = x
-        v_out[stop] = 0.0
         stop += 1
     return stop
+
+
+@njit(cache=True)
+def _force_limit(n):
+    """Largest force sample [N] a batch of n can hold with its sum sure to stay finite.
+
+    A kernel flags a batch holding a sample beyond it (or a non-finite one) so that the caller
+    runs the full check (`finite_samples`), which names the bad sample; below it the sum of
+    the batch, the check's test, cannot overflow.
+    """
+    return 0.25 * MAX_FLOAT / max(n, 1)
 
 
 @njit(cache=True, nogil=True)
 def oscillator_exact(force, x_out, v_out, state, p):
     """Event-located solution over a force batch: closed form (linear) or RK4 (nonlinear).
 
-    Writes the state at each sample into x_out, v_out and carries it over in `state`.
+    Writes the state at each sample into x_out, v_out and carries it over in `state`. Returns
+    True if a force sample was not finite or beyond `_force_limit`: the caller must then check
+    the batch (the outputs are of no use if the check fails). Every sample is tested as it is
+    read, in the rest scan (a sample inside the band is finite and small) or on its own.
     """
     first, x, v, mode, rest_time, f0, index0 = _start(force, x_out, v_out, state, p)
+    n = force.shape[0]
+    limit = _force_limit(n)
+    suspect = n > 0 and not abs(force[0]) <= limit
     h = p[STEP]
+    # Sliding faster than this takes the exact matrix step: any speed on the closed-form
+    # path, above STRIBECK_FLAT * vs for a Stribeck contact alone, never on pure RK4.
     linear = p[NONLINEAR] == 0.0
+    if linear:
+        exact_above = 0.0
+    elif p[NONLINEAR] == 2.0:
+        exact_above = STRIBECK_FLAT * p[STRIBECK_V]
+    else:
+        exact_above = math.inf
     band_pos = p[FRICTION_POS] + p[STATIC_EXCESS]
     band_neg = -(p[FRICTION_NEG] + p[STATIC_EXCESS])
+    band_size = max(band_pos, -band_neg)
     c = p[DAMPING]
     k = p[STIFFNESS]
     phi0, phi1, phi2, phi3 = p[PHI], p[PHI + 1], p[PHI + 2], p[PHI + 3]
     ga0, ga1 = p[GAMMA_U0], p[GAMMA_U0 + 1]
     gb0, gb1 = p[GAMMA_DU], p[GAMMA_DU + 1]
-    n = force.shape[0]
     i = first
+    zeroed = first  # v_out[i:zeroed] is zero already: written ahead while sliding
     while i < n:
         f1 = force[i]
+        suspect |= not abs(f1) <= limit
         if mode == 0:
             spring = _spring(x, p)  # x is fixed at rest
             g = f1 - spring
             if band_neg <= g <= band_pos:  # stays at rest: the net force is linear in time
-                stop = _rest_until(force, i, spring, band_neg, band_pos, x, x_out, v_out)
+                stop = _rest_end(force, i, spring, band_neg, band_pos)
+                x_out[i:stop] = x
+                v_out[max(i, zeroed) : stop] = 0.0
+                suspect |= not abs(spring) + band_size <= 0.5 * limit
                 f0 = force[stop - 1]
                 i = stop
                 continue
-        elif linear:
-            u0 = f0 - mode * (p[FRICTION_POS] if mode > 0 else p[FRICTION_NEG])
-            du = f1 - f0
-            x1 = phi0 * x + phi1 * v + ga0 * u0 + gb0 * du
-            v1 = phi2 * x + phi3 * v + ga1 * u0 + gb1 * du
-            if mode * v1 > 0.0:
-                d0 = mode * (u0 - c * v - k * x)
-                d1 = mode * (u0 + du - c * v1 - k * x1)
-                if not d0 < 0.0 < d1:  # no reversal, and no dip to zero inside (signs of m a)
-                    x = x1
-                    v = v1
-                    x_out[i] = x
-                    v_out[i] = v
-                    f0 = f1
-                    i += 1
-                    continue
+        elif linear or mode * v >= exact_above:
+            # Sliding one way with no event: one exact matrix step a sample, until a sample
+            # whose interval holds a reversal or a stop, or nears rest on NONLINEAR 2 (left
+            # to `_interval` below).
+            sigma = float(mode)
+            friction = sigma * (p[FRICTION_POS] if mode > 0 else p[FRICTION_NEG])
+            zeroed = max(zeroed, i + 1)
+            while True:
+                u0 = f0 - friction
+                du = f1 - f0
+                x1 = phi0 * x + phi1 * v + ga0 * u0 + gb0 * du
+                v1 = phi2 * x + phi3 * v + ga1 * u0 + gb1 * du
+                if not sigma * v1 > exact_above:
+                    break
+                d0 = sigma * (u0 - c * v - k * x)
+                d1 = sigma * (u0 + du - c * v1 - k * x1)
+                if d0 < 0.0 < d1:  # the velocity may dip to zero inside (signs of m a)
+                    break
+                x = x1
+                v = v1
+                x_out[i] = x
+                v_out[i] = v
+                # The step waits on the previous one's result (a chain of dependent multiplies
+                # and adds): meanwhile the store units zero the velocity of samples ahead, the
+                # rest that most likely follows the motion.
+                if zeroed + ZERO_AHEAD <= n:
+                    ahead = v_out[zeroed:]
+                    for t in range(ZERO_AHEAD):
+                        ahead[t] = 0.0
+                    zeroed += ZERO_AHEAD
+                f0 = f1
+                i += 1
+                if i == n:
+                    break
+                f1 = force[i]
+                suspect |= not abs(f1) <= limit
+            if i == n:
+                break
         t0 = (index0 + i - 1) * h
         x, v, mode, rest_time = _interval(x, v, mode, f0, f1, t0, rest_time, p)
         x_out[i] = x
         v_out[i] = v
         f0 = f1
         i += 1
-    _store(state, x, v, mode, rest_time, f0, index0 + force.shape[0])
+    _store(state, x, v, mode, rest_time, f0, index0 + n)
+    return suspect
 
 
 @njit(cache=True, nogil=True)
@@ -438,11 +515,16 @@ def oscillator_euler(force, x_out, v_out, state, p):
     Velocity first, then displacement with the new velocity (semi-implicit Euler, as in the
     time-domain code of Schmitz & Smith's Mechanical Vibrations), force held at the step start.
     When the velocity reaches or crosses zero, the stick test decides rest or reversal.
+    Returns True if a force sample was not finite or too large, as `oscillator_exact` does.
     """
     first, x, v, mode, rest_time, f0, index0 = _start(force, x_out, v_out, state, p)
+    n = force.shape[0]
+    limit = _force_limit(n)
+    suspect = n > 0 and not abs(force[0]) <= limit
     h = p[STEP]
-    for i in range(first, force.shape[0]):
+    for i in range(first, n):
         f1 = force[i]
+        suspect |= not abs(f1) <= limit
         if mode == 0:
             mode = _break_direction(f0 - _spring(x, p), p)
             if mode != 0:
@@ -464,7 +546,8 @@ def oscillator_euler(force, x_out, v_out, state, p):
         x_out[i] = x
         v_out[i] = v
         f0 = f1
-    _store(state, x, v, mode, rest_time, f0, index0 + force.shape[0])
+    _store(state, x, v, mode, rest_time, f0, index0 + n)
+    return suspect
 
 
 @njit(cache=True)
@@ -478,12 +561,29 @@ def _store(state, x, v, mode, rest_time, force_last, index):
 
 
 @njit(cache=True, nogil=True)
-def add_linear_mode(force, force_before, first_call, x_out, v_out, mode):
+def add_linear_mode(
+    force, force_before, first_call, x_out, v_out, mode, history, whole, fraction, offset
+):
     """Add a decoupled linear mode driven by the same force (exact first-order-hold steps).
 
     `force_before` is the sample preceding force[0]; on the first call sample 0 is the
-    mode's initial state instead.
+    mode's initial state instead. The vibrometer's terms follow in the same pass: with a
+    `history` (see `delay_in_place`; an empty one for no delay) the summed velocity is then
+    delayed, and a non-zero `offset` [m/s] added. The mode's step waits on the previous
+    one's result (a chain of dependent multiplies and adds), and the delay's loads and stores
+    fit in the wait; the summed velocities of the last whole + 2 samples are kept in a ring.
+    Each sample gets the very operations of the separate passes, in their order.
     """
+    n = force.shape[0]
+    size = history.shape[0]
+    delayed = size > 0
+    keep = 1.0 - fraction
+    ring_size = 1
+    while ring_size < size + 1:
+        ring_size *= 2
+    mask = ring_size - 1
+    ring = np.empty(ring_size)  # summed velocity of sample j at ring[(j + size) & mask]
+    ring[:size] = history
     x = mode[MODE_X]
     v = mode[MODE_V]
     phi0, phi1 = mode[MODE_PHI], mode[MODE_PHI + 1]
@@ -491,22 +591,27 @@ def add_linear_mode(force, force_before, first_call, x_out, v_out, mode):
     ga0, ga1 = mode[MODE_GAMMA_U0], mode[MODE_GAMMA_U0 + 1]
     gb0, gb1 = mode[MODE_GAMMA_DU], mode[MODE_GAMMA_DU + 1]
     f0 = force_before
-    first = 0
-    if first_call and force.shape[0] > 0:
-        x_out[0] += x
-        v_out[0] += v
-        f0 = force[0]
-        first = 1
-    for i in range(first, force.shape[0]):
-        f1 = force[i]
-        du = f1 - f0
-        x, v = (
-            phi0 * x + phi1 * v + ga0 * f0 + gb0 * du,
-            phi2 * x + phi3 * v + ga1 * f0 + gb1 * du,
-        )
+    for i in range(n):
+        if i == 0 and first_call:
+            f0 = force[0]
+        else:
+            f1 = force[i]
+            du = f1 - f0
+            x, v = (
+                phi0 * x + phi1 * v + ga0 * f0 + gb0 * du,
+                phi2 * x + phi3 * v + ga1 * f0 + gb1 * du,
+            )
+            f0 = f1
         x_out[i] += x
-        v_out[i] += v
-        f0 = f1
+        summed = v_out[i] + v
+        if delayed:
+            ring[(i + size) & mask] = summed
+            summed = keep * ring[(i + 1) & mask] + fraction * ring[i & mask]
+        if offset != 0.0:
+            summed += offset
+        v_out[i] = summed
+    for j in range(size):
+        history[j] = ring[(n + j) & mask]
     mode[MODE_X] = x
     mode[MODE_V] = v
 
@@ -516,16 +621,31 @@ def delay_in_place(signal, history, whole, fraction):
     """Delay `signal` by (whole + fraction) samples, linear between samples, in place.
 
     `history` holds the whole + 1 samples before this batch (oldest first) and is updated.
+    Sample i becomes (1 - fraction) signal[i - whole] + fraction signal[i - whole - 1]. The
+    batch is done from its end in chunks: a chunk's sources, which lie below its end and so
+    are not yet overwritten, are copied to a small buffer first, so that the chunk is one
+    branch-free loop (it vectorizes); the first whole + 1 samples read the history.
     """
     n = signal.shape[0]
     size = history.shape[0]
+    keep = 1.0 - fraction
     tail = np.empty(size)
     for j in range(size):
         src = n - size + j
         tail[j] = signal[src] if src >= 0 else history[src + size]
-    for i in range(n - 1, -1, -1):  # backwards: reads only indices not yet overwritten
+    sources = np.empty(DELAY_CHUNK + 1)
+    end = n
+    while end > size:
+        begin = max(size, end - DELAY_CHUNK)
+        count = end - begin
+        sources[: count + 1] = signal[begin - size : end - whole]
+        chunk = signal[begin:end]
+        for t in range(count):
+            chunk[t] = keep * sources[t + 1] + fraction * sources[t]
+        end = begin
+    for i in range(min(n, size) - 1, -1, -1):  # backwards: reads only indices not yet written
         j = i - whole
         a = signal[j] if j >= 0 else history[size + j]
         b = signal[j - 1] if j >= 1 else history[size + j - 1]
-        signal[i] = (1.0 - fraction) * a + fraction * b
+        signal[i] = keep * a + fraction * b
     history[:] = tail

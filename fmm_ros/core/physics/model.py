@@ -25,7 +25,7 @@ Integrators:
 
 import functools
 import math
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,6 +34,7 @@ import scipy.linalg
 from fmm_ros.constants import PAPER_MU
 from fmm_ros.core._checks import (
     finite_samples,
+    one_dimensional_samples,
     require_finite,
     require_positive,
 )
@@ -83,7 +84,10 @@ def _kernel_params(rig: Rig, spec: ModelSpec, step_s: float, integrator: str) ->
     p[kernels.STATIC_EXCESS] = spec.mu_static_excess * rig.normal_force_n
     p[kernels.STRIBECK_V] = spec.stribeck_velocity_m_s
     p[kernels.STEP] = step_s
-    p[kernels.NONLINEAR] = float(spec.nonlinear or integrator == 'rk4')
+    if integrator == 'rk4' or spec.cubic_stiffness_n_per_m3 != 0.0:
+        p[kernels.NONLINEAR] = 1.0
+    elif spec.mu_static_excess != 0.0:
+        p[kernels.NONLINEAR] = 2.0  # a Stribeck contact alone: RK4 only nearer rest
     # Fastest rate the RK4 segments must resolve: the mode itself, and the steepest slope of
     # the Stribeck curve, dmu N max|d exp(-(v/vs)^2)/dv| / m = 0.858 dmu N / (vs m).
     rate = max(
@@ -95,6 +99,75 @@ def _kernel_params(rig: Rig, spec: ModelSpec, step_s: float, integrator: str) ->
         rig.mass_kg, spec.damping_n_s_per_m, rig.stiffness_n_per_m, step_s
     )
     return p
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """What every stream of one model at one sample rate is built from."""
+
+    sample_rate_hz: float
+    params: np.ndarray
+    """The kernels' constants (`_kernel_params`), read-only: streams and threads share them."""
+    advance: Callable[..., bool]
+    """The oscillator kernel of the integrator."""
+    mode_step: np.ndarray | None
+    """The second mode's exact step (the MODE_PHI slots on), None without a second mode."""
+    delay: bool
+    delay_whole: int
+    delay_fraction: float
+    offset: float
+
+
+def _plan(
+    sample_rate_hz: float, rig: Rig, mu: float, effects: tuple[ModelTerm, ...], integrator: str
+) -> _Plan:
+    """Check a model at a checked sample rate and integrator, and build its `_Plan`.
+
+    Raises ValueError naming a bad input (mu, a term, a rate too coarse for the model).
+    """
+    spec = model_spec(rig, mu, effects)
+    needed_hz = MIN_SAMPLES_PER_PERIOD * rig.natural_frequency_hz
+    if sample_rate_hz < needed_hz:
+        raise BadInputError(
+            f'time step too coarse: sample_rate_hz {sample_rate_hz:g} gives fewer than '
+            f'{MIN_SAMPLES_PER_PERIOD} samples per period of the {rig.natural_frequency_hz:.4g}'
+            f' Hz natural frequency (need >= {needed_hz:.4g} Hz)'
+        )
+    sample_rate_hz = float(sample_rate_hz)
+    step_s = 1.0 / sample_rate_hz
+    params = _kernel_params(rig, spec, step_s, integrator)
+    params.flags.writeable = False
+    mode_step = None
+    if spec.second_mode is not None:
+        if spec.second_mode.frequency_hz >= 0.5 * sample_rate_hz:
+            raise BadInputError(
+                f'time step too coarse: second_mode.frequency_hz '
+                f'{spec.second_mode.frequency_hz:g} is at or above the Nyquist frequency '
+                f'{0.5 * sample_rate_hz:g} Hz'
+            )
+        mode_step = _foh_step(*spec.second_mode.constants(), step_s)
+    delay_samples = spec.delay_s * sample_rate_hz
+    if abs(delay_samples - round(delay_samples)) < 1e-9:
+        delay_samples = round(delay_samples)  # 3e-4 s at 10 kHz is 3 samples, not 2.999...
+    whole = int(math.floor(delay_samples))
+    return _Plan(
+        sample_rate_hz,
+        params,
+        kernels.oscillator_euler if integrator == 'euler' else kernels.oscillator_exact,
+        mode_step,
+        spec.delay_s > 0.0,
+        whole,
+        delay_samples - whole,
+        spec.velocity_offset_m_s,
+    )
+
+
+_NO_DELAY = np.empty(0)
+"""The delay line `add_linear_mode` is given for no delay (it holds nothing, so is shared)."""
+
+# A fitter or a campaign builds a stream per record and trial of the same few models. Typed:
+# a bool is refused where the equal int is accepted, so the two must not share an entry.
+_cached_plan = functools.lru_cache(maxsize=256, typed=True)(_plan)
 
 
 @dataclass(frozen=True)
@@ -161,46 +234,28 @@ class OscillatorStream:
         require_finite('x0_m', x0_m)
         require_finite('v0_m_s', v0_m_s)
         effects = (effects,) if isinstance(effects, ModelTerm) else tuple(effects)
-        spec = model_spec(rig, mu, effects)
-        needed_hz = MIN_SAMPLES_PER_PERIOD * rig.natural_frequency_hz
-        if sample_rate_hz < needed_hz:
-            raise BadInputError(
-                f'time step too coarse: sample_rate_hz {sample_rate_hz:g} gives fewer than '
-                f'{MIN_SAMPLES_PER_PERIOD} samples per period of the {rig.natural_frequency_hz:.4g}'
-                f' Hz natural frequency (need >= {needed_hz:.4g} Hz)'
-            )
-        self.sample_rate_hz = float(sample_rate_hz)
+        try:
+            plan = _cached_plan(sample_rate_hz, rig, mu, effects, integrator)
+        except TypeError:  # an unhashable argument: built, and refused, without the cache
+            plan = _plan(sample_rate_hz, rig, mu, effects, integrator)
+        self.sample_rate_hz = plan.sample_rate_hz
         self.rig = rig
         self.mu = float(mu)
         self.effects = effects
         self.integrator = integrator
-        step_s = 1.0 / self.sample_rate_hz
-        self._params = _kernel_params(rig, spec, step_s, integrator)
-        self._advance = (
-            kernels.oscillator_euler if integrator == 'euler' else kernels.oscillator_exact
-        )
+        self._params = plan.params
+        self._advance = plan.advance
         self._state = np.zeros(kernels.STATE_SIZE)
         self._state[kernels.STATE_X] = x0_m
         self._state[kernels.STATE_V] = v0_m_s
         self._mode = None
-        if spec.second_mode is not None:
-            if spec.second_mode.frequency_hz >= 0.5 * self.sample_rate_hz:
-                raise BadInputError(
-                    f'time step too coarse: second_mode.frequency_hz '
-                    f'{spec.second_mode.frequency_hz:g} is at or above the Nyquist frequency '
-                    f'{0.5 * self.sample_rate_hz:g} Hz'
-                )
+        if plan.mode_step is not None:
             self._mode = np.zeros(kernels.MODE_SIZE)
-            self._mode[kernels.MODE_PHI :] = _foh_step(*spec.second_mode.constants(), step_s)
-        delay_samples = spec.delay_s * self.sample_rate_hz
-        if abs(delay_samples - round(delay_samples)) < 1e-9:
-            delay_samples = round(delay_samples)  # 3e-4 s at 10 kHz is 3 samples, not 2.999...
-        self._delay_whole = int(math.floor(delay_samples))
-        self._delay_fraction = delay_samples - self._delay_whole
-        self._delay_line = (
-            np.full(self._delay_whole + 1, float(v0_m_s)) if spec.delay_s > 0.0 else None
-        )
-        self._offset = spec.velocity_offset_m_s
+            self._mode[kernels.MODE_PHI :] = plan.mode_step
+        self._delay_whole = plan.delay_whole
+        self._delay_fraction = plan.delay_fraction
+        self._delay_line = np.full(plan.delay_whole + 1, float(v0_m_s)) if plan.delay else None
+        self._offset = plan.offset
         self._buffers = (np.empty(0), np.empty(0))
 
     @property
@@ -229,12 +284,18 @@ class OscillatorStream:
         overwritten) by the next call: copy them to keep them. A bad batch raises ValueError
         before the state changes.
         """
-        return self._step_checked(_checked_force(force_n), out)
+        return self._step_samples(_checked_force(force_n), out)
 
-    def _step_checked(
+    def _step_samples(
         self, force: np.ndarray, out: tuple[np.ndarray, np.ndarray] | None
     ) -> tuple[np.ndarray, np.ndarray]:
-        """`step` for a force already checked (`_checked_force`): a record is checked once."""
+        """`step` for contiguous float64 samples (`_samples`), checked as the kernel reads them.
+
+        The kernel flags a non-finite or huge sample; only then is the batch checked in full
+        (`_checked_force`, whose error names the sample), before the second mode and the delay
+        line change. `simulate`'s record is thus read once, not once more to be checked; `step`
+        checks first all the same, since a stream must not change on a bad batch.
+        """
         n = force.size
         if out is None:
             if self._buffers[0].size < n:
@@ -258,11 +319,22 @@ class OscillatorStream:
             return displacement, velocity
         force_before = self._state[kernels.STATE_FORCE]
         first_call = self.samples_done == 0
-        self._advance(force, displacement, velocity, self._state, self._params)
-        if self._mode is not None:
+        if self._advance(force, displacement, velocity, self._state, self._params):
+            _checked_force(force)
+        if self._mode is not None:  # the delay and the offset in the mode's pass
             kernels.add_linear_mode(
-                force, force_before, first_call, displacement, velocity, self._mode
+                force,
+                force_before,
+                first_call,
+                displacement,
+                velocity,
+                self._mode,
+                _NO_DELAY if self._delay_line is None else self._delay_line,
+                self._delay_whole,
+                self._delay_fraction,
+                self._offset,
             )
+            return displacement, velocity
         if self._delay_line is not None:
             kernels.delay_in_place(
                 velocity, self._delay_line, self._delay_whole, self._delay_fraction
@@ -288,10 +360,11 @@ def simulate(
 
     `effects` are model terms (`model_term(name, ...)`; one term alone is accepted too).
     `out` may pass two float64 arrays of the record's length to fill (no allocation: the
-    fitter's hot loop). Raises ValueError on bad input (non-finite force, bad rig constants,
-    negative mu, a sample rate too coarse for the natural frequency).
+    fitter's hot loop; its content is undefined if the force is refused). Raises ValueError on
+    bad input (non-finite force, bad rig constants, negative mu, a sample rate too coarse for
+    the natural frequency).
     """
-    force = _checked_force(force_n)
+    force = _samples(force_n)
     stream = OscillatorStream(
         sample_rate_hz,
         rig=rig,
@@ -303,7 +376,7 @@ def simulate(
     )
     if out is None:
         out = tuple(_output_block(force.size))
-    displacement, velocity = stream._step_checked(force, out)
+    displacement, velocity = stream._step_samples(force, out)
     return Simulation(
         displacement, velocity, stream.sample_rate_hz, stream.rest_position_m, stream.rest_time_s
     )
@@ -376,3 +449,8 @@ def _output_block(n: int) -> np.ndarray:
 
 def _checked_force(force_n: np.ndarray) -> np.ndarray:
     return finite_samples('force_n', force_n, overflow='integrate')
+
+
+def _samples(force_n: np.ndarray) -> np.ndarray:
+    """The force as contiguous one-dimensional float64 samples, not yet checked to be finite."""
+    return one_dimensional_samples('force_n', force_n)
