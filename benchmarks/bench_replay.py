@@ -2,15 +2,20 @@
 
 The session (10 hits at each of the paper's levels, 33 s apart, simulated by the physics
 core and written as the recorder would) is replayed as `fmm replay` does: a clean bag read
-whole into channel arrays, captured in blocks, each record analysed, levels summarized.
+whole into channel arrays (its chunks' checksums verified on a second thread meanwhile),
+captured in blocks, each record analysed as it completes, on as many threads as there are
+cores (`available_threads`, printed) while the capture goes on, levels summarized.
 Against it, in the same run and interleaved (each repeat runs every row once, medians
-reported): the replay as it was before issue 28 (every batch decoded and fed to the capture
-one by one), the bare read of the same file (the mcap library iterating its messages,
-nothing decoded: the floor a replay cannot beat), a naive reader that decodes every message
-into per-sample Python lists, and the parts of the replay alone (down to the three DFTs
-of each 33 s record, which the analysis cannot go below while its FRF is the whole record's).
-Also the replay with each faster analysis step swapped back for the numpy it replaced
-(`test/reference_analysis.py`: the same results, the analysis as it was before its kernels).
+reported): the same replay on one thread, the replay as it was before issue 28 (every batch
+decoded and fed to the capture one by one), the bare read of the same file (the mcap
+library iterating its messages, nothing decoded: the floor a one-threaded replay cannot
+beat), a naive reader that decodes every message into per-sample Python lists, and the
+parts of the replay alone, on one thread (down to the three DFTs of each 33 s record, which
+the analysis cannot go below while its FRF is the whole record's). Also the replay with
+each faster analysis step swapped back for the numpy it replaced
+(`test/reference_analysis.py`: the same results, the analysis as it was before its kernels),
+and a campaign session's share of the same work (its bag read by `read_inputs`, its records
+analysed by `workflows.session.analyse`), on the threads and on one.
 The process keeps freed memory for reuse as the `fmm` command does (`fmm_ros.core.memory`), so
 every row runs under the allocator `fmm replay` runs under.
 
@@ -36,25 +41,48 @@ from reference_analysis import numpy_steps  # noqa: E402
 from rosbags.rosbag2 import Reader
 
 from fmm_ros.constants import FORCE_TOPIC, VELOCITY_TOPIC
+from fmm_ros.core._threads import available_threads, thread_map
 from fmm_ros.core.memory import keep_freed_memory
 from fmm_ros.core.signal.analysis import AnalysisConfig, analyze_impact, paper_levels, summarize
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, capture_impacts
 from fmm_ros.io.bags import SAMPLE_BATCH, BagReader, fmm_typestore
 from fmm_ros.sim.session import simulated_session, write_session_bag
+from fmm_ros.workflows.inputs import InputOptions, read_inputs
 from fmm_ros.workflows.replay import bag_impact_records, capture_records, replay_bag
+from fmm_ros.workflows.session import analyse
 
 TARGET_X = 1500.0  # times real time
 TARGET_OF_BARE = 1.5  # replay time over the bare read's
 ANALYSIS = AnalysisConfig(levels=paper_levels())
-REPLAY = 'replay (fmm replay: read whole, capture, analyse)'
+THREADS = available_threads()
+REPLAY = f'replay (fmm replay), {THREADS} threads'
+ONE_THREAD = 'replay on one thread'
 BEFORE = 'replay before issue 28 (batch by batch)'
-NUMPY = 'replay, analysis steps as numpy (no kernels)'
+NUMPY = f'replay, analysis steps as numpy, {THREADS} threads'
 BARE = 'bare read: mcap library, every message'
 NAIVE = 'naive: samples via Python lists, then same'
+CAMPAIGN = f'campaign session: read_inputs + analyse, {THREADS} threads'
+CAMPAIGN_ONE = 'campaign session, one thread'
+DFTS_ONE = '    of which: their DFTs (3 a record)'
+DFTS_THREADED = f'    the same DFTs on {THREADS} threads (ceiling)'
 
 
 def replay(bag: Path) -> int:
     return len(replay_bag(bag, DEFAULT_CAPTURE, ANALYSIS).results)
+
+
+def replay_one_thread(bag: Path) -> int:
+    return len(replay_bag(bag, DEFAULT_CAPTURE, ANALYSIS, threads=1).results)
+
+
+def campaign_session(threads: int) -> Callable[[Path], int]:
+    """What a campaign session does before its fit: its bag's records, then their analysis."""
+
+    def run(bag: Path) -> int:
+        read = read_inputs([bag], InputOptions(capture=DEFAULT_CAPTURE))
+        return len(analyse(read.records, DEFAULT_CAPTURE, ANALYSIS, threads=threads).impacts)
+
+    return run
 
 
 def replay_numpy_steps(bag: Path) -> int:
@@ -82,18 +110,22 @@ def analysis_only(records: list) -> Callable[[Path], int]:
     return run
 
 
-def dfts_only(records: list) -> Callable[[Path], int]:
+def dfts_only(records: list, threads: int = 1) -> Callable[[Path], int]:
     """The three DFTs analysis takes of each record (force, response, the pulse alone), alone.
 
     The floor of the analysis as it stands: the paper's FRF is the DFT of the whole 33 s
     record, so a record costs three 330,000-point transforms whatever else is made faster.
+    On several threads (a record each, as replay shares them out): work that never holds the
+    GIL, so its gain is what the machine grants threads right now, the threaded replay's
+    ceiling.
     """
 
+    def three(record) -> None:
+        for samples in (record.force_n, record.velocity_m_s, record.force_n):
+            scipy.fft.rfft(samples, n=record.window_samples)
+
     def run(_: Path) -> int:
-        for record in records:
-            for samples in (record.force_n, record.velocity_m_s, record.force_n):
-                scipy.fft.rfft(samples, n=record.window_samples)
-        return len(records)
+        return len(thread_map(three, records, threads))
 
     return run
 
@@ -159,27 +191,36 @@ def main() -> int:
         bag = write_session_bag(work / 'session', session)
         size_mb = sum(f.stat().st_size for f in bag.iterdir()) / 1e6
         records = bag_impact_records(bag, DEFAULT_CAPTURE)[0]
+        campaign = campaign_session(THREADS)
         rows: dict[str, Callable[[Path], int]] = {
             REPLAY: replay,
+            ONE_THREAD: replay_one_thread,
             '  of which: read whole (channel arrays)': read_whole,
             '  of which: read whole and capture': capture_only,
             '  of which: analyse the records': analysis_only(records),
-            '    of which: their DFTs (3 a record)': dfts_only(records),
+            DFTS_ONE: dfts_only(records),
+            DFTS_THREADED: dfts_only(records, THREADS),
             NUMPY: replay_numpy_steps,
             BEFORE: before,
             '  of which: read batches only': read_batches,
             BARE: bare,
             NAIVE: naive,
+            CAMPAIGN: campaign,
+            CAMPAIGN_ONE: campaign_session(1),
         }
         for run in rows.values() if not args.quick else ():  # warm up: compile, fault in
             run(bag)
         times: dict[str, list[float]] = {name: [] for name in rows}
+        replay_cpu: list[float] = []  # processor seconds of each threaded replay
         for _ in range(repeats):  # interleaved: every row sees the same machine load
             for name, run in rows.items():
+                cpu = time.process_time()
                 start = time.perf_counter()
                 value = run(bag)
                 times[name].append(time.perf_counter() - start)
-                if run in (replay, replay_numpy_steps, before, naive):
+                if name == REPLAY:
+                    replay_cpu.append(time.process_time() - cpu)
+                if run in (replay, replay_one_thread, replay_numpy_steps, before, naive, campaign):
                     assert value == len(session.hit_levels), (name, value)
         print(
             f'session: {len(session.hit_levels)} hits, {session.duration_s:.1f} s '
@@ -194,9 +235,18 @@ def main() -> int:
         speed = session.duration_s / ours
         of_bare = ours / seconds[BARE]
         print(
-            f'\nreplay: {speed:.0f}x real time (target >= {TARGET_X:.0f}x: '
+            f'\nreplay on {THREADS} threads: {speed:.0f}x real time (target >= {TARGET_X:.0f}x: '
             f'{"met" if speed >= TARGET_X else "NOT met"}); {of_bare:.2f}x the bare read '
             f'(target <= {TARGET_OF_BARE:g}x: {"met" if of_bare <= TARGET_OF_BARE else "NOT met"})'
+        )
+        one = seconds[ONE_THREAD]
+        ceiling = seconds[DFTS_ONE] / seconds[DFTS_THREADED]
+        print(
+            f'on one thread: {session.duration_s / one:.0f}x real time, {one / seconds[BARE]:.2f}x '
+            f'the bare read; the threads make it {one / ours:.2f}x faster, with '
+            f'{statistics.median(replay_cpu) / ours:.2f} cores busy on average (processor '
+            f'over wall time)\nceiling: the DFTs alone gain {ceiling:.2f}x on {THREADS} threads '
+            '(what the machine grants threads in this run)'
         )
         print(
             f'{seconds[NUMPY] / ours:.2f}x faster than with the numpy analysis steps '
@@ -206,6 +256,11 @@ def main() -> int:
         print(
             f'{seconds[BEFORE] / ours:.1f}x faster than the replay before issue 28, '
             f'{seconds[NAIVE] / ours:.1f}x faster than the naive reader'
+        )
+        print(
+            f'campaign session (read and analysis): {seconds[CAMPAIGN]:.3f} s on {THREADS} '
+            f'threads, {seconds[CAMPAIGN_ONE]:.3f} s on one '
+            f'({seconds[CAMPAIGN_ONE] / seconds[CAMPAIGN]:.2f}x)'
         )
     finally:
         shutil.rmtree(work)

@@ -15,6 +15,7 @@ from fmm_ros.io.bags import (
     FRF_SUMMARY,
     IMPACT_RESULT,
     SAMPLE_BATCH,
+    BagError,
     BagReader,
     BagWriter,
     fmm_typestore,
@@ -160,3 +161,22 @@ def test_metadata_is_parsed_to_what_yaml_safe_load_gives(tmp_path):
             yaml.safe_load(damaged)
         with pytest.raises(yaml.YAMLError):
             load_yaml(damaged)
+
+
+def test_bags_with_the_same_definitions_share_a_typestore_and_each_hears_of_a_bad_one(tmp_path):
+    bag = tmp_path / 'session'
+    write_session(bag, n=1_000)
+    with BagReader(bag) as first, BagReader(bag) as second:
+        assert first.typestore is second.typestore  # parsed once for every bag a recorder wrote
+        assert SAMPLE_BATCH in first.typestore.fielddefs and first.problems == []
+        bad = {SAMPLE_BATCH: 'float64[ samples'}
+        stores = [reader._typestore(bad) for reader in (first, second)]
+        assert stores[0] is stores[1] is fmm_typestore()  # this installation's, as before
+        for reader in (first, second):  # the cached store's problem told to every reader
+            assert [
+                f'the definition of {SAMPLE_BATCH} in the bag cannot be' in p
+                for p in reader.problems
+            ] == [True]
+        for reader in (first, second):  # a standard type redefined is refused every time
+            with pytest.raises(BagError, match='defines a standard type differently'):
+                reader._typestore({'std_msgs/msg/Header': 'int32 seq'})

@@ -80,3 +80,64 @@ def test_an_error_is_raised_once_every_call_has_finished():
     with pytest.raises(ValueError, match='fails at once'):
         _threads.thread_map(call, range(3), threads=2)
     assert sorted(finished) == [1, 2]
+
+
+def test_imap_overlaps_making_the_items_with_the_calls_and_keeps_their_order():
+    made = []
+    fifth_made = threading.Event()
+
+    def items():
+        for k in range(12):
+            made.append(k)
+            if k == 4:
+                fifth_made.set()
+            yield k
+
+    def call(k: int) -> int:
+        if k == 0:  # the first call lasts until the items run 2 x 2 ahead of it
+            fifth_made.wait(timeout=10)
+        time.sleep(0.002 * (k % 3))
+        return k * k
+
+    results = _threads.thread_imap(call, items(), threads=2)
+    assert next(results) == 0
+    assert len(made) == 5  # four calls in flight and one more drawn, no further
+    assert [0, *results] == [k * k for k in range(12)]
+
+
+def test_imap_is_serial_with_one_thread_and_in_a_worker():
+    def name(_: int) -> str:
+        return threading.current_thread().name
+
+    assert set(_threads.thread_imap(name, range(3), threads=1)) == {threading.main_thread().name}
+    nested = _threads.thread_map(
+        lambda _: list(_threads.thread_imap(name, range(3), threads=2)), range(2), threads=2
+    )
+    assert all(len(set(row)) == 1 for row in nested)
+
+
+@pytest.mark.parametrize('failing', ['a call', 'the items', 'the caller leaving'])
+def test_imap_raises_or_stops_only_once_every_call_in_flight_has_finished(failing):
+    finished = []
+
+    def items():
+        yield from range(3)
+        if failing == 'the items':
+            raise ValueError('the items fail')
+
+    def call(k: int) -> int:
+        if k == 0 and failing == 'a call':
+            raise ValueError('the first call fails at once')
+        time.sleep(0.1)
+        finished.append(k)
+        return k
+
+    results = _threads.thread_imap(call, items(), threads=2)
+    if failing == 'the caller leaving':
+        assert next(results) == 0
+        results.close()  # a loop left early: the generator is closed
+        assert sorted(finished) == [0, 1, 2]
+        return
+    with pytest.raises(ValueError, match='fail'):
+        list(results)
+    assert sorted(finished) == ([1, 2] if failing == 'a call' else [0, 1, 2])

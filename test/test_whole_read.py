@@ -16,12 +16,13 @@ from reference_analysis import numpy_steps
 
 from fmm_ros.cli import main
 from fmm_ros.constants import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC
-from fmm_ros.core.signal.analysis import AnalysisConfig, analyze_impact, paper_levels
+from fmm_ros.core.signal.analysis import AnalysisConfig, analyze_impact, paper_levels, summarize
 from fmm_ros.core.signal.capture import CaptureConfig, ImpactCapture
 from fmm_ros.core.signal.records import stable_impact_id
 from fmm_ros.io.bags import BagReader, BagWriter
 from fmm_ros.sim.session import simulated_session, write_session_bag
 from fmm_ros.workflows.replay import Fed, bag_impact_records, capture_records, replay_bag
+from fmm_ros.workflows.session import analyse
 
 CAPTURE = CaptureConfig(window_s=5.0)
 ANALYSIS = AnalysisConfig(levels=paper_levels())
@@ -120,6 +121,28 @@ def test_replay_of_a_clean_bag_equals_replay_batch_by_batch(session_bag):
     for mine, theirs in zip(records, old, strict=True):
         np.testing.assert_array_equal(mine.velocity_m_s, theirs.velocity_m_s)
         assert mine.source == theirs.source and mine.force_gaps == theirs.force_gaps
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('threads', [1, 2, 3])
+def test_replay_analyses_in_threads_with_the_results_of_one_record_at_a_time(session_bag, threads):
+    """Records analysed side by side while later ones are captured: the same results to the
+    bit, handed on in capture order, as the serial road (one thread) gives them."""
+    handed = []
+    replay = replay_bag(session_bag, CAPTURE, ANALYSIS, on_result=handed.append, threads=threads)
+    results, *_ = batch_by_batch(session_bag)
+    assert_same_results(replay.results, results)
+    assert handed == replay.results
+    # A campaign session (or `fmm report`) reads the same records and analyses them in
+    # threads too, numbered by position rather than by the recording's clock.
+    records, _ = bag_impact_records(session_bag, CAPTURE)
+    summary = analyse(records, CAPTURE, ANALYSIS)
+    serial = summarize(
+        [analyze_impact(r, CAPTURE, ANALYSIS, impact_id=k) for k, r in enumerate(records)],
+        ANALYSIS,
+    )
+    assert_same_results(summary.impacts, serial.impacts)
+    assert_same_results(summary.levels, serial.levels)
 
 
 @pytest.mark.slow

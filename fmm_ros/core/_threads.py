@@ -1,14 +1,17 @@
 """Per-impact work shared out between threads.
 
 The model runs of a fit or a diagnosis are one impact each, in numba kernels that release the
-GIL (`nogil`), so the impacts of a session run side by side on as many cores. Every result is
+GIL (`nogil`), so the impacts of a session run side by side on as many cores; so do the
+analyses of a replay's or a session's records (DFTs, numpy reductions and kernels that
+release it too), a replay's while its capture goes on (`thread_imap`). Every result is
 computed alone and returned in order: the numbers are the same whatever the thread count.
 """
 
+import collections
 import os
 import threading
-from collections.abc import Callable, Iterable
-from concurrent.futures import ThreadPoolExecutor, wait
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor, wait
 from typing import TypeVar
 
 MAX_THREADS = 4
@@ -63,3 +66,33 @@ def thread_map(
     futures = [pool(threads).submit(function, item) for item in items]
     wait(futures)
     return [future.result() for future in futures]
+
+
+def thread_imap(
+    function: Callable[[_T], _R], items: Iterable[_T], threads: int | None = None
+) -> Iterator[_R]:
+    """function(item) for each item, lazily and in order, the calls shared out between threads.
+
+    `thread_map` for items made one by one (records a capture completes as it reads): the
+    items are drawn on the caller's thread while earlier calls run, at most 2 * threads
+    calls in flight, so making the items and working on them overlap and only the items in
+    flight are held. Each result is yielded once its call and all calls before it are done.
+    Serial as `thread_map` is (one thread, or called from a pool's worker). On an error (a
+    call's, the items', or the caller leaving the loop early), every call in flight has
+    finished before it goes on: none still works on an item the caller reuses.
+    """
+    threads = available_threads() if threads is None else threads
+    if threads <= 1 or in_worker():
+        yield from map(function, items)
+        return
+    workers = pool(threads)
+    flight: collections.deque[Future] = collections.deque()
+    try:
+        for item in items:
+            flight.append(workers.submit(function, item))
+            while len(flight) > 2 * threads or (flight and flight[0].done()):
+                yield flight.popleft().result()
+        while flight:
+            yield flight.popleft().result()
+    finally:
+        wait(flight)

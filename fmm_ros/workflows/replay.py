@@ -27,6 +27,7 @@ from fmm_ros.constants import (
     VELOCITY,
     VELOCITY_TOPIC,
 )
+from fmm_ros.core._threads import thread_imap
 from fmm_ros.core.signal.analysis import (
     AnalysisConfig,
     ImpactAnalysis,
@@ -248,12 +249,16 @@ def replay_bag(
     *,
     on_result: Callable[[ImpactAnalysis], None] | None = None,
     on_progress: Callable[[int], None] | None = None,
+    threads: int | None = None,
 ) -> Replay:
     """Capture and analyse every impact of a bag as the live analyzer does, then summarize.
 
-    on_result gets each ImpactAnalysis as the analyzer would publish it (impact ids by
-    `stable_impact_id`, as the analyzer gives them); on_progress gets the number of batches
-    fed since its last call.
+    on_result gets each ImpactAnalysis as the analyzer would publish it, in capture order
+    (impact ids by `stable_impact_id`, as the analyzer gives them); on_progress gets the
+    number of batches fed since its last call. threads: how many records are analysed at
+    once while the bag is read and captured (`thread_imap`; default: the cores there are,
+    `available_threads`); each record's analysis is its own, so the results are the same
+    whatever the count.
     """
     analysis = analysis or AnalysisConfig()
     results: list[ImpactAnalysis] = []
@@ -261,12 +266,17 @@ def replay_bag(
     impacts = ImpactCapture(capture)
     reported = 0
 
+    def analysed(record: ImpactRecord) -> ImpactAnalysis:
+        return analyze_impact(record, capture, analysis, impact_id=stable_impact_id(record))
+
     with BagReader(path, strict=False) as reader:
-        for record in capture_records(reader, impacts, reuse_buffers=True, fed=fed):
+        # Records in flight are analysed while later ones are captured: each keeps its own
+        # buffers (no reuse_buffers), which the process's allocator hands back warm.
+        records = capture_records(reader, impacts, fed=fed)
+        for result in thread_imap(analysed, records, threads):
             if on_progress:
                 on_progress(fed.batches - reported)
                 reported = fed.batches
-            result = analyze_impact(record, capture, analysis, impact_id=stable_impact_id(record))
             results.append(result)
             if on_result:
                 on_result(result)

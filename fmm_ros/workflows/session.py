@@ -17,11 +17,12 @@ A fit or diagnosis the data refuse does not stop the pipeline: the result says w
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ
+from fmm_ros.core._threads import thread_imap
 from fmm_ros.core.diagnose.result import Diagnosis
 from fmm_ros.core.diagnose.workflow import diagnose
 from fmm_ros.core.identify.conditioning import FitError
@@ -30,6 +31,7 @@ from fmm_ros.core.identify.spec import FRICTION_FIT, MU_BOUNDS, FitSpec
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.signal.analysis import (
     AnalysisConfig,
+    ImpactAnalysis,
     ImpactSelection,
     SelectionError,
     Summary,
@@ -203,18 +205,27 @@ def analyse(
     *,
     decisions: Mapping[int, Decision] | None = None,
     progress: Progress | None = None,
+    threads: int | None = None,
 ) -> Summary:
     """The signal core's verdict on every record, impact i being record i.
 
     decisions (by record position) decide which hits the level averages take (`summarize`).
+    The records are analysed side by side in threads, as a replay analyses them (`threads`,
+    default the cores there are: `thread_imap`); each alone, so the results are the same
+    whatever the count.
     """
     analysis = analysis or AnalysisConfig()
-    results = []
-    for number, record in enumerate(records):
-        if progress:
-            progress(f'analysing hit {number + 1}/{len(records)}')
-        results.append(analyze_impact(record, capture, analysis, impact_id=number))
-    return summarize(results, analysis, decisions)
+
+    def numbered() -> Iterator[tuple[int, ImpactRecord]]:
+        for number, record in enumerate(records):
+            if progress:  # on this thread, as the hit goes to be analysed
+                progress(f'analysing hit {number + 1}/{len(records)}')
+            yield number, record
+
+    def analysed(item: tuple[int, ImpactRecord]) -> ImpactAnalysis:
+        return analyze_impact(item[1], capture, analysis, impact_id=item[0])
+
+    return summarize(list(thread_imap(analysed, numbered(), threads)), analysis, decisions)
 
 
 def select_records(

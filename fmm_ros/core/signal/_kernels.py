@@ -5,7 +5,8 @@ its edges, a cumulative sum, ...) that a 33 s record paid at every replayed hit,
 pass giving the same numbers: comparisons and selections exactly as numpy makes them, and
 every floating-point operation in numpy's order (a cumulative sum left to right, each
 interpolation as `i + a / (a - b)`). `test/test_fast_analysis.py` holds each to the numpy
-steps it replaced.
+steps it replaced. They release the GIL (`nogil`): a replay analyses its records in threads
+(`fmm_ros.core._threads`).
 """
 
 import math
@@ -14,7 +15,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def equal_runs(values, min_length):
     """Consecutive equal finite samples: how many pairs, and the long runs of them.
 
@@ -45,7 +46,8 @@ def equal_runs(values, min_length):
     return count, starts[long], stops[long]
 
 
-@njit(cache=True, error_model='numpy')  # 0 / 0 between a -0.0 and a 0.0: NaN, as numpy
+# error_model: 0 / 0 between a -0.0 and a 0.0 gives NaN, as numpy.
+@njit(cache=True, nogil=True, error_model='numpy')
 def reversals(smooth, hysteresis):
     """Velocity reversals in block means: their times, end blocks and half cycles' peaks.
 

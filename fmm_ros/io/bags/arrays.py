@@ -27,6 +27,8 @@ from __future__ import annotations
 import mmap
 import struct
 import zlib
+from collections.abc import Callable
+from concurrent.futures import Future
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -34,6 +36,7 @@ import numpy as np
 from numba import njit
 
 from fmm_ros.constants import FORCE, VELOCITY
+from fmm_ros.core._threads import available_threads, in_worker, pool
 from fmm_ros.core.signal.stream import StreamRules
 from fmm_ros.io.bags.definitions import SAMPLE_BATCH, fmm_typestore
 from fmm_ros.io.bags.mcapscan import CHANNEL, CHUNK, DATA_END, MAGIC, MESSAGE, _parse_channel
@@ -110,10 +113,49 @@ def read_channel_arrays(
 
 
 def _read(buf: np.ndarray, topics: tuple[str, str], rules: StreamRules) -> ChannelArrays | None:
+    """The channel arrays, or None; given only once every chunk's checksum held.
+
+    The layout is parsed and the samples copied while another thread checks the chunks'
+    CRCs (zlib releases the GIL): reading costs the longer of the two, not their sum.
+    """
     messages = _messages(buf, topics)
     if messages is None:
         return None
-    channel, offsets, lengths = messages
+    channel, offsets, lengths, checks = messages
+    verified = _in_background(_checksums_hold, buf, checks)
+    try:
+        arrays = _arrays(buf, topics, rules, channel, offsets, lengths)
+    finally:
+        intact = verified.result()  # the checking thread is done with buf either way
+    return arrays if intact else None
+
+
+def _checksums_hold(buf: np.ndarray, checks: list[tuple[int, int, int]]) -> bool:
+    """Whether every chunk's records [start, stop) have their stored CRC-32."""
+    return all(zlib.crc32(buf[start:stop]) == crc for start, stop, crc in checks)
+
+
+def _in_background(function: Callable[..., bool], *args) -> Future:
+    """function(*args) on a pool's thread (here, done, when threads are none or busy)."""
+    if available_threads() > 1 and not in_worker():
+        return pool(available_threads()).submit(function, *args)
+    done: Future = Future()
+    done.set_result(function(*args))
+    return done
+
+
+def _arrays(
+    buf: np.ndarray,
+    topics: tuple[str, str],
+    rules: StreamRules,
+    channel: np.ndarray,
+    offsets: np.ndarray,
+    lengths: np.ndarray,
+) -> ChannelArrays | None:
+    """The channel arrays of the messages found (the checksums aside), or None.
+
+    None when the stream rules would not take the recording whole.
+    """
     if not offsets.size:
         return None
     layout = _batch_layout(buf, offsets, lengths)
@@ -169,17 +211,19 @@ def _read(buf: np.ndarray, topics: tuple[str, str], rules: StreamRules) -> Chann
 
 def _messages(
     buf: np.ndarray, topics: tuple[str, str]
-) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """Channel (0/1), CDR offset and length of every message of the topics, in delivery order.
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[tuple[int, int, int]]] | None:
+    """Channel (0/1), CDR offset and length of every message of the topics, and the CRCs.
 
+    The checksums to verify: (start, stop, CRC-32) of each chunk's records that has one.
     Delivery order is a batch-by-batch reader's: by log time, ties in file order. None when
-    the file is not an intact, uncompressed, chunked MCAP file with a good checksum on
-    every chunk.
+    the file is not an intact, uncompressed, chunked MCAP file (the chunks are walked with
+    every length checked, so a damaged one is found by its checksum, not read out of bounds).
     """
     if bytes(buf[: len(MAGIC)]) != MAGIC:
         return None
     wanted: dict[int, int] = {}  # MCAP channel id -> 0 force / 1 velocity
     parts = []
+    checks = []
     pos = len(MAGIC)
     size = len(buf)
     while True:
@@ -199,7 +243,10 @@ def _messages(
             records = _chunk_records(buf, content, length)
             if records is None:
                 return None
-            parts.append(_chunk_messages(buf, records, topics, wanted))
+            start, stop, crc = records
+            if crc:
+                checks.append(records)
+            parts.append(_chunk_messages(buf, (start, stop), topics, wanted))
             if parts[-1] is None:
                 return None
         pos = content + length
@@ -210,7 +257,7 @@ def _messages(
     keep = np.isin(channel_ids, np.fromiter(wanted, dtype=np.int64, count=len(wanted)))
     order = np.argsort(log_times[keep], kind='stable')
     channel = np.array([wanted.get(i, -1) for i in range(int(channel_ids.max(initial=0)) + 1)])
-    return channel[channel_ids[keep][order]], offsets[keep][order], lengths[keep][order]
+    return channel[channel_ids[keep][order]], offsets[keep][order], lengths[keep][order], checks
 
 
 def _register(content: np.ndarray, topics: tuple[str, str], wanted: dict[int, int]) -> None:
@@ -220,8 +267,8 @@ def _register(content: np.ndarray, topics: tuple[str, str], wanted: dict[int, in
         wanted[channel.id] = topics.index(channel.topic)
 
 
-def _chunk_records(buf: np.ndarray, content: int, length: int) -> tuple[int, int] | None:
-    """[start, stop) of an uncompressed chunk's records whose checksum holds, else None."""
+def _chunk_records(buf: np.ndarray, content: int, length: int) -> tuple[int, int, int] | None:
+    """[start, stop) of an uncompressed chunk's records and their CRC-32 (0: none), else None."""
     _, _, uncompressed_size, crc = _CHUNK_HEAD.unpack_from(buf, content)
     pos = content + _CHUNK_HEAD.size
     (name_length,) = struct.unpack_from('<I', buf, pos)
@@ -232,9 +279,7 @@ def _chunk_records(buf: np.ndarray, content: int, length: int) -> tuple[int, int
     stop = start + records_length
     if records_length != uncompressed_size or stop > content + length:
         return None
-    if crc and zlib.crc32(buf[start:stop]) != crc:
-        return None
-    return start, stop
+    return start, stop, crc
 
 
 def _chunk_messages(
@@ -251,7 +296,7 @@ def _chunk_messages(
     return table[:, 0], table[:, 1], table[:, 2], table[:, 3]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _u32(buf, pos):
     return (
         np.int64(buf[pos])
@@ -261,12 +306,12 @@ def _u32(buf, pos):
     )
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _u64(buf, pos):
     return _u32(buf, pos) | (_u32(buf, pos + 4) << 32)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _walk_chunk(buf, start, stop):
     """Messages (channel id, log time, CDR offset, CDR length) and other records of a chunk.
 
@@ -307,7 +352,7 @@ def _walk_chunk(buf, start, stop):
     return table[:rows], others[:other_rows]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _string_end(buf, origin, pos, end):
     """Position after a CDR string at pos (aligned to 4), or -1 past end."""
     pos = origin + ((pos - origin + 3) & ~3)
@@ -316,7 +361,7 @@ def _string_end(buf, origin, pos, end):
     return pos + 4 + _u32(buf, pos)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _batch_layout(buf, offsets, lengths):
     """Where each SampleBatch's fields are (see _FIRST..._BAD); _BAD 1 when it does not parse."""
     out = np.zeros((offsets.shape[0], _COLUMNS), dtype=np.int64)
@@ -376,7 +421,7 @@ def _gather(buf: np.ndarray, positions: np.ndarray, dtype: str) -> np.ndarray:
     return buf[positions[:, None] + np.arange(8)].copy().view(dtype)[:, 0]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _same_strings(buf, spans):
     """Whether the strings at (offset, length) rows are all equal."""
     at0, length = spans[0, 0], spans[0, 1]
@@ -390,7 +435,7 @@ def _same_strings(buf, spans):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _within_skew(channel, ends, start, max_skew):
     """Whether, batch after batch, neither channel ran more than max_skew samples ahead."""
     reached = np.array([start, start], dtype=np.int64)
@@ -424,7 +469,7 @@ def _copy_samples(
         )
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _copy_rows(view, sources, targets, counts, channel, force, velocity):
     """Copy counts[k] float64s from view[sources[k]] to force or velocity [targets[k]]."""
     for k in range(sources.shape[0]):

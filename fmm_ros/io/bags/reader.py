@@ -13,6 +13,7 @@ Messages are decoded with the definitions the bag carries (a bag stays readable 
 come out as numpy arrays viewing the serialized bytes: no copy.
 """
 
+import functools
 import sqlite3
 from collections import Counter, deque
 from collections.abc import Iterable, Iterator
@@ -24,6 +25,7 @@ import numpy as np
 from rosbags.interfaces import MessageDefinitionFormat
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import TypesysError, get_types_from_msg, get_typestore
+from rosbags.typesys.store import Typestore
 
 from fmm_ros.constants import FORCE, FORCE_TOPIC, FRF_TOPIC, IMPACTS_TOPIC, VELOCITY, VELOCITY_TOPIC
 from fmm_ros.core.signal.stream import (
@@ -118,6 +120,36 @@ class AlignedBatch:
     def end_index(self) -> int:
         """Index one past the last sample."""
         return self.first_sample_index + len(self.force)
+
+
+@functools.lru_cache(maxsize=16)
+def _embedded_typestore(
+    definitions: tuple[tuple[str, str], ...],
+) -> tuple[Typestore, tuple[str, ...]]:
+    """The typestore of a bag's embedded definitions ((msgtype, text) pairs), and the problems.
+
+    Parsing and registering the definitions took ~20 ms a bag opened, the same for every bag
+    a recorder wrote: bags with the same definitions share one store (only read from).
+    Raises TypesysError for a standard type defined differently (never kept).
+    """
+    embedded: dict = {}
+    problems = []
+    for msgtype, text in definitions:
+        if text:
+            try:
+                embedded.update(get_types_from_msg(text, msgtype))
+            except TypesysError as error:
+                problems.append(
+                    f'the definition of {msgtype} in the bag cannot be '
+                    f"parsed ({error}); using this installation's"
+                )
+    if not embedded:
+        return fmm_typestore(), tuple(problems)
+    store = get_typestore(BASE_STORE)
+    own = fmm_typestore().fielddefs
+    store.register(embedded)
+    store.register({name: own[name] for name in own.keys() - store.fielddefs.keys()})
+    return store, tuple(problems)
 
 
 class BagReader:
@@ -251,27 +283,13 @@ class BagReader:
 
     def _typestore(self, definitions: dict[str, str]):
         """A typestore from the bag's embedded definitions, else this installation's."""
-        embedded: dict = {}
-        for msgtype, text in definitions.items():
-            if text:
-                try:
-                    embedded.update(get_types_from_msg(text, msgtype))
-                except TypesysError as error:
-                    self.problems.append(
-                        f'the definition of {msgtype} in the bag cannot be '
-                        f"parsed ({error}); using this installation's"
-                    )
-        if not embedded:
-            return fmm_typestore()
-        store = get_typestore(BASE_STORE)
-        own = fmm_typestore().fielddefs
         try:
-            store.register(embedded)
-            store.register({name: own[name] for name in own.keys() - store.fielddefs.keys()})
+            store, problems = _embedded_typestore(tuple(sorted(definitions.items())))
         except TypesysError as error:
             raise BagError(
                 f'bag {self.path} defines a standard type differently: {error}'
             ) from None
+        self.problems += problems
         return store
 
     def close(self) -> None:
