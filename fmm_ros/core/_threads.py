@@ -49,6 +49,17 @@ def in_worker() -> bool:
     return threading.current_thread().name.startswith(_PREFIX)
 
 
+def _usable(threads: int | None) -> int:
+    """The threads a call may share its work between.
+
+    `threads` (default `available_threads()`), or 1 in a pool's worker: a worker waiting on
+    its own pool could wait for ever.
+    """
+    if in_worker():
+        return 1
+    return available_threads() if threads is None else threads
+
+
 def thread_map(
     function: Callable[[_T], _R], items: Iterable[_T], threads: int | None = None
 ) -> list[_R]:
@@ -60,8 +71,8 @@ def thread_map(
     what the caller reuses after catching it.
     """
     items = list(items)
-    threads = available_threads() if threads is None else threads
-    if threads <= 1 or len(items) < 2 or in_worker():
+    threads = _usable(threads)
+    if threads <= 1 or len(items) < 2:
         return [function(item) for item in items]
     futures = [pool(threads).submit(function, item) for item in items]
     wait(futures)
@@ -81,8 +92,8 @@ def thread_imap(
     call's, the items', or the caller leaving the loop early), every call in flight has
     finished before it goes on: none still works on an item the caller reuses.
     """
-    threads = available_threads() if threads is None else threads
-    if threads <= 1 or in_worker():
+    threads = _usable(threads)
+    if threads <= 1:
         yield from map(function, items)
         return
     workers = pool(threads)
@@ -96,3 +107,17 @@ def thread_imap(
             yield flight.popleft().result()
     finally:
         wait(flight)
+
+
+def in_background(function: Callable[..., _R], *args: object) -> Future:
+    """function(*args) on a pool's thread while the caller goes on, as a Future.
+
+    Done here, before it returns, where `thread_map` would run serially (one core, or called
+    from a pool's worker).
+    """
+    threads = _usable(None)
+    if threads > 1:
+        return pool(threads).submit(function, *args)
+    done: Future = Future()
+    done.set_result(function(*args))
+    return done

@@ -27,8 +27,6 @@ from __future__ import annotations
 import mmap
 import struct
 import zlib
-from collections.abc import Callable
-from concurrent.futures import Future
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -36,7 +34,7 @@ import numpy as np
 from numba import njit
 
 from fmm_ros.constants import FORCE, VELOCITY
-from fmm_ros.core._threads import available_threads, in_worker, pool
+from fmm_ros.core._threads import in_background
 from fmm_ros.core.signal.stream import StreamRules
 from fmm_ros.io.bags.definitions import SAMPLE_BATCH, fmm_typestore
 from fmm_ros.io.bags.mcapscan import CHANNEL, CHUNK, DATA_END, MAGIC, MESSAGE, _parse_channel
@@ -122,7 +120,7 @@ def _read(buf: np.ndarray, topics: tuple[str, str], rules: StreamRules) -> Chann
     if messages is None:
         return None
     channel, offsets, lengths, checks = messages
-    verified = _in_background(_checksums_hold, buf, checks)
+    verified = in_background(_checksums_hold, buf, checks)
     try:
         arrays = _arrays(buf, topics, rules, channel, offsets, lengths)
     finally:
@@ -133,15 +131,6 @@ def _read(buf: np.ndarray, topics: tuple[str, str], rules: StreamRules) -> Chann
 def _checksums_hold(buf: np.ndarray, checks: list[tuple[int, int, int]]) -> bool:
     """Whether every chunk's records [start, stop) have their stored CRC-32."""
     return all(zlib.crc32(buf[start:stop]) == crc for start, stop, crc in checks)
-
-
-def _in_background(function: Callable[..., bool], *args) -> Future:
-    """function(*args) on a pool's thread (here, done, when threads are none or busy)."""
-    if available_threads() > 1 and not in_worker():
-        return pool(available_threads()).submit(function, *args)
-    done: Future = Future()
-    done.set_result(function(*args))
-    return done
 
 
 def _arrays(
