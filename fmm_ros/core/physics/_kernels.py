@@ -175,14 +175,19 @@ def _slide(x, v, f0, df_dt, tau, sigma, p):
     if p[NONLINEAR] == 2.0:
         flat = STRIBECK_FLAT * p[STRIBECK_V]
         if sigma * v >= flat:
-            u0 = f0 - sigma * (p[FRICTION_POS] if sigma > 0 else p[FRICTION_NEG])
-            xe, ve = _closed_form(x, v, u0, df_dt, tau, p[MASS], p[DAMPING], p[STIFFNESS])
+            xe, ve = _kinetic_slide(x, v, f0, df_dt, tau, sigma, p)
             if sigma * ve >= flat:
                 return xe, ve
         return _rk4(x, v, f0, df_dt, tau, sigma, p)
     if p[NONLINEAR] != 0.0:
         return _rk4(x, v, f0, df_dt, tau, sigma, p)
-    u0 = f0 - sigma * _friction(sigma, 0.0, p)
+    return _kinetic_slide(x, v, f0, df_dt, tau, sigma, p)
+
+
+@njit(cache=True)
+def _kinetic_slide(x, v, f0, df_dt, tau, sigma, p):
+    """State after sliding for tau against the kinetic friction alone (closed form)."""
+    u0 = f0 - sigma * (p[FRICTION_POS] if sigma > 0 else p[FRICTION_NEG])
     return _closed_form(x, v, u0, df_dt, tau, p[MASS], p[DAMPING], p[STIFFNESS])
 
 

@@ -86,8 +86,8 @@ def _kernel_params(rig: Rig, spec: ModelSpec, step_s: float, integrator: str) ->
     p[kernels.STEP] = step_s
     if integrator == 'rk4' or spec.cubic_stiffness_n_per_m3 != 0.0:
         p[kernels.NONLINEAR] = 1.0
-    elif spec.mu_static_excess != 0.0:
-        p[kernels.NONLINEAR] = 2.0  # a Stribeck contact alone: RK4 only nearer rest
+    elif spec.nonlinear:  # a Stribeck contact alone: RK4 only nearer rest
+        p[kernels.NONLINEAR] = 2.0
     # Fastest rate the RK4 segments must resolve: the mode itself, and the steepest slope of
     # the Stribeck curve, dmu N max|d exp(-(v/vs)^2)/dv| / m = 0.858 dmu N / (vs m).
     rate = max(
