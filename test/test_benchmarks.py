@@ -54,3 +54,18 @@ def test_benchmark_runs_in_quick_mode(script: Path, tmp_path: Path):
     assert run.stdout.strip(), f'{script.name} --quick printed nothing'
     after = results.read_bytes() if results.exists() else None
     assert after == before, f'{script.name} --quick wrote RESULTS.md'
+
+
+@pytest.mark.slow
+def test_bench_diagnose_refuses_a_world_it_does_not_know(tmp_path: Path):
+    """A mistyped --worlds name once swept nothing and said nothing."""
+    run = subprocess.run(
+        [sys.executable, str(BENCHMARKS / 'bench_diagnose.py'), '--worlds', 'events,nope'],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=QUICK_TIMEOUT_S,
+        check=False,
+    )
+    assert run.returncode == 2
+    assert 'unknown world(s) nope; known: ours, worlds, events' in run.stderr
