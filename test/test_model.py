@@ -9,6 +9,7 @@ from reference_solver import Oscillator, solve
 
 from fmm_ros.constants import PAPER_MU
 from fmm_ros.core._checks import time_base
+from fmm_ros.core.physics import _kernels, model
 from fmm_ros.core.physics.model import INTEGRATORS, OscillatorStream, free_vibration, simulate
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import MODEL_TERMS, ModelTerm, Parameter, model_term
@@ -525,3 +526,27 @@ def test_scattered_stamps_give_their_rate_and_jitter():
     assert time_base(t).describe() == 'uniform steps'
     with pytest.raises(ValueError, match='non-uniform time step'):
         time_base(t + scatter)
+
+
+def test_a_rest_at_the_band_edge_under_a_constant_force_breaks_away_at_once():
+    """A rest entered at the band's edge, then a force constant over the next interval.
+
+    Seen on a held-out `moreau` session at 25.6 kHz (issue 24): the kernel located the
+    break-away where g crossed the edge, (edge - g) / (g_end - g_now), and with the force
+    constant g_now == g_end: numba raised ZeroDivisionError inside the diagnosis's fit. The
+    rig is already at the edge, so it leaves at once.
+    """
+    mu, force_n = 0.14389866247302455, 4.484282481692489e-05
+    plan = model._plan(25600.0, FMM_RIG, mu, (), 'exact')
+    x, v, mode, rest_time = _kernels._interval(
+        -0.0004842975817639637,
+        0.0,
+        0,
+        force_n,
+        force_n,
+        0.1198046875,
+        0.11980468661864734,
+        plan.params,
+    )
+    assert mode == 1 and 0.0 < v < 1e-10 and math.isnan(rest_time)
+    assert x == pytest.approx(-0.0004842975817639637, abs=1e-15)

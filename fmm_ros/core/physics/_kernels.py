@@ -299,7 +299,11 @@ def _interval(x, v, mode, f0, f1, t0, rest_time, p):
                 if direction > 0
                 else -(p[FRICTION_NEG] + p[STATIC_EXCESS])
             )
-            s = min(h, s + (h - s) * (edge - g_now) / (g_end - g_now))
+            # Already at the edge or past it (a rest entered in this interval with the force
+            # constant over it, g_now == g_end: 0/0 had raised ZeroDivisionError): it breaks
+            # away now, never earlier than s.
+            if (edge - g_now) * direction > 0.0:
+                s = min(h, s + (h - s) * (edge - g_now) / (g_end - g_now))
             mode = direction
             v = 0.0
             rest_time = np.nan
