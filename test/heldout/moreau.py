@@ -235,6 +235,44 @@ def _step(p, state, h, work):
 
 
 @numba.njit(cache=True)
+def _step_apart(p, state, h):
+    """`_step` with the hammer gone: rig and mode no longer touch it, so each is a body of
+    its own and the 3x3 Newton system is two scalar ones (the same step, less work)."""
+    theta = p[_THETA]
+    if state[_RIG_ON] != 0.0:
+        x, v = state[_X], state[_V]
+        m, c, k, k3 = p[_M], p[_C], p[_K], p[_K3]
+        f0 = -c * v - k * x - k3 * x**3
+        end = v
+        for _ in range(50):
+            at = x + h * (theta * end + (1.0 - theta) * v)
+            f = -c * end - k * at - k3 * at**3
+            residual = m * (end - v) - h * (theta * f + (1.0 - theta) * f0)
+            compliance = 1.0 / (m + h * theta * c + h * h * theta * theta * (k + 3.0 * k3 * at**2))
+            free = end - compliance * residual
+            if free > compliance * h * p[_N] * _mu(p, 1.0, 0.0, x):
+                new = _slide(p, free, compliance, h, 1.0, x)
+            elif free < -compliance * h * p[_N] * _mu(p, -1.0, 0.0, x):
+                new = -_slide(p, -free, compliance, h, -1.0, x)
+            else:
+                new = 0.0
+            change = abs(new - end)
+            end = new
+            if k3 == 0.0 or change <= 1e-13 * (1.0 + abs(end)):
+                break
+        state[_X] = x + h * (theta * end + (1.0 - theta) * v)
+        state[_V] = end
+    if p[_M2] > 0.0:
+        y, w = state[_Y], state[_W]
+        f0 = -p[_C2] * w - p[_K2] * y
+        f = -p[_C2] * w - p[_K2] * (y + h * w)
+        stiffness = p[_M2] + h * theta * p[_C2] + h * h * theta * theta * p[_K2]
+        end = w + h * (theta * f + (1.0 - theta) * f0) / stiffness
+        state[_Y] = y + h * (theta * end + (1.0 - theta) * w)
+        state[_W] = end
+
+
+@numba.njit(cache=True)
 def _contact(p, state):
     """The tip's contact force at a state [N]."""
     delta = state[_Z] - state[_X] - state[_Y]
@@ -260,7 +298,10 @@ def _run(p, state, h, steps, force_out, velocity_out, position_out):
                 velocity_out[j:] = 0.0
                 position_out[j:] = state[_X]
             return
-        _step(p, state, h, work)
+        if state[_HAMMER_ON] != 0.0:
+            _step(p, state, h, work)
+        else:
+            _step_apart(p, state, h)
         if state[_HAMMER_ON] != 0.0:
             gap = state[_X] + state[_Y] - state[_Z]
             if gap > GONE_M and state[_U] < 0.0:
@@ -575,7 +616,9 @@ class MoreauWorld:
         fine = simulate(rig.parameters(), state, begin, chain.step_s, steps)
         kept = slice(lag_steps, lag_steps + (samples + 2 * half) * factor + 1)
         nodes, force = fine.time_s[kept], fine.force_n[kept]
-        velocity = np.interp(nodes - lag, fine.time_s, fine.velocity_m_s)
+        velocity = fine.velocity_m_s[kept]
+        if lag:
+            velocity = np.interp(nodes - lag, fine.time_s, fine.velocity_m_s)
         velocity += rig.effects.velocity_offset_m_s
         times = clock_s + np.arange(samples) / rate
         force_samples = decimate(force, rate, samples) + chain.hum(chain.force_hum_n, times)
