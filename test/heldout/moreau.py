@@ -456,7 +456,9 @@ class Rig:
     mu: float
     hammer: Hammer
 
-    def parameters(self, normal_n: float = NORMAL_N, stiffness: float = STIFFNESS_N_PER_M):
+    def parameters(
+        self, normal_n: float = NORMAL_N, stiffness: float = STIFFNESS_N_PER_M
+    ) -> np.ndarray:
         """The kernel's parameter vector."""
         e = self.effects
         mode_mass = mode_damping = mode_stiffness = 0.0
