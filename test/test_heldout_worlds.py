@@ -23,6 +23,7 @@ from heldout.chain import Channel, Daq, acquire
 from heldout.forces import SHAPES, Hit
 from heldout.ivp import IVP, Law, Pulse, motion
 from heldout.lab import EVENTS, STEPS, Effects
+from heldout.moreau import MOREAU
 from heldout.plant import Contact, Plant, solve_events, solve_steps
 
 from fmm_ros.core.diagnose import NONE, UNEXPLAINED, diagnose
@@ -30,7 +31,7 @@ from fmm_ros.core.diagnose.workflow import MAX_REFITS
 from fmm_ros.core.identify.spec import start_options
 
 HELDOUT_DIR = Path(__file__).resolve().parent / 'heldout'
-WORLDS = {'events': EVENTS, 'steps': STEPS, 'ivp': IVP, 'analytic': ANALYTIC}
+WORLDS = {'events': EVENTS, 'steps': STEPS, 'ivp': IVP, 'analytic': ANALYTIC, 'moreau': MOREAU}
 
 
 def test_the_held_out_generators_import_neither_the_product_nor_worlds():

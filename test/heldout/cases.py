@@ -16,6 +16,8 @@ import numpy as np
 from heldout.analytic import AnalyticWorld, re_centred
 from heldout.ivp import IvpWorld
 from heldout.lab import Effects, World, session
+from heldout.moreau import MoreauWorld
+from heldout.moreau import re_centred as moreau_re_centred
 
 VOCABULARY_KINDS = (
     'viscous_damping',
@@ -33,8 +35,9 @@ CENTRE, FITTED, CHAINED = 'centre', 'fitted', 'chained'
 STARTS = {kind: CHAINED if kind in CHAINED_KINDS else CENTRE for kind in KINDS}
 """Where the diagnosis is to start each kind's hits: at the centre, or chained (`fmm_ros`'s
 `FitSpec.starts`, spelled here again: this package imports nothing of the product). The
-`analytic` world starts isolated hits from rest in the friction band, so its isolated hits
-are FITTED unless the session is re-centred (`analytic.re_centred`)."""
+`analytic` world starts isolated hits from rest in the friction band, and the `moreau` world
+each hit where the one before left the rig, so their hits are FITTED unless the session is
+re-centred (`analytic.re_centred`, `moreau.re_centred`)."""
 VIBROMETER_KINDS = ('velocity_offset',)
 """Effects of a vibrometer's own, which a world measured by an accelerometer cannot hide."""
 
@@ -95,11 +98,13 @@ def effect_fields(kind: str, mu: float, rng: np.random.Generator) -> dict:
     raise ValueError(f'unknown kind {kind!r}')
 
 
-def case(world: World | IvpWorld | AnalyticWorld, kind: str, rng: np.random.Generator):
+def case(
+    world: World | IvpWorld | AnalyticWorld | MoreauWorld, kind: str, rng: np.random.Generator
+):
     """(records, hidden effects in the diagnosis's names, where the diagnosis starts the hits).
 
     Where it starts them: CENTRE, FITTED (an `analytic` session's hits from rest in the
-    friction band) or CHAINED.
+    friction band, a `moreau` session's from where the hit before left the rig) or CHAINED.
     """
     chained = kind in CHAINED_KINDS
     kind = CHAINED_KINDS.get(kind, kind)
@@ -121,6 +126,9 @@ def case(world: World | IvpWorld | AnalyticWorld, kind: str, rng: np.random.Gene
     if isinstance(world, AnalyticWorld):
         records = world.session(effects, mu, rng, levels, chained=chained)
         starts = starts if chained or re_centred(effects) else FITTED
+    elif isinstance(world, MoreauWorld):
+        records = world.session(effects, mu, rng, levels, chained=chained)
+        starts = starts if chained or moreau_re_centred(effects) else FITTED
     elif isinstance(world, IvpWorld):
         records = world.session(effects, mu, rng, levels, chained=chained)
     else:
