@@ -14,6 +14,7 @@ meet them.
 import numpy as np
 
 from heldout.analytic import AnalyticWorld, re_centred
+from heldout.bristle import BristleWorld
 from heldout.ivp import IvpWorld
 from heldout.lab import Effects, World, session
 
@@ -33,8 +34,8 @@ CENTRE, FITTED, CHAINED = 'centre', 'fitted', 'chained'
 STARTS = {kind: CHAINED if kind in CHAINED_KINDS else CENTRE for kind in KINDS}
 """Where the diagnosis is to start each kind's hits: at the centre, or chained (`fmm_ros`'s
 `FitSpec.starts`, spelled here again: this package imports nothing of the product). The
-`analytic` world starts isolated hits from rest in the friction band, so its isolated hits
-are FITTED unless the session is re-centred (`analytic.re_centred`)."""
+`analytic` and `bristle` worlds start isolated hits from rest in the friction band, so their
+isolated hits are FITTED unless the session is re-centred (`analytic.re_centred`)."""
 VIBROMETER_KINDS = ('velocity_offset',)
 """Effects of a vibrometer's own, which a world measured by an accelerometer cannot hide."""
 
@@ -95,11 +96,13 @@ def effect_fields(kind: str, mu: float, rng: np.random.Generator) -> dict:
     raise ValueError(f'unknown kind {kind!r}')
 
 
-def case(world: World | IvpWorld | AnalyticWorld, kind: str, rng: np.random.Generator):
+def case(
+    world: World | IvpWorld | AnalyticWorld | BristleWorld, kind: str, rng: np.random.Generator
+):
     """(records, hidden effects in the diagnosis's names, where the diagnosis starts the hits).
 
-    Where it starts them: CENTRE, FITTED (an `analytic` session's hits from rest in the
-    friction band) or CHAINED.
+    Where it starts them: CENTRE, FITTED (an `analytic` or `bristle` session's hits from rest
+    in the friction band) or CHAINED.
     """
     chained = kind in CHAINED_KINDS
     kind = CHAINED_KINDS.get(kind, kind)
@@ -121,6 +124,10 @@ def case(world: World | IvpWorld | AnalyticWorld, kind: str, rng: np.random.Gene
     if isinstance(world, AnalyticWorld):
         records = world.session(effects, mu, rng, levels, chained=chained)
         starts = starts if chained or re_centred(effects) else FITTED
+    elif isinstance(world, BristleWorld):
+        centred = re_centred(effects)
+        records = world.session(effects, mu, rng, levels, chained=chained, centred=centred)
+        starts = starts if chained or centred else FITTED
     elif isinstance(world, IvpWorld):
         records = world.session(effects, mu, rng, levels, chained=chained)
     else:
