@@ -33,8 +33,9 @@ vocabulary and its parameters) with the other worlds and makes other choices at 
   (0.1 dB ripple, 70 dB stopband, passband edge 0.4 of the rate): both computed exactly, the
   pulse being a sum of exponentials, by the filters' partial fractions. The velocity through
   the vibrometer's decoder low-pass (2nd-order Bessel, -3 dB at 5, 10 or 20 kHz, the decoder's
-  settings, drawn a session; its group delay of 8-33 us is a real relative delay between the
-  channels, 0.08-0.3 of the smallest hidden lag) and the same elliptic filter, both discretised
+  settings, drawn a session; its group delay of 11, 22 or 43 us is a real relative delay
+  between the channels, 0.11-0.43 of the smallest hidden lag) and the same elliptic filter
+  (65-131 us, on both channels alike), both discretised
   exactly for a piecewise-linear input (first-order hold) on a grid 8 times the sample rate.
   Sample rates 10, 12 or 20 kHz, drawn a session. Noise on each channel: white plus
   Ornstein-Uhlenbeck (red, a first-order low-pass of white noise with its corner drawn
