@@ -56,6 +56,10 @@ def test_a_source_holds_its_window_a_batch_under_the_tightest_consumer_skew(ros_
         pace_label='test',
         sample_rate_hz=RATE_HZ,
     )
+    # The player paces batches that carry their own rate (sample_rate_hz 0 here).
+    player_like = PacedSource(
+        source, [publisher], CONFIG, batches_per_s=1.0, window_samples=1, pace_label='player'
+    )
     asked = paced.window
     assert paced.window_now(BATCH) == asked  # nobody reported
     for node, skew_s, expected in (
@@ -67,6 +71,11 @@ def test_a_source_holds_its_window_a_batch_under_the_tightest_consumer_skew(ros_
         reports.report(node, publisher.topic_name, skew_s)
         assert wait_for(lambda node=node: node in paced.gate.consumers, 10.0), node
         assert paced.window_now(BATCH) == expected, node
+    # The same cap, at the batch's own rate and window, for the player (no rate of its own).
+    assert wait_for(lambda: '/tiny' in player_like.gate.consumers, 10.0)
+    assert player_like.window_now(BATCH) == 1  # no rate: its window as given
+    assert player_like.window_now(BATCH, 80_000, RATE_HZ) == BATCH  # /tiny's 0.01 s
+    assert player_like.window_now(BATCH, 80_000, 2 * RATE_HZ) == BATCH
 
 
 def test_a_consumer_reports_its_own_max_skew(ros_graph):

@@ -26,15 +26,11 @@ from fmm_ros.errors import BadInputError
 from fmm_ros.io.bags.definitions import SAMPLE_BATCH
 from fmm_ros.io.bags.reader import BagReader
 from fmm_ros.ros.common import message_class, run_node
-from fmm_ros.ros.flow import SOURCE_PARAMS, PacedSource
+from fmm_ros.ros.flow import CATCH_UP_S, SOURCE_PARAMS, PacedSource
 from fmm_ros.ros.health import OK, WARN, Health
 from fmm_ros.ros.params import Param, declare_parameters
 from fmm_ros.ros.qos import RESULT_QOS, SAMPLE_QOS
 from fmm_ros.ros.timebase import CLOCK_PARAM, ClockPublisher
-
-# As for hammer_sim: rclpy takes one message per subscription per wait cycle, so a tick
-# sends only a few messages; further behind than that the pace is re-anchored.
-MAX_MESSAGES_PER_TICK = 4
 
 PARAMS = (
     Param('bag_path', '', 'Bag directory (or .mcap / .db3 file) to play', read_only=True),
@@ -139,19 +135,20 @@ class Player(Node):
             self._anchor = (now, self._next.log_time_ns)
         wall0, log0 = self._anchor
         due_ns = log0 + (now - wall0) * 1e9 * self.config['rate_factor']
-        sent = 0
         while self._next is not None and self._next.log_time_ns <= due_ns:
-            if sent == MAX_MESSAGES_PER_TICK or not self._within_window(self._next):
-                self._anchor = (now, self._next.log_time_ns)
-                self.get_logger().warning(
-                    f'cannot keep x{self.config["rate_factor"]:g}: playing slower',
-                    throttle_duration_sec=10.0,
-                )
-                break
+            if not self._within_window(self._next):
+                break  # held back: the next report or tick goes on from here
             self._topic_publishers[self._next.topic].publish(bytes(self._next.data))
             self.messages_played += 1
-            sent += 1
             self._next = next(self._messages, None)
+        # As BatchPacer: a stall up to CATCH_UP_S is made up; further behind, re-anchored.
+        behind_s = 0.0 if self._next is None else (due_ns - self._next.log_time_ns) * 1e-9
+        if behind_s > CATCH_UP_S * self.config['rate_factor']:
+            self._anchor = (now, self._next.log_time_ns)
+            self.get_logger().warning(
+                f'cannot keep x{self.config["rate_factor"]:g}: playing slower',
+                throttle_duration_sec=10.0,
+            )
         if self._next is None:
             self.get_logger().info(f'bag played: {self.messages_played} messages')
             for problem in self.reader.problems:
@@ -166,7 +163,12 @@ class Player(Node):
         gate = self.source.gate
         if first < gate.first_index or end < gate.published_end - len(batch.samples):
             gate.begin(first)  # the recording's next acquisition (index back)
-        window = PacedSource.window_samples(self.config, batch.sample_rate_hz, len(batch.samples))
+        samples = len(batch.samples)
+        window = self.source.window_now(
+            samples,
+            PacedSource.window_samples(self.config, batch.sample_rate_hz, samples),
+            batch.sample_rate_hz,
+        )
         if not gate.allows(end, window):
             return False
         gate.sent(end)
