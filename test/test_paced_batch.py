@@ -3,7 +3,7 @@
 rclpy costs about 120 us of CPU a message in every node that takes it, so a source at x50 in
 500-sample batches sent 1,000 messages a second a topic and the five-node graph spent its
 cores on message overhead. Above max_batches_per_s a message carries a whole multiple of
-batch_size instead, never more than two batches within the flow window.
+batch_size instead, at least four batches within the flow window.
 """
 
 import numpy as np
@@ -13,7 +13,7 @@ from rig_graph import params, wait_for
 
 from fmm_interfaces.msg import SampleBatch
 from fmm_ros.constants import FORCE_TOPIC
-from fmm_ros.ros.flow import PacedSource
+from fmm_ros.ros.flow import MAX_BATCHES_PARAM, PacedSource
 from fmm_ros.ros.nodes.hammer_sim import HammerSim
 from fmm_ros.ros.qos import SAMPLE_QOS
 
@@ -28,14 +28,20 @@ CONFIG = dict(max_batches_per_s=100.0, flow_window_s=4.0)
         (5.5, 500, 1000),  # just over: two batch sizes a message
         (50.0, 500, 5000),
         (100.0, 1000, 10_000),
-        (1000.0, 500, 20_000),  # two of them fill the 4 s flow window: no larger
+        (1000.0, 500, 10_000),  # four of them fill the 4 s flow window: no larger
         (0.1, 500, 500),
     ],
 )
 def test_a_message_carries_a_whole_multiple_of_batch_size(rate_factor, batch_size, expected):
     size = PacedSource.paced_batch(CONFIG, 10_000.0, batch_size, rate_factor)
     assert size == expected and size % batch_size == 0
-    assert 10_000.0 * rate_factor / size <= 100.0 or 2 * size == 40_000
+    assert 10_000.0 * rate_factor / size <= 100.0 or 4 * size == 40_000
+
+
+def test_the_default_cap_sends_a_second_of_signal_a_message_at_x50():
+    config = dict(CONFIG, max_batches_per_s=MAX_BATCHES_PARAM.default)
+    assert PacedSource.paced_batch(config, 10_000.0, 500, 50.0) == 10_000
+    assert PacedSource.paced_batch(config, 10_000.0, 500, 1.0) == 500  # real time: unchanged
 
 
 def test_zero_keeps_batch_size_at_any_pace():

@@ -406,10 +406,13 @@ SOURCE_PARAMS = (
 )
 
 # The sources that make their own batches (hammer_sim, the daq's file source): how many
-# messages a second a topic may carry before batches grow with the pace.
+# messages a second a topic may carry before batches grow with the pace, and how many paced
+# batches at least fit the flow window. Profiled at x50 (issue 28): publish() of 5,000-sample
+# batches was 30 % of hammer_sim's CPU and 25 % of rig_sim's, the largest part of each.
+WINDOW_BATCHES = 4
 MAX_BATCHES_PARAM = Param(
     'max_batches_per_s',
-    100.0,
+    50.0,
     'Messages a second per topic at most [1/s]: at a faster pace a message carries a whole '
     'multiple of batch_size (rclpy costs per message; within the flow window); 0: always '
     'batch_size',
@@ -484,13 +487,16 @@ class PacedSource:
 
         A whole multiple of batch_size, so that at most max_batches_per_s messages a second go
         out on a topic (at x50 in 500-sample batches the five-node graph spent its cores on
-        rclpy's per-message cost), and two batches still fit flow_window_s of signal.
+        rclpy's per-message cost; in 5,000-sample ones publish() was still the largest part
+        of hammer_sim's and rig_sim's CPU), and WINDOW_BATCHES still fit flow_window_s of
+        signal (fewer in flight and the source waits for each report).
         """
         cap = config['max_batches_per_s']
         if cap <= 0:
             return batch_size
         multiple = math.ceil(sample_rate_hz * rate_factor / batch_size / cap)
-        most = max(1, int(config['flow_window_s'] * sample_rate_hz) // (2 * batch_size))
+        window = int(config['flow_window_s'] * sample_rate_hz)
+        most = max(1, window // (WINDOW_BATCHES * batch_size))
         return batch_size * min(max(1, multiple), most)
 
     def ready(self) -> bool:
