@@ -43,6 +43,7 @@ from rclpy.node import Node
 
 from fmm_interfaces.msg import ImpactResult, SampleBatch
 from fmm_ros.constants import FORCE, FORCE_TOPIC, IMPACTS_TOPIC, VELOCITY, VELOCITY_TOPIC
+from fmm_ros.io.bags.errors import MissingTopicError
 from fmm_ros.io.bags.reader import BagReader
 from fmm_ros.ros import msgs
 from fmm_ros.ros.flow import SOURCE_PARAMS, PacedSource
@@ -563,6 +564,20 @@ def _after_reset(triggers: list[int]) -> int:
     return 0 if back is None else len(triggers) - back
 
 
+def recording(bag: Path, timeout_s: float = 60.0) -> None:
+    """Wait until the recorder's bag has begun (over 100 kB written), at most timeout_s.
+
+    A fault meant for a recording rig waits for it: on busy cores a fixed 10 s did not always
+    see the bag begun (a node still starting up has nothing to close), and a recorder killed
+    that early left an empty file, which crashed this benchmark at load 9.6.
+    """
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline and not any(
+        path.stat().st_size > 100_000 for path in bag.glob('*.mcap')
+    ):
+        time.sleep(0.1)
+
+
 def killed_recorder(work: Path) -> tuple[str, str, str]:
     """The recorder killed with SIGKILL mid-run: the rig goes on, the bag reads by scanning."""
     fresh_domain()
@@ -571,7 +586,8 @@ def killed_recorder(work: Path) -> tuple[str, str, str]:
         SIMULATED_RIG, default_params_file(), rig_overrides(work, 10.0), log_dir=work
     )
     try:
-        time.sleep(10.0)
+        recording(work / 'bag')
+        time.sleep(5.0)
         processes[-1].send_signal(signal.SIGKILL)
         processes[-1].wait()
         killed_at, killed_wall = time.monotonic(), time.time()
@@ -581,12 +597,15 @@ def killed_recorder(work: Path) -> tuple[str, str, str]:
     log = log_lines(work / 'hammer_sim.log')
     after = [t for t, node, text in log if 'no longer waited for' in text]
     sent = int(SENT.search((work / 'hammer_sim.log').read_text())[1])
-    bag = recorded(work / 'bag')
+    try:
+        scanned = recorded(work / 'bag')['recovered']
+    except MissingTopicError as error:  # killed before it wrote a batch: say so
+        scanned = f'nothing to read ({error})'
     analyzer = {e.channel: e for e in ledgers(work) if e.node == 'analyzer'}
     left_s = time.monotonic() - killed_at
     return (
         'recorder killed (SIGKILL)',
-        f'bag read by scanning: {bag["recovered"]}; hammer stopped waiting for it: '
+        f'bag read by scanning: {scanned}; hammer stopped waiting for it: '
         + (f'after {after[0] - killed_wall:.1f} s' if after else 'no'),
         f'rig went on: {sent} samples sent, analyzer received '
         f'{analyzer["force"].received if analyzer else "-"}, missing '
@@ -602,13 +621,7 @@ def launcher_signal(work: Path, signum: int) -> tuple[str, str, str]:
     for option in ('hammer_sim.rate_factor=10', f'recorder.bag_path={work / "bag"}'):
         command += ['--set', option]
     launcher = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    # Signalled once the rig records (on busy cores 10 s did not always see the recorder's
-    # bag begun, and a node still starting up has nothing to close).
-    deadline = time.monotonic() + 60.0
-    while time.monotonic() < deadline and not any(
-        path.stat().st_size > 100_000 for path in (work / 'bag').glob('*.mcap')
-    ):
-        time.sleep(0.1)
+    recording(work / 'bag')
     children = [
         int(p.parent.name) for p in Path('/proc').glob('[0-9]*/stat') if _parent(p) == launcher.pid
     ]
