@@ -18,6 +18,7 @@ import pytest
 import scipy.integrate
 from heldout import HELD_OUT, ROLES
 from heldout.analytic import ANALYTIC
+from heldout.bristle import BRISTLE
 from heldout.cases import KINDS, case, kinds_of
 from heldout.chain import Channel, Daq, acquire
 from heldout.forces import SHAPES, Hit
@@ -31,7 +32,14 @@ from fmm_ros.core.diagnose.workflow import MAX_REFITS
 from fmm_ros.core.identify.spec import start_options
 
 HELDOUT_DIR = Path(__file__).resolve().parent / 'heldout'
-WORLDS = {'events': EVENTS, 'steps': STEPS, 'ivp': IVP, 'analytic': ANALYTIC, 'moreau': MOREAU}
+WORLDS = {
+    'events': EVENTS,
+    'steps': STEPS,
+    'ivp': IVP,
+    'analytic': ANALYTIC,
+    'moreau': MOREAU,
+    'bristle': BRISTLE,
+}
 
 
 def test_the_held_out_generators_import_neither_the_product_nor_worlds():
