@@ -4,7 +4,7 @@ Run: .venv/bin/python benchmarks/bench_diagnose.py [--quick] [--cases N] [--worl
      [--heldout-cases H] [--seed S] [--repeats R] [--session-hits K] [--skip-sweep]
      [--kinds K,...] [--worlds W,...] [--role all|tuning|held-out]
 
-Four generators of sessions, each with its role declared once in `test/heldout` (`ROLES`):
+Generators of sessions, each with its role declared once in `test/heldout` (`ROLES`):
 tuning worlds, which the diagnosis's thresholds were chosen on, and held-out worlds, never
 used to choose one (a world looked at before a threshold changed becomes a tuning world).
 
