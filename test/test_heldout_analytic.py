@@ -7,9 +7,6 @@ in the friction band. Which kinds it offers and how the diagnosis does on it are
 test_heldout_worlds.py with the other worlds.
 """
 
-import ast
-from pathlib import Path
-
 import numpy as np
 import pytest
 import scipy.integrate
@@ -29,23 +26,13 @@ from heldout.analytic import (
 )
 from heldout.forces import Hit
 from heldout.lab import Effects
-from heldout.plant import Contact, Plant, solve_events
+from heldout.plant import solve_events
+from heldout_contacts import REFERENCE_CONTACTS
 
-SOURCE = Path(__file__).resolve().parent / 'heldout' / 'analytic.py'
 TAPS = (
     Tap('skewed_cosine', 1000.0, 1.0e-3, 2.0e-3, 0.15 + 0.37e-4),
     Tap('beta', 1450.0, 0.8e-3, 1.9e-3, 0.15 + 0.81e-4, rebound_ratio=0.05),
 )
-
-
-def test_it_shares_only_the_effects_with_the_other_worlds():
-    shared = []
-    for node in ast.walk(ast.parse(SOURCE.read_text())):
-        if isinstance(node, ast.ImportFrom) and (node.module or '').startswith('heldout'):
-            shared.append((node.module, [alias.name for alias in node.names]))
-        if isinstance(node, ast.Import):
-            assert not any(a.name.startswith(('heldout', 'fmm_ros', 'worlds')) for a in node.names)
-    assert shared == [('heldout.lab', ['Effects'])]
 
 
 @pytest.mark.parametrize('tap', TAPS, ids=lambda tap: tap.shape)
@@ -83,33 +70,12 @@ def _as_hit(tap: Tap) -> Hit:
     return SameForce('half_sine', tap.peak_n, tap.main_s, tap.onset_s)
 
 
-CONTACTS = (
-    (Effects(), Contact(0.11), Plant()),
-    (
-        Effects(asymmetry=0.02, added_damping_n_s_per_m=0.3),
-        Contact(0.11, asymmetry=0.02),
-        Plant(damping_n_s_per_m=0.575),
-    ),
-    (
-        Effects(static_excess=0.04, stribeck_speed_m_s=3e-3),
-        Contact(0.11, static_excess=0.04, stribeck_speed_m_s=3e-3),
-        Plant(),
-    ),
-    (Effects(cubic_n_per_m3=-6e4), Contact(0.11), Plant(cubic_n_per_m3=-6e4)),
-    (
-        Effects(track_amplitude=0.1, track_wavelength_m=6e-3),
-        Contact(0.11, track_amplitude=0.1, track_wavelength_m=6e-3),
-        Plant(),
-    ),
-)
-
-
 @pytest.mark.slow
 def test_its_motion_matches_an_independent_event_located_dop853():
     """Closed form (Coulomb, damping, asymmetry) and Radau (Stribeck, cubic, wear track)
     against lab's DOP853 slides, which share no code with them: same force, same motion."""
     times = np.linspace(0.14, 6.0, 60_001)
-    for index, (effects, contact, plant) in enumerate(CONTACTS):
+    for index, (effects, contact, plant) in enumerate(REFERENCE_CONTACTS):
         tap = TAPS[index % 2]
         moved = motion(Friction(0.11, effects), tap, 1e-4, 8.0)
         exact = solve_events(plant, contact, _as_hit(tap), 1e-4, 8.0)

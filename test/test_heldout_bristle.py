@@ -9,10 +9,8 @@ coupling's step response, DC gains, the second mode against DOP853). How the dia
 on it is measured by benchmarks/bench_diagnose.py (heldout-validation.md).
 """
 
-import ast
 import dataclasses
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -43,20 +41,9 @@ from heldout.forces import Hit
 from heldout.lab import Effects
 from heldout.plant import Contact, Plant, solve_events
 
-SOURCE = Path(__file__).resolve().parent / 'heldout' / 'bristle.py'
 PULSE = Pulse(1000.0, 0.6e-3, 0.15e-3, 0.25 + 0.37e-4)
 COULOMB_M_S = 5e-6
 """How close the LuGre motion stays to the Coulomb solution [m/s] (the noise is 1e-4)."""
-
-
-def test_it_shares_only_the_effects_with_the_other_worlds():
-    shared = []
-    for node in ast.walk(ast.parse(SOURCE.read_text())):
-        if isinstance(node, ast.ImportFrom) and (node.module or '').startswith('heldout'):
-            shared.append((node.module, [alias.name for alias in node.names]))
-        if isinstance(node, ast.Import):
-            assert not any(a.name.startswith(('heldout', 'fmm_ros', 'worlds')) for a in node.names)
-    assert shared == [('heldout.lab', ['Effects'])]
 
 
 def test_the_pulse_area_and_peak_are_its_closed_forms():

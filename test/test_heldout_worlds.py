@@ -55,6 +55,19 @@ def test_the_held_out_generators_import_neither_the_product_nor_worlds():
             assert not roots & {'fmm_ros', 'worlds'}, f'{path.name} imports {names}'
 
 
+@pytest.mark.parametrize('module', ['ivp', 'analytic', 'moreau', 'bristle'])
+def test_a_world_written_from_scratch_shares_only_the_effects(module):
+    """Its physics, hits, DAQ and noise its own: of the other worlds it imports lab.Effects."""
+    shared = []
+    path = HELDOUT_DIR / f'{module}.py'
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.ImportFrom) and (node.module or '').startswith('heldout'):
+            shared.append((node.module, [alias.name for alias in node.names]))
+        if isinstance(node, ast.Import):
+            assert not any(a.name.startswith('heldout') for a in node.names)
+    assert shared == [('heldout.lab', ['Effects'])]
+
+
 def test_every_generator_has_one_role_and_some_are_held_out():
     assert set(ROLES) == {'ours', 'worlds', *WORLDS, 'accelerometer', 'accelerometer_records'}
     assert sum(ROLES[name] == HELD_OUT for name in WORLDS) >= 2
