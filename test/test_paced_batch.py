@@ -38,10 +38,12 @@ def test_a_message_carries_a_whole_multiple_of_batch_size(rate_factor, batch_siz
     assert 10_000.0 * rate_factor / size <= 100.0 or 4 * size == 40_000
 
 
-def test_the_default_cap_sends_a_second_of_signal_a_message_at_x50():
+def test_the_default_cap_leaves_four_batches_in_the_window_at_any_pace():
     config = dict(CONFIG, max_batches_per_s=MAX_BATCHES_PARAM.default)
-    assert PacedSource.paced_batch(config, 10_000.0, 500, 50.0) == 10_000
-    assert PacedSource.paced_batch(config, 10_000.0, 500, 1.0) == 500  # real time: unchanged
+    assert PacedSource.paced_batch(config, 10_000.0, 500, 1.0) == 500  # real time
+    for rate_factor in (50.0, 100.0, 1000.0):
+        size = PacedSource.paced_batch(config, 10_000.0, 500, rate_factor)
+        assert 4 * size <= 40_000  # flow_window_s 4 s of signal
 
 
 def test_zero_keeps_batch_size_at_any_pace():

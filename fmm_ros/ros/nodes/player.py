@@ -32,6 +32,10 @@ from fmm_ros.ros.params import Param, declare_parameters
 from fmm_ros.ros.qos import RESULT_QOS, SAMPLE_QOS
 from fmm_ros.ros.timebase import CLOCK_PARAM, ClockPublisher
 
+# As for hammer_sim (flow.BatchPacer): rclpy takes one message per subscription per wait
+# cycle, so a tick sends a few messages at most, and a stall is made up over later ticks.
+MAX_MESSAGES_PER_TICK = 4
+
 PARAMS = (
     Param('bag_path', '', 'Bag directory (or .mcap / .db3 file) to play', read_only=True),
     Param(
@@ -135,11 +139,13 @@ class Player(Node):
             self._anchor = (now, self._next.log_time_ns)
         wall0, log0 = self._anchor
         due_ns = log0 + (now - wall0) * 1e9 * self.config['rate_factor']
+        sent = 0
         while self._next is not None and self._next.log_time_ns <= due_ns:
-            if not self._within_window(self._next):
-                break  # held back: the next report or tick goes on from here
+            if sent == MAX_MESSAGES_PER_TICK or not self._within_window(self._next):
+                break  # the next report or tick goes on from here
             self._topic_publishers[self._next.topic].publish(bytes(self._next.data))
             self.messages_played += 1
+            sent += 1
             self._next = next(self._messages, None)
         # As BatchPacer: a stall up to CATCH_UP_S is made up; further behind, re-anchored.
         behind_s = 0.0 if self._next is None else (due_ns - self._next.log_time_ns) * 1e-9
