@@ -86,7 +86,11 @@ def test_foxglove_s_own_client_decodes_force_impacts_and_mu_from_a_running_graph
     from fmm_ros.ros.nodes.rig_sim import RigSim
 
     hammer = ros_graph.add(
-        HammerSim, parameter_overrides=params(**FAST_HAMMER | dict(rate_factor=20.0))
+        # max_batches_per_s 100 (2,000-sample batches at x20): at the default 50 this client
+        # saw 246 of the 1,342 live force points, the hit's among those lost (issue 28; the
+        # rig's own streams lose nothing, stress_rig); not yet found where, so pinned here.
+        HammerSim,
+        parameter_overrides=params(**FAST_HAMMER | dict(rate_factor=20.0, max_batches_per_s=100.0)),
     )
     ros_graph.add(RigSim)
     ros_graph.add(Analyzer, parameter_overrides=params(**FAST_ANALYZER))

@@ -26,6 +26,7 @@ holds its start; its device buffer absorbs what its consumers lag.
 """
 
 import math
+import sys
 import time
 from collections.abc import Callable, Sequence
 
@@ -417,7 +418,7 @@ SOURCE_PARAMS = (
 WINDOW_BATCHES = 4
 MAX_BATCHES_PARAM = Param(
     'max_batches_per_s',
-    100.0,
+    50.0,
     'Messages a second per topic at most [1/s]: at a faster pace a message carries a whole '
     'multiple of batch_size (rclpy costs per message; within the flow window); 0: always '
     'batch_size',
@@ -551,7 +552,9 @@ class PacedSource:
         """How many batches of batch_samples may go now (clock and flow window)."""
         count = 0
         window = self.window_now(batch_samples)
-        for _ in range(self.pacer.due()):
+        # What a stall owes goes at once where consumers report (their window bounds it).
+        most = sys.maxsize if self.gate.consumers else CATCH_UP_BATCHES
+        for _ in range(self.pacer.due(most)):
             end = self.gate.published_end + (count + 1) * batch_samples
             if not self.gate.allows(end, window):
                 break
@@ -604,11 +607,10 @@ class BatchPacer:
     """Releases sample batches at a paced rate against the wall clock, making up short stalls.
 
     A source that falls behind its clock by at most `catch_up_s` (the machine busy for a
-    moment, a consumer's report late) makes the time up: each call lets up to
-    CATCH_UP_BATCHES go, so ticks at the batch rate catch up at twice the asked pace (and
-    the calls a consumer's report triggers, faster), within the flow window (`FlowGate`).
-    All that is owed at once flooded subscribers no flow window guards (a test's graph that
-    awaits no consumer lost the hit's points on fmm/live/force). Further behind (the graph
+    moment, a consumer's report late) makes the time up: a call lets up to `most` go (all
+    that is owed where a flow window bounds it, `PacedSource.due`; CATCH_UP_BATCHES, twice
+    the asked pace on ticks, where none does: all at once would flood a subscriber nothing
+    guards). Further behind (the graph
     is slower than asked), the clock is re-anchored: the source runs slower than asked
     (`fell_behind` says so) instead of flooding. Measured (issue 28): re-anchoring once two
     batches behind lost every stall longer than 20 ms for good at x50, which gave x44.9 of
@@ -626,8 +628,8 @@ class BatchPacer:
         self.batches_per_s = batches_per_s
         self.released = released
 
-    def due(self) -> int:
-        """How many batches the clock lets go now; the caller counts each with `release()`.
+    def due(self, most: int = CATCH_UP_BATCHES) -> int:
+        """How many batches the clock lets go now (at most `most`), each counted by `release()`.
 
         The first call after (re)starting anchors the pace, so the time a graph spends on
         discovery before it spins is not counted as lag.
@@ -641,7 +643,7 @@ class BatchPacer:
         if self.fell_behind:
             self._anchor = (now, self.released + 1, rate)
             return 1
-        return max(0, min(behind, CATCH_UP_BATCHES))
+        return max(0, min(behind, most))
 
     def release(self) -> None:
         """One batch went out."""
