@@ -70,3 +70,11 @@ def test_the_pace_over_time_is_the_asked_rate_despite_stalls(clock):
         release(pacer, pacer.due())
     elapsed = clock.now - 1000.0
     assert int(elapsed * RATE) - 1 <= pacer.released <= int(elapsed * RATE)
+
+
+def test_where_a_flow_window_bounds_it_the_stall_goes_at_once(clock):
+    """PacedSource asks for all that is owed when consumers report (their window bounds it)."""
+    pacer = flow.BatchPacer(RATE, catch_up_s=1.0)
+    pacer.due()
+    clock.now += 0.5
+    assert pacer.due(most=1_000_000) == 50
