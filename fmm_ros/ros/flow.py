@@ -609,12 +609,11 @@ class BatchPacer:
     A source that falls behind its clock by at most `catch_up_s` (the machine busy for a
     moment, a consumer's report late) makes the time up: a call lets up to `most` go (all
     that is owed where a flow window bounds it, `PacedSource.due`; CATCH_UP_BATCHES, twice
-    the asked pace on ticks, where none does: all at once would flood a subscriber nothing
-    guards). Further behind (the graph
-    is slower than asked), the clock is re-anchored: the source runs slower than asked
-    (`fell_behind` says so) instead of flooding. Measured (issue 28): re-anchoring once two
-    batches behind lost every stall longer than 20 ms for good at x50, which gave x44.9 of
-    x50 on a graph that sustained x77.5 when asked x100.
+    the asked pace on ticks, where none does: all at once could flood a subscriber nothing
+    guards). Further behind (the graph is slower than asked), the clock is re-anchored: the
+    source runs slower than asked (`fell_behind` says so) instead of flooding. Measured
+    (issue 28): re-anchoring once two batches behind lost every stall longer than 20 ms for
+    good at x50, which gave x44.9 of x50 on a graph that sustained x77.5 when asked x100.
     """
 
     def __init__(self, batches_per_s: float, catch_up_s: float = CATCH_UP_S) -> None:
