@@ -86,11 +86,8 @@ def test_foxglove_s_own_client_decodes_force_impacts_and_mu_from_a_running_graph
     from fmm_ros.ros.nodes.rig_sim import RigSim
 
     hammer = ros_graph.add(
-        # max_batches_per_s 100 (2,000-sample batches at x20): at the default 50 this client
-        # saw 246 of the 1,342 live force points, the hit's among those lost (issue 28; the
-        # rig's own streams lose nothing, stress_rig); not yet found where, so pinned here.
         HammerSim,
-        parameter_overrides=params(**FAST_HAMMER | dict(rate_factor=20.0, max_batches_per_s=100.0)),
+        parameter_overrides=params(**FAST_HAMMER | dict(rate_factor=20.0)),
     )
     ros_graph.add(RigSim)
     ros_graph.add(Analyzer, parameter_overrides=params(**FAST_ANALYZER))
@@ -129,6 +126,12 @@ def test_foxglove_s_own_client_decodes_force_impacts_and_mu_from_a_running_graph
     points = [m['message'] for m in by_topic['/fmm/live/force']]
     assert max(p['value'] for p in points) > 400.0  # a hit's peak survives the decimation
     assert all(p['minimum'] <= p['value'] <= p['maximum'] for p in points)
+    # None lost on the way: each 4,000-sample batch is a burst of 20 points, which a queue of
+    # SAMPLE_QOS's depth dropped four in five of (DISPLAY_QOS).
+    assert [p['first_sample_index'] for p in points] == [
+        points[0]['first_sample_index'] + sum(p['sample_count'] for p in points[:i])
+        for i in range(len(points))
+    ]
 
     # One time base: every message's log time is its header stamp (signal time), the
     # friction estimate's that of the impact it adds, and the server's clock is signal time.

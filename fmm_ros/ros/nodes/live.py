@@ -8,7 +8,8 @@ stamped in signal time like the batches (`core/signal/display.py`).
 
 A viewer, not a consumer the rig waits for: it reports no stream progress, so a slow plot can
 never hold a source back; behind by more than the queue, it drops batches and the plot shows
-a gap. At 50 points a second it publishes 100 messages a second of signal (2,000 at x20).
+a gap. At 50 points a second it publishes 100 messages a second of signal (2,000 at x20), each
+batch as a burst of points: its viewers' queue (`DISPLAY_QOS`) holds two seconds of them.
 """
 
 from rclpy.node import Node
@@ -20,7 +21,7 @@ from fmm_ros.ros import msgs
 from fmm_ros.ros.common import run_node
 from fmm_ros.ros.health import OK, Health
 from fmm_ros.ros.params import Param, declare_parameters
-from fmm_ros.ros.qos import SAMPLE_QOS
+from fmm_ros.ros.qos import DISPLAY_QOS, SAMPLE_QOS
 
 PARAMS = (
     Param(
@@ -45,7 +46,7 @@ class Live(Node):
         self.points_published = {channel.quantity: 0 for channel in CHANNELS}
         self._outputs = {
             channel.quantity: self.create_publisher(
-                DisplayPoint, LIVE_TOPICS[channel.quantity], SAMPLE_QOS
+                DisplayPoint, LIVE_TOPICS[channel.quantity], DISPLAY_QOS
             )
             for channel in CHANNELS
         }

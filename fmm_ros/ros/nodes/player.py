@@ -28,6 +28,7 @@ from fmm_ros.io.bags.reader import BagReader
 from fmm_ros.ros.common import message_class, run_node
 from fmm_ros.ros.flow import CATCH_UP_S, SOURCE_PARAMS, PacedSource
 from fmm_ros.ros.health import OK, WARN, Health
+from fmm_ros.ros.nodes.recorder import KNOWN_TOPICS
 from fmm_ros.ros.params import Param, declare_parameters
 from fmm_ros.ros.qos import RESULT_QOS, SAMPLE_QOS
 from fmm_ros.ros.timebase import CLOCK_PARAM, ClockPublisher
@@ -82,7 +83,9 @@ class Player(Node):
         self._topic_publishers = {}
         for topic in wanted:
             msgtype = self.reader.topics[topic].msgtype
-            qos = SAMPLE_QOS if msgtype == SAMPLE_BATCH else RESULT_QOS
+            # An fmm topic is played with the QoS its own publisher offers (KNOWN_TOPICS).
+            default = SAMPLE_QOS if msgtype == SAMPLE_BATCH else RESULT_QOS
+            qos = KNOWN_TOPICS.get(played_name(topic), (msgtype, default))[1]
             self._topic_publishers[topic] = self.create_publisher(
                 message_class(msgtype), played_name(topic), qos
             )

@@ -69,6 +69,7 @@ from fmm_ros.ros.qos import (
     CLOCK_QOS,
     DECISION_QOS,
     DIAGNOSTICS_QOS,
+    DISPLAY_QOS,
     RESULT_QOS,
     SAMPLE_QOS,
     SESSION_INFO_QOS,
@@ -110,7 +111,7 @@ KNOWN_TOPICS = {
     FRICTION_TOPIC: ('fmm_interfaces/msg/FrictionEstimate', RESULT_QOS),
     DIAGNOSTICS_TOPIC: ('diagnostic_msgs/msg/DiagnosticArray', DIAGNOSTICS_QOS),
     CLOCK_TOPIC: ('rosgraph_msgs/msg/Clock', CLOCK_QOS),
-    **{topic: ('fmm_interfaces/msg/DisplayPoint', SAMPLE_QOS) for topic in LIVE_TOPICS.values()},
+    **{topic: ('fmm_interfaces/msg/DisplayPoint', DISPLAY_QOS) for topic in LIVE_TOPICS.values()},
     DECISIONS_TOPIC: ('fmm_interfaces/msg/ImpactDecision', DECISION_QOS),
     SESSION_INFO_TOPIC: ('fmm_interfaces/msg/SessionInfo', SESSION_INFO_QOS),
 }
