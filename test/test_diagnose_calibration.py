@@ -22,6 +22,8 @@ from fmm_ros.core.diagnose.calibration import (
 )
 from fmm_ros.core.diagnose.gaps import measured_motion_stop, motion_window
 from fmm_ros.core.diagnose.session_model import SessionModel, diagnostic_fit
+from fmm_ros.core.diagnose.signatures import excess_rms
+from fmm_ros.core.diagnose.workflow import diagnose
 from fmm_ros.core.identify.conditioning import (
     ConditionedImpact,
     condition_impact,
@@ -55,6 +57,24 @@ def test_the_noise_at_rest_measures_coloured_noise_whole():
     assert rest_noise_std([impact], stop, impact.velocity_noise_std_m_s) == pytest.approx(
         total, rel=0.03
     )
+
+
+@pytest.mark.slow
+def test_a_clean_session_s_gap_is_taken_beyond_the_noise_it_carries_coloured_too():
+    rng = np.random.default_rng(6)
+    samples = 120_000
+    noise = rng.normal(0.0, 1e-4, samples)
+    noise += scipy.signal.lfilter([1.0], [1.0, -0.9], rng.normal(0.0, 0.6e-4, samples))
+    impact = _clean_impact(6, noise)
+    total = math.sqrt(np.var(noise))
+    result = diagnose([impact])
+    # Beyond the white noise alone (what the fit's chi^2 sees) the clean model leaves a gap
+    # that an effect would have to halve; beyond the noise at rest, none.
+    beyond_white = excess_rms(result.base_residuals_m_s[0], impact.velocity_noise_std_m_s)
+    assert beyond_white > 0.3 * total
+    assert result.gap_before * impact.peak_velocity_m_s < 0.1 * total
+    assert result.residual_noise_std_m_s == pytest.approx(total, rel=0.05)
+    assert result.missing_effect == 'none'
 
 
 def test_without_rest_the_white_noise_level_stands_in():

@@ -36,6 +36,8 @@ def test_an_offset_in_the_rig_is_named_over_the_service(ros_graph):
     assert values['velocity_offset.offset_m_s'] == pytest.approx(OFFSET_M_S, rel=0.05)
     assert dict(zip(names, response.parameter_units, strict=True))['mu'] == '1'
     assert response.gap_after <= 0.5 * response.gap_before
+    # the gaps' yardstick: the rig sim's white noise, measured where the rig rests
+    assert response.residual_noise_std_m_s == pytest.approx(response.noise_std_m_s, rel=0.1)
     assert set(response.candidate_effects) == set(EFFECTS)  # mu_drift too, from 3 hits
     assert list(response.missing_effects) == ['velocity_offset'] and not response.unexplained
     counts = list(response.missing_effect_parameter_counts)

@@ -483,7 +483,9 @@ def _diagnosis_section(
         f'{result.gap_before:.3g} → '
         f'{result.gap_after:.3g}; mobility misfit {result.frf_gap_before:.3g} → '
         f'{result.frf_gap_after:.3g}, over {len(found.impact_ids)} accepted hits '
-        f'(velocity noise {result.noise_std_m_s * MM_PER_M:.3g} mm/s from the data).'
+        f'(velocity noise {result.noise_std_m_s * MM_PER_M:.3g} mm/s from the data, '
+        f'{result.residual_noise_std_m_s * MM_PER_M:.3g} mm/s where the rig rests, which the '
+        'gap is beyond).'
     )
     page.text(f'Verdict: {result.verdict}')
     if session.selection is not None and session.selection.note:

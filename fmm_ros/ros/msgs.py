@@ -275,6 +275,7 @@ def fill_diagnose_response(response: object, result: diagnose.Diagnosis) -> obje
         [p.value for c in result.candidates for p in c.parameters]
     )
     response.noise_std_m_s = result.noise_std_m_s
+    response.residual_noise_std_m_s = result.residual_noise_std_m_s
     response.required_score = result.required_score
     response.verdict = result.verdict
     named = result.missing_effects
@@ -442,6 +443,7 @@ def diagnose_response_dict(response: object) -> dict:
                 )
             ],
             'noise_std_m_s': response.noise_std_m_s,
+            'residual_noise_std_m_s': response.residual_noise_std_m_s,
             'required_score': response.required_score,
             'verdict': response.verdict,
             **_open_world_dict(response),

@@ -366,6 +366,7 @@ def diagnosis_dict(diagnosis: Diagnosis) -> dict:
                 for c in diagnosis.candidates
             ],
             'noise_std_m_s': diagnosis.noise_std_m_s,
+            'residual_noise_std_m_s': diagnosis.residual_noise_std_m_s,
             'force_noise_std_n': diagnosis.force_noise_std_n,
             'input_noise_allowance': diagnosis.input_noise_allowance,
             'required_score': diagnosis.required_score,

@@ -121,7 +121,8 @@ class Diagnosis:
     fits mu alone (its value is among `parameters` when nothing is named)."""
     mu_stderr: float
     gap_before: float
-    """Normalised RMS velocity residual beyond the noise, base model [-]."""
+    """RMS velocity residual beyond the noise (`residual_noise_std_m_s`) over the motion, over
+    the peak speed, base model [-]."""
     gap_after: float
     """The same with every named effect added (= gap_before when none is) [-]."""
     frf_gap_before: float
@@ -139,7 +140,11 @@ class Diagnosis:
     friction_map: FrictionMap
     """mu against sliding speed and position, from the records by inverse dynamics."""
     noise_std_m_s: float
-    """Velocity noise estimated from the data [m/s]."""
+    """Velocity noise estimated from the data (its white part, which chi^2 counts) [m/s]."""
+    residual_noise_std_m_s: float
+    """The noise a residual carries, which every gap is taken beyond [m/s]: the noise where
+    the rig rests, coloured noise and hum included (an integrated record's: what it leaves in
+    a residual)."""
     force_noise_std_n: float
     input_noise_allowance: float
     """Expected chi^2 the force noise alone puts into the base residual [-]."""

@@ -374,9 +374,14 @@ class _Session:
         self.fit_initial_position = fit_initial_position
         self.say = say
         self.noise = base.joint.noise_std_m_s
-        self.residual_noise = self.noise
-        """The noise's deviation in a residual sample by sample, pooled as the noise is: the
-        velocity noise itself unless a record is integrated (`_integrated_as_judged`)."""
+        self.residual_noise = rest_noise
+        """The noise's deviation in a residual sample by sample, pooled as the noise is, which
+        every gap is taken beyond: the noise where the rig rests (`calibration`), as the
+        verdict's, unless a record is integrated (`_integrated_as_judged`). Not the white
+        noise the fit's chi^2 uses: coloured noise and hum left over the motion are noise,
+        and beyond white noise alone a clean session kept a gap of 1e-4 to 5e-4 of the peak
+        speed (a DSA's band-limited noise), so an effect that more than halved what the
+        model could explain did not halve the gap and was not named."""
         if residual_noise is not None:
             sizes = [impact.force_n.size for impact in impacts]
             squares = sum(s**2 * n for s, n in zip(residual_noise, sizes, strict=True))
@@ -807,6 +812,7 @@ class _Session:
             mu_trend=trend,
             friction_map=self._friction_map(explained),
             noise_std_m_s=self.noise,
+            residual_noise_std_m_s=self.residual_noise,
             force_noise_std_n=_pooled_force_noise(self.impacts),
             input_noise_allowance=self.allowance,
             required_score=self.required,
