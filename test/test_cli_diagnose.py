@@ -44,6 +44,7 @@ def test_json_names_the_effect_with_the_issues_keys(offset_files, capsys, tmp_pa
     ):
         assert key in payload
     assert payload['missing_effect'] == 'velocity_offset'
+    assert payload['starts'] == 'fitted'  # the CLI's default
     assert [named['effect'] for named in payload['missing_effects']] == ['velocity_offset']
     named = payload['missing_effects'][0]
     assert named['parameters']['velocity_offset.offset_m_s'] == pytest.approx(
@@ -123,3 +124,4 @@ def test_initial_positions_at_zero_on_request(offset_files, capsys):
     payload = json.loads(capsys.readouterr().out)
     assert payload['missing_effect'] == 'velocity_offset'
     assert not any(name.startswith('initial_position_m') for name in payload['parameters'])
+    assert payload['starts'] == 'centre'

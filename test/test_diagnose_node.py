@@ -79,5 +79,5 @@ def test_the_fitter_chains_the_starts_when_asked(ros_graph):
     response = ros_graph.call(client, DiagnoseModel.Request(), timeout_s=120.0)
     assert response.success, response.message
     names = list(response.parameter_names)
-    assert 'impulse_scale[2]' in names
+    assert 'impulse_scale[2]' in names and response.starts == 'chained'
     assert not any(name.startswith('initial_position_m') for name in names)

@@ -124,7 +124,8 @@ def diagnosis_text(payload: dict, impacts: int, figures: Sequence[Path] = ()) ->
     lines = [
         f'{impacts} impact(s); velocity noise {result["noise_std_m_s"]:.3g} m/s (from the '
         f'data; {result["residual_noise_std_m_s"]:.3g} m/s where the rig rests, which the gaps '
-        f'are beyond); base fit mu = {_value(result["mu"], result["mu_stderr"], "1")}'
+        f'are beyond); starts {result["starts"]}; '
+        f'base fit mu = {_value(result["mu"], result["mu_stderr"], "1")}'
     ]
     named = result['missing_effects']
     lines.append(

@@ -276,6 +276,7 @@ def fill_diagnose_response(response: object, result: diagnose.Diagnosis) -> obje
     )
     response.noise_std_m_s = result.noise_std_m_s
     response.residual_noise_std_m_s = result.residual_noise_std_m_s
+    response.starts = result.starts
     response.required_score = result.required_score
     response.verdict = result.verdict
     named = result.missing_effects
@@ -444,6 +445,7 @@ def diagnose_response_dict(response: object) -> dict:
             ],
             'noise_std_m_s': response.noise_std_m_s,
             'residual_noise_std_m_s': response.residual_noise_std_m_s,
+            'starts': response.starts,
             'required_score': response.required_score,
             'verdict': response.verdict,
             **_open_world_dict(response),

@@ -347,6 +347,7 @@ def diagnosis_dict(diagnosis: Diagnosis) -> dict:
             'parameter_stderr': {p.name: p.stderr for p in diagnosis.parameters},
             'mu': diagnosis.mu,
             'mu_stderr': diagnosis.mu_stderr,
+            'starts': diagnosis.starts,
             'gap_before': diagnosis.gap_before,
             'gap_after': diagnosis.gap_after,
             'frf_gap_before': diagnosis.frf_gap_before,

@@ -120,6 +120,10 @@ class Diagnosis:
     scale, mains hum and velocity drift fitted (`FRICTION_FIT`). The selection's base model
     fits mu alone (its value is among `parameters` when nothing is named)."""
     mu_stderr: float
+    starts: str
+    """Where each hit's model started: 'centre', 'fitted' or 'chained' (`STARTS`). A
+    direction-dependent friction can be named only from the centre or chained: fitted starts
+    absorb it."""
     gap_before: float
     """RMS velocity residual beyond the noise (`residual_noise_std_m_s`) over the motion, over
     the peak speed, base model [-]."""

@@ -202,6 +202,7 @@ def diagnose(
     base model cannot be fitted at all.
     """
     say = progress or _silent
+    starts = FitSpec(fit_initial_position=fit_initial_position, chain_starts=chain_starts).starts
     if isinstance(impacts, ConditionedImpact) or hasattr(impacts, 'force_n'):
         impacts = [impacts]
     checked = _checked_impacts(impacts, rig)
@@ -230,7 +231,7 @@ def diagnose(
     )
     session = _Session(cropped, base, rig, fit_initial_position, residual_noise, rest_noise, say)
     selection = session.select(candidates)
-    diagnosis = session.conclude(conditioned, selection, MU_DRIFT in candidates)
+    diagnosis = session.conclude(conditioned, selection, MU_DRIFT in candidates, starts)
     return replace(diagnosis, mu=friction.mu, mu_stderr=friction.mu_stderr)
 
 
@@ -733,9 +734,16 @@ class _Session:
     # The verdict
 
     def conclude(
-        self, records: Sequence[ConditionedImpact], selection: _Selection, drift_asked: bool
+        self,
+        records: Sequence[ConditionedImpact],
+        selection: _Selection,
+        drift_asked: bool,
+        starts: str,
     ) -> Diagnosis:
-        """The verdict (module doc, step 6) and everything reported beside it."""
+        """The verdict (module doc, step 6) and everything reported beside it.
+
+        starts: where each hit's model started (one of STARTS), reported with it.
+        """
         final = selection.model
         gap_final = self.gap(final.residuals_m_s)
         halved = gap_final <= (1.0 - EXPLAINED_GAP) * self.gap_before
@@ -801,6 +809,7 @@ class _Session:
             parameters=explained.estimates(),
             mu=self.base.joint.mu,
             mu_stderr=self.base.joint.mu_stderr,
+            starts=starts,
             gap_before=self.gap_before,
             gap_after=self.gap(explained.residuals_m_s),
             frf_gap_before=self.frf_gap(self.base.residuals_m_s),
