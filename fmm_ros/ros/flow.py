@@ -413,8 +413,8 @@ SOURCE_PARAMS = (
 # batches at least fit the flow window (two left one batch in flight once the window is held
 # under max_skew_s). Profiled at x50 (issue 28): publish() of 5,000-sample batches was 30 % of
 # hammer_sim's CPU and 25 % of rig_sim's: at 50 (10,000 samples at x50) the graph kept x49.6
-# asked x50 where 100 kept x34.2 (back to back, idle cores). Seen and not yet explained: at
-# x20 a Foxglove client then received 246 of 1,342 live force points (test_foxglove pins 100).
+# asked x50 where 100 kept x34.2 (back to back, idle cores). The larger batches reach a viewer
+# as bursts of display points, which DISPLAY_QOS's deeper queue holds.
 WINDOW_BATCHES = 4
 MAX_BATCHES_PARAM = Param(
     'max_batches_per_s',
