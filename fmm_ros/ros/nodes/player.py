@@ -82,13 +82,11 @@ class Player(Node):
             )
         self._topic_publishers = {}
         for topic in wanted:
-            msgtype = self.reader.topics[topic].msgtype
+            msgtype, name = self.reader.topics[topic].msgtype, played_name(topic)
             # An fmm topic is played with the QoS its own publisher offers (KNOWN_TOPICS).
             default = SAMPLE_QOS if msgtype == SAMPLE_BATCH else RESULT_QOS
-            qos = KNOWN_TOPICS.get(played_name(topic), (msgtype, default))[1]
-            self._topic_publishers[topic] = self.create_publisher(
-                message_class(msgtype), played_name(topic), qos
-            )
+            qos = KNOWN_TOPICS.get(name, (msgtype, default))[1]
+            self._topic_publishers[topic] = self.create_publisher(message_class(msgtype), name, qos)
         self._batch_topics = {
             topic for topic in wanted if self.reader.topics[topic].msgtype == SAMPLE_BATCH
         }
