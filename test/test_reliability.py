@@ -221,6 +221,63 @@ def test_the_launcher_stops_its_nodes_however_it_is_stopped(tmp_path, domain, ho
         last_words = '\n'.join(log.read_text(errors='replace').splitlines()[-15:])
         assert not reader.recovered, f'the bag was not closed; the rig said:\n{last_words}'
         assert reader.recorded_ledger['/fmm/force'].missing_samples == 0
+    # No node met a callback under way with a destroyed handle (JoiningExecutor).
+    assert 'never retrieved' not in log.read_text(errors='replace')
+
+
+# A node like the fitter (`run_node(threads=2)`): callbacks that take a while, always some
+# under way or queued when the stop comes; every one that starts says so, and so does its end.
+BUSY_NODE = """
+import sys, time
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.node import Node
+from std_msgs.msg import Float64
+from fmm_ros.ros.common import run_node
+
+class Busy(Node):
+    def __init__(self):
+        super().__init__('busy')
+        self.pub = self.create_publisher(Float64, 'busy', 10)
+        self.create_timer(0.02, self._tick, callback_group=ReentrantCallbackGroup())
+
+    def _tick(self):
+        print('start', flush=True)
+        time.sleep(0.2)
+        self.pub.publish(Float64(data=1.0))
+        print('end', flush=True)
+
+sys.exit(run_node(Busy, threads=2))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('how', ['SIGINT', 'SIGTERM'])
+def test_a_multithreaded_node_finishes_its_callbacks_before_it_goes(domain, how):
+    """rclpy 7.1's shutdown neither waited for callbacks nor stopped its workers (fitter).
+
+    A callback under way met a destroyed node: 'cannot use Destroyable because destruction
+    was requested', printed as an exception 'never retrieved' (a service call lost its
+    answer). Now every callback that started ends, and nothing is printed.
+    """
+    node = subprocess.Popen(
+        [sys.executable, '-c', BUSY_NODE],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert node.stdout.readline() == 'start\n', node.stderr.read()
+        time.sleep(0.5)
+        node.send_signal(getattr(signal, how))
+        out, err = node.communicate(timeout=30.0)
+    finally:
+        if node.poll() is None:
+            node.kill()
+            node.wait()
+    lines = ['start', *out.split()]
+    assert node.returncode == 0, err
+    assert 'never retrieved' not in err and 'Destroyable' not in err, err
+    assert lines.count('start') == lines.count('end') > 1, out
 
 
 @pytest.mark.slow

@@ -128,8 +128,9 @@ def run_node(
     replace whatever was inherited, also SIG_IGN (a script's background job ignores SIGINT).
     A source whose consumers never appeared (`SourceStartTimeout`) exits 1 with the reason;
     any other exception a callback raises is survived (`_spin_guarded`).
-    threads > 1 spins a MultiThreadedExecutor, for nodes whose callback groups let a long
-    service call run beside their stream callbacks.
+    threads > 1 spins a `JoiningExecutor`, for nodes whose callback groups let a long service
+    call run beside their stream callbacks: the callbacks under way when the stop came finish
+    (a service call answers) before the node goes, and what they raised is recorded.
     """
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop_requested = threading.Event()
@@ -138,9 +139,7 @@ def run_node(
     }
     node = None
     status = 0
-    executor = (
-        SingleThreadedExecutor() if threads == 1 else MultiThreadedExecutor(num_threads=threads)
-    )
+    executor = SingleThreadedExecutor() if threads == 1 else JoiningExecutor(num_threads=threads)
     try:
         node = node_factory()
         executor.add_node(node)
@@ -157,9 +156,40 @@ def run_node(
             signal.signal(signum, handler)
         executor.shutdown()
         if node is not None:
+            for error in getattr(executor, 'late_faults', ()):
+                if not _record_fault(node, error):
+                    node.get_logger().error(f'a callback ended the node: {error!r}')
             node.destroy_node()
         rclpy.try_shutdown()
     return status
+
+
+class JoiningExecutor(MultiThreadedExecutor):
+    """A MultiThreadedExecutor whose shutdown first lets the callbacks it dispatched finish.
+
+    rclpy 7.1's `Executor.shutdown` returns without waiting for outstanding callbacks (its
+    wait is skipped once the shut-down flag is set) and destroys the guard condition they
+    trigger when done, and its MultiThreadedExecutor leaves its worker threads running
+    (ros2/rclpy#1309 fixed that upstream). A callback still running in a worker, or queued
+    for one, then failed with 'cannot use Destroyable because destruction was requested',
+    printed at exit as an exception 'never retrieved', and a service call under way lost its
+    answer. Here shutdown, called once the spin loop has stopped (`run_node`), first joins
+    the worker pool (queued callbacks run too), then shuts down as rclpy does; what callbacks
+    raised after the last spin is kept in `late_faults`, for the node to record.
+    """
+
+    def __init__(self, num_threads: int, **kwargs) -> None:
+        super().__init__(num_threads=num_threads, **kwargs)
+        self.late_faults: list[BaseException] = []
+
+    def shutdown(self, timeout_sec: float | None = None) -> bool:
+        """Wait for every dispatched callback, keep what they raised, then shut down."""
+        self._executor.shutdown(wait=True)
+        for future in self._futures:
+            if future.done() and future.exception() is not None:
+                self.late_faults.append(future.exception())
+        self._futures.clear()
+        return super().shutdown(timeout_sec)
 
 
 def _spin_guarded(executor, node: Node, timeout_s: float) -> None:
@@ -173,10 +203,17 @@ def _spin_guarded(executor, node: Node, timeout_s: float) -> None:
     except (ExternalShutdownException, SourceStartTimeout):
         raise
     except Exception as error:  # the last resort: any fault of a callback
-        faults = getattr(node, 'callback_faults', None)
-        if faults is None:
+        if not _record_fault(node, error):
             raise
-        faults.record('callback', error)
+
+
+def _record_fault(node: Node, error: BaseException) -> bool:
+    """Record a callback's exception on the node's `CallbackFaults`; False if it has none."""
+    faults = getattr(node, 'callback_faults', None)
+    if faults is None:
+        return False
+    faults.record('callback', error)
+    return True
 
 
 def _drain(executor, node: Node) -> None:
