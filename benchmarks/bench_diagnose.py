@@ -87,6 +87,7 @@ from fmm_ros.sim.hidden_effects import (
 )
 from fmm_ros.sim.session import simulated_session
 
+DEFAULT_SEED = 2019
 TARGET_FALSE_ALARMS = 0.05
 TARGET_SESSION_S = 5.0
 TARGET_THREE_S = 1.5
@@ -440,7 +441,13 @@ def main() -> None:
     parser.add_argument(
         '--heldout-cases', type=int, default=16, help='sessions per kind, held out (0: skip)'
     )
-    parser.add_argument('--seed', type=int, default=2019)
+    parser.add_argument(
+        '--seed',
+        type=int,
+        default=DEFAULT_SEED,
+        help='draws the sessions; another seed sweeps sessions never seen, into a section of '
+        'its own',
+    )
     parser.add_argument('--repeats', type=int, default=5, help='timing repeats')
     parser.add_argument(
         '--session-hits', type=int, default=10, help='hits per level of the timed session'
@@ -491,8 +498,9 @@ def main() -> None:
         if sweeps:
             kinds = f' ({", ".join(args.kinds)})' if args.kinds else ''
             worlds = f' [{", ".join(args.worlds)}]' if args.worlds else ''
+            seed = f', seed {args.seed}' if args.seed != DEFAULT_SEED else ''
             write_section(
-                f'bench_diagnose, {role} worlds{worlds}{kinds}',
+                f'bench_diagnose, {role} worlds{worlds}{kinds}{seed}',
                 markdown(sweeps),
                 quick=args.quick,
             )
