@@ -226,6 +226,12 @@ def screen_term(
         )
         if not any(np.any(response) for response in responses):
             continue
+        if not all(np.all(np.isfinite(response)) for response in responses):
+            # A softening probe beyond its turning point escapes (the model's run is not
+            # finite): it linearises nothing, and the term's other probes still screen it.
+            if best.start is None:
+                best = replace(best, note='a probe whose model run is not finite')
+            continue
         fall, solution, _ = chi2_fall(
             linear.residuals,
             [[response, *columns] for response, columns in zip(responses, shared, strict=True)],
