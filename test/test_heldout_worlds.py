@@ -177,9 +177,15 @@ def test_every_world_offers_every_kind_to_the_benchmark(world):
     assert kinds_of(WORLDS[world]) == KINDS
 
 
-def diagnosed(world: str, kind: str, index: int):
-    records, hidden, starts = case(WORLDS[world], kind, np.random.default_rng([2424, index]))
+def diagnosed(world, kind: str, rng: np.random.Generator):
+    """A session of a world drawn from rng, diagnosed: (records, hidden, diagnosis)."""
+    records, hidden, starts = case(world, kind, rng)
     return records, hidden, diagnose(records, **start_options(starts))
+
+
+def benchmark_draw(kind: str, number: int) -> np.random.Generator:
+    """The generator `bench_diagnose` draws a kind's session with (seed 2019)."""
+    return np.random.default_rng([2019, KINDS.index(kind), number])
 
 
 @pytest.mark.slow
@@ -195,7 +201,9 @@ def test_held_out_sessions_get_the_right_answer(world):
     """
     wrong = []
     for index, kind in enumerate(('none', 'none', 'wear_track', 'mu_drift')):
-        records, hidden, result = diagnosed(world, kind, index)
+        records, hidden, result = diagnosed(
+            WORLDS[world], kind, np.random.default_rng([2424, index])
+        )
         named = result.named_effects
         right = named[:1] == (UNEXPLAINED,) if kind == 'wear_track' else set(named) == set(hidden)
         if not right:
@@ -211,22 +219,11 @@ def test_a_large_spring_the_screens_misrank_is_refitted_and_named():
     (its period drifts over the decay), so neither of the two best refits halves the gap: the
     other screens are refitted until one qualifies (`_Session._further`). This session made
     `ivp` a tuning world (heldout.ROLES)."""
-    records, hidden, starts = case(
-        IVP, 'cubic_stiffness', np.random.default_rng([2019, KINDS.index('cubic_stiffness'), 7])
-    )
-    result = diagnose(records, **start_options(starts))
+    _, hidden, result = diagnosed(IVP, 'cubic_stiffness', benchmark_draw('cubic_stiffness', 7))
     assert result.named_effects == hidden == ('cubic_stiffness',)
     refitted = [c.effect for c in result.candidates if 'not refitted' not in c.message]
     assert len(refitted) > MAX_REFITS and 'cubic_stiffness' in refitted
     assert result.gap_after < 0.1 * result.gap_before
-
-
-def _drawn(world, kind: str, number: int):
-    """A session of a world as the benchmark draws it (seed 2019): records, hidden, diagnosis."""
-    records, hidden, starts = case(
-        world, kind, np.random.default_rng([2019, KINDS.index(kind), number])
-    )
-    return records, hidden, diagnose(records, **start_options(starts))
 
 
 @pytest.mark.slow
@@ -238,7 +235,7 @@ def _drawn(world, kind: str, number: int):
 def test_an_effect_under_the_floor_is_named_when_it_is_the_whole_misfit(world, kind, number):
     """Tuning-world sessions whose effect accounts for under MIN_EXCESS of the noise (0.39x,
     0.41x) but removes all the misfit (100 %, 98 %): named (they were `none`)."""
-    records, hidden, result = _drawn(world, kind, number)
+    records, hidden, result = diagnosed(world, kind, benchmark_draw(kind, number))
     assert result.named_effects == hidden
     peak = max(float(np.max(np.abs(r.velocity_m_s))) for r in records)
     size = peak * np.sqrt(result.gap_before**2 - result.gap_after**2) / result.noise_std_m_s
@@ -255,7 +252,7 @@ def test_an_effect_under_the_floor_is_named_when_it_is_the_whole_misfit(world, k
 def test_a_term_taking_part_of_the_models_own_error_is_not_named(kind, number, hidden):
     """`steps`' unmodelled Bessel chain leaves a broad misfit; mu_drift is significant and
     takes 0.41x and 0.46x the noise of it, but only 65 % and 64 % of the squared gap."""
-    _, drawn, result = _drawn(STEPS, kind, number)
+    _, drawn, result = diagnosed(STEPS, kind, benchmark_draw(kind, number))
     assert drawn == hidden and result.named_effects == hidden
     refusal = re.search(
         r'mu_drift scores -\d+ but accounts for only ([.\d]+)x the noise RMS \((\d+) %',

@@ -158,7 +158,7 @@ def run_node(
         if node is not None:
             for error in getattr(executor, 'late_faults', ()):
                 if not _record_fault(node, error):
-                    node.get_logger().error(f'a callback ended the node: {error!r}')
+                    node.get_logger().error(f'a callback raised after the stop: {error!r}')
             node.destroy_node()
         rclpy.try_shutdown()
     return status
