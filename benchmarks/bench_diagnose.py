@@ -28,9 +28,12 @@ noise, hits from rest in the friction band with fitted starts; its table also co
 answers per sample rate), `moreau` (Moreau-Jean time stepping with the Coulomb law solved
 exactly each step, a hammer body striking through a Hertzian tip, a DSA's delay-compensated
 FIR at 8, 10.24 or 25.6 kHz, white noise and mains hum, 16 bits, continuous sessions with
-fitted starts) and `bristle` (a LuGre bristle state by BDF, double-exponential pulses, an
+fitted starts), `bristle` (a LuGre bristle state by BDF, double-exponential pulses, an
 AC-coupled force and a vibrometer decoder through an elliptic filter, red noise, 10, 12 or
-20 kHz, starts as `analytic`): each of the seven effects alone, a pair, mu drifting
+20 kHz, starts as `analytic`) and `newmark` (implicit Newmark-beta steps with Newton and the
+stop located within its step, a Kelvin-Voigt hammer tip, a prewarped bilinear Chebyshev II
+chain at 10 or 16.384 kHz, a settling charge-amplifier zero, floor vibration on the velocity,
+24 bits, starts as `analytic`): each of the seven effects alone, a pair, mu drifting
 4-7 % a hit over three hits, a wear track (answer 'unexplained'), clean sessions; and
 continuous sessions whose starts the diagnosis chains (`asymmetric_chained`, `none_chained`:
 each hit from where the one
@@ -72,6 +75,7 @@ from heldout.cases import case as heldout_case  # noqa: E402
 from heldout.ivp import IVP  # noqa: E402
 from heldout.lab import EVENTS, STEPS  # noqa: E402
 from heldout.moreau import MOREAU  # noqa: E402
+from heldout.newmark import NEWMARK  # noqa: E402
 from world_cases import OUTSIDE_KINDS, VOCABULARY_KINDS, world_case  # noqa: E402
 
 from fmm_ros.constants import MU_DRIFT
@@ -183,6 +187,7 @@ SOURCES = (
     Source('analytic', HELDOUT_KINDS, draw_held_out(ANALYTIC)),
     Source('moreau', HELDOUT_KINDS, draw_held_out(MOREAU)),
     Source('bristle', HELDOUT_KINDS, draw_held_out(BRISTLE)),
+    Source('newmark', HELDOUT_KINDS, draw_held_out(NEWMARK)),
 )
 
 

@@ -26,6 +26,7 @@ from heldout.forces import SHAPES, Hit
 from heldout.ivp import IVP, Law, Pulse, motion
 from heldout.lab import EVENTS, STEPS, Effects
 from heldout.moreau import MOREAU
+from heldout.newmark import NEWMARK
 from heldout.plant import Contact, Plant, solve_events, solve_steps
 
 from fmm_ros.core.diagnose import NONE, UNEXPLAINED, diagnose
@@ -45,6 +46,7 @@ WORLDS = {
     'analytic': ANALYTIC,
     'moreau': MOREAU,
     'bristle': BRISTLE,
+    'newmark': NEWMARK,
 }
 
 
@@ -61,7 +63,7 @@ def test_the_held_out_generators_import_neither_the_product_nor_worlds():
             assert not roots & {'fmm_ros', 'worlds'}, f'{path.name} imports {names}'
 
 
-@pytest.mark.parametrize('module', ['ivp', 'analytic', 'moreau', 'bristle'])
+@pytest.mark.parametrize('module', ['ivp', 'analytic', 'moreau', 'bristle', 'newmark'])
 def test_a_world_written_from_scratch_shares_only_the_effects(module):
     """Its physics, hits, DAQ and noise its own: of the other worlds it imports lab.Effects."""
     shared = []

@@ -19,6 +19,7 @@ from heldout.ivp import IvpWorld
 from heldout.lab import Effects, World, session
 from heldout.moreau import MoreauWorld
 from heldout.moreau import re_centred as moreau_re_centred
+from heldout.newmark import NewmarkWorld
 
 VOCABULARY_KINDS = (
     'viscous_damping',
@@ -36,9 +37,9 @@ CENTRE, FITTED, CHAINED = 'centre', 'fitted', 'chained'
 STARTS = {kind: CHAINED if kind in CHAINED_KINDS else CENTRE for kind in KINDS}
 """Where the diagnosis is to start each kind's hits: at the centre, or chained (`fmm_ros`'s
 `FitSpec.starts`, spelled here again: this package imports nothing of the product). The
-`analytic` and `bristle` worlds start isolated hits from rest in the friction band, and the
-`moreau` world each hit where the one before left the rig, so their hits are FITTED unless the
-session is re-centred (`analytic.re_centred`, `moreau.re_centred`)."""
+`analytic`, `bristle` and `newmark` worlds start isolated hits from rest in the friction band,
+and the `moreau` world each hit where the one before left the rig, so their hits are FITTED
+unless the session is re-centred (`analytic.re_centred`, `moreau.re_centred`)."""
 VIBROMETER_KINDS = ('velocity_offset',)
 """Effects of a vibrometer's own, which a world measured by an accelerometer cannot hide."""
 
@@ -100,15 +101,15 @@ def effect_fields(kind: str, mu: float, rng: np.random.Generator) -> dict:
 
 
 def case(
-    world: World | IvpWorld | AnalyticWorld | MoreauWorld | BristleWorld,
+    world: World | IvpWorld | AnalyticWorld | MoreauWorld | BristleWorld | NewmarkWorld,
     kind: str,
     rng: np.random.Generator,
 ):
     """(records, hidden effects in the diagnosis's names, where the diagnosis starts the hits).
 
-    Where it starts them: CENTRE, FITTED (an `analytic` or `bristle` session's hits from rest
-    in the friction band, a `moreau` session's from where the hit before left the rig) or
-    CHAINED.
+    Where it starts them: CENTRE, FITTED (an `analytic`, `bristle` or `newmark` session's hits
+    from rest in the friction band, a `moreau` session's from where the hit before left the
+    rig) or CHAINED.
     """
     chained = kind in CHAINED_KINDS
     kind = CHAINED_KINDS.get(kind, kind)
@@ -133,7 +134,7 @@ def case(
     elif isinstance(world, MoreauWorld):
         records = world.session(effects, mu, rng, levels, chained=chained)
         starts = starts if chained or moreau_re_centred(effects) else FITTED
-    elif isinstance(world, BristleWorld):
+    elif isinstance(world, BristleWorld | NewmarkWorld):
         centred = re_centred(effects)
         records = world.session(effects, mu, rng, levels, chained=chained, centred=centred)
         starts = starts if chained or centred else FITTED
