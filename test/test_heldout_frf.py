@@ -5,15 +5,18 @@ sub-sample onset, a force channel with a 0.22 N zero offset, drift and hum, an 8
 anti-alias filter, a 16-bit ADC): a world the analysis was never tuned on. Every accepted
 hit must carry its headline numbers, every session its linearity R^2, and the peak |X/F| and
 f_n must agree with an independent computation written here with numpy alone: the DFT of
-each whole record, offsets taken off, the receptance V / (F i omega) and its peak.
+each whole record, offsets taken off, the receptance V / (F i omega) and its peak. The same
+on `newmark` (held out too), whose quietest hits are flagged rather than accepted.
 """
 
+import dataclasses
 import json
 import math
 
 import numpy as np
 import pytest
 from heldout.lab import EVENTS, Effects, session
+from heldout.newmark import NEWMARK
 
 from fmm_ros.cli import main
 from fmm_ros.core.signal.analysis import analyze_impact
@@ -49,6 +52,41 @@ def independent_peak(force_n: np.ndarray, velocity_m_s: np.ndarray, rate_hz: flo
     return float(peaks[0][0]), float(peaks[1][1])
 
 
+def analyzed(records, onsets_s, impulses_n_s, tmp_path, capsys, name: str) -> tuple[dict, list]:
+    """`fmm analyze --json` of one session's records: (its report, what disagrees).
+
+    Every accepted hit must carry its headline numbers, its peak |X/F| within 5 % and f_n
+    within 4 % of `independent_peak`, its impulse within 1 % of the truth; a hit not
+    accepted must say why (a flag).
+    """
+    paths = []
+    for hit, record in enumerate(records):
+        path = tmp_path / f'{name}_hit{hit}.csv'
+        write_impact_csv(path, record.force_n, record.velocity_m_s, record.sample_rate_hz)
+        paths.append(path)
+    assert main(['analyze', *map(str, paths), '--json', '--paper-levels']) == 0
+    report = json.loads(capsys.readouterr().out)
+    failures = []
+    for record, onset, impulse, impact in zip(
+        records, onsets_s, impulses_n_s, report['impacts'], strict=True
+    ):
+        if not impact['accepted']:
+            assert impact['flags'], impact
+            continue
+        assert impact['peak_receptance_m_per_n'] is not None, impact
+        assert impact['natural_frequency_hz'] is not None, impact
+        peak, natural = independent_peak(
+            record.force_n, record.velocity_m_s, record.sample_rate_hz, onset
+        )
+        if abs(impact['peak_receptance_m_per_n'] / peak - 1) > 0.05:
+            failures.append(('|X/F|', impact['file'], impact['peak_receptance_m_per_n'], peak))
+        if abs(impact['natural_frequency_hz'] / natural - 1) > 0.04:
+            failures.append(('f_n', impact['file'], impact['natural_frequency_hz'], natural))
+        if abs(impact['impulse_n_s'] / impulse - 1) > 0.01:
+            failures.append(('impulse', impact['file'], impact['impulse_n_s'], impulse))
+    return report, failures
+
+
 @pytest.mark.slow
 def test_analyze_holds_on_lab_chain_records_of_a_held_out_world(tmp_path, capsys):
     failures = []
@@ -57,26 +95,46 @@ def test_analyze_holds_on_lab_chain_records_of_a_held_out_world(tmp_path, capsys
         records = session(
             EVENTS, Effects(), float(rng.uniform(0.09, 0.15)), rng, duration_s=RECORD_S
         )
-        paths = []
-        for hit, record in enumerate(records):
-            path = tmp_path / f's{index}_hit{hit}.csv'
-            write_impact_csv(path, record.force_n, record.velocity_m_s, record.sample_rate_hz)
-            paths.append(path)
-        assert main(['analyze', *map(str, paths), '--json', '--paper-levels']) == 0
-        report = json.loads(capsys.readouterr().out)
+        report, wrong = analyzed(
+            records,
+            [record.hit.onset_s for record in records],
+            [record.hit.impulse_n_s for record in records],
+            tmp_path,
+            capsys,
+            f's{index}',
+        )
+        assert all(impact['accepted'] for impact in report['impacts']), report['impacts']
         assert report['linearity']['r2'] is not None, report['linearity']
-        for record, impact in zip(records, report['impacts'], strict=True):
-            assert impact['accepted'], impact['flags']
-            assert impact['peak_receptance_m_per_n'] is not None, impact
-            assert impact['natural_frequency_hz'] is not None, impact
-            peak, natural = independent_peak(
-                record.force_n, record.velocity_m_s, record.sample_rate_hz, record.hit.onset_s
-            )
-            if abs(impact['peak_receptance_m_per_n'] / peak - 1) > 0.05:
-                failures.append(('|X/F|', impact['file'], impact['peak_receptance_m_per_n'], peak))
-            if abs(impact['natural_frequency_hz'] / natural - 1) > 0.04:
-                failures.append(('f_n', impact['file'], impact['natural_frequency_hz'], natural))
-            assert impact['impulse_n_s'] == pytest.approx(record.hit.impulse_n_s, rel=0.01)
+        failures += wrong
+    assert failures == []
+
+
+@pytest.mark.slow
+def test_analyze_holds_on_the_newmark_world(tmp_path, capsys):
+    """`newmark` (held out): a Kelvin-Voigt hammer's force jumps at the touch, a settling
+    charge-amplifier zero, floor vibration on the velocity, 10 or 16.384 kHz. A 450 N hit
+    of a hard tip (0.3 N s) swings the rig about three half cycles before it sticks: too few
+    for f_n, so it is flagged `undetermined` and not accepted, never accepted without its
+    number; every accepted hit agrees with the independent DFT."""
+    world = dataclasses.replace(NEWMARK, duration_s=RECORD_S)
+    failures, accepted = [], 0
+    for index in range(SESSIONS):
+        rng = np.random.default_rng([24, index])
+        records = world.session(
+            Effects(), float(rng.uniform(0.09, 0.15)), rng, (450.0, 1000.0, 1450.0), centred=True
+        )
+        report, wrong = analyzed(
+            records,
+            [record.hammer.onset_s for record in records],
+            [record.hammer.impulse_n_s for record in records],
+            tmp_path,
+            capsys,
+            f'n{index}',
+        )
+        failures += wrong
+        accepted += sum(impact['accepted'] for impact in report['impacts'])
+        assert report['impacts'][1]['accepted'] and report['impacts'][2]['accepted']
+    assert accepted >= 2 * SESSIONS
     assert failures == []
 
 
