@@ -37,9 +37,9 @@ from heldout.bristle import (
     move,
     resting_bristle,
 )
-from heldout.forces import Hit
 from heldout.lab import Effects
-from heldout.plant import Contact, Plant, solve_events
+from heldout.plant import solve_events
+from heldout_contacts import MIXED_CONTACTS, as_event_hit
 
 PULSE = Pulse(1000.0, 0.6e-3, 0.15e-3, 0.25 + 0.37e-4)
 COULOMB_M_S = 5e-6
@@ -59,36 +59,10 @@ def test_the_pulse_area_and_peak_are_its_closed_forms():
     assert PULSE.force_at(PULSE.onset_s - 1e-9) == 0.0
 
 
-def _as_hit(pulse: Pulse) -> Hit:
-    """The same force as a `heldout.forces.Hit`, for lab's DOP853 event solver."""
-
-    class SameForce(Hit):
-        def force_at(self, time_s: float) -> float:
-            return pulse.force_at(time_s)
-
-        def force_n(self, time_s):
-            return pulse.force(time_s)
-
-        @property
-        def end_s(self) -> float:
-            return pulse.onset_s + 40.0 * pulse.fall_s  # the force there: 4e-18 of the peak
-
-    return SameForce('half_sine', pulse.peak_n, 40.0 * pulse.fall_s, pulse.onset_s)
-
-
-CONTACTS = (
-    (Effects(), Contact(0.09), Plant()),
-    (
-        Effects(static_excess=0.05, stribeck_speed_m_s=2e-3, asymmetry=0.02, cubic_n_per_m3=6e4),
-        Contact(0.09, static_excess=0.05, stribeck_speed_m_s=2e-3, asymmetry=0.02),
-        Plant(cubic_n_per_m3=6e4),
-    ),
-    (
-        Effects(track_amplitude=0.12, track_wavelength_m=5e-3, added_damping_n_s_per_m=0.3),
-        Contact(0.09, track_amplitude=0.12, track_wavelength_m=5e-3),
-        Plant(damping_n_s_per_m=0.575),
-    ),
-)
+def pulse_hit(pulse: Pulse):
+    """The pulse for lab's DOP853 event solver, cut where its force is 4e-18 of the peak."""
+    end = pulse.onset_s + 40.0 * pulse.fall_s
+    return as_event_hit(pulse.force_at, pulse.force, pulse.peak_n, pulse.onset_s, end)
 
 
 @pytest.mark.slow
@@ -100,9 +74,9 @@ def test_its_motion_is_the_coulomb_motion_of_lab_dop853():
     of the noise) once stuck."""
     start = 1e-4
     times = np.linspace(0.24, 11.9, 80_001)
-    for index, (effects, contact, plant) in enumerate(CONTACTS):
+    for index, (effects, contact, plant) in enumerate(MIXED_CONTACTS):
         moved = move(Rig(Bristles(0.09, effects), PULSE), (start, 0.0), 12.0)
-        exact = solve_events(plant, contact, _as_hit(PULSE), start, 12.0)
+        exact = solve_events(plant, contact, pulse_hit(PULSE), start, 12.0)
         x, v, z = moved.state(times)
         assert np.abs(v - exact.evaluate(times)[1]).max() < COULOMB_M_S, effects
         assert moved.rest_m == pytest.approx(exact.rest_m, abs=1e-7)

@@ -17,7 +17,6 @@ import numpy as np
 import pytest
 import scipy.integrate
 import scipy.signal
-from heldout.forces import Hit
 from heldout.lab import Effects
 from heldout.newmark import (
     COARSE_STEP_S,
@@ -41,6 +40,7 @@ from heldout.newmark import (
     tustin,
 )
 from heldout.plant import Contact, Plant, solve_events
+from heldout_contacts import MIXED_CONTACTS, as_event_hit
 
 HAMMER = hammer_for(1000.0, 0.2, 0.12, 1e-3, PRETRIGGER_S + 0.37e-4)
 HAMMERS = (
@@ -113,36 +113,9 @@ def test_random_hammers_peak_within_3_percent_of_their_level():
             assert 0.05 <= hammer.zeta <= 0.2 and 0.1 <= hammer.mass_kg <= 0.3
 
 
-def _as_hit(hammer: Hammer) -> Hit:
-    """The same force as a `heldout.forces.Hit`, for lab's DOP853 event solver."""
-
-    class SameForce(Hit):
-        def force_at(self, time_s: float) -> float:
-            return hammer.force_at(time_s)
-
-        def force_n(self, time_s):
-            return hammer.force(time_s)
-
-        @property
-        def end_s(self) -> float:
-            return hammer.end_s
-
-    return SameForce('half_sine', hammer.peak_n, hammer.contact_s, hammer.onset_s)
-
-
-CONTACTS = (
-    (Effects(), Contact(0.09), Plant()),
-    (
-        Effects(static_excess=0.05, stribeck_speed_m_s=2e-3, asymmetry=0.02, cubic_n_per_m3=6e4),
-        Contact(0.09, static_excess=0.05, stribeck_speed_m_s=2e-3, asymmetry=0.02),
-        Plant(cubic_n_per_m3=6e4),
-    ),
-    (
-        Effects(track_amplitude=0.12, track_wavelength_m=5e-3, added_damping_n_s_per_m=0.3),
-        Contact(0.09, track_amplitude=0.12, track_wavelength_m=5e-3),
-        Plant(damping_n_s_per_m=0.575),
-    ),
-)
+def hammer_hit(hammer: Hammer):
+    """The hammer's force for lab's DOP853 event solver."""
+    return as_event_hit(hammer.force_at, hammer.force, hammer.peak_n, hammer.onset_s, hammer.end_s)
 
 
 @pytest.mark.slow
@@ -152,9 +125,9 @@ def test_its_motion_is_the_coulomb_motion_of_lab_dop853():
     stops when it does (10 us); the velocity channel's area is the distance moved."""
     start = 1e-4
     times = np.linspace(PRETRIGGER_S - 0.01, 11.9, 100_001)
-    for index, (effects, contact, plant) in enumerate(CONTACTS):
+    for index, (effects, contact, plant) in enumerate(MIXED_CONTACTS):
         moved = move(Rig(0.09, effects), HAMMER, start, 12.0)
-        exact = solve_events(plant, contact, _as_hit(HAMMER), start, 12.0)
+        exact = solve_events(plant, contact, hammer_hit(HAMMER), start, 12.0)
         x, v = moved.state(times)
         exact_x, exact_v = exact.evaluate(times)
         assert np.abs(v - exact_v).max() < COULOMB_M_S, effects
@@ -174,7 +147,7 @@ def test_its_motion_is_the_coulomb_motion_of_lab_dop853():
 def test_halving_the_steps_changes_little():
     """Newmark average acceleration is second order: halving both steps moves the velocity by
     under 1e-7 m/s (1e-3 of the noise) and the rest by under 1e-9 m."""
-    effects, _, _ = CONTACTS[1]
+    effects, _, _ = MIXED_CONTACTS[1]
     times = np.linspace(PRETRIGGER_S, 8.0, 40_001)
     coarse = move(Rig(0.09, effects), HAMMER, 1e-4, 8.0)
     fine = move(Rig(0.09, effects), HAMMER, 1e-4, 8.0, FINE_STEP_S / 2, COARSE_STEP_S / 2)
@@ -195,7 +168,7 @@ def test_a_stuck_rig_stays_stuck_and_breaks_away_where_dop853_does():
     assert held.rest_m == x and held.rest_s == pytest.approx(tap.end_s)
     push = hammer_for(2.0, 0.2, 0.1, 3e-3, 0.4)
     moved = move(rig, push, x, 2.0)
-    exact = solve_events(Plant(), Contact(0.1, static_excess=0.04), _as_hit(push), x, 2.0)
+    exact = solve_events(Plant(), Contact(0.1, static_excess=0.04), hammer_hit(push), x, 2.0)
     first = exact.pieces[1][0] if exact.pieces[0][2] == 'rest' else exact.pieces[0][0]
     assert push.onset_s < first < push.end_s
     times = np.linspace(0.39, 1.9, 30_001)
