@@ -121,7 +121,7 @@ def test_the_screen_of_a_chained_session_predicts_what_its_refit_finds(chained_s
     """A term's screen is taken along the chain, as the refit's chained model runs the hits:
     each from where the changed run of the hit before came to rest. Taken hit by hit from
     fixed starts, the asymmetry's screen predicted a quarter of the chi^2 its refit removed
-    here (1 % to 15 % in held-out sessions, too little to be refitted in some)."""
+    here (1 % to 15 % in `bristle` sessions, too little to be refitted in some)."""
     records, _ = chained_session
     lines = []
     result = diagnose(records, chain_starts=True, progress=lines.append)
