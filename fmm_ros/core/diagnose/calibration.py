@@ -91,7 +91,7 @@ def without_impulse_error(
     move the fit; an impulse error beyond +-IMPULSE_SCALE_TOLERANCE is held at the bound and
     the rest solved again. In a chained session (`ConditionedImpact.follows_previous`) a hit's
     impulse and mu also move where it leaves the rig, so the later hits' starts: their
-    responses count too (`_responses`).
+    responses count too (`SessionModel.moved_along_chain`).
     """
     count = len(impacts)
     own_mu = bool(model.per_hit)
@@ -102,7 +102,7 @@ def without_impulse_error(
     nominal = [
         impact.velocity_m_s - residual for impact, residual in zip(impacts, residuals, strict=True)
     ]
-    rests = _nominal_rests(impacts, model)
+    rests = model.rests_m(impacts)
     mus = [float(mu) for mu in model.mus]
     hits = [[index] for index in range(count)]
 
@@ -114,12 +114,14 @@ def without_impulse_error(
         impulse = column < count
         step = IMPULSE_STEP if impulse else MU_STEP * mus[changed[0]]
         change = {
-            index: (1.0 + step, mus[index]) if impulse else (1.0, mus[index] + step)
+            index: {'force_n': impacts[index].force_n * (1.0 + step)}
+            if impulse
+            else {'mu': mus[index] + step}
             for index in changed
         }
         return {
             index: ((velocity - nominal[index]) / step)[windows[index]]
-            for index, velocity in _responses(impacts, model, rests, change).items()
+            for index, velocity in model.moved_along_chain(impacts, rests, change).items()
         }
 
     changes = list(enumerate(hits + (hits if own_mu else [list(range(count))])))
@@ -155,45 +157,3 @@ def without_impulse_error(
         corrected[window] -= values[where] @ pair
         out.append(corrected)
     return tuple(out)
-
-
-def _nominal_rests(impacts: Sequence[ConditionedImpact], model: SessionModel) -> tuple[float, ...]:
-    """Where the model leaves the rig after each hit [m] (needed only in a chained session)."""
-    if not any(impact.follows_previous for impact in impacts):
-        return ()
-    return tuple(
-        model.run(index, impact.force_n, impact.sample_rate_hz).end_position_m
-        for index, impact in enumerate(impacts)
-    )
-
-
-def _responses(
-    impacts: Sequence[ConditionedImpact],
-    model: SessionModel,
-    rests: Sequence[float],
-    change: dict[int, tuple[float, float]],
-) -> dict[int, np.ndarray]:
-    """The velocity of every hit a change moves [m/s]: hit -> (factor on its force, its mu).
-
-    The changed hits, and after each, while the hits follow their previous one, the hits
-    whose start the change moved (by as much as it moved the rest before them).
-    """
-    moved: dict[int, np.ndarray] = {}
-    shift = 0.0
-    for index, impact in enumerate(impacts):
-        if not impact.follows_previous:
-            shift = 0.0
-        if index not in change and shift == 0.0:
-            continue
-        factor, mu = change.get(index, (1.0, float(model.mus[index])))
-        run = model.run(
-            index,
-            impact.force_n * factor,
-            impact.sample_rate_hz,
-            mu=mu,
-            x0_m=model.positions_m[index] + shift,
-        )
-        moved[index] = run.velocity_m_s
-        if rests:
-            shift = run.end_position_m - rests[index]
-    return moved

@@ -34,7 +34,6 @@ from fmm_ros.core._threads import thread_map
 from fmm_ros.core.diagnose.session_model import SessionModel
 from fmm_ros.core.identify.conditioning import ConditionedImpact
 from fmm_ros.core.identify.lsq import inner
-from fmm_ros.core.physics.model import Simulation
 from fmm_ros.core.physics.terms import EFFECT_SIZE, MODEL_TERMS, ModelTerm
 from fmm_ros.errors import BadInputError
 
@@ -127,21 +126,14 @@ class Linearisation:
         self.common_mu_columns = self.mu_columns
         """The common mu's direction: along the chain in a chained session (`_along_chain`)."""
         if self.chained:
-            self._impacts = tuple(impacts)
-            self._rests = thread_map(
-                lambda index: self._run(index).end_position_m, range(max(self.hits) + 1)
-            )
+            self._chain = tuple(impacts[: max(self.hits) + 1])
+            self._rests_m = model.rests_m(self._chain)
             if MU_DRIFT not in model.effects:
                 step = RELATIVE_STEP * float(mus[0])
                 self.common_mu_columns = [
                     moved / step
                     for moved in self._along_chain(lambda index: {'mu': mus[index] + step})
                 ]
-
-    def _run(self, index: int, **change) -> Simulation:
-        """The model's run of impact `index` (of all), with changed arguments."""
-        impact = self._impacts[index]
-        return self.model.run(index, impact.force_n, impact.sample_rate_hz, **change)
 
     def _difference(self, place: int, step: float, **change) -> np.ndarray:
         impact = self.impacts[place]
@@ -153,18 +145,13 @@ class Linearisation:
     def _along_chain(self, change: Callable[[int], dict]) -> list[np.ndarray]:
         """The change of each screened hit's velocity when every hit's run changes [m/s].
 
-        change(index): the run's changed arguments (`SessionModel.run`) of hit `index`. The
-        hits run in order, each hit that follows the one before from where that one's changed
-        run came to rest (moved by as much as its rest moved).
+        change(index): the changed arguments of hit `index`'s run (`SessionModel.run`); the
+        hits run in order, each that follows the one before from where that one's changed run
+        came to rest (`SessionModel.moved_along_chain`).
         """
-        moved = {}
-        shift = 0.0
-        for index, impact in enumerate(self._impacts[: max(self.hits) + 1]):
-            if not impact.follows_previous:
-                shift = 0.0
-            run = self._run(index, x0_m=self.model.positions_m[index] + shift, **change(index))
-            moved[index] = run.velocity_m_s
-            shift = run.end_position_m - self._rests[index]
+        moved = self.model.moved_along_chain(
+            self._chain, self._rests_m, {index: change(index) for index in range(len(self._chain))}
+        )
         return [
             moved[hit] - velocity for hit, velocity in zip(self.hits, self.velocities, strict=True)
         ]

@@ -8,12 +8,13 @@ information criteria count every fitted parameter, start positions included.
 """
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from fmm_ros.constants import MU_DRIFT
+from fmm_ros.core._threads import thread_map
 from fmm_ros.core.diagnose.result import ParameterEstimate
 from fmm_ros.core.identify.conditioning import ConditionedImpact
 from fmm_ros.core.identify.friction import ModelFit, fit_model
@@ -174,6 +175,56 @@ class SessionModel:
             effects=self.terms if effects is None else tuple(effects),
             x0_m=self.positions_m[index] if x0_m is None else x0_m,
         )
+
+    def rests_m(self, impacts: Sequence[ConditionedImpact]) -> tuple[float, ...]:
+        """Where the model's run of each impact leaves the rig [m].
+
+        () unless a hit follows the one before it: only a chain needs them.
+        """
+        if not any(impact.follows_previous for impact in impacts):
+            return ()
+        return tuple(
+            thread_map(
+                lambda index: (
+                    self.run(
+                        index, impacts[index].force_n, impacts[index].sample_rate_hz
+                    ).end_position_m
+                ),
+                range(len(impacts)),
+            )
+        )
+
+    def moved_along_chain(
+        self,
+        impacts: Sequence[ConditionedImpact],
+        rests_m: Sequence[float],
+        change: Mapping[int, dict],
+    ) -> dict[int, np.ndarray]:
+        """The velocity of every hit a change moves [m/s], by hit.
+
+        change: hit -> the changed arguments of its run (`run`'s force_n, effects, mu). The
+        changed hits run, and after each, while the hits follow their previous one, the hits
+        whose start the change moved, from their start moved by as much as the change moved
+        the rest before them (`rests_m`, this model's own).
+        """
+        moved = {}
+        shift = 0.0
+        for index, impact in enumerate(impacts):
+            if not impact.follows_previous:
+                shift = 0.0
+            if index not in change and shift == 0.0:
+                continue
+            arguments = {'force_n': impact.force_n, **change.get(index, {})}
+            run = self.run(
+                index,
+                sample_rate_hz=impact.sample_rate_hz,
+                x0_m=self.positions_m[index] + shift,
+                **arguments,
+            )
+            moved[index] = run.velocity_m_s
+            if rests_m:
+                shift = run.end_position_m - rests_m[index]
+        return moved
 
     def estimates(self) -> tuple[ParameterEstimate, ...]:
         """Fitted parameters: the joint fit's (mu, terms, starts), then each hit's mu."""
