@@ -347,16 +347,18 @@ def sweep(source: Source, cases: int, seed: int, rows: tuple[str, ...] | None = 
             named = result.named_effects
             found.confusion[kind][result.missing_effect] += 1
             vocabulary = kind not in OUTSIDE and bool(hidden)
-            if vocabulary and right(kind, hidden, named):
+            correct = right(kind, hidden, named)
+            if vocabulary and correct:
                 found.left.append(result.residual_where.excess_to_noise)
             tally = found.rates.setdefault(records[0].sample_rate_hz, [0, 0])
             tally[1] += 1
-            seen = kind in SINGLES and found.sizes[kind][-1] >= MIN_EXCESS
             if kind in SINGLES:
-                found.visible.setdefault(kind, [0, 0])[1] += seen
-            if right(kind, hidden, named):
+                above = found.sizes[kind][-1] >= MIN_EXCESS
+                visible = found.visible.setdefault(kind, [0, 0])
+                visible[0] += above and correct
+                visible[1] += above
+            if correct:
                 found.exact[kind] += 1
-                found.visible.get(kind, [0, 0])[0] += seen
                 tally[0] += 1
             else:
                 drawn = ', '.join(f'{SHORT[e]} {r:.1f}x' for e, r in ratios.items())
