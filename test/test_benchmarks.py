@@ -69,3 +69,26 @@ def test_bench_diagnose_refuses_a_world_it_does_not_know(tmp_path: Path):
     )
     assert run.returncode == 2
     assert 'unknown world(s) nope; known: ours, worlds, events' in run.stderr
+
+
+@pytest.mark.slow
+def test_bench_diagnose_judges_the_targets_its_kinds_judge(tmp_path: Path):
+    """A held-out sweep of effects alone, without clean sessions, once divided by zero clean
+    sessions when it judged the false-alarm target."""
+    run = subprocess.run(
+        [
+            sys.executable,
+            str(BENCHMARKS / 'bench_diagnose.py'),
+            *('--quick', '--skip-timing', '--role', 'held-out', '--worlds', 'events'),
+            *('--kinds', 'velocity_offset'),
+        ],
+        cwd=tmp_path,
+        env={**os.environ, 'PYTHONUNBUFFERED': '1'},
+        capture_output=True,
+        text=True,
+        timeout=QUICK_TIMEOUT_S,
+        check=False,
+    )
+    assert run.returncode == 0, run.stderr[-3000:]
+    assert 'single effects and none, worst kind' in run.stdout
+    assert 'false alarms:' not in run.stdout
