@@ -58,6 +58,7 @@ session of a few kinds per world, three-hit timing) writes nothing.
 """
 
 import argparse
+import math
 import statistics
 import sys
 import time
@@ -83,7 +84,13 @@ from heldout.newmark import NEWMARK  # noqa: E402
 from world_cases import OUTSIDE_KINDS, VOCABULARY_KINDS, world_case  # noqa: E402
 
 from fmm_ros.constants import MU_DRIFT
-from fmm_ros.core.diagnose.workflow import MIN_EXCESS, NONE, UNEXPLAINED, diagnose
+from fmm_ros.core.diagnose.workflow import (
+    MIN_EXCESS,
+    MIN_WHOLE_EXCESS,
+    NONE,
+    UNEXPLAINED,
+    diagnose,
+)
 from fmm_ros.core.identify.conditioning import as_conditioned
 from fmm_ros.core.identify.spec import CENTRE, FITTED, start_options
 from fmm_ros.core.physics.terms import MODEL_TERMS
@@ -131,6 +138,10 @@ COLUMNS = (*MODEL_TERMS, MU_DRIFT, UNEXPLAINED, NONE)
 OUTSIDE = (*OUT_OF_VOCABULARY, *OUTSIDE_KINDS)
 CLEAN = ('none', 'none8', 'none_chained')
 SINGLES = (*MODEL_TERMS, 'asymmetric_chained')
+SIZE_BANDS = (0.0, MIN_WHOLE_EXCESS, MIN_EXCESS, 1.0, math.inf)
+"""Edges of the bands of the base model's miss [noise RMS] the single effects are counted in:
+under the floor for a whole misfit, under the floor, to one noise RMS, beyond (a detection
+rate by size, as a lab would quote a sensor's)."""
 """Rows hiding one vocabulary effect (a chained session's asymmetry too)."""
 
 
@@ -225,6 +236,8 @@ class Sweep:
     visible: dict = field(default_factory=dict)
     """Single-effect row -> [right, sessions] over the sessions whose base misfit is at least
     MIN_EXCESS (the floor the diagnosis speaks from): how often an effect it can see is named."""
+    by_size: dict = field(default_factory=dict)
+    """Index into SIZE_BANDS -> [right, sessions] over the single-effect sessions."""
     slowest: tuple[float, str] = (0.0, '')
     """The longest diagnosis [s] and which session it was."""
 
@@ -273,6 +286,13 @@ class Sweep:
                     else 'none'
                 )
                 + f'; under it {under_right} of {under} named (below the floor by design)'
+            )
+        if self.by_size:
+            lines.append(
+                "single effects named by the base model's miss: "
+                + '; '.join(
+                    f'{_band(band)} {n[0]} of {n[1]}' for band, n in sorted(self.by_size.items())
+                )
             )
         if self.named_sessions:
             lines.append(
@@ -324,6 +344,12 @@ class Sweep:
         ]
 
 
+def _band(index: int) -> str:
+    """A SIZE_BANDS band as text, in noise RMS."""
+    low, high = SIZE_BANDS[index], SIZE_BANDS[index + 1]
+    return f'from {low:g}x' if math.isinf(high) else f'{low:g}-{high:g}x'
+
+
 def sweep(source: Source, cases: int, seed: int, rows: tuple[str, ...] | None = None) -> Sweep:
     """Diagnose `cases` sessions of each kind of a source; print its table as it goes."""
     rows = rows or source.rows
@@ -355,6 +381,10 @@ def sweep(source: Source, cases: int, seed: int, rows: tuple[str, ...] | None = 
             tally = found.rates.setdefault(records[0].sample_rate_hz, [0, 0])
             tally[1] += 1
             if kind in SINGLES:
+                band = int(np.searchsorted(SIZE_BANDS, found.sizes[kind][-1], side='right')) - 1
+                counted = found.by_size.setdefault(band, [0, 0])
+                counted[0] += correct
+                counted[1] += 1
                 above = found.sizes[kind][-1] >= MIN_EXCESS
                 visible = found.visible.setdefault(kind, [0, 0])
                 visible[0] += above and correct
