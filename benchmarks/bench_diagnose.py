@@ -138,11 +138,11 @@ COLUMNS = (*MODEL_TERMS, MU_DRIFT, UNEXPLAINED, NONE)
 OUTSIDE = (*OUT_OF_VOCABULARY, *OUTSIDE_KINDS)
 CLEAN = ('none', 'none8', 'none_chained')
 SINGLES = (*MODEL_TERMS, 'asymmetric_chained')
+"""Rows hiding one vocabulary effect (a chained session's asymmetry too)."""
 SIZE_BANDS = (0.0, MIN_WHOLE_EXCESS, MIN_EXCESS, 1.0, math.inf)
 """Edges of the bands of the base model's miss [noise RMS] the single effects are counted in:
 under the floor for a whole misfit, under the floor, to one noise RMS, beyond (a detection
 rate by size, as a lab would quote a sensor's)."""
-"""Rows hiding one vocabulary effect (a chained session's asymmetry too)."""
 
 
 def draw_ours(kind: str, rng: np.random.Generator):

@@ -12,10 +12,11 @@ import pytest
 
 from fmm_ros.core.diagnose import diagnose
 from fmm_ros.core.diagnose.drift import mu_trend
-from fmm_ros.core.diagnose.friction_map import MapRecord, friction_map
+from fmm_ros.core.diagnose.friction_map import SPEED_BINS, MapRecord, friction_map, speed_table
 from fmm_ros.core.diagnose.gaps import measured_motion_stop
 from fmm_ros.core.diagnose.screen import Linearisation, chi2_fall, screen_term, screened_hits
 from fmm_ros.core.diagnose.session_model import SessionModel
+from fmm_ros.core.diagnose.workflow import _drift_and_speed_law_aic
 from fmm_ros.core.identify.conditioning import as_conditioned, cropped_impact
 from fmm_ros.core.identify.friction import fit_model
 from fmm_ros.core.physics.model import simulate
@@ -92,14 +93,15 @@ def test_a_trend_needs_three_hits_and_finite_errors():
         mu_trend([0.1, 0.11, 0.12, math.nan], [1e-3] * 4, refitted=True)
 
 
-def map_records(effects=(), count=8):
-    """Noisy 5 s records of the rig at random levels: the friction map's input."""
+def map_records(effects=(), count=8, mus=None, levels_n=None):
+    """Noisy 5 s records of the rig at random levels: the friction map's input (mu 0.113, or
+    one of mus a record; levels_n the hits' peaks)."""
     records = []
     for seed in range(count):
         record = impact_record(
-            450.0 + 130.0 * seed,
+            levels_n[seed] if levels_n else 450.0 + 130.0 * seed,
             seed,
-            mu=0.113,
+            mu=mus[seed] if mus else 0.113,
             effects=effects,
             duration_s=5.0,
             force_noise_std_n=0.2,
@@ -131,6 +133,35 @@ def test_the_friction_map_of_a_stribeck_contact_rises_toward_low_speed():
     truth = 0.113 + 0.05 * np.exp(-((centres / 3e-3) ** 2))
     assert mu[0] - mu[-1] > 0.03
     assert np.abs(mu - truth) == pytest.approx(0.0, abs=0.01)
+
+
+LEVELS_N = (450.0, 1000.0, 1450.0)
+
+
+def test_the_speed_table_sets_each_records_curve_on_shared_bins():
+    records = map_records(count=3, levels_n=LEVELS_N)
+    mu, error = speed_table(records, RATE_HZ, 1e-4, FMM_RIG)
+    assert mu.shape == error.shape == (3, SPEED_BINS)
+    usable = np.isfinite(mu)
+    assert np.all(usable.sum(axis=1) >= 4)  # each hit fills bins of its own
+    assert np.count_nonzero(usable.all(axis=0)) >= 6  # the speeds every hit passes
+    assert np.all(np.abs((mu[usable] - 0.113) / error[usable]) < 4.0)
+    top = [int(np.flatnonzero(row)[-1]) for row in usable]
+    assert top[0] < top[2]  # the 1450 N hit reaches speeds the 450 N hit never does
+
+
+def test_a_mu_per_hit_is_told_from_one_curve_of_speed():
+    """Three hits, one a level: a drift (one mu a hit, each flat) fits a mu per hit better; a
+    Stribeck law (one curve every hit follows) fits the shared curve better. A single hit's map
+    bending at low speed (coloured noise in its displacement) cannot tell them apart; the hits'
+    bins side by side can."""
+    drift = map_records(count=3, mus=(0.10, 0.106, 0.112), levels_n=LEVELS_N)
+    per_hit, shared = _drift_and_speed_law_aic(*speed_table(drift, RATE_HZ, 1e-4, FMM_RIG))
+    assert per_hit < shared - 20.0
+    stribeck = model_term('stribeck', mu_static_excess=0.05, stribeck_velocity_m_s=3e-3)
+    law = map_records((stribeck,), count=3, levels_n=LEVELS_N)
+    per_hit, shared = _drift_and_speed_law_aic(*speed_table(law, RATE_HZ, 1e-4, FMM_RIG))
+    assert shared < per_hit - 20.0
 
 
 def test_the_motion_stop_follows_the_measured_decay():

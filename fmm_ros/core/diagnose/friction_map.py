@@ -124,22 +124,53 @@ def friction_map(
     if not any(np.any(s) for s in sliding):
         empty = FrictionCurve((), (), (), ())
         return FrictionMap(empty, empty)
-    floor = max(p.floor_m_s for p in prepared)
-    top = max(
-        float(np.max(p.speed_m_s[s], initial=0.0)) for p, s in zip(prepared, sliding, strict=True)
-    )
     places = np.concatenate([p.displacement_m[s] for p, s in zip(prepared, sliding, strict=True)])
     low, high = np.percentile(places, [0.5, 99.5])
-    speed_edges = np.geomspace(floor, max(top, 2.0 * floor), SPEED_BINS + 1)
     position_edges = np.linspace(low, max(high, low + 1e-9), POSITION_BINS + 1)
     curves = []
-    for edges, by_speed in ((speed_edges, True), (position_edges, False)):
+    for edges, by_speed in ((_speed_edges(prepared), True), (position_edges, False)):
         runs = [
             _runs(p, edges, by_speed, sample_rate_hz, noise_std_m_s, rig, cubic_stiffness_n_per_m3)
             for p in prepared
         ]
         curves.append(_curve(runs, edges.size - 1))
     return FrictionMap(*curves)
+
+
+def speed_table(
+    records: Sequence[MapRecord],
+    sample_rate_hz: float,
+    noise_std_m_s: float,
+    rig: Rig,
+    cubic_stiffness_n_per_m3: float = 0.0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each record's mu against speed, on speed bins the records share.
+
+    Returns (mu, its standard error), a row a record and a column a speed bin of the records
+    together (as `friction_map` bins them), NaN where a record has fewer than MIN_RUNS runs in
+    a bin: so one bin is one speed range in every record, and the records' curves can be set
+    side by side.
+    """
+    prepared = [_prepare(record, sample_rate_hz, noise_std_m_s, rig) for record in records]
+    mu = np.full((len(prepared), SPEED_BINS), math.nan)
+    error = np.full_like(mu, math.nan)
+    if not any(np.any(p.direction != 0.0) for p in prepared):
+        return mu, error
+    edges = _speed_edges(prepared)
+    for row, record in enumerate(prepared):
+        runs = _runs(
+            record, edges, True, sample_rate_hz, noise_std_m_s, rig, cubic_stiffness_n_per_m3
+        )
+        for column, _, mean, stderr, _ in _binned([runs], SPEED_BINS):
+            mu[row, column], error[row, column] = mean, stderr
+    return mu, error
+
+
+def _speed_edges(prepared: Sequence[_Prepared]) -> np.ndarray:
+    """Speed bin edges [m/s], log-spaced from the highest floor to the top sliding speed."""
+    floor = max(p.floor_m_s for p in prepared)
+    top = max(float(np.max(p.speed_m_s[p.direction != 0.0], initial=0.0)) for p in prepared)
+    return np.geomspace(floor, max(top, 2.0 * floor), SPEED_BINS + 1)
 
 
 def _prepare(record: MapRecord, rate: float, noise: float, rig: Rig) -> _Prepared:
@@ -209,13 +240,28 @@ def _runs(
 
 
 def _curve(pieces, bins: int) -> FrictionCurve:
-    """Each bin's time-weighted mu over its runs, the cluster-robust error, the noise floor."""
+    """The curve of the bins with at least MIN_RUNS runs (`_binned`)."""
+    binned = _binned(pieces, bins)
+    return FrictionCurve(
+        tuple(b[4] for b in binned),
+        tuple(b[2] for b in binned),
+        tuple(b[3] for b in binned),
+        tuple(b[1] for b in binned),
+    )
+
+
+def _binned(pieces, bins: int) -> list[tuple[int, int, float, float, float]]:
+    """(bin, runs, mu, its error, mean variable) of each bin with at least MIN_RUNS runs.
+
+    mu is the bin's time-weighted mean over its runs; the error the larger of the
+    cluster-robust scatter and the noise floor (module doc).
+    """
     which = np.concatenate([p[0] for p in pieces])
     duration = np.concatenate([p[1] for p in pieces])
     mu = np.concatenate([p[2] for p in pieces])
     variance = np.concatenate([p[3] for p in pieces])
     variable = np.concatenate([p[4] for p in pieces])
-    centres, means, errors, counts = [], [], [], []
+    binned = []
     for b in range(bins):
         chosen = which == b
         count = int(np.count_nonzero(chosen))
@@ -226,8 +272,7 @@ def _curve(pieces, bins: int) -> FrictionCurve:
         mean = float(weight @ mu[chosen]) / total
         scatter = math.sqrt(float(weight**2 @ (mu[chosen] - mean) ** 2) * count / (count - 1))
         floor = math.sqrt(float(weight**2 @ variance[chosen]))
-        centres.append(float(weight @ variable[chosen]) / total)
-        means.append(mean)
-        errors.append(max(scatter, floor) / total)
-        counts.append(count)
-    return FrictionCurve(tuple(centres), tuple(means), tuple(errors), tuple(counts))
+        binned.append(
+            (b, count, mean, max(scatter, floor) / total, float(weight @ variable[chosen]) / total)
+        )
+    return binned

@@ -21,8 +21,9 @@
    refitted per-hit mu trend
    in hit order (p < `DRIFT_P_VALUE`) from `MIN_TREND_HITS` hits; with fewer (one hit a
    level), the hits' own mu differing beyond their errors and `MU_SPREAD_FLOOR` of mu
-   (p < `DRIFT_P_VALUE`) and no hit's own friction map changing with speed
-   (p < `SPEED_LAW_P_VALUE`: a speed law, not a drift).
+   (p < `DRIFT_P_VALUE`), and no hit's own friction map changing with speed
+   (p < `SPEED_LAW_P_VALUE`) unless the hits' maps on shared speed bins fit a mu per hit
+   better than one curve of speed (a speed law, not a drift, otherwise).
    Repeat until no candidate qualifies.
 5. Backward check: with two or more named, each is taken out in turn (the rest refitted);
    one whose removal costs less than the required score is dropped, and the check repeats.
@@ -53,6 +54,7 @@ from fmm_ros.core.diagnose.friction_map import (
     FrictionMap,
     MapRecord,
     friction_map,
+    speed_table,
 )
 from fmm_ros.core.diagnose.gaps import (
     frf_gap,
@@ -171,7 +173,9 @@ than its standard error says (the per-hit mu of a cubic `steps` session spread 0
 
 SPEED_LAW_P_VALUE = 1e-3
 """With fewer than MIN_TREND_HITS hits, mu_drift is not named when the friction map of any
-one hit changes with speed this significantly (a speed law, not a drift)."""
+one hit changes with speed this significantly (a speed law, not a drift), unless the hits'
+maps side by side fit a mu per hit better than one curve of speed (`_drift_and_speed_law_aic`:
+a hit's map also bends where coloured noise shifts its integrated displacement)."""
 
 
 SCREEN_FRACTION = 0.5
@@ -714,10 +718,22 @@ class _Session:
             curve = friction_map([record], self.rate, self.noise, rig, cubic).speed
             p_value = _flatness_p_value(curve)
             if p_value < SPEED_LAW_P_VALUE:
-                return (
-                    f'the friction within hit {index} changes with sliding speed '
-                    f'(p = {p_value:.2g}): a speed law, not a drift'
+                per_hit, shared = _drift_and_speed_law_aic(
+                    *speed_table(records, self.rate, self.noise, rig, cubic)
                 )
+                if shared <= per_hit:
+                    return (
+                        f'the friction within hit {index} changes with sliding speed '
+                        f'(p = {p_value:.2g}), and one curve of speed fits the hits at least as '
+                        f'well as a mu per hit (AIC {shared:.0f} against {per_hit:.0f}): a '
+                        'speed law, not a drift'
+                    )
+                self.say(
+                    f'mu_drift: the friction within hit {index} changes with sliding speed '
+                    f'(p = {p_value:.2g}), but a mu per hit fits the hits better than one '
+                    f'curve of speed (AIC {per_hit:.0f} against {shared:.0f})'
+                )
+                return ''
         return ''
 
     def _backward(
@@ -964,6 +980,30 @@ def _flatness_p_value(curve: FrictionCurve) -> float:
     mean = float(np.sum(weights * mu[usable]) / np.sum(weights))
     chi2 = float(np.sum(weights * (mu[usable] - mean) ** 2))
     return float(scipy.stats.chi2.sf(chi2, np.count_nonzero(usable) - 1))
+
+
+def _drift_and_speed_law_aic(mu: np.ndarray, error: np.ndarray) -> tuple[float, float]:
+    """AIC of two explanations of the hits' friction maps on shared speed bins [1].
+
+    mu, error: a row a hit, a column a speed bin (`speed_table`; NaN where a hit has too few
+    runs). A drift gives each hit its own constant mu (a parameter a hit); a speed law one
+    curve of speed that every hit follows (a parameter a bin). Returns (AIC of a mu per hit,
+    AIC of the shared curve), each chi^2 about its weighted means plus twice its parameters.
+    A hit's map can bend at its lowest speeds without a speed law (coloured velocity noise
+    integrated into its displacement shifts the k x it subtracts), but only a speed law makes
+    the hits agree bin by bin where their speeds overlap.
+    """
+    usable = np.isfinite(mu) & np.isfinite(error) & (error > 0.0)
+    weight = np.where(usable, 1.0 / np.where(usable, error, 1.0) ** 2, 0.0)
+    values = np.where(usable, mu, 0.0)
+
+    def aic(axis: int) -> float:
+        total = weight.sum(axis=axis, keepdims=True)
+        mean = (weight * values).sum(axis=axis, keepdims=True) / np.where(total > 0, total, 1.0)
+        chi2 = float(np.sum(weight * (values - mean) ** 2))
+        return chi2 + 2.0 * np.count_nonzero(total > 0)
+
+    return aic(1), aic(0)
 
 
 def _trend(model: SessionModel) -> MuTrend:
