@@ -24,7 +24,9 @@ against it), `ivp` (LSODA phases of a stick-slip state machine, haversine and ga
 sigma-delta FIR, white plus pink noise; a tuning world since the further refits were built after a
 miss on it), `analytic` (closed-form slides and Radau, rubber-tip pulses with a rebound, 10, 10.24
 or 12.8 kHz a session, a Chebyshev chain, 1/f^alpha noise, hits from rest in the friction band with
-fitted starts; its table also counts right answers per sample rate), `moreau` (Moreau-Jean time
+fitted starts; its table also counts right answers per sample rate; a tuning world since a
+three-hit drift is told from a speed law by the hits' maps side by side, a change made after a
+miss on it), `moreau` (Moreau-Jean time
 stepping with the Coulomb law solved exactly each step, a hammer body striking through a Hertzian
 tip, a DSA's delay-compensated FIR at 8, 10.24 or 25.6 kHz, white noise and mains hum, 16 bits,
 continuous sessions with fitted starts), `bristle` (a LuGre bristle state by BDF,
