@@ -87,6 +87,7 @@ def test_its_motion_is_the_coulomb_motion_of_lab_dop853():
     assert 0.3 < errors[1] / errors[0] < 0.7
 
 
+@pytest.mark.slow
 def test_halving_the_steps_changes_little():
     """RK4 resolves the hit and the swing far below the noise; Karnopp's stops fall on a
     step, so the stop moves by up to a step and the motion after it by its first-order
@@ -226,6 +227,7 @@ def test_the_bessel_filter_is_its_analog_prototype(rate_hz):
         assert np.abs(digital - analog_response).max() < 5e-4
 
 
+@pytest.mark.slow
 def test_the_second_mode_is_its_ode_under_the_contact_force():
     """The mode stepped in the loop against DOP853 of m2 y'' + c2 y' + k2 y = F(t) under the
     force the world computed, then ringing freely: within 1e-6 of its largest velocity."""
@@ -252,6 +254,7 @@ def test_the_second_mode_is_its_ode_under_the_contact_force():
     assert np.abs(moved.trace[:, 3] - exact[0]).max() < 1e-6 * np.abs(exact[0]).max()
 
 
+@pytest.mark.slow
 def test_sessions_start_in_the_band_or_where_the_last_hit_left():
     world = dataclasses.replace(KARNOPP, duration_s=2.0)
     rng = np.random.default_rng(5)
