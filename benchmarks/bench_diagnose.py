@@ -35,7 +35,10 @@ red noise, 10, 12 or 20 kHz, starts as `analytic`; a tuning world since a chaine
 follows the chain, a change made after looking at its misses) and `newmark` (implicit Newmark-beta
 steps with Newton and the stop located within its step, a Kelvin-Voigt hammer tip, a prewarped
 bilinear Chebyshev II chain at 10 or 16.384 kHz, a settling charge-amplifier zero, floor vibration
-on the velocity, 24 bits, starts as `analytic`): each of the seven effects alone, a pair, mu
+on the velocity, 24 bits, starts as `analytic`) and `karnopp` (explicit RK4 with Karnopp's
+stick-slip window, a Hunt-Crossley hammer striking the moving rig, a Bessel chain by first-order
+hold at 10 or 20.48 kHz, a vibrometer tracking filter, a multiplexed ADC's skew, random-walk
+drift, 16 bits, starts as `analytic`): each of the seven effects alone, a pair, mu
 drifting 4-7 % a hit over three hits, a wear track (answer 'unexplained'), clean sessions; and
 continuous sessions whose starts the diagnosis chains (`asymmetric_chained`, `none_chained`: each
 hit from where the one before left the rig, the first from the centre). Their roles are
@@ -80,6 +83,7 @@ from heldout.bristle import BRISTLE  # noqa: E402
 from heldout.cases import KINDS as HELDOUT_KINDS  # noqa: E402
 from heldout.cases import case as heldout_case  # noqa: E402
 from heldout.ivp import IVP  # noqa: E402
+from heldout.karnopp import KARNOPP  # noqa: E402
 from heldout.lab import EVENTS, STEPS  # noqa: E402
 from heldout.moreau import MOREAU  # noqa: E402
 from heldout.newmark import NEWMARK  # noqa: E402
@@ -205,6 +209,7 @@ SOURCES = (
     Source('moreau', HELDOUT_KINDS, draw_held_out(MOREAU)),
     Source('bristle', HELDOUT_KINDS, draw_held_out(BRISTLE)),
     Source('newmark', HELDOUT_KINDS, draw_held_out(NEWMARK)),
+    Source('karnopp', HELDOUT_KINDS, draw_held_out(KARNOPP)),
 )
 
 

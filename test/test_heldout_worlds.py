@@ -24,6 +24,7 @@ from heldout.cases import KINDS, case, kinds_of
 from heldout.chain import Channel, Daq, acquire
 from heldout.forces import SHAPES, Hit
 from heldout.ivp import IVP, Law, Pulse, motion
+from heldout.karnopp import KARNOPP
 from heldout.lab import EVENTS, STEPS, Effects
 from heldout.moreau import MOREAU
 from heldout.newmark import NEWMARK
@@ -47,6 +48,7 @@ WORLDS = {
     'moreau': MOREAU,
     'bristle': BRISTLE,
     'newmark': NEWMARK,
+    'karnopp': KARNOPP,
 }
 
 
@@ -63,7 +65,7 @@ def test_the_held_out_generators_import_neither_the_product_nor_worlds():
             assert not roots & {'fmm_ros', 'worlds'}, f'{path.name} imports {names}'
 
 
-@pytest.mark.parametrize('module', ['ivp', 'analytic', 'moreau', 'bristle', 'newmark'])
+@pytest.mark.parametrize('module', ['ivp', 'analytic', 'moreau', 'bristle', 'newmark', 'karnopp'])
 def test_a_world_written_from_scratch_shares_only_the_effects(module):
     """Its physics, hits, DAQ and noise its own: of the other worlds it imports lab.Effects."""
     shared = []

@@ -16,6 +16,7 @@ import numpy as np
 from heldout.analytic import AnalyticWorld, re_centred
 from heldout.bristle import BristleWorld
 from heldout.ivp import IvpWorld
+from heldout.karnopp import KarnoppWorld
 from heldout.lab import Effects, World, session
 from heldout.moreau import MoreauWorld
 from heldout.moreau import re_centred as moreau_re_centred
@@ -37,9 +38,9 @@ CENTRE, FITTED, CHAINED = 'centre', 'fitted', 'chained'
 STARTS = {kind: CHAINED if kind in CHAINED_KINDS else CENTRE for kind in KINDS}
 """Where the diagnosis is to start each kind's hits: at the centre, or chained (`fmm_ros`'s
 `FitSpec.starts`, spelled here again: this package imports nothing of the product). The
-`analytic`, `bristle` and `newmark` worlds start isolated hits from rest in the friction band,
-and the `moreau` world each hit where the one before left the rig, so their hits are FITTED
-unless the session is re-centred (`analytic.re_centred`, `moreau.re_centred`)."""
+`analytic`, `bristle`, `newmark` and `karnopp` worlds start isolated hits from rest in the
+friction band, and the `moreau` world each hit where the one before left the rig, so their hits
+are FITTED unless the session is re-centred (`analytic.re_centred`, `moreau.re_centred`)."""
 VIBROMETER_KINDS = ('velocity_offset',)
 """Effects of a vibrometer's own, which a world measured by an accelerometer cannot hide."""
 
@@ -101,15 +102,21 @@ def effect_fields(kind: str, mu: float, rng: np.random.Generator) -> dict:
 
 
 def case(
-    world: World | IvpWorld | AnalyticWorld | MoreauWorld | BristleWorld | NewmarkWorld,
+    world: World
+    | IvpWorld
+    | AnalyticWorld
+    | MoreauWorld
+    | BristleWorld
+    | NewmarkWorld
+    | KarnoppWorld,
     kind: str,
     rng: np.random.Generator,
 ):
     """(records, hidden effects in the diagnosis's names, where the diagnosis starts the hits).
 
-    Where it starts them: CENTRE, FITTED (an `analytic`, `bristle` or `newmark` session's hits
-    from rest in the friction band, a `moreau` session's from where the hit before left the
-    rig) or CHAINED.
+    Where it starts them: CENTRE, FITTED (an `analytic`, `bristle`, `newmark` or `karnopp`
+    session's hits from rest in the friction band, a `moreau` session's from where the hit
+    before left the rig) or CHAINED.
     """
     chained = kind in CHAINED_KINDS
     kind = CHAINED_KINDS.get(kind, kind)
@@ -134,7 +141,7 @@ def case(
     elif isinstance(world, MoreauWorld):
         records = world.session(effects, mu, rng, levels, chained=chained)
         starts = starts if chained or moreau_re_centred(effects) else FITTED
-    elif isinstance(world, BristleWorld | NewmarkWorld):
+    elif isinstance(world, BristleWorld | NewmarkWorld | KarnoppWorld):
         centred = re_centred(effects)
         records = world.session(effects, mu, rng, levels, chained=chained, centred=centred)
         starts = starts if chained or centred else FITTED
