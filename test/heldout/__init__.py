@@ -62,9 +62,9 @@ ROLES: dict[str, str] = {
     # world, its physics checked against lab's DOP853 before any diagnosis ran on it; never
     # tuned on (no threshold chosen or changed looking at it)
     'newmark': HELD_OUT,
-    # heldout.karnopp.KARNOPP: written for issue 24 as a fourth held-out world, its physics
-    # checked against lab's DOP853 before any diagnosis ran on it; never tuned on (no
-    # threshold chosen or changed looking at it)
+    # heldout.karnopp.KARNOPP: written for issue 24 when analytic was about to become a tuning
+    # world, its physics checked against lab's DOP853 before any diagnosis ran on it; never
+    # tuned on (no threshold chosen or changed looking at it)
     'karnopp': HELD_OUT,
     # heldout.lab.ACCELEROMETER: how an integrated acceleration's noise is described to the
     # diagnosis (issue 26) was worked out looking at its sessions
