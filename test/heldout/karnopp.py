@@ -2,8 +2,8 @@
 
 Written for issue 24 when `analytic` was about to become a tuning world, its physics checked
 against lab's event-located DOP853 (`heldout.plant.solve_events`, in its tests only) before
-any diagnosis ran on it (never tuned on). It shares only `lab.Effects` (the effect vocabulary and its
-parameters) with the other worlds and makes other choices at every stage:
+any diagnosis ran on it (never tuned on). It shares only `lab.Effects` (the effect vocabulary
+and its parameters) with the other worlds and makes other choices at every stage:
 
 - Integrator: fixed-step classical RK4 compiled by numba, one loop carrying the rig, the
   hammer and the second mode together: steps of a third of the acquisition grid's cell
