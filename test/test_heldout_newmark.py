@@ -144,6 +144,24 @@ def test_its_motion_is_the_coulomb_motion_of_lab_dop853():
         assert speed.sum() / rate == pytest.approx(moved.rest_m - start, abs=1e-9)
 
 
+def test_a_reversal_at_a_step_boundary_is_judged_by_the_stick_rule():
+    """A 1450 N hit of a bench sweep (seed 2021, velocity_offset case 13, its third hit):
+    one reversal fell where a step began, the velocity a hair short of zero. The loop took it
+    for a slide that could not start and, the hammer gone, for the final rest: the rig stuck
+    at 1.43 mm, where the spring pulls 3.2 times what friction can hold, and its motion
+    ended 0.46 s early. The stick rule now decides there, as at every other velocity zero:
+    rest and stop where DOP853 has them."""
+    hammer = Hammer(
+        0.27284767883836, 1495.94202157187, 0.122866201001119, 2.8162334675151, 0.40003689772850
+    )
+    start, mu = -3.906967657803393e-4, 0.13167003858195536
+    moved = move(Rig(mu, Effects()), hammer, start, 12.0)
+    exact = solve_events(Plant(), Contact(mu), hammer_hit(hammer), start, 12.0)
+    assert moved.rest_m == pytest.approx(exact.rest_m, abs=1e-8)
+    assert moved.rest_s == pytest.approx(exact.rest_s, abs=1e-5)
+    assert STIFFNESS_N_PER_M * abs(moved.rest_m) <= NORMAL_N * mu
+
+
 def test_halving_the_steps_changes_little():
     """Newmark average acceleration is second order: halving both steps moves the velocity by
     under 1e-7 m/s (1e-3 of the noise) and the rest by under 1e-9 m."""

@@ -358,10 +358,16 @@ def _run(p, hammer, x0, stop, fine, coarse):
                 if (hi - lo) * h < 1e-14:
                     break
             if hi * h < 1e-12:
-                # the slide could not start: stuck for the rest of this step
+                # the slide could not start: at rest where the step starts
                 ts[count], xs[count], vs[count] = t, x, 0.0
                 count += 1
                 stuck, v, a = True, 0.0, 0.0
+                excess, back = _excess(p, hammer, t, x)
+                if excess > 0.0 and back != s:
+                    # a reversal the step before ended a hair short of: the stick rule
+                    # slides the rig back the way the net force pushes
+                    continue
+                # stuck for the rest of this step
                 if t >= end:
                     rest_s = t
                     ts[count], xs[count], vs[count] = stop, x, 0.0
