@@ -78,6 +78,8 @@ def test_text_is_a_short_table(offset_files, capsys):
     lines = out.splitlines()
     assert lines[1].startswith('missing effects: velocity_offset   gap')
     assert any(line.startswith('velocity_offset') and '<- named' in line for line in lines)
+    assert any('shows from' in line for line in lines)
+    assert any(line.startswith('cubic_stiffness') and ' N/m^3' in line for line in lines)
     assert any(line.startswith('where (base model):') for line in lines)
     assert any(line.startswith('friction map: mu') for line in lines)
     assert len(lines) < 30

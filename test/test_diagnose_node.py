@@ -54,6 +54,7 @@ def test_an_offset_in_the_rig_is_named_over_the_service(ros_graph):
         == len(response.candidate_parameter_names)
         == len(response.candidate_parameter_values)
     )
+    assert len(response.candidate_detection_limits) == len(response.candidate_effects)
     assert response.verdict == response.message and response.where
 
 

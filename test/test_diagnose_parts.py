@@ -249,6 +249,41 @@ def test_a_modes_and_an_offsets_response_need_no_run_of_the_nonlinear_oscillator
         assert linear.response(0, term) == pytest.approx(moved - full, abs=1e-12)
 
 
+@pytest.mark.parametrize(
+    ('effect', 'size', 'probe'),
+    [
+        ('velocity_offset', 'offset_m_s', {'offset_m_s': 1e-4}),
+        ('sensor_delay', 'delay_s', {'delay_s': 1e-4}),
+        (
+            'second_mode',
+            'modal_mass_kg',
+            {'frequency_hz': 40.0, 'damping_ratio': 0.01, 'modal_mass_kg': 1.0},
+        ),
+    ],
+)
+def test_a_detection_limit_is_the_size_whose_own_response_reaches_the_naming_floor(
+    effect, size, probe
+):
+    """The size `screen_term` states is where the part of the term's response that mu cannot
+    take up removes the squared misfit asked of a named effect; a second mode's is a mass,
+    its response falling as 1 / mass."""
+    hit = impact_record(
+        1000.0, 1, duration_s=5.0, force_noise_std_n=0.2, velocity_noise_std_m_s=1e-4
+    )
+    record = small_record(force_n=hit.force_n, velocity_m_s=hit.velocity_m_s)
+    impact = cropped_impact(as_conditioned(record), 40_000)
+    fit = fit_model([impact])
+    linear = Linearisation([impact], SessionModel((), fit), False)
+    naming = (0.5 * fit.noise_std_m_s) ** 2 * impact.force_n.size
+    term = model_term(effect, **probe)
+    limit = screen_term(effect, [term], linear, fit.noise_std_m_s, naming).detection_limit
+    assert math.isfinite(limit) and limit > 0.0
+    responses = linear.responses(model_term(effect, **{**probe, size: limit}))
+    taken, _, _ = chi2_fall(responses, *linear.nuisance())
+    own = sum(float(r @ r) for r in responses) - taken
+    assert own == pytest.approx(naming, rel=0.02)
+
+
 def test_a_probe_whose_model_run_escapes_screens_nothing_and_raises_nothing():
     # A softening probe beyond its turning point (k3 = -1e7 N/m^3: the spring force turns at
     # 14 mm, the 2 kN hit swings 13 mm plus the probe's softening) runs to infinity. Its

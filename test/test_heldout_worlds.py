@@ -299,3 +299,28 @@ def test_a_term_taking_part_of_the_models_own_error_is_not_named(kind, number, h
     assert refusal, result.selection
     size, share = float(refusal[1]), int(refusal[2]) / 100
     assert MIN_WHOLE_EXCESS <= size < MIN_EXCESS and share < WHOLE_MISFIT_SHARE
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ('effect', 'drawn'),
+    [('cubic_stiffness', 'cubic_n_per_m3'), ('viscous_damping', 'added_damping_n_s_per_m')],
+)
+def test_an_effect_shows_from_the_size_its_clean_session_stated(effect, drawn):
+    """`none` says what it cannot rule out: each candidate's `detection_limit`, the size at
+    which these records would show it. On a clean `ivp` session (a tuning world), the same
+    hits and noise with the effect at twice that size name it, and at 0.3 times do not.
+    (Where the base model leaves a misfit of its own, as `steps`' unmodelled chain does at
+    0.56x the noise, an effect at twice its limit is named but cannot halve the gap.)"""
+    levels = (450.0, 1000.0, 1450.0)
+
+    def diagnosed_with(size: float):
+        effects = Effects(**{drawn: size})
+        return diagnose(IVP.session(effects, 0.12, np.random.default_rng(77), levels))
+
+    clean = diagnosed_with(0.0)
+    assert clean.named_effects == ()
+    limit = next(c.detection_limit for c in clean.candidates if c.effect == effect)
+    assert np.isfinite(limit) and limit > 0.0
+    assert diagnosed_with(2.0 * limit).named_effects == (effect,)
+    assert diagnosed_with(0.3 * limit).named_effects == ()

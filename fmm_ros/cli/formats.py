@@ -120,6 +120,8 @@ def friction_text(result: FrictionResult) -> str:
 
 def diagnosis_text(payload: dict, impacts: int, figures: Sequence[Path] = ()) -> str:
     """The short tables a person reads in half a minute, from `diagnosis_dict` (or a service's)."""
+    from fmm_ros.workflows.results import detection_limit_text  # numpy: not at CLI start-up
+
     result = payload
     lines = [
         f'{impacts} impact(s); velocity noise {result["noise_std_m_s"]:.3g} m/s (from the '
@@ -155,7 +157,9 @@ def diagnosis_text(payload: dict, impacts: int, figures: Sequence[Path] = ()) ->
             lines.append(f'    {name:<38} {_value(value, error, unit)}')
     lines.append(f'where (base model): {result["where"]["summary"]}')
     lines.append('')
-    lines.append(f'{"candidate (step 1)":<22}{"score (dBIC)":>14}{"gap after":>12}')
+    lines.append(
+        f'{"candidate (step 1)":<22}{"score (dBIC)":>14}{"gap after":>12}{"shows from":>20}'
+    )
     names = {entry['effect'] for entry in named}
     for candidate in result['candidates']:
         mark = '  <- named' if candidate['effect'] in names else ''
@@ -164,10 +168,12 @@ def diagnosis_text(payload: dict, impacts: int, figures: Sequence[Path] = ()) ->
         score = _finite(candidate['score'])
         score = f'{score:.0f}' if math.isfinite(score) else 'failed'
         gap = _finite(candidate['gap_after'])
-        lines.append(f'{candidate["effect"]:<22}{score:>14}{gap:>12.3g}{mark}')
+        shows = detection_limit_text(candidate.get('detection_limit'))
+        lines.append(f'{candidate["effect"]:<22}{score:>14}{gap:>12.3g}{shows:>20}{mark}')
     lines.append(
         f'(an effect is added when dBIC <= {result["required_score"]:.0f} and it removes a '
-        'quarter of the squared gap left; the named set must halve the gap)'
+        'quarter of the squared gap left; the named set must halve the gap; "shows from": the '
+        'size at which these records would show the effect, so a smaller one can hide here)'
     )
     lines += result['selection']
     lines.append(_friction_line(result['friction_map']))

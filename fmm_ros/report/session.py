@@ -28,7 +28,11 @@ from fmm_ros.report.plotting import (
     value_with_error,
 )
 from fmm_ros.workflows.model import ModelComparison
-from fmm_ros.workflows.results import FrictionResult
+from fmm_ros.workflows.results import (
+    FrictionResult,
+    detection_limit_dict,
+    detection_limit_text,
+)
 from fmm_ros.workflows.session import SessionDiagnosis, SessionResult
 
 # Lines of the lab files' import report shown on the page (a session of 30 files has 150).
@@ -501,24 +505,35 @@ def _diagnosis_section(
         text_columns=(0, 2),
     )
     page.table(
-        ['candidate effect', 'score ΔBIC', 'gap after', 'mobility misfit after', 'note'],
+        [
+            'candidate effect',
+            'score ΔBIC',
+            'gap after',
+            'mobility misfit after',
+            'shows from',
+            'note',
+        ],
         [
             [
                 c.effect,
                 _number(c.score, '.0f'),
                 _number(c.gap_after, '.3g'),
                 _number(c.frf_gap_after, '.3g'),
+                detection_limit_text(detection_limit_dict(c.effect, c.detection_limit)),
                 'named' if c.effect in result.named_effects else c.message or '-',
             ]
             for c in result.candidates
         ],
-        text_columns=(0, 4),
+        text_columns=(0, 4, 5),
     )
     page.text(
         f'Effects are added one at a time while the best scores at most '
         f'{result.required_score:.0f} (BIC lower by 10 plus three times what the force noise '
         'alone explains) and removes a quarter of the squared gap left; together they must '
-        'halve the gap. "unexplained" means what is left stays well above the noise.'
+        'halve the gap. "unexplained" means what is left stays well above the noise. "Shows '
+        'from": the size at which these records would show an effect (its response beyond '
+        'what mu and the starts take up reaching half the noise RMS); a smaller one can hide '
+        'here, so "none" does not rule it out.'
     )
     summary = session.summary
     records = [session.records[i] for i in found.impact_ids]

@@ -29,7 +29,7 @@ from fmm_ros.core.signal.stream import Batch
 from fmm_ros.errors import BadInputError
 from fmm_ros.io.session_info import FIELDS, SessionInfo
 from fmm_ros.units import sample_si_factor
-from fmm_ros.workflows.results import FrictionResult, json_safe
+from fmm_ros.workflows.results import FrictionResult, detection_limit_dict, json_safe
 
 
 def float64_field(values: np.ndarray) -> array.array:
@@ -274,6 +274,9 @@ def fill_diagnose_response(response: object, result: diagnose.Diagnosis) -> obje
     response.candidate_parameter_values = float64_field(
         [p.value for c in result.candidates for p in c.parameters]
     )
+    response.candidate_detection_limits = float64_field(
+        [c.detection_limit for c in result.candidates]
+    )
     response.noise_std_m_s = result.noise_std_m_s
     response.residual_noise_std_m_s = result.residual_noise_std_m_s
     response.starts = result.starts
@@ -433,11 +436,13 @@ def diagnose_response_dict(response: object) -> dict:
                     'parameters': dict(
                         zip(names[start:end], values[start:end].tolist(), strict=True)
                     ),
+                    'detection_limit': detection_limit_dict(effect, limit),
                 }
-                for effect, score, gap_after, start, end in zip(
+                for effect, score, gap_after, limit, start, end in zip(
                     response.candidate_effects,
                     field_array(response.candidate_scores).tolist(),
                     field_array(response.candidate_gap_after).tolist(),
+                    field_array(response.candidate_detection_limits).tolist(),
                     starts[:-1],
                     starts[1:],
                     strict=True,

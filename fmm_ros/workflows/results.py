@@ -44,7 +44,7 @@ from fmm_ros.core.identify.friction import FrictionFit
 from fmm_ros.core.identify.rig import RigIdentification
 from fmm_ros.core.identify.running import RunningEstimate, running_estimates
 from fmm_ros.core.physics.rig import Rig
-from fmm_ros.core.physics.terms import ModelTerm
+from fmm_ros.core.physics.terms import EFFECT_SIZE, ModelTerm, size_parameter
 from fmm_ros.core.signal.analysis import ImpactSelection, Summary
 from fmm_ros.core.signal.judging import Decision
 from fmm_ros.errors import BadInputError
@@ -362,6 +362,7 @@ def diagnosis_dict(diagnosis: Diagnosis) -> dict:
                     'frf_gap_after': c.frf_gap_after,
                     'parameters': {p.name: p.value for p in c.parameters},
                     'parameter_stderr': {p.name: p.stderr for p in c.parameters},
+                    'detection_limit': detection_limit_dict(c.effect, c.detection_limit),
                     **({'message': c.message} if c.message else {}),
                 }
                 for c in diagnosis.candidates
@@ -378,6 +379,33 @@ def diagnosis_dict(diagnosis: Diagnosis) -> dict:
             'friction_map': friction_map_dict(diagnosis.friction_map),
         }
     )
+
+
+def detection_limit_dict(effect: str, value: float) -> dict | None:
+    """A candidate's `detection_limit` as JSON (None when it has none).
+
+    The size parameter it is of, its value and unit, and whether the effect shows 'above' it
+    or, for a second mode's mass, 'below' it. None: mu_drift, or a second mode with no
+    residual peak to probe.
+    """
+    parameter = size_parameter(effect)
+    if parameter is None or not math.isfinite(value):
+        return None
+    return {
+        'parameter': f'{effect}.{parameter.name}',
+        'value': value,
+        'unit': parameter.unit,
+        'shows': 'below' if EFFECT_SIZE[effect][1] else 'above',
+    }
+
+
+def detection_limit_text(limit: dict | None) -> str:
+    """A `detection_limit_dict` in a few characters: '>= 1.9e+05 N/m^3'; '-' for none."""
+    if limit is None:
+        return '-'
+    sign = '<=' if limit['shows'] == 'below' else '>='
+    unit = '' if limit['unit'] == '1' else f' {limit["unit"]}'
+    return f'{sign} {limit["value"]:.2g}{unit}'
 
 
 def friction_map_dict(friction_map: FrictionMap) -> dict:

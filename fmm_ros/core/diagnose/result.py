@@ -5,6 +5,7 @@ DiagnoseModel service response is filled from the same object
 (`fmm_ros.ros.msgs.fill_diagnose_response`).
 """
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -42,6 +43,13 @@ class Candidate:
     """The refitted model's parameters (mu first), or the screen's start of the effect's."""
     message: str = ''
     """'screened: ...' when not refitted, or why the refit failed (score inf, gaps NaN)."""
+    detection_limit: float = math.nan
+    """The effect's size at which these records would just show it (its `EFFECT_SIZE`
+    parameter, SI, a magnitude; a second mode's modal mass, under which it shows): its
+    response beyond what mu and the starts take up would account for `MIN_EXCESS` of the noise
+    RMS over the motion, as naming it asks. A smaller effect can hide here: `none` does not
+    rule it out. From the screen's linearised probe (Stribeck: its least visible probe speed);
+    NaN without a probe (mu_drift; a second mode with no residual peak to probe)."""
 
 
 @dataclass(frozen=True)

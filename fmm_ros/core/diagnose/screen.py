@@ -69,6 +69,11 @@ class Screen:
     mu_per_hit_stderr: np.ndarray | None = None
     """Their white-noise standard errors [-]."""
     note: str = ''
+    detection_limit: float = math.nan
+    """The term's size (its `EFFECT_SIZE` parameter, SI, a magnitude) at which it would just
+    be named: its response beyond what the nuisance directions take up would then remove
+    `naming_m2_s2` of squared misfit. Of the least visible probe (the slowest Stribeck speed
+    that hides it most); NaN without a probe (mu_drift, a second mode with no residual peak)."""
 
 
 class Linearisation:
@@ -254,7 +259,11 @@ def _psd_inverse(matrix: np.ndarray) -> np.ndarray:
 
 
 def screen_term(
-    effect: str, probes: Sequence[ModelTerm], linear: Linearisation, noise_std_m_s: float
+    effect: str,
+    probes: Sequence[ModelTerm],
+    linear: Linearisation,
+    noise_std_m_s: float,
+    naming_m2_s2: float = math.nan,
 ) -> Screen:
     """The best of the probes of one term: its predicted chi^2 gain and the refit's start.
 
@@ -262,11 +271,15 @@ def screen_term(
     second mode's mass divided by it), and clipped into the term's bounds. A coefficient of
     the wrong sign for a non-negative size is no gain: the data ask for the opposite effect,
     which the term does not express.
+
+    naming_m2_s2: the squared velocity misfit, summed over every hit [m^2/s^2], an effect must
+    remove to be named; with it, the screen also gives the term's `detection_limit`.
     """
     cls = MODEL_TERMS[effect]
     shared, own = linear.nuisance()
     before, _, _ = chi2_fall(linear.residuals, shared, own)
     best = Screen(effect, 0.0, len(cls.parameters), None, note='no probe')
+    limits = []
     for probe in probes:
         responses = linear.responses(probe)
         if not any(np.any(response) for response in responses):
@@ -277,6 +290,7 @@ def screen_term(
             if best.start is None:
                 best = replace(best, note='a probe whose model run is not finite')
             continue
+        limits.append(_detection_limit(probe, responses, linear, naming_m2_s2))
         fall, solution, _ = chi2_fall(
             linear.residuals,
             [[response, *columns] for response, columns in zip(responses, shared, strict=True)],
@@ -289,7 +303,36 @@ def screen_term(
         shift = float(solution[1]) if solution.size > 1 else 0.0
         if gain > best.chi2_gain or best.start is None:
             best = Screen(effect, gain, len(cls.parameters), start or probe, shift, note=note)
+    if limits:
+        _, inverse = EFFECT_SIZE[effect]
+        best = replace(best, detection_limit=min(limits) if inverse else max(limits))
     return best
+
+
+def _detection_limit(
+    probe: ModelTerm,
+    responses: Sequence[np.ndarray],
+    linear: Linearisation,
+    naming_m2_s2: float,
+) -> float:
+    """The probe's size at which its own response would remove naming_m2_s2 [SI].
+
+    Its own: the part the nuisance directions cannot take up (a refit moves mu and the starts
+    with the term). Linear in the size, as the screen is (the second mode's response scales
+    as 1 / its mass). NaN without naming_m2_s2; inf (0 kg) when nothing is its own.
+    """
+    name, inverse = EFFECT_SIZE[probe.name]
+    shared, own = linear.nuisance()
+    taken, _, _ = chi2_fall(responses, shared, own)
+    total = sum(inner(response, response) for response in responses)
+    beyond = linear.scale * max(total - taken, 0.0)
+    size = abs(getattr(probe, name))
+    if not naming_m2_s2 > 0.0:
+        return math.nan
+    if beyond <= 0.0:
+        return 0.0 if inverse else math.inf
+    ratio = math.sqrt(naming_m2_s2 / beyond)
+    return size / ratio if inverse else size * ratio
 
 
 def _scaled(probe: ModelTerm, coefficient: float) -> tuple[ModelTerm | None, str]:

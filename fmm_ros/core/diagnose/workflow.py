@@ -426,6 +426,8 @@ class _Session:
             for model, hit in zip(self.models, self.hits, strict=True)
         ]
         self.motion_samples = sum(w.stop - w.start for w in self.windows)
+        self.naming_m2_s2 = (MIN_EXCESS * self.noise) ** 2 * self.motion_samples
+        """The squared misfit an effect must remove to be named (MIN_EXCESS; `_choose`)."""
         self.peak = max(impact.peak_velocity_m_s for impact in impacts)
         self.where: Where = locate_misfit(
             impacts, base.residuals_m_s, self.models, self.hits, rig, self.noise
@@ -523,7 +525,7 @@ class _Session:
                 shapes = probes(
                     effect, linear.impacts, linear.residuals, self.noise, self.where, self.rig
                 )
-                screen = screen_term(effect, shapes, linear, self.noise)
+                screen = screen_term(effect, shapes, linear, self.noise, self.naming_m2_s2)
             self.say(f'step {number}: screened {effect}: chi^2 could fall {screen.chi2_gain:.0f}')
             screens.append(screen)
         screens.sort(key=lambda s: -s.chi2_gain)
@@ -603,6 +605,7 @@ class _Session:
             math.nan,
             parameters,
             note,
+            screen.detection_limit,
         )
 
     def _refit(
@@ -629,7 +632,14 @@ class _Session:
         except FitError as error:
             self.say(f'step {number}: refit of {screen.effect} failed: {error}')
             return Candidate(
-                screen.effect, math.inf, math.inf, math.nan, math.nan, (), f'refit failed: {error}'
+                screen.effect,
+                math.inf,
+                math.inf,
+                math.nan,
+                math.nan,
+                (),
+                f'refit failed: {error}',
+                screen.detection_limit,
             ), None
         self.cache[key] = model
         bic, aic = self.score(model, current)
@@ -641,6 +651,7 @@ class _Session:
             self.gap(model.residuals_m_s),
             self.frf_gap(model.residuals_m_s),
             model.estimates(),
+            detection_limit=screen.detection_limit,
         ), model
 
     def _choose(

@@ -18,6 +18,7 @@ _EXPORTS = {
     'parse_model_term': 'terms',
     'record_length': 'model',
     'simulate': 'model',
+    'size_parameter': 'terms',
 }
 
 __all__ = sorted(_EXPORTS)

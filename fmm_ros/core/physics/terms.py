@@ -267,6 +267,17 @@ EFFECT_SIZE: dict[str, tuple[str, bool]] = {
 grows): zero size is no effect, and the second mode's response scales as 1 / its mass."""
 
 
+def size_parameter(effect: str) -> Parameter | None:
+    """The parameter that sets how large a term's effect is (`EFFECT_SIZE`).
+
+    None for an effect that is no model term (mu_drift).
+    """
+    if effect not in EFFECT_SIZE:
+        return None
+    name, _ = EFFECT_SIZE[effect]
+    return next(p for p in MODEL_TERMS[effect].parameters if p.name == name)
+
+
 def model_term(name: str, values: Sequence[float] | None = None, **parameters: float) -> ModelTerm:
     """Build a term by name: from a parameter vector, from keywords, or with its defaults."""
     if name not in MODEL_TERMS:
