@@ -82,6 +82,7 @@ from heldout.analytic import ANALYTIC  # noqa: E402
 from heldout.bristle import BRISTLE  # noqa: E402
 from heldout.cases import KINDS as HELDOUT_KINDS  # noqa: E402
 from heldout.cases import case as heldout_case  # noqa: E402
+from heldout.cases import drawn_effects  # noqa: E402
 from heldout.ivp import IVP  # noqa: E402
 from heldout.karnopp import KARNOPP  # noqa: E402
 from heldout.lab import EVENTS, STEPS  # noqa: E402
@@ -99,7 +100,7 @@ from fmm_ros.core.diagnose.workflow import (
 )
 from fmm_ros.core.identify.conditioning import as_conditioned
 from fmm_ros.core.identify.spec import CENTRE, FITTED, start_options
-from fmm_ros.core.physics.terms import MODEL_TERMS
+from fmm_ros.core.physics.terms import EFFECT_SIZE, MODEL_TERMS
 from fmm_ros.core.signal.capture import capture_impacts
 from fmm_ros.sim.hidden_effects import (
     OUT_OF_VOCABULARY,
@@ -185,6 +186,33 @@ def draw_held_out(world) -> Callable:
     return draw
 
 
+HIDDEN_SIZE = {
+    'viscous_damping': 'added_damping_n_s_per_m',
+    'stribeck': 'static_excess',
+    'asymmetric_friction': 'asymmetry',
+    'cubic_stiffness': 'cubic_n_per_m3',
+    'second_mode': 'mode_mass_kg',
+    'velocity_offset': 'velocity_offset_m_s',
+    'sensor_delay': 'lag_s',
+}
+"""Each term's size parameter (`EFFECT_SIZE`) as the field of the held-out worlds' `Effects` it
+is drawn into: the same quantity in the same unit."""
+
+
+def truth_held_out(world) -> Callable:
+    """The true sizes of a held-out world's hidden effects.
+
+    (kind, generator in the state the session was drawn from) -> {effect: size, a magnitude
+    in the term's size unit}.
+    """
+
+    def truth(kind: str, rng: np.random.Generator) -> dict[str, float]:
+        _, hidden, effects = drawn_effects(world, kind, rng)
+        return {e: abs(getattr(effects, HIDDEN_SIZE[e])) for e in hidden if e in HIDDEN_SIZE}
+
+    return truth
+
+
 @dataclass(frozen=True)
 class Source:
     """One generator of sessions: its name, rows (kinds) and drawer."""
@@ -192,6 +220,8 @@ class Source:
     name: str
     rows: tuple[str, ...]
     draw: Callable
+    truth: Callable | None = None
+    """The true sizes of a session's hidden effects (`truth_held_out`), where known."""
 
     @property
     def role(self) -> str:
@@ -202,14 +232,14 @@ class Source:
 SOURCES = (
     Source('ours', OURS_ROWS, draw_ours),
     Source('worlds', WORLD_ROWS, draw_world),
-    Source('events', HELDOUT_KINDS, draw_held_out(EVENTS)),
-    Source('steps', HELDOUT_KINDS, draw_held_out(STEPS)),
-    Source('ivp', HELDOUT_KINDS, draw_held_out(IVP)),
-    Source('analytic', HELDOUT_KINDS, draw_held_out(ANALYTIC)),
-    Source('moreau', HELDOUT_KINDS, draw_held_out(MOREAU)),
-    Source('bristle', HELDOUT_KINDS, draw_held_out(BRISTLE)),
-    Source('newmark', HELDOUT_KINDS, draw_held_out(NEWMARK)),
-    Source('karnopp', HELDOUT_KINDS, draw_held_out(KARNOPP)),
+    Source('events', HELDOUT_KINDS, draw_held_out(EVENTS), truth_held_out(EVENTS)),
+    Source('steps', HELDOUT_KINDS, draw_held_out(STEPS), truth_held_out(STEPS)),
+    Source('ivp', HELDOUT_KINDS, draw_held_out(IVP), truth_held_out(IVP)),
+    Source('analytic', HELDOUT_KINDS, draw_held_out(ANALYTIC), truth_held_out(ANALYTIC)),
+    Source('moreau', HELDOUT_KINDS, draw_held_out(MOREAU), truth_held_out(MOREAU)),
+    Source('bristle', HELDOUT_KINDS, draw_held_out(BRISTLE), truth_held_out(BRISTLE)),
+    Source('newmark', HELDOUT_KINDS, draw_held_out(NEWMARK), truth_held_out(NEWMARK)),
+    Source('karnopp', HELDOUT_KINDS, draw_held_out(KARNOPP), truth_held_out(KARNOPP)),
 )
 
 
@@ -245,6 +275,9 @@ class Sweep:
     MIN_EXCESS (the floor the diagnosis speaks from): how often an effect it can see is named."""
     by_size: dict = field(default_factory=dict)
     """Index into SIZE_BANDS -> [right, sessions] over the single-effect sessions."""
+    by_limit: dict = field(default_factory=dict)
+    """Single-effect row -> {True: [right, sessions] whose hidden effect is at least the size
+    the diagnosis said the records show it from (`Candidate.detection_limit`), False: under}."""
     slowest: tuple[float, str] = (0.0, '')
     """The longest diagnosis [s] and which session it was."""
 
@@ -301,6 +334,16 @@ class Sweep:
                     f'{_band(band)} {n[0]} of {n[1]}' for band, n in sorted(self.by_size.items())
                 )
             )
+        singles = {k: n for k, n in self.by_limit.items() if k in SINGLES}
+        if singles:
+            lines.append(_limit_line(singles))
+        if 'pair' in self.by_limit:
+            over, under = (self.by_limit['pair'].get(shown, [0, 0]) for shown in (True, False))
+            lines.append(
+                'pairs with both effects at least the size their session shows them from: '
+                f'both named in {over[0]} of {over[1]}; with one under it: {under[0]} of '
+                f'{under[1]}'
+            )
         if self.named_sessions:
             lines.append(
                 f'an effect named in {self.named_sessions} sessions; the gap not halved in '
@@ -340,8 +383,16 @@ class Sweep:
             checks.insert(
                 -1, ('false alarms', (clean - clean_right) / clean, TARGET_FALSE_ALARMS, False)
             )
+        over = {k: n[True] for k, n in self.by_limit.items() if True in n}
+        if any(k in SINGLES for k in over):
+            shown = min(n[0] / n[1] for k, n in over.items() if k in SINGLES)
+            name = 'single effects at least the size their session shows them from, worst kind'
+            checks.insert(1, (name, shown, TARGET_SINGLES, True))
         if 'pair' in self.rows:
             checks.append(('pairs', self.exact['pair'] / self.cases, TARGET_PAIRS, True))
+        if 'pair' in over:
+            name = 'pairs with both at least the size their session shows them from'
+            checks.append((name, over['pair'][0] / over['pair'][1], TARGET_PAIRS, True))
         if MU_DRIFT in self.rows:
             checks.append(('mu drift', self.exact[MU_DRIFT] / self.cases, TARGET_DRIFT, True))
         return [
@@ -349,6 +400,42 @@ class Sweep:
             f'{"met" if (value >= target if high else value <= target) else "NOT met"}'
             for name, value, target, high in checks
         ]
+
+
+def against_limit(
+    hidden: tuple[str, ...], truth: dict[str, float], result
+) -> tuple[bool, str] | None:
+    """Whether every hidden effect is as large as the diagnosis said the records show it from.
+
+    (each at least that size, the sizes in words); None where any is unknown.
+    """
+    over, words = True, []
+    for effect in hidden:
+        limit = next((c.detection_limit for c in result.candidates if c.effect == effect), math.nan)
+        if effect not in truth or not math.isfinite(limit):
+            return None
+        size = truth[effect]
+        over &= size <= limit if EFFECT_SIZE[effect][1] else size >= limit
+        words.append(f'{SHORT[effect]} {size:.2g}, shows from {limit:.2g}')
+    return over, '; ' + '; '.join(words)
+
+
+def _limit_line(by_limit: dict) -> str:
+    """How the stated detection limits held: single effects at or over theirs, and under."""
+
+    def total(shown: bool) -> tuple[int, int]:
+        counts = [n[shown] for n in by_limit.values() if shown in n]
+        return sum(c[0] for c in counts), sum(c[1] for c in counts)
+
+    over = {k: n[True] for k, n in by_limit.items() if True in n}
+    kind = min(over, key=lambda k: over[k][0] / over[k][1], default=None)
+    worst = f', worst kind {over[kind][0]} of {over[kind][1]} ({kind})' if kind else ''
+    (named_over, over_total), (named_under, under_total) = total(True), total(False)
+    return (
+        'single effects at least the size their diagnosis said the records show them from: '
+        f'named {named_over} of {over_total}{worst}; under it: named {named_under} of '
+        f'{under_total}'
+    )
 
 
 def _band(index: int) -> str:
@@ -364,7 +451,8 @@ def sweep(source: Source, cases: int, seed: int, rows: tuple[str, ...] | None = 
     for kind in rows:
         found.confusion[kind], found.sizes[kind] = Counter(), []
         for number in range(cases):
-            rng = np.random.default_rng([seed, source.rows.index(kind), number])
+            rows_index = source.rows.index(kind)
+            rng = np.random.default_rng([seed, rows_index, number])
             records, hidden, ratios, starts = source.draw(kind, rng)
             start = time.perf_counter()
             try:
@@ -396,13 +484,23 @@ def sweep(source: Source, cases: int, seed: int, rows: tuple[str, ...] | None = 
                 visible = found.visible.setdefault(kind, [0, 0])
                 visible[0] += above and correct
                 visible[1] += above
+            shown = ''
+            if (kind in SINGLES or kind == 'pair') and source.truth is not None:
+                truth = source.truth(kind, np.random.default_rng([seed, rows_index, number]))
+                judged = against_limit(hidden, truth, result)
+                if judged is not None:
+                    over, shown = judged
+                    counted = found.by_limit.setdefault(kind, {}).setdefault(over, [0, 0])
+                    counted[0] += correct
+                    counted[1] += 1
             if correct:
                 found.exact[kind] += 1
                 tally[0] += 1
             else:
                 drawn = ', '.join(f'{SHORT[e]} {r:.1f}x' for e, r in ratios.items())
                 found.misses.append(
-                    f'{kind} [{drawn or f"{found.sizes[kind][-1]:.1f}x"}] case {number}: named '
+                    f'{kind} [{drawn or f"{found.sizes[kind][-1]:.1f}x"}{shown}] '
+                    f'case {number}: named '
                     f'{", ".join(named) or "none"}; {result.verdict[:160]}'
                 )
             if vocabulary and result.gap_before > 0.0:

@@ -101,24 +101,19 @@ def effect_fields(kind: str, mu: float, rng: np.random.Generator) -> dict:
     raise ValueError(f'unknown kind {kind!r}')
 
 
-def case(
-    world: World
-    | IvpWorld
-    | AnalyticWorld
-    | MoreauWorld
-    | BristleWorld
-    | NewmarkWorld
-    | KarnoppWorld,
-    kind: str,
-    rng: np.random.Generator,
-):
-    """(records, hidden effects in the diagnosis's names, where the diagnosis starts the hits).
+AnyWorld = (
+    World | IvpWorld | AnalyticWorld | MoreauWorld | BristleWorld | NewmarkWorld | KarnoppWorld
+)
+"""Any of the held-out generators' worlds."""
 
-    Where it starts them: CENTRE, FITTED (an `analytic`, `bristle`, `newmark` or `karnopp`
-    session's hits from rest in the friction band, a `moreau` session's from where the hit
-    before left the rig) or CHAINED.
+
+def drawn_effects(
+    world: AnyWorld, kind: str, rng: np.random.Generator
+) -> tuple[float, tuple[str, ...], Effects]:
+    """(mu, hidden effects in the diagnosis's names, Effects) of a kind's session.
+
+    The first draws `case` makes: a generator in the same state gives the session's truth.
     """
-    chained = kind in CHAINED_KINDS
     kind = CHAINED_KINDS.get(kind, kind)
     mu = float(rng.uniform(*MU_RANGE))
     if kind == 'none':
@@ -132,8 +127,20 @@ def case(
     else:
         hidden = (kind,)
         fields = effect_fields(kind, mu, rng)
+    return mu, hidden, Effects(**fields)
+
+
+def case(world: AnyWorld, kind: str, rng: np.random.Generator):
+    """(records, hidden effects in the diagnosis's names, where the diagnosis starts the hits).
+
+    Where it starts them: CENTRE, FITTED (an `analytic`, `bristle`, `newmark` or `karnopp`
+    session's hits from rest in the friction band, a `moreau` session's from where the hit
+    before left the rig) or CHAINED.
+    """
+    chained = kind in CHAINED_KINDS
+    mu, hidden, effects = drawn_effects(world, kind, rng)
+    kind = CHAINED_KINDS.get(kind, kind)
     levels = rng.permutation((450.0, 1000.0, 1450.0))
-    effects = Effects(**fields)
     starts = CHAINED if chained else CENTRE
     if isinstance(world, AnalyticWorld):
         records = world.session(effects, mu, rng, levels, chained=chained)
