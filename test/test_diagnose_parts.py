@@ -249,6 +249,17 @@ def test_a_modes_and_an_offsets_response_need_no_run_of_the_nonlinear_oscillator
         assert linear.response(0, term) == pytest.approx(moved - full, abs=1e-12)
 
 
+def linearised_hit(peak_n: float):
+    """(impact, base fit, its linearisation) of one 5 s hit of the given peak force [N]."""
+    hit = impact_record(
+        peak_n, 1, duration_s=5.0, force_noise_std_n=0.2, velocity_noise_std_m_s=1e-4
+    )
+    record = small_record(force_n=hit.force_n, velocity_m_s=hit.velocity_m_s)
+    impact = cropped_impact(as_conditioned(record), 40_000)
+    fit = fit_model([impact])
+    return impact, fit, Linearisation([impact], SessionModel((), fit), False)
+
+
 @pytest.mark.parametrize(
     ('effect', 'size', 'probe'),
     [
@@ -267,13 +278,7 @@ def test_a_detection_limit_is_the_size_whose_own_response_reaches_the_naming_flo
     """The size `screen_term` states is where the part of the term's response that mu cannot
     take up removes the squared misfit asked of a named effect; a second mode's is a mass,
     its response falling as 1 / mass."""
-    hit = impact_record(
-        1000.0, 1, duration_s=5.0, force_noise_std_n=0.2, velocity_noise_std_m_s=1e-4
-    )
-    record = small_record(force_n=hit.force_n, velocity_m_s=hit.velocity_m_s)
-    impact = cropped_impact(as_conditioned(record), 40_000)
-    fit = fit_model([impact])
-    linear = Linearisation([impact], SessionModel((), fit), False)
+    impact, fit, linear = linearised_hit(1000.0)
     naming = (0.5 * fit.noise_std_m_s) ** 2 * impact.force_n.size
     term = model_term(effect, **probe)
     limit = screen_term(effect, [term], linear, fit.noise_std_m_s, naming).detection_limit
@@ -289,13 +294,7 @@ def test_a_probe_whose_model_run_escapes_screens_nothing_and_raises_nothing():
     # 14 mm, the 2 kN hit swings 13 mm plus the probe's softening) runs to infinity. Its
     # regression was NaN and the NaN size raised BadInputError out of the whole diagnosis
     # (held-out `analytic`, seed 2020); now it screens nothing and the other probes go on.
-    hit = impact_record(
-        2000.0, 1, duration_s=5.0, force_noise_std_n=0.2, velocity_noise_std_m_s=1e-4
-    )
-    record = small_record(force_n=hit.force_n, velocity_m_s=hit.velocity_m_s)
-    impact = cropped_impact(as_conditioned(record), 40_000)
-    fit = fit_model([impact])
-    linear = Linearisation([impact], SessionModel((), fit), False)
+    _, fit, linear = linearised_hit(2000.0)
     escaping = model_term('cubic_stiffness', cubic_stiffness_n_per_m3=-1e7)
     assert not np.all(np.isfinite(linear.response(0, escaping)))
     alone = screen_term('cubic_stiffness', [escaping], linear, fit.noise_std_m_s)
