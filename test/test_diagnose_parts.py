@@ -35,7 +35,7 @@ def test_chi2_fall_is_the_least_squares_fall_with_local_parameters_eliminated():
     residuals = [rng.normal(size=n) for n in sizes]
     shared = [[rng.normal(size=n), rng.normal(size=n)] for n in sizes]
     own = [[rng.normal(size=n)] for n in sizes[:2]] + [[]]
-    fall, solution, local = chi2_fall(residuals, shared, own)
+    fall, solution, local, _ = chi2_fall(residuals, shared, own)
     # The same problem as one dense least squares: shared columns stacked, locals block-diagonal.
     rows = sum(sizes)
     design = np.zeros((rows, 2 + 2))
@@ -284,7 +284,7 @@ def test_a_detection_limit_is_the_size_whose_own_response_reaches_the_naming_flo
     limit = screen_term(effect, [term], linear, fit.noise_std_m_s, naming).detection_limit
     assert math.isfinite(limit) and limit > 0.0
     responses = linear.responses(model_term(effect, **{**probe, size: limit}))
-    taken, _, _ = chi2_fall(responses, *linear.nuisance())
+    taken = chi2_fall(responses, *linear.nuisance()).chi2
     own = sum(float(r @ r) for r in responses) - taken
     assert own == pytest.approx(naming, rel=0.02)
 

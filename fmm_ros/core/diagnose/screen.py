@@ -26,6 +26,7 @@ path per hit. mu_drift, which is about every hit, is screened on all.
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -207,11 +208,24 @@ class Linearisation:
         return [[mu] for mu in self.common_mu_columns], self.position_columns
 
 
+class Fall(NamedTuple):
+    """What `chi2_fall` finds: the fall, both solutions, and the reduced Gram matrix."""
+
+    chi2: float
+    """The fall of sum |r|^2 [the residuals' unit squared]."""
+    shared: np.ndarray
+    """The global parameters' solution."""
+    local: list[np.ndarray]
+    """Each hit's own parameters' solution."""
+    reduced: np.ndarray
+    """The global columns' Gram matrix with every hit's own columns eliminated (p x p)."""
+
+
 def chi2_fall(
     residuals: Sequence[np.ndarray],
     global_columns: Sequence[Sequence[np.ndarray]],
     local_columns: Sequence[Sequence[np.ndarray]],
-) -> tuple[float, np.ndarray, list[np.ndarray]]:
+) -> Fall:
     """Least squares of each r_i on sum_g a_g G_gi + sum_l c_il L_il: (fall of sum |r|^2, a, c).
 
     G: per hit, the columns of the parameters shared by every hit (the same count each); L:
@@ -243,7 +257,7 @@ def chi2_fall(
         np.zeros(0) if item is None else item[0] @ (item[2] - item[1] @ shared_solution)
         for item in kept
     ]
-    return fall, shared_solution, local_solution
+    return Fall(fall, shared_solution, local_solution, reduced)
 
 
 def _psd_inverse(matrix: np.ndarray) -> np.ndarray:
@@ -277,7 +291,7 @@ def screen_term(
     """
     cls = MODEL_TERMS[effect]
     shared, own = linear.nuisance()
-    before, _, _ = chi2_fall(linear.residuals, shared, own)
+    before = chi2_fall(linear.residuals, shared, own).chi2
     best = Screen(effect, 0.0, len(cls.parameters), None, note='no probe')
     limits = []
     for probe in probes:
@@ -290,12 +304,12 @@ def screen_term(
             if best.start is None:
                 best = replace(best, note='a probe whose model run is not finite')
             continue
-        limits.append(_detection_limit(probe, responses, linear, naming_m2_s2))
-        fall, solution, _ = chi2_fall(
+        fall, solution, _, reduced = chi2_fall(
             linear.residuals,
             [[response, *columns] for response, columns in zip(responses, shared, strict=True)],
             own,
         )
+        limits.append(_detection_limit(probe, _own_energy(reduced), linear.scale, naming_m2_s2))
         gain = linear.scale * max(fall - before, 0.0) / noise_std_m_s**2
         start, note = _scaled(probe, float(solution[0]))
         if start is None:
@@ -309,28 +323,36 @@ def screen_term(
     return best
 
 
+def _own_energy(reduced: np.ndarray) -> float:
+    """The squared norm of the first global column beyond all the other columns.
+
+    reduced: `Fall.reduced` with the probe's response first; the other global columns (the
+    common mu) are eliminated here, the hits' own (their starts, each hit's mu) already are.
+    """
+    own = float(reduced[0, 0])
+    if reduced.shape[0] > 1:
+        cross = reduced[1:, 0]
+        own -= float(cross @ _psd_inverse(reduced[1:, 1:]) @ cross)
+    return max(own, 0.0)
+
+
 def _detection_limit(
-    probe: ModelTerm,
-    responses: Sequence[np.ndarray],
-    linear: Linearisation,
-    naming_m2_s2: float,
+    probe: ModelTerm, own_m2_s2: float, scale: float, naming_m2_s2: float
 ) -> float:
     """The probe's size at which its own response would remove naming_m2_s2 [SI].
 
-    Its own: the part the nuisance directions cannot take up (a refit moves mu and the starts
-    with the term). Linear in the size, as the screen is (the second mode's response scales
-    as 1 / its mass). NaN without naming_m2_s2; inf (0 kg) when nothing is its own.
+    own_m2_s2: the squared norm of the probe's response beyond what the nuisance directions
+    take up (a refit moves mu and the starts with the term), on the screened hits; scale:
+    all hits over those. Linear in the size, as the screen is (the second mode's response
+    scales as 1 / its mass). NaN without naming_m2_s2; inf (0 kg) when nothing is its own.
     """
-    name, inverse = EFFECT_SIZE[probe.name]
-    shared, own = linear.nuisance()
-    taken, _, _ = chi2_fall(responses, shared, own)
-    total = sum(inner(response, response) for response in responses)
-    beyond = linear.scale * max(total - taken, 0.0)
-    size = abs(getattr(probe, name))
     if not naming_m2_s2 > 0.0:
         return math.nan
+    name, inverse = EFFECT_SIZE[probe.name]
+    beyond = scale * own_m2_s2
     if beyond <= 0.0:
         return 0.0 if inverse else math.inf
+    size = abs(getattr(probe, name))
     ratio = math.sqrt(naming_m2_s2 / beyond)
     return size / ratio if inverse else size * ratio
 
@@ -361,12 +383,12 @@ def screen_drift(linear: Linearisation, noise_std_m_s: float) -> Screen:
     if linear.scale != 1.0:
         raise BadInputError('mu_drift is screened on every hit')
     shared, own = linear.nuisance()
-    before, _, _ = chi2_fall(linear.residuals, shared, own)
+    before = chi2_fall(linear.residuals, shared, own).chi2
     per_hit = [
         [mu, *positions]
         for mu, positions in zip(linear.mu_columns, linear.position_columns, strict=True)
     ]
-    fall, _, local = chi2_fall(linear.residuals, [[] for _ in per_hit], per_hit)
+    fall, _, local, _ = chi2_fall(linear.residuals, [[] for _ in per_hit], per_hit)
     mus = linear.model.mus + np.array([solution[0] for solution in local])
     errors = np.array(
         [

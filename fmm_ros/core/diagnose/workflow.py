@@ -525,7 +525,9 @@ class _Session:
                 shapes = probes(
                     effect, linear.impacts, linear.residuals, self.noise, self.where, self.rig
                 )
-                screen = screen_term(effect, shapes, linear, self.noise, self.naming_m2_s2)
+                # Detection limits are reported from the first step (`Candidate`) only.
+                naming = self.naming_m2_s2 if number == 1 else math.nan
+                screen = screen_term(effect, shapes, linear, self.noise, naming)
             self.say(f'step {number}: screened {effect}: chi^2 could fall {screen.chi2_gain:.0f}')
             screens.append(screen)
         screens.sort(key=lambda s: -s.chi2_gain)
