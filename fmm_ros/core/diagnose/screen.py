@@ -73,7 +73,7 @@ class Screen:
     detection_limit: float = math.nan
     """The term's size (its `EFFECT_SIZE` parameter, SI, a magnitude) at which it would just
     be named: its response beyond what the nuisance directions take up would then remove
-    `naming_m2_s2` of squared misfit. Of the least visible probe (the slowest Stribeck speed
+    `naming_m2_s2` of squared misfit. Of the least visible probe (Stribeck: the probe speed
     that hides it most); NaN without a probe (mu_drift, a second mode with no residual peak)."""
 
 
@@ -226,11 +226,12 @@ def chi2_fall(
     global_columns: Sequence[Sequence[np.ndarray]],
     local_columns: Sequence[Sequence[np.ndarray]],
 ) -> Fall:
-    """Least squares of each r_i on sum_g a_g G_gi + sum_l c_il L_il: (fall of sum |r|^2, a, c).
+    """Least squares of each r_i on sum_g a_g G_gi + sum_l c_il L_il: its `Fall`.
 
     G: per hit, the columns of the parameters shared by every hit (the same count each); L:
     per hit, its own. The local parameters are eliminated hit by hit, the global ones solved
-    from the summed reduced normal equations; the fall is r^T C (C^T C)^-1 C^T r, summed.
+    from the summed reduced normal equations (`Fall.reduced`, whose Schur complements give a
+    global column's norm beyond the others); the fall is r^T C (C^T C)^-1 C^T r, summed.
     """
     p = len(global_columns[0]) if global_columns else 0
     reduced = np.zeros((p, p))
