@@ -232,14 +232,19 @@ class Source:
 SOURCES = (
     Source('ours', OURS_ROWS, draw_ours),
     Source('worlds', WORLD_ROWS, draw_world),
-    Source('events', HELDOUT_KINDS, draw_held_out(EVENTS), truth_held_out(EVENTS)),
-    Source('steps', HELDOUT_KINDS, draw_held_out(STEPS), truth_held_out(STEPS)),
-    Source('ivp', HELDOUT_KINDS, draw_held_out(IVP), truth_held_out(IVP)),
-    Source('analytic', HELDOUT_KINDS, draw_held_out(ANALYTIC), truth_held_out(ANALYTIC)),
-    Source('moreau', HELDOUT_KINDS, draw_held_out(MOREAU), truth_held_out(MOREAU)),
-    Source('bristle', HELDOUT_KINDS, draw_held_out(BRISTLE), truth_held_out(BRISTLE)),
-    Source('newmark', HELDOUT_KINDS, draw_held_out(NEWMARK), truth_held_out(NEWMARK)),
-    Source('karnopp', HELDOUT_KINDS, draw_held_out(KARNOPP), truth_held_out(KARNOPP)),
+    *(
+        Source(name, HELDOUT_KINDS, draw_held_out(world), truth_held_out(world))
+        for name, world in (
+            ('events', EVENTS),
+            ('steps', STEPS),
+            ('ivp', IVP),
+            ('analytic', ANALYTIC),
+            ('moreau', MOREAU),
+            ('bristle', BRISTLE),
+            ('newmark', NEWMARK),
+            ('karnopp', KARNOPP),
+        )
+    ),
 )
 
 
@@ -276,8 +281,9 @@ class Sweep:
     by_size: dict = field(default_factory=dict)
     """Index into SIZE_BANDS -> [right, sessions] over the single-effect sessions."""
     by_limit: dict = field(default_factory=dict)
-    """Single-effect row -> {True: [right, sessions] whose hidden effect is at least the size
-    the diagnosis said the records show it from (`Candidate.detection_limit`), False: under}."""
+    """Single-effect or pair row -> {True: [right, sessions] whose hidden effects are each at
+    least the size the diagnosis said the records show them from (`Candidate.detection_limit`),
+    False: one under}."""
     slowest: tuple[float, str] = (0.0, '')
     """The longest diagnosis [s] and which session it was."""
 
@@ -451,8 +457,8 @@ def sweep(source: Source, cases: int, seed: int, rows: tuple[str, ...] | None = 
     for kind in rows:
         found.confusion[kind], found.sizes[kind] = Counter(), []
         for number in range(cases):
-            rows_index = source.rows.index(kind)
-            rng = np.random.default_rng([seed, rows_index, number])
+            key = [seed, source.rows.index(kind), number]
+            rng = np.random.default_rng(key)
             records, hidden, ratios, starts = source.draw(kind, rng)
             start = time.perf_counter()
             try:
@@ -486,7 +492,7 @@ def sweep(source: Source, cases: int, seed: int, rows: tuple[str, ...] | None = 
                 visible[1] += above
             shown = ''
             if (kind in SINGLES or kind == 'pair') and source.truth is not None:
-                truth = source.truth(kind, np.random.default_rng([seed, rows_index, number]))
+                truth = source.truth(kind, np.random.default_rng(key))
                 judged = against_limit(hidden, truth, result)
                 if judged is not None:
                     over, shown = judged
