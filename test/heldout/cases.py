@@ -141,6 +141,20 @@ def case(world: AnyWorld, kind: str, rng: np.random.Generator):
     mu, hidden, effects = drawn_effects(world, kind, rng)
     kind = CHAINED_KINDS.get(kind, kind)
     levels = rng.permutation((450.0, 1000.0, 1450.0))
+    records, starts = session_of(world, effects, mu, rng, levels, chained=chained)
+    return records, () if kind == 'wear_track' else hidden, starts
+
+
+def session_of(
+    world: AnyWorld,
+    effects: Effects,
+    mu: float,
+    rng: np.random.Generator,
+    levels: np.ndarray,
+    *,
+    chained: bool = False,
+):
+    """(records, where the diagnosis starts the hits) of one session of any world (`case`)."""
     starts = CHAINED if chained else CENTRE
     if isinstance(world, AnalyticWorld):
         records = world.session(effects, mu, rng, levels, chained=chained)
@@ -156,4 +170,4 @@ def case(world: AnyWorld, kind: str, rng: np.random.Generator):
         records = world.session(effects, mu, rng, levels, chained=chained)
     else:
         records = session(world, effects, mu, rng, levels, chained=chained)
-    return records, () if kind == 'wear_track' else hidden, starts
+    return records, starts
