@@ -194,9 +194,11 @@ HIDDEN_SIZE = {
     'second_mode': 'mode_mass_kg',
     'velocity_offset': 'velocity_offset_m_s',
     'sensor_delay': 'lag_s',
+    MU_DRIFT: 'mu_step',
 }
 """Each term's size parameter (`EFFECT_SIZE`) as the field of the held-out worlds' `Effects` it
-is drawn into: the same quantity in the same unit."""
+is drawn into: the same quantity in the same unit (mu_drift's change a hit as a fraction of
+mu, `drift.DRIFT_SIZE`: the worlds compound it, mu (1 + mu_step)^i)."""
 
 
 def truth_held_out(world) -> Callable:
@@ -229,21 +231,25 @@ class Source:
         return ROLES[self.name]
 
 
+HELDOUT_WORLDS = {
+    'events': EVENTS,
+    'steps': STEPS,
+    'ivp': IVP,
+    'analytic': ANALYTIC,
+    'moreau': MOREAU,
+    'bristle': BRISTLE,
+    'newmark': NEWMARK,
+    'karnopp': KARNOPP,
+}
+"""The `test/heldout` generators by their `ROLES` name."""
+
+
 SOURCES = (
     Source('ours', OURS_ROWS, draw_ours),
     Source('worlds', WORLD_ROWS, draw_world),
     *(
         Source(name, HELDOUT_KINDS, draw_held_out(world), truth_held_out(world))
-        for name, world in (
-            ('events', EVENTS),
-            ('steps', STEPS),
-            ('ivp', IVP),
-            ('analytic', ANALYTIC),
-            ('moreau', MOREAU),
-            ('bristle', BRISTLE),
-            ('newmark', NEWMARK),
-            ('karnopp', KARNOPP),
-        )
+        for name, world in HELDOUT_WORLDS.items()
     ),
 )
 
@@ -350,6 +356,12 @@ class Sweep:
                 f'both named in {over[0]} of {over[1]}; with one under it: {under[0]} of '
                 f'{under[1]}'
             )
+        if MU_DRIFT in self.by_limit:
+            over, under = (self.by_limit[MU_DRIFT].get(shown, [0, 0]) for shown in (True, False))
+            lines.append(
+                'mu drifts at least the change a hit their session shows them from: named '
+                f'{over[0]} of {over[1]}; under it: {under[0]} of {under[1]}'
+            )
         if self.named_sessions:
             lines.append(
                 f'an effect named in {self.named_sessions} sessions; the gap not halved in '
@@ -421,7 +433,7 @@ def against_limit(
         if effect not in truth or not math.isfinite(limit):
             return None
         size = truth[effect]
-        over &= size <= limit if EFFECT_SIZE[effect][1] else size >= limit
+        over &= size <= limit if EFFECT_SIZE.get(effect, ('', False))[1] else size >= limit
         words.append(f'{SHORT[effect]} {size:.2g}, shows from {limit:.2g}')
     return over, '; ' + '; '.join(words)
 
@@ -491,7 +503,7 @@ def sweep(source: Source, cases: int, seed: int, rows: tuple[str, ...] | None = 
                 visible[0] += above and correct
                 visible[1] += above
             shown = ''
-            if (kind in SINGLES or kind == 'pair') and source.truth is not None:
+            if (kind in (*SINGLES, 'pair', MU_DRIFT)) and source.truth is not None:
                 truth = source.truth(kind, np.random.default_rng(key))
                 judged = against_limit(hidden, truth, result)
                 if judged is not None:

@@ -11,12 +11,17 @@ import numpy as np
 import pytest
 
 from fmm_ros.core.diagnose import diagnose
-from fmm_ros.core.diagnose.drift import mu_trend
+from fmm_ros.core.diagnose.drift import MIN_TREND_HITS, mu_trend
 from fmm_ros.core.diagnose.friction_map import SPEED_BINS, MapRecord, friction_map, speed_table
 from fmm_ros.core.diagnose.gaps import measured_motion_stop
 from fmm_ros.core.diagnose.screen import Linearisation, chi2_fall, screen_term, screened_hits
 from fmm_ros.core.diagnose.session_model import SessionModel
-from fmm_ros.core.diagnose.workflow import _drift_and_speed_law_aic
+from fmm_ros.core.diagnose.workflow import (
+    DRIFT_P_VALUE,
+    _detectable_drift,
+    _drift_and_speed_law_aic,
+    _floored,
+)
 from fmm_ros.core.identify.conditioning import as_conditioned, cropped_impact
 from fmm_ros.core.identify.friction import fit_model
 from fmm_ros.core.physics.model import simulate
@@ -303,3 +308,20 @@ def test_a_probe_whose_model_run_escapes_screens_nothing_and_raises_nothing():
     both = screen_term('cubic_stiffness', [escaping, sane], linear, fit.noise_std_m_s)
     assert math.isfinite(both.chi2_gain) and both.start is not None
     assert math.isfinite(both.start.cubic_stiffness_n_per_m3)
+
+
+@pytest.mark.parametrize('hits', [3, 4, 8])
+def test_a_steady_drift_at_its_stated_limit_just_passes_the_hits_own_test(hits):
+    """`_detectable_drift` is the change a hit at which the test `_not_a_drift` puts to the
+    hits' own mu sits at DRIFT_P_VALUE: with three hits their spread beyond their errors and
+    MU_SPREAD_FLOOR of mu (1.3 % a hit, whatever 1e-5 errors), from four the trend."""
+    mus, errors = np.full(hits, 0.12), np.full(hits, 1e-5)
+    change = _detectable_drift(mus, errors)
+    steady = 0.12 * (1.0 + change * np.arange(hits))
+    if hits < MIN_TREND_HITS:
+        assert change == pytest.approx(0.0133, abs=2e-4)
+        p_value = mu_trend(steady, _floored(steady, errors), refitted=False).consistency_p_value
+    else:
+        assert change < 2e-3
+        p_value = mu_trend(steady, errors, refitted=False).p_value
+    assert p_value == pytest.approx(DRIFT_P_VALUE, rel=0.05)

@@ -30,6 +30,7 @@ from heldout.moreau import MOREAU
 from heldout.newmark import NEWMARK
 from heldout.plant import Contact, Plant, solve_events, solve_steps
 
+from fmm_ros.constants import MU_DRIFT
 from fmm_ros.core.diagnose import NONE, UNEXPLAINED, diagnose
 from fmm_ros.core.diagnose.workflow import (
     MAX_REFITS,
@@ -324,3 +325,25 @@ def test_an_effect_shows_from_the_size_its_clean_session_stated(effect, drawn):
     assert np.isfinite(limit) and limit > 0.0
     assert diagnosed_with(2.0 * limit).named_effects == (effect,)
     assert diagnosed_with(0.3 * limit).named_effects == ()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('levels', [(450.0, 1000.0, 1450.0), (450.0, 1000.0, 1450.0) * 2])
+def test_a_drift_shows_from_the_change_its_clean_session_stated(levels):
+    """`none` says what drift it cannot rule out too: mu_drift's `detection_limit`, a steady
+    change of mu a hit as a fraction of mu. Three hits are held to the hits' own spread beyond
+    `MU_SPREAD_FLOOR` (1.3 % a hit); six to what their one mu per hit explains. On clean `ivp`
+    sessions (a tuning world), the same hits with mu changing at twice the stated rate are
+    called a drift, and at 0.3 times are not (three hits drifting 0.4 % a hit leave a misfit
+    a drift of theirs would not pass: `unexplained`)."""
+
+    def diagnosed_with(change: float):
+        effects = Effects(mu_step=change)
+        return diagnose(IVP.session(effects, 0.12, np.random.default_rng(77), levels))
+
+    clean = diagnosed_with(0.0)
+    assert clean.named_effects == ()
+    limit = next(c.detection_limit for c in clean.candidates if c.effect == MU_DRIFT)
+    assert 0.0 < limit < (0.02 if len(levels) == 3 else 0.005)
+    assert diagnosed_with(2.0 * limit).named_effects == (MU_DRIFT,)
+    assert MU_DRIFT not in diagnosed_with(0.3 * limit).named_effects

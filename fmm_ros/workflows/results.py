@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fmm_ros.core.diagnose import signatures
-from fmm_ros.core.diagnose.drift import MuTrend
+from fmm_ros.core.diagnose.drift import DRIFT_SIZE, MuTrend
 from fmm_ros.core.diagnose.friction_map import FrictionCurve, FrictionMap
 from fmm_ros.core.diagnose.result import (
     Diagnosis,
@@ -384,18 +384,19 @@ def diagnosis_dict(diagnosis: Diagnosis) -> dict:
 def detection_limit_dict(effect: str, value: float) -> dict | None:
     """A candidate's `detection_limit` as JSON (None when it has none).
 
-    The size parameter it is of, its value and unit, and whether the effect shows 'above' it
-    or, for a second mode's mass, 'below' it. None: mu_drift, or a second mode with no
-    residual peak to probe.
+    The size parameter it is of (mu_drift's: `DRIFT_SIZE`), its value and unit, and whether
+    the effect shows 'above' it or, for a second mode's mass, 'below' it. None: a second mode
+    with no residual peak to probe, or a direction nothing of which is its own.
     """
-    parameter = size_parameter(effect)
-    if parameter is None or not math.isfinite(value):
+    if not math.isfinite(value):
         return None
+    parameter = size_parameter(effect)
+    name, unit = DRIFT_SIZE if parameter is None else (parameter.name, parameter.unit)
     return {
-        'parameter': f'{effect}.{parameter.name}',
+        'parameter': f'{effect}.{name}',
         'value': value,
-        'unit': parameter.unit,
-        'shows': 'below' if EFFECT_SIZE[effect][1] else 'above',
+        'unit': unit,
+        'shows': 'below' if EFFECT_SIZE.get(effect, ('', False))[1] else 'above',
     }
 
 

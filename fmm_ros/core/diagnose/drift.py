@@ -31,6 +31,11 @@ MIN_TREND_HITS = 4
 """From this many hits a drift must also trend in hit order (two degrees of freedom left)."""
 
 
+DRIFT_SIZE = ('change_per_hit', '1/hit')
+"""(name, unit) of the size a drift's detection limit is stated in: the steady change of mu
+from one hit to the next as a fraction of mu, mu_i = mu (1 + change_per_hit i)."""
+
+
 @dataclass(frozen=True)
 class MuTrend:
     """Each hit's mu in hit order, and whether and how it trends."""

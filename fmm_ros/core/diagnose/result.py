@@ -49,7 +49,10 @@ class Candidate:
     response beyond what mu and the starts take up would account for `MIN_EXCESS` of the noise
     RMS over the motion, as naming it asks. A smaller effect can hide here: `none` does not
     rule it out. From the screen's linearised probe (Stribeck: its least visible probe speed);
-    NaN without a probe (mu_drift; a second mode with no residual peak to probe)."""
+    NaN without a probe (a second mode with no residual peak to probe). mu_drift's is a steady
+    change of mu a hit, as a fraction of mu [1/hit] (`drift.DRIFT_SIZE`), at which its
+    response would account for that much and the hits' own mu would show it as naming a
+    drift asks (a trend, or with three hits a spread beyond `MU_SPREAD_FLOOR`)."""
 
 
 @dataclass(frozen=True)

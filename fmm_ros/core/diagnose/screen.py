@@ -15,7 +15,8 @@ term); most candidates have nothing to find. Each is first screened at the curre
   coefficient scales the probe into the refit's start.
 
 `mu_drift` is screened the same way with no extra model run: the gain of one mu per hit over
-one mu for all, and the linearised per-hit mu it gives.
+one mu for all, and the linearised per-hit mu it gives; its detection limit is that of a
+steady change of mu from hit to hit.
 
 With more than SCREEN_HITS hits the terms are screened on SCREEN_HITS of them spread over the
 session, and the gain scaled by the hits' count over theirs (a term acts on every hit): the
@@ -74,7 +75,8 @@ class Screen:
     """The term's size (its `EFFECT_SIZE` parameter, SI, a magnitude) at which it would just
     be named: its response beyond what the nuisance directions take up would then remove
     `naming_m2_s2` of squared misfit. Of the least visible probe (Stribeck: the probe speed
-    that hides it most); NaN without a probe (mu_drift, a second mode with no residual peak)."""
+    that hides it most); NaN without a probe (a second mode with no residual peak). mu_drift's
+    is a steady change of mu a hit, as a fraction of mu [1/hit] (`screen_drift`)."""
 
 
 class Linearisation:
@@ -347,14 +349,21 @@ def _detection_limit(
     all hits over those. Linear in the size, as the screen is (the second mode's response
     scales as 1 / its mass). NaN without naming_m2_s2; inf (0 kg) when nothing is its own.
     """
+    name, inverse = EFFECT_SIZE[probe.name]
+    return _named_from(abs(getattr(probe, name)), inverse, scale * own_m2_s2, naming_m2_s2)
+
+
+def _named_from(size: float, inverse: bool, own_m2_s2: float, naming_m2_s2: float) -> float:
+    """The size at which a direction of this size and own energy would remove naming_m2_s2.
+
+    The response is linear in the size (inverse: in 1 / size). NaN without naming_m2_s2;
+    inf (0 for an inverse size) when nothing of the direction is its own.
+    """
     if not naming_m2_s2 > 0.0:
         return math.nan
-    name, inverse = EFFECT_SIZE[probe.name]
-    beyond = scale * own_m2_s2
-    if beyond <= 0.0:
+    if own_m2_s2 <= 0.0:
         return 0.0 if inverse else math.inf
-    size = abs(getattr(probe, name))
-    ratio = math.sqrt(naming_m2_s2 / beyond)
+    ratio = math.sqrt(naming_m2_s2 / own_m2_s2)
     return size / ratio if inverse else size * ratio
 
 
@@ -376,10 +385,15 @@ def _scaled(probe: ModelTerm, coefficient: float) -> tuple[ModelTerm | None, str
     return replace(probe, **{name: float(np.clip(value, low[index], high[index]))}), ''
 
 
-def screen_drift(linear: Linearisation, noise_std_m_s: float) -> Screen:
+def screen_drift(
+    linear: Linearisation, noise_std_m_s: float, naming_m2_s2: float = math.nan
+) -> Screen:
     """mu_drift: the chi^2 gain of one mu per hit over one for all, and the per-hit mu.
 
-    The linearisation must hold every hit.
+    The linearisation must hold every hit. naming_m2_s2, as `screen_term`'s: with it, the
+    screen's `detection_limit` is the steady change of mu from hit to hit, as a fraction of
+    mu [1/hit], whose response beyond the common mu and the starts would remove it (what
+    the hits' own mu must show besides is the workflow's: `_detectable_drift`).
     """
     if linear.scale != 1.0:
         raise BadInputError('mu_drift is screened on every hit')
@@ -398,4 +412,22 @@ def screen_drift(linear: Linearisation, noise_std_m_s: float) -> Screen:
         ]
     )
     gain = max(fall - before, 0.0) / noise_std_m_s**2
-    return Screen(MU_DRIFT, gain, len(per_hit) - 1, None, mu_per_hit=mus, mu_per_hit_stderr=errors)
+    limit = math.nan
+    if naming_m2_s2 > 0.0:
+        # mu_i = mu (1 + s i): a change s a hit moves hit i's mu by mu i s; the common mu
+        # takes up its mean, the starts what they can.
+        steady = [
+            [float(linear.model.mus[hit]) * hit * column, *columns]
+            for hit, column, columns in zip(linear.hits, linear.mu_columns, shared, strict=True)
+        ]
+        own_m2_s2 = _own_energy(chi2_fall(linear.residuals, steady, own).reduced)
+        limit = _named_from(1.0, False, own_m2_s2, naming_m2_s2)
+    return Screen(
+        MU_DRIFT,
+        gain,
+        len(per_hit) - 1,
+        None,
+        mu_per_hit=mus,
+        mu_per_hit_stderr=errors,
+        detection_limit=limit,
+    )

@@ -42,6 +42,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
+import scipy.optimize
 import scipy.stats
 
 from fmm_ros.constants import MU_DRIFT
@@ -511,6 +512,8 @@ class _Session:
         """
         hits = screened_hits(len(self.impacts))
         linear = Linearisation(self.impacts, current, self.fit_initial_position, hits)
+        # Detection limits are reported from the first step (`Candidate`) only.
+        naming = self.naming_m2_s2 if number == 1 else math.nan
         screens = []
         for effect in remaining:
             if effect == MU_DRIFT:
@@ -519,14 +522,15 @@ class _Session:
                     if linear.scale == 1.0
                     else Linearisation(self.impacts, current, self.fit_initial_position)
                 )
-                screen = screen_drift(every, self.noise)
+                screen = screen_drift(every, self.noise, naming)
+                if number == 1:
+                    shown = _detectable_drift(screen.mu_per_hit, screen.mu_per_hit_stderr)
+                    screen = replace(screen, detection_limit=max(screen.detection_limit, shown))
                 self.drift_screens[frozenset(current.effects)] = screen
             else:
                 shapes = probes(
                     effect, linear.impacts, linear.residuals, self.noise, self.where, self.rig
                 )
-                # Detection limits are reported from the first step (`Candidate`) only.
-                naming = self.naming_m2_s2 if number == 1 else math.nan
                 screen = screen_term(effect, shapes, linear, self.noise, naming)
             self.say(f'step {number}: screened {effect}: chi^2 could fall {screen.chi2_gain:.0f}')
             screens.append(screen)
@@ -719,8 +723,9 @@ class _Session:
             if trend.p_value >= DRIFT_P_VALUE:
                 return f'the per-hit mu show no trend in hit order (p = {trend.p_value:.2g})'
             return ''
-        floored = np.hypot(model.mu_stderrs, MU_SPREAD_FLOOR * model.mus)
-        consistency = mu_trend(model.mus, floored, refitted=True).consistency_p_value
+        consistency = mu_trend(
+            model.mus, _floored(model.mus, model.mu_stderrs), refitted=True
+        ).consistency_p_value
         if consistency >= DRIFT_P_VALUE:
             return (
                 f"the hits' own mu agree within their errors and {100 * MU_SPREAD_FLOOR:g} % "
@@ -1022,6 +1027,39 @@ def _drift_and_speed_law_aic(mu: np.ndarray, error: np.ndarray) -> tuple[float, 
 def _trend(model: SessionModel) -> MuTrend:
     """The refitted per-hit mu of a model with mu_drift, and their trend."""
     return mu_trend(model.mus, model.mu_stderrs, refitted=True)
+
+
+def _floored(mus: np.ndarray, mu_stderrs: np.ndarray) -> np.ndarray:
+    """Per-hit mu errors combined with MU_SPREAD_FLOOR of mu, as a spread of few hits is judged."""
+    return np.hypot(mu_stderrs, MU_SPREAD_FLOOR * mus)
+
+
+def _detectable_drift(mus: np.ndarray, mu_stderrs: np.ndarray) -> float:
+    """The steady change of mu a hit [1/hit] these hits must show to pass `_not_a_drift`.
+
+    A fraction of mu; what the test of the hits' own mu asks of hits with these errors.
+
+    From MIN_TREND_HITS hits a trend at DRIFT_P_VALUE (a steady change leaves no scatter to
+    widen the slope's error; its t grows as the change); with fewer, a spread beyond their
+    errors and MU_SPREAD_FLOOR of each hit's mu at DRIFT_P_VALUE (solved for: the floor grows
+    with the hits' mu). Three hits with 1e-5 errors: 1.3 % a hit.
+    """
+    n, mean = len(mus), float(np.mean(mus))
+
+    def steady(change: float) -> np.ndarray:
+        return mean * (1.0 + change * np.arange(n))
+
+    if n >= MIN_TREND_HITS:
+        trend = mu_trend(steady(1e-3), mu_stderrs, refitted=False)
+        needed = float(scipy.stats.t.isf(DRIFT_P_VALUE / 2.0, n - 2))
+        return 1e-3 * needed * trend.slope_stderr / abs(trend.slope_per_hit)
+    needed = float(scipy.stats.chi2.isf(DRIFT_P_VALUE, n - 1))
+
+    def beyond(change: float) -> float:
+        mu = steady(change)
+        return mu_trend(mu, _floored(mu, mu_stderrs), refitted=False).consistency_chi2 - needed
+
+    return float(scipy.optimize.brentq(beyond, 0.0, 1.0, xtol=1e-6))
 
 
 def _own_parameters(model: SessionModel, effect: str) -> tuple[ParameterEstimate, ...]:
