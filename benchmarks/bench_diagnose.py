@@ -314,12 +314,12 @@ class Sweep:
         total, sessions = self.rate(self.rows)
         clean_right, clean = self.rate(CLEAN)
         singles = [k for k in self.rows if k in SINGLES]
-        worst = min((self.exact[k] for k in singles), default=0)
-        lines = [
-            f'right: {total} of {sessions} sessions ({100 * total / sessions:.1f} %)',
-            f'single effects: worst kind {worst} of {self.cases} right',
-            f'false alarms on clean sessions: {clean - clean_right} of {clean}',
-        ]
+        lines = [f'right: {total} of {sessions} sessions ({100 * total / sessions:.1f} %)']
+        if singles:
+            worst = min(self.exact[k] for k in singles)
+            lines.append(f'single effects: worst kind {worst} of {self.cases} right')
+        if clean:
+            lines.append(f'false alarms on clean sessions: {clean - clean_right} of {clean}')
         if 'pair' in self.rows:
             lines.append(f'pairs: both named in {self.exact["pair"]} of {self.cases}')
         if MU_DRIFT in self.rows:
