@@ -1,0 +1,195 @@
+"""The stated detection limits, tried on worlds the product was not tuned on.
+
+Run: .venv/bin/python benchmarks/bench_limits.py [--quick] [--cases N] [--seed S]
+     [--worlds W,...]
+
+`fmm diagnose` states, for every candidate, the size from which the session's records would
+show it (`Candidate.detection_limit`: what `none` cannot rule out). `bench_diagnose` counts
+the worlds' own draws against it; here the size is set from it. Each case is a session of a
+held-out world (`heldout.ROLES`) with its hits, mu, chain and noise drawn once:
+
+1. diagnosed clean (each effect at 1e-9 of its drawn size, so a world re-centres the hits for
+   an asymmetry as it does for a real one), and each candidate's stated limit read;
+2. the same hits, chain and noise with one effect at `MULTIPLES` of that limit (its other
+   parameters and its sign drawn as the worlds draw them, `heldout.cases.effect_fields`),
+   diagnosed again.
+
+Counted per effect: the sessions whose effect is named at half and at twice the stated size.
+A limit that holds names nearly every effect at twice it; at half it, an effect is still named
+where the whole-misfit rule or its signature carries it (the limit is where naming is assured,
+not where it stops). A second mode is left out: a clean session has no residual peak to probe
+it at, so it states no limit.
+
+A full run writes its section of RESULTS.md (one per seed); --quick (one session, two effects,
+one world) writes nothing.
+"""
+
+import argparse
+import math
+import statistics
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from bench_diagnose import DEFAULT_SEED, HELDOUT_WORLDS, HIDDEN_SIZE, SHORT
+from results_file import QUICK_HELP, write_section
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'test'))
+from heldout import HELD_OUT, ROLES  # noqa: E402
+from heldout.cases import MU_RANGE, effect_fields, kinds_of, session_of  # noqa: E402
+from heldout.lab import Effects  # noqa: E402
+
+from fmm_ros.core.diagnose.workflow import diagnose
+from fmm_ros.core.identify.spec import start_options
+from fmm_ros.workflows.results import detection_limit_dict
+
+MULTIPLES = (0.5, 2.0)
+"""Sizes the effects are set to, as multiples of the limit their clean session stated."""
+CLEAN_FRACTION = 1e-9
+"""A clean session's effect, as a fraction of its drawn size: nothing to see, but the world
+treats the session as one of that effect (it re-centres the hits for an asymmetry)."""
+LEVELS_N = (450.0, 1000.0, 1450.0)
+QUICK_EFFECTS = ('cubic_stiffness', 'mu_drift')
+
+
+@dataclass
+class Check:
+    """What one world's cases found: per effect, the limits stated and the names at each size."""
+
+    world: str
+    limits: dict[str, list[float]] = field(default_factory=dict)
+    named: dict[str, dict[float, list[int]]] = field(default_factory=dict)
+    """effect -> multiple -> [sessions that named the effect, sessions]."""
+    units: dict[str, str] = field(default_factory=dict)
+    unstated: dict[str, int] = field(default_factory=dict)
+    """Clean sessions that stated no finite limit for the effect."""
+    false_alarms: int = 0
+    """Clean sessions that named anything."""
+    clean: int = 0
+
+    def table(self) -> list[str]:
+        """The markdown table of this world."""
+        lines = [
+            '| effect | stated limit, median (range) | named at 0.5x | named at 2x | no limit |',
+            '|---|---|---|---|---|',
+        ]
+        for effect, limits in self.limits.items():
+            counts = self.named[effect]
+            low, high = (counts.get(m, [0, 0]) for m in MULTIPLES)
+            stated = (
+                f'{statistics.median(limits):.2g} {self.units[effect]} '
+                f'({min(limits):.2g}-{max(limits):.2g})'
+                if limits
+                else '-'
+            )
+            lines.append(
+                f'| {SHORT[effect]} | {stated} | {low[0]} of {low[1]} | {high[0]} of {high[1]} '
+                f'| {self.unstated.get(effect, 0)} |'
+            )
+        return lines
+
+    def totals(self) -> list[str]:
+        """The figures under the table."""
+        lines = []
+        for multiple in MULTIPLES:
+            named = sum(c.get(multiple, [0, 0])[0] for c in self.named.values())
+            total = sum(c.get(multiple, [0, 0])[1] for c in self.named.values())
+            lines.append(f'at {multiple:g}x the stated size: named {named} of {total}')
+        lines.append(f'clean sessions that named anything: {self.false_alarms} of {self.clean}')
+        return lines
+
+
+def check(name: str, cases: int, seed: int, effects: tuple[str, ...] | None = None) -> Check:
+    """A world's `Check`: `cases` sessions clean, then each effect at `MULTIPLES` of its limit."""
+    world = HELDOUT_WORLDS[name]
+    kinds = kinds_of(world)
+    chosen = [e for e in (effects or HIDDEN_SIZE) if e in kinds and e != 'second_mode']
+    found = Check(name)
+    for number in range(cases):
+        rng = np.random.default_rng([seed, number])
+        mu = float(rng.uniform(*MU_RANGE))
+        levels = rng.permutation(LEVELS_N)
+        session = (world, mu, levels, int(rng.integers(2**63)))
+        cleans = {}
+        for effect in chosen:
+            fields = effect_fields(effect, mu, rng)
+            size_field = HIDDEN_SIZE[effect]
+            sign = math.copysign(1.0, fields[size_field])
+            centred = effect == 'asymmetric_friction'
+            if centred not in cleans:
+                cleans[centred] = _diagnosed(
+                    session, Effects(**{**fields, size_field: CLEAN_FRACTION * fields[size_field]})
+                )
+                found.clean += 1
+                found.false_alarms += bool(cleans[centred].named_effects)
+            limit = next(
+                c.detection_limit for c in cleans[centred].candidates if c.effect == effect
+            )
+            found.limits.setdefault(effect, [])
+            counts = found.named.setdefault(effect, {})
+            if not (math.isfinite(limit) and limit > 0.0):
+                found.unstated[effect] = found.unstated.get(effect, 0) + 1
+                continue
+            found.limits[effect].append(limit)
+            found.units[effect] = detection_limit_dict(effect, limit)['unit']
+            for multiple in MULTIPLES:
+                effects = Effects(**{**fields, size_field: sign * multiple * limit})
+                result = _diagnosed(session, effects)
+                tally = counts.setdefault(multiple, [0, 0])
+                tally[0] += effect in result.named_effects
+                tally[1] += 1
+        print(f'  {name} case {number}: done', flush=True)
+    print(f'\n{name} (held out world)')
+    print('\n'.join(found.table() + found.totals()), flush=True)
+    return found
+
+
+def _diagnosed(session: tuple, effects: Effects):
+    """The diagnosis of a session (world, mu, levels, seed of its draws) with these effects."""
+    world, mu, levels, seed = session
+    records, starts = session_of(world, effects, mu, np.random.default_rng(seed), levels)
+    return diagnose(records, **start_options(starts))
+
+
+def markdown(checks: list[Check], cases: int) -> str:
+    """The RESULTS.md section of some worlds' checks."""
+    parts = []
+    for found in checks:
+        parts.append(f'**{found.world}** ({cases} sessions)\n')
+        parts.append('\n'.join(found.table()) + '\n')
+        parts.append('\n'.join(f'- {line}' for line in found.totals()) + '\n')
+    return '\n'.join(parts)
+
+
+def main() -> None:
+    """Check the stated limits on the held-out worlds and write the RESULTS.md section."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--quick', action='store_true', help=QUICK_HELP)
+    parser.add_argument('--cases', type=int, default=8, help='sessions a world')
+    parser.add_argument('--seed', type=int, default=DEFAULT_SEED, help='draws the sessions')
+    parser.add_argument(
+        '--worlds',
+        type=lambda text: tuple(text.split(',')),
+        default=(),
+        help='check only these held-out worlds (comma-separated names of heldout.ROLES)',
+    )
+    args = parser.parse_args()
+    held_out = [name for name in HELDOUT_WORLDS if ROLES[name] == HELD_OUT]
+    unknown = sorted(set(args.worlds) - set(held_out))
+    if unknown:
+        parser.error(f'not a held-out world: {", ".join(unknown)}; held out: {", ".join(held_out)}')
+    worlds = held_out[:1] if args.quick else [w for w in held_out if w in (args.worlds or held_out)]
+    cases = 1 if args.quick else args.cases
+    checks = [
+        check(name, cases, args.seed, QUICK_EFFECTS if args.quick else None) for name in worlds
+    ]
+    seed = f', seed {args.seed}' if args.seed != DEFAULT_SEED else ''
+    chosen = f' [{", ".join(args.worlds)}]' if args.worlds else ''
+    write_section(
+        f'bench_limits, held out worlds{chosen}{seed}', markdown(checks, cases), quick=args.quick
+    )
+
+
+if __name__ == '__main__':
+    main()
