@@ -14,7 +14,13 @@ from fmm_ros.core.diagnose import diagnose
 from fmm_ros.core.diagnose.drift import MIN_TREND_HITS, mu_trend
 from fmm_ros.core.diagnose.friction_map import SPEED_BINS, MapRecord, friction_map, speed_table
 from fmm_ros.core.diagnose.gaps import measured_motion_stop
-from fmm_ros.core.diagnose.screen import Linearisation, chi2_fall, screen_term, screened_hits
+from fmm_ros.core.diagnose.screen import (
+    Linearisation,
+    Naming,
+    chi2_fall,
+    screen_term,
+    screened_hits,
+)
 from fmm_ros.core.diagnose.session_model import SessionModel
 from fmm_ros.core.diagnose.workflow import (
     DRIFT_P_VALUE,
@@ -40,7 +46,7 @@ def test_chi2_fall_is_the_least_squares_fall_with_local_parameters_eliminated():
     residuals = [rng.normal(size=n) for n in sizes]
     shared = [[rng.normal(size=n), rng.normal(size=n)] for n in sizes]
     own = [[rng.normal(size=n)] for n in sizes[:2]] + [[]]
-    fall, solution, local, _ = chi2_fall(residuals, shared, own)
+    fall, solution, local = chi2_fall(residuals, shared, own)
     # The same problem as one dense least squares: shared columns stacked, locals block-diagonal.
     rows = sum(sizes)
     design = np.zeros((rows, 2 + 2))
@@ -282,16 +288,38 @@ def test_a_detection_limit_is_the_size_whose_own_response_reaches_the_naming_flo
 ):
     """The size `screen_term` states is where the part of the term's response that mu cannot
     take up removes the squared misfit asked of a named effect; a second mode's is a mass,
-    its response falling as 1 / mass."""
+    its response falling as 1 / mass. (Over the whole record, where the fall is the Gram
+    matrix's: what the nuisance takes is the least-squares fall of the response on it.)"""
     impact, fit, linear = linearised_hit(1000.0)
-    naming = (0.5 * fit.noise_std_m_s) ** 2 * impact.force_n.size
+    naming = Naming((0.5 * fit.noise_std_m_s) ** 2 * impact.force_n.size, [slice(None)])
     term = model_term(effect, **probe)
     limit = screen_term(effect, [term], linear, fit.noise_std_m_s, naming).detection_limit
     assert math.isfinite(limit) and limit > 0.0
     responses = linear.responses(model_term(effect, **{**probe, size: limit}))
     taken = chi2_fall(responses, *linear.nuisance()).chi2
     own = sum(float(r @ r) for r in responses) - taken
-    assert own == pytest.approx(naming, rel=0.02)
+    assert own == pytest.approx(naming.m2_s2, rel=0.02)
+
+
+def test_a_detection_limit_counts_only_what_the_effect_does_inside_the_motion():
+    """Naming is judged on the gap over the motion windows: a velocity offset, as large at
+    rest as in motion, must account for the misfit asked inside the window alone. Over a
+    window where the hit has stopped (mu moves nothing there), all of the offset is its own:
+    the limit is sqrt(asked / samples in the window)."""
+    impact, fit, linear = linearised_hit(1000.0)
+    rest = slice(30_000, 40_000)
+    assert not np.any(linear.mu_columns[0][rest])
+    asked = (0.5 * fit.noise_std_m_s) ** 2 * 10_000
+    term = model_term('velocity_offset', offset_m_s=1e-4)
+    limit = screen_term(
+        'velocity_offset', [term], linear, fit.noise_std_m_s, Naming(asked, [rest])
+    ).detection_limit
+    assert limit == pytest.approx(math.sqrt(asked / 10_000), rel=1e-9)
+    whole = Naming(asked, [slice(None)])
+    assert (
+        screen_term('velocity_offset', [term], linear, fit.noise_std_m_s, whole).detection_limit
+        < limit
+    )
 
 
 def test_a_probe_whose_model_run_escapes_screens_nothing_and_raises_nothing():

@@ -74,9 +74,10 @@ class Screen:
     detection_limit: float = math.nan
     """The term's size (its `EFFECT_SIZE` parameter, SI, a magnitude) at which it would just
     be named: its response beyond what the nuisance directions take up would then remove
-    `naming_m2_s2` of squared misfit. Of the least visible probe (Stribeck: the probe speed
-    that hides it most); NaN without a probe (a second mode with no residual peak). mu_drift's
-    is a steady change of mu a hit, as a fraction of mu [1/hit] (`screen_drift`)."""
+    what `Naming` asks inside the motion windows. Of the least visible probe (Stribeck: the
+    probe speed that hides it most); NaN without a probe (a second mode with no residual
+    peak). mu_drift's is a steady change of mu a hit, as a fraction of mu [1/hit]
+    (`screen_drift`)."""
 
 
 class Linearisation:
@@ -211,7 +212,7 @@ class Linearisation:
 
 
 class Fall(NamedTuple):
-    """What `chi2_fall` finds: the fall, both solutions, and the reduced Gram matrix."""
+    """What `chi2_fall` finds: the fall and both solutions."""
 
     chi2: float
     """The fall of sum |r|^2 [the residuals' unit squared]."""
@@ -219,8 +220,16 @@ class Fall(NamedTuple):
     """The global parameters' solution."""
     local: list[np.ndarray]
     """Each hit's own parameters' solution."""
-    reduced: np.ndarray
-    """The global columns' Gram matrix with every hit's own columns eliminated (p x p)."""
+
+
+class Naming(NamedTuple):
+    """What naming an effect asks, for a screen to state the size that meets it."""
+
+    m2_s2: float
+    """The squared velocity misfit an effect must remove inside the motion windows, summed
+    over every hit [m^2/s^2]."""
+    windows: Sequence[slice]
+    """Every hit's motion window, in session order: where the gaps are judged."""
 
 
 def chi2_fall(
@@ -232,8 +241,7 @@ def chi2_fall(
 
     G: per hit, the columns of the parameters shared by every hit (the same count each); L:
     per hit, its own. The local parameters are eliminated hit by hit, the global ones solved
-    from the summed reduced normal equations (`Fall.reduced`, whose Schur complements give a
-    global column's norm beyond the others); the fall is r^T C (C^T C)^-1 C^T r, summed.
+    from the summed reduced normal equations; the fall is r^T C (C^T C)^-1 C^T r, summed.
     """
     p = len(global_columns[0]) if global_columns else 0
     reduced = np.zeros((p, p))
@@ -260,7 +268,7 @@ def chi2_fall(
         np.zeros(0) if item is None else item[0] @ (item[2] - item[1] @ shared_solution)
         for item in kept
     ]
-    return Fall(fall, shared_solution, local_solution, reduced)
+    return Fall(fall, shared_solution, local_solution)
 
 
 def _psd_inverse(matrix: np.ndarray) -> np.ndarray:
@@ -280,7 +288,7 @@ def screen_term(
     probes: Sequence[ModelTerm],
     linear: Linearisation,
     noise_std_m_s: float,
-    naming_m2_s2: float = math.nan,
+    naming: Naming | None = None,
 ) -> Screen:
     """The best of the probes of one term: its predicted chi^2 gain and the refit's start.
 
@@ -289,8 +297,8 @@ def screen_term(
     the wrong sign for a non-negative size is no gain: the data ask for the opposite effect,
     which the term does not express.
 
-    naming_m2_s2: the squared velocity misfit, summed over every hit [m^2/s^2], an effect must
-    remove to be named; with it, the screen also gives the term's `detection_limit`.
+    naming: what naming an effect asks; with it, the screen also gives the term's
+    `detection_limit`.
     """
     cls = MODEL_TERMS[effect]
     shared, own = linear.nuisance()
@@ -307,12 +315,15 @@ def screen_term(
             if best.start is None:
                 best = replace(best, note='a probe whose model run is not finite')
             continue
-        fall, solution, _, reduced = chi2_fall(
+        fall, solution, _ = chi2_fall(
             linear.residuals,
             [[response, *columns] for response, columns in zip(responses, shared, strict=True)],
             own,
         )
-        limits.append(_detection_limit(probe, _own_energy(reduced), linear.scale, naming_m2_s2))
+        if naming is not None:
+            name, inverse = EFFECT_SIZE[effect]
+            inside = _own_inside(responses, shared, own, linear, naming.windows)
+            limits.append(_named_from(abs(getattr(probe, name)), inverse, inside, naming.m2_s2))
         gain = linear.scale * max(fall - before, 0.0) / noise_std_m_s**2
         start, note = _scaled(probe, float(solution[0]))
         if start is None:
@@ -326,31 +337,32 @@ def screen_term(
     return best
 
 
-def _own_energy(reduced: np.ndarray) -> float:
-    """The squared norm of the first global column beyond all the other columns.
-
-    reduced: `Fall.reduced` with the probe's response first; the other global columns (the
-    common mu) are eliminated here, the hits' own (their starts, each hit's mu) already are.
-    """
-    own = float(reduced[0, 0])
-    if reduced.shape[0] > 1:
-        cross = reduced[1:, 0]
-        own -= float(cross @ _psd_inverse(reduced[1:, 1:]) @ cross)
-    return max(own, 0.0)
-
-
-def _detection_limit(
-    probe: ModelTerm, own_m2_s2: float, scale: float, naming_m2_s2: float
+def _own_inside(
+    directions: Sequence[np.ndarray],
+    shared: Sequence[Sequence[np.ndarray]],
+    own: Sequence[Sequence[np.ndarray]],
+    linear: Linearisation,
+    windows: Sequence[slice],
 ) -> float:
-    """The probe's size at which its own response would remove naming_m2_s2 [SI].
+    """What the nuisance cannot take of a direction, its squared norm inside the motion windows.
 
-    own_m2_s2: the squared norm of the probe's response beyond what the nuisance directions
-    take up (a refit moves mu and the starts with the term), on the screened hits; scale:
-    all hits over those. Linear in the size, as the screen is (the second mode's response
-    scales as 1 / its mass). NaN without naming_m2_s2; inf (0 kg) when nothing is its own.
+    Over every hit (scaled from the screened ones) [the direction's unit squared].
+
+    A refit moves mu and the starts with the term, so only the direction's part beyond them
+    is the term's own; and naming is judged on the gap over the motion, so only its part
+    there counts (a velocity offset is as large at rest as in motion, a cubic spring is not).
     """
-    name, inverse = EFFECT_SIZE[probe.name]
-    return _named_from(abs(getattr(probe, name)), inverse, scale * own_m2_s2, naming_m2_s2)
+    taken = chi2_fall(directions, shared, own)
+    inside = 0.0
+    for place, (direction, columns, locals_, local) in enumerate(
+        zip(directions, shared, own, taken.local, strict=True)
+    ):
+        rest = direction.copy()
+        for coefficient, column in zip((*taken.shared, *local), (*columns, *locals_), strict=True):
+            rest -= coefficient * column
+        window = rest[windows[linear.hits[place]]]
+        inside += inner(window, window)
+    return linear.scale * inside
 
 
 def _named_from(size: float, inverse: bool, own_m2_s2: float, naming_m2_s2: float) -> float:
@@ -386,11 +398,11 @@ def _scaled(probe: ModelTerm, coefficient: float) -> tuple[ModelTerm | None, str
 
 
 def screen_drift(
-    linear: Linearisation, noise_std_m_s: float, naming_m2_s2: float = math.nan
+    linear: Linearisation, noise_std_m_s: float, naming: Naming | None = None
 ) -> Screen:
     """mu_drift: the chi^2 gain of one mu per hit over one for all, and the per-hit mu.
 
-    The linearisation must hold every hit. naming_m2_s2, as `screen_term`'s: with it, the
+    The linearisation must hold every hit. naming, as `screen_term`'s: with it, the
     screen's `detection_limit` is the steady change of mu from hit to hit, as a fraction of
     mu [1/hit], whose response beyond the common mu and the starts would remove it (what
     the hits' own mu must show besides is the workflow's: `_detectable_drift`).
@@ -403,7 +415,7 @@ def screen_drift(
         [mu, *positions]
         for mu, positions in zip(linear.mu_columns, linear.position_columns, strict=True)
     ]
-    fall, _, local, _ = chi2_fall(linear.residuals, [[] for _ in per_hit], per_hit)
+    fall, _, local = chi2_fall(linear.residuals, [[] for _ in per_hit], per_hit)
     mus = linear.model.mus + np.array([solution[0] for solution in local])
     errors = np.array(
         [
@@ -413,15 +425,15 @@ def screen_drift(
     )
     gain = max(fall - before, 0.0) / noise_std_m_s**2
     limit = math.nan
-    if naming_m2_s2 > 0.0:
+    if naming is not None:
         # mu_i = mu (1 + s i): a change s a hit moves hit i's mu by mu i s; the common mu
         # takes up its mean, the starts what they can.
         steady = [
-            [float(linear.model.mus[hit]) * hit * column, *columns]
-            for hit, column, columns in zip(linear.hits, linear.mu_columns, shared, strict=True)
+            float(linear.model.mus[hit]) * hit * column
+            for hit, column in zip(linear.hits, linear.mu_columns, strict=True)
         ]
-        own_m2_s2 = _own_energy(chi2_fall(linear.residuals, steady, own).reduced)
-        limit = _named_from(1.0, False, own_m2_s2, naming_m2_s2)
+        inside = _own_inside(steady, shared, own, linear, naming.windows)
+        limit = _named_from(1.0, False, inside, naming.m2_s2)
     return Screen(
         MU_DRIFT,
         gain,

@@ -73,6 +73,7 @@ from fmm_ros.core.diagnose.result import (
 )
 from fmm_ros.core.diagnose.screen import (
     Linearisation,
+    Naming,
     Screen,
     screen_drift,
     screen_term,
@@ -427,8 +428,8 @@ class _Session:
             for model, hit in zip(self.models, self.hits, strict=True)
         ]
         self.motion_samples = sum(w.stop - w.start for w in self.windows)
-        self.naming_m2_s2 = (MIN_EXCESS * self.noise) ** 2 * self.motion_samples
-        """The squared misfit an effect must remove to be named (MIN_EXCESS; `_choose`)."""
+        self.naming = Naming((MIN_EXCESS * self.noise) ** 2 * self.motion_samples, self.windows)
+        """What naming an effect asks of the misfit it removes (MIN_EXCESS; `_choose`)."""
         self.peak = max(impact.peak_velocity_m_s for impact in impacts)
         self.where: Where = locate_misfit(
             impacts, base.residuals_m_s, self.models, self.hits, rig, self.noise
@@ -513,7 +514,7 @@ class _Session:
         hits = screened_hits(len(self.impacts))
         linear = Linearisation(self.impacts, current, self.fit_initial_position, hits)
         # Detection limits are reported from the first step (`Candidate`) only.
-        naming = self.naming_m2_s2 if number == 1 else math.nan
+        naming = self.naming if number == 1 else None
         screens = []
         for effect in remaining:
             if effect == MU_DRIFT:
