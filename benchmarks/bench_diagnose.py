@@ -78,16 +78,10 @@ from results_file import QUICK_HELP, write_section
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'test'))
 from heldout import HELD_OUT, ROLES  # noqa: E402
-from heldout.analytic import ANALYTIC  # noqa: E402
-from heldout.bristle import BRISTLE  # noqa: E402
 from heldout.cases import KINDS as HELDOUT_KINDS  # noqa: E402
+from heldout.cases import WORLDS as HELDOUT_WORLDS  # noqa: E402
 from heldout.cases import case as heldout_case  # noqa: E402
 from heldout.cases import drawn_effects  # noqa: E402
-from heldout.ivp import IVP  # noqa: E402
-from heldout.karnopp import KARNOPP  # noqa: E402
-from heldout.lab import EVENTS, STEPS  # noqa: E402
-from heldout.moreau import MOREAU  # noqa: E402
-from heldout.newmark import NEWMARK  # noqa: E402
 from world_cases import OUTSIDE_KINDS, VOCABULARY_KINDS, world_case  # noqa: E402
 
 from fmm_ros.constants import MU_DRIFT
@@ -229,19 +223,6 @@ class Source:
     def role(self) -> str:
         """'tuning' or 'held out', as test/heldout declares it."""
         return ROLES[self.name]
-
-
-HELDOUT_WORLDS = {
-    'events': EVENTS,
-    'steps': STEPS,
-    'ivp': IVP,
-    'analytic': ANALYTIC,
-    'moreau': MOREAU,
-    'bristle': BRISTLE,
-    'newmark': NEWMARK,
-    'karnopp': KARNOPP,
-}
-"""The `test/heldout` generators by their `ROLES` name."""
 
 
 SOURCES = (

@@ -32,12 +32,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from bench_diagnose import DEFAULT_SEED, HELDOUT_WORLDS, HIDDEN_SIZE, SHORT
+from bench_diagnose import DEFAULT_SEED, HIDDEN_SIZE, SHORT
 from results_file import QUICK_HELP, write_section
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'test'))
 from heldout import HELD_OUT, ROLES  # noqa: E402
-from heldout.cases import MU_RANGE, effect_fields, kinds_of, session_of  # noqa: E402
+from heldout.cases import MU_RANGE, WORLDS, effect_fields, kinds_of, session_of  # noqa: E402
 from heldout.lab import Effects  # noqa: E402
 
 from fmm_ros.core.diagnose.workflow import diagnose
@@ -102,7 +102,7 @@ class Check:
 
 def check(name: str, cases: int, seed: int, effects: tuple[str, ...] | None = None) -> Check:
     """A world's `Check`: `cases` sessions clean, then each effect at `MULTIPLES` of its limit."""
-    world = HELDOUT_WORLDS[name]
+    world = WORLDS[name]
     kinds = kinds_of(world)
     chosen = [e for e in (effects or HIDDEN_SIZE) if e in kinds and e != 'second_mode']
     found = Check(name)
@@ -175,7 +175,7 @@ def main() -> None:
         help='check only these held-out worlds (comma-separated names of heldout.ROLES)',
     )
     args = parser.parse_args()
-    held_out = [name for name in HELDOUT_WORLDS if ROLES[name] == HELD_OUT]
+    held_out = [name for name in WORLDS if ROLES[name] == HELD_OUT]
     unknown = sorted(set(args.worlds) - set(held_out))
     if unknown:
         parser.error(f'not a held-out world: {", ".join(unknown)}; held out: {", ".join(held_out)}')

@@ -19,15 +19,12 @@ import pytest
 import scipy.integrate
 from heldout import HELD_OUT, ROLES
 from heldout.analytic import ANALYTIC
-from heldout.bristle import BRISTLE
-from heldout.cases import KINDS, case, kinds_of
+from heldout.cases import KINDS, WORLDS, case, kinds_of
 from heldout.chain import Channel, Daq, acquire
 from heldout.forces import SHAPES, Hit
 from heldout.ivp import IVP, Law, Pulse, motion
-from heldout.karnopp import KARNOPP
-from heldout.lab import EVENTS, STEPS, Effects
+from heldout.lab import STEPS, Effects
 from heldout.moreau import MOREAU
-from heldout.newmark import NEWMARK
 from heldout.plant import Contact, Plant, solve_events, solve_steps
 
 from fmm_ros.constants import MU_DRIFT
@@ -41,16 +38,6 @@ from fmm_ros.core.diagnose.workflow import (
 from fmm_ros.core.identify.spec import start_options
 
 HELDOUT_DIR = Path(__file__).resolve().parent / 'heldout'
-WORLDS = {
-    'events': EVENTS,
-    'steps': STEPS,
-    'ivp': IVP,
-    'analytic': ANALYTIC,
-    'moreau': MOREAU,
-    'bristle': BRISTLE,
-    'newmark': NEWMARK,
-    'karnopp': KARNOPP,
-}
 
 
 def test_the_held_out_generators_import_neither_the_product_nor_worlds():

@@ -15,14 +15,14 @@ the `events` world, the same ranges on every world: where a world's hammer swing
 
 import numpy as np
 
-from heldout.analytic import AnalyticWorld, re_centred
-from heldout.bristle import BristleWorld
-from heldout.ivp import IvpWorld
-from heldout.karnopp import KarnoppWorld
-from heldout.lab import Effects, World, session
-from heldout.moreau import MoreauWorld
+from heldout.analytic import ANALYTIC, AnalyticWorld, re_centred
+from heldout.bristle import BRISTLE, BristleWorld
+from heldout.ivp import IVP, IvpWorld
+from heldout.karnopp import KARNOPP, KarnoppWorld
+from heldout.lab import EVENTS, STEPS, Effects, World, session
+from heldout.moreau import MOREAU, MoreauWorld
 from heldout.moreau import re_centred as moreau_re_centred
-from heldout.newmark import NewmarkWorld
+from heldout.newmark import NEWMARK, NewmarkWorld
 
 VOCABULARY_KINDS = (
     'viscous_damping',
@@ -107,6 +107,18 @@ AnyWorld = (
     World | IvpWorld | AnalyticWorld | MoreauWorld | BristleWorld | NewmarkWorld | KarnoppWorld
 )
 """Any of the held-out generators' worlds."""
+
+WORLDS: dict[str, AnyWorld] = {
+    'events': EVENTS,
+    'steps': STEPS,
+    'ivp': IVP,
+    'analytic': ANALYTIC,
+    'moreau': MOREAU,
+    'bristle': BRISTLE,
+    'newmark': NEWMARK,
+    'karnopp': KARNOPP,
+}
+"""Every world the sessions are drawn from, by its name in `heldout.ROLES`."""
 
 
 def drawn_effects(
