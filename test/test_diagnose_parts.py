@@ -353,3 +353,11 @@ def test_a_steady_drift_at_its_stated_limit_just_passes_the_hits_own_test(hits):
         assert change < 2e-3
         p_value = mu_trend(steady, errors, refitted=False).p_value
     assert p_value == pytest.approx(DRIFT_P_VALUE, rel=0.05)
+
+
+def test_a_drift_too_weak_for_any_change_to_show_states_no_finite_limit():
+    """Hits whose own mu are known only to 50 % show no drift even if mu grew by all of itself
+    a hit: the limit is inf, not an error out of the whole diagnosis; errors that say nothing
+    give NaN."""
+    assert _detectable_drift(np.full(3, 0.12), np.full(3, 0.06)) == math.inf
+    assert math.isnan(_detectable_drift(np.full(3, 0.12), np.array([1e-5, 0.0, 1e-5])))

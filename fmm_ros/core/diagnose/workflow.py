@@ -1043,23 +1043,29 @@ def _detectable_drift(mus: np.ndarray, mu_stderrs: np.ndarray) -> float:
     From MIN_TREND_HITS hits a trend at DRIFT_P_VALUE (a steady change leaves no scatter to
     widen the slope's error; its t grows as the change); with fewer, a spread beyond their
     errors and MU_SPREAD_FLOOR of each hit's mu at DRIFT_P_VALUE (solved for: the floor grows
-    with the hits' mu). Three hits with 1e-5 errors: 1.3 % a hit.
+    with the hits' mu). Three hits with 1e-5 errors: 1.3 % a hit. inf when not even a change
+    of all of mu a hit would pass; NaN when the errors say nothing (not finite and positive).
     """
     n, mean = len(mus), float(np.mean(mus))
+    errors = np.asarray(mu_stderrs, dtype=float)
+    if not (mean > 0.0 and np.all(np.isfinite(errors)) and np.all(errors > 0.0)):
+        return math.nan
 
     def steady(change: float) -> np.ndarray:
         return mean * (1.0 + change * np.arange(n))
 
     if n >= MIN_TREND_HITS:
-        trend = mu_trend(steady(1e-3), mu_stderrs, refitted=False)
+        trend = mu_trend(steady(1e-3), errors, refitted=False)
         needed = float(scipy.stats.t.isf(DRIFT_P_VALUE / 2.0, n - 2))
         return 1e-3 * needed * trend.slope_stderr / abs(trend.slope_per_hit)
     needed = float(scipy.stats.chi2.isf(DRIFT_P_VALUE, n - 1))
 
     def beyond(change: float) -> float:
         mu = steady(change)
-        return mu_trend(mu, _floored(mu, mu_stderrs), refitted=False).consistency_chi2 - needed
+        return mu_trend(mu, _floored(mu, errors), refitted=False).consistency_chi2 - needed
 
+    if beyond(1.0) <= 0.0:
+        return math.inf
     return float(scipy.optimize.brentq(beyond, 0.0, 1.0, xtol=1e-6))
 
 
