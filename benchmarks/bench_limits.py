@@ -134,8 +134,8 @@ def check(name: str, cases: int, seed: int, effects: tuple[str, ...] | None = No
             found.limits[effect].append(limit)
             found.units[effect] = detection_limit_dict(effect, limit)['unit']
             for multiple in MULTIPLES:
-                effects = Effects(**{**fields, size_field: sign * multiple * limit})
-                result = _diagnosed(session, effects)
+                hidden = Effects(**{**fields, size_field: sign * multiple * limit})
+                result = _diagnosed(session, hidden)
                 tally = counts.setdefault(multiple, [0, 0])
                 tally[0] += effect in result.named_effects
                 tally[1] += 1
