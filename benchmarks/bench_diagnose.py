@@ -94,7 +94,7 @@ from fmm_ros.core.diagnose.workflow import (
 )
 from fmm_ros.core.identify.conditioning import as_conditioned
 from fmm_ros.core.identify.spec import CENTRE, FITTED, start_options
-from fmm_ros.core.physics.terms import EFFECT_SIZE, MODEL_TERMS
+from fmm_ros.core.physics.terms import MODEL_TERMS
 from fmm_ros.core.signal.capture import capture_impacts
 from fmm_ros.sim.hidden_effects import (
     OUT_OF_VOCABULARY,
@@ -102,6 +102,7 @@ from fmm_ros.sim.hidden_effects import (
     hidden_session,
 )
 from fmm_ros.sim.session import simulated_session
+from fmm_ros.workflows.results import detection_limit_dict
 
 DEFAULT_SEED = 2019
 TARGET_FALSE_ALARMS = 0.05
@@ -414,7 +415,8 @@ def against_limit(
         if effect not in truth or not math.isfinite(limit):
             return None
         size = truth[effect]
-        over &= size <= limit if EFFECT_SIZE.get(effect, ('', False))[1] else size >= limit
+        below = detection_limit_dict(effect, limit)['shows'] == 'below'
+        over &= size <= limit if below else size >= limit
         words.append(f'{SHORT[effect]} {size:.2g}, shows from {limit:.2g}')
     return over, '; ' + '; '.join(words)
 

@@ -524,7 +524,7 @@ class _Session:
                     else Linearisation(self.impacts, current, self.fit_initial_position)
                 )
                 screen = screen_drift(every, self.noise, naming)
-                if number == 1:
+                if naming is not None:
                     shown = _detectable_drift(screen.mu_per_hit, screen.mu_per_hit_stderr)
                     screen = replace(screen, detection_limit=max(screen.detection_limit, shown))
                 self.drift_screens[frozenset(current.effects)] = screen
