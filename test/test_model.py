@@ -343,6 +343,24 @@ def test_second_mode_adds_an_exact_linear_response_to_the_output():
     assert (both.rest_position_m, both.rest_time_s) == (base.rest_position_m, base.rest_time_s)
 
 
+@pytest.mark.parametrize('delay_s', [0.0, 3e-4, 1.37e-4])
+def test_a_modes_own_pass_is_its_share_of_a_run(delay_s):
+    """`mode_velocity` (one pass, what a screen takes a mode's response from) is a run with
+    the mode less the run without, whatever the oscillator does and however the vibrometer
+    lags, to rounding."""
+    mode = model_term('second_mode', frequency_hz=137.0, damping_ratio=0.01, modal_mass_kg=50.0)
+    delay = (model_term('sensor_delay', delay_s=delay_s),) if delay_s else ()
+    force = impact(duration_s=4.0)
+    with_mode, without = (
+        simulate(force, RATE_HZ, effects=(*delay, *m), x0_m=2e-4).velocity_m_s
+        for m in ((mode,), ())
+    )
+    alone = model.mode_velocity(force, RATE_HZ, mode, delay_s)
+    np.testing.assert_allclose(with_mode - without, alone, rtol=0, atol=1e-12 * np.max(alone))
+    with pytest.raises(ValueError, match='at or above the Nyquist frequency'):
+        model.mode_velocity(force, 250.0, mode)
+
+
 def test_velocity_offset_and_delay_act_on_the_vibrometer_output_only():
     force = impact(duration_s=1.0)
     base = simulate(force, RATE_HZ)

@@ -40,7 +40,7 @@ from fmm_ros.core._checks import (
 )
 from fmm_ros.core.physics import _kernels as kernels
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
-from fmm_ros.core.physics.terms import ModelSpec, ModelTerm, model_spec
+from fmm_ros.core.physics.terms import ModelSpec, ModelTerm, SecondMode, model_spec
 from fmm_ros.errors import BadInputError
 
 MIN_SAMPLES_PER_PERIOD = 20
@@ -139,17 +139,8 @@ def _plan(
     params.flags.writeable = False
     mode_step = None
     if spec.second_mode is not None:
-        if spec.second_mode.frequency_hz >= 0.5 * sample_rate_hz:
-            raise BadInputError(
-                f'time step too coarse: second_mode.frequency_hz '
-                f'{spec.second_mode.frequency_hz:g} is at or above the Nyquist frequency '
-                f'{0.5 * sample_rate_hz:g} Hz'
-            )
-        mode_step = _foh_step(*spec.second_mode.constants(), step_s)
-    delay_samples = spec.delay_s * sample_rate_hz
-    if abs(delay_samples - round(delay_samples)) < 1e-9:
-        delay_samples = round(delay_samples)  # 3e-4 s at 10 kHz is 3 samples, not 2.999...
-    whole = int(math.floor(delay_samples))
+        mode_step = _mode_step(spec.second_mode, sample_rate_hz)
+    whole, fraction = _delay_split(spec.delay_s, sample_rate_hz)
     return _Plan(
         sample_rate_hz,
         params,
@@ -157,9 +148,28 @@ def _plan(
         mode_step,
         spec.delay_s > 0.0,
         whole,
-        delay_samples - whole,
+        fraction,
         spec.velocity_offset_m_s,
     )
+
+
+def _mode_step(mode: SecondMode, sample_rate_hz: float) -> np.ndarray:
+    """The second mode's exact step at a sample rate; BadInputError at or above Nyquist."""
+    if mode.frequency_hz >= 0.5 * sample_rate_hz:
+        raise BadInputError(
+            f'time step too coarse: second_mode.frequency_hz {mode.frequency_hz:g} is at or '
+            f'above the Nyquist frequency {0.5 * sample_rate_hz:g} Hz'
+        )
+    return _foh_step(*mode.constants(), 1.0 / sample_rate_hz)
+
+
+def _delay_split(delay_s: float, sample_rate_hz: float) -> tuple[int, float]:
+    """A delay as (whole samples, fraction of a sample)."""
+    delay_samples = delay_s * sample_rate_hz
+    if abs(delay_samples - round(delay_samples)) < 1e-9:
+        delay_samples = round(delay_samples)  # 3e-4 s at 10 kHz is 3 samples, not 2.999...
+    whole = int(math.floor(delay_samples))
+    return whole, delay_samples - whole
 
 
 _NO_DELAY = np.empty(0)
@@ -380,6 +390,30 @@ def simulate(
     return Simulation(
         displacement, velocity, stream.sample_rate_hz, stream.rest_position_m, stream.rest_time_s
     )
+
+
+def mode_velocity(
+    force_n: np.ndarray, sample_rate_hz: float, mode: SecondMode, delay_s: float = 0.0
+) -> np.ndarray:
+    """What a second mode alone adds to the vibrometer's reading, from rest [m/s].
+
+    The mode is linear and decoupled from the friction oscillator (`terms.SecondMode`), so its
+    share of a run is the same whatever the oscillator does: this is `simulate` with the mode
+    less `simulate` without it (the same exact steps and delay, to rounding), in one pass over
+    the force and no run of the oscillator.
+    """
+    force = _samples(force_n)
+    rate = float(sample_rate_hz)
+    require_positive('sample_rate_hz', rate)
+    state = np.zeros(kernels.MODE_SIZE)
+    state[kernels.MODE_PHI :] = _mode_step(mode, rate)
+    whole, fraction = _delay_split(delay_s, rate)
+    history = np.zeros(whole + 1) if delay_s > 0.0 else _NO_DELAY
+    displacement, velocity = np.zeros(force.size), np.zeros(force.size)
+    kernels.add_linear_mode(
+        force, 0.0, True, displacement, velocity, state, history, whole, fraction, 0.0
+    )
+    return velocity
 
 
 def free_vibration(
