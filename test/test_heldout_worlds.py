@@ -29,13 +29,17 @@ from heldout.plant import Contact, Plant, solve_events, solve_steps
 
 from fmm_ros.constants import MU_DRIFT
 from fmm_ros.core.diagnose import NONE, UNEXPLAINED, diagnose
+from fmm_ros.core.diagnose.starts import mode_limit_probes
 from fmm_ros.core.diagnose.workflow import (
     MAX_REFITS,
     MIN_EXCESS,
     MIN_WHOLE_EXCESS,
     WHOLE_MISFIT_SHARE,
 )
+from fmm_ros.core.identify.conditioning import as_conditioned
 from fmm_ros.core.identify.spec import start_options
+from fmm_ros.core.physics.rig import FMM_RIG
+from fmm_ros.workflows.results import detection_limit_dict, detection_limit_text
 
 HELDOUT_DIR = Path(__file__).resolve().parent / 'heldout'
 
@@ -312,6 +316,41 @@ def test_an_effect_shows_from_the_size_its_clean_session_stated(effect, drawn):
     assert np.isfinite(limit) and limit > 0.0
     assert diagnosed_with(2.0 * limit).named_effects == (effect,)
     assert diagnosed_with(0.3 * limit).named_effects == ()
+
+
+@pytest.mark.slow
+def test_a_second_mode_shows_from_the_mass_its_clean_session_stated():
+    """A clean session states the lightest second mode that could hide in it: over the band its
+    hits excite (`mode_limit_probes`), least visible at the band's top with the largest damping
+    probed. On a clean `ivp` session (a tuning world), the same hits with a mode there at half
+    that mass (twice the response) name it, and at 3.3 times do not; lower in the band a mode
+    of 3.3 times the mass is still named (the limit is the band's worst case)."""
+    levels = (450.0, 1000.0, 1450.0)
+
+    def session(**mode):
+        return IVP.session(Effects(**mode), 0.12, np.random.default_rng(77), levels)
+
+    clean = diagnose(session())
+    assert clean.named_effects == ()
+    candidate = next(c for c in clean.candidates if c.effect == 'second_mode')
+    limit, curve = candidate.detection_limit, candidate.detection_limit_by_frequency
+    band = mode_limit_probes([as_conditioned(r) for r in session()], FMM_RIG)
+    assert 5.0 <= band[0].frequency_hz < band[-1].frequency_hz < 2000.0
+    assert [f for f, _ in curve] == [p.frequency_hz for p in band]
+    assert 1.0 < limit == min(m for _, m in curve) < 1e3
+    assert curve[0][1] > 10.0 * curve[-1][1]  # heavier modes show lower in the band
+    text = detection_limit_text(detection_limit_dict('second_mode', limit, curve))
+    assert (
+        text == f'<= {limit:.2g} kg over {band[0].frequency_hz:.0f}-{band[-1].frequency_hz:.0f} Hz'
+    )
+
+    def named(frequency_hz: float, mass_kg: float) -> tuple[str, ...]:
+        mode = {'mode_hz': frequency_hz, 'mode_damping_ratio': band[-1].damping_ratio}
+        return diagnose(session(**mode, mode_mass_kg=mass_kg)).named_effects
+
+    assert named(band[-1].frequency_hz, 0.5 * limit) == ('second_mode',)
+    assert named(band[-1].frequency_hz, 3.3 * limit) == ()
+    assert named(band[3].frequency_hz, 3.3 * limit) == ('second_mode',)
 
 
 @pytest.mark.slow

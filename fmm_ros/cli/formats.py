@@ -158,7 +158,7 @@ def diagnosis_text(payload: dict, impacts: int, figures: Sequence[Path] = ()) ->
     lines.append(f'where (base model): {result["where"]["summary"]}')
     lines.append('')
     lines.append(
-        f'{"candidate (step 1)":<22}{"score (dBIC)":>14}{"gap after":>12}{"shows from":>20}'
+        f'{"candidate (step 1)":<22}{"score (dBIC)":>14}{"gap after":>12}{"shows from":>30}'
     )
     names = {entry['effect'] for entry in named}
     for candidate in result['candidates']:
@@ -169,7 +169,7 @@ def diagnosis_text(payload: dict, impacts: int, figures: Sequence[Path] = ()) ->
         score = f'{score:.0f}' if math.isfinite(score) else 'failed'
         gap = _finite(candidate['gap_after'])
         shows = detection_limit_text(candidate.get('detection_limit'))
-        lines.append(f'{candidate["effect"]:<22}{score:>14}{gap:>12.3g}{shows:>20}{mark}')
+        lines.append(f'{candidate["effect"]:<22}{score:>14}{gap:>12.3g}{shows:>30}{mark}')
     lines.append(
         f'(an effect is added when dBIC <= {result["required_score"]:.0f} and it removes a '
         'quarter of the squared gap left; the named set must halve the gap; "shows from": the '

@@ -519,7 +519,11 @@ def _diagnosis_section(
                 _number(c.score, '.0f'),
                 _number(c.gap_after, '.3g'),
                 _number(c.frf_gap_after, '.3g'),
-                detection_limit_text(detection_limit_dict(c.effect, c.detection_limit)),
+                detection_limit_text(
+                    detection_limit_dict(
+                        c.effect, c.detection_limit, c.detection_limit_by_frequency
+                    )
+                ),
                 'named' if c.effect in result.named_effects else c.message or '-',
             ]
             for c in result.candidates

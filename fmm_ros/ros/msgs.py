@@ -277,6 +277,12 @@ def fill_diagnose_response(response: object, result: diagnose.Diagnosis) -> obje
     response.candidate_detection_limits = float64_field(
         [c.detection_limit for c in result.candidates]
     )
+    curves = [c.detection_limit_by_frequency for c in result.candidates]
+    response.candidate_limit_curve_counts = [len(curve) for curve in curves]
+    response.candidate_limit_curve_frequencies_hz = float64_field(
+        [f for curve in curves for f, _ in curve]
+    )
+    response.candidate_limit_curve_values = float64_field([v for curve in curves for _, v in curve])
     response.noise_std_m_s = result.noise_std_m_s
     response.residual_noise_std_m_s = result.residual_noise_std_m_s
     response.starts = result.starts
@@ -401,6 +407,15 @@ def diagnose_response_dict(response: object) -> dict:
         field_array(response.candidate_parameter_values),
     )
     starts = np.concatenate(([0], np.cumsum(counts))).astype(int)
+    curve_starts = np.concatenate(([0], np.cumsum(response.candidate_limit_curve_counts)))
+    frequencies, masses = (
+        field_array(response.candidate_limit_curve_frequencies_hz).tolist(),
+        field_array(response.candidate_limit_curve_values).tolist(),
+    )
+    curves = [
+        tuple(zip(frequencies[a:b], masses[a:b], strict=True))
+        for a, b in zip(curve_starts[:-1].astype(int), curve_starts[1:].astype(int), strict=True)
+    ]
     return json_safe(
         {
             'missing_effect': response.missing_effect,
@@ -436,13 +451,14 @@ def diagnose_response_dict(response: object) -> dict:
                     'parameters': dict(
                         zip(names[start:end], values[start:end].tolist(), strict=True)
                     ),
-                    'detection_limit': detection_limit_dict(effect, limit),
+                    'detection_limit': detection_limit_dict(effect, limit, curve),
                 }
-                for effect, score, gap_after, limit, start, end in zip(
+                for effect, score, gap_after, limit, curve, start, end in zip(
                     response.candidate_effects,
                     field_array(response.candidate_scores).tolist(),
                     field_array(response.candidate_gap_after).tolist(),
                     field_array(response.candidate_detection_limits).tolist(),
+                    curves,
                     starts[:-1],
                     starts[1:],
                     strict=True,

@@ -362,7 +362,9 @@ def diagnosis_dict(diagnosis: Diagnosis) -> dict:
                     'frf_gap_after': c.frf_gap_after,
                     'parameters': {p.name: p.value for p in c.parameters},
                     'parameter_stderr': {p.name: p.stderr for p in c.parameters},
-                    'detection_limit': detection_limit_dict(c.effect, c.detection_limit),
+                    'detection_limit': detection_limit_dict(
+                        c.effect, c.detection_limit, c.detection_limit_by_frequency
+                    ),
                     **({'message': c.message} if c.message else {}),
                 }
                 for c in diagnosis.candidates
@@ -381,32 +383,47 @@ def diagnosis_dict(diagnosis: Diagnosis) -> dict:
     )
 
 
-def detection_limit_dict(effect: str, value: float) -> dict | None:
+def detection_limit_dict(
+    effect: str, value: float, by_frequency: Sequence[tuple[float, float]] = ()
+) -> dict | None:
     """A candidate's `detection_limit` as JSON (None when it has none).
 
     The size parameter it is of (mu_drift's: `DRIFT_SIZE`), its value and unit, and whether
-    the effect shows 'above' it or, for a second mode's mass, 'below' it. None: a second mode
-    with no residual peak to probe, or a direction nothing of which is its own.
+    the effect shows 'above' it or, for a second mode's mass, 'below' it; a second mode's
+    also `by_frequency`, its limit at each frequency of the band it is taken over
+    (`Candidate.detection_limit_by_frequency`). None: a term with no probe (a second mode in
+    a session whose hits excite no band), or a direction nothing of which is its own.
     """
     if not math.isfinite(value):
         return None
     parameter = size_parameter(effect)
     name, unit = DRIFT_SIZE if parameter is None else (parameter.name, parameter.unit)
-    return {
+    limit = {
         'parameter': f'{effect}.{name}',
         'value': value,
         'unit': unit,
         'shows': 'below' if EFFECT_SIZE.get(effect, ('', False))[1] else 'above',
     }
+    if by_frequency:
+        limit['by_frequency'] = {
+            'frequency_hz': [f for f, _ in by_frequency],
+            'value': [v for _, v in by_frequency],
+        }
+    return limit
 
 
 def detection_limit_text(limit: dict | None) -> str:
-    """A `detection_limit_dict` in a few characters: '>= 1.9e+05 N/m^3'; '-' for none."""
+    """A `detection_limit_dict` in a few characters: '>= 1.9e+05 N/m^3'; '-' for none.
+
+    A limit taken over a band says which: '<= 86 kg over 5-643 Hz'.
+    """
     if limit is None:
         return '-'
     sign = '<=' if limit['shows'] == 'below' else '>='
     unit = '' if limit['unit'] == '1' else f' {limit["unit"]}'
-    return f'{sign} {limit["value"]:.2g}{unit}'
+    band = limit.get('by_frequency', {}).get('frequency_hz')
+    over = f' over {band[0]:.0f}-{band[-1]:.0f} Hz' if band else ''
+    return f'{sign} {limit["value"]:.2g}{unit}{over}'
 
 
 def friction_map_dict(friction_map: FrictionMap) -> dict:

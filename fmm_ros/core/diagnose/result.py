@@ -48,11 +48,17 @@ class Candidate:
     parameter, SI, a magnitude; a second mode's modal mass, under which it shows): its
     response beyond what mu and the starts take up would account for `MIN_EXCESS` of the noise
     RMS over the motion, as naming it asks. A smaller effect can hide here: `none` does not
-    rule it out. From the screen's linearised probe (Stribeck: its least visible probe speed);
-    NaN without a probe (a second mode with no residual peak to probe). mu_drift's is a steady
+    rule it out. From the screen's linearised probe (Stribeck: its least visible probe speed; a
+    second mode: the lightest that could hide anywhere in the band the hits excite, from
+    1.5 f_n to a 20 dB fall of their force spectrum, at 3 % damping, where it rings shortest:
+    `starts.mode_limit_probes`); NaN without a probe. mu_drift's is a steady
     change of mu a hit, as a fraction of mu [1/hit] (`drift.DRIFT_SIZE`), at which its
     response would account for that much and the hits' own mu would show it as naming a
     drift asks (a trend, or with three hits a spread beyond `MU_SPREAD_FLOOR`)."""
+    detection_limit_by_frequency: tuple[tuple[float, float], ...] = ()
+    """A second mode's limit at each frequency of the band it is taken over, (frequency [Hz],
+    modal mass [kg]) from the lowest: heavier modes show lower in the band. () for the other
+    terms."""
 
 
 @dataclass(frozen=True)

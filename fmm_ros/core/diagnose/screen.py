@@ -36,7 +36,8 @@ from fmm_ros.core._threads import thread_map
 from fmm_ros.core.diagnose.session_model import SessionModel
 from fmm_ros.core.identify.conditioning import ConditionedImpact
 from fmm_ros.core.identify.lsq import inner
-from fmm_ros.core.physics.terms import EFFECT_SIZE, MODEL_TERMS, ModelTerm
+from fmm_ros.core.physics.model import mode_velocity
+from fmm_ros.core.physics.terms import EFFECT_SIZE, MODEL_TERMS, ModelTerm, model_spec
 from fmm_ros.errors import BadInputError
 
 RELATIVE_STEP = 1e-4
@@ -75,9 +76,12 @@ class Screen:
     """The term's size (its `EFFECT_SIZE` parameter, SI, a magnitude) at which it would just
     be named: its response beyond what the nuisance directions take up would then remove
     what `Naming` asks inside the motion windows. Of the least visible probe (Stribeck: the
-    probe speed that hides it most); NaN without a probe (a second mode with no residual
-    peak). mu_drift's is a steady change of mu a hit, as a fraction of mu [1/hit]
-    (`screen_drift`)."""
+    probe speed that hides it most; a second mode: the lightest over the band the hits
+    excite, `starts.mode_limit_probes`). mu_drift's is a steady change of mu a hit, as a
+    fraction of mu [1/hit] (`screen_drift`)."""
+    detection_limit_by_frequency: tuple[tuple[float, float], ...] = ()
+    """A second mode's limit at each frequency it is taken at, (frequency [Hz], modal mass
+    [kg]) from the lowest: `detection_limit` is their least."""
 
 
 class Linearisation:
@@ -182,20 +186,18 @@ class Linearisation:
 
         An offset adds itself. A second mode is linear and decoupled from the friction
         oscillator, so its share of the vibrometer's reading is the same whatever the
-        oscillator does: it is found with the oscillator's plain linear model (the exact
-        path, however nonlinear the current model is), delayed as the model delays it.
+        oscillator does (`model.mode_velocity`): driven by the hit's force as the model
+        scales it, delayed as the model delays it.
         """
         impact = self.impacts[place]
         if term.name == 'velocity_offset':
             return np.full(impact.force_n.size, term.offset_m_s)
         index = self.hits[place]
         if term.name == 'second_mode':
-            outputs = tuple(t for t in self.model.terms if t.name == 'sensor_delay')
-            plain = (
-                self.model.velocity(index, impact.force_n, impact.sample_rate_hz, effects=e)
-                for e in ((*outputs, term), outputs)
-            )
-            return next(plain) - next(plain)
+            model = self.model
+            delay = model_spec(model.rig, float(model.mus[index]), model.terms).delay_s
+            force = impact.force_n * model.impulse_scales[index]
+            return mode_velocity(force, impact.sample_rate_hz, term, delay)
         moved = self.model.velocity(
             index, impact.force_n, impact.sample_rate_hz, effects=(*self.model.terms, term)
         )
@@ -289,6 +291,7 @@ def screen_term(
     linear: Linearisation,
     noise_std_m_s: float,
     naming: Naming | None = None,
+    limit_probes: Sequence[ModelTerm] | None = None,
 ) -> Screen:
     """The best of the probes of one term: its predicted chi^2 gain and the refit's start.
 
@@ -298,7 +301,7 @@ def screen_term(
     which the term does not express.
 
     naming: what naming an effect asks; with it, the screen also gives the term's
-    `detection_limit`.
+    `detection_limit`, the least visible of its limit_probes' (default: the probes).
     """
     cls = MODEL_TERMS[effect]
     shared, own = linear.nuisance()
@@ -320,10 +323,8 @@ def screen_term(
             [[response, *columns] for response, columns in zip(responses, shared, strict=True)],
             own,
         )
-        if naming is not None:
-            name, inverse = EFFECT_SIZE[effect]
-            inside = _own_inside(responses, shared, own, linear, naming.windows)
-            limits.append(_named_from(abs(getattr(probe, name)), inverse, inside, naming.m2_s2))
+        if naming is not None and limit_probes is None:
+            limits.append(_limit(probe, responses, shared, own, linear, naming))
         gain = linear.scale * max(fall - before, 0.0) / noise_std_m_s**2
         start, note = _scaled(probe, float(solution[0]))
         if start is None:
@@ -331,10 +332,35 @@ def screen_term(
         shift = float(solution[1]) if solution.size > 1 else 0.0
         if gain > best.chi2_gain or best.start is None:
             best = Screen(effect, gain, len(cls.parameters), start or probe, shift, note=note)
+    curve = ()
+    if naming is not None and limit_probes is not None:
+        limits = [
+            _limit(probe, linear.responses(probe), shared, own, linear, naming)
+            for probe in limit_probes
+        ]
+        if effect == 'second_mode':
+            curve = tuple(
+                (p.frequency_hz, limit) for p, limit in zip(limit_probes, limits, strict=True)
+            )
     if limits:
         _, inverse = EFFECT_SIZE[effect]
-        best = replace(best, detection_limit=min(limits) if inverse else max(limits))
+        limit = min(limits) if inverse else max(limits)
+        best = replace(best, detection_limit=limit, detection_limit_by_frequency=curve)
     return best
+
+
+def _limit(
+    probe: ModelTerm,
+    responses: Sequence[np.ndarray],
+    shared: Sequence[Sequence[np.ndarray]],
+    own: Sequence[Sequence[np.ndarray]],
+    linear: Linearisation,
+    naming: Naming,
+) -> float:
+    """The size of the probe's term at which its responses would meet naming (`_named_from`)."""
+    name, inverse = EFFECT_SIZE[probe.name]
+    inside = _own_inside(responses, shared, own, linear, naming.windows)
+    return _named_from(abs(getattr(probe, name)), inverse, inside, naming.m2_s2)
 
 
 def _own_inside(

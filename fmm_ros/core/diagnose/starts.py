@@ -18,6 +18,8 @@ from fmm_ros.core.diagnose.result import Where
 from fmm_ros.core.identify.conditioning import ConditionedImpact
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.physics.terms import EFFECT_SIZE, MODEL_TERMS, ModelTerm, model_term
+from fmm_ros.core.signal.config import AnalysisConfig
+from fmm_ros.core.signal.frf import excitation_bandwidth
 from fmm_ros.errors import BadInputError
 
 STRIBECK_PROBE_SPEEDS_M_S = (1e-3, 3e-3, 1e-2)
@@ -41,6 +43,11 @@ there (the significance the base model's `where` reports peaks at)."""
 MODE_PEAKS = 3
 """The second mode is probed at this many of the strongest peaks: mains hum (50 Hz and its
 harmonics) can stand out more than a weak mode, and no mode reproduces a steady tone."""
+
+
+MODE_LIMIT_FREQUENCIES = 8
+"""The second mode's detection limit is taken at this many frequencies, log-spaced over the
+band a mode is probed in, up to where the hits' excitation runs out (`mode_limit_probes`)."""
 
 
 def probes(
@@ -92,6 +99,43 @@ def probes(
         default = next(p.default for p in cls.parameters if p.name == name)
         start = replace(start, **{name: default})
     return (start,)
+
+
+def mode_limit_probes(impacts: Sequence[ConditionedImpact], rig: Rig) -> tuple[ModelTerm, ...]:
+    """The second modes a session's detection limit is taken over (`screen_term`).
+
+    A mode at each of MODE_LIMIT_FREQUENCIES frequencies, log-spaced from where one is probed
+    (1.5 f_n, the term's lowest frequency) to where the hits' force spectrum, summed, has
+    dropped by the analysis's `excitation_drop_db` (the FRF's usable band: above it the hammer
+    puts in too little for any mode to show), at the largest damping ratio probed and 1 kg.
+    The limit is the lightest of their limits: the mode least visible in that band (heavier
+    modes show at lower frequencies). Not the naming probes: those sit at the residual's
+    peaks, and hum makes some in a clean session, while what could hide is a mode anywhere.
+    () when the band is empty.
+    """
+    cls = MODEL_TERMS['second_mode']
+    low, high = cls.bounds()
+    rate = impacts[0].sample_rate_hz
+    n_fft = 1 << math.ceil(math.log2(rate))  # 1 Hz bins or finer
+    spectra = np.array(
+        [np.fft.rfft(impact.force_n[: impact.hit_end_index], n_fft) for impact in impacts]
+    )
+    excited = excitation_bandwidth(
+        spectra, np.fft.rfftfreq(n_fft, 1.0 / rate), AnalysisConfig().excitation_drop_db
+    )
+    lowest = max(1.5 * rig.natural_frequency_hz, float(low[0]))
+    highest = min(float(high[0]), 0.45 * rate, excited)
+    if not highest > lowest:
+        return ()
+    return tuple(
+        model_term(
+            'second_mode',
+            frequency_hz=float(frequency),
+            damping_ratio=max(SECOND_MODE_DAMPING_RATIOS),
+            modal_mass_kg=1.0,
+        )
+        for frequency in np.geomspace(lowest, highest, MODE_LIMIT_FREQUENCIES)
+    )
 
 
 def start_term(

@@ -86,7 +86,7 @@ from fmm_ros.core.diagnose.session_model import (
     with_terms,
     without,
 )
-from fmm_ros.core.diagnose.starts import probes
+from fmm_ros.core.diagnose.starts import mode_limit_probes, probes
 from fmm_ros.core.diagnose.vocabulary import (  # noqa: F401 (VOCABULARY re-exported)
     EFFECTS,
     NONE,
@@ -532,7 +532,14 @@ class _Session:
                 shapes = probes(
                     effect, linear.impacts, linear.residuals, self.noise, self.where, self.rig
                 )
-                screen = screen_term(effect, shapes, linear, self.noise, naming)
+                # A second mode's limit is taken over the band the hits excite, not at the
+                # residual's peaks (hum makes some in a clean session): what could hide.
+                limit_shapes = (
+                    mode_limit_probes(linear.impacts, self.rig)
+                    if effect == 'second_mode' and naming is not None
+                    else None
+                )
+                screen = screen_term(effect, shapes, linear, self.noise, naming, limit_shapes)
             self.say(f'step {number}: screened {effect}: chi^2 could fall {screen.chi2_gain:.0f}')
             screens.append(screen)
         screens.sort(key=lambda s: -s.chi2_gain)
@@ -613,6 +620,7 @@ class _Session:
             parameters,
             note,
             screen.detection_limit,
+            screen.detection_limit_by_frequency,
         )
 
     def _refit(
@@ -647,6 +655,7 @@ class _Session:
                 (),
                 f'refit failed: {error}',
                 screen.detection_limit,
+                screen.detection_limit_by_frequency,
             ), None
         self.cache[key] = model
         bic, aic = self.score(model, current)
@@ -659,6 +668,7 @@ class _Session:
             self.frf_gap(model.residuals_m_s),
             model.estimates(),
             detection_limit=screen.detection_limit,
+            detection_limit_by_frequency=screen.detection_limit_by_frequency,
         ), model
 
     def _choose(
