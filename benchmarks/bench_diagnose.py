@@ -85,6 +85,7 @@ from heldout.cases import drawn_effects  # noqa: E402
 from world_cases import OUTSIDE_KINDS, VOCABULARY_KINDS, world_case  # noqa: E402
 
 from fmm_ros.constants import MU_DRIFT
+from fmm_ros.core.diagnose.result import Candidate
 from fmm_ros.core.diagnose.workflow import (
     MIN_EXCESS,
     MIN_WHOLE_EXCESS,
@@ -199,13 +200,20 @@ mu, `drift.DRIFT_SIZE`: the worlds compound it, mu (1 + mu_step)^i)."""
 def truth_held_out(world) -> Callable:
     """The true sizes of a held-out world's hidden effects.
 
-    (kind, generator in the state the session was drawn from) -> {effect: size, a magnitude
-    in the term's size unit}.
+    (kind, generator in the state the session was drawn from) -> {effect: (size, a magnitude
+    in the term's size unit; the frequency it acts at [Hz], NaN but for a second mode)}.
     """
 
-    def truth(kind: str, rng: np.random.Generator) -> dict[str, float]:
+    def truth(kind: str, rng: np.random.Generator) -> dict[str, tuple[float, float]]:
         _, hidden, effects = drawn_effects(world, kind, rng)
-        return {e: abs(getattr(effects, HIDDEN_SIZE[e])) for e in hidden if e in HIDDEN_SIZE}
+        return {
+            e: (
+                abs(getattr(effects, HIDDEN_SIZE[e])),
+                effects.mode_hz if e == 'second_mode' else math.nan,
+            )
+            for e in hidden
+            if e in HIDDEN_SIZE
+        }
 
     return truth
 
@@ -403,22 +411,41 @@ class Sweep:
 
 
 def against_limit(
-    hidden: tuple[str, ...], truth: dict[str, float], result
+    hidden: tuple[str, ...], truth: dict[str, tuple[float, float]], result
 ) -> tuple[bool, str] | None:
     """Whether every hidden effect is as large as the diagnosis said the records show it from.
 
-    (each at least that size, the sizes in words); None where any is unknown.
+    (each at least that size, the sizes in words); None where any is unknown. A second mode is
+    held to the limit at its own frequency (`limit_at`), not to the band's least.
     """
     over, words = True, []
     for effect in hidden:
-        limit = next((c.detection_limit for c in result.candidates if c.effect == effect), math.nan)
-        if effect not in truth or not math.isfinite(limit):
+        candidate = next((c for c in result.candidates if c.effect == effect), None)
+        if effect not in truth or candidate is None:
             return None
-        size = truth[effect]
+        size, frequency_hz = truth[effect]
+        limit = limit_at(candidate, frequency_hz)
+        if not math.isfinite(limit):
+            return None
         below = detection_limit_dict(effect, limit)['shows'] == 'below'
         over &= size <= limit if below else size >= limit
         words.append(f'{SHORT[effect]} {size:.2g}, shows from {limit:.2g}')
     return over, '; ' + '; '.join(words)
+
+
+def limit_at(candidate: Candidate, frequency_hz: float) -> float:
+    """A candidate's detection limit at a frequency.
+
+    A second mode's log-log between the frequencies its band was probed at (NaN outside the
+    band); any other term's own.
+    """
+    curve = candidate.detection_limit_by_frequency
+    if not curve or not math.isfinite(frequency_hz):
+        return candidate.detection_limit
+    frequencies, limits = np.log(np.array(curve)).T
+    if not frequencies[0] <= math.log(frequency_hz) <= frequencies[-1]:
+        return math.nan
+    return float(np.exp(np.interp(math.log(frequency_hz), frequencies, limits)))
 
 
 def _limit_line(by_limit: dict) -> str:

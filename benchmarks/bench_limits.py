@@ -17,8 +17,10 @@ held-out world (`heldout.ROLES`) with its hits, mu, chain and noise drawn once:
 Counted per effect: the sessions whose effect is named at half and at twice the stated size.
 A limit that holds names nearly every effect at twice it; at half it, an effect is still named
 where the whole-misfit rule or its signature carries it (the limit is where naming is assured,
-not where it stops). A second mode is left out: a clean session has no residual peak to probe
-it at, so it states no limit.
+not where it stops). A clean session states a second mode's limit over the band its hits
+excite (`starts.mode_limit_probes`): the mode is set where it is least visible, at the top of
+that band with the largest damping ratio probed, and drawn from a stream of its own, so the
+other effects' draws are those of the runs before it.
 
 A full run writes its section of RESULTS.md (one per seed); --quick (one session, two effects,
 one world) writes nothing.
@@ -40,8 +42,12 @@ from heldout import HELD_OUT, ROLES  # noqa: E402
 from heldout.cases import MU_RANGE, WORLDS, effect_fields, kinds_of, session_of  # noqa: E402
 from heldout.lab import Effects  # noqa: E402
 
+from fmm_ros.core.diagnose.starts import mode_limit_probes
 from fmm_ros.core.diagnose.workflow import diagnose
+from fmm_ros.core.identify.conditioning import as_conditioned
 from fmm_ros.core.identify.spec import start_options
+from fmm_ros.core.physics.rig import FMM_RIG
+from fmm_ros.core.physics.terms import EFFECT_SIZE
 from fmm_ros.workflows.results import detection_limit_dict
 
 MULTIPLES = (0.5, 2.0)
@@ -50,7 +56,7 @@ CLEAN_FRACTION = 1e-9
 """A clean session's effect, as a fraction of its drawn size: nothing to see, but the world
 treats the session as one of that effect (it re-centres the hits for an asymmetry)."""
 LEVELS_N = (450.0, 1000.0, 1450.0)
-QUICK_EFFECTS = ('cubic_stiffness', 'mu_drift')
+QUICK_EFFECTS = ('cubic_stiffness', 'mu_drift', 'second_mode')
 
 
 @dataclass
@@ -105,6 +111,8 @@ def check(name: str, cases: int, seed: int, effects: tuple[str, ...] | None = No
     world = WORLDS[name]
     kinds = kinds_of(world)
     chosen = [e for e in (effects or HIDDEN_SIZE) if e in kinds and e != 'second_mode']
+    if 'second_mode' in kinds and (effects is None or 'second_mode' in effects):
+        chosen.append('second_mode')
     found = Check(name)
     for number in range(cases):
         rng = np.random.default_rng([seed, number])
@@ -113,14 +121,19 @@ def check(name: str, cases: int, seed: int, effects: tuple[str, ...] | None = No
         session = (world, mu, levels, int(rng.integers(2**63)))
         cleans = {}
         for effect in chosen:
-            fields = effect_fields(effect, mu, rng)
+            fields = (
+                _least_visible_mode(session, mu, [seed, number, 1])
+                if effect == 'second_mode'
+                else effect_fields(effect, mu, rng)
+            )
             size_field = HIDDEN_SIZE[effect]
             sign = math.copysign(1.0, fields[size_field])
+            # A mode's size is its mass, under which it shows: twice the size is half the mass.
+            inverse = EFFECT_SIZE.get(effect, ('', False))[1]
             centred = effect == 'asymmetric_friction'
             if centred not in cleans:
-                cleans[centred] = _diagnosed(
-                    session, Effects(**{**fields, size_field: CLEAN_FRACTION * fields[size_field]})
-                )
+                clean = fields[size_field] * CLEAN_FRACTION ** (-1 if inverse else 1)
+                cleans[centred] = _diagnosed(session, Effects(**{**fields, size_field: clean}))
                 found.clean += 1
                 found.false_alarms += bool(cleans[centred].named_effects)
             limit = next(
@@ -134,7 +147,8 @@ def check(name: str, cases: int, seed: int, effects: tuple[str, ...] | None = No
             found.limits[effect].append(limit)
             found.units[effect] = detection_limit_dict(effect, limit)['unit']
             for multiple in MULTIPLES:
-                hidden = Effects(**{**fields, size_field: sign * multiple * limit})
+                size = limit / multiple if inverse else multiple * limit
+                hidden = Effects(**{**fields, size_field: sign * size})
                 result = _diagnosed(session, hidden)
                 tally = counts.setdefault(multiple, [0, 0])
                 tally[0] += effect in result.named_effects
@@ -143,6 +157,19 @@ def check(name: str, cases: int, seed: int, effects: tuple[str, ...] | None = No
     print(f'\n{name} (held out world)')
     print('\n'.join(found.table() + found.totals()), flush=True)
     return found
+
+
+def _least_visible_mode(session: tuple, mu: float, key: list[int]) -> dict:
+    """A second mode's fields, set where its clean session's limit is taken.
+
+    At the top of the band its hits excite, with the largest damping ratio probed; its mass
+    drawn as the worlds draw it.
+    """
+    fields = effect_fields('second_mode', mu, np.random.default_rng(key))
+    world, _, levels, seed = session
+    records, _ = session_of(world, Effects(), mu, np.random.default_rng(seed), levels)
+    top = mode_limit_probes([as_conditioned(record) for record in records], FMM_RIG)[-1]
+    return {**fields, 'mode_hz': top.frequency_hz, 'mode_damping_ratio': top.damping_ratio}
 
 
 def _diagnosed(session: tuple, effects: Effects):
