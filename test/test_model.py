@@ -359,6 +359,12 @@ def test_a_modes_own_pass_is_its_share_of_a_run(delay_s):
     np.testing.assert_allclose(with_mode - without, alone, rtol=0, atol=1e-12 * np.max(alone))
     with pytest.raises(ValueError, match='at or above the Nyquist frequency'):
         model.mode_velocity(force, 250.0, mode)
+    with pytest.raises(ValueError, match='sample_rate_hz must be positive'):
+        model.mode_velocity(force, 0.0, mode)
+    with pytest.raises(ValueError, match='delay_s must not be negative'):
+        model.mode_velocity(force, RATE_HZ, mode, -1e-4)
+    with pytest.raises(ValueError, match='force_n'):
+        model.mode_velocity(np.array([0.0, np.nan, 1.0]), RATE_HZ, mode)
 
 
 def test_velocity_offset_and_delay_act_on_the_vibrometer_output_only():

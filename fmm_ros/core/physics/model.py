@@ -36,6 +36,7 @@ from fmm_ros.core._checks import (
     finite_samples,
     one_dimensional_samples,
     require_finite,
+    require_non_negative,
     require_positive,
 )
 from fmm_ros.core.physics import _kernels as kernels
@@ -400,11 +401,12 @@ def mode_velocity(
     The mode is linear and decoupled from the friction oscillator (`terms.SecondMode`), so its
     share of a run is the same whatever the oscillator does: this is `simulate` with the mode
     less `simulate` without it (the same exact steps and delay, to rounding), in one pass over
-    the force and no run of the oscillator.
+    the force and no run of the oscillator. Raises ValueError naming a bad input.
     """
-    force = _samples(force_n)
+    force = _checked_force(force_n)
+    require_positive('sample_rate_hz', sample_rate_hz)
+    require_non_negative('delay_s', delay_s)
     rate = float(sample_rate_hz)
-    require_positive('sample_rate_hz', rate)
     state = np.zeros(kernels.MODE_SIZE)
     state[kernels.MODE_PHI :] = _mode_step(mode, rate)
     whole, fraction = _delay_split(delay_s, rate)
