@@ -18,9 +18,9 @@ Counted per effect: the sessions whose effect is named at half and at twice the 
 A limit that holds names nearly every effect at twice it; at half it, an effect is still named
 where the whole-misfit rule or its signature carries it (the limit is where naming is assured,
 not where it stops). A clean session states a second mode's limit over the band its hits
-excite (`starts.mode_limit_probes`): the mode is set where it is least visible, at the top of
-that band with the largest damping ratio probed, and drawn from a stream of its own, so the
-other effects' draws are those of the runs before it.
+excite (`starts.mode_limit_probes`): the mode is set where that limit is taken (its curve's
+least, at the largest damping ratio probed) and drawn from a stream of its own, so the other
+effects' draws are those of the runs before it.
 
 A full run writes its section of RESULTS.md (one per seed); --quick (one session, two effects,
 one world) writes nothing.
@@ -42,11 +42,10 @@ from heldout import HELD_OUT, ROLES  # noqa: E402
 from heldout.cases import MU_RANGE, WORLDS, effect_fields, kinds_of, session_of  # noqa: E402
 from heldout.lab import Effects  # noqa: E402
 
-from fmm_ros.core.diagnose.starts import mode_limit_probes
+from fmm_ros.core.diagnose.result import Candidate
+from fmm_ros.core.diagnose.starts import SECOND_MODE_DAMPING_RATIOS
 from fmm_ros.core.diagnose.workflow import diagnose
-from fmm_ros.core.identify.conditioning import as_conditioned
 from fmm_ros.core.identify.spec import start_options
-from fmm_ros.core.physics.rig import FMM_RIG
 from fmm_ros.core.physics.terms import EFFECT_SIZE
 from fmm_ros.workflows.results import detection_limit_dict
 
@@ -121,11 +120,9 @@ def check(name: str, cases: int, seed: int, effects: tuple[str, ...] | None = No
         session = (world, mu, levels, int(rng.integers(2**63)))
         cleans = {}
         for effect in chosen:
-            fields = (
-                _least_visible_mode(session, mu, [seed, number, 1])
-                if effect == 'second_mode'
-                else effect_fields(effect, mu, rng)
-            )
+            # A mode's fields come from a stream of their own: the others' draws stay as they were.
+            drawn = np.random.default_rng([seed, number, 1]) if effect == 'second_mode' else rng
+            fields = effect_fields(effect, mu, drawn)
             size_field = HIDDEN_SIZE[effect]
             sign = math.copysign(1.0, fields[size_field])
             # A mode's size is its mass, under which it shows: twice the size is half the mass.
@@ -136,9 +133,10 @@ def check(name: str, cases: int, seed: int, effects: tuple[str, ...] | None = No
                 cleans[centred] = _diagnosed(session, Effects(**{**fields, size_field: clean}))
                 found.clean += 1
                 found.false_alarms += bool(cleans[centred].named_effects)
-            limit = next(
-                c.detection_limit for c in cleans[centred].candidates if c.effect == effect
-            )
+            candidate = next(c for c in cleans[centred].candidates if c.effect == effect)
+            limit = candidate.detection_limit
+            if candidate.detection_limit_by_frequency:
+                fields = {**fields, **_least_visible_mode(candidate)}
             found.limits.setdefault(effect, [])
             counts = found.named.setdefault(effect, {})
             if not (math.isfinite(limit) and limit > 0.0):
@@ -159,17 +157,14 @@ def check(name: str, cases: int, seed: int, effects: tuple[str, ...] | None = No
     return found
 
 
-def _least_visible_mode(session: tuple, mu: float, key: list[int]) -> dict:
-    """A second mode's fields, set where its clean session's limit is taken.
+def _least_visible_mode(candidate: Candidate) -> dict:
+    """Where a second mode's stated limit is taken, as the worlds' fields.
 
-    At the top of the band its hits excite, with the largest damping ratio probed; its mass
-    drawn as the worlds draw it.
+    The frequency of its curve's least (`detection_limit_by_frequency`), at the largest damping
+    ratio probed (`starts.mode_limit_probes`).
     """
-    fields = effect_fields('second_mode', mu, np.random.default_rng(key))
-    world, _, levels, seed = session
-    records, _ = session_of(world, Effects(), mu, np.random.default_rng(seed), levels)
-    top = mode_limit_probes([as_conditioned(record) for record in records], FMM_RIG)[-1]
-    return {**fields, 'mode_hz': top.frequency_hz, 'mode_damping_ratio': top.damping_ratio}
+    frequency_hz, _ = min(candidate.detection_limit_by_frequency, key=lambda point: point[1])
+    return {'mode_hz': frequency_hz, 'mode_damping_ratio': max(SECOND_MODE_DAMPING_RATIOS)}
 
 
 def _diagnosed(session: tuple, effects: Effects):
