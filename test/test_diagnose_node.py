@@ -55,6 +55,13 @@ def test_an_offset_in_the_rig_is_named_over_the_service(ros_graph):
         == len(response.candidate_parameter_values)
     )
     assert len(response.candidate_detection_limits) == len(response.candidate_effects)
+    # the second mode's limit over the excited band crosses the service as a curve
+    curves = dict(
+        zip(response.candidate_effects, response.candidate_limit_curve_counts, strict=True)
+    )
+    assert curves.pop('second_mode') == 8 and not any(curves.values())
+    assert len(response.candidate_limit_curve_frequencies_hz) == 8
+    assert len(response.candidate_limit_curve_values) == 8
     assert response.verdict == response.message and response.where
 
 
