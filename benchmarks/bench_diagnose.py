@@ -63,7 +63,9 @@ session of a few kinds per world, three-hit timing) writes nothing.
 """
 
 import argparse
+import contextlib
 import math
+import re
 import statistics
 import sys
 import time
@@ -85,12 +87,14 @@ from heldout.cases import drawn_effects  # noqa: E402
 from world_cases import OUTSIDE_KINDS, VOCABULARY_KINDS, world_case  # noqa: E402
 
 from fmm_ros.constants import MU_DRIFT
+from fmm_ros.core.diagnose import workflow
 from fmm_ros.core.diagnose.result import Candidate
 from fmm_ros.core.diagnose.workflow import (
     MIN_EXCESS,
     MIN_WHOLE_EXCESS,
     NONE,
     UNEXPLAINED,
+    WHOLE_MISFIT_SHARE,
     diagnose,
 )
 from fmm_ros.core.identify.conditioning import as_conditioned
@@ -146,6 +150,10 @@ SIZE_BANDS = (0.0, MIN_WHOLE_EXCESS, MIN_EXCESS, 1.0, math.inf)
 """Edges of the bands of the base model's miss [noise RMS] the single effects are counted in:
 under the floor for a whole misfit, under the floor, to one noise RMS, beyond (a detection
 rate by size, as a lab would quote a sensor's)."""
+REFUSED_FOR_SIZE = re.compile(
+    r'accounts for only ([.\d]+)x the noise RMS \((\d+) % of the squared gap\)'
+)
+"""How the selection log says a refit was refused for its size (`workflow._Session._choose`)."""
 
 
 def draw_ours(kind: str, rng: np.random.Generator):
@@ -282,6 +290,9 @@ class Sweep:
     False: one under}."""
     slowest: tuple[float, str] = (0.0, '')
     """The longest diagnosis [s] and which session it was."""
+    floors: dict = field(default_factory=dict)
+    """A lower whole-misfit floor [noise RMS] -> Floor: what the sessions it could change said
+    when diagnosed again with MIN_WHOLE_EXCESS at it (`--floors`)."""
 
     def rate(self, kinds) -> tuple[int, int]:
         """(right, sessions) over some rows."""
@@ -373,11 +384,38 @@ class Sweep:
             lines.append(
                 f'the diagnosis raised in {len(self.crashes)} sessions: ' + '; '.join(self.crashes)
             )
+        lines += [self.floor_line(floor) for floor in sorted(self.floors)]
         lines.append(
             f'diagnosis time per session: median {statistics.median(self.seconds):.2f} s, '
             f'longest {self.slowest[0]:.2f} s ({self.slowest[1]})'
         )
         return lines
+
+    def floor_line(self, floor: float) -> str:
+        """What a whole-misfit floor lowered to `floor` would have answered, as a line."""
+        changed = self.floors[floor]
+        exact = Counter(self.exact)
+        exact.update(changed.gained)
+        exact.subtract(changed.lost)
+        singles = [k for k in self.rows if k in (*SINGLES, *CLEAN)]
+        clean_right = sum(exact[k] for k in CLEAN if k in self.rows)
+        clean = self.cases * sum(k in self.rows for k in CLEAN)
+
+        def kinds(counts: Counter) -> str:
+            return ', '.join(f'{SHORT[k]} {n}' for k, n in counts.items() if n) or 'none'
+
+        line = (
+            f'whole-misfit floor at {floor:g}x (not {MIN_WHOLE_EXCESS:g}x), the '
+            f'{changed.rerun} sessions it could change diagnosed again: right gained '
+            f'{sum(changed.gained.values())} ({kinds(changed.gained)}), lost '
+            f'{sum(changed.lost.values())} ({kinds(changed.lost)})'
+        )
+        if singles:
+            line += f'; single effects and none, worst kind {min(exact[k] for k in singles)} '
+            line += f'of {self.cases}'
+        if clean:
+            line += f'; false alarms {clean - clean_right} of {clean}'
+        return line
 
     def targets(self) -> list[str]:
         """Issue 24's targets for a held-out world, each met or not: those its swept kinds judge."""
@@ -408,6 +446,55 @@ class Sweep:
             f'{"met" if (value >= target if high else value <= target) else "NOT met"}'
             for name, value, target, high in checks
         ]
+
+
+@dataclass
+class Floor:
+    """The sessions one lower whole-misfit floor could change, diagnosed again at it."""
+
+    rerun: int = 0
+    gained: Counter = field(default_factory=Counter)
+    """Kind -> sessions right at the lower floor that were not."""
+    lost: Counter = field(default_factory=Counter)
+    """Kind -> sessions no longer right at the lower floor."""
+    changes: list = field(default_factory=list)
+    """Each session whose answer changed, in words."""
+
+
+def could_change_below(result, base_size: float, floor: float) -> bool:
+    """Whether a whole-misfit floor lowered to `floor` could change a diagnosis.
+
+    It could where a refit was refused for its size (the selection log) though it removed
+    WHOLE_MISFIT_SHARE of its step's gap and accounts for `floor` or more, or, at the first
+    step, where a refitted candidate of the table would qualify so (its share and size from
+    its gap and the base model's miss, `base_size` in noise RMS) though another was chosen.
+    Rounding in the log is taken generously: a session that cannot change is only diagnosed
+    once more.
+    """
+    for size, percent in REFUSED_FOR_SIZE.findall(' '.join(result.selection)):
+        if float(size) + 0.005 >= floor and float(percent) + 0.5 >= 100 * WHOLE_MISFIT_SHARE:
+            return True
+    if result.gap_before <= 0.0:
+        return False
+    for candidate in result.candidates:
+        if not math.isfinite(candidate.frf_gap_after) or candidate.score > result.required_score:
+            continue
+        share = 1.0 - (candidate.gap_after / result.gap_before) ** 2
+        size = base_size * math.sqrt(max(share, 0.0))
+        if share >= WHOLE_MISFIT_SHARE and floor <= size < MIN_EXCESS:
+            return True
+    return False
+
+
+@contextlib.contextmanager
+def whole_misfit_floor(floor: float):
+    """Diagnose with MIN_WHOLE_EXCESS at `floor` inside the block (the workflow reads it)."""
+    kept = workflow.MIN_WHOLE_EXCESS
+    workflow.MIN_WHOLE_EXCESS = floor
+    try:
+        yield
+    finally:
+        workflow.MIN_WHOLE_EXCESS = kept
 
 
 def against_limit(
@@ -472,10 +559,21 @@ def _band(index: int) -> str:
     return f'from {low:g}x' if math.isinf(high) else f'{low:g}-{high:g}x'
 
 
-def sweep(source: Source, cases: int, seed: int, rows: tuple[str, ...] | None = None) -> Sweep:
-    """Diagnose `cases` sessions of each kind of a source; print its table as it goes."""
+def sweep(
+    source: Source,
+    cases: int,
+    seed: int,
+    rows: tuple[str, ...] | None = None,
+    floors: tuple[float, ...] = (),
+) -> Sweep:
+    """Diagnose `cases` sessions of each kind of a source; print its table as it goes.
+
+    floors: lower whole-misfit floors [noise RMS]; each session one of them could change is
+    diagnosed again at it (`Sweep.floors`).
+    """
     rows = rows or source.rows
     found = Sweep(source, cases, rows)
+    found.floors = {floor: Floor() for floor in floors}
     for kind in rows:
         found.confusion[kind], found.sizes[kind] = Counter(), []
         for number in range(cases):
@@ -521,6 +619,23 @@ def sweep(source: Source, cases: int, seed: int, rows: tuple[str, ...] | None = 
                     counted = found.by_limit.setdefault(kind, {}).setdefault(over, [0, 0])
                     counted[0] += correct
                     counted[1] += 1
+            for floor, changed in found.floors.items():
+                if not could_change_below(result, found.sizes[kind][-1], floor):
+                    continue
+                changed.rerun += 1
+                with whole_misfit_floor(floor):
+                    try:
+                        named_then = diagnose(records, **start_options(starts)).named_effects
+                    except Exception as error:  # counted as wrong, named in the changes
+                        named_then = (f'raised {type(error).__name__}',)
+                now = right(kind, hidden, named_then)
+                changed.gained[kind] += now and not correct
+                changed.lost[kind] += correct and not now
+                if named_then != named:
+                    changed.changes.append(
+                        f'{floor:g}x: {kind} case {number}: {", ".join(named) or "none"} -> '
+                        f'{", ".join(named_then) or "none"}'
+                    )
             if correct:
                 found.exact[kind] += 1
                 tally[0] += 1
@@ -545,6 +660,9 @@ def sweep(source: Source, cases: int, seed: int, rows: tuple[str, ...] | None = 
     print('misses:' if found.misses else 'misses: none')
     for miss in found.misses:
         print(f'  {miss}')
+    for changed in found.floors.values():
+        for change in changed.changes:
+            print(f'  lower floor {change}')
     return found
 
 
@@ -666,6 +784,13 @@ def main() -> None:
         help='sweep only these worlds (comma-separated names of heldout.ROLES)',
     )
     parser.add_argument(
+        '--floors',
+        type=lambda text: tuple(float(value) for value in text.split(',')),
+        default=(),
+        help='also diagnose again, with the whole-misfit floor (MIN_WHOLE_EXCESS) at each of '
+        'these lower values [noise RMS], every session it could change, and say what changed',
+    )
+    parser.add_argument(
         '--role',
         choices=('all', 'tuning', 'held-out'),
         default='all',
@@ -678,6 +803,8 @@ def main() -> None:
             f'unknown world(s) {", ".join(unknown)}; known: '
             + ', '.join(source.name for source in SOURCES)
         )
+    if any(not 0.0 < floor < MIN_WHOLE_EXCESS for floor in args.floors):
+        parser.error(f'--floors must lie between 0 and MIN_WHOLE_EXCESS ({MIN_WHOLE_EXCESS:g})')
     counts = {'ours': args.cases, 'worlds': args.world_cases}
     for role in ('tuning', HELD_OUT) if args.role == 'all' else (args.role.replace('-', ' '),):
         sweeps = []
@@ -692,7 +819,7 @@ def main() -> None:
                 if not rows:
                     continue
             print(f'\nsweep: {cases} sessions a kind, {source.name} ({source.role} world)')
-            sweeps.append(sweep(source, cases, args.seed, rows))
+            sweeps.append(sweep(source, cases, args.seed, rows, args.floors))
         if sweeps:
             kinds = f' ({", ".join(args.kinds)})' if args.kinds else ''
             worlds = f' [{", ".join(args.worlds)}]' if args.worlds else ''
