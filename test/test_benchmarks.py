@@ -8,9 +8,15 @@ touching this test. A quick run must end with status 0 and write nothing to RESU
 import os
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pytest
+
+from fmm_ros.core.diagnose import workflow
+from fmm_ros.core.diagnose.workflow import MIN_WHOLE_EXCESS, WHOLE_MISFIT_SHARE
+from fmm_ros.core.identify.spec import start_options
 
 BENCHMARKS = Path(__file__).resolve().parents[1] / 'benchmarks'
 SCRIPTS = sorted(
@@ -92,3 +98,41 @@ def test_bench_diagnose_judges_the_targets_its_kinds_judge(tmp_path: Path):
     assert run.returncode == 0, run.stderr[-3000:]
     assert 'single effects and none, worst kind' in run.stdout
     assert 'false alarms:' not in run.stdout
+
+
+@pytest.mark.slow
+def test_bench_diagnose_finds_the_sessions_a_lower_floor_could_change():
+    """`--floors` reads the workflow's refusals for size from the selection log: a wording
+    change there must not silently leave every session undiagnosed again.
+
+    `analytic`'s cubic session 3 at the default seed (a tuning world) accounts for 0.25x the
+    noise but only 85 % of its gap: refused, and no lower floor changes that. The same log
+    line at 95 % could change at a floor under its size, not over it.
+    """
+    sys.path.insert(0, str(BENCHMARKS))
+    import bench_diagnose  # noqa: PLC0415 (a script's module, imported for its helpers)
+
+    source = next(s for s in bench_diagnose.SOURCES if s.name == 'analytic')
+    kind = 'cubic_stiffness'
+    key = [bench_diagnose.DEFAULT_SEED, source.rows.index(kind), 3]
+    records, hidden, _, starts = source.draw(kind, np.random.default_rng(key))
+    result = bench_diagnose.diagnose(records, **start_options(starts))
+    assert hidden == (kind,) and result.named_effects == ()
+    (refusal,) = bench_diagnose.REFUSED_FOR_SIZE.findall(' '.join(result.selection))
+    size, percent = float(refusal[0]), int(refusal[1])
+    assert size < MIN_WHOLE_EXCESS and percent < 100 * WHOLE_MISFIT_SHARE
+    assert not bench_diagnose.could_change_below(result, size, 0.1)
+
+    whole = replace(
+        result,
+        selection=(
+            f'nothing more qualifies: {kind} scores -4671 but accounts for only 0.25x '
+            'the noise RMS (95 % of the squared gap)',
+        ),
+        candidates=(),
+    )
+    assert bench_diagnose.could_change_below(whole, size, 0.2)
+    assert not bench_diagnose.could_change_below(whole, size, 0.26)
+    with bench_diagnose.whole_misfit_floor(0.2):
+        assert workflow.MIN_WHOLE_EXCESS == 0.2
+    assert workflow.MIN_WHOLE_EXCESS == MIN_WHOLE_EXCESS
