@@ -2,7 +2,7 @@
 
 Run: .venv/bin/python benchmarks/bench_diagnose.py [--quick] [--cases N] [--world-cases W]
      [--heldout-cases H] [--seed S] [--repeats R] [--session-hits K] [--skip-sweep]
-     [--kinds K,...] [--worlds W,...] [--role all|tuning|held-out]
+     [--kinds K,...] [--worlds W,...] [--role all|tuning|held-out] [--floors F,...]
 
 Generators of sessions, each with its role declared once in `test/heldout` (`ROLES`):
 tuning worlds, which the diagnosis's thresholds were chosen on, and held-out worlds, never
@@ -59,7 +59,9 @@ A full run writes its sections of RESULTS.md (`results_file`: tuning worlds, hel
 and time, each replaced only by a run that made it; --role sweeps one role; --kinds sweeps
 only those kinds of every world that makes them, into a section of their own; --worlds
 sweeps only the worlds named, into a section of their own too); --quick (one
-session of a few kinds per world, three-hit timing) writes nothing.
+session of a few kinds per world, three-hit timing) writes nothing. --floors measures what a
+lower whole-misfit floor (MIN_WHOLE_EXCESS) would answer: each session it could change is
+diagnosed again at each floor, and each world's summary says what was gained and lost.
 """
 
 import argparse
