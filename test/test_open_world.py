@@ -198,5 +198,6 @@ def test_the_service_carries_the_list_the_trend_and_the_map(cases, name):
             assert received['friction_map'][axis][field] == sent['friction_map'][axis][field]
     for got, want in zip(received['candidates'], sent['candidates'], strict=True):
         assert got['detection_limit'] == want['detection_limit']
+        assert got['parameters'] == want['parameters']
     assert any(candidate['detection_limit'] for candidate in sent['candidates'])
     assert diagnosis_text(received, 8).splitlines()[1] == diagnosis_text(sent, 8).splitlines()[1]

@@ -401,20 +401,17 @@ def diagnose_response_dict(response: object) -> dict:
     """
     if not response.success:
         raise BadInputError(f'the diagnosis was refused: {response.message}')
-    counts = list(response.candidate_parameter_counts)
     names, values = (
         response.candidate_parameter_names,
         field_array(response.candidate_parameter_values),
     )
-    starts = np.concatenate(([0], np.cumsum(counts))).astype(int)
-    curve_starts = np.concatenate(([0], np.cumsum(response.candidate_limit_curve_counts)))
     frequencies, masses = (
         field_array(response.candidate_limit_curve_frequencies_hz).tolist(),
         field_array(response.candidate_limit_curve_values).tolist(),
     )
     curves = [
-        tuple(zip(frequencies[a:b], masses[a:b], strict=True))
-        for a, b in zip(curve_starts[:-1].astype(int), curve_starts[1:].astype(int), strict=True)
+        tuple(zip(frequencies[span], masses[span], strict=True))
+        for span in _spans(response.candidate_limit_curve_counts)
     ]
     return json_safe(
         {
@@ -448,19 +445,16 @@ def diagnose_response_dict(response: object) -> dict:
                     'effect': effect,
                     'score': score,
                     'gap_after': gap_after,
-                    'parameters': dict(
-                        zip(names[start:end], values[start:end].tolist(), strict=True)
-                    ),
+                    'parameters': dict(zip(names[span], values[span].tolist(), strict=True)),
                     'detection_limit': detection_limit_dict(effect, limit, curve),
                 }
-                for effect, score, gap_after, limit, curve, start, end in zip(
+                for effect, score, gap_after, limit, curve, span in zip(
                     response.candidate_effects,
                     field_array(response.candidate_scores).tolist(),
                     field_array(response.candidate_gap_after).tolist(),
                     field_array(response.candidate_detection_limits).tolist(),
                     curves,
-                    starts[:-1],
-                    starts[1:],
+                    _spans(response.candidate_parameter_counts),
                     strict=True,
                 )
             ],
@@ -474,10 +468,19 @@ def diagnose_response_dict(response: object) -> dict:
     )
 
 
+def _spans(counts: object) -> list[slice]:
+    """Where each entry's run lies in a flat message array that `counts` splits.
+
+    A message cannot carry a list of lists: the runs are concatenated, and a counts field
+    says how long each is (the candidates' parameters, their limit curves, the named
+    effects' parameters).
+    """
+    ends = np.cumsum(np.asarray(counts, dtype=int))
+    return [slice(int(end) - int(count), int(end)) for count, end in zip(counts, ends, strict=True)]
+
+
 def _open_world_dict(response: object) -> dict:
     """The list of effects, the trend and the friction map of a DiagnoseModel response."""
-    counts = list(response.missing_effect_parameter_counts)
-    starts = np.concatenate(([0], np.cumsum(counts))).astype(int)
     names = list(response.missing_effect_parameter_names)
     values = field_array(response.missing_effect_parameter_values).tolist()
     errors = field_array(response.missing_effect_parameter_stderr).tolist()
@@ -491,12 +494,11 @@ def _open_world_dict(response: object) -> dict:
     }
     effects = list(response.missing_effects)
     named = []
-    for effect, score, drop, start, end in zip(
+    for effect, score, drop, span in zip(
         effects,
         field_array(response.missing_effect_scores).tolist(),
         field_array(response.missing_effect_drop_scores).tolist(),
-        starts[:-1],
-        starts[1:],
+        _spans(response.missing_effect_parameter_counts),
         strict=True,
     ):
         entry = {
@@ -504,9 +506,9 @@ def _open_world_dict(response: object) -> dict:
             'score': score,
             'drop_score': drop,
             'partial': response.unexplained and effect != diagnose.UNEXPLAINED,
-            'parameters': dict(zip(names[start:end], values[start:end], strict=True)),
-            'parameter_stderr': dict(zip(names[start:end], errors[start:end], strict=True)),
-            'parameter_units': {name: units.get(name, '') for name in names[start:end]},
+            'parameters': dict(zip(names[span], values[span], strict=True)),
+            'parameter_stderr': dict(zip(names[span], errors[span], strict=True)),
+            'parameter_units': {name: units.get(name, '') for name in names[span]},
         }
         if effect == diagnose.MU_DRIFT:
             entry.update(trend)
