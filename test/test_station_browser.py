@@ -192,6 +192,11 @@ def test_hits_appear_within_a_second_and_a_rejected_hit_leaves_the_mu(rig, brows
         page.wait_for_function(
             f"!document.getElementById('mu').dataset.ids.split(',').includes('{target}')"
         )
+        # The hit's row follows the decision's echo, the mu the fitter's answer to it: two
+        # streams with no order between them, so the row is waited for too.
+        page.wait_for_function(
+            f"document.querySelector('#hits tr[data-id=\"{target}\"]').dataset.taken === 'no'"
+        )
         row = page.locator(f'#hits tr[data-id="{target}"]')
         assert row.get_attribute('data-taken') == 'no'
         assert 'reject by kb: hammer slipped' in row.inner_text()
