@@ -296,10 +296,11 @@ class Sweep:
     """A lower whole-misfit floor [noise RMS] -> Floor: what the sessions it could change said
     when diagnosed again with MIN_WHOLE_EXCESS at it (`--floors`)."""
 
-    def rate(self, kinds) -> tuple[int, int]:
-        """(right, sessions) over some rows."""
+    def rate(self, kinds, exact: Counter | None = None) -> tuple[int, int]:
+        """(right, sessions) over some rows; by `exact` (kind -> right) instead of the sweep's."""
         kinds = [k for k in kinds if k in self.rows]
-        return sum(self.exact[k] for k in kinds), self.cases * len(kinds)
+        exact = self.exact if exact is None else exact
+        return sum(exact[k] for k in kinds), self.cases * len(kinds)
 
     def table(self) -> list[str]:
         """The confusion table as text lines (markdown-compatible)."""
@@ -400,8 +401,7 @@ class Sweep:
         exact.update(changed.gained)
         exact.subtract(changed.lost)
         singles = [k for k in self.rows if k in (*SINGLES, *CLEAN)]
-        clean_right = sum(exact[k] for k in CLEAN if k in self.rows)
-        clean = self.cases * sum(k in self.rows for k in CLEAN)
+        clean_right, clean = self.rate(CLEAN, exact)
 
         def kinds(counts: Counter) -> str:
             return ', '.join(f'{SHORT[k]} {n}' for k, n in counts.items() if n) or 'none'
