@@ -749,6 +749,20 @@ def markdown(sweeps: list[Sweep]) -> str:
     return '\n'.join(parts)
 
 
+def lower_floors(text: str) -> tuple[float, ...]:
+    """--floors' values: comma-separated numbers between 0 and MIN_WHOLE_EXCESS [noise RMS]."""
+    try:
+        floors = tuple(float(value) for value in text.split(','))
+    except ValueError:
+        floors = ()
+    if not floors or not all(0.0 < floor < MIN_WHOLE_EXCESS for floor in floors):
+        raise argparse.ArgumentTypeError(
+            f'{text!r}: give comma-separated floors between 0 and MIN_WHOLE_EXCESS '
+            f'({MIN_WHOLE_EXCESS:g}x the noise RMS), e.g. 0.1,0.2'
+        )
+    return floors
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--quick', action='store_true', help=QUICK_HELP)
@@ -787,7 +801,7 @@ def main() -> None:
     )
     parser.add_argument(
         '--floors',
-        type=lambda text: tuple(float(value) for value in text.split(',')),
+        type=lower_floors,
         default=(),
         help='also diagnose again, with the whole-misfit floor (MIN_WHOLE_EXCESS) at each of '
         'these lower values [noise RMS], every session it could change, and say what changed',
@@ -805,8 +819,6 @@ def main() -> None:
             f'unknown world(s) {", ".join(unknown)}; known: '
             + ', '.join(source.name for source in SOURCES)
         )
-    if any(not 0.0 < floor < MIN_WHOLE_EXCESS for floor in args.floors):
-        parser.error(f'--floors must lie between 0 and MIN_WHOLE_EXCESS ({MIN_WHOLE_EXCESS:g})')
     counts = {'ours': args.cases, 'worlds': args.world_cases}
     for role in ('tuning', HELD_OUT) if args.role == 'all' else (args.role.replace('-', ' '),):
         sweeps = []

@@ -136,3 +136,19 @@ def test_bench_diagnose_finds_the_sessions_a_lower_floor_could_change():
     with bench_diagnose.whole_misfit_floor(0.2):
         assert workflow.MIN_WHOLE_EXCESS == 0.2
     assert workflow.MIN_WHOLE_EXCESS == MIN_WHOLE_EXCESS
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('floors', ['0.4', '0,0.1', 'x', '0.1,,0.2'])
+def test_bench_diagnose_refuses_floors_it_cannot_lower_to(floors: str, tmp_path: Path):
+    """A floor at or above MIN_WHOLE_EXCESS, at 0, or not a number is named, before any sweep."""
+    run = subprocess.run(
+        [sys.executable, str(BENCHMARKS / 'bench_diagnose.py'), '--floors', floors],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=QUICK_TIMEOUT_S,
+        check=False,
+    )
+    assert run.returncode == 2
+    assert f'argument --floors: {floors!r}: give comma-separated floors between 0 and' in run.stderr
