@@ -65,14 +65,7 @@ def test_benchmark_runs_in_quick_mode(script: Path, tmp_path: Path):
 @pytest.mark.slow
 def test_bench_diagnose_refuses_a_world_it_does_not_know(tmp_path: Path):
     """A mistyped --worlds name once swept nothing and said nothing."""
-    run = subprocess.run(
-        [sys.executable, str(BENCHMARKS / 'bench_diagnose.py'), '--worlds', 'events,nope'],
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
-        timeout=QUICK_TIMEOUT_S,
-        check=False,
-    )
+    run = _bench_diagnose(tmp_path, '--worlds', 'events,nope')
     assert run.returncode == 2
     assert 'unknown world(s) nope; known: ours, worlds, events' in run.stderr
 
@@ -142,13 +135,18 @@ def test_bench_diagnose_finds_the_sessions_a_lower_floor_could_change():
 @pytest.mark.parametrize('floors', ['0.4', '0,0.1', 'x', '0.1,,0.2'])
 def test_bench_diagnose_refuses_floors_it_cannot_lower_to(floors: str, tmp_path: Path):
     """A floor at or above MIN_WHOLE_EXCESS, at 0, or not a number is named, before any sweep."""
-    run = subprocess.run(
-        [sys.executable, str(BENCHMARKS / 'bench_diagnose.py'), '--floors', floors],
-        cwd=tmp_path,
+    run = _bench_diagnose(tmp_path, '--floors', floors)
+    assert run.returncode == 2
+    assert f'argument --floors: {floors!r}: give comma-separated floors between 0 and' in run.stderr
+
+
+def _bench_diagnose(cwd: Path, *arguments: str) -> subprocess.CompletedProcess:
+    """bench_diagnose.py run with some arguments, its output captured as text."""
+    return subprocess.run(
+        [sys.executable, str(BENCHMARKS / 'bench_diagnose.py'), *arguments],
+        cwd=cwd,
         capture_output=True,
         text=True,
         timeout=QUICK_TIMEOUT_S,
         check=False,
     )
-    assert run.returncode == 2
-    assert f'argument --floors: {floors!r}: give comma-separated floors between 0 and' in run.stderr
