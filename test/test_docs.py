@@ -31,6 +31,19 @@ def test_readme_and_architecture_stay_within_their_word_limits(name):
     assert words <= WORD_LIMITS[name], f'{name} has {words} words (limit {WORD_LIMITS[name]})'
 
 
+# A site page is read at one sitting; a page's history belongs to git, not to the page.
+PAGE_WORD_LIMIT = 6_000
+
+
+def test_every_site_page_stays_within_the_page_word_limit():
+    long = {
+        str(page.relative_to(DOCS)): words
+        for page in sorted(DOCS.glob('*/*.md'))
+        if (words := len(page.read_text(encoding='utf-8').split())) > PAGE_WORD_LIMIT
+    }
+    assert not long, f'pages over {PAGE_WORD_LIMIT} words: {long}'
+
+
 def test_every_page_has_one_title_and_sits_in_a_globbed_folder():
     """The index globs these four folders, so a page anywhere else would be left out."""
     pages = sorted(DOCS.glob('*/*.md'))
