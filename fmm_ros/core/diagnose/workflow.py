@@ -999,16 +999,29 @@ class _Session:
         return records, rig, cubic
 
 
+def _spread_about_means(
+    mu: np.ndarray, error: np.ndarray, axis: int | None = None
+) -> tuple[float, int, int]:
+    """chi^2 of mu about its inverse-variance weighted means along axis (all of it: None).
+
+    Values with a non-finite mu or error, or no error, are left out. Returns the chi^2, the
+    number of means (groups with a usable value) and the number of usable values.
+    """
+    usable = np.isfinite(mu) & np.isfinite(error) & (error > 0.0)
+    weight = np.where(usable, 1.0 / np.where(usable, error, 1.0) ** 2, 0.0)
+    values = np.where(usable, mu, 0.0)
+    total = weight.sum(axis=axis, keepdims=True)
+    mean = (weight * values).sum(axis=axis, keepdims=True) / np.where(total > 0, total, 1.0)
+    chi2 = float(np.sum(weight * (values - mean) ** 2))
+    return chi2, int(np.count_nonzero(total > 0)), int(np.count_nonzero(usable))
+
+
 def _flatness_p_value(curve: FrictionCurve) -> float:
     """Chance of mu this spread over a curve's speed bins if it did not change with speed."""
-    mu, error = np.asarray(curve.mu), np.asarray(curve.mu_stderr)
-    usable = np.isfinite(mu) & np.isfinite(error) & (error > 0.0)
-    if np.count_nonzero(usable) < 2:
+    chi2, _, usable = _spread_about_means(np.asarray(curve.mu), np.asarray(curve.mu_stderr))
+    if usable < 2:
         return 1.0
-    weights = 1.0 / error[usable] ** 2
-    mean = float(np.sum(weights * mu[usable]) / np.sum(weights))
-    chi2 = float(np.sum(weights * (mu[usable] - mean) ** 2))
-    return float(scipy.stats.chi2.sf(chi2, np.count_nonzero(usable) - 1))
+    return float(scipy.stats.chi2.sf(chi2, usable - 1))
 
 
 def _drift_and_speed_law_aic(mu: np.ndarray, error: np.ndarray) -> tuple[float, float]:
@@ -1022,15 +1035,10 @@ def _drift_and_speed_law_aic(mu: np.ndarray, error: np.ndarray) -> tuple[float, 
     integrated into its displacement shifts the k x it subtracts), but only a speed law makes
     the hits agree bin by bin where their speeds overlap.
     """
-    usable = np.isfinite(mu) & np.isfinite(error) & (error > 0.0)
-    weight = np.where(usable, 1.0 / np.where(usable, error, 1.0) ** 2, 0.0)
-    values = np.where(usable, mu, 0.0)
 
     def aic(axis: int) -> float:
-        total = weight.sum(axis=axis, keepdims=True)
-        mean = (weight * values).sum(axis=axis, keepdims=True) / np.where(total > 0, total, 1.0)
-        chi2 = float(np.sum(weight * (values - mean) ** 2))
-        return chi2 + 2.0 * np.count_nonzero(total > 0)
+        chi2, means, _ = _spread_about_means(mu, error, axis)
+        return chi2 + 2.0 * means
 
     return aic(1), aic(0)
 
