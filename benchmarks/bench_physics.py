@@ -46,13 +46,32 @@ def timed(function, repeats):
     for tens of ms, which the wall clock counts and the thread's CPU time does not; the
     kernels run in the calling thread, so its CPU time is the work itself.
     """
+    walls, cpus = zip(*(_once(function) for _ in range(repeats)), strict=True)
+    return statistics.median(walls), statistics.median(cpus)
+
+
+def paired_ratios(function, reference, repeats):
+    """Median ratio of a call's time to a reference call's, timed back to back (wall, CPU) [-].
+
+    On a shared machine the speed of memory drifts within minutes (the floor below measured
+    0.15 ms in one run and 0.26 ms in the next), so a ratio of two medians taken apart moves
+    with it; each round here times the reference and then the call, and the drift both see
+    cancels in their ratio.
+    """
     walls, cpus = [], []
     for _ in range(repeats):
-        start, start_cpu = time.perf_counter(), time.thread_time()
-        function()
-        cpus.append(time.thread_time() - start_cpu)
-        walls.append(time.perf_counter() - start)
+        reference_wall, reference_cpu = _once(reference)
+        wall, cpu = _once(function)
+        walls.append(wall / reference_wall)
+        cpus.append(cpu / reference_cpu)
     return statistics.median(walls), statistics.median(cpus)
+
+
+def _once(function):
+    """Wall-clock time and CPU time of the calling thread, of one call [s]."""
+    start, start_cpu = time.perf_counter(), time.thread_time()
+    function()
+    return time.perf_counter() - start, time.thread_time() - start_cpu
 
 
 def euler_in_python(force, rate_hz, rig, mu):
@@ -208,9 +227,10 @@ def main() -> None:
     )
     base = exact_s['Coulomb + viscous (Eq. 3)']
     ratio = python_s / base
-    for clock, times, floor in (
-        ('wall', exact_s, floor_s),
-        ('thread CPU', exact_cpu_s, floor_cpu_s),
+    of_floors = paired_ratios(lambda: simulate(force, RATE_HZ, out=out), fill, repeats)
+    for clock, times, of_floor in (
+        ('wall', exact_s, of_floors[0]),
+        ('thread CPU', exact_cpu_s, of_floors[1]),
     ):
         worst = max(times.values())
         met = worst <= 1e-3 * TARGET_RECORD_MS
@@ -219,11 +239,10 @@ def main() -> None:
             f'piecewise-linear model {1e3 * worst:.3f} ms; target <= {TARGET_RECORD_MS:g} ms: '
             f'{"met" if met else "MISSED"})'
         )
-        of_floor = times['Coulomb + viscous (Eq. 3)'] / floor
         near = of_floor <= TARGET_OF_FLOOR
         print(
-            f'  => {clock}: Coulomb + viscous at {of_floor:.2f}x the memory floor '
-            f'(target <= {TARGET_OF_FLOOR:g}x: {"met" if near else "MISSED"})'
+            f'  => {clock}: Coulomb + viscous at {of_floor:.2f}x the memory floor, timed in '
+            f'pairs (target <= {TARGET_OF_FLOOR:g}x: {"met" if near else "MISSED"})'
         )
     print(
         f'  => {ratio:.0f}x faster than the plain-Python Euler '
