@@ -31,6 +31,70 @@ def test_readme_and_architecture_stay_within_their_word_limits(name):
     assert words <= WORD_LIMITS[name], f'{name} has {words} words (limit {WORD_LIMITS[name]})'
 
 
+# The speed figures the README quotes, each found in the README and in its section of
+# benchmarks/RESULTS.md (which the benchmarks write): a rerun that moves a figure fails here
+# until the README says what RESULTS.md says.
+README_FIGURES = {
+    'replay, two threads [x real time]': (
+        r'replays at ([\d,.]+)x real time',
+        'bench_replay',
+        r'replay on 2 threads: ([\d.]+)x real time',
+    ),
+    'replay against the bare read [x]': (
+        r'\(([\d.]+)x the bare read',
+        'bench_replay',
+        r'replay on 2 threads: .*?; ([\d.]+)x the bare read',
+    ),
+    'replay, one thread [x real time]': (
+        r'([\d,.]+)x on one core',
+        'bench_replay',
+        r'on one thread: ([\d.]+)x real time',
+    ),
+    'one record [ms]': (
+        r'simulates in ([\d.]+) ms',
+        'bench_physics',
+        r'=> wall: exact ([\d.]+) ms',
+    ),
+    'one record against the memory floor [x]': (
+        r'ms \(([\d.]+)x the time to fill',
+        'bench_physics',
+        r'=> wall: Coulomb \+ viscous at ([\d.]+)x the memory floor',
+    ),
+    '30-hit Stribeck diagnosis [s]': (
+        r'diagnosed in ([\d.]+) s',
+        'bench_diagnose, time',
+        r'with a Stribeck contact .*?: ([\d.]+) s wall',
+    ),
+    'steady pace of the graph asked x50': (
+        r'\(x([\d.]+) steady\)',
+        'stress_rig',
+        r'^\s*x50\s+[\d.]+\s+x[\d.]+\s+x([\d.]+)',
+    ),
+}
+
+
+def _number(text: str) -> tuple[float, int]:
+    """A quoted figure's value and its decimals ('1,713' -> (1713.0, 0))."""
+    text = text.replace(',', '')
+    return float(text), len(text.partition('.')[2])
+
+
+@pytest.mark.parametrize('figure', sorted(README_FIGURES))
+def test_the_readme_quotes_the_speed_figures_results_md_holds(figure):
+    readme_pattern, section, results_pattern = README_FIGURES[figure]
+    readme = ' '.join((REPO / 'README.md').read_text(encoding='utf-8').split())
+    results = (REPO / 'benchmarks' / 'RESULTS.md').read_text(encoding='utf-8')
+    body = results.partition(f'<!-- {section} -->')[2].partition(f'<!-- /{section} -->')[0]
+    quoted = re.search(readme_pattern, readme)
+    measured = re.search(results_pattern, body, re.MULTILINE)
+    assert quoted and measured, (figure, bool(quoted), bool(measured))
+    value, decimals = _number(quoted.group(1))
+    assert value == round(float(measured.group(1)), decimals), (
+        f'README quotes {quoted.group(1)} for {figure}; RESULTS.md ({section}) has '
+        f'{measured.group(1)}'
+    )
+
+
 # A site page is read at one sitting; a page's history belongs to git, not to the page.
 PAGE_WORD_LIMIT = 6_000
 
