@@ -31,6 +31,23 @@ def test_readme_and_architecture_stay_within_their_word_limits(name):
     assert words <= WORD_LIMITS[name], f'{name} has {words} words (limit {WORD_LIMITS[name]})'
 
 
+def _readme() -> str:
+    """The README's words, one space apart (a quoted figure may wrap)."""
+    return ' '.join((REPO / 'README.md').read_text(encoding='utf-8').split())
+
+
+def _results_section(name: str) -> str:
+    """The text of one section of benchmarks/RESULTS.md, between its markers."""
+    text = (REPO / 'benchmarks' / 'RESULTS.md').read_text(encoding='utf-8')
+    return text.partition(f'<!-- {name} -->')[2].partition(f'<!-- /{name} -->')[0]
+
+
+def _number(text: str) -> tuple[float, int]:
+    """A quoted figure's value and its decimals ('1,713' -> (1713.0, 0))."""
+    text = text.replace(',', '')
+    return float(text), len(text.partition('.')[2])
+
+
 # The speed figures the README quotes, each found in the README and in its section of
 # benchmarks/RESULTS.md (which the benchmarks write): a rerun that moves a figure fails here
 # until the README says what RESULTS.md says.
@@ -73,19 +90,11 @@ README_FIGURES = {
 }
 
 
-def _number(text: str) -> tuple[float, int]:
-    """A quoted figure's value and its decimals ('1,713' -> (1713.0, 0))."""
-    text = text.replace(',', '')
-    return float(text), len(text.partition('.')[2])
-
-
 @pytest.mark.parametrize('figure', sorted(README_FIGURES))
 def test_the_readme_quotes_the_speed_figures_results_md_holds(figure):
     readme_pattern, section, results_pattern = README_FIGURES[figure]
-    readme = ' '.join((REPO / 'README.md').read_text(encoding='utf-8').split())
-    results = (REPO / 'benchmarks' / 'RESULTS.md').read_text(encoding='utf-8')
-    body = results.partition(f'<!-- {section} -->')[2].partition(f'<!-- /{section} -->')[0]
-    quoted = re.search(readme_pattern, readme)
+    body = _results_section(section)
+    quoted = re.search(readme_pattern, _readme())
     measured = re.search(results_pattern, body, re.MULTILINE)
     assert quoted and measured, (figure, bool(quoted), bool(measured))
     value, decimals = _number(quoted.group(1))
@@ -93,6 +102,44 @@ def test_the_readme_quotes_the_speed_figures_results_md_holds(figure):
         f'README quotes {quoted.group(1)} for {figure}; RESULTS.md ({section}) has '
         f'{measured.group(1)}'
     )
+
+
+HELD_OUT_SWEEPS = tuple(
+    f'bench_diagnose, held out worlds{seed}' for seed in ('', ', seed 2020', ', seed 2021')
+)
+"""The RESULTS.md sections of the held-out sweeps the README quotes, seeds 2019-2021."""
+
+
+def test_the_readme_quotes_the_held_out_sweeps_results_md_holds():
+    """Each held-out world's right sessions a seed, the clean sessions, the three-hit drifts,
+    and the effects at least their stated size, as the three sweeps in RESULTS.md count them."""
+    readme = _readme()
+    sections = [_results_section(name) for name in HELD_OUT_SWEEPS]
+    assert all(sections), HELD_OUT_SWEEPS
+
+    def summed(pattern: str) -> tuple[int, int]:
+        pairs = [m for s in sections for m in re.findall(pattern, s)]
+        assert len(pairs) == 3 * len(sections), pattern  # three worlds a sweep
+        return sum(int(a) for a, _ in pairs), sum(int(b) for _, b in pairs)
+
+    for world in ('events', 'newmark', 'karnopp'):
+        quoted = re.search(rf'`{world}` (\d+), (\d+) and (\d+)', readme)
+        right = [
+            re.search(rf'\*\*{world}\*\*.*?- right: (\d+) of', s, re.DOTALL).group(1)
+            for s in sections
+        ]
+        assert quoted and list(quoted.groups()) == right, (world, right)
+    alarms, clean = summed(r'false alarms on clean sessions: (\d+) of (\d+)')
+    drifts, drifted = summed(r'- mu drift: named in (\d+) of (\d+)')
+    named, stated = summed(r'at least the size their diagnosis said[^:]*: named (\d+) of (\d+)')
+    pairs, both = summed(r'both effects at least the size[^:]*: both named in (\d+) of (\d+)')
+    for counted, pattern in (
+        ((alarms, clean), r'no clean session called anything \(([\d,]+) of ([\d,]+)\)'),
+        ((drifts, drifted), r'three-hit drift ([\d,]+) of ([\d,]+)'),
+        ((named, stated, pairs, both), r'name ([\d,]+) of ([\d,]+), of the pairs (\d+) of (\d+)'),
+    ):
+        quoted = re.search(pattern, readme)
+        assert quoted and counted == tuple(_number(g)[0] for g in quoted.groups()), pattern
 
 
 # A site page is read at one sitting; a page's history belongs to git, not to the page.
