@@ -47,12 +47,23 @@ def write_section(name: str, body_markdown: str, *, quick: bool, path: Path = RE
         f'_{stamp}; {machine_line()}; `{command}`_\n\n{body_markdown.strip()}\n<!-- /{name} -->\n'
     )
     text = path.read_text(encoding='utf-8') if path.exists() else HEADER
-    pattern = re.compile(rf'<!-- {re.escape(name)} -->\n.*?<!-- /{re.escape(name)} -->\n', re.S)
+    pattern = _section_pattern(name)
     if pattern.search(text):
         text = pattern.sub(lambda _: section, text)
     else:
         text = text.rstrip('\n') + '\n\n' + section
     path.write_text(text, encoding='utf-8')
+
+
+def read_section(name: str, path: Path = RESULTS) -> str:
+    """Benchmark `name`'s section of RESULTS.md, its markers included ('' if it has none)."""
+    found = _section_pattern(name).search(path.read_text(encoding='utf-8'))
+    return found.group(0) if found else ''
+
+
+def _section_pattern(name: str) -> re.Pattern[str]:
+    """A section of benchmark `name`, from its opening marker to its closing one."""
+    return re.compile(rf'<!-- {re.escape(name)} -->\n.*?<!-- /{re.escape(name)} -->\n', re.S)
 
 
 @contextlib.contextmanager

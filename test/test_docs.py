@@ -18,8 +18,10 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 DOCS = REPO / 'docs'
 sys.path.insert(0, str(DOCS / '_ext'))
+sys.path.insert(0, str(REPO / 'benchmarks'))
 
 from fmm_reference import parse_interface  # noqa: E402
+from results_file import read_section  # noqa: E402
 
 # The README is read in ten minutes; the map stays a map. Counted as `wc -w` counts.
 WORD_LIMITS = {'README.md': 1_500, 'ARCHITECTURE.md': 3_000}
@@ -34,12 +36,6 @@ def test_readme_and_architecture_stay_within_their_word_limits(name):
 def _readme() -> str:
     """The README's words, one space apart (a quoted figure may wrap)."""
     return ' '.join((REPO / 'README.md').read_text(encoding='utf-8').split())
-
-
-def _results_section(name: str) -> str:
-    """The text of one section of benchmarks/RESULTS.md, between its markers."""
-    text = (REPO / 'benchmarks' / 'RESULTS.md').read_text(encoding='utf-8')
-    return text.partition(f'<!-- {name} -->')[2].partition(f'<!-- /{name} -->')[0]
 
 
 def _number(text: str) -> tuple[float, int]:
@@ -93,7 +89,7 @@ README_FIGURES = {
 @pytest.mark.parametrize('figure', sorted(README_FIGURES))
 def test_the_readme_quotes_the_speed_figures_results_md_holds(figure):
     readme_pattern, section, results_pattern = README_FIGURES[figure]
-    body = _results_section(section)
+    body = read_section(section)
     quoted = re.search(readme_pattern, _readme())
     measured = re.search(results_pattern, body, re.MULTILINE)
     assert quoted and measured, (figure, bool(quoted), bool(measured))
@@ -114,7 +110,7 @@ def test_the_readme_quotes_the_held_out_sweeps_results_md_holds():
     """Each held-out world's right sessions a seed, the clean sessions, the three-hit drifts,
     and the effects at least their stated size, as the three sweeps in RESULTS.md count them."""
     readme = _readme()
-    sections = [_results_section(name) for name in HELD_OUT_SWEEPS]
+    sections = [read_section(name) for name in HELD_OUT_SWEEPS]
     assert all(sections), HELD_OUT_SWEEPS
 
     def summed(pattern: str) -> tuple[int, int]:
@@ -155,9 +151,7 @@ def test_the_held_out_page_quotes_the_sweeps_results_md_holds():
             name = 'bench_diagnose, tuning worlds'
         else:
             continue  # a tuning world's sweep from when it was held out, since replaced
-        swept = re.search(
-            rf'\*\*{world}\*\*.*?- right: (\d+) of (\d+)', _results_section(name), re.S
-        )
+        swept = re.search(rf'\*\*{world}\*\*.*?- right: (\d+) of (\d+)', read_section(name), re.S)
         assert swept and swept.groups() == (right, sessions), (world, seed, name)
         checked += 1
     assert checked == 9 + 7, checked  # three held-out worlds at three seeds, seven tuning worlds
