@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
         )
     with StatusLine(quiet=args.quiet) as progress:
         read = read_inputs(args.inputs, options.input_options(args, capture), progress=progress)
-        summary = analyse(read.records, capture, analysis, progress=progress)
+        summary = analyse(read.records, capture, read.grouped(analysis), progress=progress)
     for path in args.output:
         write_frfs(path, level_curves(summary))
     if args.json:

@@ -258,7 +258,12 @@ def text_format(args: argparse.Namespace) -> TextFormat:
 
 
 def input_options(args: argparse.Namespace, capture: CaptureConfig | None = None) -> InputOptions:
-    """The InputOptions of the flags add_inputs added (and the capture of the hit options)."""
+    """The InputOptions of the flags add_inputs added (and the capture of the hit options).
+
+    Where the hit options name no levels, the bags' recorded levels are read with the
+    inputs (`recorded_level_tolerance`), to be laid over the analysis by
+    `SessionInputs.grouped`.
+    """
     from fmm_ros.workflows.inputs import InputOptions
 
     return InputOptions(
@@ -268,6 +273,7 @@ def input_options(args: argparse.Namespace, capture: CaptureConfig | None = None
         force_full_scale_n=args.force_full_scale_n,
         velocity_full_scale_m_s=args.velocity_full_scale_m_s,
         continuous=args.continuous,
+        level_tolerance_n=recorded_level_tolerance(args) if getattr(args, 'inputs', None) else None,
     )
 
 
@@ -354,7 +360,11 @@ def add_analysis(parser: argparse.ArgumentParser) -> None:
 
 
 def analysis_configs(args: argparse.Namespace) -> tuple[CaptureConfig, AnalysisConfig]:
-    """The capture and analysis configuration of add_hit_selection's (and add_frf_options')."""
+    """The capture and analysis configuration of add_hit_selection's (and add_frf_options').
+
+    Opens no file: the levels are those the flags name (none: a bag's recorded levels, read
+    with the inputs where `recorded_level_tolerance` says so, else clustered peak forces).
+    """
     capture = CaptureConfig(
         trigger_level_n=args.trigger_n,
         rearm_level_n=args.rearm_n,
@@ -366,10 +376,6 @@ def analysis_configs(args: argparse.Namespace) -> tuple[CaptureConfig, AnalysisC
         if args.paper_levels
         else tuple(dataclasses.replace(level, tolerance_n=args.tolerance_n) for level in args.level)
     )
-    if not levels:  # a bag's levels keep the names its analyzer gave them (low, medium, high)
-        from fmm_ros.workflows.replay import recorded_levels
-
-        levels = recorded_levels(_input_paths(args), args.tolerance_n)
     frf = AnalysisConfig()
     analysis = AnalysisConfig(
         band_limit_hz=getattr(args, 'band_limit_hz', frf.band_limit_hz),
@@ -381,11 +387,15 @@ def analysis_configs(args: argparse.Namespace) -> tuple[CaptureConfig, AnalysisC
     return capture, analysis
 
 
-def _input_paths(args: argparse.Namespace) -> list[Path]:
-    """The INPUTs of the command (analyze, fit, diagnose, report), or the bag of replay."""
-    if getattr(args, 'inputs', None):
-        return list(args.inputs)
-    return [args.bag] if getattr(args, 'bag', None) else []
+def recorded_level_tolerance(args: argparse.Namespace) -> float | None:
+    """The tolerance [N] of a bag's recorded levels, where the hit options name no levels.
+
+    A bag's levels keep the names its analyzer gave them (low, medium, high); None for a
+    command without the hit options, or levels given.
+    """
+    if not hasattr(args, 'paper_levels') or args.paper_levels or args.level:
+        return None
+    return args.tolerance_n
 
 
 def _nominal_level(text: str) -> NominalLevel:

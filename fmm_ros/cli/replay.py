@@ -35,17 +35,26 @@ def run(args: argparse.Namespace) -> int:
     """Replay, then print the analyzer's output and the replay speed."""
     from fmm_ros.cli.formats import analysis_text
     from fmm_ros.cli.progress import progress_bar, report_problems
-    from fmm_ros.io.bags import SAMPLE_BATCH, BagReader
     from fmm_ros.io.frf_files import level_curves, write_frfs
     from fmm_ros.workflows.replay import replay_bag
     from fmm_ros.workflows.results import analysis_dict
 
     capture, analysis = options.analysis_configs(args)
-    with BagReader(args.bag, strict=False) as reader:  # the batch count, for the progress bar
-        total = sum(info.count for info in reader.topics.values() if info.msgtype == SAMPLE_BATCH)
     start = time.perf_counter()
-    with progress_bar(total, desc='replaying', unit='batch', quiet=args.quiet) as bar:
-        replay = replay_bag(args.bag, capture, analysis, on_progress=bar.update)
+    with progress_bar(None, desc='replaying', unit='batch', quiet=args.quiet) as bar:
+
+        def opened(total: int) -> None:  # the bag's batch count, once it is open
+            bar.total = total
+            bar.refresh()
+
+        replay = replay_bag(
+            args.bag,
+            capture,
+            analysis,
+            on_progress=bar.update,
+            on_open=opened,
+            level_tolerance_n=options.recorded_level_tolerance(args),
+        )
     wall_s = time.perf_counter() - start
     for path in args.output:
         write_frfs(path, level_curves(replay.summary))

@@ -6,8 +6,9 @@ INPUTs here, and only here. Each path is told apart by its content (`fmm_ros.io.
 - a bag (directory, .mcap or .db3): every impact the analyzer's own capture finds in its
   recorded streams (`fmm_ros.workflows.replay.bag_impact_records`); damage does not stop it,
   and is returned as problems. The decisions recorded about its hits (issue 27) are matched
-  to the records by trigger sample, and its session metadata is read
-  (`fmm_ros.io.bags.station`);
+  to the records by trigger sample, its session metadata is read
+  (`fmm_ros.io.bags.station`), and, when asked, the levels its analyzer named
+  (`fmm_ros.workflows.replay.recorded_levels`): all from the one open of the bag;
 - a lab file (delimited text, NPZ, MATLAB v4-v7.3, TDMS): read by `fmm_ros.io.labfiles` with
   the channel mapping semantics of `fmm import` (a mapping file and flags, else what the file
   states: canonical names `time_s,force_n,velocity_m_s`, a units row, bracketed units, TDMS
@@ -29,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, capture_impacts
+from fmm_ros.core.signal.config import AnalysisConfig, NominalLevel
 from fmm_ros.core.signal.judging import Decision, by_trigger
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.core.signal.response import as_measured
@@ -39,7 +41,7 @@ from fmm_ros.io.bags.station import bag_decisions, bag_session_info
 from fmm_ros.io.labfiles import LabRecording, read_lab_file
 from fmm_ros.io.session_info import SessionInfo
 from fmm_ros.io.textfiles import DETECT, TextFormat
-from fmm_ros.workflows.replay import bag_impact_records
+from fmm_ros.workflows.replay import nominal_levels, reader_impact_records, recorded_levels
 
 RATE_TOLERANCE = 1e-6
 """Relative difference in sample rate beyond which two inputs are not one measurement series."""
@@ -57,6 +59,8 @@ class InputOptions:
     of text files (detected when not given). capture: how impacts are cut from bags (and from
     continuous lab files). force_full_scale_n, velocity_full_scale_m_s: sensor ranges in SI
     (0: as recorded, or unknown). continuous: each lab file is one recording of several hits.
+    level_tolerance_n: the tolerance [N] of the levels the bags' analyzer named, which are
+    then read (`SessionInputs.levels`); None: they are not.
     """
 
     mapping: dict = field(default_factory=dict)
@@ -65,6 +69,7 @@ class InputOptions:
     force_full_scale_n: float = 0.0
     velocity_full_scale_m_s: float = 0.0
     continuous: bool = False
+    level_tolerance_n: float | None = None
 
 
 DEFAULT_INPUTS = InputOptions()
@@ -84,6 +89,14 @@ class SessionInputs:
     """The newest recorded decision about records[i], by i (bags only)."""
     session_info: dict[str, SessionInfo] = field(default_factory=dict)
     """Each bag's session metadata, by path (bags that hold some)."""
+    levels: tuple[NominalLevel, ...] = ()
+    """The levels the bags' analyzer named, by ascending force (see InputOptions)."""
+
+    def grouped(self, analysis: AnalysisConfig) -> AnalysisConfig:
+        """The analysis with the bags' recorded levels, where it names none of its own."""
+        if analysis.levels or not self.levels:
+            return analysis
+        return dataclasses.replace(analysis, levels=self.levels)
 
 
 def read_inputs(
@@ -105,24 +118,28 @@ def read_inputs(
     notes: list[str] = []
     decisions: dict[int, Decision] = {}
     infos: dict[str, SessionInfo] = {}
+    levels: dict[str, float] = {}
     for number, path in enumerate(map(Path, paths), 1):
         if progress:
             progress(f'reading {path.name} ({number}/{len(paths)})')
         if sniff.file_kind(path) == sniff.BAG:
-            found, damage = bag_impact_records(path, options.capture)
-            problems += [f'{path}: {problem}' for problem in damage]
-            first = len(records)
-            records += _some(found, path, options.capture)
-            judged, lost = _bag_decisions(path, found, first)
-            decisions.update(judged)
-            problems += [f'{path}: {problem}' for problem in lost]
-            try:
-                info = bag_session_info(path)
-            except FmmError as error:
-                problems.append(f'{path}: {error}')
-                info = None
-            if info is not None:
-                infos[str(path)] = info
+            with BagReader(path, strict=False) as reader:
+                found, damage = reader_impact_records(reader, options.capture)
+                problems += [f'{path}: {problem}' for problem in damage]
+                first = len(records)
+                records += _some(found, path, options.capture)
+                judged, lost = _bag_decisions(reader, found, first)
+                decisions.update(judged)
+                problems += [f'{path}: {problem}' for problem in lost]
+                try:
+                    info = bag_session_info(path, reader)
+                except FmmError as error:
+                    problems.append(f'{path}: {error}')
+                    info = None
+                if info is not None:
+                    infos[str(path)] = info
+                if options.level_tolerance_n is not None:
+                    levels.update(recorded_levels(reader))
             continue
         recording = read_lab_file(path, options.mapping, options.text_format)
         notes += recording.report
@@ -137,18 +154,18 @@ def read_inputs(
         [str(p) for p in paths],
         decisions,
         infos,
+        nominal_levels(levels, options.level_tolerance_n) if levels else (),
     )
 
 
 def _bag_decisions(
-    path: Path, records: list[ImpactRecord], first: int
+    reader: BagReader, records: list[ImpactRecord], first: int
 ) -> tuple[dict[int, Decision], list[str]]:
     """A bag's recorded decisions under the positions its records take (from `first`).
 
     Also a problem for each decision that found no hit (or was malformed).
     """
-    with BagReader(path, strict=False) as reader:
-        recorded, problems = bag_decisions(reader)
+    recorded, problems = bag_decisions(reader)
     triggers = {record.trigger_sample_index: first + i for i, record in enumerate(records)}
     judged, lost = by_trigger(recorded, triggers)
     problems += [

@@ -15,7 +15,7 @@ recording whole either way, so the capture sees the same samples at the same ind
 """
 
 import dataclasses
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -40,7 +40,6 @@ from fmm_ros.core.signal.config import NominalLevel
 from fmm_ros.core.signal.records import ImpactRecord, stable_impact_id
 from fmm_ros.core.signal.response import RESPONSE_QUANTITIES, as_measured
 from fmm_ros.core.signal.stream import ChannelLedger
-from fmm_ros.io import sniff
 from fmm_ros.io.bags.acquisitions import read_acquisitions
 from fmm_ros.io.bags.definitions import SAMPLE_BATCH
 from fmm_ros.io.bags.reader import BagReader, ChannelBatch
@@ -222,12 +221,25 @@ def bag_impact_records(
     and the impacts over them are flagged), and the problems are returned for the caller
     to report. This is what offline analysis, fitting and diagnosis of a bag start from.
     """
-    impacts = ImpactCapture(capture)
     with BagReader(path, strict=False) as reader:
-        records = list(
-            capture_records(reader, impacts, force_topic=force_topic, velocity_topic=velocity_topic)
+        return reader_impact_records(
+            reader, capture, force_topic=force_topic, velocity_topic=velocity_topic
         )
-        return records, list(reader.problems) + stream_problems(impacts.ledger)
+
+
+def reader_impact_records(
+    reader: BagReader,
+    capture: CaptureConfig = DEFAULT_CAPTURE,
+    *,
+    force_topic: str = FORCE_TOPIC,
+    velocity_topic: str = VELOCITY_TOPIC,
+) -> tuple[list[ImpactRecord], list[str]]:
+    """`bag_impact_records` of a bag already open, which the caller goes on reading."""
+    impacts = ImpactCapture(capture)
+    records = list(
+        capture_records(reader, impacts, force_topic=force_topic, velocity_topic=velocity_topic)
+    )
+    return records, list(reader.problems) + stream_problems(impacts.ledger)
 
 
 @dataclass(frozen=True)
@@ -249,16 +261,21 @@ def replay_bag(
     *,
     on_result: Callable[[ImpactAnalysis], None] | None = None,
     on_progress: Callable[[int], None] | None = None,
+    on_open: Callable[[int], None] | None = None,
     threads: int | None = None,
+    level_tolerance_n: float | None = None,
 ) -> Replay:
     """Capture and analyse every impact of a bag as the live analyzer does, then summarize.
 
     on_result gets each ImpactAnalysis as the analyzer would publish it, in capture order
     (impact ids by `stable_impact_id`, as the analyzer gives them); on_progress gets the
-    number of batches fed since its last call. threads: how many records are analysed at
-    once while the bag is read and captured (`thread_imap`; default: the cores there are,
+    number of batches fed since its last call, on_open the number of sample batches the bag
+    holds, once it is open (a progress bar's total). threads: how many records are analysed
+    at once while the bag is read and captured (`thread_imap`; default: the cores there are,
     `available_threads`); each record's analysis is its own, so the results are the same
-    whatever the count.
+    whatever the count. level_tolerance_n: where the analysis names no levels, the levels
+    the bag's analyzer recorded (`recorded_levels`) group the hits, with this tolerance
+    [N]; None: its peak forces are clustered.
     """
     analysis = analysis or AnalysisConfig()
     results: list[ImpactAnalysis] = []
@@ -270,6 +287,8 @@ def replay_bag(
         return analyze_impact(record, capture, analysis, impact_id=stable_impact_id(record))
 
     with BagReader(path, strict=False) as reader:
+        if on_open:
+            on_open(sum(i.count for i in reader.topics.values() if i.msgtype == SAMPLE_BATCH))
         # Records in flight are analysed while later ones are captured: each keeps its own
         # buffers (no reuse_buffers), which the process's allocator hands back warm.
         records = capture_records(reader, impacts, fed=fed)
@@ -281,32 +300,36 @@ def replay_bag(
             if on_result:
                 on_result(result)
         problems = list(reader.problems) + stream_problems(impacts.ledger)
+        grouping = analysis  # the levels group the hits only once all are analysed
+        if level_tolerance_n is not None and not analysis.levels:
+            levels = nominal_levels(recorded_levels(reader), level_tolerance_n)
+            grouping = dataclasses.replace(analysis, levels=levels)
     if on_progress:
         on_progress(fed.batches - reported)
     return Replay(
-        results, summarize(results, analysis), fed.signal_s, fed.batches, problems, impacts.ledger
+        results, summarize(results, grouping), fed.signal_s, fed.batches, problems, impacts.ledger
     )
 
 
-def recorded_levels(
-    paths: Sequence[str | Path], tolerance_n: float = LEVEL_TOLERANCE_N
-) -> tuple[NominalLevel, ...]:
-    """The nominal levels the live analyzer grouped the bags' impacts into, by its names.
+def recorded_levels(reader: BagReader) -> dict[str, float]:
+    """The nominal levels the live analyzer grouped a bag's impacts into: name -> peak [N].
 
-    Read from the recorded FrfSummary messages (name and nominal peak force), in ascending
-    force, so `fmm analyze`, `replay` and `report` name a bag's levels as `bag-info` and
-    `export` show them (low, medium, high for the paper's). Empty when no input is a bag, a
-    bag recorded no levels, or its analyzer clustered the forces (no nominal peak).
+    Read from the recorded FrfSummary messages (name and nominal peak force), so `fmm
+    analyze`, `replay` and `report` name a bag's levels as `bag-info` and `export` show them
+    (low, medium, high for the paper's). Empty when the bag recorded no levels or its
+    analyzer clustered the forces (no nominal peak).
     """
     levels: dict[str, float] = {}
-    for path in map(Path, paths):
-        if sniff.file_kind(path) != sniff.BAG:
-            continue
-        with BagReader(path, strict=False) as reader:
-            if not any(topic.endswith(FRF_TOPIC) for topic in reader.topics):
-                continue
-            for summary in reader.frf_summaries():
-                if summary.nominal_peak_force_n > 0:
-                    levels[summary.level] = float(summary.nominal_peak_force_n)
+    if any(topic.endswith(FRF_TOPIC) for topic in reader.topics):
+        for summary in reader.frf_summaries():
+            if summary.nominal_peak_force_n > 0:
+                levels[summary.level] = float(summary.nominal_peak_force_n)
+    return levels
+
+
+def nominal_levels(
+    levels: dict[str, float], tolerance_n: float = LEVEL_TOLERANCE_N
+) -> tuple[NominalLevel, ...]:
+    """Recorded levels (`recorded_levels`, of one bag or several) in ascending force."""
     ordered = sorted(levels.items(), key=lambda item: item[1])
     return tuple(NominalLevel(name, peak, tolerance_n) for name, peak in ordered)

@@ -16,6 +16,7 @@ A fit or diagnosis the data refuse does not stop the pipeline: the result says w
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -391,7 +392,7 @@ def process_session(
     read = read_inputs(paths, options.inputs, progress=progress)
     return process_records(
         read.records,
-        options,
+        dataclasses.replace(options, analysis=read.grouped(options.analysis)),
         inputs=read.paths,
         problems=read.problems,
         notes=read.notes,

@@ -43,23 +43,34 @@ def bag_decisions(reader: BagReader) -> tuple[list[Decision], list[str]]:
     return decisions, problems
 
 
-def bag_session_info(path: str | Path) -> session_info.SessionInfo | None:
+def bag_session_info(
+    path: str | Path, reader: BagReader | None = None
+) -> session_info.SessionInfo | None:
     """The session's metadata a bag holds, or None when it holds none.
 
-    BadInputError when what it holds is not valid metadata.
+    reader: the bag already open (its messages are read only when the metadata file holds
+    none); without one, the bag is opened here. BadInputError when what it holds is not valid
+    metadata.
     """
     path = Path(path)
     folder = path if path.is_dir() else path.parent
     text = (read_information(folder).get('custom_data') or {}).get(session_info.SESSION_KEY)
     if text:
         return session_info.from_json(text)
-    with BagReader(path, strict=False) as reader:
-        try:
-            last = None
-            for _, msg in reader.decoded(SESSION_INFO_TOPIC, SESSION_INFO):
-                last = msg
-        except MissingTopicError:
-            return None
+    if reader is None:
+        with BagReader(path, strict=False) as opened:
+            return _last_session_info(opened)
+    return _last_session_info(reader)
+
+
+def _last_session_info(reader: BagReader) -> session_info.SessionInfo | None:
+    """The last SessionInfo message a bag recorded, or None."""
+    last = None
+    try:
+        for _, msg in reader.decoded(SESSION_INFO_TOPIC, SESSION_INFO):
+            last = msg
+    except MissingTopicError:
+        return None
     if last is None:
         return None
     return session_info.from_message(last)
