@@ -14,24 +14,68 @@ import argparse
 import json
 import sys
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from fmm_ros.cli import options
 
 if TYPE_CHECKING:
+    from fmm_ros.core.signal.capture import CaptureConfig
+    from fmm_ros.core.signal.config import AnalysisConfig
     from fmm_ros.core.signal.records import ImpactRecord
+    from fmm_ros.workflows.inputs import InputOptions
 
 Fit = Callable[[list['ImpactRecord'], Sequence[int], Callable[[str], None]], Any]
 
 
+@dataclass(frozen=True)
+class FitRequest:
+    """What a fitting subcommand was asked, in the workflows' own types (no Namespace).
+
+    paths and inputs: what is read and how; capture and analysis: how hits are cut and
+    judged (analysis None: every record is taken, as identify-rig does: free decays hold no
+    hit); include_flagged, chain_starts: `select_records` and `ImpactSelection.chained`;
+    json, quiet: how the answer is shown.
+    """
+
+    command: str
+    paths: tuple[Path, ...]
+    inputs: InputOptions
+    capture: CaptureConfig
+    analysis: AnalysisConfig | None
+    include_flagged: bool = False
+    chain_starts: bool = False
+    json: bool = False
+    quiet: bool = False
+
+    @classmethod
+    def from_args(cls, command: str, args: argparse.Namespace) -> FitRequest:
+        """The request of a fitting subcommand's flags (its hit options, where it has them)."""
+        from fmm_ros.core.signal.capture import CaptureConfig
+
+        selecting = hasattr(args, 'include_flagged')
+        capture, analysis = options.analysis_configs(args) if selecting else (CaptureConfig(), None)
+        return cls(
+            command,
+            tuple(args.inputs),
+            options.input_options(args, capture),
+            capture,
+            analysis,
+            include_flagged=selecting and args.include_flagged,
+            chain_starts=getattr(args, 'chain_starts', False),
+            json=args.json,
+            quiet=args.quiet,
+        )
+
+
 def fit_and_report(
-    command: str,
-    args: argparse.Namespace,
+    request: FitRequest,
     fit: Fit,
     report: Callable[[Any], dict],
     text_report: Callable[[Any], str],
 ) -> int:
-    """Read args.inputs, pick the hits, fit them, print the result (or why there is none).
+    """Read the inputs, pick the hits, fit them, print the result (or why there is none).
 
     fit(records, impact_ids, progress) fits records[i] for i in impact_ids. A command with
     the hit-selection options (fit, diagnose) takes the hits `select_impacts` takes (the
@@ -41,29 +85,27 @@ def fit_and_report(
     from fmm_ros.cli.progress import StatusLine, report_problems
     from fmm_ros.core.identify.conditioning import FitError
     from fmm_ros.core.signal.analysis import SelectionError
-    from fmm_ros.core.signal.capture import CaptureConfig
     from fmm_ros.workflows.inputs import read_inputs
     from fmm_ros.workflows.results import selection_dict
     from fmm_ros.workflows.session import select_records
 
-    selecting = hasattr(args, 'include_flagged')
-    capture, analysis = options.analysis_configs(args) if selecting else (CaptureConfig(), None)
+    command = request.command
     selection = None
-    with StatusLine(quiet=args.quiet) as progress:
-        read = read_inputs(args.inputs, options.input_options(args, capture), progress=progress)
+    with StatusLine(quiet=request.quiet) as progress:
+        read = read_inputs(request.paths, request.inputs, progress=progress)
         records = read.records
         try:
-            if selecting:
+            if request.analysis is not None:
                 selection = select_records(
                     records,
-                    capture,
-                    analysis,
-                    include_flagged=args.include_flagged,
+                    request.capture,
+                    read.grouped(request.analysis),
+                    include_flagged=request.include_flagged,
                     decisions=read.decisions,
                     progress=progress,
                 )
             if selection:
-                selection.chained(getattr(args, 'chain_starts', False))
+                selection.chained(request.chain_starts)
             ids = selection.chosen if selection else tuple(range(len(records)))
             result = fit(records, ids, progress)
         except (FitError, SelectionError) as failure:
@@ -74,7 +116,7 @@ def fit_and_report(
             reason, source, selection = 'no_clean_impact', None, result.selection
         else:
             reason, source = result.reason, result.source or None
-        if args.json:
+        if request.json:
             print(
                 json.dumps(
                     {'error': reason, 'message': str(result), 'file': source}
@@ -84,7 +126,7 @@ def fit_and_report(
         else:
             print(f'fmm {command}: cannot fit ({reason}): {result}', file=sys.stderr)
         return 1
-    if args.json:
+    if request.json:
         print(json.dumps(report(result) | selection_dict(selection), indent=2, allow_nan=False))
     else:
         print(text_report(result))

@@ -71,7 +71,7 @@ class _Run:
 
 def run(args: argparse.Namespace) -> int:
     """Diagnose the inputs; print a table or JSON; draw the figures if asked."""
-    from fmm_ros.cli._fitting import fit_and_report
+    from fmm_ros.cli._fitting import FitRequest, fit_and_report
     from fmm_ros.cli.formats import diagnosis_text
     from fmm_ros.workflows.results import diagnosis_dict
     from fmm_ros.workflows.session import diagnose_impacts
@@ -85,8 +85,7 @@ def run(args: argparse.Namespace) -> int:
         return _Run(result, [record.source for record in chosen], figures)
 
     return fit_and_report(
-        'diagnose',
-        args,
+        FitRequest.from_args('diagnose', args),
         diagnose_records,
         report,
         lambda run: diagnosis_text(diagnosis_dict(run.diagnosis), len(run.files), run.figures),

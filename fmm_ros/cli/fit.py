@@ -62,15 +62,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Read the inputs, fit, print the result (or why there is none)."""
-    from fmm_ros.cli._fitting import fit_and_report
+    from fmm_ros.cli._fitting import FitRequest, fit_and_report
     from fmm_ros.cli.formats import friction_text
     from fmm_ros.workflows.results import FrictionResult
     from fmm_ros.workflows.session import fit_impacts
 
     fit = options.fit_options(args)
     return fit_and_report(
-        'fit',
-        args,
+        FitRequest.from_args('fit', args),
         lambda records, ids, progress: fit_impacts(records, ids, fit, progress=progress),
         FrictionResult.to_dict,
         friction_text,

@@ -45,12 +45,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Read the inputs, identify, print the constants (or why there are none)."""
-    from fmm_ros.cli._fitting import fit_and_report
+    from fmm_ros.cli._fitting import FitRequest, fit_and_report
     from fmm_ros.core.identify.rig import identify_rig
 
     return fit_and_report(
-        'identify-rig',
-        args,
+        FitRequest.from_args('identify-rig', args),
         lambda records, ids, _: identify_rig([records[i] for i in ids], mass_kg=args.mass_kg),
         report,
         text_report,
