@@ -33,6 +33,8 @@ from fmm_ros.constants import (
     SAMPLE_RATE_HZ,
 )
 from fmm_ros.core.identify.running import RunningEstimate
+from fmm_ros.core.signal.capture import CaptureConfig
+from fmm_ros.core.signal.config import AnalysisConfig
 from fmm_ros.io.bags.reader import BagReader
 from fmm_ros.ros import msgs
 from fmm_ros.ros.graph import InProcessGraph
@@ -183,63 +185,64 @@ class _Results(Node):
             }
 
 
+@dataclass
+class _Session:
+    """What the graph of a demo session published and answered, kept once it is torn down."""
+
+    impacts: list[ImpactResult]
+    levels: dict[str, FrfSummary]
+    latest: FrfSummary | None
+    estimates: list[RunningEstimate]
+    fit: FitFriction.Response
+    diagnosis: DiagnoseModel.Response
+    hits_sent: int
+    health: list[dict]
+    capture: CaptureConfig
+    analysis: AnalysisConfig
+    wall_s: float
+    signal_s: float
+    fit_s: float
+    diagnose_s: float
+
+
 def run_demo_session(
     config: SessionConfig, progress: Callable[[str], None] = lambda _: None
 ) -> DemoResult:
     """Run the session to its last impact, fit mu over it, close the bag; return the results."""
     config.out_dir.mkdir(parents=True, exist_ok=True)
     bag = config.out_dir / 'bag'
+    session = _run_graph(config, bag, progress)
+    with BagReader(bag, strict=False) as reader:  # closed with the graph: its ledger is in
+        ledger = {topic: entry.summary() for topic, entry in reader.recorded_ledger.items()}
+    fit = session.fit
+    friction = msgs.friction_result(fit) if fit.success else None
+    page = ''
+    if config.report:  # after the graph: the recorder has closed the bag
+        progress(f'writing the session report to {config.out_dir / "report"}')
+        page = str(
+            _report(
+                bag,
+                config.out_dir / 'report',
+                session.capture,
+                session.analysis,
+                config,
+                friction,
+                fit,
+            )
+        )
+    return _demo_result(config, session, friction, str(bag), page, ledger)
+
+
+def _run_graph(config: SessionConfig, bag: Path, progress: Callable[[str], None]) -> _Session:
+    """Start the rig's nodes, run every hit, fit and diagnose over the services, tear down."""
     batch = config.batch()
     cli_args = (
         ['--ros-args', '--params-file', str(config.params_file)] if config.params_file else None
     )
-
-    def overrides(**values: object) -> list[Parameter]:
-        return [Parameter(name, value=value) for name, value in values.items()]
-
     with InProcessGraph() as graph:
-        hammer = graph.add(
-            HammerSim,
-            cli_args=cli_args,
-            parameter_overrides=overrides(
-                hits_per_level=config.hits_per_level,
-                rate_factor=config.rate_factor,
-                batch_size=batch,
-                seed=config.seed,
-                wait_for_consumers=list(CONSUMERS['hammer_sim']),
-            ),
-        )
-        graph.add(
-            RigSim,
-            cli_args=cli_args,
-            parameter_overrides=overrides(
-                mu=config.plant_mu,
-                effects=list(config.plant_effects) or [''],
-                seed=config.seed + 1,
-                wait_for_consumers=list(CONSUMERS['rig_sim']),
-            ),
-        )
-        analyzer = graph.add(Analyzer, cli_args=cli_args)
-        graph.add(Fitter, cli_args=cli_args)
-        recorder = graph.add(
-            Recorder, cli_args=cli_args, parameter_overrides=overrides(bag_path=str(bag))
-        )
+        hammer, analyzer, recorder = _add_rig(graph, config, batch, bag, cli_args)
         total = len(hammer.schedule)
-        reported = itertools.count(1)  # ids are stable, not a count (stable_impact_id)
-        results = graph.add(
-            _Results,
-            on_impact=lambda msg: progress(
-                f'impact {next(reported)}/{total} (id {msg.impact_id}): {msg.level or "no level"} '
-                f'{msg.peak_force_n:.0f} N, {msg.impulse_n_s:.3f} N*s, '
-                f'|X/F| {msg.peak_receptance_m_per_n * 1e3:.3f} mm/N at '
-                f'{msg.natural_frequency_hz:.2f} Hz, '
-                + ('accepted' if msg.accepted else f'rejected ({", ".join(msg.flags)})')
-            ),
-            on_estimate=lambda estimate: progress(
-                f'live mu after {estimate.count} accepted: {estimate.mu:.5f} +- '
-                f'{estimate.mu_stderr:.2g} (one mu: p = {estimate.consistency_p_value:.3g})'
-            ),
-        )
+        results = _add_results(graph, total, progress)
         for node in (hammer, analyzer):
             node.get_logger().set_level(LoggingSeverity.WARN)
         progress(
@@ -268,25 +271,99 @@ def run_demo_session(
             results.diagnose, DiagnoseModel.Request(impact_ids=chosen), timeout_s=600.0
         )
         diagnose_s = time.monotonic() - start - wall_s - fit_s
-        signal_s = hammer.next_index / hammer.config['sample_rate_hz']
-        impacts, levels, latest = list(results.impacts), dict(results.levels), results.latest
-        estimates = list(results.estimates)
-        hits_sent = hammer.hits_sent
-        health = sorted(results.health.values(), key=lambda status: status['name'])
-        capture, analysis = analyzer.capture_config, analyzer.analysis_config
-    with BagReader(bag, strict=False) as reader:  # closed with the graph: its ledger is in
-        ledger = {topic: entry.summary() for topic, entry in reader.recorded_ledger.items()}
-    friction = msgs.friction_result(fit) if fit.success else None
-    page = ''
-    if config.report:  # after the graph: the recorder has closed the bag
-        progress(f'writing the session report to {config.out_dir / "report"}')
-        page = str(
-            _report(bag, config.out_dir / 'report', capture, analysis, config, friction, fit)
+        return _Session(
+            impacts=list(results.impacts),
+            levels=dict(results.levels),
+            latest=results.latest,
+            estimates=list(results.estimates),
+            fit=fit,
+            diagnosis=diagnosis,
+            hits_sent=hammer.hits_sent,
+            health=sorted(results.health.values(), key=lambda status: status['name']),
+            capture=analyzer.capture_config,
+            analysis=analyzer.analysis_config,
+            wall_s=wall_s,
+            signal_s=hammer.next_index / hammer.config['sample_rate_hz'],
+            fit_s=fit_s,
+            diagnose_s=diagnose_s,
         )
-    ordered = sorted(levels.values(), key=lambda summary: summary.mean_impulse_n_s)
+
+
+def _add_rig(
+    graph: InProcessGraph, config: SessionConfig, batch: int, bag: Path, cli_args: list | None
+) -> tuple[HammerSim, Analyzer, Recorder]:
+    """The simulated rig, the analyzer, the fitter and the recorder, added to graph."""
+
+    def overrides(**values: object) -> list[Parameter]:
+        return [Parameter(name, value=value) for name, value in values.items()]
+
+    hammer = graph.add(
+        HammerSim,
+        cli_args=cli_args,
+        parameter_overrides=overrides(
+            hits_per_level=config.hits_per_level,
+            rate_factor=config.rate_factor,
+            batch_size=batch,
+            seed=config.seed,
+            wait_for_consumers=list(CONSUMERS['hammer_sim']),
+        ),
+    )
+    graph.add(
+        RigSim,
+        cli_args=cli_args,
+        parameter_overrides=overrides(
+            mu=config.plant_mu,
+            effects=list(config.plant_effects) or [''],
+            seed=config.seed + 1,
+            wait_for_consumers=list(CONSUMERS['rig_sim']),
+        ),
+    )
+    analyzer = graph.add(Analyzer, cli_args=cli_args)
+    graph.add(Fitter, cli_args=cli_args)
+    recorder = graph.add(
+        Recorder, cli_args=cli_args, parameter_overrides=overrides(bag_path=str(bag))
+    )
+    return hammer, analyzer, recorder
+
+
+def _add_results(graph: InProcessGraph, total: int, progress: Callable[[str], None]) -> _Results:
+    """The demo's listener, telling each impact and live mu estimate in words."""
+    reported = itertools.count(1)  # ids are stable, not a count (stable_impact_id)
+    return graph.add(
+        _Results,
+        on_impact=lambda msg: progress(
+            f'impact {next(reported)}/{total} (id {msg.impact_id}): {msg.level or "no level"} '
+            f'{msg.peak_force_n:.0f} N, {msg.impulse_n_s:.3f} N*s, '
+            f'|X/F| {msg.peak_receptance_m_per_n * 1e3:.3f} mm/N at '
+            f'{msg.natural_frequency_hz:.2f} Hz, '
+            + ('accepted' if msg.accepted else f'rejected ({", ".join(msg.flags)})')
+        ),
+        on_estimate=lambda estimate: progress(
+            f'live mu after {estimate.count} accepted: {estimate.mu:.5f} +- '
+            f'{estimate.mu_stderr:.2g} (one mu: p = {estimate.consistency_p_value:.3g})'
+        ),
+    )
+
+
+def _demo_result(
+    config: SessionConfig,
+    session: _Session,
+    friction: FrictionResult | None,
+    bag: str,
+    page: str,
+    ledger: dict,
+) -> DemoResult:
+    """The DemoResult of a session's published results, fit and diagnosis."""
+    impacts, latest, diagnosis, fit = (
+        session.impacts,
+        session.latest,
+        session.diagnosis,
+        session.fit,
+    )
+    ordered = sorted(session.levels.values(), key=lambda summary: summary.mean_impulse_n_s)
     return DemoResult(
         plant_mu=config.plant_mu,
-        hits_sent=hits_sent,
+        hits_sent=session.hits_sent,
         hits_reported=len(impacts),
         hits_accepted=sum(msg.accepted for msg in impacts),
         levels=[
@@ -310,12 +387,12 @@ def run_demo_session(
         fit_message=fit.message,
         missing_effect=diagnosis.missing_effect if diagnosis.success else '',
         diagnosis=diagnosis.verdict if diagnosis.success else diagnosis.message,
-        bag=str(bag),
+        bag=bag,
         report=page,
-        wall_s=wall_s,
-        signal_s=signal_s,
-        fit_s=fit_s,
-        diagnose_s=diagnose_s,
+        wall_s=session.wall_s,
+        signal_s=session.signal_s,
+        fit_s=session.fit_s,
+        diagnose_s=session.diagnose_s,
         impacts=[
             {
                 **hit_record(
@@ -344,9 +421,9 @@ def run_demo_session(
                 'consistency_p_value': e.consistency_p_value,
                 'levels': {level.level: [level.mu, level.mu_stderr] for level in e.levels},
             }
-            for e in estimates
+            for e in session.estimates
         ],
-        health=health,
+        health=session.health,
         ledger=ledger,
     )
 
