@@ -18,6 +18,7 @@ import dataclasses
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from fmm_ros.constants import (
     FORCE,
@@ -44,6 +45,9 @@ from fmm_ros.io.bags.acquisitions import read_acquisitions
 from fmm_ros.io.bags.definitions import SAMPLE_BATCH
 from fmm_ros.io.bags.reader import BagReader, ChannelBatch
 from fmm_ros.units import sample_si_factor
+
+if TYPE_CHECKING:  # numba: read only where a clean recording is read whole
+    from fmm_ros.io.bags.arrays import ChannelArrays
 
 # Samples of each channel fed to the capture at once when a recording is read whole: large
 # enough that the per-call cost vanishes, small enough that records complete (and their
@@ -90,56 +94,86 @@ def capture_records(
     table does not know raises UnitError naming it.
     """
     impacts = capture if isinstance(capture, ImpactCapture) else ImpactCapture(capture)
-    quantity = {
-        reader.find(force_topic, SAMPLE_BATCH): FORCE.quantity,
-        reader.find(velocity_topic, SAMPLE_BATCH): VELOCITY.quantity,
-    }
-    try:
-        acquisitions = read_acquisitions(reader.path)
-    except ValueError as error:  # damaged metadata: the reader reads the bag by scanning
-        reader.problems.append(f'{error}; read as one acquisition')
-        acquisitions = ()
-    joined = bool(acquisitions)
+    feed = _BagFeed(reader, impacts, force_topic, velocity_topic, reuse_buffers)
     fed = fed if fed is not None else Fed()
-    boundaries = [a.first_sample_index for a in acquisitions][1:]
-    reached = dict.fromkeys(quantity, 0)  # index after each channel's last sample fed
-    held: list[ChannelBatch] = []  # batches of the next acquisition, read early
+    whole = (
+        None
+        if feed.joined or on_batch or impacts.stream.started
+        else reader.channel_arrays(force_topic, velocity_topic, impacts.config.rules)
+    )
+    if whole is not None:
+        yield from feed.whole(whole, fed)
+    else:
+        yield from feed.batch_by_batch(fed, on_batch)
 
-    response = []  # the response sensor's quantity, once its first batch is read
 
-    def tagged(records: list[ImpactRecord]) -> Iterator[ImpactRecord]:
+class _BagFeed:
+    """A bag's channels fed to one capture, acquisition by acquisition (`capture_records`).
+
+    It holds what the feeding learns as it goes: the response quantity (from the first
+    response batch), the index each channel reached, and the batches of the next
+    acquisition read before the current one ended on every channel.
+    """
+
+    def __init__(
+        self,
+        reader: BagReader,
+        impacts: ImpactCapture,
+        force_topic: str,
+        velocity_topic: str,
+        reuse_buffers: bool,
+    ) -> None:
+        self.reader, self.impacts, self.reuse_buffers = reader, impacts, reuse_buffers
+        self.quantity = {
+            reader.find(force_topic, SAMPLE_BATCH): FORCE.quantity,
+            reader.find(velocity_topic, SAMPLE_BATCH): VELOCITY.quantity,
+        }
+        try:
+            acquisitions = read_acquisitions(reader.path)
+        except ValueError as error:  # damaged metadata: the reader reads the bag by scanning
+            reader.problems.append(f'{error}; read as one acquisition')
+            acquisitions = ()
+        self.joined = bool(acquisitions)
+        self.boundaries = [a.first_sample_index for a in acquisitions][1:]
+        self.reached = dict.fromkeys(self.quantity, 0)  # index after each channel's last sample
+        self.held: list[ChannelBatch] = []  # batches of the next acquisition, read early
+        self.response = ''  # the response sensor's quantity, once its first batch is read
+
+    def tagged(self, records: list[ImpactRecord]) -> Iterator[ImpactRecord]:
+        """The capture's records tagged bag@trigger and made whole from the response."""
         for record in records:
             yield as_measured(
                 dataclasses.replace(
-                    record, source=f'{reader.path.name}@{record.trigger_sample_index}'
+                    record, source=f'{self.reader.path.name}@{record.trigger_sample_index}'
                 ),
-                response[0] if response else VELOCITY.quantity,
-                impacts.config,
+                self.response or VELOCITY.quantity,
+                self.impacts.config,
             )
-            if reuse_buffers:
-                impacts.recycle(record)
+            if self.reuse_buffers:
+                self.impacts.recycle(record)
 
-    def take(batch: ChannelBatch) -> Iterator[ImpactRecord]:
+    def take(self, batch: ChannelBatch) -> Iterator[ImpactRecord]:
         """Feed a batch, or hold it while another channel is still in the acquisition before."""
-        if quantity[batch.topic] == VELOCITY.quantity:
+        if self.quantity[batch.topic] == VELOCITY.quantity:
             kind = batch.quantity if batch.quantity in RESPONSE_QUANTITIES else VELOCITY.quantity
-            if not response:
-                response.append(kind)
-            elif kind != response[0]:
-                reader.problems.append(
+            if not self.response:
+                self.response = kind
+            elif kind != self.response:
+                self.reader.problems.append(
                     f'{batch.topic} batch at sample {batch.first_sample_index} holds '
-                    f'{batch.quantity!r}, the response before it {response[0]!r}: left out'
+                    f'{batch.quantity!r}, the response before it {self.response!r}: left out'
                 )
                 return
-        if boundaries and batch.first_sample_index >= boundaries[0]:
-            held.append(batch)
+        if self.boundaries and batch.first_sample_index >= self.boundaries[0]:
+            self.held.append(batch)
             return
-        reached[batch.topic] = batch.first_sample_index + len(batch.samples)
-        measured = response[0] if quantity[batch.topic] == VELOCITY.quantity else FORCE.quantity
+        self.reached[batch.topic] = batch.first_sample_index + len(batch.samples)
+        velocity = self.quantity[batch.topic] == VELOCITY.quantity
+        measured = self.response if velocity else FORCE.quantity
         factor = sample_si_factor(measured, batch.unit)  # UnitError: refused by name
-        yield from tagged(
-            impacts.feed(
-                quantity[batch.topic],
+        yield from self.tagged(
+            self.impacts.feed(
+                self.quantity[batch.topic],
                 batch.first_sample_index,
                 batch.samples * factor if factor != 1.0 else batch.samples,
                 batch.sample_rate_hz,
@@ -149,27 +183,23 @@ def capture_records(
             )
         )
 
-    def next_acquisition() -> Iterator[ImpactRecord]:
+    def next_acquisition(self) -> Iterator[ImpactRecord]:
         """End the acquisition, then feed what was held for the next one."""
-        yield from tagged(impacts.end_acquisition())
-        boundaries.pop(0)
-        early = held.copy()
-        held.clear()
+        yield from self.tagged(self.impacts.end_acquisition())
+        self.boundaries.pop(0)
+        early = self.held.copy()
+        self.held.clear()
         for batch in early:
-            yield from take(batch)
+            yield from self.take(batch)
 
-    whole = (
-        None
-        if joined or on_batch or impacts.stream.started
-        else reader.channel_arrays(force_topic, velocity_topic, impacts.config.rules)
-    )
-    if whole is not None:
+    def whole(self, whole: 'ChannelArrays', fed: Fed) -> Iterator[ImpactRecord]:
+        """A clean recording read whole, fed to the capture in aligned blocks."""
         fed.batches, fed.signal_s = whole.batches, whole.force_signal_s
         rate, (force_scale, velocity_scale) = whole.sample_rate_hz, whole.full_scale
         for low in range(0, len(whole.force), WHOLE_BLOCK_SAMPLES):
             high = low + WHOLE_BLOCK_SAMPLES
-            yield from tagged(
-                impacts.feed_both(
+            yield from self.tagged(
+                self.impacts.feed_both(
                     whole.first_sample_index + low,
                     whole.force[low:high],
                     whole.velocity[low:high],
@@ -179,24 +209,30 @@ def capture_records(
                     stamp_ns=whole.stamp_ns + round(low * 1e9 / rate) if whole.stamp_ns else 0,
                 )
             )
-        yield from tagged(impacts.flush())
-        return
-    for batch in reader.sample_batches(list(quantity)):
-        yield from take(batch)
-        fed.batches += 1
-        if batch.quantity == FORCE.quantity:
-            fed.signal_s += len(batch.samples) / batch.sample_rate_hz
-        if on_batch:
-            on_batch(batch)
-        # Every channel done with this acquisition (or already into the next): end it.
-        while held and all(
-            reached[topic] >= boundaries[0] or any(b.topic == topic for b in held)
-            for topic in quantity
-        ):
-            yield from next_acquisition()
-    while held:
-        yield from next_acquisition()
-    yield from tagged(impacts.end_acquisition() if joined else impacts.flush())
+        yield from self.tagged(self.impacts.flush())
+
+    def batch_by_batch(
+        self, fed: Fed, on_batch: Callable[[ChannelBatch], None] | None
+    ) -> Iterator[ImpactRecord]:
+        """Every recorded batch in storage order, each acquisition ended once all are past it."""
+        for batch in self.reader.sample_batches(list(self.quantity)):
+            yield from self.take(batch)
+            fed.batches += 1
+            if batch.quantity == FORCE.quantity:
+                fed.signal_s += len(batch.samples) / batch.sample_rate_hz
+            if on_batch:
+                on_batch(batch)
+            # Every channel done with this acquisition (or already into the next): end it.
+            while self.held and all(
+                self.reached[topic] >= self.boundaries[0]
+                or any(b.topic == topic for b in self.held)
+                for topic in self.quantity
+            ):
+                yield from self.next_acquisition()
+        while self.held:
+            yield from self.next_acquisition()
+        impacts = self.impacts
+        yield from self.tagged(impacts.end_acquisition() if self.joined else impacts.flush())
 
 
 def stream_problems(ledger: dict[str, ChannelLedger]) -> list[str]:
