@@ -225,9 +225,8 @@ def levenberg_marquardt(
     typical)). Converged when an accepted step lowers the cost by less than chi2_tolerance
     times the residual variance per sample, i.e. moves the parameters by about
     sqrt(chi2_tolerance) of their (white-noise) standard errors, or when no step can lower
-    it, or where a step gained what the linear model promised (`LINEAR_GAIN_RATIO`) and the
-    next Gauss-Newton step, predicted from the same Jacobian at the new residual, would gain
-    less than that (a new Jacobian costs a model run per parameter and impact).
+    it, or when the next step would gain less than that (`_converged`: a new Jacobian costs
+    a model run per parameter and impact).
     Without `blocks`, fun(x, out) writes every residual (one dense block); with them, fun is
     a BlockResidualFunction and a Jacobian column runs only the blocks its parameter touches.
     residual0, jacobian0: the residuals and the Jacobian (of `blocks`' pattern) at x0 where
@@ -240,49 +239,24 @@ def levenberg_marquardt(
     """
     lower, upper, typical = (np.asarray(a, dtype=float) for a in (lower, upper, typical))
     x = np.clip(np.asarray(x0, dtype=float), lower, upper)
-    p = x.size
-    if blocks is None:
-        blocks = Blocks.shared((slice(0, n_residuals),), p)
-        fun = _one_block(fun)
-    if blocks.n_parameters != p:
-        raise ValueError(f'the blocks describe {blocks.n_parameters} parameters, x0 has {p}')
+    p, bounds = x.size, (lower, upper)
+    fun, blocks = _in_blocks(fun, blocks, n_residuals, p)
     every = tuple(range(len(blocks.segments)))
-    trial = np.empty(n_residuals)
-    jacobian = jacobian0
+    trial, jacobian = np.empty(n_residuals), jacobian0
     touched = [blocks.touched_by(j) for j in range(p)]
 
     def evaluate(x: np.ndarray, out: np.ndarray) -> None:
         _run_blocks(fun, x, every, [out[segment] for segment in blocks.segments], threads)
 
-    evaluations = 0
-    if residual0 is not None:
-        residual = residual0
-    else:
-        residual = np.empty(n_residuals)
-        try:
-            evaluate(x, residual)
-        except Infeasible as error:
-            raise BadInputError(
-                f'the model cannot be evaluated at the start point {x}: {error}'
-            ) from None
+    evaluations, residual = 0, residual0
+    if residual is None:
+        residual = _start_residual(evaluate, x, n_residuals)
         evaluations = len(every)
-    cost = inner(residual, residual)
-    damping = 1e-3
+    cost, damping = inner(residual, residual), 1e-3
 
     def finish(iterations: int, converged: bool, message: str) -> LsqSolution:
-        return LsqSolution(
-            x,
-            lower,
-            upper,
-            residual,
-            jacobian,
-            block_normals,
-            cost,
-            evaluations,
-            iterations,
-            converged,
-            message,
-        )
+        reached = (x, lower, upper, residual, jacobian, block_normals, cost, evaluations)
+        return LsqSolution(*reached, iterations, converged, message)
 
     for iteration in range(1, max_iterations + 1):
         if iteration > 1 or jacobian is None:  # jacobian0 serves the first step
@@ -294,42 +268,122 @@ def levenberg_marquardt(
         block_normals = jacobian.block_normals()
         normal = jacobian.normal(block_normals)
         gradient = jacobian.gradient(residual)
-        noise_variance = cost / max(n_residuals - p, 1)
-        while True:
-            step = _damped_step(normal, gradient, x, lower, upper, damping)
-            candidate = np.clip(x + step, lower, upper)
-            if np.array_equal(candidate, x):
-                return finish(
-                    iteration, True, 'no step moves the parameters (at a bound or converged)'
-                )
-            try:
-                evaluate(candidate, trial)
-                new_cost = inner(trial, trial)
-            except Infeasible:
-                new_cost = np.inf
-            evaluations += len(every)
-            if new_cost < cost:
-                break
-            damping *= 10.0
-            if damping > 1e10:
-                return finish(iteration, True, 'no step lowers the cost')
-        reduction = cost - new_cost
-        taken = candidate - x
-        expected = -float(2.0 * gradient @ taken + taken @ normal @ taken)
-        x, cost = candidate, new_cost
-        residual, trial = trial, residual
+        enough = chi2_tolerance * (cost / max(n_residuals - p, 1))  # of the noise variance
+        candidate, new_cost, damping, spent, stop = _lowering_step(
+            evaluate, normal, gradient, x, bounds, damping, cost, trial, len(every)
+        )
+        evaluations += spent
+        if candidate is None:
+            return finish(iteration, True, stop)
+        stop = _converged(
+            jacobian, normal, gradient, x, candidate, cost - new_cost, trial, bounds, enough
+        )
+        x, cost, residual, trial = candidate, new_cost, trial, residual
         damping = max(damping / 10.0, 1e-9)
-        if reduction < chi2_tolerance * noise_variance:
-            return finish(iteration, True, 'the cost stopped falling')
-        # Where the step (taken with a Jacobian made at its start) gained what the linear
-        # model promised, that Jacobian still holds: if the next Gauss-Newton step, predicted
-        # from it (no model runs), would gain nothing worth a new one, stop here.
-        if expected > 0.0 and reduction > LINEAR_GAIN_RATIO * expected:
-            gradient = jacobian.gradient(residual)
-            step = _damped_step(normal, gradient, x, lower, upper, 0.0)
-            if -float(gradient @ step) < chi2_tolerance * noise_variance:
-                return finish(iteration, True, 'the next step would gain nothing')
+        if stop:
+            return finish(iteration, True, stop)
     return finish(max_iterations, False, f'not converged after {max_iterations} iterations')
+
+
+def _in_blocks(
+    fun: ResidualFunction | BlockResidualFunction, blocks: Blocks | None, n_residuals: int, p: int
+) -> tuple[BlockResidualFunction, Blocks]:
+    """The residual function and its blocks: without blocks, one dense block of them all."""
+    if blocks is None:
+        blocks = Blocks.shared((slice(0, n_residuals),), p)
+        fun = _one_block(fun)
+    if blocks.n_parameters != p:
+        raise ValueError(f'the blocks describe {blocks.n_parameters} parameters, x0 has {p}')
+    return fun, blocks
+
+
+def _converged(
+    jacobian: BlockJacobian,
+    normal: np.ndarray,
+    gradient: np.ndarray,
+    before: np.ndarray,
+    after: np.ndarray,
+    reduction: float,
+    residual: np.ndarray,
+    bounds: tuple[np.ndarray, np.ndarray],
+    threshold: float,
+) -> str:
+    """Why the fit stops after an accepted step from before to after, or ''.
+
+    reduction: what the step took off the cost; residual: at after; threshold: the gain not worth
+    another step (chi2_tolerance times the residual variance per sample). The cost stopped
+    falling where the step gained less; and where the step (taken with a Jacobian made at
+    its start) gained what the linear model promised (`LINEAR_GAIN_RATIO`), that Jacobian
+    still holds: if the next Gauss-Newton step, predicted from it at the new residual (no
+    model runs), would gain less, the fit stops there too.
+    """
+    taken = after - before
+    expected = -float(2.0 * gradient @ taken + taken @ normal @ taken)
+    if reduction < threshold:
+        return 'the cost stopped falling'
+    if expected > 0.0 and reduction > LINEAR_GAIN_RATIO * expected:
+        gradient = jacobian.gradient(residual)
+        step = _damped_step(normal, gradient, after, bounds[0], bounds[1], 0.0)
+        if -float(gradient @ step) < threshold:
+            return 'the next step would gain nothing'
+    return ''
+
+
+def _start_residual(
+    evaluate: Callable[[np.ndarray, np.ndarray], None], x: np.ndarray, n_residuals: int
+) -> np.ndarray:
+    """The residuals at the start point; BadInputError where the model cannot run there."""
+    residual = np.empty(n_residuals)
+    try:
+        evaluate(x, residual)
+    except Infeasible as error:
+        raise BadInputError(
+            f'the model cannot be evaluated at the start point {x}: {error}'
+        ) from None
+    return residual
+
+
+def _lowering_step(
+    evaluate: Callable[[np.ndarray, np.ndarray], None],
+    normal: np.ndarray,
+    gradient: np.ndarray,
+    x: np.ndarray,
+    bounds: tuple[np.ndarray, np.ndarray],
+    damping: float,
+    cost: float,
+    trial: np.ndarray,
+    runs_per_trial: int,
+) -> tuple[np.ndarray | None, float, float, int, str]:
+    """The damped step that lowers the cost, the damping raised tenfold until one does.
+
+    Returns (the new point, its cost, the damping it took, the block runs spent, ''), its
+    residuals written into trial; or (None, cost, damping, runs, why) where no step moves
+    the parameters or lowers the cost.
+    """
+    lower, upper = bounds
+    spent = 0
+    while True:
+        step = _damped_step(normal, gradient, x, lower, upper, damping)
+        candidate = np.clip(x + step, lower, upper)
+        if np.array_equal(candidate, x):
+            return (
+                None,
+                cost,
+                damping,
+                spent,
+                'no step moves the parameters (at a bound or converged)',
+            )
+        try:
+            evaluate(candidate, trial)
+            new_cost = inner(trial, trial)
+        except Infeasible:
+            new_cost = np.inf
+        spent += runs_per_trial
+        if new_cost < cost:
+            return candidate, new_cost, damping, spent, ''
+        damping *= 10.0
+        if damping > 1e10:
+            return None, cost, damping, spent, 'no step lowers the cost'
 
 
 LINEAR_GAIN_RATIO = 0.9
