@@ -424,29 +424,8 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
         for spread in (force_spread, velocity_spread)
     )
 
-    after_contact = first_where(
-        lambda chunk: below_level(chunk, config.rearm_level_n), force[trigger:]
-    )
-    contact_end = force.size if after_contact < 0 else trigger + after_contact
-    contact_start = contact_start_index(force, trigger, config)
-    # A pulse that is over within its first sample (a record's resting level taken off, or a
-    # spike) still has one sample of contact: never an empty span.
-    contact_end = max(contact_end, min(contact_start + 1, force.size))
-    peak = float(np.nanmax(force[contact_start:contact_end]))
-    if pulse.rebounds(
-        force,
-        contact_end,
-        trigger + samples.min_spacing,
-        peak,
-        config.trigger_level_n,
-        config.rearm_level_n,
-    ):
-        flags.add('double_hit')
-    if pulse.coarse(
-        contact_duration(force, record.sample_rate_hz, config.rearm_level_n, contact_start),
-        record.sample_rate_hz,
-    ):
-        flags.add('coarse')
+    contact_start, contact_end = _contact(force, trigger, config)
+    flags |= _pulse_flags(force, record.sample_rate_hz, trigger, contact_end, contact_start, config)
     force_plateaus = _plateaus(force, (1.0,), force_noise)
     velocity_plateaus = _plateaus(velocity, (1.0, -1.0), velocity_noise)
     if _beyond(force, record.force_full_scale_n) or force_plateaus:
@@ -459,34 +438,100 @@ def quality_flags(record: ImpactRecord, config: CaptureConfig = DEFAULT_CAPTURE)
         velocity, velocity_plateaus, velocity_spread
     ):
         flags.add('dropout')
+    flags |= _recording_flags(record)
+    if _non_finite_outside(force, record.force_gaps) or _non_finite_outside(
+        velocity, record.velocity_gaps
+    ):
+        flags.add('nan')
+    if _unsettled(record, velocity, trigger, contact_start, samples.rest, config):
+        flags.add('unsettled')
+    follower = TriggerDetector(config, record.sample_rate_hz, last_trigger=trigger)
+    if follower.scan(force[trigger + 1 :], trigger + 1):
+        flags.add('overlap')
+    return tuple(flag for flag in FLAGS if flag in flags)
+
+
+def _contact(force: np.ndarray, trigger: int, config: CaptureConfig) -> tuple[int, int]:
+    """The contact's first sample and the one after it: the force back below the re-arm level.
+
+    A pulse that is over within its first sample (a record's resting level taken off, or a
+    spike) still has one sample of contact: never an empty span.
+    """
+    after_contact = first_where(
+        lambda chunk: below_level(chunk, config.rearm_level_n), force[trigger:]
+    )
+    contact_end = force.size if after_contact < 0 else trigger + after_contact
+    contact_start = contact_start_index(force, trigger, config)
+    return contact_start, max(contact_end, min(contact_start + 1, force.size))
+
+
+def _pulse_flags(
+    force: np.ndarray,
+    sample_rate_hz: float,
+    trigger: int,
+    contact_end: int,
+    contact_start: int,
+    config: CaptureConfig,
+) -> set[str]:
+    """double_hit and coarse: a rebound after the contact, too few samples in it."""
+    flags = set()
+    samples = config.samples(sample_rate_hz)
+    peak = float(np.nanmax(force[contact_start:contact_end]))
+    if pulse.rebounds(
+        force,
+        contact_end,
+        trigger + samples.min_spacing,
+        peak,
+        config.trigger_level_n,
+        config.rearm_level_n,
+    ):
+        flags.add('double_hit')
+    if pulse.coarse(
+        contact_duration(force, sample_rate_hz, config.rearm_level_n, contact_start),
+        sample_rate_hz,
+    ):
+        flags.add('coarse')
+    return flags
+
+
+def _recording_flags(record: ImpactRecord) -> set[str]:
+    """gap, interrupted and truncated_start: what the acquisition did to the record."""
+    flags = set()
     if record.force_gaps or record.velocity_gaps:
         flags.add('gap')
     if record.interrupted:
         flags.add('interrupted')
     if record.truncated_start:
         flags.add('truncated_start')
-    if _non_finite_outside(force, record.force_gaps) or _non_finite_outside(
-        velocity, record.velocity_gaps
-    ):
-        flags.add('nan')
-    # Motion is judged about the level at rest before the hit: a vibrometer's offset is not.
+    return flags
+
+
+def _unsettled(
+    record: ImpactRecord,
+    velocity: np.ndarray,
+    trigger: int,
+    contact_start: int,
+    rest_samples: int,
+    config: CaptureConfig,
+) -> bool:
+    """The response moves before the hit or in the record's tail (the unsettled rule).
+
+    Motion is judged about the level at rest before the hit: a vibrometer's offset is not.
+    """
     before = velocity[:contact_start]
     finite_before = before[np.isfinite(before)]
     rest_level = float(np.median(finite_before)) if finite_before.size else 0.0
     if record.response is None:
         rest = config.rest_velocity_m_s
-        tail = velocity[max(trigger + 1, velocity.size - samples.rest) :]
+        tail = velocity[max(trigger + 1, velocity.size - rest_samples) :]
     else:
         tail_samples = max(SETTLED_TAIL_MIN_SAMPLES, int(SETTLED_TAIL_FRACTION * velocity.size))
         tail = velocity[max(trigger + 1, velocity.size - tail_samples) :]
         with np.errstate(invalid='ignore'):
             rest = SETTLED_RESPONSE_FRACTION * float(np.nanmax(np.abs(velocity - rest_level)))
-    if np.any(np.abs(before - rest_level) > rest) or np.any(np.abs(tail - rest_level) > rest):
-        flags.add('unsettled')
-    follower = TriggerDetector(config, record.sample_rate_hz, last_trigger=trigger)
-    if follower.scan(force[trigger + 1 :], trigger + 1):
-        flags.add('overlap')
-    return tuple(flag for flag in FLAGS if flag in flags)
+    return bool(
+        np.any(np.abs(before - rest_level) > rest) or np.any(np.abs(tail - rest_level) > rest)
+    )
 
 
 def _second_spread(samples: np.ndarray) -> float | None:
