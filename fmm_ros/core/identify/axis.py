@@ -318,20 +318,7 @@ def identify_axis_friction(
     force_n = np.asarray(force_n, dtype=float)
     motion = np.asarray(motion, dtype=float)
     _check_record(force_n, motion, sample_rate_hz)
-    nyquist = 0.5 * sample_rate_hz
-    cutoff = spec.cutoff_hz or DEFAULT_CUTOFF_FRACTION * sample_rate_hz
-    if cutoff >= nyquist:
-        raise BadInputError(
-            f'cutoff {cutoff:g} Hz must lie below the Nyquist frequency {nyquist:g} Hz'
-        )
-    band = PARALLEL_BAND_FRACTION * cutoff
-    decimation = spec.decimation or max(1, round(0.8 * nyquist / band))
-    border = int(math.ceil(5.0 * sample_rate_hz / cutoff))
-    if force_n.size < 2 * border + 20 * decimation:
-        raise BadInputError(
-            f'{force_n.size} samples are too few to identify an axis at {sample_rate_hz:g} Hz '
-            f'(filters need {2 * border + 20 * decimation})'
-        )
+    cutoff, band, decimation, border = _filter_plan(force_n.size, sample_rate_hz, spec)
 
     x, v, a = motion_states(motion, motion_kind, sample_rate_hz, cutoff)
     target = force_n - spec.stiffness_n_per_m * x
@@ -349,13 +336,7 @@ def identify_axis_friction(
     drifting = motion_kind == 'acceleration'
     fraction = DRIFT_STANDSTILL_SPEED_FRACTION if drifting else MIN_STANDSTILL_SPEED_FRACTION
     standstill_speed = max(STANDSTILL_NOISE_FACTOR * noise_v, fraction * rms_speed)
-    moving = np.abs(v_d) > standstill_speed
-    if moving.sum() < 10 or not ((v_d[moving] > 0).any() and (v_d[moving] < 0).any()):
-        raise BadInputError(
-            'the axis must move both ways for friction to be told from the offset: '
-            f'{int((v_d > standstill_speed).sum())} samples move forward and '
-            f'{int((v_d < -standstill_speed).sum())} backward above {standstill_speed:.3g} m/s'
-        )
+    moving = _moving_both_ways(v_d, standstill_speed)
 
     # From an acceleration, the velocity is known up to a constant, which Fv turns into a
     # force indistinguishable from the offset, and up to a ramp (an accelerometer offset),
@@ -371,20 +352,7 @@ def identify_axis_friction(
     if drifting:
         estimates[3] = Estimate(math.nan, math.nan, math.nan)
 
-    directions: dict[str, Estimate] = {}
-    if spec.per_direction:
-        forward = (v_d > 0.0).astype(float)
-        backward = 1.0 - forward
-        split = np.column_stack(
-            (a_d, v_d * forward, forward, v_d * backward, -backward, *nuisance)
-        )[moving]
-        theta2, _, hac2, classic2 = _least_squares(split, target_d[moving])
-        names = ('mass_kg', 'viscous_positive', 'coulomb_positive', 'viscous_negative')
-        names += ('coulomb_negative',)
-        directions = {
-            name: Estimate(float(t), float(h), float(c))
-            for name, t, h, c in zip(names, theta2, hac2, classic2, strict=False)
-        }
+    directions = _per_direction(a_d, v_d, nuisance, target_d, moving) if spec.per_direction else {}
 
     mass, viscous, coulomb, offset = estimates
     friction = target_d - mass.value * a_d - (0.0 if drifting else offset.value)
@@ -412,3 +380,58 @@ def identify_axis_friction(
         condition_number=float(np.linalg.cond(regressors)),
         friction_map=_friction_map(v_d[moving], friction[moving]),
     )
+
+
+def _filter_plan(size: int, sample_rate_hz: float, spec: AxisSpec) -> tuple[float, float, int, int]:
+    """The filters' cutoff [Hz], parallel band [Hz], decimation and border [samples].
+
+    BadInputError when the cutoff is not below the Nyquist frequency, or the record is too
+    short for the filters.
+    """
+    nyquist = 0.5 * sample_rate_hz
+    cutoff = spec.cutoff_hz or DEFAULT_CUTOFF_FRACTION * sample_rate_hz
+    if cutoff >= nyquist:
+        raise BadInputError(
+            f'cutoff {cutoff:g} Hz must lie below the Nyquist frequency {nyquist:g} Hz'
+        )
+    band = PARALLEL_BAND_FRACTION * cutoff
+    decimation = spec.decimation or max(1, round(0.8 * nyquist / band))
+    border = int(math.ceil(5.0 * sample_rate_hz / cutoff))
+    if size < 2 * border + 20 * decimation:
+        raise BadInputError(
+            f'{size} samples are too few to identify an axis at {sample_rate_hz:g} Hz '
+            f'(filters need {2 * border + 20 * decimation})'
+        )
+    return cutoff, band, decimation, border
+
+
+def _moving_both_ways(v_d: np.ndarray, standstill_speed: float) -> np.ndarray:
+    """The samples faster than standstill; BadInputError unless they go both ways."""
+    moving = np.abs(v_d) > standstill_speed
+    if moving.sum() < 10 or not ((v_d[moving] > 0).any() and (v_d[moving] < 0).any()):
+        raise BadInputError(
+            'the axis must move both ways for friction to be told from the offset: '
+            f'{int((v_d > standstill_speed).sum())} samples move forward and '
+            f'{int((v_d < -standstill_speed).sum())} backward above {standstill_speed:.3g} m/s'
+        )
+    return moving
+
+
+def _per_direction(
+    a_d: np.ndarray,
+    v_d: np.ndarray,
+    nuisance: tuple[np.ndarray, ...],
+    target_d: np.ndarray,
+    moving: np.ndarray,
+) -> dict[str, Estimate]:
+    """M and each direction's own Fv and Fc, fitted over the moving samples."""
+    forward = (v_d > 0.0).astype(float)
+    backward = 1.0 - forward
+    columns = (a_d, v_d * forward, forward, v_d * backward, -backward, *nuisance)
+    theta2, _, hac2, classic2 = _least_squares(np.column_stack(columns)[moving], target_d[moving])
+    names = ('mass_kg', 'viscous_positive', 'coulomb_positive', 'viscous_negative')
+    names += ('coulomb_negative',)
+    return {
+        name: Estimate(float(t), float(h), float(c))
+        for name, t, h, c in zip(names, theta2, hac2, classic2, strict=False)
+    }
