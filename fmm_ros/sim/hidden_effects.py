@@ -27,6 +27,7 @@ from fmm_ros.core._checks import require_non_negative, require_positive
 from fmm_ros.core.physics.model import Simulation, simulate
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import EFFECT_SIZE, MODEL_TERMS, ModelTerm, model_term
+from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.errors import BadInputError
 from fmm_ros.sim.excitation import SimulatedImpact, impact_record, level_peak_force_n
 
@@ -365,71 +366,18 @@ def hidden_session(
     friction up or down in it).
     """
     effects = tuple(effects)
-    unknown = [e for e in effects if e not in SESSION_EFFECTS]
-    if unknown or len(set(effects)) != len(effects):
-        raise BadInputError(
-            f'effects must be distinct names of {", ".join(SESSION_EFFECTS)}; got {effects}'
-        )
-    laws = [e for e in effects if e in OUT_OF_VOCABULARY]
-    if len(laws) > 1 or (laws and any(e in MODEL_TERMS and e not in _MECHANICAL for e in effects)):
-        raise BadInputError(
-            f'at most one friction law, and only with {", ".join(_MECHANICAL)}; got {effects}'
-        )
-    if n_impacts < (2 if MU_DRIFT in effects else 1):
-        raise BadInputError(f'n_impacts must be at least {2 if MU_DRIFT in effects else 1}')
-    require_positive('velocity_noise_std_m_s', velocity_noise_std_m_s)
-    require_non_negative('force_noise_std_n', force_noise_std_n)
+    _check_session(effects, n_impacts, force_noise_std_n, velocity_noise_std_m_s)
     rng = np.random.default_rng(rng)
     mu = float(rng.uniform(*MU_RANGE))
     levels = rng.choice([level.name for level in PAPER_LEVELS], size=n_impacts)
     peaks = [level_peak_force_n(str(level), rng) for level in levels]
     seeds = [int(seed) for seed in rng.integers(0, 2**63, size=n_impacts)]
     noise = velocity_noise_std_m_s
-    clean = [
-        impact_record(
-            peak,
-            seed,
-            rig=rig,
-            mu=mu,
-            force_noise_std_n=0.0,
-            velocity_noise_std_m_s=0.0,
-            duration_s=duration_s,
-        )
-        for peak, seed in zip(peaks, seeds, strict=True)
-    ]
-    noisy = [
-        impact_record(
-            peak,
-            seed,
-            rig=rig,
-            mu=mu,
-            force_noise_std_n=force_noise_std_n,
-            velocity_noise_std_m_s=noise,
-            duration_s=duration_s,
-        )
-        for peak, seed in zip(peaks, seeds, strict=True)
-    ]
+    clean = _base_hits(peaks, seeds, rig, mu, duration_s, 0.0, 0.0)
+    noisy = _base_hits(peaks, seeds, rig, mu, duration_s, force_noise_std_n, noise)
 
     def records(terms, mus, law, with_noise):
-        made = []
-        for index, (quiet, loud) in enumerate(zip(clean, noisy, strict=True)):
-            force = quiet.force_n
-            if law is None:
-                truth = simulate(force, quiet.sample_rate_hz, rig=rig, mu=mus[index], effects=terms)
-            else:
-                truth = regime_simulation(
-                    force, quiet.sample_rate_hz, law, rig=rig, mu=mus[index], effects=terms
-                )
-            made.append(
-                replace(
-                    quiet,
-                    force_n=loud.force_n if with_noise else force,
-                    velocity_m_s=truth.velocity_m_s
-                    + ((loud.velocity_m_s - loud.simulation.velocity_m_s) if with_noise else 0.0),
-                    simulation=truth,
-                )
-            )
-        return tuple(made)
+        return _session_records(clean, noisy, rig, terms, mus, law, with_noise)
 
     flat = [mu] * n_impacts
     terms, mus, law, ratios = [], flat, None, {}
@@ -469,6 +417,87 @@ def hidden_session(
         ratios=ratios,
         records=records(tuple(terms), mus, law, True),
     )
+
+
+def _check_session(
+    effects: tuple[str, ...],
+    n_impacts: int,
+    force_noise_std_n: float,
+    velocity_noise_std_m_s: float,
+) -> None:
+    """BadInputError unless `hidden_session` can hide these effects in n_impacts hits."""
+    unknown = [e for e in effects if e not in SESSION_EFFECTS]
+    if unknown or len(set(effects)) != len(effects):
+        raise BadInputError(
+            f'effects must be distinct names of {", ".join(SESSION_EFFECTS)}; got {effects}'
+        )
+    laws = [e for e in effects if e in OUT_OF_VOCABULARY]
+    if len(laws) > 1 or (laws and any(e in MODEL_TERMS and e not in _MECHANICAL for e in effects)):
+        raise BadInputError(
+            f'at most one friction law, and only with {", ".join(_MECHANICAL)}; got {effects}'
+        )
+    if n_impacts < (2 if MU_DRIFT in effects else 1):
+        raise BadInputError(f'n_impacts must be at least {2 if MU_DRIFT in effects else 1}')
+    require_positive('velocity_noise_std_m_s', velocity_noise_std_m_s)
+    require_non_negative('force_noise_std_n', force_noise_std_n)
+
+
+def _base_hits(
+    peaks: list[float],
+    seeds: list[int],
+    rig: Rig,
+    mu: float,
+    duration_s: float,
+    force_noise_std_n: float,
+    velocity_noise_std_m_s: float,
+) -> list[ImpactRecord]:
+    """The session's hits under the base model, one per peak and seed, with this noise."""
+    return [
+        impact_record(
+            peak,
+            seed,
+            rig=rig,
+            mu=mu,
+            force_noise_std_n=force_noise_std_n,
+            velocity_noise_std_m_s=velocity_noise_std_m_s,
+            duration_s=duration_s,
+        )
+        for peak, seed in zip(peaks, seeds, strict=True)
+    ]
+
+
+def _session_records(
+    clean: list[ImpactRecord],
+    noisy: list[ImpactRecord],
+    rig: Rig,
+    terms: tuple,
+    mus: list[float],
+    law: RegimeLaw | None,
+    with_noise: bool,
+) -> tuple[ImpactRecord, ...]:
+    """The hits driven by the clean forces through the model (terms, each hit's mu, law).
+
+    with_noise: each hit's force and velocity noise (the noisy draw's, same seed) added.
+    """
+    made = []
+    for index, (quiet, loud) in enumerate(zip(clean, noisy, strict=True)):
+        force = quiet.force_n
+        if law is None:
+            truth = simulate(force, quiet.sample_rate_hz, rig=rig, mu=mus[index], effects=terms)
+        else:
+            truth = regime_simulation(
+                force, quiet.sample_rate_hz, law, rig=rig, mu=mus[index], effects=terms
+            )
+        made.append(
+            replace(
+                quiet,
+                force_n=loud.force_n if with_noise else force,
+                velocity_m_s=truth.velocity_m_s
+                + ((loud.velocity_m_s - loud.simulation.velocity_m_s) if with_noise else 0.0),
+                simulation=truth,
+            )
+        )
+    return tuple(made)
 
 
 def _draw_law(effect: str, rng: np.random.Generator) -> tuple[RegimeLaw, float]:
