@@ -27,7 +27,6 @@ from fmm_ros.core._checks import require_non_negative, require_positive
 from fmm_ros.core.physics.model import Simulation, simulate
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import EFFECT_SIZE, MODEL_TERMS, ModelTerm, model_term
-from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.errors import BadInputError
 from fmm_ros.sim.excitation import SimulatedImpact, impact_record, level_peak_force_n
 
@@ -450,7 +449,7 @@ def _base_hits(
     duration_s: float,
     force_noise_std_n: float,
     velocity_noise_std_m_s: float,
-) -> list[ImpactRecord]:
+) -> list[SimulatedImpact]:
     """The session's hits under the base model, one per peak and seed, with this noise."""
     return [
         impact_record(
@@ -467,14 +466,14 @@ def _base_hits(
 
 
 def _session_records(
-    clean: list[ImpactRecord],
-    noisy: list[ImpactRecord],
+    clean: list[SimulatedImpact],
+    noisy: list[SimulatedImpact],
     rig: Rig,
     terms: tuple,
     mus: list[float],
     law: RegimeLaw | None,
     with_noise: bool,
-) -> tuple[ImpactRecord, ...]:
+) -> tuple[SimulatedImpact, ...]:
     """The hits driven by the clean forces through the model (terms, each hit's mu, law).
 
     with_noise: each hit's force and velocity noise (the noisy draw's, same seed) added.
