@@ -65,8 +65,8 @@ def test_the_config_is_the_text_made_from_the_parameter_tables():
 def test_the_params_file_shows_ranges_choices_and_replaced_defaults():
     text = params_file_text(node_param_tables())
     assert (
-        '    batch_size: 500  # Samples per published message [-] (>= 500 keeps rclpy '
-        'cheap); 1 to 1000000\n' in text
+        '    batch_size: 500  # Samples per channel per published message (>= 500 keeps '
+        'rclpy cheap) [-]; 1 to 1000000\n' in text
     )
     assert '# Physics integrator; one of exact, rk4, euler\n' in text
     # In a rig the sources wait for the rig's consumers; the nodes alone wait for none.

@@ -36,7 +36,7 @@ from fmm_ros.core.signal.response import as_measured
 from fmm_ros.core.signal.stream import Batch
 from fmm_ros.errors import BadInputError, FmmError
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import RESULT_QOS, run_node
+from fmm_ros.ros.common import RESULT_QOS, run_node, shared_params
 from fmm_ros.ros.health import OK, Health
 from fmm_ros.ros.inputs import SampleInputs
 from fmm_ros.ros.params import Param, declare_parameters, params_from
@@ -72,7 +72,7 @@ PARAMS = (
         limits=(1, 100_000),
         read_only=True,
     ),
-    Param('frame_id', 'fmm', 'Frame id of the published results', read_only=True),
+    *shared_params('frame_id'),
 )
 
 

@@ -43,7 +43,7 @@ from fmm_ros.constants import (
 from fmm_ros.errors import BadInputError
 from fmm_ros.io.labfiles import ImportMapping, load_mapping, read_lab_file
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import run_node
+from fmm_ros.ros.common import run_node, shared_params
 from fmm_ros.ros.flow import MAX_BATCHES_PARAM, SOURCE_PARAMS, PacedSource, deliver_last_batches
 from fmm_ros.ros.health import Health
 from fmm_ros.ros.params import Param, declare_parameters
@@ -73,13 +73,7 @@ PARAMS = (
         limits=(1.0, 1e7),
         read_only=True,
     ),
-    Param(
-        'batch_size',
-        500,
-        'Samples per channel per message [-]',
-        limits=(1, 1_000_000),
-        read_only=True,
-    ),
+    *shared_params('batch_size'),
     Param('force_channel', 'Dev1/ai0', 'Physical channel of the hammer (IEPE)', read_only=True),
     Param(
         'hammer_sensitivity_mv_per_n',
@@ -151,13 +145,7 @@ PARAMS = (
         '(time_s, force_n and velocity_m_s, acceleration_m_s2 or displacement_m)',
         read_only=True,
     ),
-    Param(
-        'rate_factor',
-        1.0,
-        'Speed of the file backend against real time [-]',
-        limits=(0.01, 1000.0),
-        read_only=True,
-    ),
+    *shared_params('rate_factor'),
     Param(
         'loop',
         False,

@@ -58,7 +58,7 @@ from fmm_ros.core.signal.response import as_measured
 from fmm_ros.core.signal.stream import Batch
 from fmm_ros.errors import BadInputError
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import RIG_PARAMS, rig_from_parameters, run_node
+from fmm_ros.ros.common import RIG_PARAMS, rig_from_parameters, run_node, shared_params
 from fmm_ros.ros.cutting import ImpactCutter
 from fmm_ros.ros.health import OK, Health
 from fmm_ros.ros.inputs import SampleInputs
@@ -84,13 +84,7 @@ PARAMS = (
         limits=(1, 10_000),
         read_only=True,
     ),
-    Param(
-        'history_s',
-        120.0,
-        'Stream history kept to cut records from [s] (>= the analyzer window + latency)',
-        limits=(1.0, 3600.0),
-        read_only=True,
-    ),
+    *shared_params('history_s', history_s=120.0),
 )
 
 

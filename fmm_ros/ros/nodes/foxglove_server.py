@@ -32,7 +32,7 @@ from fmm_ros.constants import (
 )
 from fmm_ros.errors import BadInputError
 from fmm_ros.io.bags.definitions import fmm_typestore
-from fmm_ros.ros.common import message_class, run_node
+from fmm_ros.ros.common import message_class, run_node, shared_params
 from fmm_ros.ros.health import OK, WARN, Health
 from fmm_ros.ros.nodes.recorder import KNOWN_TOPICS
 from fmm_ros.ros.params import Param, declare_parameters
@@ -50,14 +50,7 @@ SERVED_TOPICS = (
 """What the server offers by default: every fmm result and stream, health and signal time."""
 
 PARAMS = (
-    Param('host', '127.0.0.1', 'Address the WebSocket server binds [-]', read_only=True),
-    Param(
-        'port',
-        8765,
-        'TCP port of the WebSocket server [-] (0: any free port, logged)',
-        limits=(0, 65535),
-        read_only=True,
-    ),
+    *shared_params('host', 'port', port=8765),
     Param(
         'topics',
         list(SERVED_TOPICS),

@@ -20,7 +20,7 @@ from fmm_interfaces.msg import SampleBatch
 from fmm_ros.constants import APPLIED_FORCE_TOPIC, FORCE, FORCE_TOPIC, PAPER_LEVELS, SAMPLE_RATE_HZ
 from fmm_ros.errors import BadInputError
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import chain_from_parameters, chain_params, run_node
+from fmm_ros.ros.common import chain_from_parameters, chain_params, run_node, shared_params
 from fmm_ros.ros.flow import MAX_BATCHES_PARAM, SOURCE_PARAMS, PacedSource
 from fmm_ros.ros.health import Health
 from fmm_ros.ros.params import Param, declare_parameters
@@ -38,19 +38,8 @@ PARAMS = (
         limits=(100.0, 1e6),
         read_only=True,
     ),
-    Param(
-        'batch_size',
-        500,
-        'Samples per published message [-] (>= 500 keeps rclpy cheap)',
-        limits=(1, 1_000_000),
-        read_only=True,
-    ),
-    Param(
-        'rate_factor',
-        1.0,
-        'Speed against the wall clock [-]: 1 is real time',
-        limits=(0.01, 1000.0),
-    ),
+    *shared_params('batch_size'),
+    *shared_params('rate_factor', read_only=False),
     Param(
         'level_names',
         [level.name for level in PAPER_LEVELS],
@@ -108,14 +97,7 @@ PARAMS = (
         limits=(1.0, 1e6),
         read_only=True,
     ),
-    Param(
-        'seed',
-        0,
-        'Seed of the session draw and the noise [-]',
-        limits=(0, 2**31 - 1),
-        read_only=True,
-    ),
-    Param('frame_id', 'hammer', 'Sensor name in the message header', read_only=True),
+    *shared_params('seed', 'frame_id', frame_id='hammer'),
     Param(
         'force_unit',
         'N',

@@ -25,7 +25,7 @@ from fmm_ros.constants import (
 from fmm_ros.errors import BadInputError
 from fmm_ros.io.bags.definitions import SAMPLE_BATCH
 from fmm_ros.io.bags.reader import BagReader
-from fmm_ros.ros.common import message_class, run_node
+from fmm_ros.ros.common import message_class, run_node, shared_params
 from fmm_ros.ros.flow import CATCH_UP_S, SOURCE_PARAMS, PacedSource
 from fmm_ros.ros.health import OK, WARN, Health
 from fmm_ros.ros.nodes.recorder import KNOWN_TOPICS
@@ -39,13 +39,7 @@ MAX_MESSAGES_PER_TICK = 4
 
 PARAMS = (
     Param('bag_path', '', 'Bag directory (or .mcap / .db3 file) to play', read_only=True),
-    Param(
-        'rate_factor',
-        1.0,
-        'Speed against the recorded pace [-]',
-        limits=(0.01, 1000.0),
-        read_only=True,
-    ),
+    *shared_params('rate_factor'),
     Param('topics', [''], 'Topics to play; [""] for every topic in the bag', read_only=True),
     Param(
         'tick_s', 0.005, 'Timer period of the pacing loop [s]', limits=(1e-4, 1.0), read_only=True

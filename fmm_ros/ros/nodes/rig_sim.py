@@ -34,6 +34,7 @@ from fmm_ros.ros.common import (
     chain_params,
     rig_from_parameters,
     run_node,
+    shared_params,
 )
 from fmm_ros.ros.flow import SOURCE_PARAMS, FlowGate, ProgressReporter, deliver_last_batches
 from fmm_ros.ros.health import ChannelRate, FaultLog, Health, stream_status
@@ -85,8 +86,7 @@ PARAMS = (
         limits=(1e-6, 100.0),
         read_only=True,
     ),
-    Param('seed', 1, 'Seed of the vibrometer noise [-]', limits=(0, 2**31 - 1), read_only=True),
-    Param('frame_id', 'vibrometer', 'Sensor name in the message header', read_only=True),
+    *shared_params('seed', 'frame_id', seed=1, frame_id='vibrometer'),
     Param(
         'velocity_unit',
         'm/s',

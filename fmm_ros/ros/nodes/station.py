@@ -58,7 +58,7 @@ from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.errors import BadInputError, FmmError
 from fmm_ros.io import session_info
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import RIG_PARAMS, rig_from_parameters, run_node
+from fmm_ros.ros.common import RIG_PARAMS, rig_from_parameters, run_node, shared_params
 from fmm_ros.ros.cutting import ImpactCutter
 from fmm_ros.ros.health import LEVEL_NAMES, OK, WARN, Health
 from fmm_ros.ros.nodes.analyzer import PARAMS as ANALYZER_PARAMS
@@ -80,15 +80,7 @@ _SHARED = ('level_names', 'level_peak_forces_n', 'level_tolerance_n', 'rest_velo
 PARAMS = (
     *RIG_PARAMS,
     *(param for param in ANALYZER_PARAMS if param.name in _SHARED),
-    Param(
-        'host',
-        '127.0.0.1',
-        'Address the page is served on (127.0.0.1: this PC only; 0.0.0.0: the lab network)',
-        read_only=True,
-    ),
-    Param(
-        'port', 8080, 'TCP port of the page (0: any free port)', limits=(0, 65535), read_only=True
-    ),
+    *shared_params('host', 'port'),
     Param(
         'judge_mode',
         'flags',
@@ -125,13 +117,7 @@ PARAMS = (
         limits=(0.05, 10.0),
         read_only=True,
     ),
-    Param(
-        'history_s',
-        60.0,
-        'Stream history kept to cut hits from [s] (>= the analyzer window + latency)',
-        limits=(1.0, 3600.0),
-        read_only=True,
-    ),
+    *shared_params('history_s'),
 )
 
 
