@@ -19,9 +19,14 @@ and help from here (`ResultField.field()`), so the reference docs say what the J
 messages and the tables hold. `test/test_results_schema.py` holds the .msg/.srv comments to
 the units declared here and names any drift.
 
-`impact_id` has one meaning (`IMPACT_ID`): the trigger's acquisition time in ms modulo 2^32
-(`core.signal.records.stable_impact_id`), so a hit keeps its id across an analyzer's
-respawn, a replay of the bag and an offline analysis of it.
+`impact_id` (`IMPACT_ID`) is the trigger's acquisition time in ms modulo 2^32, made by
+`core.signal.records.stable_impact_id` alone, wherever hits have an acquisition clock: the
+analyzer, `fmm replay`, the fitter's selections, the recorder's bags and the station, so a hit
+keeps its id across a respawn and a replay. The offline workflows (`fmm analyze`, `fit`,
+`report`, `campaign`) number the records they read from 0 in input order instead: lab files
+of one impact each share no clock (every trigger lies near its own file's t = 0, so a time
+would repeat), and they index records by that position; a bag's recorded decisions are
+matched to them by trigger sample (`workflows.inputs`).
 
 Standard library only: `fmm --help`, the station page and the docs read it without numpy.
 """
@@ -129,7 +134,9 @@ def _group(*fields: ResultField) -> dict[str, ResultField]:
 IMPACT_ID = ResultField(
     'impact_id',
     '-',
-    "The impact's id: its trigger's acquisition time in ms modulo 2^32 (stable across restarts)",
+    "The impact's id: its trigger's acquisition time in ms modulo 2^32 (stable across restarts,"
+    ' `records.stable_impact_id`) on the graph; offline (`fmm analyze`, fit, report, campaign)'
+    ' the position of its record, from 0 in input order',
     'hit',
     fmt='d',
     messages=('ImpactResult.impact_id', 'FitFriction.impact_ids', 'FrictionEstimate.impact_id'),
