@@ -24,6 +24,7 @@ from rclpy.parameter import Parameter
 from fmm_interfaces.msg import FrfSummary, FrictionEstimate, ImpactResult
 from fmm_interfaces.srv import DiagnoseModel, FitFriction
 from fmm_ros.constants import (
+    BATCH_SIZE,
     DIAGNOSE_SERVICE,
     DIAGNOSTICS_TOPIC,
     FIT_SERVICE,
@@ -75,11 +76,11 @@ class SessionConfig:
     report: bool = True
 
     def batch(self, sample_rate_hz: float = SAMPLE_RATE_HZ) -> int:
-        """The batch size: given, or whole 500s for ~MESSAGES_PER_S per channel, <= MAX_BATCH_S."""
+        """The batch size: given, or whole BATCH_SIZEs for ~MESSAGES_PER_S, at most MAX_BATCH_S."""
         if self.batch_size:
             return self.batch_size
         per_s = self.rate_factor * sample_rate_hz
-        wanted = 500 * max(1, math.ceil(per_s / MESSAGES_PER_S / 500))
+        wanted = BATCH_SIZE * max(1, math.ceil(per_s / MESSAGES_PER_S / BATCH_SIZE))
         return min(wanted, int(MAX_BATCH_S * sample_rate_hz))
 
 

@@ -32,6 +32,7 @@ from rclpy.node import Node
 from fmm_interfaces.msg import SampleBatch
 from fmm_ros.constants import (
     ACCELERATION,
+    BATCH_SIZE,
     DISPLACEMENT,
     FORCE,
     FORCE_TOPIC,
@@ -75,7 +76,7 @@ PARAMS = (
     ),
     Param(
         'batch_size',
-        500,
+        BATCH_SIZE,
         'Samples per channel per message [-]',
         limits=(1, 1_000_000),
         read_only=True,

@@ -17,7 +17,14 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from fmm_interfaces.msg import SampleBatch
-from fmm_ros.constants import APPLIED_FORCE_TOPIC, FORCE, FORCE_TOPIC, PAPER_LEVELS, SAMPLE_RATE_HZ
+from fmm_ros.constants import (
+    APPLIED_FORCE_TOPIC,
+    BATCH_SIZE,
+    FORCE,
+    FORCE_TOPIC,
+    PAPER_LEVELS,
+    SAMPLE_RATE_HZ,
+)
 from fmm_ros.errors import BadInputError
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import chain_from_parameters, chain_params, run_node
@@ -40,7 +47,7 @@ PARAMS = (
     ),
     Param(
         'batch_size',
-        500,
+        BATCH_SIZE,
         'Samples per published message [-] (>= 500 keeps rclpy cheap)',
         limits=(1, 1_000_000),
         read_only=True,
