@@ -408,6 +408,27 @@ LEVEL_RECORD: tuple[ResultField, ...] = (
 ANALYSIS_LEVEL: tuple[ResultField, ...] = (COUNT, MEAN_IMPULSE, LEVEL_PEAK_RECEPTANCE)
 """A level of `fmm analyze --json` (after its name)."""
 
+DEMO_LEVEL: tuple[ResultField, ...] = (
+    COUNT,
+    MEAN_IMPULSE,
+    STD_IMPULSE,
+    LEVEL_PEAK_RECEPTANCE,
+    LEVEL_NATURAL_FREQUENCY,
+)
+"""A level of `fmm demo`'s summary (after its name)."""
+
+DEMO_IMPACT: tuple[ResultField, ...] = (
+    IMPACT_ID,
+    LEVEL,
+    ACCEPTED,
+    FLAGS,
+    PEAK_FORCE,
+    IMPULSE,
+    PEAK_RECEPTANCE,
+    NATURAL_FREQUENCY,
+)
+"""An impact of `fmm demo`'s summary."""
+
 # -- a friction fit ------------------------------------------------------------------------------
 
 MU = ResultField(

@@ -33,6 +33,7 @@ from fmm_ros.constants import (
     IMPACTS_TOPIC,
     SAMPLE_RATE_HZ,
 )
+from fmm_ros.core import results_schema as schema
 from fmm_ros.core.identify.running import RunningEstimate
 from fmm_ros.io.bags.reader import BagReader
 from fmm_ros.ros import msgs
@@ -293,16 +294,7 @@ def run_demo_session(
         levels=[
             {
                 'name': s.level,
-                **level_record(
-                    s,
-                    (
-                        'count',
-                        'mean_impulse_n_s',
-                        'std_impulse_n_s',
-                        'peak_receptance_m_per_n',
-                        'natural_frequency_hz',
-                    ),
-                ),
+                **level_record(s, schema.keys(schema.DEMO_LEVEL)),
             }
             for s in ordered
         ],
@@ -319,19 +311,7 @@ def run_demo_session(
         diagnose_s=diagnose_s,
         impacts=[
             {
-                **hit_record(
-                    m,
-                    (
-                        'impact_id',
-                        'level',
-                        'accepted',
-                        'flags',
-                        'peak_force_n',
-                        'impulse_n_s',
-                        'peak_receptance_m_per_n',
-                        'natural_frequency_hz',
-                    ),
-                ),
+                **hit_record(m, schema.keys(schema.DEMO_IMPACT)),
                 'flags': list(m.flags),
             }
             for m in impacts
