@@ -1,7 +1,7 @@
 """One declaration per result field: name, unit, description, label and format, written once.
 
 Every result the package shows (an impact, a force level, a friction fit, a diagnosis) is
-made of fields declared here as `ResultField`s: the key (the dataclass attribute, the JSON
+made of fields declared here, each a `ResultField`: the key (the dataclass attribute, the JSON
 key, the message field, the CSV and tidy-table column), the SI unit as the .msg comments
 write it, the description, the words a table or an axis shows, the unit and factor it is
 shown in, and the format of a table cell. What shows a field reads it from here:
