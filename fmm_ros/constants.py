@@ -32,6 +32,10 @@ RESPONSE_CHANNELS: tuple[Channel, ...] = (VELOCITY, ACCELERATION, DISPLACEMENT)
 # -- acquisition (the paper's Sec. 4) -----------------------------------------------------------
 SAMPLE_RATE_HZ = 10_000.0
 """Sampling rate of both channels in the paper, and every source's default [Hz]."""
+BATCH_SIZE = 500
+"""Samples per channel in one SampleBatch message [samples]: every source's default (the
+simulated hammer, the DAQ, `fmm import`, the bag writer and the demo's smallest batch); at
+10 kHz 20 messages a second a channel, which keeps rclpy's per-message cost small."""
 RECORD_DURATION_S = 33.0
 """Length of one impact record in the paper (frequency resolution 1/33 Hz) [s]."""
 

@@ -5,8 +5,8 @@ import json
 import pytest
 
 from fmm_ros.cli import main
+from fmm_ros.core.results_schema import format_with_uncertainty
 from fmm_ros.io.bags.reader import BagReader
-from fmm_ros.report.plotting import value_with_error
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -40,7 +40,8 @@ def test_demo_json_reports_the_session_and_fits_the_plant_mu(tmp_path, capsys):
     text = page.read_text()
     assert text.count('<img') >= 10 and (out / 'report' / 'running_mu.png').is_file()
     # The page shows the fit service's answer (not a fit of its own): its mu and errors.
-    shown = f'μ = {value_with_error(summary["mu"], summary["mu_stderr"])} fitted to 3 impacts'
+    fitted = format_with_uncertainty(summary['mu'], summary['mu_stderr'])
+    shown = f'μ = {fitted} fitted to 3 impacts'
     assert shown in text
     impact_ids = [entry['impact_id'] for entry in summary['impacts']]
     assert [entry['impact_id'] for entry in summary['per_file']] == impact_ids

@@ -72,6 +72,18 @@ def test_every_rebound_is_a_double_hit_of_its_own_hit(rate_hz, width_s):
         assert not any('double_hit' in hit.flags for hit in clean)
 
 
+def test_a_hit_is_accepted_by_the_rule_every_impact_is():
+    """No rejecting flag: accepted; a flag rejects only when the analysis's reject_flags name it."""
+    rate_hz = 10_000.0
+    hits = spaced_hits(4, np.random.default_rng(3), 0.002)
+    clean = hammer_hits(force_record(rate_hz, hits, 5.0), rate_hz)
+    assert [hit.accepted for hit in clean] == [True] * 4
+    rebounding = force_record(rate_hz, hits, 5.0, rebound=(0.015, 0.5))
+    assert not any(hit.accepted for hit in hammer_hits(rebounding, rate_hz))
+    kept = hammer_hits(rebounding, rate_hz, reject_flags=('clipped',))
+    assert all('double_hit' in hit.flags and hit.accepted for hit in kept)
+
+
 def test_the_impact_flags_use_the_same_rebound_rule():
     rate_hz = 1600.0
     hits = [(0.5 + 0.3 / rate_hz, 80.0, 0.0025)]
@@ -152,7 +164,10 @@ def test_force_only_cli_lists_the_hits_and_a_record_without_one(tmp_path, capsys
         'impulse_n_s',
         'contact_time_s',
         'flags',
+        'accepted',
     }
+    # The same verdict field as every other hit: a double hit is rejected by default.
+    assert [hit['accepted'] for hit in files[0]['hits']] == [False] * 5
     assert 'no hit' in files[1]['verdict']
     code = main(['analyze', str(quiet_file), '--continuous', '--force-only'])
     out = capsys.readouterr().out

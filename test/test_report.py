@@ -230,7 +230,7 @@ def test_f_n_and_units_are_the_same_in_every_table_figure_and_the_cli(csv_sessio
     assert len(table) == 3 and drawn == [table[level] for level in ('low', 'medium', 'high')]
     assert main(['analyze', *csv_session['inputs'], '--paper-levels']) == 0
     text = capsys.readouterr().out
-    assert '|X/F| mm/N' in text
+    assert '|X/F| [mm/N]' in text
     cli_levels = {
         line.split()[0]: (line.split()[3], line.split()[4])
         for line in text.splitlines()

@@ -29,8 +29,8 @@ import numpy as np
 
 from fmm_ros.campaign.stats import CONFIDENCE, Contrast, MetaRegression, holm, meta_regression
 from fmm_ros.campaign.table import DATE, NUMBER, Column, Value, format_value
+from fmm_ros.core.results_schema import format_with_uncertainty
 from fmm_ros.errors import BadInputError
-from fmm_ros.report.plotting import value_with_error
 
 ALPHA = 1.0 - CONFIDENCE
 """A difference or trend is declared when its (Holm-adjusted) p-value is below this."""
@@ -430,9 +430,8 @@ def difference_sentence(difference: Difference) -> str:
     c = difference.estimate
     name = f'{difference.column} {difference.level}'
     where = f'; {difference.stratum}' if difference.stratum else ''
-    signed = (
-        f'{difference.level} - {difference.reference} = {value_with_error(c.estimate, c.stderr)}'
-    )
+    value = format_with_uncertainty(c.estimate, c.stderr)
+    signed = f'{difference.level} - {difference.reference} = {value}'
     if not math.isfinite(c.p_value):
         return f'{name} against {difference.reference}: {signed}, no test possible{where}.'
     adjusted = (
@@ -444,7 +443,7 @@ def difference_sentence(difference: Difference) -> str:
         verb = 'raises' if c.estimate > 0 else 'lowers'
         low, high = sorted((abs(c.ci_low), abs(c.ci_high)))
         return (
-            f'{name} {verb} mu by {value_with_error(abs(c.estimate), c.stderr)} against '
+            f'{name} {verb} mu by {format_with_uncertainty(abs(c.estimate), c.stderr)} against '
             f'{difference.reference} (95 % CI {format_interval(low, high)}, '
             f'{_p_phrase(c.p_value)}{adjusted}{where}).'
         )
@@ -458,7 +457,7 @@ def trend_sentence(trend: Trend) -> str:
     """'mu rises with normal_force_n by ... per N (95 % CI ...)', or no detectable trend."""
     c = trend.slope
     group = ' (one slope for all groups)' if trend.group == 'all' else f' for {trend.group}'
-    slope = f'{value_with_error(c.estimate, c.stderr)} per {trend.unit}'
+    slope = f'{format_with_uncertainty(c.estimate, c.stderr)} per {trend.unit}'
     if not math.isfinite(c.p_value):
         return f'mu against {trend.column}{group}: slope {slope}, no test possible.'
     detail = f'95 % CI {format_interval(c.ci_low, c.ci_high)}, {_p_phrase(c.p_value)}'

@@ -32,16 +32,16 @@ from fmm_ros.campaign.results import CampaignResult, named_effects, session_mus
 from fmm_ros.campaign.stats import CONFIDENCE
 from fmm_ros.campaign.table import DATE, format_value
 from fmm_ros.constants import MM_PER_M
+from fmm_ros.core import results_schema as schema
 from fmm_ros.core.identify.spec import CENTRE, CHAINED, FITTED
+from fmm_ros.core.results_schema import format_with_uncertainty
 from fmm_ros.report.html import Page
 from fmm_ros.report.plotting import (
     DEFAULT_DPI,
     MEAN_COLOUR,
-    RECEPTANCE_UNIT,
     REJECTED_COLOUR,
     level_colour,
     new_figure,
-    value_with_error,
 )
 
 # Figure height per row of a forest plot (a condition or a difference) [inches].
@@ -125,7 +125,7 @@ def _conditions(page: Page, campaign: CampaignResult) -> None:
                 c.sessions,
                 c.hits,
                 f'{c.mean_of_sessions:.5f}',
-                value_with_error(c.estimate.estimate, c.estimate.stderr),
+                format_with_uncertainty(c.estimate.estimate, c.estimate.stderr),
                 format_interval(c.estimate.ci_low, c.estimate.ci_high),
             ]
             for c in comparison.conditions
@@ -198,7 +198,7 @@ def _differences(page: Page, differences: Sequence[Difference]) -> None:
                 d.column,
                 f'{d.level} − {d.reference}',
                 d.stratum or 'all sessions',
-                value_with_error(d.estimate.estimate, d.estimate.stderr),
+                format_with_uncertainty(d.estimate.estimate, d.estimate.stderr),
                 format_interval(d.estimate.ci_low, d.estimate.ci_high),
                 format_p(d.estimate.p_value),
                 format_p(d.p_adjusted),
@@ -262,7 +262,7 @@ def _trends(page: Page, campaign: CampaignResult) -> None:
                 t.column,
                 t.group,
                 t.sessions,
-                f'{value_with_error(t.slope.estimate, t.slope.stderr)} per {t.unit}',
+                f'{format_with_uncertainty(t.slope.estimate, t.slope.stderr)} per {t.unit}',
                 format_interval(t.slope.ci_low, t.slope.ci_high),
                 format_p(t.slope.p_value),
             ]
@@ -354,7 +354,7 @@ def _sessions(page: Page, campaign: CampaignResult) -> None:
                 session.session_id,
                 *(format_value(session.conditions[name]) for name in columns),
                 f'{result.accepted_hits} / {len(result.hits)}',
-                value_with_error(result.mu, result.mu_stderr) if result.ok else '-',
+                format_with_uncertainty(result.mu, result.mu_stderr) if result.ok else '-',
                 format_p(result.consistency_p_value),
                 f'{result.birge_ratio:.2g}' if result.ok else '-',
                 'cached' if result.cached else f'{sum(result.seconds.values()):.1f} s',
@@ -439,9 +439,9 @@ def _levels(page: Page, campaign: CampaignResult) -> None:
             'session',
             'level',
             'hits',
-            'mean impulse [N·s]',
-            f'peak |X/F| [{RECEPTANCE_UNIT}]',
-            'f_n [Hz]',
+            schema.label(schema.MEAN_IMPULSE),
+            schema.label(schema.LEVEL_PEAK_RECEPTANCE),
+            schema.label(schema.LEVEL_NATURAL_FREQUENCY),
             'coherence at f_n',
         ],
         rows,
@@ -472,8 +472,8 @@ def levels_figure(campaign: CampaignResult) -> Figure:
                 label=_plain(label) if label not in drawn else None,
             )
             drawn.add(label)
-    ax.set_xlabel('mean impulse [N·s]')
-    ax.set_ylabel(f'peak |X/F| [{RECEPTANCE_UNIT}]')
+    ax.set_xlabel(schema.label(schema.MEAN_IMPULSE))
+    ax.set_ylabel(schema.label(schema.LEVEL_PEAK_RECEPTANCE))
     if drawn:
         ax.legend(fontsize='small')
     return figure

@@ -12,7 +12,6 @@ channels alone are read and every hit is listed (`fmm_ros.workflows.hammer`).
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import sys
 from typing import TYPE_CHECKING
@@ -61,7 +60,10 @@ def run(args: argparse.Namespace) -> int:
         from fmm_ros.workflows.hammer import read_hammer_hits
 
         return _hammer_only(
-            args, read_hammer_hits(args.inputs, options.input_options(args, capture))
+            args,
+            read_hammer_hits(
+                args.inputs, options.input_options(args, capture), analysis.reject_flags
+            ),
         )
     with StatusLine(quiet=args.quiet) as progress:
         read = read_inputs(args.inputs, options.input_options(args, capture), progress=progress)
@@ -81,6 +83,7 @@ def run(args: argparse.Namespace) -> int:
 def _hammer_only(args: argparse.Namespace, files: list[FileHits]) -> int:
     """Print every file's hits (JSON or a table); exit 0 whether hits were found or not."""
     if args.json:
+        from fmm_ros.core.results_schema import HAMMER_HIT, keys
         from fmm_ros.workflows.results import json_safe
 
         document = {
@@ -89,7 +92,9 @@ def _hammer_only(args: argparse.Namespace, files: list[FileHits]) -> int:
                     'file': str(found.path),
                     'sample_rate_hz': found.sample_rate_hz,
                     'verdict': found.verdict,
-                    'hits': [dataclasses.asdict(hit) for hit in found.hits],
+                    'hits': [
+                        {key: getattr(hit, key) for key in keys(HAMMER_HIT)} for hit in found.hits
+                    ],
                     'notes': found.notes,
                 }
                 for found in files
@@ -97,19 +102,22 @@ def _hammer_only(args: argparse.Namespace, files: list[FileHits]) -> int:
         }
         print(json.dumps(json_safe(document), indent=2, allow_nan=False))
         return 0
+    from fmm_ros.core.results_schema import CONTACT_TIME, HIT_TIME, IMPULSE, PEAK_FORCE, label
+
     lines = []
     for found in files:
         lines.append(found.verdict)
         lines += [f'  {note.strip()}' for note in found.notes if 'sample rate' in note]
         if found.hits:
             lines.append(
-                f'  {"hit":>4} {"time s":>10} {"peak N":>9} {"impulse N*s":>12} '
-                f'{"contact ms":>10}  flags'
+                f'  {"hit":>4} {label(HIT_TIME, ascii=True):>10} '
+                f'{label(PEAK_FORCE, ascii=True, short=True):>9} '
+                f'{label(IMPULSE, ascii=True):>13} {label(CONTACT_TIME, ascii=True):>12}  flags'
             )
         for number, hit in enumerate(found.hits, 1):
             lines.append(
                 f'  {number:>4} {hit.time_s:>10.4f} {hit.peak_force_n:>9.4g} '
-                f'{hit.impulse_n_s:>12.4g} {hit.contact_time_s * 1e3:>10.3f}  '
+                f'{hit.impulse_n_s:>13.4g} {CONTACT_TIME.shown(hit.contact_time_s):>12.3f}  '
                 f'{",".join(hit.flags) or "-"}'
             )
     print('\n'.join(lines))

@@ -201,7 +201,7 @@ def _stop_on_sigterm():
 def text_report(campaign) -> str:
     """Sessions with their mu, then the verdict, the notes and the failures."""
     from fmm_ros.campaign.table import format_value
-    from fmm_ros.report.plotting import value_with_error
+    from fmm_ros.core.results_schema import format_with_uncertainty
 
     names = [column.name for column in campaign.table.columns]
     header = f'{"session":<20} ' + ' '.join(f'{n[:14]:<14}' for n in names)
@@ -210,7 +210,7 @@ def text_report(campaign) -> str:
         values = ' '.join(f'{format_value(session.conditions[n])[:14]:<14}' for n in names)
         hits = f'{result.accepted_hits}/{len(result.hits)}'
         mu = (
-            value_with_error(result.mu, result.mu_stderr)
+            format_with_uncertainty(result.mu, result.mu_stderr)
             if result.ok and math.isfinite(result.mu)
             else f'- ({result.status})'
         )

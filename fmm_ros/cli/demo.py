@@ -99,16 +99,24 @@ def run(args: argparse.Namespace) -> int:
 
 def _text(result, out: Path) -> str:
     """The ten-second summary."""
+    from fmm_ros.core import results_schema as schema
+
+    impulse, spread, receptance, natural = (
+        schema.IMPULSE,
+        schema.STD_IMPULSE,
+        schema.LEVEL_PEAK_RECEPTANCE,
+        schema.LEVEL_NATURAL_FREQUENCY,
+    )
     lines = [
-        f'{"level":<8}{"hits":>5}{"impulse [N*s]":>20}{"peak |X/F| [mm/N]":>20}{"f_n [Hz]":>10}'
+        f'{"level":<8}{"hits":>5}{schema.label(impulse, ascii=True):>20}'
+        f'{schema.label(receptance, ascii=True):>20}{schema.label(natural, ascii=True):>10}'
     ]
     for level in result.levels:
-        spread = level['std_impulse_n_s']
         lines.append(
-            f'{level["name"]:<8}{level["count"]:>5}'
-            f'{level["mean_impulse_n_s"]:>12.3f} +- {spread:<5.3f}'
-            f'{level["peak_receptance_m_per_n"] * 1e3:>20.3f}'
-            f'{level["natural_frequency_hz"]:>10.2f}'
+            f'{level["name"]:<8}{level[schema.COUNT.name]:>5}'
+            f'{level[schema.MEAN_IMPULSE.name]:>12.3f} +- {level[spread.name]:<5.3f}'
+            f'{receptance.shown(level[receptance.name]):>20.3f}'
+            f'{level[natural.name]:>10.2f}'
         )
     error = (result.mu - result.plant_mu) / result.plant_mu * 100
     lines += [

@@ -14,7 +14,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from fmm_ros.constants import MM_PER_M, RECEPTANCE_DISPLAY_UNIT
+from fmm_ros.core import results_schema as schema
 from fmm_ros.core.diagnose.vocabulary import NONE
+from fmm_ros.core.results_schema import label
 
 if TYPE_CHECKING:
     from fmm_ros.core.signal.analysis import Summary
@@ -25,27 +27,33 @@ def analysis_text(summary: Summary) -> str:
     """A table of impacts, one of levels, and the regression line (|X/F| in mm/N)."""
     import numpy as np
 
-    unit = RECEPTANCE_DISPLAY_UNIT
+    impulse = label(schema.IMPULSE, ascii=True)
+    peak = label(schema.PEAK_FORCE, ascii=True, short=True)
+    receptance = label(schema.PEAK_RECEPTANCE, ascii=True, short=True)
+    natural = label(schema.NATURAL_FREQUENCY, ascii=True)
     lines = [
-        f'{"impact":<28} {"level":<8} {"ok":<3} {"impulse N*s":>11} {"peak N":>8} '
-        f'{"|X/F| " + unit:>11} {"f_n Hz":>7}  flags'
+        f'{"impact":<28} {"level":<8} {"ok":<3} {impulse:>13} {peak:>8} '
+        f'{receptance:>12} {natural:>8}  flags'
     ]
     for result in summary.impacts:
         lines.append(
             f'{Path(result.source).name:<28.28} {result.level or "-":<8} '
-            f'{"yes" if result.accepted else "no":<3} {result.impulse_n_s:>11.4g} '
-            f'{result.peak_force_n:>8.4g} {result.peak_receptance_m_per_n * MM_PER_M:>11.4g} '
-            f'{result.natural_frequency_hz:>7.4f}  {",".join(result.flags) or "-"}'
+            f'{"yes" if result.accepted else "no":<3} {result.impulse_n_s:>13.4g} '
+            f'{result.peak_force_n:>8.4g} '
+            f'{schema.PEAK_RECEPTANCE.cell(result.peak_receptance_m_per_n):>12} '
+            f'{schema.NATURAL_FREQUENCY.cell(result.natural_frequency_hz):>8}  '
+            f'{",".join(result.flags) or "-"}'
         )
+    mean_impulse = label(schema.MEAN_IMPULSE, ascii=True)
     lines += [
         '',
-        f'{"level":<8} {"count":>5} {"mean impulse N*s":>16} {"|X/F| " + unit:>11} {"f_n Hz":>7}',
+        f'{"level":<8} {"count":>5} {mean_impulse:>18} {receptance:>12} {natural:>8}',
     ]
     for level in summary.levels:
         lines.append(
-            f'{level.level:<8} {level.count:>5} {level.mean_impulse_n_s:>16.4g} '
-            f'{level.peak_receptance_m_per_n * MM_PER_M:>11.4g} '
-            f'{level.natural_frequency_hz:>7.4f}'
+            f'{level.level:<8} {level.count:>5} {level.mean_impulse_n_s:>18.4g} '
+            f'{schema.PEAK_RECEPTANCE.cell(level.peak_receptance_m_per_n):>12} '
+            f'{schema.NATURAL_FREQUENCY.cell(level.natural_frequency_hz):>8}'
         )
     if not summary.levels:
         lines.append('(no level has an accepted impact)')
@@ -56,7 +64,7 @@ def analysis_text(summary: Summary) -> str:
     else:
         lines.append(
             f'linearity: |X/F| peak = {fit.slope * MM_PER_M:.4g} mm/(N^2*s) * impulse + '
-            f'{fit.intercept * MM_PER_M:.4g} {unit} over {fit.count} levels, '
+            f'{fit.intercept * MM_PER_M:.4g} {RECEPTANCE_DISPLAY_UNIT} over {fit.count} levels, '
             f'R^2 = {fit.r2:.4f}'
         )
     return '\n'.join(lines)
@@ -107,13 +115,13 @@ def friction_text(result: FrictionResult) -> str:
         )
     lines += [
         '',
-        f'{"impact":<28} {"impulse N*s":>11} {"mu alone":>9} {"+-":>8} '
-        f'{"residual m/s":>12}  (at the common mu)',
+        f'{"impact":<28} {label(schema.IMPULSE, ascii=True):>13} {"mu alone":>9} {"+-":>8} '
+        f'{label(schema.RESIDUAL_RMS, ascii=True):>14}  (at the common mu)',
     ]
     for entry in result.per_impact():
         lines.append(
-            f'{Path(entry["file"]).name:<28.28} {entry["impulse_n_s"]:>11.4f} '
-            f'{entry["mu"]:>9.5f} {entry["mu_stderr"]:>8.2g} {entry["residual_rms_m_s"]:>12.3e}'
+            f'{Path(entry["file"]).name:<28.28} {entry["impulse_n_s"]:>13.4f} '
+            f'{entry["mu"]:>9.5f} {entry["mu_stderr"]:>8.2g} {entry["residual_rms_m_s"]:>14.3e}'
         )
     return '\n'.join(lines)
 

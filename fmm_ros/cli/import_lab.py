@@ -6,6 +6,7 @@ import argparse
 from datetime import datetime
 
 from fmm_ros.cli import options
+from fmm_ros.constants import BATCH_SIZE
 from fmm_ros.errors import BadInputError
 from fmm_ros.units import FORCE_UNITS, VELOCITY_UNITS
 
@@ -57,7 +58,7 @@ def register(subparsers) -> None:
             type=float,
         )
     parser.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap')
-    parser.add_argument('--batch-size', type=int, default=500, metavar='SAMPLES')
+    parser.add_argument('--batch-size', type=int, default=BATCH_SIZE, metavar='SAMPLES')
     parser.add_argument(
         '--start-time',
         metavar='ISO8601',

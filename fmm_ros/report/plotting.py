@@ -360,11 +360,3 @@ def odd_harmonics(natural_frequency_hz: float, top_hz: float) -> list[tuple[int,
         return []
     count = int(top_hz // natural_frequency_hz)
     return [(n, n * natural_frequency_hz) for n in range(3, count + 1, 2)]
-
-
-def value_with_error(value: float, stderr: float) -> str:
-    """'0.1130004 ± 0.0000014': the value to the second significant digit of its error."""
-    if not (np.isfinite(value) and np.isfinite(stderr) and stderr > 0):
-        return f'{value:.5g}'
-    decimals = min(12, max(0, 1 - int(np.floor(np.log10(stderr)))))
-    return f'{value:.{decimals}f} ± {stderr:.{decimals}f}'

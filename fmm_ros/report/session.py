@@ -15,6 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from fmm_ros.constants import MM_PER_M
+from fmm_ros.core import results_schema as schema
+from fmm_ros.core.results_schema import format_with_uncertainty, label
 from fmm_ros.core.signal.analysis import ImpactAnalysis, Summary
 from fmm_ros.io.session_info import describe as describe_info
 from fmm_ros.report import diagnosis_figures
@@ -25,7 +27,6 @@ from fmm_ros.report.plotting import (
     MS_PER_S,
     REJECTED_COLOUR,
     level_colour,
-    value_with_error,
 )
 from fmm_ros.workflows.model import ModelComparison
 from fmm_ros.workflows.results import (
@@ -171,11 +172,11 @@ def _hit_table(page: Page, summary: Summary, comparison: ModelComparison | None)
         'level',
         'verdict',
         'flags',
-        'peak force [N]',
-        'impulse [N·s]',
-        'contact [ms]',
-        'f_n [Hz]',
-        'peak |X/F| [mm/N]',
+        label(schema.PEAK_FORCE),
+        label(schema.IMPULSE),
+        label(schema.CONTACT_DURATION),
+        label(schema.NATURAL_FREQUENCY),
+        label(schema.PEAK_RECEPTANCE),
     ]
     model_hits = comparison.hits if comparison else {}
     if comparison:
@@ -217,7 +218,14 @@ def _level_section(page: Page, summary: Summary, analysis) -> None:
         page.text('No level has an accepted hit: nothing to average.', note=True)
         return
     page.table(
-        ['level', 'hits', 'mean peak force [N]', 'impulse [N·s]', 'f_n [Hz]', 'peak |X/F| [mm/N]'],
+        [
+            'level',
+            'hits',
+            label(schema.MEAN_PEAK_FORCE),
+            label(schema.IMPULSE),
+            label(schema.LEVEL_NATURAL_FREQUENCY),
+            label(schema.LEVEL_PEAK_RECEPTANCE),
+        ],
         [
             [
                 level.level,
@@ -296,19 +304,19 @@ def _friction(page: Page, summary: Summary, friction: FrictionResult) -> None:
         else ''
     )
     page.text(
-        f'μ = {value_with_error(friction.mu, friction.mu_stderr)} fitted to '
+        f'μ = {format_with_uncertainty(friction.mu, friction.mu_stderr)} fitted to '
         f'{len(friction.impact_ids)} impacts at once ({damping}){consistency}.'
     )
     impacts = {impact.impact_id: impact for impact in summary.impacts}
     starts = friction.initial_positions_m or (0.0,) * len(friction.impact_ids)
     page.table(
-        ['hit', 'level', 'impulse [N·s]', 'μ alone ± 1σ', 'start [mm]'],
+        ['hit', 'level', label(schema.IMPULSE), 'μ alone ± 1σ', label(schema.INITIAL_POSITION)],
         [
             [
                 link(f'#fig-{_hit_name(impacts[i])}', i),
                 impacts[i].level or '-',
                 _number(impacts[i].impulse_n_s, '.4g'),
-                value_with_error(mu, error),
+                format_with_uncertainty(mu, error),
                 f'{start * MM_PER_M:.3f}',
             ]
             for i, mu, error, start in zip(
@@ -499,7 +507,7 @@ def _diagnosis_section(
     page.table(
         ['parameter of the named model', 'value ± 1σ', 'unit'],
         [
-            [p.name, value_with_error(p.value, p.stderr), '-' if p.unit == '1' else p.unit]
+            [p.name, format_with_uncertainty(p.value, p.stderr), '-' if p.unit == '1' else p.unit]
             for p in result.parameters
         ],
         text_columns=(0, 2),

@@ -15,6 +15,8 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from fmm_ros.constants import MM_PER_M
+from fmm_ros.core import results_schema as schema
+from fmm_ros.core.results_schema import format_with_uncertainty
 from fmm_ros.core.signal import frf
 from fmm_ros.core.signal.analysis import ImpactAnalysis, LevelSummary, NominalLevel, Summary
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig
@@ -34,7 +36,6 @@ from fmm_ros.report.plotting import (
     odd_harmonics,
     plot_trace,
     thaw_ticks,
-    value_with_error,
 )
 from fmm_ros.workflows.model import decay_end_s, trigger_offset
 
@@ -363,7 +364,7 @@ def impulse_figure(
             label='rejected',
         )
     axes[0].set_xlabel('hit number')
-    axes[0].set_ylabel('peak force [N]')
+    axes[0].set_ylabel(schema.label(schema.PEAK_FORCE))
     axes[0].legend(fontsize='small', loc='best')
     x = np.arange(len(levels))
     means = [level.mean_impulse_n_s for level in levels]
@@ -386,7 +387,7 @@ def impulse_figure(
         )
     axes[1].set_xticks(x, [f'{level.level}\n(n = {level.count})' for level in levels])
     axes[1].set_xlim(-0.5, len(levels) - 0.5 + 0.6)
-    axes[1].set_ylabel('impulse [N·s], mean ± 1σ')
+    axes[1].set_ylabel(f'{schema.label(schema.IMPULSE)}, mean ± 1σ')
     return figure
 
 
@@ -430,7 +431,7 @@ def linearity_figure(summary: Summary) -> Figure:
             label=f'{fit.slope * MM_PER_M:.3g} mm/(N²·s) × I + '
             f'{fit.intercept * MM_PER_M:.3g} mm/N{r2}',
         )
-    ax.set_xlabel('impulse I [N·s]')
+    ax.set_xlabel(schema.label(schema.IMPULSE, words='impulse I'))
     ax.set_ylabel(f'peak |receptance| [{RECEPTANCE_UNIT}]')
     ax.legend(fontsize='small', loc='upper left')
     return figure
@@ -566,7 +567,7 @@ def friction_figure(
         [joint_mu, joint_mu],
         color=MEAN_COLOUR,
         linewidth=1,
-        label=f'all impacts: μ = {value_with_error(joint_mu, joint_stderr)}',
+        label=f'all impacts: μ = {format_with_uncertainty(joint_mu, joint_stderr)}',
     )
     names = list(level_order) + sorted(set(levels) - set(level_order))
     for name in names:
@@ -583,7 +584,7 @@ def friction_figure(
             label=name or 'no level',
         )
     ax.set_xlim(*span)
-    ax.set_xlabel('impulse [N·s]')
+    ax.set_xlabel(schema.label(schema.IMPULSE))
     ax.set_ylabel('μ [-], ± 1σ')
     ax.ticklabel_format(axis='y', style='plain', useOffset=False)
     # Under the axes (the error bars fill them): the layout keeps the axes above it.

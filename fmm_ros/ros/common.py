@@ -20,6 +20,7 @@ from rclpy.executors import (
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
+from fmm_ros.constants import BATCH_SIZE
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.settings import setting
 from fmm_ros.ros.params import Param, ParamValue, params_from
@@ -46,7 +47,7 @@ class NodeSettings:
         limits=(0.01, 1000.0),
     )
     batch_size: int = setting(
-        500,
+        BATCH_SIZE,
         unit='-',
         help='Samples per channel per published message (>= 500 keeps rclpy cheap)',
         limits=(1, 1_000_000),

@@ -24,6 +24,7 @@ from rclpy.parameter import Parameter
 from fmm_interfaces.msg import FrfSummary, FrictionEstimate, ImpactResult
 from fmm_interfaces.srv import DiagnoseModel, FitFriction
 from fmm_ros.constants import (
+    BATCH_SIZE,
     DIAGNOSE_SERVICE,
     DIAGNOSTICS_TOPIC,
     FIT_SERVICE,
@@ -32,6 +33,7 @@ from fmm_ros.constants import (
     IMPACTS_TOPIC,
     SAMPLE_RATE_HZ,
 )
+from fmm_ros.core import results_schema as schema
 from fmm_ros.core.identify.running import RunningEstimate
 from fmm_ros.core.signal.capture import CaptureConfig
 from fmm_ros.core.signal.config import AnalysisConfig
@@ -77,11 +79,11 @@ class SessionConfig:
     report: bool = True
 
     def batch(self, sample_rate_hz: float = SAMPLE_RATE_HZ) -> int:
-        """The batch size: given, or whole 500s for ~MESSAGES_PER_S per channel, <= MAX_BATCH_S."""
+        """The batch size: given, or whole BATCH_SIZEs for ~MESSAGES_PER_S, at most MAX_BATCH_S."""
         if self.batch_size:
             return self.batch_size
         per_s = self.rate_factor * sample_rate_hz
-        wanted = 500 * max(1, math.ceil(per_s / MESSAGES_PER_S / 500))
+        wanted = BATCH_SIZE * max(1, math.ceil(per_s / MESSAGES_PER_S / BATCH_SIZE))
         return min(wanted, int(MAX_BATCH_S * sample_rate_hz))
 
 
@@ -369,16 +371,7 @@ def _demo_result(
         levels=[
             {
                 'name': s.level,
-                **level_record(
-                    s,
-                    (
-                        'count',
-                        'mean_impulse_n_s',
-                        'std_impulse_n_s',
-                        'peak_receptance_m_per_n',
-                        'natural_frequency_hz',
-                    ),
-                ),
+                **level_record(s, schema.keys(schema.DEMO_LEVEL)),
             }
             for s in ordered
         ],
@@ -395,19 +388,7 @@ def _demo_result(
         diagnose_s=session.diagnose_s,
         impacts=[
             {
-                **hit_record(
-                    m,
-                    (
-                        'impact_id',
-                        'level',
-                        'accepted',
-                        'flags',
-                        'peak_force_n',
-                        'impulse_n_s',
-                        'peak_receptance_m_per_n',
-                        'natural_frequency_hz',
-                    ),
-                ),
+                **hit_record(m, schema.keys(schema.DEMO_IMPACT)),
                 'flags': list(m.flags),
             }
             for m in impacts

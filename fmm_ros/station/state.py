@@ -21,12 +21,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from fmm_ros.constants import MM_PER_M
+from fmm_ros.core import results_schema as schema
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.signal.judging import Decision, is_taken
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.io.session_info import FIELDS, SessionInfo
 from fmm_ros.workflows.model import ModelOverlay, decay_end_s
 
+HIT_NUMBERS = (schema.PEAK_FORCE, schema.IMPULSE, schema.NATURAL_FREQUENCY)
+"""The numbers of a hit's row, under their schema keys (the page reads them by key)."""
 FIGURE_HITS = 12
 """Hits whose figures (pulse, decay, FRF) are kept for a page that connects [-]."""
 SUMMARY_HITS = 500
@@ -130,6 +133,7 @@ class StationState:
                 for lv in self.levels
             ],
             'target_hits': self.target_hits,
+            'columns': {field.name: schema.label(field, short=True) for field in HIT_NUMBERS},
             'mode': self.mode,
             'session_fields': [
                 {
@@ -157,12 +161,10 @@ class StationState:
         row = {
             'id': impact_id,
             'trigger': int(msg.trigger_sample_index),
-            'level': msg.level,
-            'accepted': bool(msg.accepted),
-            'flags': list(msg.flags),
-            'peak_force_n': _number(msg.peak_force_n),
-            'impulse_n_s': _number(msg.impulse_n_s),
-            'natural_frequency_hz': _number(msg.natural_frequency_hz),
+            schema.LEVEL.name: msg.level,
+            schema.ACCEPTED.name: bool(msg.accepted),
+            schema.FLAGS.name: list(msg.flags),
+            **{field.name: _number(getattr(msg, field.name)) for field in HIT_NUMBERS},
         }
         figure = {
             'id': impact_id,

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fmm_ros.core.signal.config import FLAGS
 from fmm_ros.core.signal.hammer import Hit, hammer_hits
 from fmm_ros.errors import BadInputError
 from fmm_ros.io import sniff
@@ -48,8 +49,13 @@ class FileHits:
         )
 
 
-def read_hammer_hits(paths: Sequence[str | Path], options: InputOptions) -> list[FileHits]:
-    """Each lab file's hits (the force channel alone; bags are refused by name)."""
+def read_hammer_hits(
+    paths: Sequence[str | Path], options: InputOptions, reject_flags: tuple[str, ...] = FLAGS
+) -> list[FileHits]:
+    """Each lab file's hits (the force channel alone; bags are refused by name).
+
+    reject_flags: the flags that reject a hit (`AnalysisConfig.reject_flags`).
+    """
     found = []
     for path in map(Path, paths):
         if sniff.file_kind(path) == sniff.BAG:
@@ -69,6 +75,7 @@ def read_hammer_hits(paths: Sequence[str | Path], options: InputOptions) -> list
                     recording.sample_rate_hz,
                     options.capture,
                     force_full_scale_n=full_scale,
+                    reject_flags=reject_flags,
                 ),
                 recording.report,
                 float(np.nanmax(force)) if np.isfinite(force).any() else float('nan'),

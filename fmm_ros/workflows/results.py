@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fmm_ros.core import results_schema as schema
 from fmm_ros.core.diagnose import signatures
 from fmm_ros.core.diagnose.drift import DRIFT_SIZE, MuTrend
 from fmm_ros.core.diagnose.friction_map import FrictionCurve, FrictionMap
@@ -179,17 +180,8 @@ class FrictionResult:
             column(self.velocity_nuisance, None),
             strict=True,
         ):
-            entry = {
-                'impact_id': impact_id,
-                'file': source,
-                'mu': mu,
-                'impulse_n_s': impulse,
-                'residual_rms_m_s': rms,
-                'mu_stderr': stderr,
-                'normalised_residual': normalised,
-                'initial_position_m': start,
-                'impulse_scale': scale,
-            }
+            values = (impact_id, source, mu, impulse, rms, stderr, normalised, start, scale)
+            entry = dict(zip(schema.keys(schema.FIT_IMPACT), values, strict=True))
             if chain is not None:
                 entry.update(
                     mains_hum_hz=chain.mains_hz or None,
@@ -227,28 +219,10 @@ class FrictionResult:
         )
 
 
-HIT_FIELDS: tuple[str, ...] = (
-    'impact_id',
-    'level',
-    'accepted',
-    'flags',
-    'impulse_n_s',
-    'peak_force_n',
-    'contact_duration_s',
-    'natural_frequency_hz',
-    'peak_receptance_m_per_n',
-)
+HIT_FIELDS: tuple[str, ...] = schema.keys(schema.HIT_RECORD)
 """A hit's record: its scalars, named as in ImpactAnalysis and ImpactResult.msg."""
 
-LEVEL_FIELDS: tuple[str, ...] = (
-    'level',
-    'count',
-    'mean_impulse_n_s',
-    'std_impulse_n_s',
-    'mean_peak_force_n',
-    'peak_receptance_m_per_n',
-    'natural_frequency_hz',
-)
+LEVEL_FIELDS: tuple[str, ...] = schema.keys(schema.LEVEL_RECORD)
 """A level's record: its scalars, named as in LevelSummary and FrfSummary.msg."""
 
 
@@ -283,24 +257,14 @@ def analysis_dict(summary: Summary) -> dict:
             'impacts': [
                 {
                     'file': result.source,
-                    **hit_record(
-                        result,
-                        (
-                            'accepted',
-                            'flags',
-                            'impulse_n_s',
-                            'peak_force_n',
-                            'peak_receptance_m_per_n',
-                            'natural_frequency_hz',
-                        ),
-                    ),
+                    **hit_record(result, schema.keys(schema.ANALYSIS_IMPACT)),
                 }
                 for result in summary.impacts
             ],
             'levels': [
                 {
                     'name': level.level,
-                    **level_record(level, ('count', 'mean_impulse_n_s', 'peak_receptance_m_per_n')),
+                    **level_record(level, schema.keys(schema.ANALYSIS_LEVEL)),
                 }
                 for level in summary.levels
             ],

@@ -20,6 +20,7 @@ from typing import Protocol
 
 import numpy as np
 
+from fmm_ros.core import results_schema as schema
 from fmm_ros.core.settings import result_field, setting
 from fmm_ros.core.signal import frf, pulse, response
 from fmm_ros.core.signal.capture import (
@@ -48,36 +49,25 @@ from fmm_ros.errors import BadInputError, NoCleanImpactError
 class ImpactAnalysis:
     """One impact analysed: the fields of ImpactResult.msg plus the spectra averaging needs."""
 
-    impact_id: int = result_field(help='Impact number, from 0 in capture order')
-    trigger_sample_index: int = result_field(help='Sample index of the trigger in its acquisition')
-    record_start_sample_index: int = result_field(help="Sample index of the record's first sample")
-    level: str = result_field(help='Force level the impact belongs to; empty: none')
-    accepted: bool = result_field(help='Whether it enters the level averages: no rejecting flag')
-    flags: tuple[str, ...] = result_field(help='Quality flags it raised, in FLAGS order')
-    impulse_n_s: float = result_field(unit='N*s', help='Impulse: the force integrated over the hit')
-    peak_force_n: float = result_field(unit='N', help='Peak force of the hit')
-    contact_duration_s: float = result_field(unit='s', help='How long the hammer touched')
-    record_duration_s: float = result_field(unit='s', help='Length of the record analysed')
-    sample_rate_hz: float = result_field(unit='Hz', help='Sample rate of both channels')
-    natural_frequency_hz: float = result_field(
-        unit='Hz',
-        help='From the period between velocity reversals (`frf.natural_frequency`); NaN if too few',
-    )
-    peak_receptance_m_per_n: float = result_field(
-        unit='m/N', help='Peak |receptance| in the peak band'
-    )
-    frequency_step_hz: float = result_field(
-        unit='Hz', help='Frequency resolution: 1 / record length'
-    )
+    impact_id: int = schema.IMPACT_ID.field()
+    trigger_sample_index: int = schema.TRIGGER_SAMPLE_INDEX.field()
+    record_start_sample_index: int = schema.RECORD_START_SAMPLE_INDEX.field()
+    level: str = schema.LEVEL.field()
+    accepted: bool = schema.ACCEPTED.field()
+    flags: tuple[str, ...] = schema.FLAGS.field()
+    impulse_n_s: float = schema.IMPULSE.field()
+    peak_force_n: float = schema.PEAK_FORCE.field()
+    contact_duration_s: float = schema.CONTACT_DURATION.field()
+    record_duration_s: float = schema.RECORD_DURATION.field()
+    sample_rate_hz: float = schema.SAMPLE_RATE.field()
+    natural_frequency_hz: float = schema.NATURAL_FREQUENCY.field()
+    peak_receptance_m_per_n: float = schema.PEAK_RECEPTANCE.field()
+    frequency_step_hz: float = schema.FREQUENCY_STEP.field()
     frequency_hz: np.ndarray = result_field(unit='Hz', help='Band-limited frequency axis')
     mobility: np.ndarray = result_field(unit='m/(N*s)', help='Mobility V/F (complex)')
     receptance: np.ndarray = result_field(unit='m/N', help='Receptance X/F (complex)')
-    force_window_s: float = result_field(
-        unit='s', help='Force window the FRF was computed with; 0: none'
-    )
-    exponential_window_decay_s: float = result_field(
-        unit='s', help='Exponential window decay time the FRF was computed with; 0: none'
-    )
+    force_window_s: float = schema.FORCE_WINDOW.field()
+    exponential_window_decay_s: float = schema.EXPONENTIAL_WINDOW_DECAY.field()
     force_spectrum: np.ndarray = result_field(
         unit='N', help='Unscaled DFT of the (windowed) force, band-limited, for H1/H2/coherence'
     )
@@ -106,24 +96,16 @@ ImpactResult = ImpactAnalysis
 class LevelSummary:
     """One force level's averaged FRF: the per-level fields of FrfSummary.msg."""
 
-    level: str = result_field(help='Name of the level')
-    nominal_peak_force_n: float = result_field(
-        unit='N', help='Nominal peak force; 0 when the level comes from clustering'
-    )
-    count: int = result_field(help='Accepted impacts averaged')
-    impact_ids: tuple[int, ...] = result_field(help='Their impact numbers')
-    mean_impulse_n_s: float = result_field(unit='N*s', help='Mean impulse')
-    std_impulse_n_s: float = result_field(
-        unit='N*s', help='Sample standard deviation of the impulse; NaN for a single impact'
-    )
-    mean_peak_force_n: float = result_field(unit='N', help='Mean peak force')
-    peak_receptance_m_per_n: float = result_field(
-        unit='m/N', help='Peak |receptance| of the averaged receptance'
-    )
-    natural_frequency_hz: float = result_field(
-        unit='Hz', help="Mean of the level's impacts' natural frequencies"
-    )
-    frequency_step_hz: float = result_field(unit='Hz', help='Frequency resolution')
+    level: str = schema.LEVEL_FIELDS['level'].field()
+    nominal_peak_force_n: float = schema.NOMINAL_PEAK_FORCE.field()
+    count: int = schema.COUNT.field()
+    impact_ids: tuple[int, ...] = schema.LEVEL_IMPACT_IDS.field()
+    mean_impulse_n_s: float = schema.MEAN_IMPULSE.field()
+    std_impulse_n_s: float = schema.STD_IMPULSE.field()
+    mean_peak_force_n: float = schema.MEAN_PEAK_FORCE.field()
+    peak_receptance_m_per_n: float = schema.LEVEL_PEAK_RECEPTANCE.field()
+    natural_frequency_hz: float = schema.LEVEL_NATURAL_FREQUENCY.field()
+    frequency_step_hz: float = schema.LEVEL_FIELDS['frequency_step_hz'].field()
     frequency_hz: np.ndarray = result_field(unit='Hz', help='Band-limited frequency axis')
     mobility: np.ndarray = result_field(
         unit='m/(N*s)', help="Plain mean of the trials' mobility (the paper's average)"
@@ -132,9 +114,7 @@ class LevelSummary:
     h1_mobility: np.ndarray = result_field(unit='m/(N*s)', help='H1 estimate of the mobility')
     h2_mobility: np.ndarray = result_field(unit='m/(N*s)', help='H2 estimate of the mobility')
     coherence: np.ndarray = result_field(help='Ordinary coherence of force and velocity [-]')
-    exponential_window_decay_s: float = result_field(
-        unit='s', help='Exponential window decay time; 0: none'
-    )
+    exponential_window_decay_s: float = schema.LEVEL_FIELDS['exponential_window_decay_s'].field()
 
 
 @dataclass(frozen=True, eq=False)

@@ -20,6 +20,7 @@ import numpy as np
 from fmm_ros.core.signal import frf, pulse, quality
 from fmm_ros.core.signal.capture import (
     DEFAULT_CAPTURE,
+    FLAGS,
     CaptureConfig,
     contact_start_index,
     find_triggers,
@@ -39,6 +40,8 @@ class Hit:
     impulse_n_s: float
     contact_time_s: float
     flags: tuple[str, ...]
+    accepted: bool
+    """As every impact's `accepted`: no rejecting flag raised, its peak and impulse finite."""
 
 
 def hammer_hits(
@@ -47,13 +50,15 @@ def hammer_hits(
     capture: CaptureConfig = DEFAULT_CAPTURE,
     *,
     force_full_scale_n: float = 0.0,
+    reject_flags: tuple[str, ...] = FLAGS,
 ) -> list[Hit]:
     """Every hit of a force record [N] (see the module doc); an empty list when there is none.
 
     Each hit is judged on its own stretch, from the capture's pre-trigger before it to
     min_spacing_s after it: the level before its pulse is its impulse's baseline, and a
     rebound inside the stretch is its double hit. force_full_scale_n: the sensor's range
-    (0: unknown).
+    (0: unknown). reject_flags: the flags that reject a hit (`AnalysisConfig.reject_flags`),
+    so a hit is `accepted` by the rule every impact is.
     """
     force = np.asarray(force_n, dtype=float)
     samples = capture.samples(sample_rate_hz)
@@ -68,6 +73,7 @@ def hammer_hits(
     for (trigger, peak, impulse, contact, flags), topped in zip(judged, on_top, strict=True):
         if (force_full_scale_n > 0 and peak >= force_full_scale_n) or topped:
             flags.add('clipped')
+        raised = tuple(flag for flag in HIT_FLAGS if flag in flags)
         hits.append(
             Hit(
                 trigger_sample_index=trigger,
@@ -75,7 +81,9 @@ def hammer_hits(
                 peak_force_n=peak,
                 impulse_n_s=impulse,
                 contact_time_s=contact,
-                flags=tuple(flag for flag in HIT_FLAGS if flag in flags),
+                flags=raised,
+                accepted=not set(raised) & set(reject_flags)
+                and bool(np.isfinite((peak, impulse)).all()),
             )
         )
     return hits

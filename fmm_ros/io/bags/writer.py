@@ -26,6 +26,7 @@ from rosbags.typesys.store import Typestore
 
 from fmm_ros.constants import (
     BAG_STORAGES,
+    BATCH_SIZE,
     FORCE,
     FORCE_TOPIC,
     VELOCITY,
@@ -45,7 +46,7 @@ from fmm_ros.io.bags.metadata import (
 )
 from fmm_ros.io.bags.storage import McapStorage, Sqlite3Storage, TopicRecord
 
-DEFAULT_BATCH_SIZE = 500
+DEFAULT_BATCH_SIZE = BATCH_SIZE
 # What writing a bag raises when the storage fails under it (disk full, read-only, gone).
 WRITE_ERRORS = (OSError, sqlite3.Error)
 STORAGES = BAG_STORAGES

@@ -17,7 +17,13 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from fmm_interfaces.msg import SampleBatch
-from fmm_ros.constants import APPLIED_FORCE_TOPIC, FORCE, FORCE_TOPIC, PAPER_LEVELS, SAMPLE_RATE_HZ
+from fmm_ros.constants import (
+    APPLIED_FORCE_TOPIC,
+    FORCE,
+    FORCE_TOPIC,
+    PAPER_LEVELS,
+    SAMPLE_RATE_HZ,
+)
 from fmm_ros.errors import BadInputError
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import chain_from_parameters, chain_params, run_node, shared_params

@@ -62,7 +62,7 @@ const charts = {
     { label: 'μ', stroke: '#2e7d32' },
     { label: 'μ − 2σ', stroke: '#a5d6a7' },
     { label: 'μ + 2σ', stroke: '#a5d6a7' },
-  ]),
+  ], null, { axes: [{}, { values: (u, splits) => spanTicks(u, splits), size: 80 }] }),
 };
 
 function show(message, isError) {
@@ -76,8 +76,24 @@ function fmt(value, digits) {
   return value === null || value === undefined ? '–' : Number(value).toFixed(digits);
 }
 
-function sig(value, digits) {  // an uncertainty: significant digits, never a flat 0.0000
-  return value === null || value === undefined ? '–' : Number(value).toPrecision(digits);
+// A value with its uncertainty, as fmm_ros.core.results_schema.format_with_uncertainty: the
+// value to the second significant digit of the uncertainty, both with those decimals.
+function withUncertainty(value, std) {
+  if (value === null || value === undefined) return '–';
+  if (!(Number.isFinite(value) && Number.isFinite(std) && std > 0)) return String(Number(Number(value).toPrecision(5)));
+  const decimals = Math.min(12, Math.max(0, 1 - Math.floor(Math.log10(std))));
+  return `${value.toFixed(decimals)} ± ${std.toFixed(decimals)}`;
+}
+
+// Axis ticks with as many decimals as their step needs, so a span of 1e-6 around 0.113 does
+// not read 0.113 at every tick.
+function spanTicks(u, splits) {
+  if (splits.length < 2) return splits.map((v) => String(v));
+  const step = Math.abs(splits[1] - splits[0]) || Math.abs(splits[0]) || 1;
+  let decimals = Math.max(0, Math.ceil(-Math.log10(step) - 1e-9));
+  const exact = (d) => splits.every((v) => Math.abs(Number(v.toFixed(d)) - v) <= step * 1e-6);
+  while (decimals < 12 && !exact(decimals)) decimals += 1;
+  return splits.map((v) => v.toFixed(decimals));
 }
 
 function cell(tr, text, cls) {
@@ -222,7 +238,7 @@ function onFriction(friction) {
     $('mu').textContent = friction ? `μ: no impact left in the estimate (impact ${friction.impact_id} taken out)` : 'μ: no estimate yet';
     return;
   }
-  $('mu').textContent = `μ = ${fmt(friction.mu, 5)} ± ${sig(2 * friction.mu_stderr, 2)} (2σ) over ` +
+  $('mu').textContent = `μ = ${withUncertainty(friction.mu, 2 * friction.mu_stderr)} (2σ) over ` +
     `${friction.count} hits; one μ for all: p = ${fmt(friction.p_value, 3)}; ids ${friction.impact_ids.join(', ')}`;
   $('mu').dataset.ids = friction.impact_ids.join(',');
   page.muCount += 1;
@@ -237,7 +253,7 @@ function onFriction(friction) {
     const tr = document.createElement('tr');
     cell(tr, lv.name, 'text');
     cell(tr, String(lv.count));
-    cell(tr, `${fmt(lv.mu, 5)} ± ${sig(lv.mu_stderr, 2)}`);
+    cell(tr, withUncertainty(lv.mu, lv.mu_stderr));
     body.appendChild(tr);
   }
 }
@@ -313,6 +329,10 @@ $('session-form').addEventListener('submit', async (event) => {
 
 function onSnapshot(snapshot) {
   page.config = snapshot.config;
+  for (const th of document.querySelectorAll('th[data-key]')) {  // the schema's labels
+    const label = (snapshot.config.columns || {})[th.dataset.key];
+    if (label) th.textContent = label;
+  }
   $('mode').textContent = `judging: ${snapshot.config.mode}`;
   page.hits.clear();
   $('hits').tBodies[0].replaceChildren();
