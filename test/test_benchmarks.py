@@ -1,4 +1,4 @@
-"""Every benchmark runs, in its quick mode, so a benchmark that crashes fails the build (issue 28).
+"""Every benchmark runs, in its quick mode, so a benchmark that crashes fails the build.
 
 Scripts are discovered, not listed: every file in benchmarks/ that runs as a script (it has a
 `__main__` block) is run with `--quick`, so a benchmark added later is covered without

@@ -1,4 +1,4 @@
-"""Judging hits (issue 27): decisions overrule the flags through the one selection rule, the
+"""Judging hits: decisions overrule the flags through the one selection rule, the
 running mu forgets a rejected hit exactly, bad decisions are refused with their reason."""
 
 import math

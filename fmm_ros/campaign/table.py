@@ -18,7 +18,7 @@ A CSV file (a header row, one session a row; comma, semicolon or tab separated) 
   `stiffness_n_per_m`, `damping_n_s_per_m`, SI units) also set the rig that session's fit
   uses: mu = F_f / N is computed with the session's own normal force, not the FMM's.
 
-Or a folder of bags the station recorded (issue 27): one session a bag, its conditions the
+Or a folder of bags the station recorded: one session a bag, its conditions the
 session metadata each bag holds (`fmm_ros.io.session_info`: operator, pin, counterface,
 lubricant, temperature, humidity; its normal load becomes `normal_force_n`, so each fit uses
 the load entered), its notes the bag's notes.

@@ -150,7 +150,7 @@ def _session_section(page: Page, session: SessionResult) -> None:
 
 
 def station_header(page: Page, session: SessionResult) -> None:
-    """What the station recorded (issue 27): each bag's metadata, the decisions about hits."""
+    """What the station recorded: each bag's metadata, the decisions about hits."""
     for path, info in session.session_info.items():
         rows = describe_info(info)
         if rows:

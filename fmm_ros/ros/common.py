@@ -195,7 +195,7 @@ class JoiningExecutor(MultiThreadedExecutor):
 def _spin_guarded(executor, node: Node, timeout_s: float) -> None:
     """One spin; an exception a callback raised is the node's to survive (`CallbackFaults`).
 
-    Logged once, ERROR on /diagnostics, and the node goes on (issue 25). A source whose
+    Logged once, ERROR on /diagnostics, and the node goes on. A source whose
     consumers never came (`SourceStartTimeout`) and an external shutdown still end the loop.
     """
     try:

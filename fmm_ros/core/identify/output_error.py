@@ -336,7 +336,7 @@ class OutputError:
         """Each block's score covariance at a solution (`sandwich_uncertainty`).
 
         In time from the residual's spectrum (`spectral_score`), for the FRF misfit (and with
-        uncertainty='blocks', the way before issue 14) from block sums over a natural period
+        uncertainty='blocks', the reference method) from block sums over a natural period
         or f_n/4 of bins (`block_score`).
         """
         scores = []

@@ -237,7 +237,7 @@ class Recorder(Node):
     def _bound_silence(self, final: bool = False) -> None:
         """A channel silent while another of its acquisition runs on: named, then counted.
 
-        Each topic has its own stream here, so nothing else would count it (issue 25: the bag
+        Each topic has its own stream here, so nothing else would count it (the bag
         of a stalled rig_sim held velocity to sample 726,500 and force to 6,890,000, its
         ledger 0 missing). Channels of one acquisition (one rate, one clock) are partners.
         While recording, a channel more than the stream's max_skew_s behind its leading
