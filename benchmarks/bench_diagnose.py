@@ -54,7 +54,7 @@ Each table: rows what was hidden, columns the first effect named (`missing_effec
 were exactly right (the named set is the hidden set; 'unexplained' first for a law outside
 the vocabulary) and every miss. Then the time of one diagnosis of three 33 s impacts (hidden
 Stribeck) and of a 30-hit session with each start fitted, against the closed-world
-algorithm (`issue8_diagnose.py`) in the same run, and a 30-hit Stribeck session (<= 5 s).
+algorithm (`closed_world_diagnose.py`) in the same run, and a 30-hit Stribeck session (<= 5 s).
 A full run writes its sections of RESULTS.md (`results_file`: tuning worlds, held-out worlds
 and time, each replaced only by a run that made it; --role sweeps one role; --kinds sweeps
 only those kinds of every world that makes them, into a section of their own; --worlds
@@ -77,7 +77,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from issue8_diagnose import diagnose_issue8
+from closed_world_diagnose import diagnose_closed_world
 from results_file import QUICK_HELP, write_section
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'test'))
@@ -706,7 +706,7 @@ def timing(repeats: int, seed: int, hits_per_level: int) -> list[str]:
     case = hidden_effect_case('stribeck', seed)
     diagnose(case.records)  # JIT and caches warm
     new = timed(diagnose, case.records, repeats=repeats)
-    old = timed(diagnose_issue8, case.records, repeats=max(1, repeats // 2))
+    old = timed(diagnose_closed_world, case.records, repeats=max(1, repeats // 2))
     say(
         f'three 33 s impacts, hidden stribeck: {new} median of {repeats} (named '
         f'{", ".join(new.result.named_effects)}); closed world: {old} (named {old.result}); '
@@ -720,7 +720,7 @@ def timing(repeats: int, seed: int, hits_per_level: int) -> list[str]:
         for record in capture_impacts(session.force_n, session.velocity_m_s, session.sample_rate_hz)
     ]
     new = timed(diagnose, impacts, fit_initial_position=True)
-    old = timed(diagnose_issue8, impacts, fit_initial_position=True)
+    old = timed(diagnose_closed_world, impacts, fit_initial_position=True)
     say(
         f'a {len(impacts)}-hit session, each start fitted: {new} (named '
         f'{", ".join(new.result.named_effects) or "none"}); closed world: {old} (named '

@@ -32,7 +32,7 @@ QUICK_TIMEOUT_S = 600  # a busy shared machine runs them several times slower
 def test_the_known_benchmarks_are_discovered():
     names = {path.stem for path in SCRIPTS}
     assert {'bench_replay', 'bench_physics', 'stress_rig', 'bench_signal'} <= names
-    assert 'results_file' not in names and 'issue8_diagnose' not in names
+    assert 'results_file' not in names and 'closed_world_diagnose' not in names
 
 
 @pytest.mark.slow
