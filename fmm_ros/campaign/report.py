@@ -31,13 +31,11 @@ from fmm_ros.campaign.compare import (
 from fmm_ros.campaign.results import CampaignResult, named_effects, session_mus
 from fmm_ros.campaign.stats import CONFIDENCE
 from fmm_ros.campaign.table import DATE, format_value
-from fmm_ros.constants import MM_PER_M
+from fmm_ros.constants import MM_PER_M, RECEPTANCE_DISPLAY_UNIT, REPORT_DPI
 from fmm_ros.core.identify.spec import CENTRE, CHAINED, FITTED
 from fmm_ros.report.html import Page
 from fmm_ros.report.plotting import (
-    DEFAULT_DPI,
     MEAN_COLOUR,
-    RECEPTANCE_UNIT,
     REJECTED_COLOUR,
     level_colour,
     new_figure,
@@ -59,7 +57,7 @@ STARTS_SAID = {
 
 
 def write_campaign_report(
-    campaign: CampaignResult, out_dir: str | Path, *, title: str = '', dpi: float = DEFAULT_DPI
+    campaign: CampaignResult, out_dir: str | Path, *, title: str = '', dpi: float = REPORT_DPI
 ) -> Path:
     """Write out_dir/index.html (and the figures as PNG files); its path."""
     table = campaign.table
@@ -440,7 +438,7 @@ def _levels(page: Page, campaign: CampaignResult) -> None:
             'level',
             'hits',
             'mean impulse [N·s]',
-            f'peak |X/F| [{RECEPTANCE_UNIT}]',
+            f'peak |X/F| [{RECEPTANCE_DISPLAY_UNIT}]',
             'f_n [Hz]',
             'coherence at f_n',
         ],
@@ -473,7 +471,7 @@ def levels_figure(campaign: CampaignResult) -> Figure:
             )
             drawn.add(label)
     ax.set_xlabel('mean impulse [N·s]')
-    ax.set_ylabel(f'peak |X/F| [{RECEPTANCE_UNIT}]')
+    ax.set_ylabel(f'peak |X/F| [{RECEPTANCE_DISPLAY_UNIT}]')
     if drawn:
         ax.legend(fontsize='small')
     return figure

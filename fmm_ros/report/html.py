@@ -19,7 +19,8 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.legend import Legend
 
-from fmm_ros.report.plotting import DEFAULT_DPI, png_bytes
+from fmm_ros.constants import REPORT_DPI
+from fmm_ros.report.plotting import png_bytes
 
 _STYLE = """
 body { font-family: system-ui, sans-serif; max-width: 60rem; margin: 1rem auto; padding: 0 1rem;
@@ -134,7 +135,7 @@ class Page:
         out_dir: str | Path,
         title: str,
         *,
-        dpi: float = DEFAULT_DPI,
+        dpi: float = REPORT_DPI,
         progress: Callable[[str], None] | None = None,
     ) -> None:
         self.out_dir = Path(out_dir)

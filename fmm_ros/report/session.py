@@ -14,14 +14,13 @@ from pathlib import Path
 
 import numpy as np
 
-from fmm_ros.constants import MM_PER_M
+from fmm_ros.constants import MM_PER_M, REPORT_DPI
 from fmm_ros.core.signal.analysis import ImpactAnalysis, Summary
 from fmm_ros.io.session_info import describe as describe_info
 from fmm_ros.report import diagnosis_figures
 from fmm_ros.report import session_figures as figures
 from fmm_ros.report.html import Markup, Page, escape, link
 from fmm_ros.report.plotting import (
-    DEFAULT_DPI,
     MS_PER_S,
     REJECTED_COLOUR,
     level_colour,
@@ -69,7 +68,7 @@ def build_report(
     out_dir: str | Path,
     *,
     title: str = 'Impact session report',
-    dpi: float = DEFAULT_DPI,
+    dpi: float = REPORT_DPI,
     progress: Callable[[str], None] | None = None,
 ) -> Path:
     """Write the session's report into out_dir (index.html and one PNG per figure); its path.

@@ -422,8 +422,3 @@ def overlay_of(friction: FrictionResult | None) -> ModelOverlay | None:
         dict(zip(friction.impact_ids, starts, strict=True)),
         dict(zip(friction.impact_ids, scales, strict=True)),
     )
-
-
-# Deprecated: the name before issue 23, when three functions were called run_session; use
-# process_records. Kept one release so callers keep working.
-run_session = process_records

@@ -18,7 +18,6 @@ _EXPORTS = {
     'ImpactCapture': 'capture',
     'ImpactRecord': 'records',
     'ImpactAnalysis': 'analysis',
-    'ImpactResult': 'analysis',  # deprecated alias of ImpactAnalysis (issue 23)
     'ImpactSelection': 'analysis',
     'LevelSummary': 'analysis',
     'NominalLevel': 'config',

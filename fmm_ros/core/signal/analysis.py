@@ -97,11 +97,6 @@ class ImpactAnalysis:
         return frf.accelerance_from_mobility(self.mobility, self.frequency_hz)
 
 
-# Deprecated: the name before issue 23, which it shared with the message type
-# fmm_interfaces/msg/ImpactResult; use ImpactAnalysis. Kept one release so callers keep working.
-ImpactResult = ImpactAnalysis
-
-
 @dataclass(frozen=True, eq=False)
 class LevelSummary:
     """One force level's averaged FRF: the per-level fields of FrfSummary.msg."""

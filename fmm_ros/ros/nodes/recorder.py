@@ -33,6 +33,7 @@ from rclpy.serialization import deserialize_message
 from fmm_interfaces.msg import SampleBatch, SessionInfo
 from fmm_ros.constants import (
     APPLIED_FORCE_TOPIC,
+    BAG_STORAGES,
     CLOCK_TOPIC,
     DECISIONS_TOPIC,
     DIAGNOSTICS_TOPIC,
@@ -50,7 +51,7 @@ from fmm_ros.errors import FmmError
 from fmm_ros.io.bags.definitions import SAMPLE_BATCH
 from fmm_ros.io.bags.errors import BagError
 from fmm_ros.io.bags.metadata import LEDGER_KEY, ledger_text
-from fmm_ros.io.bags.writer import STORAGES, WRITE_ERRORS, BagWriter, bag_qos, free_bag_path
+from fmm_ros.io.bags.writer import WRITE_ERRORS, BagWriter, bag_qos, free_bag_path
 from fmm_ros.io.session_info import SESSION_KEY, from_message, to_json
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import message_class, run_node
@@ -84,7 +85,7 @@ PARAMS = (
         read_only=True,
     ),
     Param('bag_path', '', 'Bag directory to create; "" for fmm_<date>_<time> here', read_only=True),
-    Param('storage', 'mcap', 'rosbag2 storage plugin', choices=tuple(STORAGES), read_only=True),
+    Param('storage', 'mcap', 'rosbag2 storage plugin', choices=tuple(BAG_STORAGES), read_only=True),
     Param(
         'flush_interval_s',
         1.0,
