@@ -16,11 +16,12 @@ from fmm_ros.core.diagnose.gaps import gap, input_noise_allowance, motion_window
 from fmm_ros.core.diagnose.signatures import non_harmonic_peaks
 from fmm_ros.core.diagnose.starts import SECOND_MODE_DAMPING_RATIOS, start_term
 from fmm_ros.core.diagnose.where import locate_misfit
-from fmm_ros.core.identify.conditioning import FitError, as_conditioned
+from fmm_ros.core.identify.conditioning import as_conditioned
 from fmm_ros.core.identify.friction import ModelFit, fit_model
 from fmm_ros.core.physics.model import simulate
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import MODEL_TERMS
+from fmm_ros.errors import FitError
 
 BIC_EVIDENCE = 10.0
 INPUT_NOISE_FACTOR = 3.0

@@ -14,7 +14,8 @@ import pytest
 
 from fmm_ros.core.diagnose.starts import start_term
 from fmm_ros.core.diagnose.workflow import EFFECTS, NONE, VOCABULARY, diagnose
-from fmm_ros.core.identify.conditioning import FitError, as_conditioned
+from fmm_ros.core.identify.conditioning import as_conditioned
+from fmm_ros.errors import FitError
 from fmm_ros.sim.excitation import impact_record
 from fmm_ros.sim.hidden_effects import HIDDEN_EFFECTS, hidden_effect_case
 from fmm_ros.workflows.results import diagnosis_dict

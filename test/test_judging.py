@@ -8,7 +8,7 @@ import types
 import pytest
 
 from fmm_ros.core.identify.running import RunningFriction
-from fmm_ros.core.signal.analysis import SelectionError, select_impacts
+from fmm_ros.core.signal.analysis import select_impacts
 from fmm_ros.core.signal.judging import (
     MAX_REASON_CHARS,
     Decision,
@@ -18,7 +18,7 @@ from fmm_ros.core.signal.judging import (
     latest,
     load_judge,
 )
-from fmm_ros.errors import BadInputError
+from fmm_ros.errors import BadInputError, SelectionError
 from fmm_ros.workflows.results import selection_dict
 
 

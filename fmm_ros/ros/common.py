@@ -20,6 +20,7 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 from fmm_ros.core.physics.rig import Rig
+from fmm_ros.errors import SourceStartTimeout
 from fmm_ros.ros.params import Param, params_from
 from fmm_ros.ros.qos import RESULT_QOS, SAMPLE_QOS  # noqa: F401 (re-exported)
 from fmm_ros.sim.daq import ChannelChain
@@ -91,13 +92,6 @@ def chain_from_parameters(config: dict, suffix: str) -> ChannelChain:
 def rig_from_parameters(config: dict) -> Rig:
     """The Rig the RIG_PARAMS values of a node's config describe."""
     return Rig(**{param.name: config[param.name] for param in RIG_PARAMS})
-
-
-class SourceStartTimeout(RuntimeError):
-    """A source's consumers did not all appear in time: it stops rather than lose samples.
-
-    `run_node` exits 1 with the reason; `fmm_ros.ros.flow.FlowGate` raises it.
-    """
 
 
 # The signals a process manager sends a node: Ctrl-C, systemd / docker stop / ros2 launch's

@@ -37,7 +37,7 @@ from rclpy.publisher import Publisher
 
 from fmm_interfaces.msg import StreamProgress
 from fmm_ros.constants import STREAM_PROGRESS_TOPIC, resolve_name
-from fmm_ros.ros.common import SourceStartTimeout
+from fmm_ros.errors import SourceStartTimeout
 from fmm_ros.ros.health import OK, WARN
 from fmm_ros.ros.params import Param
 from fmm_ros.ros.qos import PROGRESS_LISTEN_QOS, PROGRESS_QOS, SAMPLE_QOS

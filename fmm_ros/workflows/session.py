@@ -25,7 +25,6 @@ from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ
 from fmm_ros.core._threads import thread_imap
 from fmm_ros.core.diagnose.result import Diagnosis
 from fmm_ros.core.diagnose.workflow import diagnose
-from fmm_ros.core.identify.conditioning import FitError
 from fmm_ros.core.identify.friction import fit_friction
 from fmm_ros.core.identify.spec import FRICTION_FIT, MU_BOUNDS, FitSpec
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
@@ -33,7 +32,6 @@ from fmm_ros.core.signal.analysis import (
     AnalysisConfig,
     ImpactAnalysis,
     ImpactSelection,
-    SelectionError,
     Summary,
     analyze_impact,
     select_impacts,
@@ -42,7 +40,7 @@ from fmm_ros.core.signal.analysis import (
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, with_trigger
 from fmm_ros.core.signal.judging import Decision
 from fmm_ros.core.signal.records import ImpactRecord
-from fmm_ros.errors import BadInputError
+from fmm_ros.errors import BadInputError, FitError, SelectionError
 from fmm_ros.io.session_info import SessionInfo
 from fmm_ros.workflows.inputs import DEFAULT_INPUTS, InputOptions, Progress, read_inputs
 from fmm_ros.workflows.model import ModelComparison, ModelOverlay, compare_model

@@ -33,7 +33,6 @@ import scipy.stats
 from fmm_ros.core.identify.chain import DriftBasis
 from fmm_ros.core.identify.conditioning import ConditionedImpact, source_prefix
 from fmm_ros.core.identify.lsq import (
-    Infeasible,
     LsqSolution,
     inner,
     normal_inverse,
@@ -42,7 +41,7 @@ from fmm_ros.core.physics.model import Simulation, simulate
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.physics.terms import ModelTerm
 from fmm_ros.core.signal.frf import band_bins, mobility, spectra
-from fmm_ros.errors import BadInputError
+from fmm_ros.errors import BadInputError, Infeasible
 
 """Upper end of the mobility misfit band: f_n and its odd harmonics to the 9th (paper Fig. 24)."""
 

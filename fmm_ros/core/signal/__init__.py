@@ -22,7 +22,6 @@ _EXPORTS = {
     'LevelSummary': 'analysis',
     'NominalLevel': 'config',
     'SampleHistory': 'history',
-    'SelectionError': 'analysis',
     'Summary': 'analysis',
     'analyze_impact': 'analysis',
     'capture_impacts': 'capture',

@@ -41,7 +41,7 @@ from fmm_ros.core.signal.judging import Decision, is_taken
 from fmm_ros.core.signal.levels import assign_nominal_levels, cluster_levels
 from fmm_ros.core.signal.quality import quality_flags
 from fmm_ros.core.signal.records import ImpactRecord
-from fmm_ros.errors import BadInputError, NoCleanImpactError
+from fmm_ros.errors import BadInputError, SelectionError
 
 
 @dataclass(frozen=True, eq=False)
@@ -436,14 +436,6 @@ class ImpactSelection:
                 + ', '.join(decision.describe() for decision in self.judged)
             )
         return '; '.join(parts)
-
-
-class SelectionError(NoCleanImpactError):
-    """Too few clean impacts for what was asked; `selection` says which were left out."""
-
-    def __init__(self, message: str, selection: ImpactSelection) -> None:
-        super().__init__(message)
-        self.selection = selection
 
 
 def select_impacts(

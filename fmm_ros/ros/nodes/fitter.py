@@ -46,7 +46,6 @@ from fmm_ros.constants import (
     IMPACTS_TOPIC,
 )
 from fmm_ros.core.diagnose.workflow import diagnose
-from fmm_ros.core.identify.conditioning import FitError
 from fmm_ros.core.identify.friction import fit_friction
 from fmm_ros.core.identify.running import RunningEstimate, RunningFriction
 from fmm_ros.core.identify.spec import MU_BOUNDS, FitSpec
@@ -56,7 +55,7 @@ from fmm_ros.core.signal.judging import Decision, is_taken
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.core.signal.response import as_measured
 from fmm_ros.core.signal.stream import Batch
-from fmm_ros.errors import BadInputError
+from fmm_ros.errors import BadInputError, FitError
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import RIG_PARAMS, rig_from_parameters, run_node
 from fmm_ros.ros.cutting import ImpactCutter
