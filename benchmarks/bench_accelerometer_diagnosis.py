@@ -1,4 +1,4 @@
-"""The diagnosis on FMM sessions measured by an accelerometer: confusion tables (issue 26).
+"""The diagnosis on FMM sessions measured by an accelerometer: confusion tables.
 
 Run: .venv/bin/python benchmarks/bench_accelerometer_diagnosis.py [--quick] [--cases N]
      [--seed S]

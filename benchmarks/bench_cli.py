@@ -5,9 +5,9 @@ Run: .venv/bin/python benchmarks/bench_cli.py [--quick] [--repeats R]
 Each command runs as a fresh process (the `fmm` console script beside this Python), as a
 user starts it; the figure is the median wall time of R runs. The baseline, in the same run,
 is the bare interpreter (`python -c pass`): what no Python command can beat; beside it, the
-way before issue 23: `fmm --help` after importing what the commands import to run (numpy,
-scipy, numba, matplotlib, the bag reader, the workflows, campaigns), as the CLI did before
-its parsers were declared apart from their work. The parsers
+eager way: `fmm --help` after importing what the commands import to run (numpy,
+scipy, numba, matplotlib, the bag reader, the workflows, campaigns), as a CLI does whose
+parsers are not declared apart from their work. The parsers
 import no numerics (numpy, scipy, numba, matplotlib, rclpy; `test_cli_startup` holds that),
 so the target is an answer within 0.3 s.
 --quick: three runs of `fmm --help` and two subcommands, nothing written. A full run writes
@@ -26,7 +26,7 @@ from results_file import write_section
 from fmm_ros.cli import build_parser
 
 TARGET_S = 0.3
-# What the commands import to run: `fmm --help` imported all of it before issue 23.
+# What the commands import to run: the eager way imports all of it first.
 EAGER = (
     'fmm_ros.workflows.session',
     'fmm_ros.workflows.replay',

@@ -9,8 +9,8 @@ tuning worlds, which the diagnosis's thresholds were chosen on, and held-out wor
 used to choose one (a world looked at before a threshold changed becomes a tuning world).
 
 Tuning: `ours` (`fmm_ros.sim.hidden_effects`, N sessions of each kind): one model term
-hidden in three hits, sized 1-4x the velocity noise after the base fit (issue 8); a pair of
-distinct terms, 2-4x each (issue 13); mu drifting over eight hits; a law outside the
+hidden in three hits, sized 1-4x the velocity noise after the base fit; a pair of
+distinct terms, 2-4x each; mu drifting over eight hits; a law outside the
 vocabulary (answer 'unexplained'); clean sessions of three and eight hits. `worlds` (test/,
 `world_cases.py`, W of each kind): its laws and effects, continuous-force hits, an
 anti-alias filter, hum, drift and an ADC; run-in over eight hits of a continuous recording;
@@ -43,7 +43,7 @@ drifting 4-7 % a hit over three hits, a wear track (answer 'unexplained'), clean
 continuous sessions whose starts the diagnosis chains (`asymmetric_chained`, `none_chained`: each
 hit from where the one before left the rig, the first from the centre). Their roles are
 `heldout.ROLES`.
-Issue 24's targets, on held-out worlds: single effects >= 15 of 16 per world, pairs >= 5 of
+The targets, on held-out worlds: single effects >= 15 of 16 per world, pairs >= 5 of
 6, false alarms <= 5 %, drift >= 90 %, the gap at least halved whenever an effect is named.
 Beside them, the single effects are also counted over the sessions the base model misses by at
 least MIN_EXCESS (0.5x the noise), the floor the diagnosis names an effect from: the sizes are
@@ -53,8 +53,8 @@ built not to speak of. The targets are judged on every session.
 Each table: rows what was hidden, columns the first effect named (`missing_effect`), how many
 were exactly right (the named set is the hidden set; 'unexplained' first for a law outside
 the vocabulary) and every miss. Then the time of one diagnosis of three 33 s impacts (hidden
-Stribeck) and of a 30-hit session with each start fitted, against issue 8's closed-world
-algorithm (`issue8_diagnose.py`) in the same run, and a 30-hit Stribeck session (<= 5 s).
+Stribeck) and of a 30-hit session with each start fitted, against the closed-world
+algorithm (`closed_world_diagnose.py`) in the same run, and a 30-hit Stribeck session (<= 5 s).
 A full run writes its sections of RESULTS.md (`results_file`: tuning worlds, held-out worlds
 and time, each replaced only by a run that made it; --role sweeps one role; --kinds sweeps
 only those kinds of every world that makes them, into a section of their own; --worlds
@@ -77,7 +77,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from issue8_diagnose import diagnose_issue8
+from closed_world_diagnose import diagnose_closed_world
 from results_file import QUICK_HELP, write_section
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'test'))
@@ -420,7 +420,7 @@ class Sweep:
         return line
 
     def targets(self) -> list[str]:
-        """Issue 24's targets for a held-out world, each met or not: those its swept kinds judge."""
+        """The targets for a held-out world, each met or not: those its swept kinds judge."""
         singles = [k for k in self.rows if k in (*SINGLES, *CLEAN)]
         clean_right, clean = self.rate(CLEAN)
         checks = [('gap not halved where named', self.not_halved, 0, False)]
@@ -696,7 +696,7 @@ def timed(function, *args, repeats: int = 1, **kwargs) -> Timed:
 
 
 def timing(repeats: int, seed: int, hits_per_level: int) -> list[str]:
-    """The time of a three-hit and a many-hit diagnosis, and issue 8's in the same run."""
+    """The time of a three-hit and a many-hit diagnosis, and the closed-world one's beside it."""
     lines = []
 
     def say(line: str) -> None:
@@ -706,10 +706,10 @@ def timing(repeats: int, seed: int, hits_per_level: int) -> list[str]:
     case = hidden_effect_case('stribeck', seed)
     diagnose(case.records)  # JIT and caches warm
     new = timed(diagnose, case.records, repeats=repeats)
-    old = timed(diagnose_issue8, case.records, repeats=max(1, repeats // 2))
+    old = timed(diagnose_closed_world, case.records, repeats=max(1, repeats // 2))
     say(
         f'three 33 s impacts, hidden stribeck: {new} median of {repeats} (named '
-        f'{", ".join(new.result.named_effects)}); issue 8: {old} (named {old.result}); '
+        f'{", ".join(new.result.named_effects)}); closed world: {old} (named {old.result}); '
         f'{old.cpu_s / new.cpu_s:.1f}x less CPU (target <= {TARGET_THREE_S} s)'
     )
     session = simulated_session(
@@ -720,10 +720,10 @@ def timing(repeats: int, seed: int, hits_per_level: int) -> list[str]:
         for record in capture_impacts(session.force_n, session.velocity_m_s, session.sample_rate_hz)
     ]
     new = timed(diagnose, impacts, fit_initial_position=True)
-    old = timed(diagnose_issue8, impacts, fit_initial_position=True)
+    old = timed(diagnose_closed_world, impacts, fit_initial_position=True)
     say(
         f'a {len(impacts)}-hit session, each start fitted: {new} (named '
-        f'{", ".join(new.result.named_effects) or "none"}); issue 8: {old} (named '
+        f'{", ".join(new.result.named_effects) or "none"}); closed world: {old} (named '
         f'{old.result}); {old.cpu_s / new.cpu_s:.1f}x less CPU (target <= {TARGET_SESSION_S} s)'
     )
     stribeck = hidden_session(

@@ -10,8 +10,8 @@ least_squares on the same residuals (what the fitter's own Levenberg-Marquardt r
 Then a continuous session (hits 33 s apart, each starting where friction left the last) cut
 into 33 s records and fitted as the fitter service and the session report do:
 fit_friction(records, fit_initial_position=True), time and tracemalloc peak, now (impulse
-scales, hum and drift) and as before issue 14 in the same run, the latter also with the
-Jacobian dense (jacobian='dense', the plain way, one run).
+scales, hum and drift) and as the exact-force fit (`EXACT_FORCE`) in the same run, the latter
+also with the Jacobian dense (jacobian='dense', the plain way, one run).
 """
 
 import argparse
@@ -111,19 +111,19 @@ def traced_run(function):
     return seconds, peak_mb, result
 
 
-BEFORE_ISSUE_14 = dict(
+EXACT_FORCE = dict(
     fit_impulse_scale=False,
     remove_mains_hum=False,
     fit_velocity_drift=False,
     judge_hit=True,
     uncertainty='blocks',
 )
-"""fit_friction's options that reproduce the fit before issue 14 (measured impulse as exact,
-velocity as measured, the hit judged, block-sum errors)."""
+"""fit_friction's options of the exact-force fit, the plain fit the current one is weighed
+against: measured impulse as exact, velocity as measured, the hit judged, block-sum errors."""
 
 
 def session_fits(hits_per_level: int, repeats: int) -> tuple[float, float]:
-    """fit_friction of a whole session with start positions: now, before issue 14, dense.
+    """fit_friction of a whole session with start positions: now, exact-force, dense.
 
     Returns the current fit's (median seconds, peak MB).
     """
@@ -144,14 +144,14 @@ def session_fits(hits_per_level: int, repeats: int) -> tuple[float, float]:
 
     now_s = median_s(run, repeats)
     _, now_mb, now = traced_run(run)
-    before_s = median_s(lambda: run(**BEFORE_ISSUE_14), repeats)
-    _, before_mb, before = traced_run(lambda: run(**BEFORE_ISSUE_14))
-    dense_s, dense_mb, dense = traced_run(lambda: run('dense', **BEFORE_ISSUE_14))
+    before_s = median_s(lambda: run(**EXACT_FORCE), repeats)
+    _, before_mb, before = traced_run(lambda: run(**EXACT_FORCE))
+    dense_s, dense_mb, dense = traced_run(lambda: run('dense', **EXACT_FORCE))
     print(f'  {"fit":<52} {"time":>8} {"peak":>9}   mu +- stderr')
     for label, seconds, mb, fitted in (
         (f'now, Jacobian by blocks (median of {repeats})', now_s, now_mb, now),
-        (f'before issue 14, by blocks (median of {repeats})', before_s, before_mb, before),
-        ('before issue 14, dense (one run, traced)', dense_s, dense_mb, dense),
+        (f'exact-force fit, by blocks (median of {repeats})', before_s, before_mb, before),
+        ('exact-force fit, dense (one run, traced)', dense_s, dense_mb, dense),
     ):
         print(
             f'  {label:<52} {seconds:7.2f}s {mb:6.0f} MB   {fitted.mu:.6f} +- '
@@ -163,7 +163,7 @@ def session_fits(hits_per_level: int, repeats: int) -> tuple[float, float]:
     )
     error_ratio = max(abs(a / b - 1.0) for a, b in zip(joint.stderr, plain.stderr, strict=True))
     print(
-        f'  now {now_s / before_s:.2f}x the time of the fit before issue 14; blocks '
+        f'  now {now_s / before_s:.2f}x the time of the exact-force fit; blocks '
         f'{dense_s / before_s:.0f}x faster than dense, {dense_mb / before_mb:.1f}x less memory '
         f'(largest difference {worst:.2g} standard errors in a value, {100 * error_ratio:.2g} % '
         'in a standard error)'

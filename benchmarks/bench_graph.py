@@ -1,4 +1,4 @@
-"""The live rig's speed (issue 6): whole graph in one process, and the analyzer's CPU share.
+"""The live rig's speed: whole graph in one process, and the analyzer's CPU share.
 
 1. hammer_sim, rig_sim, analyzer, fitter and recorder on one executor, the hammer asked for
    x1000 so the graph runs as fast as it can: real-time factor = seconds of signal (two

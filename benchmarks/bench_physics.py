@@ -29,7 +29,7 @@ from fmm_ros.sim.excitation import impact_record
 RATE_HZ = 10_000.0
 TARGET_RECORD_MS = 3.0
 TARGET_RATIO = 20.0
-TARGET_OF_FLOOR = 2.5  # one record against filling its two output arrays (issue 28)
+TARGET_OF_FLOOR = 2.5  # one record against filling its two output arrays
 TARGET_SWEEP_S = 1.0
 TARGET_NONLINEAR_MS = 100.0
 

@@ -1,4 +1,4 @@
-"""Offline analysis of a 30-hit session bag: 16.5 min of two 10 kHz channels (issues 7 and 28).
+"""Offline analysis of a 30-hit session bag: 16.5 min of two 10 kHz channels.
 
 The session (10 hits at each of the paper's levels, 33 s apart, simulated by the physics
 core and written as the recorder would) is replayed as `fmm replay` does: a clean bag read
@@ -6,7 +6,7 @@ whole into channel arrays (its chunks' checksums verified on a second thread mea
 captured in blocks, each record analysed as it completes, on as many threads as there are
 cores (`available_threads`, printed) while the capture goes on, levels summarized.
 Against it, in the same run and interleaved (each repeat runs every row once, medians
-reported): the same replay on one thread, the replay as it was before issue 28 (every batch
+reported): the same replay on one thread, the replay batch by batch (every batch
 decoded and fed to the capture one by one), the bare read of the same file (the mcap
 library iterating its messages, nothing decoded: the floor a one-threaded replay cannot
 beat), a naive reader that decodes every message into per-sample Python lists, and the
@@ -57,7 +57,7 @@ ANALYSIS = AnalysisConfig(levels=paper_levels())
 THREADS = available_threads()
 REPLAY = f'replay (fmm replay), {THREADS} threads'
 ONE_THREAD = 'replay on one thread'
-BEFORE = 'replay before issue 28 (batch by batch)'
+BEFORE = 'replay batch by batch (decode, then capture)'
 NUMPY = f'replay, analysis steps as numpy, {THREADS} threads'
 BARE = 'bare read: mcap library, every message'
 NAIVE = 'naive: samples via Python lists, then same'
@@ -254,7 +254,7 @@ def main() -> int:
             f'{seconds[NUMPY] / seconds[BARE]:.2f}x the bare read)'
         )
         print(
-            f'{seconds[BEFORE] / ours:.1f}x faster than the replay before issue 28, '
+            f'{seconds[BEFORE] / ours:.1f}x faster than the replay batch by batch, '
             f'{seconds[NAIVE] / ours:.1f}x faster than the naive reader'
         )
         print(

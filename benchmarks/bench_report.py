@@ -26,12 +26,12 @@ from pathlib import Path
 
 from results_file import QUICK_HELP, recorded
 
-from fmm_ros.constants import PAPER_MU
+from fmm_ros.constants import PAPER_MU, REPORT_DPI
 from fmm_ros.core.signal.analysis import AnalysisConfig, paper_levels
 from fmm_ros.core.signal.capture import capture_impacts
 from fmm_ros.report import build_report, session_figures
 from fmm_ros.report import html as report_html
-from fmm_ros.report.plotting import DEFAULT_DPI, freeze_ticks
+from fmm_ros.report.plotting import freeze_ticks
 from fmm_ros.sim.session import simulated_session
 from fmm_ros.workflows.session import SessionOptions, process_records
 
@@ -135,7 +135,7 @@ def run(records, out: Path, dpi: float, naive: bool):
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--repeats', type=int, default=3)
-    parser.add_argument('--dpi', type=float, default=DEFAULT_DPI)
+    parser.add_argument('--dpi', type=float, default=REPORT_DPI)
     parser.add_argument('--out', type=Path, help='keep the report here (default: a temp dir)')
     parser.add_argument('--quick', action='store_true', help=QUICK_HELP)
     args = parser.parse_args()

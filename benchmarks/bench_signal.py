@@ -1,6 +1,6 @@
 """Signal-core speed: one 33 s impact analysed, and streaming capture's share of a core.
 
-Targets (issue 4): one impact (2 x 330,000 samples) analysed in <= 50 ms; streaming both
+Targets: one impact (2 x 330,000 samples) analysed in <= 50 ms; streaming both
 10 kHz channels in 500-sample batches below 2 % of one core. Each is measured against a naive
 baseline in the same run. Medians of several repeats, since the 2 cores are shared.
 

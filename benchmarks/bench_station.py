@@ -1,4 +1,4 @@
-"""The station's weight (issue 27): its CPU at x1, the page's memory at x20, memory over a soak.
+"""The station's weight: its CPU at x1, the page's memory at x20, memory over a soak.
 
 A recorded session (simulated, hits 8 s apart, 6 s records) is played by the player node into
 the analyzer and the fitter, each its own process as `ros2 run` starts them, with the station

@@ -5,8 +5,8 @@ Run: .venv/bin/python benchmarks/bench_uncertainty.py [--sessions N] [--scenario
 Sessions come from the independent generator (test/worlds: continuous-force hits sampled
 afterwards, its own stick-slip solver and DAQ chain), three hits each, cut from one continuous
 recording so every hit finds the rig where friction left it (`test/calibration.py` has the
-scenarios and the statistics). Each session is fitted twice in the same run: as the fit did
-before issue 14 ('today': the measured force as exact, the velocity as measured, block-sum
+scenarios and the statistics). Each session is fitted twice in the same run: as the exact-force
+fit ('today': the measured force as exact, the velocity as measured, block-sum
 errors, each hit's start fitted as the fitter node did) and as `fmm fit`, the report and the
 fitter node fit now ('now'). Printed per scenario and fit: the share of sessions with
 |mu - true mu| <= 2 standard errors (target >= 90 %), the share in which the one-mu test
@@ -45,7 +45,7 @@ def main() -> None:
         args.sessions, args.scenarios = 2, args.scenarios[:1]
     print(
         f'{args.sessions} sessions a scenario, 3 hits each (independent generator); '
-        f"'today': the fit before issue 14, 'now': fit_friction as fmm fit runs it"
+        f"'today': the exact-force fit, 'now': fit_friction as fmm fit runs it"
     )
     print(
         f'  {"scenario / fit":<40} {"coverage":>8} {"p<0.05":>7} {"p<0.001":>8} '

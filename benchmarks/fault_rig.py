@@ -1,4 +1,4 @@
-"""Fault injection on the multi-process rig (issue 25): each family lost, named, recovered.
+"""Fault injection on the multi-process rig: each family lost, named, recovered.
 
 The simulated rig as `launch_scripts/sim_rig.py --processes` starts it (one process per node,
 the package's params file), a short session (hits 8 s apart, 6 s records), with one fault

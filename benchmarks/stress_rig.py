@@ -1,4 +1,4 @@
-"""The multi-process rig under load and under faults: what is lost, refused, recovered (issue 19).
+"""The multi-process rig under load and under faults: what is lost, refused, recovered.
 
 For the simulated rig started as `launch_scripts/sim_rig.py --processes` starts it (one
 process per node, the package's params file), once with the machine as it is and once with

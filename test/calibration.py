@@ -118,7 +118,7 @@ SCENARIOS = (
 
 
 def todays_fit(records: Sequence) -> FrictionFit:
-    """The fit before issue 14 (with the fitter node's start positions): the measured force as
+    """The exact-force fit (with the fitter node's start positions): the measured force as
     exact, the hit judged, the velocity as measured, block-sum standard errors."""
     return fit_friction(
         records,

@@ -1,4 +1,4 @@
-"""The per-record analysis steps as numpy defines them, before they were made faster (issue 28).
+"""The per-record analysis steps as numpy defines them, before they were made faster.
 
 Each faster step of a record's analysis (`quality.mad_std`, `frf.median_in_place`, ...) has
 its definition here: the numpy expression it replaced. Inside `numpy_steps` every one runs

@@ -1,4 +1,4 @@
-"""The diagnosis of FMM sessions measured by an accelerometer (issue 26).
+"""The diagnosis of FMM sessions measured by an accelerometer.
 
 The velocity integrated from an accelerometer carries a random walk, not white noise: the
 diagnosis takes the sensor's drift off with the base model and describes what is left by

@@ -1,4 +1,4 @@
-"""Friction of a positioning axis (issue 26 item 4): a closed-loop generator, then a real axis.
+"""Friction of a positioning axis: a closed-loop generator, then a real axis.
 
 The generator (`axis_generator`, written for these tests, exact event-located motion under a
 cascaded PD controller, an encoder, force noise and cogging ripple) shares nothing with the
@@ -25,7 +25,7 @@ PUBLISHED_DIRECTIONS = {
     'viscous_positive_n_s_per_m': 166.7061,
     'viscous_negative_n_s_per_m': 240.4236,
 }
-# Issue 26: Coulomb within 5 %, viscous within 10 %, mass within 5 % of the published values.
+# The targets: Coulomb within 5 %, viscous within 10 %, mass within 5 % of the published values.
 TOLERANCE = {'mass_kg': 0.05, 'viscous_n_s_per_m': 0.10, 'coulomb_n': 0.05}
 
 

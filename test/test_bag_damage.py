@@ -1,4 +1,4 @@
-"""Bad bags (issue 7): clear errors that name the problem, and nothing before the damage lost."""
+"""Bad bags: clear errors that name the problem, and nothing before the damage lost."""
 
 import os
 import signal

@@ -1,4 +1,4 @@
-"""Bag I/O (issue 7): what the core writes, an independent MCAP decoder reads identically."""
+"""Bag I/O: what the core writes, an independent MCAP decoder reads identically."""
 
 from pathlib import Path
 
@@ -150,7 +150,7 @@ def test_new_message_names_an_unknown_field():
 
 
 def test_metadata_is_parsed_to_what_yaml_safe_load_gives(tmp_path):
-    """load_yaml (libyaml where PyYAML has it, issue 28) reads a bag's metadata.yaml, its
+    """load_yaml (libyaml where PyYAML has it) reads a bag's metadata.yaml, its
     custom_data included, to yaml.safe_load's document; a damaged one is a YAMLError."""
     bag = tmp_path / 'session'
     write_session(bag, storage='mcap')

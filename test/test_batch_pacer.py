@@ -1,4 +1,4 @@
-"""A source's wall-clock pace (ros/flow.BatchPacer, issue 28): short stalls are made up.
+"""A source's wall-clock pace (ros/flow.BatchPacer): short stalls are made up.
 
 Re-anchoring the clock as soon as a source was two batches behind lost every stall longer
 than 20 ms for good at x50 (x44.9 of x50 on a graph that sustained x77.5 asked x100). The

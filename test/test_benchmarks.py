@@ -1,4 +1,4 @@
-"""Every benchmark runs, in its quick mode, so a benchmark that crashes fails the build (issue 28).
+"""Every benchmark runs, in its quick mode, so a benchmark that crashes fails the build.
 
 Scripts are discovered, not listed: every file in benchmarks/ that runs as a script (it has a
 `__main__` block) is run with `--quick`, so a benchmark added later is covered without
@@ -32,7 +32,7 @@ QUICK_TIMEOUT_S = 600  # a busy shared machine runs them several times slower
 def test_the_known_benchmarks_are_discovered():
     names = {path.stem for path in SCRIPTS}
     assert {'bench_replay', 'bench_physics', 'stress_rig', 'bench_signal'} <= names
-    assert 'results_file' not in names and 'issue8_diagnose' not in names
+    assert 'results_file' not in names and 'closed_world_diagnose' not in names
 
 
 @pytest.mark.slow

@@ -1,4 +1,4 @@
-"""Chained starts (issue 24 item 3): why fitted starts cannot see a direction-dependent friction,
+"""Chained starts: why fitted starts cannot see a direction-dependent friction,
 and how a chain anchored at the centre does.
 
 With the velocity alone, friction mu + d/2 forward and mu - d/2 backward is exactly the

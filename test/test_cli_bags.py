@@ -1,4 +1,4 @@
-"""`fmm import`, `fmm bag-info`, `fmm export` and the progress bar (issue 7)."""
+"""`fmm import`, `fmm bag-info`, `fmm export` and the progress bar."""
 
 import csv
 import io

@@ -1,4 +1,4 @@
-"""`fmm --help` answers at once (issue 23, item 4): the parsers import no numerics.
+"""`fmm --help` answers at once: the parsers import no numerics.
 
 A structural test, not a timed one (benchmarks/bench_cli.py times it): a fresh interpreter
 builds every subcommand's help and the modules it imported are listed.

@@ -1,7 +1,7 @@
-"""One vocabulary across `fmm` (issue 17, items 2 and 3): -o/--output for results, SI units in
+"""One vocabulary across `fmm`: -o/--output for results, SI units in
 every flag name, the same hit selection on analyze/fit/diagnose/report, old spellings kept
 as hidden aliases that still work and warn, -q on every long job and progress only on a
-terminal, a quiet end on a closed pipe. And the CLI's shape (issue 16): subcommands import
+terminal, a quiet end on a closed pipe. And the CLI's shape: subcommands import
 no other subcommand, the report computes nothing."""
 
 import argparse

@@ -16,13 +16,13 @@ from fmm_ros.core.identify.friction import fit_friction
 from fmm_ros.core.signal import quality
 from fmm_ros.core.signal.analysis import (
     AnalysisConfig,
-    SelectionError,
     analyze_impact,
     select_impacts,
     summarize,
 )
 from fmm_ros.core.signal.capture import ImpactCapture
 from fmm_ros.core.signal.records import ImpactRecord, write_impact_csv
+from fmm_ros.errors import SelectionError
 from fmm_ros.workflows.session import select_records
 
 # The flag each fault must raise.

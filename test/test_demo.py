@@ -1,4 +1,4 @@
-"""`fmm demo`: the main job runs a session through the graph and reports it (issue 6)."""
+"""`fmm demo`: the main job runs a session through the graph and reports it."""
 
 import json
 

@@ -1,6 +1,6 @@
 """fmm_ros.core.diagnose: each hidden effect named, none on clean data, the gap halved.
 
-The fixed-seed cases of issue 8: three 33 s impacts at random levels, 0.2 N / 1e-4 m/s noise,
+The fixed-seed cases: three 33 s impacts at random levels, 0.2 N / 1e-4 m/s noise,
 each effect hidden at 1-4x the velocity noise after the base fit (hidden_effects). The
 diagnosis sees only force and velocity. Several effects at once, out-of-vocabulary effects and
 mu drift are test_open_world.py; the randomised sweep is benchmarks/bench_diagnose.py.
@@ -14,7 +14,8 @@ import pytest
 
 from fmm_ros.core.diagnose.starts import start_term
 from fmm_ros.core.diagnose.workflow import EFFECTS, NONE, VOCABULARY, diagnose
-from fmm_ros.core.identify.conditioning import FitError, as_conditioned
+from fmm_ros.core.identify.conditioning import as_conditioned
+from fmm_ros.errors import FitError
 from fmm_ros.sim.excitation import impact_record
 from fmm_ros.sim.hidden_effects import HIDDEN_EFFECTS, hidden_effect_case
 from fmm_ros.workflows.results import diagnosis_dict

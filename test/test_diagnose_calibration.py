@@ -1,4 +1,4 @@
-"""The yardstick of 'unexplained' (`calibration`) and the mu the diagnosis reports (issue 24).
+"""The yardstick of 'unexplained' (`calibration`) and the mu the diagnosis reports.
 
 The noise at rest measures coloured noise whole where second differences see its white part
 only; the impulse nuisance removes a hit's impulse error, and no more than its bound; and

@@ -42,7 +42,7 @@ def test_a_few_random_worlds_sessions_get_the_right_answer(kind):
 def test_a_channel_delay_beside_another_effect_is_named_from_the_hits():
     """A delay shifts the velocity most where it changes fastest, while the hammer acts.
 
-    The fits of issue 14 leave those hit windows out by default; the diagnosis judges them,
+    The fits leave those hit windows out by default; the diagnosis judges them,
     or this worlds pair (a 0.2 ms delay and asymmetric friction) is answered 'unexplained'.
     """
     records, hidden, fit_starts = world_case('pair', np.random.default_rng([2019, 7, 3]))

@@ -1,4 +1,4 @@
-"""The faster per-record analysis steps (issue 28) give their numpy definitions' numbers.
+"""The faster per-record analysis steps give their numpy definitions' numbers.
 
 Each step made faster for replay (`reference_analysis.NUMPY_STEPS`) is held two ways: alone,
 against its numpy definition on arrays with ties, signed zeros, NaN and the sizes at its

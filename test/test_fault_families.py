@@ -1,4 +1,4 @@
-"""Fault families of issue 25 in the signal core: every member, not the one instance.
+"""Fault families in the signal core: every member, not the one instance.
 
 - An acquisition that begins anywhere in a hit, or on any force offset: the capture never
   raises, the hit it began in is `truncated_start`, no record starts before the acquisition,

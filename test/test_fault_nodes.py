@@ -1,4 +1,4 @@
-"""Fault families of issue 25 in the nodes: each family in a graph, every member that matters.
+"""Fault families in the nodes: each family in a graph, every member that matters.
 
 In-process graphs (one domain each) for what a scripted node can provoke: an offset above
 the trigger, every unit of the table against the SI run, a unit no table knows, two sources

@@ -10,11 +10,12 @@ from fit_records import FORCE_NOISE_N, VELOCITY_NOISE_M_S, lab_impact, lab_level
 
 from fmm_ros.core import identify as fit
 from fmm_ros.core.identify import output_error
-from fmm_ros.core.identify.lsq import Infeasible, levenberg_marquardt, normal_inverse
+from fmm_ros.core.identify.lsq import levenberg_marquardt, normal_inverse
 from fmm_ros.core.physics.model import free_vibration, simulate
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import model_term
 from fmm_ros.core.signal.capture import capture_impacts
+from fmm_ros.errors import BadInputError, FitError, Infeasible
 from fmm_ros.sim.session import simulated_session
 
 SCALES = tuple(f'impulse_scale[{i}]' for i in range(3))
@@ -275,7 +276,7 @@ def test_block_jacobian_is_the_dense_one_without_its_zeros():
     residual = np.array([1.0, -1.0, 2.0, 0.5, 3.0])
     np.testing.assert_allclose(jacobian.normal(), dense @ dense.T)
     np.testing.assert_allclose(jacobian.gradient(residual), dense @ residual)
-    with pytest.raises(ValueError, match='not ascending indices below 3'):
+    with pytest.raises(BadInputError, match='not ascending indices below 3'):
         Blocks(segments, (np.array([0, 3]), np.array([1])), 3)
 
 
@@ -424,31 +425,31 @@ def _noise(seed, n=330_000):
 
 def test_pure_noise_has_no_hit():
     force, velocity = _noise(20)
-    with pytest.raises(fit.FitError, match='noise.csv: the force never departs') as failure:
+    with pytest.raises(FitError, match='noise.csv: the force never departs') as failure:
         fit.fit_friction([fit.condition_impact(force, velocity, 1e4, source='noise.csv')])
     assert failure.value.reason == 'no_hit' and failure.value.source == 'noise.csv'
 
 
 def test_a_force_without_a_hit_is_refused_even_if_the_rig_moved():
     record = lab_impact(1000.0, 21, mu=0.113)
-    with pytest.raises(fit.FitError, match='there is no hit') as failure:
+    with pytest.raises(FitError, match='there is no hit') as failure:
         fit.condition_impact(_noise(21)[0], record.velocity_m_s, 1e4)
     assert failure.value.reason == 'no_hit'
 
 
 def test_a_hit_without_motion_is_refused():
     record = lab_impact(1000.0, 22, mu=0.113)
-    with pytest.raises(fit.FitError, match='the rig did not move') as failure:
+    with pytest.raises(FitError, match='the rig did not move') as failure:
         fit.condition_impact(record.force_n, _noise(22)[1], 1e4)
     assert failure.value.reason == 'no_motion'
 
 
 def test_a_frictionless_record_puts_mu_on_its_bound():
     record = lab_impact(1000.0, 23, mu=0.0, duration_s=10.0)
-    with pytest.raises(fit.FitError, match='lies on its search bound') as failure:
+    with pytest.raises(FitError, match='lies on its search bound') as failure:
         fit.fit_model(record)
     assert failure.value.reason == 'mu_at_bound'
-    with pytest.raises(fit.FitError, match='lies on its search bound'):
+    with pytest.raises(FitError, match='lies on its search bound'):
         fit.fit_model(lab_impact(1000.0, 24, mu=0.3, duration_s=10.0), mu_bounds=(0.01, 0.2))
 
 
@@ -461,15 +462,15 @@ def test_a_velocity_the_force_did_not_cause_is_unexplained(velocity):
         else lab_impact(450.0, 26, mu=0.113, duration_s=10.0).velocity_m_s[::-1]
     )
     impact = fit.condition_impact(record.force_n, measured, 1e4, source='bad.csv')
-    with pytest.raises(fit.FitError, match='unexplained.*check the channels') as failure:
+    with pytest.raises(FitError, match='unexplained.*check the channels') as failure:
         fit.fit_friction([impact])
     assert failure.value.reason == 'unexplained'
 
 
 def test_fit_errors_are_value_errors_with_known_reasons():
-    assert issubclass(fit.FitError, ValueError)
+    assert issubclass(FitError, ValueError)
     with pytest.raises(ValueError, match='unknown fit failure reason'):
-        fit.FitError('bad_luck', 'nope')
+        FitError('bad_luck', 'nope')
 
 
 # --- rig identification --------------------------------------------------------------------------
@@ -547,19 +548,19 @@ def test_free_decays_need_the_mass_for_k_and_c(lifted_rig):
 def test_a_decay_with_too_few_cycles_is_refused():
     noise = np.random.default_rng(3).normal(0.0, VELOCITY_NOISE_M_S, 20_000)
     one_cycle = free_vibration(3e-3, 0.5, 1e4, mu=0.0).velocity_m_s
-    with pytest.raises(fit.FitError, match='too few cycles') as failure:
+    with pytest.raises(FitError, match='too few cycles') as failure:
         fit.fit_free_decay(one_cycle + noise[: one_cycle.size], 1e4)
     assert failure.value.reason == 'too_few_cycles'
     heavy = Rig(mass_kg=1.0, stiffness_n_per_m=400.0, damping_n_s_per_m=16.0)  # zeta = 0.4
     gone = free_vibration(1e-3, 2.0, 1e4, rig=heavy, mu=0.0).velocity_m_s
-    with pytest.raises(fit.FitError, match='not a lightly damped free decay|too few cycles'):
+    with pytest.raises(FitError, match='not a lightly damped free decay|too few cycles'):
         fit.fit_free_decay(gone + noise, 1e4)
     with pytest.raises(ValueError, match='start_index 5 lies outside'):
         fit.fit_free_decay(np.zeros(5), 1e4, start_index=5)
 
 
 def test_a_friction_damped_record_is_not_a_linear_rig():
-    with pytest.raises(fit.FitError) as failure:
+    with pytest.raises(FitError) as failure:
         fit.identify_rig(lab_impact(1000.0, 44, mu=0.113, duration_s=10.0))
     assert failure.value.reason in ('unexplained', 'too_few_cycles', 'at_bound')
 

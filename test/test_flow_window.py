@@ -1,4 +1,4 @@
-"""The flow window held under every consumer's max_skew_s (ros/flow.py, issue 28).
+"""The flow window held under every consumer's max_skew_s (ros/flow.py).
 
 A source runs at most its window ahead of the slowest consumer of any of its channels, and
 that is as far as one channel can run ahead of another inside a consumer. Past the

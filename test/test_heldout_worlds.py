@@ -192,7 +192,7 @@ def test_held_out_sessions_get_the_right_answer(world):
     unexplained with its friction map rather than forced into the vocabulary, and mu drifting
     4-7 % a hit over three hits (one a level) is `mu_drift`. The benchmark
     reports the rates of every kind (see heldout-validation.md); `steps` is a tuning world
-    since the calibration of 'unexplained' (issue 24) was designed against it, kept here so
+    since the calibration of 'unexplained' was designed against it, kept here so
     it does not regress.
     """
     wrong = []

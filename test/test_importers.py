@@ -1,4 +1,4 @@
-"""Importers (issue 7): lab files made with their own libraries become SI session bags."""
+"""Importers: lab files made with their own libraries become SI session bags."""
 
 import zipfile
 

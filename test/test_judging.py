@@ -1,4 +1,4 @@
-"""Judging hits (issue 27): decisions overrule the flags through the one selection rule, the
+"""Judging hits: decisions overrule the flags through the one selection rule, the
 running mu forgets a rejected hit exactly, bad decisions are refused with their reason."""
 
 import math
@@ -8,7 +8,7 @@ import types
 import pytest
 
 from fmm_ros.core.identify.running import RunningFriction
-from fmm_ros.core.signal.analysis import SelectionError, select_impacts
+from fmm_ros.core.signal.analysis import select_impacts
 from fmm_ros.core.signal.judging import (
     MAX_REASON_CHARS,
     Decision,
@@ -18,7 +18,7 @@ from fmm_ros.core.signal.judging import (
     latest,
     load_judge,
 )
-from fmm_ros.errors import BadInputError
+from fmm_ros.errors import BadInputError, SelectionError
 from fmm_ros.workflows.results import selection_dict
 
 

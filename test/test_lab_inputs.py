@@ -1,4 +1,4 @@
-"""The one input layer (issue 17, item 1): analyze, fit, diagnose and report read CSV, MATLAB
+"""The one input layer: analyze, fit, diagnose and report read CSV, MATLAB
 v5 and v7.3, TDMS and bags alike, by content; a units row gives the units; semicolons, decimal
 commas and a cp1252 header are read as written, with overrides; what cannot be read says why.
 
@@ -109,7 +109,7 @@ def test_overrides_read_what_detection_cannot(hit, reference, tmp_path):
     ('line_end', 'separator'), [('\n', ','), ('\r\n', ';'), ('\r', '\t')], ids=['lf', 'crlf', 'cr']
 )
 def test_a_text_file_is_read_within_a_few_times_its_size(tmp_path, line_end, separator):
-    """Issue 19: untrusted or large files never take memory beyond a few times their size.
+    """Untrusted or large files never take memory beyond a few times their size.
 
     The text, the array and a piece of lines at a time (before: a list of every line and
     two more copies of the text, 6-7 times a 10 MB file). Decimal commas with semicolons

@@ -1,4 +1,4 @@
-"""launch/*.launch.xml name only what the package has (issue 23, item 5).
+"""launch/*.launch.xml name only what the package has.
 
 The ros2 launch system is not installed from PyPI, so the files are read as the plain XML
 they are: every executable is a console script of a node in `fmm_ros.ros.nodes.NODES`, every

@@ -1,4 +1,4 @@
-"""The import rules ARCHITECTURE.md states, held as data (issue 23, item 2).
+"""The import rules ARCHITECTURE.md states, held as data.
 
 Every `fmm_ros` module belongs to a layer (its top-level folder, the core's by stage); a layer
 imports only the layers listed for it in LAYERS, at module level or inside a function alike.

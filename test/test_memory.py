@@ -1,4 +1,4 @@
-"""The `fmm` process keeps freed memory for reuse (issue 28: a replay's page faults)."""
+"""The `fmm` process keeps freed memory for reuse (a replay's page faults)."""
 
 import fmm_ros.cli
 from fmm_ros.cli import main

@@ -555,7 +555,7 @@ def test_scattered_stamps_give_their_rate_and_jitter():
 def test_a_rest_at_the_band_edge_under_a_constant_force_breaks_away_at_once():
     """A rest entered at the band's edge, then a force constant over the next interval.
 
-    Seen on a held-out `moreau` session at 25.6 kHz (issue 24): the kernel located the
+    Seen on a held-out `moreau` session at 25.6 kHz: the kernel located the
     break-away where g crossed the edge, (edge - g) / (g_end - g_now), and with the force
     constant g_now == g_end: numba raised ZeroDivisionError inside the diagnosis's fit. The
     rig is already at the edge, so it leaves at once.

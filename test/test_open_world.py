@@ -1,4 +1,4 @@
-"""Open-world diagnosis (issue 13): several effects at once, 'unexplained', mu drift, friction map.
+"""Open-world diagnosis: several effects at once, 'unexplained', mu drift, friction map.
 
 Proof data from `fmm_ros.sim.hidden_effects.hidden_session`: 0.2 N / 1e-4 m/s noise, random
 levels and mu; pairs of terms each 2-4x the velocity noise alone, mu drifting over eight hits,

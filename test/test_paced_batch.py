@@ -1,4 +1,4 @@
-"""Batches that grow with the pace (ros/flow.py: PacedSource.paced_batch, issue 28).
+"""Batches that grow with the pace (ros/flow.py: PacedSource.paced_batch).
 
 rclpy costs about 120 us of CPU a message in every node that takes it, so a source at x50 in
 500-sample batches sent 1,000 messages a second a topic and the five-node graph spent its

@@ -1,4 +1,4 @@
-"""The ament_python package is what `ros2 run`, colcon and rosdep expect (issue 2)."""
+"""The ament_python package is what `ros2 run`, colcon and rosdep expect."""
 
 import ast
 import importlib.util

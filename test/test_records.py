@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from fmm_ros.core.signal.records import ImpactRecord, read_impact_csv, write_impact_csv
+from fmm_ros.errors import BadInputError
 
 
 def test_round_trip_keeps_samples_and_rate(tmp_path):
@@ -48,7 +49,7 @@ def test_bad_files_are_refused_naming_the_problem(tmp_path, text, message):
 
 
 def test_record_checks_its_arrays():
-    with pytest.raises(ValueError, match='sample-aligned'):
+    with pytest.raises(BadInputError, match='sample-aligned'):
         ImpactRecord(np.zeros(10), np.zeros(9), 1000.0)
     with pytest.raises(ValueError, match='shorter than the record'):
         ImpactRecord(np.zeros(10), np.zeros(10), 1000.0, window_samples=5)

@@ -1,4 +1,4 @@
-"""The live graph under faults (issue 19): nothing lost, recovery, signals, namespaces.
+"""The live graph under faults: nothing lost, recovery, signals, namespaces.
 
 Started as a lab starts it: nodes as separate processes in any order, or in-process graphs
 on one domain for the faults that need a scripted source. What counts is what the graph
@@ -151,7 +151,7 @@ def _whole(impacts):
 
 @pytest.mark.slow
 def test_a_stray_batch_and_a_restarted_source_are_recovered_over_dds(domain):
-    """The analyzer used to refuse every batch after either, for good (issue 19)."""
+    """The analyzer used to refuse every batch after either, for good."""
     with InProcessGraph(domain_id=domain) as graph:
         analyzer = graph.add(Analyzer, parameter_overrides=params(**FAST_ANALYZER))
         fitter = graph.add(Fitter)

@@ -1,4 +1,4 @@
-"""Replay and offline analysis of bags (issue 7): the live capture's impacts, from the batches."""
+"""Replay and offline analysis of bags: the live capture's impacts, from the batches."""
 
 import json
 

@@ -1,4 +1,4 @@
-"""Reports (issue 9): the page builds from a session, every figure is a valid PNG it references,
+"""Reports: the page builds from a session, every figure is a valid PNG it references,
 rejected hits are in the table, nothing in a figure is clipped, and the paper figures build.
 The fast path (own layout, reused hit figure, traces drawn per pixel column) draws what the
 plain one would."""
@@ -401,7 +401,7 @@ def test_diagnosis_names_the_hidden_effect_and_shows_the_gap_shrink(tmp_path):
     assert float(named[3]) <= 0.5 * float(named[2])
     table = page[page.index('<th class="text">candidate effect</th>') :]
     candidates = re.findall(r'<tr><td class="text">(\w+)</td>', table[: table.index('</table>')])
-    # the seven terms, and mu_drift: a candidate from three hits on (issue 24)
+    # the seven terms, and mu_drift: a candidate from three hits on
     assert len(candidates) == 8 and candidates[0] == 'stribeck' and 'mu_drift' in candidates
     assert 'stribeck.mu_static_excess' in page
     for name in ('diagnosis_residuals', 'diagnosis_mobility', 'diagnosis_friction_map'):

@@ -1,4 +1,4 @@
-"""The exact solver's stretches at rest, filled a block at a time (issue 28), change no number.
+"""The exact solver's stretches at rest, filled a block at a time, change no number.
 
 A record is mostly rest, which the kernel now tests 64 samples at a time. Fed in batches of
 a few samples the same stream never holds a whole block, so every sample takes the

@@ -1,4 +1,4 @@
-"""ROS from the venv (issue 17, item 5): `fmm env` makes a plain shell find the package and its
+"""ROS from the venv: `fmm env` makes a plain shell find the package and its
 node executables; `fmm ros` lists the graph, describes parameters and calls the services
 where there is no `ros2`; the fit service's answer is one FrictionResult on both sides."""
 

@@ -1,4 +1,4 @@
-"""The session pipeline (issue 16): workflows compute, the report draws, and a fit made
+"""The session pipeline: workflows compute, the report draws, and a fit made
 elsewhere (the fitter service's answer, in the demo) is drawn as it is, never refitted."""
 
 import json

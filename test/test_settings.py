@@ -1,4 +1,4 @@
-"""One declaration per setting (issue 23, item 1): the core's dataclasses declare each field's
+"""One declaration per setting: the core's dataclasses declare each field's
 unit, help and limits, and the ROS parameters and `fmm` options are made from them."""
 
 import argparse

@@ -1,4 +1,4 @@
-"""The exact solver against the sample-by-sample rule, to the bit (issue 28).
+"""The exact solver against the sample-by-sample rule, to the bit.
 
 To run a record near memory speed the kernels fill a stretch at rest after one scan of its
 force, step a sliding stretch in a loop of its own, test the force for bad samples as they

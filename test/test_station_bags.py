@@ -1,4 +1,4 @@
-"""What the station records, read back (issue 27): a bag's decisions are honoured by replay's
+"""What the station records, read back: a bag's decisions are honoured by replay's
 selection (found by trigger sample), its session metadata reaches the session result and a
 campaign's session table made from bags."""
 

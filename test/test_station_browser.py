@@ -1,4 +1,4 @@
-"""The station page in headless Chromium against the multi-process rig (issue 27).
+"""The station page in headless Chromium against the multi-process rig.
 
 Every node is its own process, as `ros2 run` starts them; the page is the real one, served by
 the station node and driven by Playwright as an operator would. Asserted: each hit is on the

@@ -1,4 +1,4 @@
-"""The station node's judging service and modes (issue 27), in one process without a rig.
+"""The station node's judging service and modes, in one process without a rig.
 
 A stand-in analyzer publishes ImpactResults; the station must refuse a decision about a hit
 it has not seen or a malformed one (saying why), publish a good one on fmm/impact_decisions,

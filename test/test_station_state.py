@@ -1,4 +1,4 @@
-"""The station's data without ROS or a browser (issue 27): session metadata checked field by
+"""The station's data without ROS or a browser: session metadata checked field by
 field, traces decimated without losing their peaks, progress and advice per level, decisions
 shown on their hit."""
 

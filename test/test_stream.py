@@ -1,4 +1,4 @@
-"""The one index-aligned stream (issue 16, 19): gaps, repeats, strays and new acquisitions.
+"""The one index-aligned stream: gaps, repeats, strays and new acquisitions.
 
 Every consumer (capture, history, bag aligner) runs these rules, so they are tested once on
 the stream with a recording sink, and then through each consumer where they matter to it.

@@ -1,4 +1,4 @@
-"""Messages cross an in-process ROS graph intact and cheaply (issue 2)."""
+"""Messages cross an in-process ROS graph intact and cheaply."""
 
 import array
 import threading

@@ -1,10 +1,10 @@
-"""Honest mu and honest errors on sessions of the independent generator (issue 14).
+"""Honest mu and honest errors on sessions of the independent generator.
 
 A few sessions of each harsh scenario (`calibration`): hard-tipped hits sampled at 10 and 5 kHz
 through a lab's chain (anti-alias filter, hum, offsets, a drifting vibrometer zero, 16 bits),
 every hit starting where friction left the rig. `benchmarks/bench_uncertainty.py` runs 100+
 sessions of each; here a handful, against bounds that honest errors pass with room and the
-fit before issue 14 fails on the same records.
+exact-force fit (`calibration.todays_fit`) fails on the same records.
 """
 
 import numpy as np

@@ -1,12 +1,21 @@
 """The one unit table and the refusal family: every unit converts the same way everywhere."""
 
+import ast
 from pathlib import Path
 
 import pytest
 
-from fmm_ros.core.identify.conditioning import FitError
-from fmm_ros.core.signal.analysis import SelectionError
-from fmm_ros.errors import BadInputError, DamagedFileError, FmmError, NoCleanImpactError, UnitError
+from fmm_ros.errors import (
+    BadInputError,
+    DamagedFileError,
+    FitError,
+    FmmError,
+    Infeasible,
+    NoCleanImpactError,
+    SelectionError,
+    SourceStartTimeout,
+    UnitError,
+)
 from fmm_ros.io.bags.errors import BagDamagedError, MissingTopicError
 from fmm_ros.units import QUANTITY_UNITS, SI_UNITS, lookup_unit, si_factor
 
@@ -56,5 +65,44 @@ def test_refusals_form_one_family_of_value_errors() -> None:
     assert issubclass(FmmError, ValueError)
     assert issubclass(SelectionError, NoCleanImpactError)
     assert issubclass(FitError, FmmError)
+    assert issubclass(Infeasible, FmmError)
+    assert issubclass(SourceStartTimeout, FmmError) and issubclass(SourceStartTimeout, RuntimeError)
     assert isinstance(BagDamagedError(Path('x'), ['truncated'], 3), DamagedFileError)
     assert issubclass(MissingTopicError, BadInputError)
+
+
+PACKAGE = Path(__file__).resolve().parents[1] / 'fmm_ros'
+FAMILY_MODULES = {PACKAGE / 'errors.py', PACKAGE / 'io' / 'bags' / 'errors.py'}
+"""Where the refusal family is declared: errors.py, and the bag I/O members beside the bags."""
+
+
+def _package_trees():
+    for path in sorted(PACKAGE.rglob('*.py')):
+        yield path, ast.parse(path.read_text(encoding='utf-8'))
+
+
+def test_every_public_exception_is_declared_in_the_family_modules() -> None:
+    """A public exception class anywhere else is a refusal outside the family."""
+    outside = sorted(
+        f'{path.relative_to(PACKAGE)}: {node.name}'
+        for path, tree in _package_trees()
+        if path not in FAMILY_MODULES
+        for node in ast.walk(tree)
+        if isinstance(node, ast.ClassDef)
+        and not node.name.startswith('_')
+        and any(ast.unparse(base).endswith(('Error', 'Exception')) for base in node.bases)
+    )
+    assert outside == []
+
+
+def test_the_package_raises_no_bare_value_error() -> None:
+    """Every refusal is a family member, so a caller tells refused data from a bug."""
+    bare = sorted(
+        f'{path.relative_to(PACKAGE)}:{node.lineno}'
+        for path, tree in _package_trees()
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Raise)
+        and isinstance(node.exc, ast.Call)
+        and ast.unparse(node.exc.func) == 'ValueError'
+    )
+    assert bare == []

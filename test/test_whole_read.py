@@ -1,4 +1,4 @@
-"""A clean recording read whole (issue 28): the same records and results as batch by batch.
+"""A clean recording read whole: the same records and results as batch by batch.
 
 `BagReader.channel_arrays` reads both channels of a clean MCAP bag straight into two arrays,
 and replay feeds them to the capture in blocks. These tests hold that road to the old one
@@ -147,7 +147,7 @@ def test_replay_analyses_in_threads_with_the_results_of_one_record_at_a_time(ses
 
 @pytest.mark.slow
 def test_fmm_replay_prints_what_it_printed_before_its_analysis_was_made_faster(session_bag, capsys):
-    """Issue 28: the faster analysis steps swapped back for their numpy definitions
+    """With the faster analysis steps swapped back for their numpy definitions
     (`reference_analysis`), replay gives the same results to the bit and prints the same JSON
     (all but how fast it ran)."""
     argv = ['replay', str(session_bag), '--paper-levels', '--window-s', '5', '--json']

@@ -31,7 +31,6 @@ _EXPORTS = {
     'write_campaign_report': 'report',
     'write_json': 'results',
     'write_tables': 'results',
-    'run_session': 'tasks',  # deprecated alias (issue 23)
 }
 
 __all__ = sorted(_EXPORTS)

@@ -31,13 +31,12 @@ from fmm_ros.campaign.compare import (
 from fmm_ros.campaign.results import CampaignResult, named_effects, session_mus
 from fmm_ros.campaign.stats import CONFIDENCE
 from fmm_ros.campaign.table import DATE, format_value
-from fmm_ros.constants import MM_PER_M
+from fmm_ros.constants import MM_PER_M, REPORT_DPI
 from fmm_ros.core import results_schema as schema
 from fmm_ros.core.identify.spec import CENTRE, CHAINED, FITTED
 from fmm_ros.core.results_schema import format_with_uncertainty
 from fmm_ros.report.html import Page
 from fmm_ros.report.plotting import (
-    DEFAULT_DPI,
     MEAN_COLOUR,
     REJECTED_COLOUR,
     level_colour,
@@ -59,7 +58,7 @@ STARTS_SAID = {
 
 
 def write_campaign_report(
-    campaign: CampaignResult, out_dir: str | Path, *, title: str = '', dpi: float = DEFAULT_DPI
+    campaign: CampaignResult, out_dir: str | Path, *, title: str = '', dpi: float = REPORT_DPI
 ) -> Path:
     """Write out_dir/index.html (and the figures as PNG files); its path."""
     table = campaign.table

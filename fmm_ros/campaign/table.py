@@ -18,7 +18,7 @@ A CSV file (a header row, one session a row; comma, semicolon or tab separated) 
   `stiffness_n_per_m`, `damping_n_s_per_m`, SI units) also set the rig that session's fit
   uses: mu = F_f / N is computed with the session's own normal force, not the FMM's.
 
-Or a folder of bags the station recorded (issue 27): one session a bag, its conditions the
+Or a folder of bags the station recorded: one session a bag, its conditions the
 session metadata each bag holds (`fmm_ros.io.session_info`: operator, pin, counterface,
 lubricant, temperature, humidity; its normal load becomes `normal_force_n`, so each fit uses
 the load entered), its notes the bag's notes.
@@ -181,7 +181,7 @@ def read_campaign_table(path: str | Path, base_rig: Rig = FMM_RIG) -> CampaignTa
 def bag_rows(folder: Path) -> list[tuple[int, dict[str, str]]]:
     """The rows of a session table made from the bags in folder and their session metadata.
 
-    ValueError naming a bag whose metadata is not valid; a bag without any has empty cells.
+    BadInputError naming a bag whose metadata is not valid; a bag without any has empty cells.
     """
     bags = sorted(entry for entry in folder.iterdir() if sniff.file_kind(entry) == sniff.BAG)
     rows = []
@@ -189,7 +189,7 @@ def bag_rows(folder: Path) -> list[tuple[int, dict[str, str]]]:
         try:
             info = bag_session_info(bag) or session_info.empty()
         except ValueError as error:
-            raise ValueError(f'{bag}: {error}') from error
+            raise BadInputError(f'{bag}: {error}') from error
         row = {SESSION_COLUMN: bag.name}
         for info_field in session_info.FIELDS:
             value = info[info_field.name]

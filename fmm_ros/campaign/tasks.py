@@ -198,8 +198,3 @@ def _task_failure(error: BaseException) -> SessionOutcome:
         return SessionOutcome(FAILED, f'the analysis refused the data: {error}')
     _log.error('internal error in a session task', exc_info=error)
     return SessionOutcome(FAILED, f'the analysis raised {name}: {error}', internal_error=True)
-
-
-# Deprecated: the name before issue 23 (three functions were called run_session); use
-# run_cached_session. Kept one release so callers keep working.
-run_session = run_cached_session

@@ -83,8 +83,7 @@ def fit_and_report(
     without (identify-rig: free decays hold no hit) takes every record.
     """
     from fmm_ros.cli.progress import StatusLine, report_problems
-    from fmm_ros.core.identify.conditioning import FitError
-    from fmm_ros.core.signal.analysis import SelectionError
+    from fmm_ros.errors import FitError, SelectionError
     from fmm_ros.workflows.inputs import read_inputs
     from fmm_ros.workflows.results import selection_dict
     from fmm_ros.workflows.session import select_records

@@ -1,4 +1,4 @@
-"""`fmm station`: the operator's page beside a running rig (the `station` node, issue 27).
+"""`fmm station`: the operator's page beside a running rig (the `station` node).
 
 Starts the station node in this process on the shell's ROS_DOMAIN_ID, as
 `ros2 run fmm_ros station` would, with the options below as its parameters; Ctrl-C stops it.

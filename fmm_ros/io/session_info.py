@@ -1,6 +1,6 @@
 """A session's metadata: who ran it, on which pin, counterface and lubricant, under what load.
 
-Tribology software tags every test with its specimen, lubricant and load (issue 27). `FIELDS`
+Tribology software tags every test with its specimen, lubricant and load. `FIELDS`
 is the one declaration of that metadata: the station's form, the SessionInfo message (its
 fields carry these names), the bag's metadata (custom_data key `SESSION_KEY`, JSON), the
 report's header and a campaign's session table all follow from it. `validated` refuses what

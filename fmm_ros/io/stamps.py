@@ -19,6 +19,8 @@ from __future__ import annotations
 import datetime
 import re
 
+from fmm_ros.errors import BadInputError
+
 _TIME = r'(?P<h>\d{1,2}):(?P<mi>\d{2}):(?P<s>\d{2})(?:[.,](?P<frac>\d+))?'
 STAMP = re.compile(
     r'^\s*(?:(?P<d>\d{1,2})[./](?P<m>\d{1,2})[./](?P<y>\d{4})'
@@ -33,10 +35,10 @@ def is_stamp(cell: str) -> bool:
 
 
 def seconds_of_stamp(cell: str) -> tuple[int, float]:
-    """(day number, seconds into that day) of a stamp; ValueError when it is not one."""
+    """(day number, seconds into that day) of a stamp; BadInputError when it is not one."""
     match = STAMP.match(cell)
     if match is None:
-        raise ValueError(f'not a date-time stamp: {cell!r}')
+        raise BadInputError(f'not a date-time stamp: {cell!r}')
     if match['y']:
         date = datetime.date(int(match['y']), int(match['m']), int(match['d']))
     else:

@@ -1,4 +1,4 @@
-"""Reports: the figures and the HTML page a lab wants after a session (issue 9).
+"""Reports: the figures and the HTML page a lab wants after a session.
 
 ROS-free like the core (numpy, scipy, matplotlib without pyplot), and it only draws:
 `build_report` writes the page of a `SessionResult` computed by `fmm_ros.workflows.session`

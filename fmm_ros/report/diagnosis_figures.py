@@ -15,14 +15,13 @@ from collections.abc import Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
-from fmm_ros.constants import MM_PER_M
+from fmm_ros.constants import MM_PER_M, MOBILITY_DISPLAY_UNIT
 from fmm_ros.core.diagnose.gaps import motion_window
 from fmm_ros.core.diagnose.result import Diagnosis
 from fmm_ros.core.diagnose.workflow import UNEXPLAINED
 from fmm_ros.core.signal import frf
 from fmm_ros.report.plotting import (
     FREQUENCY_LABEL,
-    MOBILITY_UNIT,
     MODEL_COLOUR,
     new_figure,
     plot_trace,
@@ -151,7 +150,7 @@ def mobility_gap_figure(
         name = _name(record, row)
         overlay.set_title(f'{name}: |mobility|', fontsize='small')
         error.set_title(f'{name}: |measured − model|', fontsize='small')
-        overlay.set_ylabel(f'[{MOBILITY_UNIT}]')
+        overlay.set_ylabel(f'[{MOBILITY_DISPLAY_UNIT}]')
     for ax in axes[-1]:
         ax.set_xlabel(FREQUENCY_LABEL)
         ax.set_xlim(0, top_hz)

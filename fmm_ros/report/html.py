@@ -19,7 +19,9 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.legend import Legend
 
-from fmm_ros.report.plotting import DEFAULT_DPI, png_bytes
+from fmm_ros.constants import REPORT_DPI
+from fmm_ros.errors import BadInputError
+from fmm_ros.report.plotting import png_bytes
 
 _STYLE = """
 body { font-family: system-ui, sans-serif; max-width: 60rem; margin: 1rem auto; padding: 0 1rem;
@@ -134,7 +136,7 @@ class Page:
         out_dir: str | Path,
         title: str,
         *,
-        dpi: float = DEFAULT_DPI,
+        dpi: float = REPORT_DPI,
         progress: Callable[[str], None] | None = None,
     ) -> None:
         self.out_dir = Path(out_dir)
@@ -218,12 +220,12 @@ class Page:
         afterwards unless keep (the caller draws into it again).
         """
         if not _NAME.match(name):
-            raise ValueError(f'figure name {name!r} must be letters, digits, _ . - only')
+            raise BadInputError(f'figure name {name!r} must be letters, digits, _ . - only')
         if self._progress:
             self._progress(f'drawing figure {len(self.figures) + 1}: {name}')
         path = self.out_dir / f'{name}.png'
         if path in self.figures:
-            raise ValueError(f'figure {name!r} is already on the page')
+            raise BadInputError(f'figure {name!r} is already on the page')
         data = png_bytes(figure, self.dpi)
         alt = alt_text(figure) or str(caption)  # a figure without words: its caption
         if not keep:

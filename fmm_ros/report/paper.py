@@ -17,17 +17,15 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from fmm_ros.constants import MM_PER_M, SAMPLE_RATE_HZ
+from fmm_ros.constants import MM_PER_M, RECEPTANCE_DISPLAY_UNIT, REPORT_DPI, SAMPLE_RATE_HZ
 from fmm_ros.core.physics.model import Simulation, free_vibration, simulate
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.signal import frf
 from fmm_ros.errors import BadInputError
 from fmm_ros.report.html import Page
 from fmm_ros.report.plotting import (
-    DEFAULT_DPI,
     FREQUENCY_LABEL,
     MS_PER_S,
-    RECEPTANCE_UNIT,
     level_colour,
     new_figure,
 )
@@ -301,20 +299,20 @@ def pulse_receptance_figure(responses: Sequence[PulseResponse], *, zoom: bool = 
                 markersize=3,
                 label=response.label,
             )
-    axes[0].set_ylabel(f'real [{RECEPTANCE_UNIT}]')
-    axes[1].set_ylabel(f'imaginary [{RECEPTANCE_UNIT}]')
+    axes[0].set_ylabel(f'real [{RECEPTANCE_DISPLAY_UNIT}]')
+    axes[1].set_ylabel(f'imaginary [{RECEPTANCE_DISPLAY_UNIT}]')
     axes[0].legend(loc='upper right', fontsize='small')
     for ax in axes[:2]:
         ax.set_xlim(0, SPECTRUM_TOP_HZ)
     if zoom:
-        axes[2].set_ylabel(f'imaginary [{RECEPTANCE_UNIT}]')
+        axes[2].set_ylabel(f'imaginary [{RECEPTANCE_DISPLAY_UNIT}]')
         axes[2].set_xlim(*ZOOM_BAND_HZ)
     for ax in axes:
         ax.set_xlabel(FREQUENCY_LABEL)
     return figure
 
 
-def build_paper_report(out_dir: str | Path, *, dpi: float = DEFAULT_DPI) -> Path:
+def build_paper_report(out_dir: str | Path, *, dpi: float = REPORT_DPI) -> Path:
     """Write the paper's Figs. 2-10, reproduced by the physics core, as a report page."""
     rig, mu = PAPER_OSCILLATOR, PAPER_OSCILLATOR_MU
     limit_m = rig.friction_limit_m(mu)

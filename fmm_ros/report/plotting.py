@@ -24,13 +24,12 @@ from matplotlib.lines import Line2D
 from matplotlib.ticker import FixedLocator, Locator
 from PIL import Image
 
-from fmm_ros.constants import MOBILITY_DISPLAY_UNIT, RECEPTANCE_DISPLAY_UNIT, REPORT_DPI
+from fmm_ros.constants import REPORT_DPI
 from fmm_ros.errors import BadInputError
 
 # Inches: wide enough for two decades of ticks, narrow enough to sit in a page column.
 FIGURE_WIDTH_IN = 7.5
 PANEL_HEIGHT_IN = 2.4
-DEFAULT_DPI = REPORT_DPI
 # zlib level of the PNGs: 6 (the default) makes them 6 % smaller than 3 for 40 % more time.
 PNG_COMPRESS_LEVEL = 3
 # Space between the decorations of neighbouring axes, and around them at the canvas edge.
@@ -50,10 +49,8 @@ GUESS_ROW_GAP_IN = 0.65
 GUESS_SHARED_ROW_GAP_IN = 0.3
 
 # Display units: receptance and mobility in mm per N (per N*s), as the CLI shows them
-# (scale `fmm_ros.constants.MM_PER_M`), times in ms.
+# (`fmm_ros.constants.RECEPTANCE_DISPLAY_UNIT`, scale `MM_PER_M`), times in ms.
 MS_PER_S = 1e3
-RECEPTANCE_UNIT = RECEPTANCE_DISPLAY_UNIT
-MOBILITY_UNIT = MOBILITY_DISPLAY_UNIT
 FREQUENCY_LABEL = 'frequency [Hz]'
 
 # Levels in ascending force take these colours everywhere (matplotlib's tab10 cycle).
@@ -118,7 +115,7 @@ def figure_title(figure: Figure, title: str) -> None:
     figure.suptitle(title, fontsize='medium', y=1 - LAYOUT_PAD_PT / 72 / figure.get_figheight())
 
 
-def png_bytes(figure: Figure, dpi: float = DEFAULT_DPI) -> bytes:
+def png_bytes(figure: Figure, dpi: float = REPORT_DPI) -> bytes:
     """The figure laid out and rendered as an RGB PNG (Agg, no metadata, so no timestamp).
 
     The tick positions are frozen where the locators put them for the axes' present size

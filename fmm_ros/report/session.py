@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fmm_ros.constants import MM_PER_M
+from fmm_ros.constants import MM_PER_M, REPORT_DPI
 from fmm_ros.core import results_schema as schema
 from fmm_ros.core.results_schema import format_with_uncertainty, label
 from fmm_ros.core.signal.analysis import ImpactAnalysis, Summary
@@ -23,7 +23,6 @@ from fmm_ros.report import diagnosis_figures
 from fmm_ros.report import session_figures as figures
 from fmm_ros.report.html import Markup, Page, escape, link
 from fmm_ros.report.plotting import (
-    DEFAULT_DPI,
     MS_PER_S,
     REJECTED_COLOUR,
     level_colour,
@@ -70,7 +69,7 @@ def build_report(
     out_dir: str | Path,
     *,
     title: str = 'Impact session report',
-    dpi: float = DEFAULT_DPI,
+    dpi: float = REPORT_DPI,
     progress: Callable[[str], None] | None = None,
 ) -> Path:
     """Write the session's report into out_dir (index.html and one PNG per figure); its path.
@@ -151,7 +150,7 @@ def _session_section(page: Page, session: SessionResult) -> None:
 
 
 def station_header(page: Page, session: SessionResult) -> None:
-    """What the station recorded (issue 27): each bag's metadata, the decisions about hits."""
+    """What the station recorded: each bag's metadata, the decisions about hits."""
     for path, info in session.session_info.items():
         rows = describe_info(info)
         if rows:

@@ -14,7 +14,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
-from fmm_ros.constants import MM_PER_M
+from fmm_ros.constants import MM_PER_M, MOBILITY_DISPLAY_UNIT, RECEPTANCE_DISPLAY_UNIT
 from fmm_ros.core import results_schema as schema
 from fmm_ros.core.results_schema import format_with_uncertainty
 from fmm_ros.core.signal import frf
@@ -25,10 +25,8 @@ from fmm_ros.errors import BadInputError
 from fmm_ros.report.plotting import (
     FREQUENCY_LABEL,
     MEAN_COLOUR,
-    MOBILITY_UNIT,
     MODEL_COLOUR,
     MS_PER_S,
-    RECEPTANCE_UNIT,
     REJECTED_COLOUR,
     figure_title,
     level_colour,
@@ -295,7 +293,7 @@ def coherence_figure(
         linewidth=1.2,
         label='mean',
     )
-    axes[1].set_ylabel(f'|mobility| [{MOBILITY_UNIT}]')
+    axes[1].set_ylabel(f'|mobility| [{MOBILITY_DISPLAY_UNIT}]')
     axes[1].legend(loc='upper right', fontsize='small')
     axes[1].set_xlabel(FREQUENCY_LABEL)
     axes[1].set_xlim(0, top_hz)
@@ -328,7 +326,7 @@ def level_magnitude_figure(
     for ax, scale in zip(axes, ('', ', log'), strict=True):
         ax.set_xlim(0, top_hz)
         ax.set_xlabel(FREQUENCY_LABEL)
-        ax.set_ylabel(f'|receptance| [{RECEPTANCE_UNIT}]{scale}')
+        ax.set_ylabel(f'|receptance| [{RECEPTANCE_DISPLAY_UNIT}]{scale}')
     axes[0].legend(loc='upper right', fontsize='small')
     return figure
 
@@ -432,7 +430,7 @@ def linearity_figure(summary: Summary) -> Figure:
             f'{fit.intercept * MM_PER_M:.3g} mm/N{r2}',
         )
     ax.set_xlabel(schema.label(schema.IMPULSE, words='impulse I'))
-    ax.set_ylabel(f'peak |receptance| [{RECEPTANCE_UNIT}]')
+    ax.set_ylabel(f'peak |receptance| [{RECEPTANCE_DISPLAY_UNIT}]')
     ax.legend(fontsize='small', loc='upper left')
     return figure
 
@@ -488,7 +486,7 @@ def harmonics_figure(
                 fontsize='x-small',
                 color='0.3',
             )
-        ax.set_ylabel(f'|mobility|\n[{MOBILITY_UNIT}]')
+        ax.set_ylabel(f'|mobility|\n[{MOBILITY_DISPLAY_UNIT}]')
         ax.legend(loc='lower left', fontsize='x-small')
         ax.set_title(
             f'f_n = {natural_hz:.4f} Hz ({frf.NATURAL_FREQUENCY_METHOD})',
@@ -532,7 +530,7 @@ def frf_overlay_figure(
             linestyle='--',
             label=model_label,
         )
-        ax.set_ylabel(f'{name} [{MOBILITY_UNIT}]')
+        ax.set_ylabel(f'{name} [{MOBILITY_DISPLAY_UNIT}]')
     axes[0].legend(loc='upper right', fontsize='small')
     axes[1].set_xlabel(FREQUENCY_LABEL)
     axes[1].set_xlim(0, top_hz)
@@ -703,9 +701,9 @@ def _force_labels(ax) -> None:
 def _frf_unit(quantity: str) -> str:
     """Display unit of an FRF quantity (both are shown in mm per N, per N*s)."""
     if quantity == 'mobility':
-        return MOBILITY_UNIT
+        return MOBILITY_DISPLAY_UNIT
     if quantity == 'receptance':
-        return RECEPTANCE_UNIT
+        return RECEPTANCE_DISPLAY_UNIT
     raise BadInputError(f"unknown FRF quantity {quantity!r}; use 'mobility' or 'receptance'")
 
 

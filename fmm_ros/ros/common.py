@@ -23,6 +23,7 @@ from rclpy.signals import SignalHandlerOptions
 from fmm_ros.constants import BATCH_SIZE
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.settings import setting
+from fmm_ros.errors import SourceStartTimeout
 from fmm_ros.ros.params import Param, ParamValue, params_from
 from fmm_ros.ros.qos import RESULT_QOS, SAMPLE_QOS  # noqa: F401 (re-exported)
 from fmm_ros.sim.daq import ChannelChain
@@ -142,13 +143,6 @@ def rig_from_parameters(config: dict) -> Rig:
     return Rig(**{param.name: config[param.name] for param in RIG_PARAMS})
 
 
-class SourceStartTimeout(RuntimeError):
-    """A source's consumers did not all appear in time: it stops rather than lose samples.
-
-    `run_node` exits 1 with the reason; `fmm_ros.ros.flow.FlowGate` raises it.
-    """
-
-
 # The signals a process manager sends a node: Ctrl-C, systemd / docker stop / ros2 launch's
 # escalation, and a closed terminal or a launcher's reload.
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
@@ -244,7 +238,7 @@ class JoiningExecutor(MultiThreadedExecutor):
 def _spin_guarded(executor, node: Node, timeout_s: float) -> None:
     """One spin; an exception a callback raised is the node's to survive (`CallbackFaults`).
 
-    Logged once, ERROR on /diagnostics, and the node goes on (issue 25). A source whose
+    Logged once, ERROR on /diagnostics, and the node goes on. A source whose
     consumers never came (`SourceStartTimeout`) and an external shutdown still end the loop.
     """
     try:

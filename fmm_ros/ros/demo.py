@@ -479,8 +479,3 @@ def _until(done: Callable[[], bool], count: Callable[[], int], quiet_s: float) -
         if count() != last:
             last, moved = count(), time.monotonic()
     return True
-
-
-# Deprecated: the name before issue 23 (three functions were called run_session); use
-# run_demo_session. Kept one release so callers keep working.
-run_session = run_demo_session

@@ -1,6 +1,6 @@
 """A node's last resort: an exception in a callback is logged once, reported, and survived.
 
-A bug, or data no rule foresaw, must not stop a node that serves a lab for hours (issue 25:
+A bug, or data no rule foresaw, must not stop a node that serves a lab for hours (as when
 one record starting before its acquisition killed the analyzer, and every later hit was lost
 until a person noticed). `CallbackFaults` counts such exceptions per place and kind, logs the
 first of each kind in one line (no traceback: the kind, the place, the message) and then a

@@ -2,7 +2,7 @@
 
 Sample batches travel RELIABLE with a KEEP_LAST queue: a batch published before its
 subscriber is matched is lost, and a subscriber that falls `depth` batches behind loses the
-oldest. Measured on the multi-process rig at x50 (issue 19): the velocity channel started at
+oldest. Measured on the multi-process rig at x50 without it: the velocity channel started at
 sample 532,500 and force had gaps of 43,500 samples, because the sources published while the
 analyzer and the recorder were still starting, and faster than they could take. DDS has no
 back-pressure for KEEP_LAST, and its KEEP_ALL buffers thousands of batches before it blocks.
@@ -37,7 +37,7 @@ from rclpy.publisher import Publisher
 
 from fmm_interfaces.msg import StreamProgress
 from fmm_ros.constants import STREAM_PROGRESS_TOPIC, resolve_name
-from fmm_ros.ros.common import SourceStartTimeout
+from fmm_ros.errors import SourceStartTimeout
 from fmm_ros.ros.health import OK, WARN
 from fmm_ros.ros.params import Param
 from fmm_ros.ros.qos import PROGRESS_LISTEN_QOS, PROGRESS_QOS, SAMPLE_QOS
@@ -411,7 +411,7 @@ SOURCE_PARAMS = (
 # The sources that make their own batches (hammer_sim, the daq's file source): how many
 # messages a second a topic may carry before batches grow with the pace, and how many paced
 # batches at least fit the flow window (two left one batch in flight once the window is held
-# under max_skew_s). Profiled at x50 (issue 28): publish() of 5,000-sample batches was 30 % of
+# under max_skew_s). Profiled at x50: publish() of 5,000-sample batches was 30 % of
 # hammer_sim's CPU and 25 % of rig_sim's: at 50 (10,000 samples at x50) the graph kept x49.6
 # asked x50 where 100 kept x34.2 (back to back, idle cores). The larger batches reach a viewer
 # as bursts of display points, which DISPLAY_QOS's deeper queue holds.
@@ -529,7 +529,7 @@ class PacedSource:
         A source runs at most the window ahead of the slowest consumer of any of its
         channels, which is as far as one channel can run ahead of another in a consumer:
         past that consumer's max_skew_s it counts the lagging channel's samples missing.
-        Measured (issue 28): hammer_sim at x50 with flow_window_s 8 cost the fitter, whose
+        Measured: hammer_sim at x50 with flow_window_s 8 cost the fitter, whose
         max_skew_s is 5, 180,000 velocity samples declared missing and 36 batches refused.
         window, sample_rate_hz: a batch's own (the player's batches carry theirs); by default
         the source's.
@@ -611,8 +611,8 @@ class BatchPacer:
     that is owed where a flow window bounds it, `PacedSource.due`; CATCH_UP_BATCHES, twice
     the asked pace on ticks, where none does: all at once could flood a subscriber nothing
     guards). Further behind (the graph is slower than asked), the clock is re-anchored: the
-    source runs slower than asked (`fell_behind` says so) instead of flooding. Measured
-    (issue 28): re-anchoring once two batches behind lost every stall longer than 20 ms for
+    source runs slower than asked (`fell_behind` says so) instead of flooding. Measured:
+    re-anchoring once two batches behind lost every stall longer than 20 ms for
     good at x50, which gave x44.9 of x50 on a graph that sustained x77.5 when asked x100.
     """
 

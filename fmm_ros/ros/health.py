@@ -7,7 +7,7 @@ rqt_robot_monitor and Foxglove read), one `DiagnosticStatus` per part of the nod
 refused, resynchronisations, the rate over the last second and how far the newest sample
 lags the wall clock. `FaultLog` logs a fault kind the first time it happens, then a running
 count at most every `repeat_s`: a source sending garbage for an hour writes a few lines, not
-2,945 (issue 19). Arrays are stamped in signal time, the graph's one time base
+2,945. Arrays are stamped in signal time, the graph's one time base
 (`fmm_ros.ros.timebase`).
 """
 

@@ -37,7 +37,7 @@ from fmm_ros.ros.nodes import CONSUMERS, node_class
 SIMULATED_RIG = ('hammer_sim', 'rig_sim', 'analyzer', 'fitter', 'recorder')
 REAL_RIG = ('daq', 'analyzer', 'fitter', 'recorder')
 STATION = 'station'
-"""The operator's page (issue 27): added to a rig by the launch scripts' --station."""
+"""The operator's page: added to a rig by the launch scripts' --station."""
 # Escalation after the forwarded signal, as ros2 launch's defaults [s] (kept under 10 s in
 # all: what a process manager waits before it kills); each stage of the ordered stop may
 # take STAGE_TIMEOUT_S of the first.

@@ -60,7 +60,7 @@ DECISION_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
-"""Decisions about hits (issue 27): every one matters to a late subscriber (a fitter restarted
+"""Decisions about hits: every one matters to a late subscriber (a fitter restarted
 mid-session must know every hit the operator rejected), so all are kept for it."""
 
 SESSION_INFO_QOS = QoSProfile(

@@ -1,6 +1,6 @@
 """Who feeds a consumer's sample topics: two sources on one topic, or channels at two rates.
 
-Both break the stream in ways its rules can only see as symptoms (issue 25): a second
+Both break the stream in ways its rules can only see as symptoms: a second
 hammer_sim on the same namespace made 2,007 resynchronisations and rejected hits `gap,
 interrupted`; velocity at 5 kHz beside force at 10 kHz had every force batch refused as
 another acquisition's. `SourceCheck` names the cause instead: each second (on /diagnostics)

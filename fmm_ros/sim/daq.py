@@ -124,7 +124,7 @@ class ChainStream:
         The filter's state carries over (the signal was at rest), the drift walks on.
         """
         if self._next_index is not None and to_index < self._next_index:
-            raise ValueError(f'cannot skip back from {self._next_index} to {to_index}')
+            raise BadInputError(f'cannot skip back from {self._next_index} to {to_index}')
         self._next_index = int(to_index)
 
     def _drift(self, first_index: int, count: int) -> np.ndarray:

@@ -33,7 +33,6 @@ _EXPORTS = {
     'process_records': 'session',
     'select_records': 'session',
     'selection_dict': 'results',
-    'run_session': 'session',  # deprecated alias (issue 23)
 }
 
 __all__ = sorted(_EXPORTS)

@@ -5,7 +5,7 @@ INPUTs here, and only here. Each path is told apart by its content (`fmm_ros.io.
 
 - a bag (directory, .mcap or .db3): every impact the analyzer's own capture finds in its
   recorded streams (`fmm_ros.workflows.replay.bag_impact_records`); damage does not stop it,
-  and is returned as problems. The decisions recorded about its hits (issue 27) are matched
+  and is returned as problems. The decisions recorded about its hits are matched
   to the records by trigger sample, its session metadata is read
   (`fmm_ros.io.bags.station`), and, when asked, the levels its analyzer named
   (`fmm_ros.workflows.replay.recorded_levels`): all from the one open of the bag;

@@ -20,13 +20,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fmm_ros.core._checks import require_non_negative
-from fmm_ros.core.identify.conditioning import FitError, condition_impact
+from fmm_ros.core.identify.conditioning import condition_impact
 from fmm_ros.core.physics.model import simulate
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import ModelTerm
 from fmm_ros.core.signal.analysis import AnalysisConfig, ImpactAnalysis, Summary, analyze_impact
 from fmm_ros.core.signal.capture import CaptureConfig
 from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.errors import FitError
 
 # A hit's motion, as plotted and as its residual is judged: past the last sample above the
 # rest velocity by this fraction of the motion, and at least MIN_DECAY_S after the trigger.

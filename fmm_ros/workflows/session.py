@@ -26,7 +26,6 @@ from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ
 from fmm_ros.core._threads import thread_imap
 from fmm_ros.core.diagnose.result import Diagnosis
 from fmm_ros.core.diagnose.workflow import diagnose
-from fmm_ros.core.identify.conditioning import FitError
 from fmm_ros.core.identify.friction import fit_friction
 from fmm_ros.core.identify.spec import FRICTION_FIT, MU_BOUNDS, FitSpec
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
@@ -34,7 +33,6 @@ from fmm_ros.core.signal.analysis import (
     AnalysisConfig,
     ImpactAnalysis,
     ImpactSelection,
-    SelectionError,
     Summary,
     analyze_impact,
     select_impacts,
@@ -43,7 +41,7 @@ from fmm_ros.core.signal.analysis import (
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, with_trigger
 from fmm_ros.core.signal.judging import Decision
 from fmm_ros.core.signal.records import ImpactRecord
-from fmm_ros.errors import BadInputError
+from fmm_ros.errors import BadInputError, FitError, SelectionError
 from fmm_ros.io.session_info import SessionInfo
 from fmm_ros.workflows.inputs import DEFAULT_INPUTS, InputOptions, Progress, read_inputs
 from fmm_ros.workflows.model import ModelComparison, ModelOverlay, compare_model
@@ -423,8 +421,3 @@ def overlay_of(friction: FrictionResult | None) -> ModelOverlay | None:
         dict(zip(friction.impact_ids, starts, strict=True)),
         dict(zip(friction.impact_ids, scales, strict=True)),
     )
-
-
-# Deprecated: the name before issue 23, when three functions were called run_session; use
-# process_records. Kept one release so callers keep working.
-run_session = process_records

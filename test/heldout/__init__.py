@@ -36,38 +36,38 @@ HELD_OUT = 'held out'
 
 ROLES: dict[str, str] = {
     'ours': TUNING,  # fmm_ros.sim.hidden_effects: the product's own simulator
-    'worlds': TUNING,  # test/worlds: issue 13's independent generator, tuned against since
+    'worlds': TUNING,  # test/worlds: the independent generator, tuned against since
     'events': HELD_OUT,  # heldout.lab.EVENTS
-    # heldout.lab.STEPS: tuning since issue 24's calibration of 'unexplained' was designed
+    # heldout.lab.STEPS: tuning since the calibration of 'unexplained' was designed
     # against its clean sessions (their residual was the impulse the sampled force misstates)
     'steps': TUNING,
     # heldout.ivp.IVP: written after steps became a tuning world; tuning since the diagnosis
     # refits further screens (`_Session._further`), built after a large softening spring on
     # it was called unexplained
     'ivp': TUNING,
-    # heldout.analytic.ANALYTIC: written for issue 24 when ivp was about to become a tuning
+    # heldout.analytic.ANALYTIC: written when ivp was about to become a tuning
     # world; tuning since a drift is told from a speed law by the hits' maps side by side, a
     # change made after looking at why its 19x three-hit drift was called unexplained
     'analytic': TUNING,
-    # heldout.moreau.MOREAU: written for issue 24 when events and analytic were about to become
+    # heldout.moreau.MOREAU: written when events and analytic were about to become
     # tuning worlds; tuning since the gaps are taken beyond the noise at rest, a change made
     # after looking at why its chained asymmetries were not named
     'moreau': TUNING,
-    # heldout.bristle.BRISTLE: written for issue 24 when events and analytic were about to
+    # heldout.bristle.BRISTLE: written when events and analytic were about to
     # become tuning worlds, its physics checked against lab's DOP853 before any diagnosis ran
     # on it; tuning since the screen of a chained session is taken along the chain, a change
     # made after looking at why two of its chained asymmetries were never refitted
     'bristle': TUNING,
-    # heldout.newmark.NEWMARK: written for issue 24 when bristle was about to become a tuning
+    # heldout.newmark.NEWMARK: written when bristle was about to become a tuning
     # world, its physics checked against lab's DOP853 before any diagnosis ran on it; never
     # tuned on (no threshold chosen or changed looking at it)
     'newmark': HELD_OUT,
-    # heldout.karnopp.KARNOPP: written for issue 24 when analytic was about to become a tuning
+    # heldout.karnopp.KARNOPP: written when analytic was about to become a tuning
     # world, its physics checked against lab's DOP853 before any diagnosis ran on it; never
     # tuned on (no threshold chosen or changed looking at it)
     'karnopp': HELD_OUT,
     # heldout.lab.ACCELEROMETER: how an integrated acceleration's noise is described to the
-    # diagnosis (issue 26) was worked out looking at its sessions
+    # diagnosis was worked out looking at its sessions
     'accelerometer': TUNING,
     # test/accelerometer_records.py: closed-form Coulomb oscillator read by an accelerometer
     'accelerometer_records': HELD_OUT,

@@ -1,4 +1,4 @@
-"""A fourth held-out world, `analytic`: written for issue 24 when `ivp` was about to become a
+"""A fourth held-out world, `analytic`: written when `ivp` was about to become a
 tuning world, and never looked at before its first sweep (never tuned on).
 
 Other choices than `lab.EVENTS`, `lab.STEPS` and `ivp.IVP` at every stage, sharing only the

@@ -1,6 +1,6 @@
 """A fifth held-out world, `bristle`: a tribology lab's simulator, friction as a state.
 
-Written for issue 24 when `events` and `analytic` were about to become tuning worlds, before
+Written when `events` and `analytic` were about to become tuning worlds, before
 any diagnosis was run on it (never tuned on). It shares only `lab.Effects` (the effect
 vocabulary and its parameters) with the other worlds and makes other choices at every stage:
 

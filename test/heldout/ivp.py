@@ -1,4 +1,4 @@
-"""A third held-out world, `ivp`: written after `steps` became a tuning world (issue 24).
+"""A third held-out world, `ivp`: written after `steps` became a tuning world.
 
 Other choices than `lab.EVENTS` and `lab.STEPS` at every stage, and none of their code:
 

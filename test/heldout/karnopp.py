@@ -1,6 +1,6 @@
 """An eighth held-out world, `karnopp`: a controls engineer's simulator, one explicit loop.
 
-Written for issue 24 when `analytic` was about to become a tuning world, its physics checked
+Written when `analytic` was about to become a tuning world, its physics checked
 against lab's event-located DOP853 (`heldout.plant.solve_events`, in its tests only) before
 any diagnosis ran on it (never tuned on). It shares only `lab.Effects` (the effect vocabulary
 and its parameters) with the other worlds and makes other choices at every stage:

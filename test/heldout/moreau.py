@@ -1,4 +1,4 @@
-"""A held-out world, `moreau`: a nonsmooth-mechanics lab's simulator, written for issue 24 when
+"""A held-out world, `moreau`: a nonsmooth-mechanics lab's simulator, written when
 `events` and `analytic` were about to become tuning worlds, and never looked at before its
 first sweep (never tuned on).
 

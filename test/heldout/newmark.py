@@ -1,6 +1,6 @@
 """A seventh held-out world, `newmark`: a structural dynamicist's simulator, implicit steps.
 
-Written for issue 24 when `bristle` was about to become a tuning world, its physics checked
+Written when `bristle` was about to become a tuning world, its physics checked
 against lab's event-located DOP853 (`heldout.plant.solve_events`) before any diagnosis ran
 on it (never tuned on). It shares only `lab.Effects` (the effect vocabulary and its
 parameters) with the other worlds and makes other choices at every stage:

@@ -1,7 +1,7 @@
 """The yardstick of 'unexplained': the noise the records really carry, and the model's own error.
 
 'unexplained' says the best model leaves a misfit beyond the noise. Two things made that
-judgement uncalibrated on data from outside our own simulator (issue 24):
+judgement uncalibrated on data from outside our own simulator:
 
 - The noise level came from second differences (`velocity_noise_std`), which see white noise
   only. Coloured noise (a vibrometer's demodulator, a filter's correlated output), mains hum

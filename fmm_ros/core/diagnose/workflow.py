@@ -97,7 +97,6 @@ from fmm_ros.core.diagnose.where import locate_misfit, locate_residual
 from fmm_ros.core.identify.chain import DRIFT_KNOT_S
 from fmm_ros.core.identify.conditioning import (
     ConditionedImpact,
-    FitError,
     as_conditioned,
     chained_starts,
     cropped_impact,
@@ -108,7 +107,7 @@ from fmm_ros.core.identify.lsq import inner
 from fmm_ros.core.identify.spec import FRICTION_FIT, FitSpec
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.signal.response import VELOCITY, converted_noise
-from fmm_ros.errors import BadInputError
+from fmm_ros.errors import BadInputError, FitError
 
 BIC_EVIDENCE = 10.0
 """A BIC difference of 10 is 'very strong' evidence (Kass and Raftery 1995)."""

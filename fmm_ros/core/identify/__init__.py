@@ -13,8 +13,6 @@ _EXPORTS = {
     'FRICTION_FIT': 'spec',
     'FitSpec': 'spec',
     'ConditionedImpact': 'conditioning',
-    'FIT_FAILURES': 'conditioning',
-    'FitError': 'conditioning',
     'FreeDecayFit': 'rig',
     'FrictionFit': 'friction',
     'MU_BOUNDS': 'spec',

@@ -17,9 +17,9 @@ is given: a 0.2 N noise floor over 33 s would drive the stuck mass into creep an
   `fit_initial_position` finds the previous hit left it). A lag of the velocity channel
   behind the force channel is the `sensor_delay` term, fitted on request.
 
-Failures: bad input (shapes, non-finite samples, bad constants) is a ValueError; a record that
-friction cannot explain is a `FitError` (a ValueError too) whose `reason` is one of
-`FIT_FAILURES` and whose message says why, so the CLI and the fitter service can report it.
+Failures: bad input (shapes, non-finite samples, bad constants) is a BadInputError; a record
+that friction cannot explain is a `FitError` whose `reason` is one of `FIT_FAILURES` (both in
+`fmm_ros.errors`) and whose message says why, so the CLI and the fitter service can report it.
 """
 
 import math
@@ -31,7 +31,7 @@ import numpy as np
 from fmm_ros.core._checks import finite_samples, require_positive
 from fmm_ros.core.signal.frf import impulse
 from fmm_ros.core.signal.quality import robust_center_and_std, white_noise_std
-from fmm_ros.errors import BadInputError, FmmError
+from fmm_ros.errors import BadInputError, FitError
 
 HIT_THRESHOLD_SIGMA = 10.0
 """A hit departs from the force baseline by more than this many noise deviations (Gaussian
@@ -52,28 +52,6 @@ HIT_SETTLE_S = 1e-3
 
 MOTION_THRESHOLD_SIGMA = 10.0
 """The velocity must exceed this many noise deviations somewhere for a record to show motion."""
-
-
-FIT_FAILURES = (
-    'no_hit',
-    'no_motion',
-    'mu_at_bound',
-    'at_bound',
-    'unexplained',
-    'no_convergence',
-    'too_few_cycles',
-)
-
-
-class FitError(FmmError):
-    """A record or set of records the model cannot explain; `reason` is one of FIT_FAILURES."""
-
-    def __init__(self, reason: str, message: str, source: str = '') -> None:
-        if reason not in FIT_FAILURES:
-            raise BadInputError(f'unknown fit failure reason {reason!r}')
-        self.reason = reason
-        self.source = source
-        super().__init__(f'{source}: {message}' if source else message)
 
 
 @dataclass(frozen=True, eq=False)
@@ -153,7 +131,7 @@ def condition_impact(
 ) -> ConditionedImpact:
     """Baseline-correct and gate a measured force; estimate both channels' noise.
 
-    Raises ValueError for malformed input and FitError ('no_hit', 'no_motion') for a force with
+    Raises BadInputError for malformed input and FitError ('no_hit', 'no_motion') for a force with
     no hit above its noise or a velocity with no response above its noise.
     """
     force = checked_channel('force_n', force_n, source)

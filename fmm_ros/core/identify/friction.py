@@ -24,7 +24,6 @@ from fmm_ros.core._threads import available_threads
 from fmm_ros.core.identify.chain import DriftBasis, VelocityNuisance, estimate_nuisance
 from fmm_ros.core.identify.conditioning import (
     ConditionedImpact,
-    FitError,
     as_conditioned,
     chained_starts,
     source_prefix,
@@ -54,7 +53,7 @@ from fmm_ros.core.identify.spec import (  # noqa: F401 (MU_BOUNDS re-exported)
 from fmm_ros.core.physics.model import INTEGRATORS, Simulation, simulate
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import MODEL_TERMS, ModelTerm
-from fmm_ros.errors import BadInputError
+from fmm_ros.errors import BadInputError, FitError
 
 DAMPING_BOUNDS_N_S_PER_M = (0.0, 50.0)
 """Search range of the viscous damping c when it is fitted [N*s/m]."""

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fmm_ros.core._threads import thread_map
-from fmm_ros.errors import BadInputError
+from fmm_ros.errors import BadInputError, Infeasible
 
 
 def inner(a: np.ndarray, b: np.ndarray) -> np.ndarray | float:
@@ -50,10 +50,6 @@ def inner(a: np.ndarray, b: np.ndarray) -> np.ndarray | float:
                 gram[i, k] = gram[k, i] = np.einsum('j,j->', a[i], a[k])
         return gram
     return np.einsum('...j,kj->...k' if b.ndim == 2 else '...j,j->...', a, b)
-
-
-class Infeasible(Exception):
-    """The model cannot be evaluated at these parameters (e.g. a friction coefficient < 0)."""
 
 
 ResidualFunction = Callable[[np.ndarray, np.ndarray], None]
@@ -96,7 +92,7 @@ class Blocks:
 
     def __post_init__(self) -> None:
         if len(self.segments) != len(self.parameters):
-            raise ValueError(
+            raise BadInputError(
                 f'{len(self.segments)} segments but {len(self.parameters)} '
                 'parameter lists: one a block'
             )
@@ -104,7 +100,7 @@ class Blocks:
             if indices.size and (
                 np.any(np.diff(indices) <= 0) or indices[0] < 0 or indices[-1] >= self.n_parameters
             ):
-                raise ValueError(
+                raise BadInputError(
                     f'block parameters {indices} are not ascending indices below '
                     f'{self.n_parameters}'
                 )
@@ -293,7 +289,7 @@ def _in_blocks(
         blocks = Blocks.shared((slice(0, n_residuals),), p)
         fun = _one_block(fun)
     if blocks.n_parameters != p:
-        raise ValueError(f'the blocks describe {blocks.n_parameters} parameters, x0 has {p}')
+        raise BadInputError(f'the blocks describe {blocks.n_parameters} parameters, x0 has {p}')
     return fun, blocks
 
 

@@ -33,7 +33,6 @@ import scipy.stats
 from fmm_ros.core.identify.chain import DriftBasis
 from fmm_ros.core.identify.conditioning import ConditionedImpact, source_prefix
 from fmm_ros.core.identify.lsq import (
-    Infeasible,
     LsqSolution,
     inner,
     normal_inverse,
@@ -42,7 +41,7 @@ from fmm_ros.core.physics.model import Simulation, simulate
 from fmm_ros.core.physics.rig import Rig
 from fmm_ros.core.physics.terms import ModelTerm
 from fmm_ros.core.signal.frf import band_bins, mobility, spectra
-from fmm_ros.errors import BadInputError
+from fmm_ros.errors import BadInputError, Infeasible
 
 """Upper end of the mobility misfit band: f_n and its odd harmonics to the 9th (paper Fig. 24)."""
 
@@ -336,7 +335,7 @@ class OutputError:
         """Each block's score covariance at a solution (`sandwich_uncertainty`).
 
         In time from the residual's spectrum (`spectral_score`), for the FRF misfit (and with
-        uncertainty='blocks', the way before issue 14) from block sums over a natural period
+        uncertainty='blocks', the reference method) from block sums over a natural period
         or f_n/4 of bins (`block_score`).
         """
         scores = []

@@ -15,7 +15,6 @@ from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ
 from fmm_ros.core._checks import require_positive
 from fmm_ros.core.identify.conditioning import (
     ConditionedImpact,
-    FitError,
     as_conditioned,
     checked_channel,
     velocity_noise_std,
@@ -41,7 +40,7 @@ from fmm_ros.core.identify.output_error import (
 )
 from fmm_ros.core.physics.model import INTEGRATORS
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
-from fmm_ros.errors import BadInputError
+from fmm_ros.errors import BadInputError, FitError
 
 
 @dataclass(frozen=True)

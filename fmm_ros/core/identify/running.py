@@ -68,7 +68,7 @@ def _weighted(entries: list[tuple[float, float]]) -> tuple[float, float, float]:
 class RunningFriction:
     """Each impact's own mu by impact id, and the running estimate over them.
 
-    Impacts can be taken out again (`remove`: an operator rejected a hit, issue 27) and put
+    Impacts can be taken out again (`remove`: an operator rejected a hit) and put
     back; the estimate is recomputed from the impacts' own mus, so it is the same as if the
     removed impact had never been added.
     """

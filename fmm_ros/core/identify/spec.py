@@ -25,7 +25,7 @@ MISFITS = ('time', 'frf')
 UNCERTAINTIES = ('spectral', 'blocks')
 """How the velocity residuals' share of a time fit's covariance is found: from the residual's
 spectrum over the whole record (default), or from block sums of the score over the motion
-(the way before issue 14: noisy where the motion lasts a few periods; kept as the reference
+(the older method: noisy where the motion lasts a few periods; kept as the reference
 the uncertainty benchmark compares with)."""
 
 CENTRE, FITTED, CHAINED = 'centre', 'fitted', 'chained'

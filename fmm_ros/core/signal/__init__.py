@@ -18,12 +18,10 @@ _EXPORTS = {
     'ImpactCapture': 'capture',
     'ImpactRecord': 'records',
     'ImpactAnalysis': 'analysis',
-    'ImpactResult': 'analysis',  # deprecated alias of ImpactAnalysis (issue 23)
     'ImpactSelection': 'analysis',
     'LevelSummary': 'analysis',
     'NominalLevel': 'config',
     'SampleHistory': 'history',
-    'SelectionError': 'analysis',
     'Summary': 'analysis',
     'analyze_impact': 'analysis',
     'capture_impacts': 'capture',

@@ -42,7 +42,7 @@ from fmm_ros.core.signal.judging import Decision, is_taken
 from fmm_ros.core.signal.levels import assign_nominal_levels, cluster_levels
 from fmm_ros.core.signal.quality import quality_flags
 from fmm_ros.core.signal.records import ImpactRecord
-from fmm_ros.errors import BadInputError, NoCleanImpactError
+from fmm_ros.errors import BadInputError, SelectionError
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,11 +85,6 @@ class ImpactAnalysis:
     def accelerance(self) -> np.ndarray:
         """Accelerance A/F [m/(N*s^2)] = i*omega * mobility."""
         return frf.accelerance_from_mobility(self.mobility, self.frequency_hz)
-
-
-# Deprecated: the name before issue 23, which it shared with the message type
-# fmm_interfaces/msg/ImpactResult; use ImpactAnalysis. Kept one release so callers keep working.
-ImpactResult = ImpactAnalysis
 
 
 @dataclass(frozen=True, eq=False)
@@ -421,14 +416,6 @@ class ImpactSelection:
                 + ', '.join(decision.describe() for decision in self.judged)
             )
         return '; '.join(parts)
-
-
-class SelectionError(NoCleanImpactError):
-    """Too few clean impacts for what was asked; `selection` says which were left out."""
-
-    def __init__(self, message: str, selection: ImpactSelection) -> None:
-        super().__init__(message)
-        self.selection = selection
 
 
 def select_impacts(

@@ -51,7 +51,7 @@ class TriggerDetector:
     samples and their indices, not on how they were split. Non-finite samples (missing or
     corrupt data) neither trigger nor re-arm.
 
-    Two cases of an acquisition that began at a bad moment (issue 25): a trigger fired within
+    Two cases of an acquisition that began at a bad moment: a trigger fired within
     `min_spacing_s` of the first sample scanned, before any sample below the re-arm level,
     began mid-hit (or on an offset above the trigger level); its index goes into `truncated`.
     And a force that stays at or above the re-arm level for `min_spacing_s` after a trigger

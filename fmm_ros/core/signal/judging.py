@@ -1,4 +1,4 @@
-"""Who keeps a hit: the operator's and a judge function's decisions over the flags (issue 27).
+"""Who keeps a hit: the operator's and a judge function's decisions over the flags.
 
 The analyzer's flags accept or reject every impact. A decision overrules them for one impact:
 `accept` takes it (a flagged hit the operator has looked at), `reject` leaves it out (a hit

@@ -103,7 +103,7 @@ class ImpactRecord:
         if self.response is not None:
             response = np.asarray(self.response, dtype=float)
             if response.shape != force.shape:
-                raise ValueError(
+                raise BadInputError(
                     f'the {self.response_quantity} response has {response.size} samples but '
                     f'force has {force.size}: the channels of a record must be sample-aligned'
                 )
@@ -138,7 +138,7 @@ def stable_impact_id(record: ImpactRecord) -> int:
     >= 1 ms, apart; another acquisition has another clock).
     """
     if record.trigger_sample_index is None:
-        raise ValueError('an impact id needs the trigger sample index')
+        raise BadInputError('an impact id needs the trigger sample index')
     trigger_ms = round(record.trigger_sample_index * 1000 / record.sample_rate_hz)
     origin_ms = round(record.acquisition_origin_s * 1000) if record.acquisition_origin_s else 0
     return (origin_ms + trigger_ms) % IMPACT_ID_MODULUS

@@ -169,4 +169,4 @@ def _default(store: Typestore, desc) -> object:
             )
             return np.zeros(count, dtype=dtype)
         return [_default(store, element) for _ in range(count)]
-    raise ValueError(f'unsupported field kind {kind!r}')
+    raise BadInputError(f'unsupported field kind {kind!r}')

@@ -2,7 +2,7 @@
 
 The recorder records fmm/impact_decisions and fmm/session_info like any topic, and writes the
 newest session metadata into metadata.yaml (custom_data `fmm.session`) when the bag closes.
-These read them back for replay, the report and campaigns (issue 27): the decisions in the
+These read them back for replay, the report and campaigns: the decisions in the
 order they were made (the newest per hit wins: `core.signal.judging.latest`), the metadata
 from metadata.yaml, else (a bag a crash left without one) from the last recorded message.
 """

@@ -49,7 +49,6 @@ from fmm_ros.io.bags.storage import McapStorage, Sqlite3Storage, TopicRecord
 DEFAULT_BATCH_SIZE = BATCH_SIZE
 # What writing a bag raises when the storage fails under it (disk full, read-only, gone).
 WRITE_ERRORS = (OSError, sqlite3.Error)
-STORAGES = BAG_STORAGES
 
 _NO_TIME = _QosTime(0, 0)
 
@@ -116,8 +115,8 @@ class BagWriter:
         flush_interval_s: float | None = 1.0,
         typestore: Typestore | None = None,
     ) -> None:
-        if storage not in STORAGES:
-            raise BagError(f'unknown bag storage {storage!r}: use one of {", ".join(STORAGES)}')
+        if storage not in BAG_STORAGES:
+            raise BagError(f'unknown bag storage {storage!r}: use one of {", ".join(BAG_STORAGES)}')
         if flush_interval_s is not None and flush_interval_s <= 0:
             raise BadInputError(f'flush_interval_s must be positive, got {flush_interval_s}')
         self.path = Path(path)

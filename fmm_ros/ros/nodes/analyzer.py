@@ -8,7 +8,7 @@ counted, a restarted source is followed within one batch (the open record ends f
 rejected, with its flags), stamped with the acquisition time of its trigger; the level
 averages and the peak-receptance-vs-impulse law over all levels so far go out on fmm/frf,
 one FrfSummary per level, transient-local for late subscribers. Health on /diagnostics.
-Decisions about hits (fmm/impact_decisions, issue 27) decide which hits the level averages
+Decisions about hits (fmm/impact_decisions) decide which hits the level averages
 take, as they decide the fits (`summarize`): a decision republishes the levels.
 """
 

@@ -18,7 +18,7 @@ After every accepted impact it also fits that impact alone and publishes the run
 impacts' own mus, inverse-variance weighted: `core.identify.running`) on fmm/friction, so the
 lab sees mu converge while the session runs.
 
-Decisions about hits (fmm/impact_decisions: the operator's or a judge function's, issue 27)
+Decisions about hits (fmm/impact_decisions: the operator's or a judge function's)
 overrule the flags in both: a fit request takes the impacts `select_impacts` takes under
 them, and the live mu drops a rejected impact (a new estimate, without its id) and takes an
 accepted one back.
@@ -46,7 +46,6 @@ from fmm_ros.constants import (
     IMPACTS_TOPIC,
 )
 from fmm_ros.core.diagnose.workflow import diagnose
-from fmm_ros.core.identify.conditioning import FitError
 from fmm_ros.core.identify.friction import fit_friction
 from fmm_ros.core.identify.running import RunningEstimate, RunningFriction
 from fmm_ros.core.identify.spec import MU_BOUNDS, FitSpec
@@ -56,7 +55,7 @@ from fmm_ros.core.signal.judging import Decision, is_taken
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.core.signal.response import as_measured
 from fmm_ros.core.signal.stream import Batch
-from fmm_ros.errors import BadInputError
+from fmm_ros.errors import BadInputError, FitError
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import RIG_PARAMS, rig_from_parameters, run_node, shared_params
 from fmm_ros.ros.cutting import ImpactCutter
@@ -90,7 +89,7 @@ PARAMS = (
 
 # Requests queue without limit and are answered in order, one at a time: rclpy's default
 # service queue (keep last 10) dropped 9 of 20 clients asking at once, who then waited for
-# ever (issue 25).
+# ever.
 SERVICE_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_ALL,
     reliability=ReliabilityPolicy.RELIABLE,
@@ -371,7 +370,7 @@ class Fitter(Node):
     def _on_diagnose(
         self, request: DiagnoseModel.Request, response: DiagnoseModel.Response
     ) -> DiagnoseModel.Response:
-        """Name the effect the base model misses in the requested impacts (issue 8)."""
+        """Name the effect the base model misses in the requested impacts."""
         try:
             impacts, selection = self.selected(list(request.impact_ids), request.include_flagged)
             result = diagnose(

@@ -33,6 +33,7 @@ from rclpy.serialization import deserialize_message
 from fmm_interfaces.msg import SampleBatch, SessionInfo
 from fmm_ros.constants import (
     APPLIED_FORCE_TOPIC,
+    BAG_STORAGES,
     CLOCK_TOPIC,
     DECISIONS_TOPIC,
     DIAGNOSTICS_TOPIC,
@@ -50,7 +51,7 @@ from fmm_ros.errors import FmmError
 from fmm_ros.io.bags.definitions import SAMPLE_BATCH
 from fmm_ros.io.bags.errors import BagError
 from fmm_ros.io.bags.metadata import LEDGER_KEY, ledger_text
-from fmm_ros.io.bags.writer import STORAGES, WRITE_ERRORS, BagWriter, bag_qos, free_bag_path
+from fmm_ros.io.bags.writer import WRITE_ERRORS, BagWriter, bag_qos, free_bag_path
 from fmm_ros.io.session_info import SESSION_KEY, from_message, to_json
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import message_class, run_node
@@ -84,7 +85,7 @@ PARAMS = (
         read_only=True,
     ),
     Param('bag_path', '', 'Bag directory to create; "" for fmm_<date>_<time> here', read_only=True),
-    Param('storage', 'mcap', 'rosbag2 storage plugin', choices=tuple(STORAGES), read_only=True),
+    Param('storage', 'mcap', 'rosbag2 storage plugin', choices=tuple(BAG_STORAGES), read_only=True),
     Param(
         'flush_interval_s',
         1.0,
@@ -237,7 +238,7 @@ class Recorder(Node):
     def _bound_silence(self, final: bool = False) -> None:
         """A channel silent while another of its acquisition runs on: named, then counted.
 
-        Each topic has its own stream here, so nothing else would count it (issue 25: the bag
+        Each topic has its own stream here, so nothing else would count it (the bag
         of a stalled rig_sim held velocity to sample 726,500 and force to 6,890,000, its
         ledger 0 missing). Channels of one acquisition (one rate, one clock) are partners.
         While recording, a channel more than the stream's max_skew_s behind its leading

@@ -1,4 +1,4 @@
-"""station: the operator's page (issue 27), and the judge of hits.
+"""station: the operator's page, and the judge of hits.
 
 Serves a page on http://127.0.0.1:8080/ (`host`, `port`): the force and velocity streams of
 the last seconds, each hit as the analyzer reports it (its FRF at once; its pulse and its

@@ -1,4 +1,4 @@
-"""The closed-world diagnosis of issue 8, kept frozen as the yardstick of bench_diagnose.py.
+"""The closed-world diagnosis, kept frozen as the yardstick of bench_diagnose.py.
 
 One effect or none: base fit on the whole records, one full refit per model term from its
 signature start (the second mode screened by its one-step start, as it was), the best by BIC
@@ -16,21 +16,22 @@ from fmm_ros.core.diagnose.gaps import gap, input_noise_allowance, motion_window
 from fmm_ros.core.diagnose.signatures import non_harmonic_peaks
 from fmm_ros.core.diagnose.starts import SECOND_MODE_DAMPING_RATIOS, start_term
 from fmm_ros.core.diagnose.where import locate_misfit
-from fmm_ros.core.identify.conditioning import FitError, as_conditioned
+from fmm_ros.core.identify.conditioning import as_conditioned
 from fmm_ros.core.identify.friction import ModelFit, fit_model
 from fmm_ros.core.physics.model import simulate
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
 from fmm_ros.core.physics.terms import MODEL_TERMS
+from fmm_ros.errors import FitError
 
 BIC_EVIDENCE = 10.0
 INPUT_NOISE_FACTOR = 3.0
 EXPLAINED_GAP = 0.5
 
 
-def diagnose_issue8(
+def diagnose_closed_world(
     impacts: Sequence, *, rig: Rig = FMM_RIG, fit_initial_position: bool = False
 ) -> str:
-    """The one effect issue 8's workflow names in these impacts, or 'none'."""
+    """The one effect the closed-world workflow names in these impacts, or 'none'."""
     conditioned = [as_conditioned(impact) for impact in impacts]
     base = fit_model(conditioned, rig=rig, fit_initial_position=fit_initial_position)
     noise = base.noise_std_m_s
@@ -52,7 +53,7 @@ def diagnose_issue8(
                 start, gain = _second_mode_start(conditioned, base, models, rig)
                 penalty = len(start.parameters) * math.log(base.n_samples)
                 if gain < penalty:
-                    continue  # screened, as issue 8 did: scored at its start, never named
+                    continue  # screened: scored at its start, never named
             elif effect == 'stribeck':
                 start = MODEL_TERMS[effect](mu_static_excess=0.03, stribeck_velocity_m_s=2e-3)
             else:
