@@ -12,6 +12,7 @@ for by independent segments of this one (the noise "arrow" and the multisines; t
 halves), each fitted alone.
 """
 
+import json
 import math
 from pathlib import Path
 
@@ -19,6 +20,7 @@ import numpy as np
 import pytest
 import scipy.io
 
+from fmm_ros.cli import main
 from fmm_ros.core.identify.whole_record import (
     diagnose_whole_record,
     fit_whole_record,
@@ -133,3 +135,42 @@ def test_bad_whole_records_are_refused_by_name() -> None:
         fit_whole_record(np.zeros(200), np.zeros(200), -1.0)
     with pytest.raises(BadInputError, match="term 'magic'"):
         fit_whole_record(np.zeros(200), np.arange(200.0), 100.0, terms=('magic',))
+
+
+CHANNELS = ['--force', 'V1', '--force-unit', 'V', '--displacement', 'V2']
+CHANNELS += ['--displacement-unit', 'V', '--sample-rate-hz', str(RATE_HZ)]
+
+
+@pytest.mark.slow
+def test_fmm_diagnose_whole_record_fits_the_rig_per_volt(capsys) -> None:
+    args = ['diagnose', str(SILVERBOX), '--whole-record', '--fit-rig', *CHANNELS, '--json']
+    assert main(args) == 0
+    document = json.loads(capsys.readouterr().out)
+    assert document['named'] == ['cubic_stiffness']
+    assert document['fits_record'] is True
+    rig = document['rig']
+    assert set(rig) >= {'mass_kg', 'damping_n_s_per_m', 'stiffness_n_per_m'}
+    assert rig['mass_kg'] > 0.0 and rig['stiffness_n_per_m_stderr'] > 0.0
+    resonance = math.sqrt(rig['stiffness_n_per_m'] / rig['mass_kg']) / (2.0 * math.pi)
+    assert resonance == pytest.approx(document['natural_frequency_hz'])
+    cubic = document['terms']['cubic_stiffness']
+    assert cubic['cubic_stiffness_n_per_m3'] > 0.0
+    assert document['units']['cubic_stiffness_n_per_m3'] == 'V/V^3'
+    assert document['units']['mass_kg'] == 'V s^2/V'
+    assert document['gap_after'] <= 0.5 * document['gap_before']
+    assert 'coulomb_friction' in document['not_named']
+
+
+@pytest.mark.parametrize(
+    ('extra', 'message'),
+    [
+        (['--force', 'V1', '--sample-rate-hz', '610'], 'force and displacement channels named'),
+        (['--force', 'V1', '--displacement', 'V2'], 'no time base'),
+        ([*CHANNELS[:-2], '--sample-rate-hz', '-3'], 'sample rate must be positive'),
+        (['--force', 'V1', '--force-unit', 'furlong', *CHANNELS[4:]], "force 'V1'"),
+        (['--force', 'V9', *CHANNELS[2:]], "'V9'"),
+    ],
+)
+def test_bad_whole_record_input_is_named(extra, message, capsys) -> None:
+    assert main(['identify-rig', str(SILVERBOX), '--whole-record', *extra]) == 2
+    assert message in capsys.readouterr().err
