@@ -7,6 +7,8 @@ else is refused by name (`UnitError`) instead of being read as if it were SI.
 
 from __future__ import annotations
 
+import math
+
 from fmm_ros.errors import UnitError
 
 STANDARD_GRAVITY_M_S2 = 9.80665
@@ -60,6 +62,11 @@ QUANTITY_UNITS = {
 """Each quantity's units, the first being its SI unit."""
 SI_UNITS = {quantity: next(iter(units)) for quantity, units in QUANTITY_UNITS.items()}
 
+SENSOR_UNITS = {'V': 1.0, 'mV': 1e-3}
+"""Units of an uncalibrated channel (a voltage), in volts. Without a scale such a channel is
+analysed in volts and every figure derived from it is per V; with a scale (SI units per one
+file unit, N/V for a force) it becomes SI."""
+
 
 def lookup_unit(quantity: str, unit: str | None) -> tuple[str, float] | None:
     """(canonical name, SI factor) of `unit` as a `quantity` unit, ignoring case, or None."""
@@ -90,6 +97,62 @@ def si_factor(quantity: str, unit: str) -> float:
             f'known {quantity} units: {", ".join(_units_of(quantity))}'
         )
     return known[1]
+
+
+def channel_factor(
+    quantity: str, unit: str | None, scale: float | None = None, *, channel: str = ''
+) -> tuple[float, str]:
+    """Factor from a channel's file numbers to the unit the analysis uses, and that unit.
+
+    The one rule every command applies to a channel's unit and scale:
+
+    - a unit of the table (kN, mm, g), no scale: to SI (1000.0, 'N' for kN);
+    - a stated scale, with no unit or a unit the table does not know (V, counts): scale is SI
+      units per file unit (35.15 N/V), so the channel is SI ((35.15, 'N'));
+    - a sensor unit (V, mV) without a scale: analysed in volts ((1e-3, 'V') for mV);
+    - no unit and no scale: the numbers are SI already.
+
+    A scale beside a unit of the table, an unknown unit without a scale, or a scale that is not
+    a finite non-zero number is refused (UnitError) naming the channel.
+    """
+    _units_of(quantity)
+    si = SI_UNITS[quantity]
+    label = f'{quantity} {channel!r}' if channel else quantity
+    known = lookup_unit(quantity, unit)
+    if scale is not None:
+        if not (math.isfinite(scale) and scale != 0.0):
+            raise UnitError(f'{label}: scale must be a finite non-zero number, got {scale!r}')
+        if known is not None:
+            raise UnitError(
+                f'{label}: unit {unit} already fixes the scale ({known[1]:g} {si} per '
+                f'{unit}); drop the scale, or give the raw sensor unit (e.g. V) with the scale '
+                f'in {si} per that unit'
+            )
+        return float(scale), si
+    if known is not None:
+        return known[1], si
+    if not unit or not unit.strip():
+        return 1.0, si
+    sensor = next((name for name in SENSOR_UNITS if name.lower() == unit.strip().lower()), None)
+    if sensor is not None:
+        return SENSOR_UNITS[sensor], 'V'
+    try:
+        return si_factor(quantity, unit), si
+    except UnitError as error:
+        raise UnitError(
+            f'{label}: {error}, or a sensor unit ({", ".join(SENSOR_UNITS)}); for another '
+            f'sensor unit give a scale in {si} per {unit}'
+        ) from None
+
+
+def per_unit(force_unit: str, displacement_unit: str, seconds: int = 0) -> str:
+    """The unit of a force per displacement times s^seconds: 'N/m', 'N s/m', 'V s^2/V'.
+
+    Parameters of a model keep their SI names; this says what their numbers are in when a
+    channel was analysed in its own units (a voltage).
+    """
+    time = {0: '', 1: ' s', 2: ' s^2'}.get(seconds, f' s^{seconds}')
+    return f'{force_unit}{time}/{displacement_unit}'
 
 
 def sample_si_factor(quantity: str, unit: str) -> float:

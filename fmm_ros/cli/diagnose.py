@@ -57,6 +57,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     options.add_model(parser, damping=False)
     options.add_hit_selection(parser, fits=True)
     options.add_quiet(parser)
+    options.add_whole_record(parser)
     parser.set_defaults(func=run)
 
 
@@ -71,6 +72,10 @@ class _Run:
 
 def run(args: argparse.Namespace) -> int:
     """Diagnose the inputs; print a table or JSON; draw the figures if asked."""
+    if args.whole_record:
+        from fmm_ros.cli import whole_record
+
+        return whole_record.run(args, 'diagnose')
     from fmm_ros.cli._fitting import FitRequest, fit_and_report
     from fmm_ros.cli.formats import diagnosis_text
     from fmm_ros.workflows.results import diagnosis_dict

@@ -57,11 +57,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     options.add_hit_selection(parser, fits=True)
     options.add_quiet(parser)
+    options.add_whole_record(parser)
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Read the inputs, fit, print the result (or why there is none)."""
+    if args.whole_record:
+        from fmm_ros.cli import whole_record
+
+        return whole_record.run(args, 'fit')
     from fmm_ros.cli._fitting import FitRequest, fit_and_report
     from fmm_ros.cli.formats import friction_text
     from fmm_ros.workflows.results import FrictionResult

@@ -3,7 +3,12 @@
 One record of the drive force and the motion (position, velocity or acceleration), open or
 closed loop, gives the moving mass, viscous and Coulomb friction (also per direction), the
 offset and a friction map over speed, by inverse dynamics least squares
-(`fmm_ros.core.identify.axis`). Exit status: 0 identified, 2 bad input.
+(`fmm_ros.core.identify.axis`). A record that model does not describe (a mass not positive, a
+relative error of tens of percent) is not reported as an identification: `fits_record` is
+false and `why` says what is wrong; an imposed-motion friction test is then fitted without
+inertia (per-direction Coulomb, the friction loop and the energy per cycle). A voltage without
+a scale is analysed in volts (every figure per V). Exit status: 0 identified (either model),
+1 neither model describes the record, 2 bad input.
 """
 
 import argparse
@@ -30,17 +35,22 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument('file', help='lab file (CSV, NPZ, .mat, TDMS) with force and motion')
     parser.add_argument('--force', required=True, metavar='NAME', help='drive force channel')
-    parser.add_argument('--force-unit', default='N', help='unit of the force channel (N)')
+    parser.add_argument(
+        '--force-unit',
+        help='unit of the force channel (default N); V without --force-scale: analysed in V',
+    )
     parser.add_argument(
         '--force-scale',
         metavar='S',
-        help='multiply the force by S: a number (drive gain in N/V for a voltage) or the name '
-        'of a scalar variable in the file',
+        help='N per file unit of the force (a drive gain in N/V for a voltage): a number or the '
+        'name of a scalar variable in the file',
     )
     motion = parser.add_mutually_exclusive_group(required=True)
     for kind, text in MOTION_FLAGS:
         motion.add_argument(f'--{kind}', metavar='NAME', help=text)
-    parser.add_argument('--motion-unit', help='unit of the motion channel (m, mm, m/s, g, ...)')
+    parser.add_argument(
+        '--motion-unit', help='unit of the motion channel (m, mm, m/s, g, ...; V: analysed in V)'
+    )
     parser.add_argument('--time', metavar='NAME', help='time channel [s] (default: t, time)')
     parser.add_argument('--sample-rate-hz', type=float, help='sample rate, when no time channel')
     parser.add_argument(
@@ -80,29 +90,48 @@ def run(args: argparse.Namespace) -> int:
         print()
     else:
         print(text_report(document))
-    return 0
+    return 0 if document['model'] else 1
 
 
 def text_report(document: dict) -> str:
     """A few lines a person reads: each parameter with its standard error."""
+    # label, key, the key of its unit in document['units']
     rows = [
-        ('mass', 'mass_kg', 'kg'),
-        ('viscous friction', 'viscous_n_s_per_m', 'N s/m'),
-        ('Coulomb friction', 'coulomb_n', 'N'),
-        ('offset', 'offset_n', 'N'),
-        ('Coulomb, moving +', 'coulomb_positive_n', 'N'),
-        ('Coulomb, moving -', 'coulomb_negative_n', 'N'),
-        ('viscous, moving +', 'viscous_positive_n_s_per_m', 'N s/m'),
-        ('viscous, moving -', 'viscous_negative_n_s_per_m', 'N s/m'),
+        ('mass', 'mass_kg', 'mass_kg'),
+        ('viscous friction', 'viscous_n_s_per_m', 'viscous_n_s_per_m'),
+        ('Coulomb friction', 'coulomb_n', 'coulomb_n'),
+        ('offset', 'offset_n', 'offset_n'),
+        ('Coulomb, moving +', 'coulomb_positive_n', 'coulomb_n'),
+        ('Coulomb, moving -', 'coulomb_negative_n', 'coulomb_n'),
+        ('viscous, moving +', 'viscous_positive_n_s_per_m', 'viscous_n_s_per_m'),
+        ('viscous, moving -', 'viscous_negative_n_s_per_m', 'viscous_n_s_per_m'),
     ]
+    units = document['units']
     lines = [f'{document["file"]}: {document["samples_used"]} samples used']
+    if not document['fits_record']:
+        lines.append(f'  does not fit the record: {document["why"]}')
+        imposed = document['imposed_motion']
+        if imposed:
+            lines.append('  imposed-motion friction (no inertia), on the sliding part:')
+            for label, key, unit in rows[4:]:
+                lines.append(
+                    f'  {label:<18} {imposed[key]:>11.4g} ± {imposed[key + "_stderr"]:.2g} '
+                    f'{units[unit]}'
+                )
+            lines.append(
+                f'  moving - exceeds moving + by {100 * imposed["coulomb_asymmetry"]:.1f} %; '
+                f'energy per cycle {imposed["energy_per_cycle_mean_j"]:.4g} '
+                f'{units["energy_per_cycle_j"]} over {len(imposed["energy_per_cycle_j"])} cycles'
+            )
+        return '\n'.join(lines)
     for label, key, unit in rows:
         if document.get(key) is not None:
             lines.append(
-                f'  {label:<18} {document[key]:>11.4g} ± {document[key + "_stderr"]:.2g} {unit}'
+                f'  {label:<18} {document[key]:>11.4g} ± {document[key + "_stderr"]:.2g} '
+                f'{units[unit]}'
             )
     lines.append(
         f'  relative error {100 * document["relative_error"]:.2f} %, '
-        f'velocity noise {document["velocity_noise_m_s"] or 0:.2g} m/s'
+        f'velocity noise {document["velocity_noise_m_s"] or 0:.2g} {units["velocity"]}'
     )
     return '\n'.join(lines)

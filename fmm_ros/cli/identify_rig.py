@@ -40,11 +40,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help='moving mass m [kg] for free decays, which cannot tell it '
         f'(default {FMM_RIG.mass_kg}); impacts measure it',
     )
+    options.add_whole_record(parser)
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Read the inputs, identify, print the constants (or why there are none)."""
+    if args.whole_record:
+        from fmm_ros.cli import whole_record
+
+        return whole_record.run(args, 'identify-rig')
     from fmm_ros.cli._fitting import FitRequest, fit_and_report
     from fmm_ros.core.identify.rig import identify_rig
 

@@ -513,6 +513,28 @@ def add_output(
         add_alias(parser, alias, 'output', '-o/--output', type=Path, metavar=metavar)
 
 
+def add_whole_record(parser: argparse.ArgumentParser, *, fit_rig: bool = True) -> None:
+    """--whole-record (each file one excitation) and --fit-rig (m, c, k from the record)."""
+    group = parser.add_argument_group(
+        'whole records',
+        'A record that is not a set of hits (random or multisine excitation, a sweep, a '
+        'closed-loop move): name --force and --displacement (and their units; V is analysed '
+        'per V) and --sample-rate-hz or --time.',
+    )
+    group.add_argument(
+        '--whole-record',
+        action='store_true',
+        help='each file is one excitation, its measured force driving the model throughout',
+    )
+    if fit_rig:
+        group.add_argument(
+            '--fit-rig',
+            action='store_true',
+            help='with --whole-record: fit m, c, k from the record (the rig is unknown); '
+            'otherwise the rig constants are used',
+        )
+
+
 def add_json(parser: argparse.ArgumentParser, what: str = 'the result') -> None:
     """--json: print one JSON document on stdout instead of text."""
     parser.add_argument('--json', action='store_true', help=f'print {what} as JSON')

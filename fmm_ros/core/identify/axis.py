@@ -38,6 +38,19 @@ times Fv, is a force no record can tell from the offset, so the offset is report
 Per-direction friction (Fv+, Fc+ for v > 0; Fv-, Fc- for v < 0) is fitted as a second model.
 There the offset cannot be told from the difference of the two Coulomb forces, so it is left
 out, as in the published asymmetric model.
+
+No confident figures from a record this model does not describe. A mass that is not positive
+beyond twice its standard error, or a relative error above `RELATIVE_ERROR_LIMIT`, means the
+record is not an axis driven through its inertia: `fits_record` is False and `why` says what
+is wrong. The commonest such record is an imposed-motion friction test (a reciprocating
+tribometer, a friction damper on a shaker): the motion is imposed, the force is the contact's
+alone, and its pre-sliding (the force turning over a small displacement after each reversal)
+acts like a spring, which against a sinusoid's a = -w^2 x is fitted as a large negative mass.
+Such a record is then fitted by the model it calls for (`ImposedMotionFriction`): no inertia,
+Coulomb and viscous friction per direction, on the sliding part of each stroke (beyond
+`PRESLIDING_STROKE_FRACTION` of the stroke after each reversal, as ASTM G133 takes friction
+from the middle of the stroke), with the friction loop (force against displacement) and the
+energy dissipated in each cycle (the loop's area), and what is left near the reversals.
 """
 
 from __future__ import annotations
@@ -63,6 +76,16 @@ DRIFT_STANDSTILL_SPEED_FRACTION = 0.25
 FRICTION_MAP_BINS = 24
 MIN_SAMPLES_PER_BIN = 8
 MOTION_KINDS = ('position', 'velocity', 'acceleration')
+RELATIVE_ERROR_LIMIT = 0.10
+"""Above this relative error (residual norm over force norm) a fit does not describe its record:
+the axes this identifies leave a few percent (EMPS: 4 %), a missing effect tens of percent."""
+MASS_SIGNIFICANCE = 2.0
+"""A mass must exceed this many standard errors above zero to be reported."""
+PRESLIDING_STROKE_FRACTION = 0.25
+"""Imposed motion: samples within this fraction of the stroke after a reversal are pre-sliding
+(the force turning from one direction's friction to the other's), not sliding."""
+LOOP_POINTS = 1000
+"""At most this many points of the friction loop are reported (the last whole cycle)."""
 
 
 @dataclass(frozen=True)
@@ -114,6 +137,39 @@ class FrictionMap:
 
 
 @dataclass(frozen=True)
+class ImposedMotionFriction:
+    """Friction of an imposed-motion test: no inertia, Coulomb and viscous per direction.
+
+    F = Fc+ + Fv+ v for v > 0 and F = -Fc- + Fv- v for v < 0, fitted on the sliding samples
+    (beyond PRESLIDING_STROKE_FRACTION of the stroke after each reversal). Forces in the
+    force channel's unit, displacements in the motion's. loop_*: the last whole cycle's
+    force against displacement; energy_per_cycle_j: the loop's area, cycle by cycle (each from
+    one minimum of the displacement to the next), the energy the contact dissipated.
+    residual_rms_reversals_n: the model's RMS error on the pre-sliding samples, which it does
+    not describe (hysteresis or backlash near reversals).
+    """
+
+    coulomb_positive_n: Estimate
+    coulomb_negative_n: Estimate
+    viscous_positive_n_s_per_m: Estimate
+    viscous_negative_n_s_per_m: Estimate
+    relative_error_sliding: float
+    residual_rms_sliding_n: float
+    residual_rms_reversals_n: float
+    samples_sliding: int
+    samples_reversals: int
+    stroke_m: float
+    loop_displacement_m: np.ndarray
+    loop_force_n: np.ndarray
+    energy_per_cycle_j: np.ndarray
+
+    @property
+    def coulomb_asymmetry(self) -> float:
+        """Fc- / Fc+ - 1: how much more friction moving negative than positive (0: none)."""
+        return self.coulomb_negative_n.value / self.coulomb_positive_n.value - 1.0
+
+
+@dataclass(frozen=True)
 class AxisFriction:
     """The identified axis: parameters, per-direction friction, fit quality and how it was done."""
 
@@ -137,6 +193,12 @@ class AxisFriction:
     attenuation_viscous: float = math.nan
     condition_number: float = math.nan
     friction_map: FrictionMap | None = None
+    fits_record: bool = True
+    """False when the inertial model does not describe the record (see `why`)."""
+    why: str = ''
+    """What the inertial model leaves unexplained, and what was fitted instead ('' if it fits)."""
+    imposed_motion: ImposedMotionFriction | None = None
+    """The no-inertia fit of an imposed-motion record, when the inertial model does not fit."""
 
 
 def encoder_step(position_m: np.ndarray) -> float:
@@ -287,6 +349,120 @@ def _friction_map(speed: np.ndarray, friction: np.ndarray) -> FrictionMap:
     )
 
 
+def _inertial_faults(mass: Estimate, relative_error: float) -> list[str]:
+    """What keeps the inertial fit from describing its record (empty: it does)."""
+    faults = []
+    if not mass.value > MASS_SIGNIFICANCE * mass.stderr:
+        faults.append(
+            f'its mass {mass.value:.4g} ± {mass.stderr:.2g} is not positive beyond '
+            f'{MASS_SIGNIFICANCE:g} standard errors'
+        )
+    if not relative_error <= RELATIVE_ERROR_LIMIT:
+        faults.append(
+            f'its relative error {100.0 * relative_error:.0f} % exceeds '
+            f'{100.0 * RELATIVE_ERROR_LIMIT:.0f} %'
+        )
+    return faults
+
+
+def _stretches(velocity: np.ndarray, moving: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """First sample of each stretch of one direction among the moving samples, and its sign."""
+    index = np.flatnonzero(moving)
+    forward = velocity[index] > 0.0
+    firsts = np.concatenate(([0], np.flatnonzero(forward[1:] != forward[:-1]) + 1))
+    return index[firsts], np.where(forward[firsts], 1.0, -1.0)
+
+
+def _loop_and_energy(
+    position: np.ndarray, force: np.ndarray, minima: list[int]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The last whole cycle's loop (at most LOOP_POINTS points) and each cycle's area ∮F dx."""
+    energy = []
+    for start, end in zip(minima[:-1], minima[1:], strict=False):
+        x, f = position[start : end + 1], force[start : end + 1]
+        energy.append(float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(x))))
+    if len(minima) < 2:
+        return np.empty(0), np.empty(0), np.asarray(energy)
+    start, end = minima[-2], minima[-1]
+    stride = max(1, math.ceil((end + 1 - start) / LOOP_POINTS))
+    return position[start : end + 1 : stride], force[start : end + 1 : stride], np.asarray(energy)
+
+
+def _imposed_motion(
+    x_d: np.ndarray,
+    v_d: np.ndarray,
+    target_d: np.ndarray,
+    moving: np.ndarray,
+    position: np.ndarray,
+    force: np.ndarray,
+    decimation: int,
+) -> ImposedMotionFriction | str:
+    """The no-inertia, per-direction fit of an imposed-motion record, or why there is none.
+
+    x_d, v_d, target_d, moving: the filtered, decimated record; position, force: the same at
+    the full rate (decimated index j is full-rate index j * decimation).
+    """
+    firsts, signs = _stretches(v_d, moving)
+    if firsts.size < 3:
+        return 'the motion reverses fewer than two times, too few for an imposed-motion fit'
+    # the turning point before each stretch: the extreme of x since the previous one began
+    turns = [
+        (np.argmin if sign > 0 else np.argmax)(x_d[previous : first + 1]) + previous
+        for previous, first, sign in zip(firsts[:-1], firsts[1:], signs[1:], strict=True)
+    ]
+    turn_x = x_d[turns]
+    strokes = np.abs(np.diff(turn_x))
+    stroke = float(np.median(strokes)) if strokes.size else float(np.ptp(x_d))
+    ends = np.concatenate((firsts[2:], [x_d.size]))
+    sliding = np.zeros(x_d.size, dtype=bool)
+    reversing = np.zeros(x_d.size, dtype=bool)
+    for k, (first, end) in enumerate(zip(firsts[1:], ends, strict=True)):
+        length = strokes[k] if k < strokes.size else stroke
+        inside = np.zeros(x_d.size, dtype=bool)
+        inside[first:end] = True
+        inside &= moving
+        near = np.abs(x_d - turn_x[k]) < PRESLIDING_STROKE_FRACTION * length
+        sliding |= inside & ~near
+        reversing |= inside & near
+    forward = (v_d > 0.0).astype(float)
+    backward = 1.0 - forward
+    columns = np.column_stack((forward, v_d * forward, -backward, v_d * backward))
+    if min(int((sliding & (forward > 0)).sum()), int((sliding & (backward > 0)).sum())) < 10:
+        return 'too few sliding samples in one direction for an imposed-motion fit'
+    theta, residual, hac, classic = _least_squares(columns[sliding], target_d[sliding])
+    relative = float(np.linalg.norm(residual) / np.linalg.norm(target_d[sliding]))
+    if not relative <= RELATIVE_ERROR_LIMIT:
+        return (
+            'the imposed-motion model (no inertia, Coulomb and viscous per direction) does not '
+            f'describe it either: relative error {100.0 * relative:.0f} % on the sliding part'
+        )
+    left = target_d[reversing] - columns[reversing] @ theta
+    minima = []
+    for turn, sign in zip(turns, signs[1:], strict=True):
+        if sign > 0:  # a minimum of x: the full-rate one within a decimation step of it
+            low = max(0, (turn - 1) * decimation)
+            minima.append(int(np.argmin(position[low : (turn + 1) * decimation + 1]) + low))
+    loop_x, loop_f, energy = _loop_and_energy(position, force, minima)
+    estimates = [
+        Estimate(float(t), float(h), float(c)) for t, h, c in zip(theta, hac, classic, strict=True)
+    ]
+    return ImposedMotionFriction(
+        coulomb_positive_n=estimates[0],
+        viscous_positive_n_s_per_m=estimates[1],
+        coulomb_negative_n=estimates[2],
+        viscous_negative_n_s_per_m=estimates[3],
+        relative_error_sliding=relative,
+        residual_rms_sliding_n=float(np.sqrt(np.mean(residual**2))),
+        residual_rms_reversals_n=float(np.sqrt(np.mean(left**2))) if left.size else math.nan,
+        samples_sliding=int(sliding.sum()),
+        samples_reversals=int(reversing.sum()),
+        stroke_m=stroke,
+        loop_displacement_m=loop_x,
+        loop_force_n=loop_f,
+        energy_per_cycle_j=energy,
+    )
+
+
 def _check_record(force_n: np.ndarray, motion: np.ndarray, sample_rate_hz: float) -> None:
     if not (math.isfinite(sample_rate_hz) and sample_rate_hz > 0.0):
         raise BadInputError(f'sample rate must be positive and finite, got {sample_rate_hz}')
@@ -355,7 +531,32 @@ def identify_axis_friction(
     directions = _per_direction(a_d, v_d, nuisance, target_d, moving) if spec.per_direction else {}
 
     mass, viscous, coulomb, offset = estimates
-    friction = target_d - mass.value * a_d - (0.0 if drifting else offset.value)
+    relative_error = float(np.linalg.norm(residual) / np.linalg.norm(target_d[moving]))
+    faults = _inertial_faults(mass, relative_error)
+    imposed: ImposedMotionFriction | None = None
+    why = ''
+    if faults:
+        (x_d,) = _parallel_filter(x[core][:, None], sample_rate_hz, band, decimation).T
+        fitted = _imposed_motion(x_d, v_d, target_d, moving, x[core], target[core], decimation)
+        why = 'the inertial model does not describe this record: ' + '; '.join(faults) + '. '
+        if isinstance(fitted, str):
+            why += f'No other model was fitted: {fitted}.'
+        else:
+            imposed = fitted
+            why += (
+                'Fitted as an imposed-motion friction test instead (no inertia, Coulomb and '
+                'viscous friction per direction) on the sliding part of each stroke, relative '
+                f'error {100.0 * fitted.relative_error_sliding:.1f} % there. Left unexplained: '
+                'hysteresis near reversals (pre-sliding or backlash), residual '
+                f'{fitted.residual_rms_reversals_n:.3g} RMS within the first '
+                f'{100.0 * PRESLIDING_STROKE_FRACTION:.0f} % of each stroke against '
+                f'{fitted.residual_rms_sliding_n:.3g} when sliding.'
+            )
+    friction = (
+        target_d - mass.value * a_d - (0.0 if drifting else offset.value)
+        if not faults
+        else target_d
+    )
     var_a = float(np.var(a_d[moving]))
     var_v = float(np.var(v_d[moving]))
     return AxisFriction(
@@ -365,7 +566,7 @@ def identify_axis_friction(
         offset_n=offset,
         directions=directions,
         residual_rms_n=float(np.sqrt(np.mean(residual**2))),
-        relative_error=float(np.linalg.norm(residual) / np.linalg.norm(target_d[moving])),
+        relative_error=relative_error,
         samples_used=int(moving.sum()),
         samples_standstill=int((~moving).sum()),
         sample_rate_hz=float(sample_rate_hz),
@@ -379,6 +580,9 @@ def identify_axis_friction(
         attenuation_viscous=noise_v**2 / var_v if var_v > 0 else math.nan,
         condition_number=float(np.linalg.cond(regressors)),
         friction_map=_friction_map(v_d[moving], friction[moving]),
+        fits_record=not faults,
+        why=why,
+        imposed_motion=imposed,
     )
 
 
