@@ -10,12 +10,17 @@ the first batch's quantity is the sensor's (`response_quantity`), fed where the 
 and a later batch of another quantity is refused. Samples are converted to SI once, here,
 from the batch's `unit` by the one unit table (`fmm_ros.units`); a unit it does not know is
 refused by name (fault `unit`: ERROR on /diagnostics, one log line), never read as if it were SI.
+Batches the middleware reports lost before this node could take them (a KEEP_LAST or
+best-effort writer overwrote what it had not delivered: docs/explanation/reliability.md) are
+counted per channel from the subscription's message-lost event: ERROR on /diagnostics (part
+`transport`) and a log line, at most every 10 s, naming the topic and how many.
 """
 
 import time
 from collections.abc import Callable
 
 from rclpy.callback_groups import CallbackGroup
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 
 from fmm_interfaces.msg import SampleBatch
@@ -24,9 +29,11 @@ from fmm_ros.core.signal.stream import AlignedStream, Batch
 from fmm_ros.errors import UnitError
 from fmm_ros.ros import msgs
 from fmm_ros.ros.flow import ProgressReporter
-from fmm_ros.ros.health import ChannelRate, FaultLog, Health, stream_status
+from fmm_ros.ros.health import ERROR, OK, ChannelRate, FaultLog, Health, stream_status
 from fmm_ros.ros.qos import SAMPLE_QOS
 from fmm_ros.ros.sources import SourceCheck
+
+LOST_LOG_REPEAT_S = 10.0  # at most one log line this often about batches lost in transport
 
 
 class SampleInputs:
@@ -58,14 +65,47 @@ class SampleInputs:
                 lambda msg, quantity=channel.quantity: self._on_batch(quantity, msg),
                 SAMPLE_QOS,
                 callback_group=callback_group,
+                event_callbacks=SubscriptionEventCallbacks(
+                    message_lost=lambda info, quantity=channel.quantity: self._on_lost(
+                        quantity, info.total_count_change
+                    )
+                ),
             )
             self.topics[channel.quantity] = subscription.topic_name
+        self.lost_batches: dict[str, int] = {}
+        """Batches of each channel the middleware reported lost before this node took them."""
+        self._lost_logged_at = -1e9
         self.reporter = ProgressReporter(
             node, list(self.topics.values()), max_skew_s=stream.rules.max_skew_s
         )
         self.sources = SourceCheck(node, self.topics)
         health.add('stream', lambda: stream_status(stream.ledger, self._rates))
         health.add('sources', self.sources.status)
+        health.add('transport', self.transport_status)
+
+    def _on_lost(self, quantity: str, count: int) -> None:
+        """The middleware lost `count` batches of a channel on the way (message-lost event)."""
+        self.lost_batches[quantity] = self.lost_batches.get(quantity, 0) + count
+        now = time.monotonic()
+        if now - self._lost_logged_at >= LOST_LOG_REPEAT_S:
+            self._lost_logged_at = now
+            self._node.get_logger().error(f'{self._lost_text()}: the publisher overwrote them')
+
+    def _lost_text(self) -> str:
+        return '; '.join(
+            f'{count} batches lost on {self.topics[quantity]} before this node took them'
+            for quantity, count in sorted(self.lost_batches.items())
+        )
+
+    def transport_status(self) -> tuple:
+        """The `transport` part of /diagnostics: ERROR once the middleware lost a batch."""
+        if self.lost_batches:
+            return (
+                ERROR,
+                self._lost_text(),
+                {f'{q} batches lost in transport': n for q, n in self.lost_batches.items()},
+            )
+        return OK, 'no batch lost in transport', {}
 
     def log_ledger(self) -> None:
         """Log each channel's ledger (a node does on stopping: its final account)."""

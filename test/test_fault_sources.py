@@ -1,0 +1,35 @@
+"""Sources we did not write, into the analyzer as `ros2 run` starts it (fault_sources.py).
+
+A plain rclpy publisher with no flow control (`benchmarks/foreign_source.py`), as its own
+process, into the analyzer as its own process. At x50 in 500-sample batches (the pace at
+which KEEP_LAST depth-100 queues had lost 2 of 3 hits) nothing may be lost. A KEEP_LAST
+writer pushed past what the analyzer takes (x100 in 100-sample batches) loses batches in the
+middleware: then every lost sample must be in the ledger and the loss named on /diagnostics.
+"""
+
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'benchmarks'))
+
+import fault_sources  # noqa: E402
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+
+def test_a_fast_foreign_source_loses_nothing(tmp_path):
+    outcome = fault_sources.run_case(tmp_path / 'x50', 50.0, 500, 'keep_last')
+    assert outcome.received, outcome.source_line
+    assert outcome.lost == 0, outcome
+    assert outcome.hits_reported == outcome.hits_sent == 3, outcome
+
+
+def test_a_foreign_source_that_overwrites_is_named_and_counted_in_full(tmp_path):
+    outcome = fault_sources.run_case(tmp_path / 'x100', 100.0, 100, 'keep_last')
+    assert outcome.received, outcome.source_line
+    assert not outcome.undercounted, outcome
+    if outcome.lost:  # on an idle machine the analyzer may keep up: nothing to name then
+        assert any('transport: ' in text and 'batches lost' in text for text in outcome.named)
+        assert any('stream: ' in text and 'missing' in text for text in outcome.named)
