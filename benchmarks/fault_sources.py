@@ -60,7 +60,8 @@ class Watch:
 
     def __init__(self, node) -> None:
         self.triggers: set[int] = set()
-        self.named: dict[str, str] = {}
+        self.named: dict[str, str] = {}  # each status's last message above OK
+        self.ever_named: set[str] = set()  # every such message seen
         self.received: dict[str, int] = {}
         self.changed_at = time.monotonic()
         node.create_subscription(ImpactResult, IMPACTS_TOPIC, self._impact, RESULT_QOS)
@@ -76,6 +77,7 @@ class Watch:
                 continue
             if status.level != DiagnosticStatus.OK:
                 self.named[status.name] = status.message
+                self.ever_named.add(f'{status.name}: {status.message}')
             for kv in status.values:
                 if kv.key.endswith(' received samples'):
                     if self.received.get(kv.key) != int(kv.value):
@@ -165,6 +167,43 @@ def run_case(work: Path, rate: float, batch: int, history: str, settle_s: float 
             outcome.received[entry.channel] = entry.received
             outcome.said_missing[entry.channel] = entry.missing
     return outcome
+
+
+def two_sources_case(work: Path, rate: float = 10.0) -> tuple[list[str], str]:
+    """Two foreign sources (other node names and frame_ids) on the same topics at once.
+
+    Returns every message the analyzer published on /diagnostics above OK, and its log.
+    """
+    fresh_domain()
+    work.mkdir(parents=True)
+    overrides = parse_overrides(['analyzer.window_s=6.0'], ['analyzer'])
+    processes = start_processes(['analyzer'], default_params_file(), overrides, log_dir=work)
+    try:
+        with InProcessGraph(domain_id=int(os.environ['ROS_DOMAIN_ID'])) as graph:
+            watch = Watch(graph.add(_node_factory('two_sources_watch')))
+            graph.start()
+            sources = [
+                subprocess.Popen(
+                    [
+                        sys.executable,
+                        str(HERE / 'foreign_source.py'),
+                        f'--rate-factor={rate}',
+                        f'--node-name={name}',
+                        f'--frame-id={name}',
+                        '--linger-s=1',
+                    ],
+                    stdout=subprocess.DEVNULL,
+                    stderr=subprocess.DEVNULL,
+                )
+                for name in ('daq_one', 'daq_two')
+            ]
+            for source in sources:
+                source.wait(timeout=300)
+            time.sleep(1.5)
+            named = sorted(watch.ever_named)
+    finally:
+        stop_processes(processes, nodes=['analyzer'])
+    return named, (work / 'analyzer.log').read_text(errors='replace')
 
 
 def _node_factory(name: str):

@@ -66,6 +66,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--history', choices=('keep_all', 'keep_last'), default='keep_last')
     parser.add_argument('--depth', type=int, default=10)
     parser.add_argument('--frame-id', default='lab_daq')
+    parser.add_argument('--node-name', default='foreign_daq')
     parser.add_argument('--namespace', default='/fmm')
     parser.add_argument('--subscribers', type=int, default=1)
     parser.add_argument('--linger-s', type=float, default=3.0)
@@ -80,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     channels = (('force', 'N', session.force_n), ('velocity', 'm/s', session.velocity_m_s))
     context = Context()
     rclpy.init(context=context)
-    node = Node('foreign_daq', context=context)
+    node = Node(args.node_name, context=context)
     qos = publisher_qos(args.history, args.depth)
     ns = args.namespace.rstrip('/')
     publishers = [node.create_publisher(SampleBatch, f'{ns}/{q}', qos) for q, _, _ in channels]

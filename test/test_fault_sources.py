@@ -33,3 +33,20 @@ def test_a_foreign_source_that_overwrites_is_named_and_counted_in_full(tmp_path)
     if outcome.lost:  # on an idle machine the analyzer may keep up: nothing to name then
         assert any('transport: ' in text and 'batches lost' in text for text in outcome.named)
         assert any('stream: ' in text and 'missing' in text for text in outcome.named)
+
+
+def test_two_sources_on_one_topic_are_named_before_the_stream_breaks(tmp_path):
+    named, log = fault_sources.two_sources_case(tmp_path / 'two')
+    wanted = 'two sources publish /fmm/force: '
+    assert any(wanted in text for text in named if ': sources: ' in text), named
+    # By node name, or by GID while the graph does not know a node's name yet.
+    said = next(text for text in named if wanted in text).split(wanted)[1]
+    assert all(
+        name in {'/daq_one', '/daq_two'} or name.startswith('gid ')
+        for name in said.split(';')[0].split(', ')
+    ), said
+    lines = log.splitlines()
+    at = next(k for k, line in enumerate(lines) if wanted in line)
+    # Named before the stream counts any damage the second source does (within one batch).
+    damage = [k for k, line in enumerate(lines) if 'refused' in line or 'never arrived' in line]
+    assert not damage or at < damage[0], lines[: at + 3]

@@ -68,7 +68,10 @@ class SampleInputs:
                 event_callbacks=SubscriptionEventCallbacks(
                     message_lost=lambda info, quantity=channel.quantity: self._on_lost(
                         quantity, info.total_count_change
-                    )
+                    ),
+                    matched=lambda info, quantity=channel.quantity: self._on_matched(
+                        quantity, info.current_count
+                    ),
                 ),
             )
             self.topics[channel.quantity] = subscription.topic_name
@@ -78,10 +81,15 @@ class SampleInputs:
         self.reporter = ProgressReporter(
             node, list(self.topics.values()), max_skew_s=stream.rules.max_skew_s
         )
-        self.sources = SourceCheck(node, self.topics)
+        self.sources = SourceCheck(node, self.topics, on_change=health.publish)
         health.add('stream', lambda: stream_status(stream.ledger, self._rates))
         health.add('sources', self.sources.status)
         health.add('transport', self.transport_status)
+
+    def _on_matched(self, quantity: str, count: int) -> None:
+        """A publisher of a channel matched or left (matched event)."""
+        if hasattr(self, 'sources'):  # events may come before the check exists
+            self.sources.matched(quantity, count)
 
     def _on_lost(self, quantity: str, count: int) -> None:
         """The middleware lost `count` batches of a channel on the way (message-lost event)."""
