@@ -98,6 +98,8 @@ class Outcome:
     hits_reported: int = 0
     named: list[str] = field(default_factory=list)
     source_line: str = ''
+    ever_named: list[str] = field(default_factory=list)
+    log: str = ''
 
     @property
     def lost(self) -> int:
@@ -126,8 +128,18 @@ class Outcome:
         return 'LOST'
 
 
-def run_case(work: Path, rate: float, batch: int, history: str, settle_s: float = 4.0) -> Outcome:
-    """One foreign source into one analyzer process; the figures of it."""
+def run_case(
+    work: Path,
+    rate: float,
+    batch: int,
+    history: str,
+    settle_s: float = 4.0,
+    extra: tuple[str, ...] = (),
+) -> Outcome:
+    """One foreign source into one analyzer process; the figures of it.
+
+    extra: more arguments for foreign_source.py (`--damage`).
+    """
     fresh_domain()
     work.mkdir(parents=True)
     session = simulated_session(HITS_PER_LEVEL, spacing_s=SPACING_S, seed=SEED)
@@ -148,6 +160,7 @@ def run_case(work: Path, rate: float, batch: int, history: str, settle_s: float 
                     f'--spacing-s={SPACING_S}',
                     f'--seed={SEED}',
                     f'--history={history}',
+                    *extra,
                 ],
                 capture_output=True,
                 text=True,
@@ -160,8 +173,10 @@ def run_case(work: Path, rate: float, batch: int, history: str, settle_s: float 
                 time.sleep(0.2)
             outcome.hits_reported = len(watch.triggers)
             outcome.named = sorted(f'{k}: {v}' for k, v in watch.named.items())
+            outcome.ever_named = sorted(watch.ever_named)
     finally:
         stop_processes(processes, nodes=['analyzer'])
+    outcome.log = (work / 'analyzer.log').read_text(errors='replace')
     for entry in ledgers(work):
         if entry.node == 'analyzer':
             outcome.received[entry.channel] = entry.received

@@ -55,6 +55,16 @@ def batch_message(
     return msg
 
 
+def damage(force_n, velocity_m_s, rate_hz: float) -> None:
+    """Damage the session's samples in place, as --damage says."""
+    at = int(2.1 * rate_hz)  # inside the first hit's record
+    force_n[at : at + 5] = float('nan')
+    quiet = int(7.0 * rate_hz)  # between the first record and the second hit
+    force_n[quiet : quiet + 20] = float('nan')
+    velocity_m_s[quiet + 1000] = float('inf')
+    force_n[quiet + 5000 : quiet + 5500] = force_n[quiet + 4999]
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--rate-factor', type=float, default=50.0)
@@ -67,6 +77,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--depth', type=int, default=10)
     parser.add_argument('--frame-id', default='lab_daq')
     parser.add_argument('--node-name', default='foreign_daq')
+    parser.add_argument(
+        '--damage',
+        action='store_true',
+        help='NaN inside the first record (2 s after its hit) and, between records (7 s '
+        'into the first 8 s slot), NaN, an infinite sample and a 500-sample stuck run',
+    )
     parser.add_argument('--namespace', default='/fmm')
     parser.add_argument('--subscribers', type=int, default=1)
     parser.add_argument('--linger-s', type=float, default=3.0)
@@ -78,6 +94,8 @@ def main(argv: list[str] | None = None) -> int:
         args.hits_per_level, spacing_s=args.spacing_s, seed=args.seed, **noise
     )
     rate = session.sample_rate_hz
+    if args.damage:
+        damage(session.force_n, session.velocity_m_s, rate)
     channels = (('force', 'N', session.force_n), ('velocity', 'm/s', session.velocity_m_s))
     context = Context()
     rclpy.init(context=context)

@@ -50,3 +50,20 @@ def test_two_sources_on_one_topic_are_named_before_the_stream_breaks(tmp_path):
     # Named before the stream counts any damage the second source does (within one batch).
     damage = [k for k, line in enumerate(lines) if 'refused' in line or 'never arrived' in line]
     assert not damage or at < damage[0], lines[: at + 3]
+
+
+def test_damaged_samples_are_named_inside_and_between_records(tmp_path):
+    outcome = fault_sources.run_case(
+        tmp_path / 'damage', 10.0, 500, 'keep_last', extra=('--damage',)
+    )
+    assert outcome.lost == 0, outcome
+    samples = [text for text in outcome.named if ': samples: ' in text]  # the last published
+    assert samples, outcome.ever_named
+    last = samples[0]
+    # 5 NaN inside the first record, 20 between records; the infinite velocity sample; the
+    # 500 samples of force holding the value before them (501 equal) between records.
+    assert 'force: 25 NaN from sample 21000' in last, last
+    assert '1 stuck run (501 samples) from sample 74999' in last, last
+    assert 'velocity: 1 infinite from sample 71000' in last, last
+    warnings = [line for line in outcome.log.splitlines() if 'damaged samples' in line]
+    assert 1 <= len(warnings) <= 4, warnings  # rate-limited: once per channel, then every 10 s

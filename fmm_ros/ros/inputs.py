@@ -13,7 +13,10 @@ refused by name (fault `unit`: ERROR on /diagnostics, one log line), never read 
 Batches the middleware reports lost before this node could take them (a KEEP_LAST or
 best-effort writer overwrote what it had not delivered: docs/explanation/reliability.md) are
 counted per channel from the subscription's message-lost event: ERROR on /diagnostics (part
-`transport`) and a log line, at most every 10 s, naming the topic and how many.
+`transport`) and a log line, at most every 10 s, naming the topic and how many. Damaged
+samples (NaN, infinite, a stuck run: `core.signal.sample_watch`) are named wherever they
+fall, inside a hit's record or between records: WARN on /diagnostics (part `samples`) and a
+log line when a channel first shows them, then at most every 10 s while they go on.
 """
 
 import time
@@ -25,11 +28,12 @@ from rclpy.node import Node
 
 from fmm_interfaces.msg import SampleBatch
 from fmm_ros.constants import FORCE, FORCE_TOPIC, RESPONSE_CHANNELS, VELOCITY, VELOCITY_TOPIC
+from fmm_ros.core.signal.sample_watch import SampleWatch
 from fmm_ros.core.signal.stream import AlignedStream, Batch
 from fmm_ros.errors import UnitError
 from fmm_ros.ros import msgs
 from fmm_ros.ros.flow import ProgressReporter
-from fmm_ros.ros.health import ERROR, OK, ChannelRate, FaultLog, Health, stream_status
+from fmm_ros.ros.health import ERROR, OK, WARN, ChannelRate, FaultLog, Health, stream_status
 from fmm_ros.ros.qos import SAMPLE_QOS
 from fmm_ros.ros.sources import SourceCheck
 
@@ -85,6 +89,32 @@ class SampleInputs:
         health.add('stream', lambda: stream_status(stream.ledger, self._rates))
         health.add('sources', self.sources.status)
         health.add('transport', self.transport_status)
+        self.samples = SampleWatch()
+        """NaN, infinite and stuck samples of each channel, counted as they arrive."""
+        self._damage_logged_at: dict[str, float] = {}
+        health.add('samples', self.samples_status)
+
+    def samples_status(self) -> tuple:
+        """The `samples` part of /diagnostics: WARN once a channel showed a damaged sample."""
+        damaged = {q: d for q, d in self.samples.damage.items() if d.any}
+        values: dict[str, object] = {}
+        for quantity, damage in self.samples.damage.items():
+            values[f'{quantity} NaN samples'] = damage.nan_samples
+            values[f'{quantity} infinite samples'] = damage.inf_samples
+            values[f'{quantity} stuck runs'] = damage.stuck_runs
+        if damaged:
+            return WARN, '; '.join(d.summary(q) for q, d in damaged.items()), values
+        return OK, 'no NaN, infinite or stuck sample', values
+
+    def _watch_samples(self, quantity: str, batch: Batch) -> None:
+        """Count a batch's damaged samples; log them, at most every LOST_LOG_REPEAT_S."""
+        if not self.samples.watch(quantity, batch.first_sample_index, batch.samples):
+            return
+        now = time.monotonic()
+        if now - self._damage_logged_at.get(quantity, -1e9) >= LOST_LOG_REPEAT_S:
+            self._damage_logged_at[quantity] = now
+            summary = self.samples.damage[quantity].summary(quantity)
+            self._node.get_logger().warning(f'damaged samples: {summary}')
 
     def _on_matched(self, quantity: str, count: int) -> None:
         """A publisher of a channel matched or left (matched event)."""
@@ -137,6 +167,7 @@ class SampleInputs:
             if msg.quantity != expected:
                 self._stream.refuse_malformed(quantity, len(batch.samples))
             else:
+                self._watch_samples(quantity, batch)
                 try:
                     self._take(quantity, batch)
                 except ValueError:  # not even a sample batch: counted, the stream unchanged
