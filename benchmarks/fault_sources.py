@@ -16,8 +16,9 @@ named on /diagnostics. Over repeated runs it prints the rate of each outcome.
     .venv/bin/python benchmarks/fault_sources.py [--quick] [--runs N]
         [--rates 1 10 50 100] [--batches 100 500 5000] [--history keep_last|keep_all]
 
---quick: x50 and x100 in 500-sample batches, one run each (as test/test_fault_sources.py
-runs it). x1 runs the 24 s session in real time, so the full grid takes a while.
+--quick: x50 and x100 in 500-sample batches, one run each. A run given --runs writes its
+printout into RESULTS.md (section fault_sources); others write nothing. x1 runs the 24 s
+session in real time, so the full grid takes a while.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
+from results_file import recorded  # noqa: E402
 from stress_rig import fresh_domain, ledgers  # noqa: E402
 
 from fmm_interfaces.msg import ImpactResult  # noqa: E402
@@ -272,4 +274,5 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == '__main__':
-    sys.exit(main())
+    with recorded('fault_sources', quick='--quick' in sys.argv or '--runs' not in sys.argv):
+        raise SystemExit(main())

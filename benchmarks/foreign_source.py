@@ -18,6 +18,8 @@ waits `--linger-s` for the readers to take the rest, and prints one line,
 
 import argparse
 import array
+import os
+import random
 import sys
 import time
 
@@ -87,7 +89,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--subscribers', type=int, default=1)
     parser.add_argument('--linger-s', type=float, default=3.0)
     parser.add_argument('--discovery-timeout-s', type=float, default=60.0)
+    parser.add_argument(
+        '--quick', action='store_true', help='publish at x100 to nobody and stop (a smoke run)'
+    )
     args = parser.parse_args(argv)
+    domain_id = None
+    if args.quick:  # on a private domain of this host: nobody else's graph hears it
+        args.subscribers, args.linger_s, args.rate_factor = 0, 0.0, 100.0
+        os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+        domain_id = random.randint(1, 100)
 
     noise = {} if not args.quiet_zero else {'force_noise_std_n': 0.0, 'velocity_noise_std_m_s': 0.0}
     session = simulated_session(
@@ -98,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
         damage(session.force_n, session.velocity_m_s, rate)
     channels = (('force', 'N', session.force_n), ('velocity', 'm/s', session.velocity_m_s))
     context = Context()
-    rclpy.init(context=context)
+    rclpy.init(context=context, domain_id=domain_id)
     node = Node(args.node_name, context=context)
     qos = publisher_qos(args.history, args.depth)
     ns = args.namespace.rstrip('/')
