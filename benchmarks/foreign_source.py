@@ -10,8 +10,9 @@ to block the writer when the readers' queues are full (back-pressure); `keep_las
 not deliver.
 
 It waits until both topics have `--subscribers` subscriptions, publishes the session once,
-waits `--linger-s` for the readers to take the rest, and prints one line,
-`sent <n> samples per channel in <t> s (x<pace>), <k> publish calls failed`.
+waits until the readers acknowledged everything (as a reliable source must before it quits:
+a reader whose queue was full waits for the writer to resend), and prints one line,
+`sent <n> samples per channel in <t> s (x<pace>), <k> publish calls failed, ...`.
 
     .venv/bin/python benchmarks/foreign_source.py --rate-factor 50 --batch 500
 """
@@ -25,6 +26,7 @@ import time
 
 import rclpy
 from rclpy.context import Context
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -87,7 +89,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument('--namespace', default='/fmm')
     parser.add_argument('--subscribers', type=int, default=1)
-    parser.add_argument('--linger-s', type=float, default=3.0)
+    parser.add_argument('--linger-s', type=float, default=1.0)
+    parser.add_argument('--ack-timeout-s', type=float, default=60.0)
     parser.add_argument('--discovery-timeout-s', type=float, default=60.0)
     parser.add_argument(
         '--quick', action='store_true', help='publish at x100 to nobody and stop (a smoke run)'
@@ -149,11 +152,16 @@ def main(argv: list[str] | None = None) -> int:
             first += args.batch
             k += 1
         elapsed = time.monotonic() - start
-        time.sleep(args.linger_s)  # a reliable writer resends until the readers took it
+        # A reliable writer resends until every reader acknowledged: quitting before loses
+        # the tail (a reader whose queue was full has refused it and waits for the resend).
+        unacked = sum(
+            not p.wait_for_all_acked(Duration(seconds=args.ack_timeout_s)) for p in publishers
+        )
+        time.sleep(args.linger_s)
         pace = total / rate / elapsed if elapsed > 0 else float('inf')
         print(
             f'sent {total} samples per channel in {elapsed:.3f} s (x{pace:.1f}), '
-            f'{failed} publish calls failed',
+            f'{failed} publish calls failed, {unacked} writers not acknowledged',
             flush=True,
         )
     finally:
