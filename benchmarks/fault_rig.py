@@ -340,7 +340,7 @@ def two_sources(work: Path, rate: float) -> Outcome:
         work / 'two_sources',
         'a second hammer_sim publishing for 3 s',
         second,
-        named='2 sources on',
+        named='two sources publish',
         rate=rate,
         recovers=False,
     )

@@ -25,7 +25,14 @@ SCRIPTS = sorted(
     if "if __name__ == '__main__':" in path.read_text(encoding='utf-8')
 )
 # Scripts that start ROS graphs (processes of their own, on a domain they pick).
-ROS_SCRIPTS = ('bench_graph', 'stress_rig', 'fault_rig', 'bench_station')
+ROS_SCRIPTS = (
+    'bench_graph',
+    'stress_rig',
+    'fault_rig',
+    'bench_station',
+    'fault_sources',
+    'foreign_source',
+)
 QUICK_TIMEOUT_S = 600  # a busy shared machine runs them several times slower
 
 

@@ -121,6 +121,55 @@ def test_a_restarted_acquisition_is_followed_within_one_batch(clock):
     assert velocity.faults == {'stale': 1} and velocity.refused_batches == 1
 
 
+@pytest.mark.parametrize('clock', ['acquisition', 'none', 'wall'])
+@pytest.mark.parametrize('jump', [BATCH, 10 * BATCH, int(10 * RATE), int(10 * RATE) + BATCH, 10**6])
+def test_an_index_jump_is_missing_samples_of_the_same_acquisition(jump, clock):
+    """A jump ahead (1 batch, 10 batches, 10 s, past max_gap_s) is never a new acquisition.
+
+    Only the source declares one (index back, a new sender or rate). 'wall': stamps of the
+    wall clock of a source running faster than real time, so its clock cannot vouch for it.
+    """
+    sink = RecordingSink()
+    stream = AlignedStream(sink)
+    sent = 0
+
+    def send(first):
+        nonlocal sent
+        origin = {'acquisition': ORIGIN_NS, 'none': 0, 'wall': ORIGIN_NS - first * 10**6}[clock]
+        both(stream, first, origin_ns=origin)
+        sent += BATCH
+
+    for first in range(0, 3000, BATCH):
+        send(first)
+    for first in range(3000 + jump, 6000 + jump, BATCH):
+        send(first)
+    end = 6000 + jump
+    assert sink.ends == [] and stream.acquisitions == 1
+    for quantity in ('force', 'velocity'):
+        ledger = stream.ledger[quantity]
+        assert ledger.acquisitions == [[0, end]], ledger.summary()
+        assert ledger.received_samples == sent and ledger.resyncs == 0
+        assert ledger.missing_samples == jump == end - sent, ledger.summary()
+        gaps = sink.gaps[quantity]  # velocity: part skew while force has jumped first
+        assert gaps[0][0] == 3000 and gaps[-1][1] == 3000 + jump
+        assert all(a[1] == b[0] for a, b in zip(gaps, gaps[1:], strict=False)), gaps
+        assert not set(ledger.faults) & {'reset', 'jump', 'clock', 'stray'} or (
+            jump > 10 * RATE and ledger.faults.get('jump') == 1
+        ), ledger.faults
+
+
+def test_index_back_to_zero_is_a_new_acquisition_whatever_the_clock():
+    """The source declares a new acquisition by starting its index again."""
+    sink = RecordingSink()
+    stream = AlignedStream(sink)
+    for first in range(0, 30_000, BATCH):
+        both(stream, first, origin_ns=0)
+    for first in range(0, 500, BATCH):
+        both(stream, first, origin_ns=0)
+    assert sink.ends == ['reset'] and stream.acquisitions == 2
+    assert stream.ledger['force'].missing_samples == 0
+
+
 def test_a_new_sender_or_rate_starts_a_new_acquisition():
     sink = RecordingSink()
     stream = AlignedStream(sink)

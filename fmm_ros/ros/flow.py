@@ -1,11 +1,12 @@
 """Flow control of the sample streams: sources wait for their consumers and never outrun them.
 
-Sample batches travel RELIABLE with a KEEP_LAST queue: a batch published before its
-subscriber is matched is lost, and a subscriber that falls `depth` batches behind loses the
-oldest. Measured on the multi-process rig at x50 without it: the velocity channel started at
-sample 532,500 and force had gaps of 43,500 samples, because the sources published while the
-analyzer and the recorder were still starting, and faster than they could take. DDS has no
-back-pressure for KEEP_LAST, and its KEEP_ALL buffers thousands of batches before it blocks.
+Sample batches travel RELIABLE: a batch published before its subscriber is matched is
+lost. Measured on the multi-process rig at x50, when the queues were KEEP_LAST:
+the velocity channel started at sample 532,500 and force had gaps of 43,500 samples, because
+the sources published while the analyzer and the recorder were still starting, and faster
+than they could take. The queues are KEEP_ALL now (`qos.SAMPLE_QOS`), so a reader behind a
+burst keeps what it has not taken, but a writer then blocks only after 10,000 batches in
+flight (`qos.SAMPLE_QUEUE_BATCHES`, reader and writer), up to 400 MB of 5,000-sample batches.
 
 So the consumers say how far they have got (`ProgressReporter`, on fmm/stream_progress, one
 message per node carrying each topic's next expected index) and the sources listen

@@ -170,7 +170,7 @@ class FaultLog:
                 )
                 if kind in RESYNC_REASONS:
                     self._logger.warning(f'{text}: resynchronised')
-                elif kind in ('gap', 'skew'):
+                elif kind in ('gap', 'skew', 'jump'):
                     self._logger.warning(text)
                 else:
                     self._logger.error(f'{text}: refused')

@@ -1,6 +1,11 @@
 """Every QoS profile of the fmm_ros graph, in one place (ARCHITECTURE.md, Conventions).
 
-Sample batches are RELIABLE with a deep queue (a lost batch is a gap in an FRF record);
+Sample batches are RELIABLE and KEEP_ALL (a lost batch is a gap in an FRF record): a reader
+behind a burst keeps what it has not taken yet instead of overwriting it, and when its queue
+is full it stops acknowledging, so a KEEP_ALL writer blocks (back-pressure) rather than the
+reader dropping (docs/explanation/reliability.md has the contract for sources);
+viewers that no source waits for take them KEEP_LAST, so a slow viewer never holds the
+acquisition back;
 results are transient-local, so a late subscriber (a plot, a fitter started later) still gets
 the latest; the flow-control reports keep the last one per consumer for sources that start
 later; /diagnostics is plain reliable, as the ROS tools expect; /clock keeps only the newest
@@ -10,13 +15,32 @@ strongest QoS every publisher of a topic can serve (`recording_qos`).
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+SAMPLE_QUEUE_BATCHES = 5000
+"""Batches a KEEP_ALL sample reader (and writer) holds at most: Fast DDS's default resource
+limit (`max_samples`), which rclpy cannot set. Measured on this middleware: a reader that
+takes nothing holds 5,000 batches, the writer 5,000 more, then `publish` blocks 100 ms
+(`max_blocking_time`) and raises. So a consumer's queue of one topic is bounded by
+5,000 x batch size x 8 bytes: 4 MB in 100-sample batches, 20 MB in 500, 200 MB in 5,000."""
+
 SAMPLE_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_ALL,
+    depth=100,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+"""Sample batches: every one matters, and a subscriber may lag a burst of them.
+
+KEEP_ALL ignores depth; the flow window (`flow.PacedSource.window_samples`) still counts
+half of it, so the graph's own sources never have more than 50 batches in flight."""
+
+VIEW_SAMPLE_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=100,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )
-"""Sample batches: every one matters, and a subscriber may lag a burst of them."""
+"""Sample batches for a viewer (live, station) that no source waits for: a viewer behind a
+burst loses its oldest batches rather than blocking the sources' KEEP_ALL writers."""
 
 DISPLAY_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,

@@ -6,20 +6,25 @@ sample index, and all must agree on what a batch means. These rules live here an
 
 - **Watermark.** Each channel has one: every sample below it has been taken or declared
   missing. A batch that starts at the watermark continues the channel.
-- **Gap.** A batch starting up to `max_gap_s` past the watermark (or further, when its clock
-  says it is the same acquisition) leaves the samples in between missing: they are declared
-  missing once, the sink fills them with NaN, and the ledger counts them.
+- **Gap.** A batch starting past the watermark leaves the samples in between missing: they
+  are declared missing once, the sink fills them with NaN, and the ledger counts them. An
+  index that runs ahead never starts a new acquisition, however far and whatever its clock:
+  only the source can declare one (below), so the ledger never calls lost samples another
+  acquisition's. A jump further than `max_gap_s` is held first (see Discontinuity), so a
+  single corrupt index is refused instead of costing 10^15 samples.
 - **Past batch.** A batch starting before the watermark, within `max_gap_s`, repeats samples
   already taken or arrives after they were declared missing: its old samples are refused and
   counted; a tail beyond the watermark is taken.
-- **Discontinuity.** Anything else (a jump far ahead or back, a changed sample rate, a new
-  sender in `header.frame_id`, or a clock that says another acquisition) may be a new
-  acquisition or a single corrupt batch. The batch is held, never applied at once. If the
-  next batch of the channel continues it, a new acquisition has begun: the stream
-  resynchronises (the sink ends what is open and begins again at the new index), so recovery
-  costs one batch. If the next batch continues the old sequence instead, the held one was a
-  stray and is refused. So one stray batch (an index of 10^15) can neither blind the stream
-  nor restart it.
+- **Discontinuity.** A jump far ahead, or what the source declares a new acquisition by
+  (the index going back, a changed sample rate, a new sender in `header.frame_id`, or,
+  within `max_gap_s` back, a clock that says another acquisition), may also be a single
+  corrupt batch. The batch is held, never applied at once. If the next batch of the channel
+  continues it, it stands: a jump ahead is a gap of the same acquisition (its samples
+  missing, fault `jump`); anything else is a new acquisition, and the stream
+  resynchronises (the sink ends what is open and begins again at the new index), so
+  recovery costs one batch. If the next batch continues the old sequence instead, the held
+  one was a stray and is refused. So one stray batch (an index of 10^15) can neither blind
+  the stream nor restart it.
 - **Clock.** A batch's acquisition origin is its stamp minus its index over the rate (the
   time of sample 0). Every fmm source stamps batches that way, so a repeat has the origin of
   its original and a restarted DAQ a later one. A stamp of 0 means no clock: index rules only.
@@ -77,12 +82,12 @@ FAULTS: dict[str, str] = {
     'unit': 'a batch in a unit the unit table (fmm_ros.units) does not know for its channel',
     'unconfirmed': 'a discontinuous batch at the end of the stream, never confirmed',
     'reset': 'a new acquisition: the index went back',
-    'jump': 'a new acquisition: the index jumped far ahead',
+    'jump': 'the index jumped far ahead (the next batch went on from there): samples missing',
     'rate': 'a new acquisition: the sample rate changed',
     'sender': 'a new acquisition: the sender (header.frame_id) changed',
     'clock': 'a new acquisition: the clock says sample 0 was taken at another time',
 }
-RESYNC_REASONS = ('reset', 'jump', 'rate', 'sender', 'clock')
+RESYNC_REASONS = ('reset', 'rate', 'sender', 'clock')
 
 
 @dataclass(frozen=True, eq=False)
@@ -400,14 +405,12 @@ class AlignedStream:
         if batch.sender != channel.sender and batch.sender and channel.sender:
             return 'sender'
         step = batch.first_sample_index - channel.next
-        if step == 0:
-            return 'next'
+        if step >= 0:  # ahead: this acquisition still, only a far jump waits for the next
+            return 'next' if step <= self._max_gap else 'jump'
+        if -step > self._max_gap:
+            return 'reset'
         same = self._same_clock(batch.origin_s, channel.origin_s)
-        if same is not False and abs(step) <= self._max_gap:
-            return 'next' if step > 0 else 'past'
-        if same is False and abs(step) <= self._max_gap:
-            return 'clock'
-        return 'jump' if step > 0 else 'reset'
+        return 'clock' if same is False else 'past'
 
     def _same_clock(self, a: float | None, b: float | None) -> bool | None:
         """Whether two origins are one acquisition's (None when either is unknown)."""
@@ -431,8 +434,8 @@ class AlignedStream:
             return
         if not channel.joined:
             self._join(channel, held)
-        elif reason == 'jump' and self._same_clock(held.origin_s, channel.origin_s):
-            pass  # a long gap its clock vouches for: the same acquisition goes on
+        elif reason == 'jump':
+            channel.ledger._fault('jump')  # the same acquisition goes on: the samples are missing
         else:
             channel.ledger._fault(reason)
             self._begin(channel, held, reason)

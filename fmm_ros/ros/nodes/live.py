@@ -21,7 +21,7 @@ from fmm_ros.ros import msgs
 from fmm_ros.ros.common import run_node
 from fmm_ros.ros.health import OK, Health
 from fmm_ros.ros.params import Param, declare_parameters
-from fmm_ros.ros.qos import DISPLAY_QOS, SAMPLE_QOS
+from fmm_ros.ros.qos import DISPLAY_QOS, VIEW_SAMPLE_QOS
 
 PARAMS = (
     Param(
@@ -55,7 +55,7 @@ class Live(Node):
                 SampleBatch,
                 topic,
                 lambda msg, channel=channel: self._on_batch(channel, msg),
-                SAMPLE_QOS,
+                VIEW_SAMPLE_QOS,
             )
         Health(self).add(
             'live',

@@ -67,8 +67,8 @@ from fmm_ros.ros.qos import (
     DECISION_QOS,
     DIAGNOSTICS_QOS,
     RESULT_QOS,
-    SAMPLE_QOS,
     SESSION_INFO_QOS,
+    VIEW_SAMPLE_QOS,
 )
 from fmm_ros.station.server import StationServer
 from fmm_ros.station.state import Level, StationState
@@ -156,7 +156,7 @@ class Station(Node):
                 SampleBatch,
                 topic,
                 lambda msg, quantity=channel.quantity: self._on_batch(quantity, msg),
-                SAMPLE_QOS,
+                VIEW_SAMPLE_QOS,
             )
         self.create_subscription(ImpactResult, IMPACTS_TOPIC, self._on_impact, RESULT_QOS)
         self.create_subscription(FrfSummary, FRF_TOPIC, self.state.on_level, RESULT_QOS)
