@@ -56,9 +56,9 @@ SPEED_FIGURE_PATTERNS = (
 
 
 def test_the_readme_quotes_no_speed_figure_and_points_to_results_md():
-    """Speed figures live in benchmarks/RESULTS.md, which each full benchmark run rewrites, and
-    on the site's benchmarks page built from it. A figure copied into the README would go
-    stale with the next run, so the README quotes none and says where they are."""
+    """Speed figures live in benchmarks/RESULTS.md, which each full benchmark run rewrites; the
+    site's benchmarks page says what each script measures. A figure copied into the README
+    would go stale with the next run, so the README quotes none and says where they are."""
     readme = _readme()
     quoted = [m.group(0) for p in SPEED_FIGURE_PATTERNS for m in re.finditer(p, readme)]
     assert not quoted, f'the README quotes speed figures {quoted}: point to RESULTS.md instead'
