@@ -8,7 +8,9 @@ per format and mutation: files, and how each ended (ok: read, the mutation harml
 detectable, like a flipped bit in an unchecksummed sample; damage: read with the damage
 named, exit 1; error: refused with a one-line error naming the file, exit 2; traceback, hang,
 crash: failures); then the peak address-space growth against the file's size and the time per
-file. fmm reads no UFF file (it writes UFF 58), so none is fuzzed.
+file. fmm reads no UFF file (it writes UFF 58), so none is fuzzed. Ends with status 1 if any
+file shows what test/test_fuzz.py refuses (`fuzz_files.failures`): the default 1,100-file
+sweep is that test's check over many more files.
 """
 
 import argparse
@@ -19,13 +21,13 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
 
-from fuzz_files import MUTATIONS, TARGETS, fuzz  # noqa: E402
+from fuzz_files import MUTATIONS, TARGETS, failures, fuzz  # noqa: E402
 from results_file import QUICK_HELP, recorded
 
 VERDICTS = ('ok', 'damage', 'error', 'traceback', 'hang', 'crash')
 
 
-def main() -> None:
+def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--per-target', type=int, default=100, help='mutated files per target')
     parser.add_argument('--seed', type=int, default=7)
@@ -71,16 +73,20 @@ def main() -> None:
         f'{growth[len(growth) // 2][1].peak_growth_bytes / 1e6:.2f} MB; files growing more '
         f'than 1 MB + 4 x their size: {beyond}'
     )
-    failures = total['traceback'] + total['hang'] + total['crash']
+    broken = total['traceback'] + total['hang'] + total['crash']
     print(
         f'{len(cases)} mutated files in {elapsed:.0f} s ({1e3 * elapsed / len(cases):.0f} ms a '
-        f'file, forked, warm); tracebacks, hangs and crashes: {failures}'
+        f'file, forked, warm); tracebacks, hangs and crashes: {broken}'
     )
     for case, outcome in zip(cases, outcomes, strict=True):
         if outcome.verdict in ('traceback', 'hang', 'crash'):
             print(f'  {case.name}: {case.description} -> {outcome.verdict}: {outcome.message}')
+    failed = {name: found for name, found in failures(cases, outcomes).items() if found}
+    for name, found in failed.items():
+        print(f'FAILED, {name}: {len(found)} files, first {found[0]}')
+    return 1 if failed else 0
 
 
 if __name__ == '__main__':
     with recorded('bench_fuzz', quick='--quick' in sys.argv):
-        main()
+        raise SystemExit(main())

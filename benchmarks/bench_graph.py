@@ -13,7 +13,6 @@ Run: .venv/bin/python benchmarks/bench_graph.py [--quick]
 
 import argparse
 import os
-import random
 import sys
 import time
 
@@ -21,7 +20,7 @@ from rclpy.parameter import Parameter
 from results_file import QUICK_HELP, recorded
 
 from fmm_ros.ros.demo import SessionConfig
-from fmm_ros.ros.graph import PRIVATE_DOMAIN_IDS, InProcessGraph
+from fmm_ros.ros.graph import InProcessGraph, private_domain_id
 from fmm_ros.ros.launch import node_command, start_processes, stop_processes
 from fmm_ros.ros.nodes.analyzer import Analyzer
 from fmm_ros.ros.nodes.fitter import Fitter
@@ -78,7 +77,7 @@ def cpu_seconds(pid: int) -> float:
 
 def analyzer_share(batch_size: int, seconds: float = 20.0) -> float:
     """Analyzer CPU seconds per signal second, fed at real time from another process."""
-    os.environ['ROS_DOMAIN_ID'] = str(random.choice(PRIVATE_DOMAIN_IDS))
+    os.environ['ROS_DOMAIN_ID'] = str(private_domain_id())
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     overrides = {
         'hammer_sim': [

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import random
 import socket
 import sys
 import tempfile
@@ -45,7 +44,7 @@ from results_file import write_section  # noqa: E402
 
 from fmm_interfaces.msg import ImpactResult  # noqa: E402
 from fmm_ros.constants import IMPACTS_TOPIC  # noqa: E402
-from fmm_ros.ros.graph import PRIVATE_DOMAIN_IDS, InProcessGraph  # noqa: E402
+from fmm_ros.ros.graph import InProcessGraph, private_domain_id  # noqa: E402
 from fmm_ros.ros.launch import start_processes, stop_processes, with_consumers  # noqa: E402
 from fmm_ros.ros.qos import RESULT_QOS  # noqa: E402
 from fmm_ros.sim.session import simulated_session, write_session_bag  # noqa: E402
@@ -172,7 +171,7 @@ def run(quick: bool, soak_s: float) -> str:
     tmp = Path(tempfile.mkdtemp(prefix='bench_station_'))
     # Stamped with today's clock, as a recorder stamps a live session.
     bag = write_session_bag(tmp / 'session', session, time_origin_ns=time.time_ns())
-    domain = random.choice(PRIVATE_DOMAIN_IDS)
+    domain = private_domain_id()
     os.environ['ROS_DOMAIN_ID'] = str(domain)
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     bench = Bench(bag, free_port())

@@ -26,7 +26,6 @@ bag, never from inside the processes.
 
 import argparse
 import os
-import random
 import re
 import shutil
 import signal
@@ -47,7 +46,7 @@ from fmm_ros.io.bags.errors import MissingTopicError
 from fmm_ros.io.bags.reader import BagReader
 from fmm_ros.ros import msgs
 from fmm_ros.ros.flow import SOURCE_PARAMS, PacedSource
-from fmm_ros.ros.graph import PRIVATE_DOMAIN_IDS, InProcessGraph
+from fmm_ros.ros.graph import InProcessGraph, private_domain_id
 from fmm_ros.ros.launch import (
     SIMULATED_RIG,
     default_params_file,
@@ -145,7 +144,7 @@ def rss_mb(pid: int) -> float:
 
 
 def fresh_domain() -> None:
-    os.environ['ROS_DOMAIN_ID'] = str(random.choice(PRIVATE_DOMAIN_IDS))
+    os.environ['ROS_DOMAIN_ID'] = str(private_domain_id())
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
 

@@ -448,3 +448,34 @@ def fuzz(
         ]
         cases = make_cases(seeds, scratch / 'cases', per_target, seed)
         return cases, run_cases(cases, warm)
+
+
+# Address-space growth a case may show: a fixed allowance for the analysis itself and a
+# multiple of the file's size. The largest seen, about 25 MB, is numpy's loadtxt indexing a
+# CSV line of a million empty cells in a 1.3 MB file.
+GROWTH_FLOOR_BYTES = 32 << 20
+GROWTH_PER_FILE_BYTE = 32
+
+
+def failures(cases: list[Case], outcomes: list[Outcome]) -> dict[str, list[tuple]]:
+    """What a fuzz run must not show, each list empty when it passes: a traceback, hang or
+    crash; an error that does not name its file; memory beyond the allowance above."""
+    pairs = list(zip(cases, outcomes, strict=True))
+    return {
+        'traceback, hang or crash': [
+            (case.name, case.description, outcome.verdict, outcome.message)
+            for case, outcome in pairs
+            if outcome.verdict not in ('ok', 'damage', 'error')
+        ],
+        'error not naming its file': [
+            (case.name, outcome.message)
+            for case, outcome in pairs
+            if outcome.verdict == 'error' and Path(case.path).name not in outcome.message
+        ],
+        'address space beyond the allowance': [
+            (case.name, case.description, outcome.peak_growth_bytes)
+            for case, outcome in pairs
+            if outcome.peak_growth_bytes
+            > GROWTH_FLOOR_BYTES + GROWTH_PER_FILE_BYTE * case.size_bytes
+        ],
+    }

@@ -9,7 +9,7 @@ from rig_graph import FAST_ANALYZER, FAST_HAMMER, Listener, params, wait_for
 
 from fmm_ros.io.bags.reader import BagReader
 from fmm_ros.ros import msgs
-from fmm_ros.ros.graph import PRIVATE_DOMAIN_IDS, InProcessGraph
+from fmm_ros.ros.graph import InProcessGraph, private_domain_id
 from fmm_ros.ros.nodes.analyzer import Analyzer, configs_from_parameters
 from fmm_ros.ros.nodes.hammer_sim import HammerSim
 from fmm_ros.ros.nodes.player import Player
@@ -184,7 +184,6 @@ def test_fmm_record_records_live_topics_until_interrupted(tmp_path, signum):
     """`fmm record` in its own process beside a simulated rig; Ctrl-C or SIGTERM (what a
     process manager sends) closes the bag and exits 0."""
     import os
-    import random
     import signal
     import subprocess
     import sys
@@ -193,7 +192,7 @@ def test_fmm_record_records_live_topics_until_interrupted(tmp_path, signum):
 
     env = dict(
         os.environ,
-        ROS_DOMAIN_ID=str(random.choice(PRIVATE_DOMAIN_IDS)),
+        ROS_DOMAIN_ID=str(private_domain_id()),
         ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
     )
     os.environ.update({k: env[k] for k in ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE')})

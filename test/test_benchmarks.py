@@ -33,6 +33,8 @@ ROS_SCRIPTS = (
     'fault_sources',
     'foreign_source',
 )
+# Scripts whose quick run a test file of their own makes (and checks further): not run twice.
+QUICK_RUN_BY = {'fault_rig': 'test_fault_rig.py'}
 QUICK_TIMEOUT_S = 600  # a busy shared machine runs them several times slower
 
 
@@ -40,6 +42,9 @@ def test_the_known_benchmarks_are_discovered():
     names = {path.stem for path in SCRIPTS}
     assert {'bench_replay', 'bench_physics', 'stress_rig', 'bench_signal'} <= names
     assert 'results_file' not in names and 'closed_world_diagnose' not in names
+    for script, test_file in QUICK_RUN_BY.items():
+        assert script in names
+        assert "main(['--quick'])" in (Path(__file__).parent / test_file).read_text('utf-8')
 
 
 @pytest.mark.slow
@@ -48,6 +53,7 @@ def test_the_known_benchmarks_are_discovered():
     [
         pytest.param(path, id=path.stem, marks=[pytest.mark.ros] * (path.stem in ROS_SCRIPTS))
         for path in SCRIPTS
+        if path.stem not in QUICK_RUN_BY
     ],
 )
 def test_benchmark_runs_in_quick_mode(script: Path, tmp_path: Path):

@@ -1,5 +1,9 @@
 """The fault-injection benchmark's quick run (benchmarks/fault_rig.py --quick), as CI runs it.
 
+This is the script's one quick run in the suite (test_benchmarks.py leaves it to this file):
+`main(['--quick'])` must end with status 0, print its table and write nothing to RESULTS.md,
+and the rows it measured are held to what each fault should show.
+
 A few short faults on the multi-process rig (a stalled rig_sim, a killed and respawned
 analyzer, a force offset above the trigger, force in kN and velocity in in/s): every loss is
 named in the ledgers, every fault that should be named is, the graph recovers, no impact id
@@ -14,12 +18,20 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'benchmarks'))
 
 import fault_rig  # noqa: E402
+from results_file import RESULTS  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 
-def test_quick_faults_are_named_and_recovered(tmp_path):
-    rows = fault_rig.quick_rows(tmp_path / 'work')
+def test_quick_faults_are_named_and_recovered(monkeypatch, capsys):
+    rows = []
+    measure = fault_rig.quick_rows
+    monkeypatch.setattr(fault_rig, 'quick_rows', lambda work: rows.extend(measure(work)) or rows)
+    before = RESULTS.read_bytes()
+    assert fault_rig.main(['--quick']) == 0
+    assert RESULTS.read_bytes() == before, 'fault_rig.py --quick wrote RESULTS.md'
+    printed = capsys.readouterr().out
+    assert all(row.row() in printed for row in rows), printed
     assert [row.fault for row in rows] == [
         'rig_sim stalled 3 s',
         'analyzer SIGKILL + respawn',

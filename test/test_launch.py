@@ -1,12 +1,10 @@
 """Launch scripts: the simulated rig as separate `ros2 run`-style processes, and overrides."""
 
-import random
-
 import pytest
 from rig_graph import Listener, wait_for
 
 from fmm_ros.io.bags.reader import BagReader
-from fmm_ros.ros.graph import PRIVATE_DOMAIN_IDS, InProcessGraph
+from fmm_ros.ros.graph import InProcessGraph, private_domain_id
 from fmm_ros.ros.launch import (
     SIMULATED_RIG,
     default_params_file,
@@ -21,7 +19,7 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 
 def test_the_simulated_rig_runs_as_separate_processes(tmp_path, monkeypatch):
-    domain = random.choice(PRIVATE_DOMAIN_IDS)
+    domain = private_domain_id()
     monkeypatch.setenv('ROS_DOMAIN_ID', str(domain))
     monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     overrides = parse_overrides(

@@ -9,7 +9,12 @@ from rclpy.node import Node
 from rig_graph import FAST_ANALYZER, FAST_HAMMER, Listener, LossyLink, params, wait_for
 
 from fmm_ros.core import _threads
-from fmm_ros.ros.graph import InProcessGraph
+from fmm_ros.ros.graph import (
+    PRIVATE_DOMAIN_IDS,
+    InProcessGraph,
+    private_domain_id,
+    private_domain_ids,
+)
 from fmm_ros.ros.nodes.analyzer import Analyzer
 from fmm_ros.ros.nodes.hammer_sim import HammerSim
 from fmm_ros.ros.nodes.rig_sim import RigSim
@@ -115,3 +120,21 @@ def test_no_node_shadows_an_attribute_rclpy_node_keeps(ros_graph):
         assigned = set(re.findall(r'self\.(\w+)\s*(?::[^=\n]+)?=[^=]', path.read_text()))
         clash = assigned & base
         assert not clash, f'{path.name} overwrites rclpy Node attributes {clash}'
+
+
+def test_parallel_test_workers_draw_domain_ids_that_never_meet(monkeypatch):
+    """pytest-xdist worker gwN of M draws from every M-th private id from the N-th: the shares
+    cover PRIVATE_DOMAIN_IDS, never overlap, and a process outside xdist draws from all."""
+    monkeypatch.delenv('PYTEST_XDIST_WORKER', raising=False)
+    monkeypatch.delenv('PYTEST_XDIST_WORKER_COUNT', raising=False)
+    assert private_domain_ids() == PRIVATE_DOMAIN_IDS == range(1, 101)
+    for workers in (2, 3, 7):
+        monkeypatch.setenv('PYTEST_XDIST_WORKER_COUNT', str(workers))
+        shares = []
+        for index in range(workers):
+            monkeypatch.setenv('PYTEST_XDIST_WORKER', f'gw{index}')
+            shares.append(set(private_domain_ids()))
+            assert private_domain_id() in shares[-1]
+            assert InProcessGraph().domain_id in shares[-1]
+        assert sum(len(share) for share in shares) == len(PRIVATE_DOMAIN_IDS)
+        assert set().union(*shares) == set(PRIVATE_DOMAIN_IDS)

@@ -5,7 +5,6 @@ on one domain for the faults that need a scripted source. What counts is what th
 published, what the nodes' ledgers say, and what the recorded bag proves about itself.
 """
 
-import random
 import re
 import signal
 import subprocess
@@ -24,7 +23,7 @@ from fmm_interfaces.srv import FitFriction
 from fmm_ros.constants import FIT_SERVICE, FORCE, FORCE_TOPIC
 from fmm_ros.io.bags.reader import BagReader
 from fmm_ros.ros import msgs
-from fmm_ros.ros.graph import PRIVATE_DOMAIN_IDS, InProcessGraph
+from fmm_ros.ros.graph import InProcessGraph, private_domain_id
 from fmm_ros.ros.launch import (
     SIMULATED_RIG,
     parse_overrides,
@@ -57,7 +56,7 @@ SESSION = [
 @pytest.fixture
 def domain(monkeypatch):
     """A private domain for processes started by the test (and its own graphs)."""
-    domain_id = random.choice(PRIVATE_DOMAIN_IDS)
+    domain_id = private_domain_id()
     monkeypatch.setenv('ROS_DOMAIN_ID', str(domain_id))
     monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     return domain_id

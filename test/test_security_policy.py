@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from fmm_ros.ros.graph import private_domain_id
 from fmm_ros.ros.nodes import NODES, node_class
 
 POLICY = Path(__file__).resolve().parents[1] / 'config' / 'sros2' / 'policy.xml'
@@ -206,7 +207,7 @@ def test_the_venv_middleware_refuses_a_secured_node(tmp_path):
         ROS_SECURITY_KEYSTORE=str(tmp_path / 'keystore'),
         ROS_SECURITY_ENCLAVE_OVERRIDE='/',
         ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
-        ROS_DOMAIN_ID='97',
+        ROS_DOMAIN_ID=str(private_domain_id()),
     )
     script = 'import rclpy; rclpy.init(); rclpy.create_node("secured")'
     run = subprocess.run(

@@ -11,7 +11,6 @@ screenshot there (docs/img/station.png is made so).
 """
 
 import os
-import random
 import shutil
 import socket
 import time
@@ -29,7 +28,7 @@ from fmm_ros.constants import FIT_SERVICE, FRF_TOPIC, FRICTION_TOPIC, IMPACTS_TO
 from fmm_ros.io.bags.metadata import read_information
 from fmm_ros.io.bags.reader import BagReader
 from fmm_ros.io.session_info import SESSION_KEY, from_json
-from fmm_ros.ros.graph import PRIVATE_DOMAIN_IDS, InProcessGraph
+from fmm_ros.ros.graph import InProcessGraph, private_domain_id
 from fmm_ros.ros.launch import (
     SIMULATED_RIG,
     default_params_file,
@@ -120,7 +119,7 @@ class Rig:
 
 @pytest.fixture
 def rig(tmp_path, monkeypatch, request):
-    monkeypatch.setenv('ROS_DOMAIN_ID', str(random.choice(PRIVATE_DOMAIN_IDS)))
+    monkeypatch.setenv('ROS_DOMAIN_ID', str(private_domain_id()))
     monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     made = Rig(tmp_path, request.param)
     yield made

@@ -7,7 +7,6 @@ record has arrived.
 """
 
 import os
-import random
 import signal
 import subprocess
 import sys
@@ -24,7 +23,7 @@ from fmm_interfaces.msg import ImpactDecision, ImpactResult, SampleBatch
 from fmm_interfaces.srv import JudgeImpact
 from fmm_ros.constants import DECISIONS_TOPIC, FORCE, IMPACTS_TOPIC, JUDGE_SERVICE, VELOCITY
 from fmm_ros.ros import msgs
-from fmm_ros.ros.graph import PRIVATE_DOMAIN_IDS
+from fmm_ros.ros.graph import private_domain_id
 from fmm_ros.ros.nodes.station import Station
 from fmm_ros.ros.qos import DECISION_QOS, RESULT_QOS, SAMPLE_QOS
 
@@ -155,7 +154,7 @@ def test_fmm_station_serves_the_page_and_stops_cleanly(tmp_path):
     """`fmm station` beside a graph: it serves the page, and Ctrl-C ends it with status 0."""
     env = {
         **os.environ,
-        'ROS_DOMAIN_ID': str(random.choice(PRIVATE_DOMAIN_IDS)),
+        'ROS_DOMAIN_ID': str(private_domain_id()),
         'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST',
     }
     fmm = os.path.join(os.path.dirname(sys.executable), 'fmm')

@@ -25,6 +25,26 @@ NodeT = TypeVar('NodeT', bound=Node)
 PRIVATE_DOMAIN_IDS = range(1, 101)
 
 
+def private_domain_ids() -> range:
+    """The share of PRIVATE_DOMAIN_IDS this process draws from.
+
+    All of them, except under pytest-xdist: worker gwN of M takes every M-th id from the N-th,
+    so graphs of tests running side by side never share a domain. Processes a test starts
+    inherit the worker's environment, so they draw from its share too.
+    """
+    worker = os.environ.get('PYTEST_XDIST_WORKER', '')
+    workers = int(os.environ.get('PYTEST_XDIST_WORKER_COUNT', '1'))
+    if not worker.startswith('gw') or workers < 2:
+        return PRIVATE_DOMAIN_IDS
+    shares = min(workers, len(PRIVATE_DOMAIN_IDS))
+    return PRIVATE_DOMAIN_IDS[int(worker[2:]) % shares :: shares]
+
+
+def private_domain_id() -> int:
+    """A domain id drawn at random from this process's share (`private_domain_ids`)."""
+    return random.choice(private_domain_ids())
+
+
 class InProcessGraph:
     """Nodes sharing one private Context and one executor spun in a background thread.
 
@@ -46,7 +66,7 @@ class InProcessGraph:
         if localhost_only:
             # Read by the middleware at context init: discovery stays on this host.
             os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-        self.domain_id = random.choice(PRIVATE_DOMAIN_IDS) if domain_id is None else domain_id
+        self.domain_id = private_domain_id() if domain_id is None else domain_id
         self.context = Context()
         self._spin_period_s = spin_period_s
         self._nodes: list[Node] = []
