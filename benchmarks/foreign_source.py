@@ -31,6 +31,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from fmm_interfaces.msg import SampleBatch
+from fmm_ros.ros.graph import private_domain_ids
 from fmm_ros.sim.session import simulated_session
 
 
@@ -100,7 +101,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.quick:  # on a private domain of this host: nobody else's graph hears it
         args.subscribers, args.linger_s, args.rate_factor = 0, 0.0, 100.0
         os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-        domain_id = random.randint(1, 100)
+        domain_id = random.choice(private_domain_ids())
 
     noise = {} if not args.quiet_zero else {'force_noise_std_n': 0.0, 'velocity_noise_std_m_s': 0.0}
     session = simulated_session(
