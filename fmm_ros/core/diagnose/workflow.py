@@ -38,7 +38,7 @@
 """
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -107,6 +107,7 @@ from fmm_ros.core.identify.friction import fit_model
 from fmm_ros.core.identify.lsq import inner
 from fmm_ros.core.identify.spec import FRICTION_FIT, FitSpec
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
+from fmm_ros.core.physics.terms import EFFECT_SIZE, MODEL_TERMS, physical_ranges
 from fmm_ros.core.signal.response import VELOCITY, converted_noise
 from fmm_ros.errors import BadInputError
 
@@ -431,6 +432,9 @@ class _Session:
         self.naming = Naming((MIN_EXCESS * self.noise) ** 2 * self.motion_samples, self.windows)
         """What naming an effect asks of the misfit it removes (MIN_EXCESS; `_choose`)."""
         self.peak = max(impact.peak_velocity_m_s for impact in impacts)
+        self.ranges = physical_ranges(base.joint.mu, self.peak, 1.0 / rig.natural_frequency_hz)
+        """Every fit's, screen's and start's range of the effects' sizes, from mu, the peak
+        speed and the natural period (`physical_ranges`), not from any world's draws."""
         self.where: Where = locate_misfit(
             impacts, base.residuals_m_s, self.models, self.hits, rig, self.noise
         )
@@ -530,7 +534,13 @@ class _Session:
                 self.drift_screens[frozenset(current.effects)] = screen
             else:
                 shapes = probes(
-                    effect, linear.impacts, linear.residuals, self.noise, self.where, self.rig
+                    effect,
+                    linear.impacts,
+                    linear.residuals,
+                    self.noise,
+                    self.where,
+                    self.rig,
+                    self.ranges,
                 )
                 # A second mode's limit is taken over the band the hits excite, not at the
                 # residual's peaks (hum makes some in a clean session): what could hide.
@@ -539,7 +549,9 @@ class _Session:
                     if effect == 'second_mode' and naming is not None
                     else None
                 )
-                screen = screen_term(effect, shapes, linear, self.noise, naming, limit_shapes)
+                screen = screen_term(
+                    effect, shapes, linear, self.noise, naming, limit_shapes, self.ranges
+                )
             self.say(f'step {number}: screened {effect}: chi^2 could fall {screen.chi2_gain:.0f}')
             screens.append(screen)
         screens.sort(key=lambda s: -s.chi2_gain)
@@ -643,6 +655,7 @@ class _Session:
                     screen.start,
                     self.fit_initial_position,
                     mu0=current.joint.mu + screen.mu_shift,
+                    ranges=self.ranges,
                 )
         except FitError as error:
             self.say(f'step {number}: refit of {screen.effect} failed: {error}')
@@ -795,7 +808,9 @@ class _Session:
         key = frozenset(model.effects) - {effect}
         if key not in self.cache:
             try:
-                self.cache[key] = without(self.impacts, model, effect, self.fit_initial_position)
+                self.cache[key] = without(
+                    self.impacts, model, effect, self.fit_initial_position, self.ranges
+                )
             except FitError:
                 return None
         return self.cache[key]
@@ -860,6 +875,11 @@ class _Session:
                 )
             )
         verdict = self._verdict(named, selection, explained, location)
+        verdict += _at_bound_note(named)
+        candidates = tuple(
+            replace(c, unobservable=_unobservable(c, self.ranges)) for c in selection.candidates
+        )
+        verdict += ''.join(f'; {c.unobservable}' for c in candidates if c.unobservable)
         self.say(verdict)
         trend = None
         if drift_asked:
@@ -884,7 +904,7 @@ class _Session:
             frf_gap_before=self.frf_gap(self.base.residuals_m_s),
             frf_gap_after=self.frf_gap(explained.residuals_m_s),
             where=self.where,
-            candidates=selection.candidates,
+            candidates=candidates,
             selection=selection.log,
             residual_where=location,
             mu_trend=trend,
@@ -1085,6 +1105,60 @@ def _detectable_drift(mus: np.ndarray, mu_stderrs: np.ndarray) -> float:
     if beyond(1.0) <= 0.0:
         return math.inf
     return float(scipy.optimize.brentq(beyond, 0.0, 1.0, xtol=1e-6))
+
+
+WOULD_SHOW = {
+    'viscous_damping': 'longer decays (harder hits) would',
+    'stribeck': 'more slow sliding before each stop (more hits, lighter ones) would',
+    'asymmetric_friction': 'chained starts or a position sensor would',
+    'cubic_stiffness': 'harder hits that swing the rig further would',
+    'second_mode': 'a stiffer hammer tip exciting a wider band would',
+    'velocity_offset': 'longer records at rest after each hit would',
+    'sensor_delay': 'shorter hits (a stiffer hammer tip) would',
+}
+"""Per term, what would show an effect these records cannot (`_unobservable`)."""
+
+
+def _unobservable(candidate: Candidate, ranges: Mapping[str, tuple[float, float]]) -> str:
+    """'these records cannot show ...' when a candidate's detection limit is out of its range.
+
+    The range is the session's physical one (`physical_ranges`) or the term's declared bounds:
+    an effect that only shows beyond what the physics allows is one these records cannot
+    show, whatever the verdict; '' when the limit lies inside it, or there is none.
+    """
+    effect, limit = candidate.effect, candidate.detection_limit
+    if effect not in EFFECT_SIZE or not math.isfinite(limit):
+        return ''
+    name, inverse = EFFECT_SIZE[effect]
+    cls = MODEL_TERMS[effect]
+    index = [p.name for p in cls.parameters].index(name)
+    low, high = (float(bound[index]) for bound in cls.bounds(ranges))
+    if inverse:
+        if limit >= low:
+            return ''
+        beyond = f'under {limit:.2g}, lighter than the lightest physical {low:.2g}'
+    else:
+        largest = max(abs(low), abs(high))
+        if limit <= largest:
+            return ''
+        beyond = f'from {limit:.2g}, beyond the physical range of {largest:.2g}'
+    unit = cls.parameters[index].unit
+    unit = '' if unit == '1' else f' {unit}'
+    return (
+        f'these records cannot show {effect.replace("_", " ")} (its {name} would show {beyond}'
+        f'{unit}); {WOULD_SHOW[effect]}'
+    )
+
+
+def _at_bound_note(named: Sequence[NamedEffect]) -> str:
+    """'; stribeck.mu_static_excess = 0.5 at its bound' for each named parameter on a bound."""
+    ends = [
+        f'{p.name} = {p.value:.4g} at its bound'
+        for effect in named
+        for p in effect.parameters
+        if p.at_bound
+    ]
+    return ''.join(f'; {end}' for end in ends)
 
 
 def _own_parameters(model: SessionModel, effect: str) -> tuple[ParameterEstimate, ...]:
