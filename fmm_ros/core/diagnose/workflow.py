@@ -11,8 +11,9 @@
    terms, and `mu_drift`, one mu per hit) is screened (`screen`: the chi^2 one linearised
    step could remove); the best `MAX_REFITS` whose screen reaches `SCREEN_FRACTION` of the
    required gain are refitted in full (and, when none of them qualifies while the misfit is
-   `MIN_EXCESS` beyond the noise, the other screens that reach `SCREEN_FRACTION`, best
-   first, until one does), and the best refit is added when it is clearly better
+   `MIN_EXCESS` beyond the noise, or the only one that does ends with its size on its
+   physical bound, the other screens that reach `SCREEN_FRACTION`, best first, until one
+   does within its range), and the best refit within its range is added when it is clearly better
    (BIC lower by `BIC_EVIDENCE` plus `INPUT_NOISE_FACTOR` times what the force noise alone
    explains, the required score), removes at least `MIN_STEP_SHARE` of the squared gap left
    at that step, accounts for at least `MIN_EXCESS` of the noise RMS (sqrt of the fall of
@@ -483,8 +484,8 @@ class _Session:
             number = len(steps) + 1
             tried, screens = self._step(number, current, remaining)
             chosen, reason = self._choose(current, tried)
-            if chosen is None:
-                chosen, reason = self._further(number, current, tried, screens, reason)
+            if chosen is None or _size_at_bound(chosen[0]):
+                chosen, reason = self._further(number, current, tried, screens, reason, chosen)
             if table is None:
                 table = tuple(sorted((c for c, _ in tried), key=lambda c: c.score))
             if chosen is None:
@@ -571,33 +572,40 @@ class _Session:
         tried: list[tuple[Candidate, SessionModel | None]],
         screens: list[Screen],
         reason: str,
+        bounded: tuple[Candidate, SessionModel] | None = None,
     ) -> tuple[tuple[Candidate, SessionModel] | None, str]:
         """Refit the screens left unrefitted, best first, until one qualifies (module doc, 4).
 
-        Only where a refit was made and what the model leaves would be called unexplained: a
-        screen is one linearised step and misranks a large effect (a softening spring at
-        11 mm swings, whose period drifts over the decay). Only screens that reach
+        Only where a refit was made and what the model leaves would be called unexplained, or
+        where the only refit that qualifies (`bounded`) ends with its size on its physical
+        bound: a screen is one linearised step and misranks a large effect (a softening spring
+        at 11 mm swings, whose period drifts over the decay), and a term pinned to the edge of
+        what the physics allows is standing in for another (an asymmetry of -mu took 37 % of
+        that spring's gap, then was dropped once the spring was in). Only screens that reach
         `SCREEN_FRACTION` of the required gain, as every refit must: a wear track outside the
         vocabulary had four more refits of screens predicting 8 to 900 against 1,800
         required, 30 s of its 80. The refits take their screens' places in `tried`. Returns
-        the first that qualifies, or None and why none does.
+        the first that qualifies within its range, else `bounded` (None and why none
+        qualifies when there is none).
         """
         excess = self.peak * self.gap(current.residuals_m_s) / self.noise
         if excess < MIN_EXCESS or all(model is None for _, model in tried):
-            return None, reason
+            return bounded, '' if bounded is not None else reason
         worth = SCREEN_FRACTION * -self.required
         for rank, screen in enumerate(screens):
             if tried[rank][1] is not None or screen.chi2_gain < worth:
                 continue
-            self.say(
-                f'step {number}: no refit qualifies and the misfit is {excess:.1f}x the noise: '
-                f'refitting {screen.effect} too'
+            why = (
+                f'no refit qualifies and the misfit is {excess:.1f}x the noise'
+                if bounded is None
+                else f'the only refit that qualifies, {bounded[0].effect}, ends at its bound'
             )
+            self.say(f'step {number}: {why}: refitting {screen.effect} too')
             tried[rank] = self._refit(number, current, screen)
             chosen, reason = self._choose(current, tried)
-            if chosen is not None:
+            if chosen is not None and not _size_at_bound(chosen[0]):
                 return chosen, ''
-        return None, reason
+        return bounded, '' if bounded is not None else reason
 
     def _screened(self, current: SessionModel, screen: Screen, threshold: float) -> Candidate:
         """A candidate scored by its screen alone: predicted chi^2 fall, parameters counted."""
@@ -689,9 +697,10 @@ class _Session:
     ) -> tuple[tuple[Candidate, SessionModel] | None, str]:
         """The best refit that qualifies (module doc, step 4), or None and why none does."""
         gap_now = self.gap(current.residuals_m_s)
+        # A refit whose size ends on its physical bound comes after those within it.
         refits = sorted(
             ((c, m) for c, m in tried if m is not None and math.isfinite(c.score)),
-            key=lambda item: item[0].score,
+            key=lambda item: (_size_at_bound(item[0]), item[0].score),
         )
         if not refits:
             best = min((c for c, _ in tried), key=lambda c: c.score, default=None)
@@ -1148,6 +1157,14 @@ def _unobservable(candidate: Candidate, ranges: Mapping[str, tuple[float, float]
         f'these records cannot show {effect.replace("_", " ")} (its {name} would show {beyond}'
         f'{unit}); {WOULD_SHOW[effect]}'
     )
+
+
+def _size_at_bound(candidate: Candidate) -> bool:
+    """Whether the parameter that sizes a candidate's effect (`EFFECT_SIZE`) ends on a bound."""
+    if candidate.effect not in EFFECT_SIZE:
+        return False
+    name = f'{candidate.effect}.{EFFECT_SIZE[candidate.effect][0]}'
+    return any(p.at_bound for p in candidate.parameters if p.name == name)
 
 
 def _at_bound_note(named: Sequence[NamedEffect]) -> str:
