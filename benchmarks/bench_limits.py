@@ -1,7 +1,7 @@
 """The stated detection limits, tried on worlds the product was not tuned on.
 
 Run: .venv/bin/python benchmarks/bench_limits.py [--quick] [--cases N] [--seed S]
-     [--worlds W,...]
+     [--worlds W,...] [--multiples 1.5] [--effects E,...]
 
 `fmm diagnose` states, for every candidate, the size from which the session's records would
 show it (`Candidate.detection_limit`: what `none` cannot rule out). `bench_diagnose` counts
@@ -23,7 +23,8 @@ least, at the largest damping ratio probed) and drawn from a stream of its own, 
 effects' draws are those of the runs before it.
 
 A full run writes its section of RESULTS.md (one per seed); --quick (one session, two effects,
-one world) writes nothing.
+one world) writes nothing, nor does a run at other multiples (`--multiples 1.5`: the size
+issue 45 holds a limit to) or of some effects only (`--effects`).
 """
 
 import argparse
@@ -63,6 +64,7 @@ class Check:
     """What one world's cases found: per effect, the limits stated and the names at each size."""
 
     world: str
+    multiples: tuple[float, ...] = MULTIPLES
     limits: dict[str, list[float]] = field(default_factory=dict)
     named: dict[str, dict[float, list[int]]] = field(default_factory=dict)
     """effect -> multiple -> [sessions that named the effect, sessions]."""
@@ -76,12 +78,14 @@ class Check:
     def table(self) -> list[str]:
         """The markdown table of this world."""
         lines = [
-            '| effect | stated limit, median (range) | named at 0.5x | named at 2x | no limit |',
-            '|---|---|---|---|---|',
+            '| effect | stated limit, median (range) | '
+            + ''.join(f'named at {m:g}x | ' for m in self.multiples)
+            + 'no limit |',
+            '|---|---|' + '---|' * len(self.multiples) + '---|',
         ]
         for effect, limits in self.limits.items():
             counts = self.named[effect]
-            low, high = (counts.get(m, [0, 0]) for m in MULTIPLES)
+            tallies = [counts.get(m, [0, 0]) for m in self.multiples]
             stated = (
                 f'{statistics.median(limits):.2g} {self.units[effect]} '
                 f'({min(limits):.2g}-{max(limits):.2g})'
@@ -89,15 +93,16 @@ class Check:
                 else '-'
             )
             lines.append(
-                f'| {SHORT[effect]} | {stated} | {low[0]} of {low[1]} | {high[0]} of {high[1]} '
-                f'| {self.unstated.get(effect, 0)} |'
+                f'| {SHORT[effect]} | {stated} | '
+                + ''.join(f'{named} of {total} | ' for named, total in tallies)
+                + f'{self.unstated.get(effect, 0)} |'
             )
         return lines
 
     def totals(self) -> list[str]:
         """The figures under the table."""
         lines = []
-        for multiple in MULTIPLES:
+        for multiple in self.multiples:
             named = sum(c.get(multiple, [0, 0])[0] for c in self.named.values())
             total = sum(c.get(multiple, [0, 0])[1] for c in self.named.values())
             lines.append(f'at {multiple:g}x the stated size: named {named} of {total}')
@@ -105,14 +110,20 @@ class Check:
         return lines
 
 
-def check(name: str, cases: int, seed: int, effects: tuple[str, ...] | None = None) -> Check:
-    """A world's `Check`: `cases` sessions clean, then each effect at `MULTIPLES` of its limit."""
+def check(
+    name: str,
+    cases: int,
+    seed: int,
+    effects: tuple[str, ...] | None = None,
+    multiples: tuple[float, ...] = MULTIPLES,
+) -> Check:
+    """A world's `Check`: `cases` sessions clean, then each effect at `multiples` of its limit."""
     world = WORLDS[name]
     kinds = kinds_of(world)
     chosen = [e for e in (effects or HIDDEN_SIZE) if e in kinds and e != 'second_mode']
     if 'second_mode' in kinds and (effects is None or 'second_mode' in effects):
         chosen.append('second_mode')
-    found = Check(name)
+    found = Check(name, multiples)
     for number in range(cases):
         rng = np.random.default_rng([seed, number])
         mu = float(rng.uniform(*MU_RANGE))
@@ -144,7 +155,7 @@ def check(name: str, cases: int, seed: int, effects: tuple[str, ...] | None = No
                 continue
             found.limits[effect].append(limit)
             found.units[effect] = detection_limit_dict(effect, limit)['unit']
-            for multiple in MULTIPLES:
+            for multiple in multiples:
                 size = limit / multiple if inverse else multiple * limit
                 hidden = Effects(**{**fields, size_field: sign * size})
                 result = _diagnosed(session, hidden)
@@ -196,6 +207,18 @@ def main() -> None:
         default=(),
         help='check only these held-out worlds (comma-separated names of heldout.ROLES)',
     )
+    parser.add_argument(
+        '--multiples',
+        type=lambda text: tuple(float(m) for m in text.split(',')),
+        default=MULTIPLES,
+        help='sizes to set each effect to, as multiples of its stated limit (comma-separated)',
+    )
+    parser.add_argument(
+        '--effects',
+        type=lambda text: tuple(text.split(',')),
+        default=None,
+        help='try only these effects (comma-separated diagnosis names)',
+    )
     args = parser.parse_args()
     held_out = [name for name in WORLDS if ROLES[name] == HELD_OUT]
     unknown = sorted(set(args.worlds) - set(held_out))
@@ -203,13 +226,15 @@ def main() -> None:
         parser.error(f'not a held-out world: {", ".join(unknown)}; held out: {", ".join(held_out)}')
     worlds = held_out[:1] if args.quick else [w for w in held_out if w in (args.worlds or held_out)]
     cases = 1 if args.quick else args.cases
-    checks = [
-        check(name, cases, args.seed, QUICK_EFFECTS if args.quick else None) for name in worlds
-    ]
+    effects = QUICK_EFFECTS if args.quick else args.effects
+    checks = [check(name, cases, args.seed, effects, args.multiples) for name in worlds]
+    partial = args.multiples != MULTIPLES or args.effects is not None
     seed = f', seed {args.seed}' if args.seed != DEFAULT_SEED else ''
     chosen = f' [{", ".join(args.worlds)}]' if args.worlds else ''
     write_section(
-        f'bench_limits, held out worlds{chosen}{seed}', markdown(checks, cases), quick=args.quick
+        f'bench_limits, held out worlds{chosen}{seed}',
+        markdown(checks, cases),
+        quick=args.quick or partial,
     )
 
 

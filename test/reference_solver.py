@@ -14,7 +14,7 @@ from scipy.integrate import solve_ivp
 
 @dataclass(frozen=True)
 class Oscillator:
-    """m x'' + c x' + k x + k3 x^3 + s N (mu_s + dmu exp(-(v/vs)^2)) = f, s = sgn(v)."""
+    """m x'' + c x' + k x + k3 x^3 + s N (mu_s + dmu exp(-(|v|/vs)^delta)) = f, s = sgn(v)."""
 
     mass: float
     damping: float
@@ -25,13 +25,15 @@ class Oscillator:
     cubic: float = 0.0
     static_excess: float = 0.0
     stribeck_velocity: float = 1.0
+    stribeck_exponent: float = 2.0
 
     def spring(self, x):
         return self.stiffness * x + self.cubic * x**3
 
     def friction(self, sigma, v):
         mu = self.mu_pos if sigma > 0 else self.mu_neg
-        excess = self.static_excess * np.exp(-((v / self.stribeck_velocity) ** 2))
+        ratio = np.abs(v) / self.stribeck_velocity
+        excess = self.static_excess * np.exp(-(ratio**self.stribeck_exponent))
         return self.normal_force * (mu + excess)
 
     def static_limit(self, sigma):

@@ -136,7 +136,9 @@ def test_json_has_the_issues_keys_and_is_json(diagnoses):
         'mu',
         'stribeck.mu_static_excess',
         'stribeck.stribeck_velocity_m_s',
+        'stribeck.stribeck_exponent',
     }
+    assert set(payload['parameter_at_bound']) == set(payload['parameters'])
     # three hits, one a level: mu_drift is a candidate (told from a speed law by each hit's
     # own friction map), not named here
     assert {c['effect'] for c in payload['candidates']} == set(EFFECTS)

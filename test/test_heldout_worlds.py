@@ -246,13 +246,17 @@ def test_a_drift_whose_hit_maps_bend_under_coloured_noise_is_named():
 @pytest.mark.slow
 def test_a_large_spring_the_screens_misrank_is_refitted_and_named():
     """A softening spring swinging to 11 mm (20.9x the noise) screens third with the wrong sign
-    (its period drifts over the decay), so neither of the two best refits halves the gap: the
-    other screens are refitted until one qualifies (`_Session._further`). This session made
-    `ivp` a tuning world (heldout.ROLES)."""
+    (its period drifts over the decay), so of the two best refits only an asymmetry qualifies,
+    pinned at its physical bound (-mu) to take 37 % of the gap: the other screens are refitted
+    until one qualifies within its range (`_Session._further`), and the spring is named at the
+    first step. This session made `ivp` a tuning world (heldout.ROLES)."""
     _, hidden, result = diagnosed(IVP, 'cubic_stiffness', benchmark_draw('cubic_stiffness', 7))
     assert result.named_effects == hidden == ('cubic_stiffness',)
     refitted = [c.effect for c in result.candidates if 'not refitted' not in c.message]
     assert len(refitted) > MAX_REFITS and 'cubic_stiffness' in refitted
+    asymmetry = next(c for c in result.candidates if c.effect == 'asymmetric_friction')
+    pinned = next(p for p in asymmetry.parameters if p.name.endswith('.mu_difference'))
+    assert pinned.at_bound and result.selection[0].startswith('step 1: added cubic_stiffness')
     assert result.gap_after < 0.1 * result.gap_before
 
 

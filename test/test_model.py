@@ -1,6 +1,7 @@
 """fmm_ros.core.physics: integrators against independent solutions, terms, streaming, bad input."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -223,6 +224,40 @@ def test_a_stribeck_contact_alone_slides_exactly_where_its_excess_is_below_round
     assert np.max(np.abs(sim.velocity_m_s - rk4.velocity_m_s)) <= 1e-8 * peak
 
 
+@pytest.mark.parametrize('exponent', [0.5, 1.0, 1.5])
+def test_a_stribeck_shape_of_any_exponent_agrees_with_an_event_located_ode_solution(exponent):
+    """exp(-(|v|/vs)^delta) over Armstrong-Helouvry's 0.5-2: the kernels' segments near rest
+    widen with 16^(1/delta) vs and the closed form starts at 36^(1/delta) vs. For delta >= 1
+    within 2e-8 of the peak speed and 3e-11 m at rest; for delta = 0.5, whose slope is
+    unbounded at rest (both solvers lose their order there), 8e-7 and 2.1e-9 m: 3e-3 of the
+    1e-4 m/s velocity noise."""
+    rate = 2000.0
+    stribeck = model_term(
+        'stribeck', mu_static_excess=0.03, stribeck_velocity_m_s=5e-3, stribeck_exponent=exponent
+    )
+    force = impact(rate_hz=rate, duration_s=4.0)
+    reference = Oscillator(
+        FMM_RIG.mass_kg,
+        FMM_RIG.damping_n_s_per_m,
+        FMM_RIG.stiffness_n_per_m,
+        FMM_RIG.normal_force_n,
+        PAPER_MU,
+        PAPER_MU,
+        static_excess=0.03,
+        stribeck_velocity=5e-3,
+        stribeck_exponent=exponent,
+    )
+    ref_x, ref_v = solve(reference, force, rate)
+    sim = simulate(force, rate, effects=(stribeck,))
+    peak = np.max(np.abs(ref_v))
+    smooth = exponent >= 1.0
+    assert np.max(np.abs(sim.velocity_m_s - ref_v)) <= (2e-8 if smooth else 1e-6) * peak
+    assert sim.rest_position_m == pytest.approx(ref_x[-1], abs=1e-10 if smooth else 5e-9)
+    # and the shape matters: the Gaussian's run differs by far more than that (1.5: 4e-4)
+    gaussian = simulate(force, rate, effects=(replace(stribeck, stribeck_exponent=2.0),))
+    assert np.max(np.abs(gaussian.velocity_m_s - ref_v)) > 1e-4 * peak
+
+
 def test_stribeck_raises_the_break_away_force_to_static_friction():
     excess = 0.05
     ramp = 10.0
@@ -389,7 +424,7 @@ def test_velocity_offset_and_delay_act_on_the_vibrometer_output_only():
     ('build', 'message'),
     [
         (lambda: model_term('coulomb'), "unknown model term 'coulomb'"),
-        (lambda: model_term('stribeck', [0.01]), 'stribeck takes 2 parameter'),
+        (lambda: model_term('stribeck', [0.01]), 'stribeck takes 3 parameter'),
         (lambda: model_term('stribeck', speed=1.0), 'stribeck has no parameter speed'),
         (
             lambda: model_term('stribeck', mu_static_excess=-0.01),

@@ -162,7 +162,8 @@ def diagnosis_text(payload: dict, impacts: int, figures: Sequence[Path] = ()) ->
             continue
         for name, value in entry['parameters'].items():
             error, unit = entry['parameter_stderr'][name], entry['parameter_units'][name]
-            lines.append(f'    {name:<38} {_value(value, error, unit)}')
+            bound = '  (at its bound)' if entry.get('parameter_at_bound', {}).get(name) else ''
+            lines.append(f'    {name:<38} {_value(value, error, unit)}{bound}')
     lines.append(f'where (base model): {result["where"]["summary"]}')
     lines.append('')
     lines.append(

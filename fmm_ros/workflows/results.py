@@ -309,6 +309,7 @@ def diagnosis_dict(diagnosis: Diagnosis) -> dict:
             'parameters': {p.name: p.value for p in diagnosis.parameters},
             'parameter_units': {p.name: p.unit for p in diagnosis.parameters},
             'parameter_stderr': {p.name: p.stderr for p in diagnosis.parameters},
+            'parameter_at_bound': {p.name: p.at_bound for p in diagnosis.parameters},
             'mu': diagnosis.mu,
             'mu_stderr': diagnosis.mu_stderr,
             'starts': diagnosis.starts,
@@ -330,6 +331,7 @@ def diagnosis_dict(diagnosis: Diagnosis) -> dict:
                         c.effect, c.detection_limit, c.detection_limit_by_frequency
                     ),
                     **({'message': c.message} if c.message else {}),
+                    **({'unobservable': c.unobservable} if c.unobservable else {}),
                 }
                 for c in diagnosis.candidates
             ],
@@ -412,6 +414,7 @@ def _estimates_dict(parameters: tuple[ParameterEstimate, ...]) -> dict:
         'parameters': {p.name: p.value for p in parameters},
         'parameter_stderr': {p.name: p.stderr for p in parameters},
         'parameter_units': {p.name: p.unit for p in parameters},
+        'parameter_at_bound': {p.name: p.at_bound for p in parameters},
     }
 
 

@@ -23,6 +23,9 @@ class ParameterEstimate:
     value: float
     unit: str
     stderr: float
+    at_bound: bool = False
+    """The fit ended on a bound of the parameter's range (`physical_ranges` for an effect's
+    size): the data ask for at least this much, and the value is a limit, not an estimate."""
 
 
 @dataclass(frozen=True)
@@ -59,6 +62,10 @@ class Candidate:
     """A second mode's limit at each frequency of the band it is taken over, (frequency [Hz],
     modal mass [kg]) from the lowest: heavier modes show lower in the band. () for the other
     terms."""
+    unobservable: str = ''
+    """When the detection limit lies outside the effect's physical range (`physical_ranges`,
+    or the term's declared bounds): that these records cannot show it, and what would; ''
+    otherwise."""
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ path per hit. mu_drift, which is about every hit, is screened on all.
 """
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import NamedTuple
 
@@ -292,11 +292,13 @@ def screen_term(
     noise_std_m_s: float,
     naming: Naming | None = None,
     limit_probes: Sequence[ModelTerm] | None = None,
+    ranges: Mapping[str, tuple[float, float]] | None = None,
 ) -> Screen:
     """The best of the probes of one term: its predicted chi^2 gain and the refit's start.
 
     The probe's size parameter (`EFFECT_SIZE`) is scaled by the regression coefficient (the
-    second mode's mass divided by it), and clipped into the term's bounds. A coefficient of
+    second mode's mass divided by it), and clipped into the term's bounds (ranges, the
+    session's `physical_ranges`, where given). A coefficient of
     the wrong sign for a non-negative size is no gain: the data ask for the opposite effect,
     which the term does not express.
 
@@ -326,7 +328,7 @@ def screen_term(
         if naming is not None and limit_probes is None:
             limits.append(_limit(probe, responses, shared, own, linear, naming))
         gain = linear.scale * max(fall - before, 0.0) / noise_std_m_s**2
-        start, note = _scaled(probe, float(solution[0]))
+        start, note = _scaled(probe, float(solution[0]), ranges)
         if start is None:
             gain = 0.0
         shift = float(solution[1]) if solution.size > 1 else 0.0
@@ -405,7 +407,11 @@ def _named_from(size: float, inverse: bool, own_m2_s2: float, naming_m2_s2: floa
     return size / ratio if inverse else size * ratio
 
 
-def _scaled(probe: ModelTerm, coefficient: float) -> tuple[ModelTerm | None, str]:
+def _scaled(
+    probe: ModelTerm,
+    coefficient: float,
+    ranges: Mapping[str, tuple[float, float]] | None = None,
+) -> tuple[ModelTerm | None, str]:
     """The probe with its size scaled by the coefficient, in bounds; None if it cannot be."""
     name, inverse = EFFECT_SIZE[probe.name]
     index = [p.name for p in probe.parameters].index(name)
@@ -419,7 +425,7 @@ def _scaled(probe: ModelTerm, coefficient: float) -> tuple[ModelTerm | None, str
         value = size * coefficient
     if parameter.domain != 'real' and value <= 0.0:
         return None, f'the residual asks for {name} < 0, which the term does not express'
-    low, high = probe.bounds()
+    low, high = probe.bounds(ranges)
     return replace(probe, **{name: float(np.clip(value, low[index], high[index]))}), ''
 
 

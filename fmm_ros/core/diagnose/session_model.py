@@ -36,6 +36,7 @@ def diagnostic_fit(
     mu0: float | None = None,
     terms: Sequence[ModelTerm] = (),
     fixed_effects: Sequence[ModelTerm] = (),
+    ranges: Mapping[str, tuple[float, float]] | None = None,
 ) -> ModelFit:
     """`fit_model` as the diagnosis fits every model: the velocity judged while the hammer acts.
 
@@ -51,6 +52,9 @@ def diagnostic_fit(
     by as much as a friction asymmetry moves it (1e-5 to 7e-5 m). Measured on `steps`, a
     tuning world: with measured impulses 16 of 24 asymmetric chained sessions were named,
     with fitted scales 22 of 24, clean ones 16 of 16 `none` either way.
+
+    ranges: the terms' fitting ranges by parameter name (`physical_ranges`), in place of
+    their declared bounds.
     """
     return fit_model(
         impacts,
@@ -62,6 +66,7 @@ def diagnostic_fit(
         mu0=mu0,
         terms=terms,
         fixed_effects=fixed_effects,
+        term_bounds=ranges,
     )
 
 
@@ -230,7 +235,7 @@ class SessionModel:
         """Fitted parameters: the joint fit's (mu, terms, starts), then each hit's mu."""
         joint = self.joint
         values = [
-            ParameterEstimate(name, float(value), unit, float(error))
+            ParameterEstimate(name, float(value), unit, float(error), name in joint.at_bounds)
             for name, value, unit, error in zip(
                 joint.names, joint.values, joint.units, joint.stderr, strict=True
             )
@@ -247,11 +252,13 @@ def with_terms(
     start: ModelTerm,
     fit_initial_position: bool,
     mu0: float | None = None,
+    ranges: Mapping[str, tuple[float, float]] | None = None,
 ) -> SessionModel:
     """The model with one more term: every term refitted jointly from where it stands.
 
-    mu0: where mu starts (default the model's). A model with mu_drift gets each hit's mu
-    refitted again on top of the new joint fit. Raises FitError when the fitter refuses.
+    mu0: where mu starts (default the model's). ranges: the terms' fitting ranges
+    (`diagnostic_fit`). A model with mu_drift gets each hit's mu refitted again on top of the
+    new joint fit. Raises FitError when the fitter refuses.
     """
     joint = diagnostic_fit(
         impacts,
@@ -259,6 +266,7 @@ def with_terms(
         mu0=model.joint.mu if mu0 is None else mu0,
         terms=(*model.terms, start),
         fit_initial_position=fit_initial_position,
+        ranges=ranges,
     )
     refitted = SessionModel((*model.effects, effect), joint)
     if MU_DRIFT in model.effects:
@@ -301,8 +309,12 @@ def without(
     model: SessionModel,
     effect: str,
     fit_initial_position: bool,
+    ranges: Mapping[str, tuple[float, float]] | None = None,
 ) -> SessionModel:
-    """The model with one named effect taken out, the rest refitted (the backward check)."""
+    """The model with one named effect taken out, the rest refitted (the backward check).
+
+    ranges: the terms' fitting ranges (`diagnostic_fit`).
+    """
     kept = tuple(name for name in model.effects if name != effect)
     if effect == MU_DRIFT:
         return SessionModel(kept, model.joint)
@@ -312,6 +324,7 @@ def without(
         mu0=model.joint.mu,
         terms=tuple(term for term in model.terms if term.name != effect),
         fit_initial_position=fit_initial_position,
+        ranges=ranges,
     )
     reduced = SessionModel(kept, joint)
     if MU_DRIFT in kept:

@@ -8,7 +8,7 @@ scaled, is where a refit starts.
 """
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -57,6 +57,7 @@ def probes(
     noise_std_m_s: float,
     where: Where,
     rig: Rig,
+    ranges: Mapping[str, tuple[float, float]] | None = None,
 ) -> tuple[ModelTerm, ...]:
     """The shapes of one candidate to screen, each at a size that moves the response.
 
@@ -65,7 +66,8 @@ def probes(
     standing MODE_PEAK_SIGMAS noise deviations out of it (none
     without one: a mode rings narrow-band), with each damping ratio and 1 kg; every
     other term at its start from the signatures (`start_term`), or at its default size where
-    the signature points at none.
+    the signature points at none. ranges: the session's fitting ranges (`physical_ranges`),
+    which the starts are clipped into.
     """
     cls = MODEL_TERMS[effect]
     if effect == 'stribeck':
@@ -93,7 +95,7 @@ def probes(
             for peak in peaks
             for zeta in SECOND_MODE_DAMPING_RATIOS
         )
-    start = start_term(effect, impacts, where, rig)
+    start = start_term(effect, impacts, where, rig, ranges)
     name, _ = EFFECT_SIZE[effect]
     if getattr(start, name) == 0.0:
         default = next(p.default for p in cls.parameters if p.name == name)
@@ -139,15 +141,19 @@ def mode_limit_probes(impacts: Sequence[ConditionedImpact], rig: Rig) -> tuple[M
 
 
 def start_term(
-    effect: str, impacts: Sequence[ConditionedImpact], where: Where, rig: Rig
+    effect: str,
+    impacts: Sequence[ConditionedImpact],
+    where: Where,
+    rig: Rig,
+    ranges: Mapping[str, tuple[float, float]] | None = None,
 ) -> ModelTerm:
     """One candidate term at the size its signature points at (not the second mode's).
 
     Each is a rough estimate from the measured-minus-model signatures, clipped into the term's
-    plausible bounds; the screen and the refit do the rest.
+    bounds (ranges where given, else its declared ones); the screen and the refit do the rest.
     """
     cls = MODEL_TERMS[effect]
-    lower, upper = cls.bounds()
+    lower, upper = cls.bounds(ranges)
 
     def clipped(*values: float) -> ModelTerm:
         return cls.from_vector(np.clip(values, lower, upper))

@@ -11,8 +11,9 @@
    terms, and `mu_drift`, one mu per hit) is screened (`screen`: the chi^2 one linearised
    step could remove); the best `MAX_REFITS` whose screen reaches `SCREEN_FRACTION` of the
    required gain are refitted in full (and, when none of them qualifies while the misfit is
-   `MIN_EXCESS` beyond the noise, the other screens that reach `SCREEN_FRACTION`, best
-   first, until one does), and the best refit is added when it is clearly better
+   `MIN_EXCESS` beyond the noise, or the only one that does ends with its size on its
+   physical bound, the other screens that reach `SCREEN_FRACTION`, best first, until one
+   does within its range), and the best refit within its range is added when it is clearly better
    (BIC lower by `BIC_EVIDENCE` plus `INPUT_NOISE_FACTOR` times what the force noise alone
    explains, the required score), removes at least `MIN_STEP_SHARE` of the squared gap left
    at that step, accounts for at least `MIN_EXCESS` of the noise RMS (sqrt of the fall of
@@ -38,7 +39,7 @@
 """
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -106,6 +107,7 @@ from fmm_ros.core.identify.friction import fit_model
 from fmm_ros.core.identify.lsq import inner
 from fmm_ros.core.identify.spec import FRICTION_FIT, FitSpec
 from fmm_ros.core.physics.rig import FMM_RIG, Rig
+from fmm_ros.core.physics.terms import EFFECT_SIZE, MODEL_TERMS, physical_ranges
 from fmm_ros.core.signal.response import VELOCITY, converted_noise
 from fmm_ros.errors import BadInputError, FitError
 
@@ -430,6 +432,9 @@ class _Session:
         self.naming = Naming((MIN_EXCESS * self.noise) ** 2 * self.motion_samples, self.windows)
         """What naming an effect asks of the misfit it removes (MIN_EXCESS; `_choose`)."""
         self.peak = max(impact.peak_velocity_m_s for impact in impacts)
+        self.ranges = physical_ranges(base.joint.mu, self.peak, 1.0 / rig.natural_frequency_hz)
+        """Every fit's, screen's and start's range of the effects' sizes, from mu, the peak
+        speed and the natural period (`physical_ranges`), not from any world's draws."""
         self.where: Where = locate_misfit(
             impacts, base.residuals_m_s, self.models, self.hits, rig, self.noise
         )
@@ -478,8 +483,8 @@ class _Session:
             number = len(steps) + 1
             tried, screens = self._step(number, current, remaining)
             chosen, reason = self._choose(current, tried)
-            if chosen is None:
-                chosen, reason = self._further(number, current, tried, screens, reason)
+            if chosen is None or _size_at_bound(chosen[0]):
+                chosen, reason = self._further(number, current, tried, screens, reason, chosen)
             if table is None:
                 table = tuple(sorted((c for c, _ in tried), key=lambda c: c.score))
             if chosen is None:
@@ -529,7 +534,13 @@ class _Session:
                 self.drift_screens[frozenset(current.effects)] = screen
             else:
                 shapes = probes(
-                    effect, linear.impacts, linear.residuals, self.noise, self.where, self.rig
+                    effect,
+                    linear.impacts,
+                    linear.residuals,
+                    self.noise,
+                    self.where,
+                    self.rig,
+                    self.ranges,
                 )
                 # A second mode's limit is taken over the band the hits excite, not at the
                 # residual's peaks (hum makes some in a clean session): what could hide.
@@ -538,7 +549,9 @@ class _Session:
                     if effect == 'second_mode' and naming is not None
                     else None
                 )
-                screen = screen_term(effect, shapes, linear, self.noise, naming, limit_shapes)
+                screen = screen_term(
+                    effect, shapes, linear, self.noise, naming, limit_shapes, self.ranges
+                )
             self.say(f'step {number}: screened {effect}: chi^2 could fall {screen.chi2_gain:.0f}')
             screens.append(screen)
         screens.sort(key=lambda s: -s.chi2_gain)
@@ -558,33 +571,40 @@ class _Session:
         tried: list[tuple[Candidate, SessionModel | None]],
         screens: list[Screen],
         reason: str,
+        bounded: tuple[Candidate, SessionModel] | None = None,
     ) -> tuple[tuple[Candidate, SessionModel] | None, str]:
         """Refit the screens left unrefitted, best first, until one qualifies (module doc, 4).
 
-        Only where a refit was made and what the model leaves would be called unexplained: a
-        screen is one linearised step and misranks a large effect (a softening spring at
-        11 mm swings, whose period drifts over the decay). Only screens that reach
+        Only where a refit was made and what the model leaves would be called unexplained, or
+        where the only refit that qualifies (`bounded`) ends with its size on its physical
+        bound: a screen is one linearised step and misranks a large effect (a softening spring
+        at 11 mm swings, whose period drifts over the decay), and a term pinned to the edge of
+        what the physics allows is standing in for another (an asymmetry of -mu took 37 % of
+        that spring's gap, then was dropped once the spring was in). Only screens that reach
         `SCREEN_FRACTION` of the required gain, as every refit must: a wear track outside the
         vocabulary had four more refits of screens predicting 8 to 900 against 1,800
         required, 30 s of its 80. The refits take their screens' places in `tried`. Returns
-        the first that qualifies, or None and why none does.
+        the first that qualifies within its range, else `bounded` (None and why none
+        qualifies when there is none).
         """
         excess = self.peak * self.gap(current.residuals_m_s) / self.noise
         if excess < MIN_EXCESS or all(model is None for _, model in tried):
-            return None, reason
+            return bounded, '' if bounded is not None else reason
         worth = SCREEN_FRACTION * -self.required
         for rank, screen in enumerate(screens):
             if tried[rank][1] is not None or screen.chi2_gain < worth:
                 continue
-            self.say(
-                f'step {number}: no refit qualifies and the misfit is {excess:.1f}x the noise: '
-                f'refitting {screen.effect} too'
+            why = (
+                f'no refit qualifies and the misfit is {excess:.1f}x the noise'
+                if bounded is None
+                else f'the only refit that qualifies, {bounded[0].effect}, ends at its bound'
             )
+            self.say(f'step {number}: {why}: refitting {screen.effect} too')
             tried[rank] = self._refit(number, current, screen)
             chosen, reason = self._choose(current, tried)
-            if chosen is not None:
+            if chosen is not None and not _size_at_bound(chosen[0]):
                 return chosen, ''
-        return None, reason
+        return bounded, '' if bounded is not None else reason
 
     def _screened(self, current: SessionModel, screen: Screen, threshold: float) -> Candidate:
         """A candidate scored by its screen alone: predicted chi^2 fall, parameters counted."""
@@ -642,6 +662,7 @@ class _Session:
                     screen.start,
                     self.fit_initial_position,
                     mu0=current.joint.mu + screen.mu_shift,
+                    ranges=self.ranges,
                 )
         except FitError as error:
             self.say(f'step {number}: refit of {screen.effect} failed: {error}')
@@ -675,9 +696,10 @@ class _Session:
     ) -> tuple[tuple[Candidate, SessionModel] | None, str]:
         """The best refit that qualifies (module doc, step 4), or None and why none does."""
         gap_now = self.gap(current.residuals_m_s)
+        # A refit whose size ends on its physical bound comes after those within it.
         refits = sorted(
             ((c, m) for c, m in tried if m is not None and math.isfinite(c.score)),
-            key=lambda item: item[0].score,
+            key=lambda item: (_size_at_bound(item[0]), item[0].score),
         )
         if not refits:
             best = min((c for c, _ in tried), key=lambda c: c.score, default=None)
@@ -794,7 +816,9 @@ class _Session:
         key = frozenset(model.effects) - {effect}
         if key not in self.cache:
             try:
-                self.cache[key] = without(self.impacts, model, effect, self.fit_initial_position)
+                self.cache[key] = without(
+                    self.impacts, model, effect, self.fit_initial_position, self.ranges
+                )
             except FitError:
                 return None
         return self.cache[key]
@@ -859,6 +883,11 @@ class _Session:
                 )
             )
         verdict = self._verdict(named, selection, explained, location)
+        verdict += _at_bound_note(named)
+        candidates = tuple(
+            replace(c, unobservable=_unobservable(c, self.ranges)) for c in selection.candidates
+        )
+        verdict += ''.join(f'; {c.unobservable}' for c in candidates if c.unobservable)
         self.say(verdict)
         trend = None
         if drift_asked:
@@ -883,7 +912,7 @@ class _Session:
             frf_gap_before=self.frf_gap(self.base.residuals_m_s),
             frf_gap_after=self.frf_gap(explained.residuals_m_s),
             where=self.where,
-            candidates=selection.candidates,
+            candidates=candidates,
             selection=selection.log,
             residual_where=location,
             mu_trend=trend,
@@ -1084,6 +1113,68 @@ def _detectable_drift(mus: np.ndarray, mu_stderrs: np.ndarray) -> float:
     if beyond(1.0) <= 0.0:
         return math.inf
     return float(scipy.optimize.brentq(beyond, 0.0, 1.0, xtol=1e-6))
+
+
+WOULD_SHOW = {
+    'viscous_damping': 'longer decays (harder hits) would',
+    'stribeck': 'more slow sliding before each stop (more hits, lighter ones) would',
+    'asymmetric_friction': 'chained starts or a position sensor would',
+    'cubic_stiffness': 'harder hits that swing the rig further would',
+    'second_mode': 'a stiffer hammer tip exciting a wider band would',
+    'velocity_offset': 'longer records at rest after each hit would',
+    'sensor_delay': 'shorter hits (a stiffer hammer tip) would',
+}
+"""Per term, what would show an effect these records cannot (`_unobservable`)."""
+
+
+def _unobservable(candidate: Candidate, ranges: Mapping[str, tuple[float, float]]) -> str:
+    """'these records cannot show ...' when a candidate's detection limit is out of its range.
+
+    The range is the session's physical one (`physical_ranges`) or the term's declared bounds:
+    an effect that only shows beyond what the physics allows is one these records cannot
+    show, whatever the verdict; '' when the limit lies inside it, or there is none.
+    """
+    effect, limit = candidate.effect, candidate.detection_limit
+    if effect not in EFFECT_SIZE or not math.isfinite(limit):
+        return ''
+    name, inverse = EFFECT_SIZE[effect]
+    cls = MODEL_TERMS[effect]
+    index = [p.name for p in cls.parameters].index(name)
+    low, high = (float(bound[index]) for bound in cls.bounds(ranges))
+    if inverse:
+        if limit >= low:
+            return ''
+        beyond = f'under {limit:.2g}, lighter than the lightest physical {low:.2g}'
+    else:
+        largest = max(abs(low), abs(high))
+        if limit <= largest:
+            return ''
+        beyond = f'from {limit:.2g}, beyond the physical range of {largest:.2g}'
+    unit = cls.parameters[index].unit
+    unit = '' if unit == '1' else f' {unit}'
+    return (
+        f'these records cannot show {effect.replace("_", " ")} (its {name} would show {beyond}'
+        f'{unit}); {WOULD_SHOW[effect]}'
+    )
+
+
+def _size_at_bound(candidate: Candidate) -> bool:
+    """Whether the parameter that sizes a candidate's effect (`EFFECT_SIZE`) ends on a bound."""
+    if candidate.effect not in EFFECT_SIZE:
+        return False
+    name = f'{candidate.effect}.{EFFECT_SIZE[candidate.effect][0]}'
+    return any(p.at_bound for p in candidate.parameters if p.name == name)
+
+
+def _at_bound_note(named: Sequence[NamedEffect]) -> str:
+    """'; stribeck.mu_static_excess = 0.5 at its bound' for each named parameter on a bound."""
+    ends = [
+        f'{p.name} = {p.value:.4g} at its bound'
+        for effect in named
+        for p in effect.parameters
+        if p.at_bound
+    ]
+    return ''.join(f'; {end}' for end in ends)
 
 
 def _own_parameters(model: SessionModel, effect: str) -> tuple[ParameterEstimate, ...]:

@@ -235,6 +235,7 @@ def _space(
     fixed_effects: Sequence[ModelTerm],
     initial_positions: int,
     impulse_scales: int,
+    term_bounds: Mapping[str, tuple[float, float]] | None = None,
 ) -> _Space:
     names, units = ['mu'], ['1']
     start, lower, upper = [mu0], [mu_bounds[0]], [mu_bounds[1]]
@@ -262,7 +263,7 @@ def _space(
         if cls in classes or any(isinstance(effect, cls) for effect in fixed):
             raise BadInputError(f'model term {cls.name} given twice')
         classes.append(cls)
-        low, high = cls.bounds()
+        low, high = cls.bounds(term_bounds)
         for parameter, value, lo, hi in zip(cls.parameters, values, low, high, strict=True):
             names.append(f'{cls.name}.{parameter.name}')
             units.append(parameter.unit)
@@ -337,6 +338,7 @@ def fit_model(
     terms: Sequence[str | ModelTerm] = (),
     fixed_effects: Sequence[ModelTerm] = (),
     start_values: Mapping[str, float] | None = None,
+    term_bounds: Mapping[str, tuple[float, float]] | None = None,
     **changes: Any,
 ) -> ModelFit:
     """Fit one mu (and c, and the parameters of `terms`) to every impact at once.
@@ -359,7 +361,10 @@ def fit_model(
     offset as the `velocity_offset` it is. judge_hit: also judge the velocity inside each
     `ConditionedImpact.hit_windows` (off: it follows the force between its samples).
     uncertainty: 'spectral' or 'blocks' (`output_error.UNCERTAINTIES`). start_values: start
-    values of fitted parameters by name (e.g. 'initial_position_m[0]'). jacobian: 'blocks'
+    values of fitted parameters by name (e.g. 'initial_position_m[0]'). term_bounds: the
+    fitting range of a term's parameter by its full name ('stribeck.mu_static_excess'), in
+    place of the term's declared plausible bounds (the diagnosis's `physical_ranges`); a fit
+    that ends on one lists it in `ModelFit.at_bounds`. jacobian: 'blocks'
     (default) runs each impact's own parameters' Jacobian columns on that impact only;
     'dense' runs every column on every impact (same result, the reference).
     Raises ValueError for bad arguments and FitError when the fit does not converge, puts mu
@@ -373,6 +378,7 @@ def fit_model(
         terms=terms,
         fixed_effects=fixed_effects,
         start_values=start_values,
+        term_bounds=term_bounds,
     ).fit
 
 
@@ -397,6 +403,7 @@ def _fit(
     start_values: Mapping[str, float] | None,
     start: tuple[np.ndarray, tuple[np.ndarray, ...]] | None = None,
     drift_estimated: bool = False,
+    term_bounds: Mapping[str, tuple[float, float]] | None = None,
 ) -> _Fitted:
     """`fit_model` on conditioned impacts.
 
@@ -437,6 +444,7 @@ def _fit(
         fixed_effects,
         len(conditioned) if spec.starts == FITTED else 0,
         len(conditioned) if spec.fit_impulse_scale else 0,
+        term_bounds,
     )
     for name, value in (start_values or {}).items():
         if name not in space.names:

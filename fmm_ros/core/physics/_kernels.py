@@ -39,7 +39,10 @@ NONLINEAR = 10  # 0: closed-form path (piecewise linear), 1: RK4 path, 2: RK4 ne
 PHI = 11  # 4 slots: exact step matrix, row-major (x, v) <- (x, v)
 GAMMA_U0 = 15  # 2 slots: response of (x, v) to the input at the interval start
 GAMMA_DU = 17  # 2 slots: response of (x, v) to the input change over the interval
-PARAM_SIZE = 19
+STRIBECK_DELTA = 19  # Stribeck shape exponent delta: excess x exp(-(|v|/vs)^delta) [-]
+STRIBECK_FLAT_RATIO = 20  # |v|/vs above which the excess is below rounding: 36^(1/delta)
+STRIBECK_ZONE_RATIO = 21  # |v|/vs below which RK4 segments resolve the excess: 16^(1/delta)
+PARAM_SIZE = 22
 
 # Slots of the state vector (float64[STATE_SIZE]) carried between calls.
 STATE_X = 0  # displacement [m]
@@ -73,15 +76,17 @@ MAX_FLOAT = 1.7976931348623157e308  # the largest finite float64
 # mass is then held at rest for the rest of that interval.
 MAX_EVENTS_PER_INTERVAL = 64
 
-# Below STRIBECK_ZONE * vs the RK4 segments shrink to STRIBECK_STEP times the time the speed
-# takes to cross vs, over which the Stribeck excess exp(-(v/vs)^2) changes appreciably.
-STRIBECK_ZONE = 4.0
+# Below STRIBECK_ZONE_RATIO * vs (4 vs for the Gaussian shape, delta = 2: where
+# (v/vs)^delta = 16) the RK4 segments shrink to STRIBECK_STEP times the time the speed takes
+# to cross vs, over which the Stribeck excess exp(-(v/vs)^delta) changes appreciably (for
+# delta < 2 it changes more slowly above vs, so vs is the finer scale there).
 STRIBECK_STEP = 0.2
 
-# Above STRIBECK_FLAT * vs the Stribeck excess, exp(-36) = 2.3e-16 of itself, is below the
-# rounding of the kinetic friction it is added to: a Stribeck contact without a cubic spring
-# (NONLINEAR 2) slides there on the closed-form path (exact where RK4 errs by a few 1e-13
-# m/s), and only nearer rest on RK4. The RK4 path ran a 30-hit Stribeck diagnosis's refit.
+# Above STRIBECK_FLAT_RATIO * vs (6 vs for delta = 2: where (v/vs)^delta = 36) the Stribeck
+# excess, exp(-36) = 2.3e-16 of itself, is below the rounding of the kinetic friction it is
+# added to: a Stribeck contact without a cubic spring (NONLINEAR 2) slides there on the
+# closed-form path (exact where RK4 errs by a few 1e-13 m/s), and only nearer rest on RK4.
+# The RK4 path ran a 30-hit Stribeck diagnosis's refit.
 STRIBECK_FLAT = 6.0
 
 
@@ -97,8 +102,13 @@ def _friction(sigma, v, p):
     force = p[FRICTION_POS] if sigma > 0 else p[FRICTION_NEG]
     if p[STATIC_EXCESS] != 0.0:
         ratio = v / p[STRIBECK_V]
-        if ratio * ratio < STRIBECK_FLAT * STRIBECK_FLAT:  # else below rounding (above)
-            force += p[STATIC_EXCESS] * math.exp(-ratio * ratio)
+        if p[STRIBECK_DELTA] == 2.0:  # the Gaussian shape, squared rather than powered
+            if ratio * ratio < STRIBECK_FLAT * STRIBECK_FLAT:  # else below rounding (above)
+                force += p[STATIC_EXCESS] * math.exp(-ratio * ratio)
+        else:
+            ratio = abs(ratio)
+            if ratio < p[STRIBECK_FLAT_RATIO]:
+                force += p[STATIC_EXCESS] * math.exp(-(ratio ** p[STRIBECK_DELTA]))
     return force
 
 
@@ -170,10 +180,10 @@ def _rk4(x, v, f0, df_dt, tau, sigma, p):
 def _slide(x, v, f0, df_dt, tau, sigma, p):
     """State after sliding for tau in direction sigma: closed form or RK4, per the path.
 
-    On NONLINEAR 2 the closed form where the speed stays above STRIBECK_FLAT * vs.
+    On NONLINEAR 2 the closed form where the speed stays above STRIBECK_FLAT_RATIO * vs.
     """
     if p[NONLINEAR] == 2.0:
-        flat = STRIBECK_FLAT * p[STRIBECK_V]
+        flat = p[STRIBECK_FLAT_RATIO] * p[STRIBECK_V]
         if sigma * v >= flat:
             xe, ve = _kinetic_slide(x, v, f0, df_dt, tau, sigma, p)
             if sigma * ve >= flat:
@@ -313,7 +323,7 @@ def _interval(x, v, mode, f0, f1, t0, rest_time, p):
         f_start = f0 + df_dt * s
         d0 = mode * _accel(x, v, f_start, mode, p)
         end = min(h, s + segment)
-        if p[STATIC_EXCESS] != 0.0 and abs(v) < STRIBECK_ZONE * p[STRIBECK_V]:
+        if p[STATIC_EXCESS] != 0.0 and abs(v) < p[STRIBECK_ZONE_RATIO] * p[STRIBECK_V]:
             # Near zero speed the Stribeck excess changes as fast as the speed crosses vs:
             # at |a| (or, leaving rest with a = 0, at the jerk j: v = j t^2 / 2). Resolve it.
             jerk = (df_dt - p[STIFFNESS] * v - p[DAMPING] * mode * d0) / p[MASS]
@@ -437,12 +447,12 @@ def oscillator_exact(force, x_out, v_out, state, p):
     suspect = n > 0 and not abs(force[0]) <= limit
     h = p[STEP]
     # Sliding faster than this takes the exact matrix step: any speed on the closed-form
-    # path, above STRIBECK_FLAT * vs for a Stribeck contact alone, never on pure RK4.
+    # path, above STRIBECK_FLAT_RATIO * vs for a Stribeck contact alone, never on pure RK4.
     linear = p[NONLINEAR] == 0.0
     if linear:
         exact_above = 0.0
     elif p[NONLINEAR] == 2.0:
-        exact_above = STRIBECK_FLAT * p[STRIBECK_V]
+        exact_above = p[STRIBECK_FLAT_RATIO] * p[STRIBECK_V]
     else:
         exact_above = math.inf
     band_pos = p[FRICTION_POS] + p[STATIC_EXCESS]

@@ -74,6 +74,21 @@ def _foh_step(mass_kg: float, damping: float, stiffness: float, step_s: float) -
     return step
 
 
+def _stribeck_steepest(delta: float) -> float:
+    """The steepest slope of exp(-r^delta) in r = v / vs [-] that the RK4 segments resolve.
+
+    0.858 for the Gaussian (delta = 2, as the kernels always had it); for delta > 1 the slope
+    delta r^(delta-1) exp(-r^delta) peaks where r^delta = (delta - 1) / delta; for delta <= 1
+    it grows without bound towards rest, where the segments near rest
+    (`STRIBECK_ZONE_RATIO`) resolve it, and its value at r = 0.01 is taken.
+    """
+    if delta == 2.0:
+        return 0.858
+    peak = ((delta - 1.0) / delta) ** (1.0 / delta) if delta > 1.0 else 0.0
+    r = max(peak, 0.01)
+    return delta * r ** (delta - 1.0) * math.exp(-(r**delta))
+
+
 def _kernel_params(rig: Rig, spec: ModelSpec, step_s: float, integrator: str) -> np.ndarray:
     p = np.zeros(kernels.PARAM_SIZE)
     p[kernels.MASS] = rig.mass_kg
@@ -84,19 +99,26 @@ def _kernel_params(rig: Rig, spec: ModelSpec, step_s: float, integrator: str) ->
     p[kernels.FRICTION_NEG] = spec.mu_negative * rig.normal_force_n
     p[kernels.STATIC_EXCESS] = spec.mu_static_excess * rig.normal_force_n
     p[kernels.STRIBECK_V] = spec.stribeck_velocity_m_s
+    delta = spec.stribeck_exponent
+    p[kernels.STRIBECK_DELTA] = delta
+    p[kernels.STRIBECK_FLAT_RATIO] = 36.0 ** (1.0 / delta)
+    p[kernels.STRIBECK_ZONE_RATIO] = 16.0 ** (1.0 / delta)
     p[kernels.STEP] = step_s
     if integrator == 'rk4' or spec.cubic_stiffness_n_per_m3 != 0.0:
         p[kernels.NONLINEAR] = 1.0
     elif spec.nonlinear:  # a Stribeck contact alone: RK4 only nearer rest
         p[kernels.NONLINEAR] = 2.0
     # Fastest rate the RK4 segments must resolve: the mode itself, and the steepest slope of
-    # the Stribeck curve, dmu N max|d exp(-(v/vs)^2)/dv| / m = 0.858 dmu N / (vs m).
+    # the Stribeck curve, dmu N max|d exp(-(v/vs)^delta)/dv| / m (0.858 dmu N / (vs m) for
+    # delta = 2; `_stribeck_steepest`).
     rate = max(
         2.0 * math.pi * rig.natural_frequency_hz,
-        0.858 * p[kernels.STATIC_EXCESS] / (spec.stribeck_velocity_m_s * rig.mass_kg),
+        _stribeck_steepest(delta)
+        * p[kernels.STATIC_EXCESS]
+        / (spec.stribeck_velocity_m_s * rig.mass_kg),
     )
     p[kernels.SUBSTEPS] = max(1, math.ceil(rate * step_s / _RK4_RATE_STEP))
-    p[kernels.PHI : kernels.PARAM_SIZE] = _foh_step(
+    p[kernels.PHI : kernels.GAMMA_DU + 2] = _foh_step(
         rig.mass_kg, spec.damping_n_s_per_m, rig.stiffness_n_per_m, step_s
     )
     return p

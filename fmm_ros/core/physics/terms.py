@@ -10,7 +10,7 @@ the flat `ModelSpec` the compiled kernels are built from; a term given twice is 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from typing import TYPE_CHECKING, ClassVar
 
@@ -24,6 +24,10 @@ from fmm_ros.errors import BadInputError
 
 if TYPE_CHECKING:
     import numpy as np
+
+
+STRIBECK_EXPONENT_RANGE = (0.5, 2.0)
+"""The Stribeck shape delta real contacts show (Armstrong-Helouvry 1991: 0.5 to 2)."""
 
 
 @dataclass(frozen=True)
@@ -63,6 +67,7 @@ class ModelSpec:
     mu_negative: float
     mu_static_excess: float = 0.0
     stribeck_velocity_m_s: float = 1.0
+    stribeck_exponent: float = 2.0
     cubic_stiffness_n_per_m3: float = 0.0
     second_mode: SecondMode | None = None
     velocity_offset_m_s: float = 0.0
@@ -111,13 +116,22 @@ class ModelTerm:
         return np.array([getattr(self, p.name) for p in self.parameters])
 
     @classmethod
-    def bounds(cls) -> tuple[np.ndarray, np.ndarray]:
-        """(lower, upper) plausible bounds in `parameters` order, as scipy.optimize wants."""
+    def bounds(
+        cls, ranges: Mapping[str, tuple[float, float]] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) bounds in `parameters` order, as scipy.optimize wants.
+
+        The declared plausible bounds, or, for a parameter `ranges` holds by its full name
+        (`stribeck.mu_static_excess`), that range instead (`physical_ranges`: from the
+        physics and the data of a session).
+        """
         import numpy as np
 
+        given = ranges or {}
+        pairs = [given.get(f'{cls.name}.{p.name}', (p.lower, p.upper)) for p in cls.parameters]
         return (
-            np.array([p.lower for p in cls.parameters]),
-            np.array([p.upper for p in cls.parameters]),
+            np.array([float(low) for low, _ in pairs]),
+            np.array([float(high) for _, high in pairs]),
         )
 
 
@@ -156,7 +170,10 @@ class ViscousDamping(ModelTerm):
 
 @_term('stribeck')
 class Stribeck(ModelTerm):
-    """Static friction above kinetic, decaying with speed: mu(v) = mu + dmu exp(-(v/vs)^2)."""
+    """Static friction above kinetic, decaying with speed: mu + dmu exp(-(|v|/vs)^delta).
+
+    delta is the shape (Armstrong-Helouvry's range 0.5-2; 2, the Gaussian, by default).
+    """
 
     mu_static_excess: float = _parameter(
         '1', 0.0, 0.1, 0.02, 'static minus kinetic friction coefficient dmu', 'non-negative'
@@ -164,10 +181,19 @@ class Stribeck(ModelTerm):
     stribeck_velocity_m_s: float = _parameter(
         'm/s', 1e-4, 0.05, 2e-3, 'speed vs over which the excess decays', 'positive'
     )
+    stribeck_exponent: float = _parameter(
+        '1',
+        STRIBECK_EXPONENT_RANGE[0],
+        STRIBECK_EXPONENT_RANGE[1],
+        2.0,
+        'shape delta of the decay exp(-(|v|/vs)^delta)',
+        'positive',
+    )
 
     def _apply(self, spec: ModelSpec) -> None:
         spec.mu_static_excess += self.mu_static_excess
         spec.stribeck_velocity_m_s = self.stribeck_velocity_m_s
+        spec.stribeck_exponent = self.stribeck_exponent
 
 
 @_term('asymmetric_friction')
@@ -265,6 +291,50 @@ EFFECT_SIZE: dict[str, tuple[str, bool]] = {
 }
 """Per term, (the parameter that sets how large its effect is, whether the effect falls as it
 grows): zero size is no effect, and the second mode's response scales as 1 / its mass."""
+
+
+STATIC_EXCESS_PER_MU = 3.0
+"""Stiction may exceed kinetic friction by up to this many times mu (`physical_ranges`): dry
+contacts show static/kinetic ratios of 1-4 (a ratio of 1.84 is an excess of 0.84 mu)."""
+
+
+ASYMMETRY_PER_MU = 1.0
+"""mu+ - mu- up to this many times mu either way: mu+ and mu- stay at least mu / 2."""
+
+
+OFFSET_PER_PEAK_SPEED = 0.1
+"""A vibrometer zero error up to this fraction of the session's peak speed either way."""
+
+
+DELAY_PER_PERIOD = 0.25
+"""A velocity channel lag up to this fraction of the rig's natural period: a quarter period
+is where a lag turns into a phase no other term could be confused with."""
+
+
+def physical_ranges(
+    mu: float, peak_speed_m_s: float, natural_period_s: float
+) -> dict[str, tuple[float, float]]:
+    """Fitting ranges of the effect sizes from the physics and a session's data.
+
+    By full parameter name, as `ModelTerm.bounds` and `fit_model`'s term_bounds take them:
+    the static friction excess from 0 to STATIC_EXCESS_PER_MU x mu, the asymmetry mu+ - mu-
+    within +-ASYMMETRY_PER_MU x mu, the velocity offset within +-OFFSET_PER_PEAK_SPEED x the
+    peak speed and the delay from 0 to DELAY_PER_PERIOD x the natural period. Not the draws of
+    any test world: what a contact, a vibrometer and a channel can physically do. The other
+    parameters keep their declared bounds (a Stribeck speed 0.1-50 mm/s, its shape
+    STRIBECK_EXPONENT_RANGE, ...).
+    """
+    require_positive('mu', mu)
+    require_positive('peak_speed_m_s', peak_speed_m_s)
+    require_positive('natural_period_s', natural_period_s)
+    offset = OFFSET_PER_PEAK_SPEED * peak_speed_m_s
+    asymmetry = ASYMMETRY_PER_MU * mu
+    return {
+        'stribeck.mu_static_excess': (0.0, STATIC_EXCESS_PER_MU * mu),
+        'asymmetric_friction.mu_difference': (-asymmetry, asymmetry),
+        'velocity_offset.offset_m_s': (-offset, offset),
+        'sensor_delay.delay_s': (0.0, DELAY_PER_PERIOD * natural_period_s),
+    }
 
 
 def size_parameter(effect: str) -> Parameter | None:
