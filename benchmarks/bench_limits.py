@@ -24,7 +24,7 @@ effects' draws are those of the runs before it.
 
 A full run writes its section of RESULTS.md (one per seed); --quick (one session, two effects,
 one world) writes nothing, nor does a run at other multiples (`--multiples 1.5`: the size
-issue 45 holds a limit to) or of some effects only (`--effects`).
+a stated limit is held to) or of some effects only (`--effects`).
 """
 
 import argparse
