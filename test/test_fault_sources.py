@@ -1,10 +1,13 @@
 """Sources we did not write, into the analyzer as `ros2 run` starts it (fault_sources.py).
 
 A plain rclpy publisher with no flow control (`benchmarks/foreign_source.py`), as its own
-process, into the analyzer as its own process. At x50 in 500-sample batches (the pace at
-which KEEP_LAST depth-100 queues had lost 2 of 3 hits) nothing may be lost. A KEEP_LAST
-writer pushed past what the analyzer takes (x100 in 100-sample batches) loses batches in the
-middleware: then every lost sample must be in the ledger and the loss named on /diagnostics.
+process, into the analyzer as its own process. A reliable KEEP_ALL writer at x50 in
+500-sample batches (the pace at which the analyzer's KEEP_LAST depth-100 queues had lost 2 of
+3 hits) blocks rather than drops, so nothing may be lost. A KEEP_LAST writer can overwrite
+its own queue whenever the reader's acknowledgements lag by its depth, which a busy machine
+causes at any pace (one 500-sample batch at x50 in a full two-worker suite run): so for it the
+promise is the other half of the contract, every lost sample in the ledger and the loss named
+on /diagnostics, pushed past what the analyzer takes (x100 in 100-sample batches).
 """
 
 import sys
@@ -19,8 +22,8 @@ import fault_sources  # noqa: E402
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 
-def test_a_fast_foreign_source_loses_nothing(tmp_path):
-    outcome = fault_sources.run_case(tmp_path / 'x50', 50.0, 500, 'keep_last')
+def test_a_fast_foreign_source_that_can_be_slowed_loses_nothing(tmp_path):
+    outcome = fault_sources.run_case(tmp_path / 'x50', 50.0, 500, 'keep_all')
     assert outcome.received, outcome.source_line
     assert outcome.lost == 0, outcome
     assert outcome.hits_reported == outcome.hits_sent == 3, outcome
