@@ -226,10 +226,28 @@ SAMPLE_RATE = ResultField(
 NATURAL_FREQUENCY = ResultField(
     'natural_frequency_hz',
     'Hz',
-    'Natural frequency of the rig, from the period between velocity reversals; NaN if too few',
+    'Natural frequency of the rig, from the period between velocity reversals, or for a ring'
+    ' too short for them (one or two cycles) from its DFT peak; NaN when the record has no peak',
     'f_n',
     fmt='.4f',
     messages=('ImpactResult.natural_frequency_hz', 'FrfSummary.natural_frequency_hz'),
+)
+NATURAL_FREQUENCY_METHOD = ResultField(
+    'natural_frequency_method',
+    '',
+    "How f_n was found: 'reversals' (the period between velocity reversals), 'dft_peak' (the"
+    " peak of a short ring's spectrum, `frf.dft_peak_frequency`); empty when it was not",
+    'f_n from',
+    fmt='s',
+)
+NATURAL_FREQUENCY_UNCERTAINTY = ResultField(
+    'natural_frequency_uncertainty_hz',
+    'Hz',
+    'Uncertainty of an f_n read at a DFT peak: the bound on how far a ring this short moves'
+    " its spectrum's peak, combined with the noise's standard deviation"
+    ' (`frf.dft_peak_frequency`); NaN for f_n timed by reversals (good to about 1e-3)',
+    'f_n uncertainty',
+    fmt='.2g',
 )
 PEAK_RECEPTANCE = ResultField(
     'peak_receptance_m_per_n',
@@ -276,6 +294,8 @@ IMPACT: dict[str, ResultField] = _group(
     RECORD_DURATION,
     SAMPLE_RATE,
     NATURAL_FREQUENCY,
+    NATURAL_FREQUENCY_METHOD,
+    NATURAL_FREQUENCY_UNCERTAINTY,
     PEAK_RECEPTANCE,
     FREQUENCY_STEP,
     FORCE_WINDOW,
@@ -303,6 +323,8 @@ ANALYSIS_IMPACT: tuple[ResultField, ...] = (
     PEAK_FORCE,
     PEAK_RECEPTANCE,
     NATURAL_FREQUENCY,
+    NATURAL_FREQUENCY_METHOD,
+    NATURAL_FREQUENCY_UNCERTAINTY,
 )
 """An impact of `fmm analyze --json` (after its file)."""
 
@@ -376,7 +398,14 @@ LEVEL_PEAK_RECEPTANCE = dataclasses.replace(
     PEAK_RECEPTANCE, help='Largest |receptance| of the averaged receptance'
 )
 LEVEL_NATURAL_FREQUENCY = dataclasses.replace(
-    NATURAL_FREQUENCY, help="Mean of the level's impacts' natural frequencies"
+    NATURAL_FREQUENCY,
+    help="Mean of the level's impacts' natural frequencies: of those timed by reversals, or"
+    ' when none is, of their DFT peaks',
+)
+LEVEL_NATURAL_FREQUENCY_METHOD = dataclasses.replace(
+    NATURAL_FREQUENCY_METHOD,
+    help="How the impacts' f_n the level's mean takes were found: 'reversals' or 'dft_peak';"
+    ' empty when none was',
 )
 
 LEVEL_FIELDS: dict[str, ResultField] = _group(
@@ -389,6 +418,7 @@ LEVEL_FIELDS: dict[str, ResultField] = _group(
     MEAN_PEAK_FORCE,
     LEVEL_PEAK_RECEPTANCE,
     LEVEL_NATURAL_FREQUENCY,
+    LEVEL_NATURAL_FREQUENCY_METHOD,
     dataclasses.replace(FREQUENCY_STEP, help='Frequency resolution'),
     dataclasses.replace(EXPONENTIAL_WINDOW_DECAY, help='Exponential window decay time; 0: none'),
 )

@@ -61,6 +61,8 @@ class ImpactAnalysis:
     record_duration_s: float = schema.RECORD_DURATION.field()
     sample_rate_hz: float = schema.SAMPLE_RATE.field()
     natural_frequency_hz: float = schema.NATURAL_FREQUENCY.field()
+    natural_frequency_method: str = schema.NATURAL_FREQUENCY_METHOD.field()
+    natural_frequency_uncertainty_hz: float = schema.NATURAL_FREQUENCY_UNCERTAINTY.field()
     peak_receptance_m_per_n: float = schema.PEAK_RECEPTANCE.field()
     frequency_step_hz: float = schema.FREQUENCY_STEP.field()
     frequency_hz: np.ndarray = result_field(unit='Hz', help='Band-limited frequency axis')
@@ -100,6 +102,7 @@ class LevelSummary:
     mean_peak_force_n: float = schema.MEAN_PEAK_FORCE.field()
     peak_receptance_m_per_n: float = schema.LEVEL_PEAK_RECEPTANCE.field()
     natural_frequency_hz: float = schema.LEVEL_NATURAL_FREQUENCY.field()
+    natural_frequency_method: str = schema.LEVEL_NATURAL_FREQUENCY_METHOD.field()
     frequency_step_hz: float = schema.LEVEL_FIELDS['frequency_step_hz'].field()
     frequency_hz: np.ndarray = result_field(unit='Hz', help='Band-limited frequency axis')
     mobility: np.ndarray = result_field(
@@ -177,11 +180,12 @@ def analyze_impact(
     )[:bins].copy()
     mobility = frf.mobility(force_spectrum, velocity_spectrum)
     receptance = frf.receptance_from_mobility(mobility, frequency)
-    peak_receptance, _ = frf.peak_magnitude(
-        receptance, frequency, _peak_band(excitation_spectrum, frequency, analysis)
+    peak_band = _peak_band(excitation_spectrum, frequency, analysis)
+    peak_receptance, _ = frf.peak_magnitude(receptance, frequency, peak_band)
+    natural = frf.natural_frequency_of_hit(
+        record.velocity_m_s, rate, velocity_spectrum, excitation_spectrum, frequency, peak_band
     )
-    natural_frequency = frf.natural_frequency(record.velocity_m_s, rate)
-    determined = _determined(impulse, natural_frequency, peak_receptance)
+    determined = _determined(impulse, natural.value_hz, peak_receptance)
     if not determined and not flags:
         flags = (UNDETERMINED,)
     return ImpactAnalysis(
@@ -198,7 +202,9 @@ def analyze_impact(
         ),
         record_duration_s=n_fft / rate,
         sample_rate_hz=rate,
-        natural_frequency_hz=natural_frequency,
+        natural_frequency_hz=natural.value_hz,
+        natural_frequency_method=natural.method,
+        natural_frequency_uncertainty_hz=natural.uncertainty_hz,
         peak_receptance_m_per_n=peak_receptance,
         frequency_step_hz=rate / n_fft,
         frequency_hz=frequency,
@@ -301,8 +307,7 @@ def _level_summary(
             analysis,
         ),
     )
-    frequencies = [m.natural_frequency_hz for m in members if np.isfinite(m.natural_frequency_hz)]
-    natural_frequency = float(np.mean(frequencies)) if frequencies else float('nan')
+    natural_frequency, natural_method = _level_natural_frequency(members)
     impulses = np.array([result.impulse_n_s for result in members])
     return LevelSummary(
         level=name,
@@ -314,6 +319,7 @@ def _level_summary(
         mean_peak_force_n=float(np.mean([result.peak_force_n for result in members])),
         peak_receptance_m_per_n=peak,
         natural_frequency_hz=natural_frequency,
+        natural_frequency_method=natural_method,
         frequency_step_hz=first.frequency_step_hz,
         frequency_hz=first.frequency_hz,
         mobility=average.mean_mobility,
@@ -323,6 +329,23 @@ def _level_summary(
         coherence=average.coherence,
         exponential_window_decay_s=first.exponential_window_decay_s,
     )
+
+
+def _level_natural_frequency(members: Sequence[ImpactAnalysis]) -> tuple[float, str]:
+    """A level's f_n [Hz] and its method: the mean of its reversal-timed hits', else of the rest.
+
+    A short ring's DFT peak lies above f_n by up to its stated uncertainty (a few %), the
+    reversals' period within 1e-4: a level that has both takes the reversals alone.
+    """
+    for method in (frf.REVERSALS, frf.DFT_PEAK):
+        frequencies = [
+            m.natural_frequency_hz
+            for m in members
+            if m.natural_frequency_method == method and np.isfinite(m.natural_frequency_hz)
+        ]
+        if frequencies:
+            return float(np.mean(frequencies)), method
+    return float('nan'), ''
 
 
 def _determined(impulse_n_s: float, natural_frequency_hz: float, peak_receptance: float) -> bool:
