@@ -319,7 +319,7 @@ DFT_PEAK = 'dft_peak'
 
 NATURAL_FREQUENCY_METHODS: dict[str, str] = {
     REVERSALS: 'period between velocity reversals',
-    DFT_PEAK: 'peak of a short ring\'s spectrum',
+    DFT_PEAK: "peak of a short ring's spectrum",
 }
 """How f_n was found, by method name: what the results, tables and the report say about it."""
 
