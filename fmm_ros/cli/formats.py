@@ -23,9 +23,24 @@ if TYPE_CHECKING:
     from fmm_ros.workflows.results import FrictionResult
 
 
+def _short_ring_note(at_peak: Sequence) -> str:
+    """The line under the impacts whose f_n (marked *) was read at a short ring's DFT peak."""
+    values = ', '.join(
+        f'{Path(r.source).name or r.impact_id} '
+        + schema.format_with_uncertainty(
+            r.natural_frequency_hz, r.natural_frequency_uncertainty_hz, ' +- '
+        )
+        + ' Hz'
+        for r in at_peak
+    )
+    return f'* f_n at the DFT peak of a ring too short to time (one or two cycles): {values}'
+
+
 def analysis_text(summary: Summary) -> str:
     """A table of impacts, one of levels, and the regression line (|X/F| in mm/N)."""
     import numpy as np
+
+    from fmm_ros.core.signal import frf
 
     impulse = label(schema.IMPULSE, ascii=True)
     peak = label(schema.PEAK_FORCE, ascii=True, short=True)
@@ -35,15 +50,19 @@ def analysis_text(summary: Summary) -> str:
         f'{"impact":<28} {"level":<8} {"ok":<3} {impulse:>13} {peak:>8} '
         f'{receptance:>12} {natural:>8}  flags'
     ]
+    at_peak = [r for r in summary.impacts if r.natural_frequency_method == frf.DFT_PEAK]
     for result in summary.impacts:
+        mark = '*' if result in at_peak else ' '
         lines.append(
             f'{Path(result.source).name:<28.28} {result.level or "-":<8} '
             f'{"yes" if result.accepted else "no":<3} {result.impulse_n_s:>13.4g} '
             f'{result.peak_force_n:>8.4g} '
             f'{schema.PEAK_RECEPTANCE.cell(result.peak_receptance_m_per_n):>12} '
-            f'{schema.NATURAL_FREQUENCY.cell(result.natural_frequency_hz):>8}  '
+            f'{schema.NATURAL_FREQUENCY.cell(result.natural_frequency_hz):>8}{mark} '
             f'{",".join(result.flags) or "-"}'
         )
+    if at_peak:
+        lines.append(_short_ring_note(at_peak))
     mean_impulse = label(schema.MEAN_IMPULSE, ascii=True)
     lines += [
         '',

@@ -17,6 +17,7 @@ import numpy as np
 from fmm_ros.constants import MM_PER_M, REPORT_DPI
 from fmm_ros.core import results_schema as schema
 from fmm_ros.core.results_schema import format_with_uncertainty, label
+from fmm_ros.core.signal import frf
 from fmm_ros.core.signal.analysis import ImpactAnalysis, Summary
 from fmm_ros.io.session_info import describe as describe_info
 from fmm_ros.report import diagnosis_figures
@@ -58,8 +59,8 @@ FLAG_MEANINGS: dict[str, str] = {
     'record: not one whole transient, the DFT leaks',
     'overlap': 'the next impact triggers inside this record: two responses in one FRF',
     'undetermined': 'a headline number came out NaN: no impulse (the force never reached the '
-    're-arm level), no f_n (fewer than three strong velocity reversals) or no peak |X/F| (no '
-    'excited bin in the peak band)',
+    're-arm level), no f_n (too few strong velocity reversals and no peak in the response '
+    'spectrum: a record that never rings) or no peak |X/F| (no excited bin in the peak band)',
     'out_of_tolerance': 'the peak force is not within tolerance of any nominal level',
 }
 
@@ -191,7 +192,7 @@ def _hit_table(page: Page, summary: Summary, comparison: ModelComparison | None)
             _number(impact.peak_force_n, '.5g'),
             _number(impact.impulse_n_s, '.4g'),
             _number(impact.contact_duration_s * MS_PER_S, '.3g'),
-            _number(impact.natural_frequency_hz, '.4f'),
+            _natural_frequency(impact),
             _number(impact.peak_receptance_m_per_n * MM_PER_M, '.4g'),
         ]
         if comparison:
@@ -209,6 +210,27 @@ def _hit_table(page: Page, summary: Summary, comparison: ModelComparison | None)
         )
     else:
         page.text('No hit raised a quality flag.', note=True)
+    if any(impact.natural_frequency_method == frf.DFT_PEAK for impact in summary.impacts):
+        page.text(SHORT_RING_NOTE, note=True)
+
+
+SHORT_RING_NOTE = (
+    'f_n marked "DFT peak": the hit rang too briefly (one or two cycles) for its velocity '
+    'reversals to be timed, and f_n is the peak of its response spectrum over the hammer '
+    "pulse's. Its uncertainty bounds how far a ring this short moves its own peak (a friction "
+    "ring's peak lies above f_n by about a fifth of it) with the noise's part."
+)
+"""The report's note under the hits table when a hit's f_n was read at its DFT peak."""
+
+
+def _natural_frequency(impact: ImpactAnalysis) -> str:
+    """A hit's f_n cell: the value, or for a DFT peak the value with its uncertainty."""
+    if impact.natural_frequency_method != frf.DFT_PEAK:
+        return _number(impact.natural_frequency_hz, '.4f')
+    value = format_with_uncertainty(
+        impact.natural_frequency_hz, impact.natural_frequency_uncertainty_hz
+    )
+    return f'{value} (DFT peak)'
 
 
 def _level_section(page: Page, summary: Summary, analysis) -> None:
@@ -231,7 +253,8 @@ def _level_section(page: Page, summary: Summary, analysis) -> None:
                 level.count,
                 _number(level.mean_peak_force_n, '.5g'),
                 f'{level.mean_impulse_n_s:.4g} ± {_number(level.std_impulse_n_s, ".2g")}',
-                _number(level.natural_frequency_hz, '.4f'),
+                _number(level.natural_frequency_hz, '.4f')
+                + (' (DFT peak)' if level.natural_frequency_method == frf.DFT_PEAK else ''),
                 _number(level.peak_receptance_m_per_n * MM_PER_M, '.4g'),
             ]
             for level in summary.levels

@@ -489,7 +489,8 @@ def harmonics_figure(
         ax.set_ylabel(f'|mobility|\n[{MOBILITY_DISPLAY_UNIT}]')
         ax.legend(loc='lower left', fontsize='x-small')
         ax.set_title(
-            f'f_n = {natural_hz:.4f} Hz ({frf.NATURAL_FREQUENCY_METHOD})',
+            f'f_n = {natural_hz:.4f} Hz '
+            f'({frf.NATURAL_FREQUENCY_METHODS.get(level.natural_frequency_method, "none")})',
             fontsize='small',
             loc='right',
         )
