@@ -51,6 +51,8 @@ def test_json_report_has_exactly_the_documented_keys(series, capsys):
         'peak_force_n',
         'peak_receptance_m_per_n',
         'natural_frequency_hz',
+        'natural_frequency_method',
+        'natural_frequency_uncertainty_hz',
     ]
     assert list(report['levels'][0]) == [
         'name',

@@ -6,7 +6,8 @@ anti-alias filter, a 16-bit ADC): a world the analysis was never tuned on. Every
 hit must carry its headline numbers, every session its linearity R^2, and the peak |X/F| and
 f_n must agree with an independent computation written here with numpy alone: the DFT of
 each whole record, offsets taken off, the receptance V / (F i omega) and its peak. The same
-on `newmark` (held out too), whose quietest hits are flagged rather than accepted, and on
+on `newmark` (held out too), whose quietest hits ring too briefly to time and are read at
+their DFT peak, and on
 `karnopp` (held out, written later: a Hunt-Crossley hammer striking the moving rig, a Bessel
 chain, a multiplexed ADC's skew, random-walk drift on the velocity).
 """
@@ -33,26 +34,35 @@ BAND_HZ = (1.0, 50.0)
 
 
 def independent_peak(force_n: np.ndarray, velocity_m_s: np.ndarray, rate_hz: float, onset_s: float):
-    """(peak |X/F| [m/N], frequency of the peak |V/F| [Hz]) from the whole record's DFT.
+    """(peak |X/F| [m/N], frequency of the peak |V/P| [Hz]) from the whole record's DFT.
 
     Offsets off: the mean of each channel before the hit. Receptance = V / (F i omega) bin
-    by bin on the record's own grid; its peak is searched over BAND_HZ. f_n is where the
-    mobility |V/F| peaks there, the records zero-padded eightfold (a short Coulomb decay's
-    peak is broad: the 1/33 Hz grid alone can miss it by 6 %).
+    by bin on the record's own grid; its peak is searched over BAND_HZ. f_n is where
+    |V/P| peaks there, P the force pulse alone (1 ms either side of where the force exceeds
+    5 % of its peak, zero elsewhere), the records zero-padded eightfold (a short Coulomb
+    decay's peak is broad: the 1/33 Hz grid alone can miss it by 6 %). Not |V/F| of the
+    whole force: its 0.2 N of noise over 33 s ripples V/F by a few % from bin to bin, which
+    moved the top of a 1.2-cycle ring's broad peak by -0.6 to +11 % (`newmark`, `karnopp`).
     """
     before = int(onset_s * rate_hz) - 5
     force = force_n - force_n[:before].mean()
     velocity = velocity_m_s - velocity_m_s[:before].mean()
-    peaks = []
-    for padding in (1, 8):
-        n = padding * force.size
-        spectrum_f, spectrum_v = np.fft.rfft(force, n), np.fft.rfft(velocity, n)
-        frequency = np.fft.rfftfreq(n, 1.0 / rate_hz)
-        band = (frequency >= BAND_HZ[0]) & (frequency <= BAND_HZ[1])
-        mobility = spectrum_v[band] / spectrum_f[band]
-        receptance = mobility / (2j * math.pi * frequency[band])
-        peaks.append((np.abs(receptance).max(), frequency[band][np.argmax(np.abs(mobility))]))
-    return float(peaks[0][0]), float(peaks[1][1])
+    frequency = np.fft.rfftfreq(force.size, 1.0 / rate_hz)
+    band = (frequency >= BAND_HZ[0]) & (frequency <= BAND_HZ[1])
+    receptance = np.fft.rfft(velocity)[band] / (
+        np.fft.rfft(force)[band] * 2j * math.pi * frequency[band]
+    )
+    above = np.flatnonzero(force > 0.05 * force.max())
+    margin = int(1e-3 * rate_hz)
+    pulse = np.zeros_like(force)
+    pulse[above[0] - margin : above[-1] + margin + 1] = force[
+        above[0] - margin : above[-1] + margin + 1
+    ]
+    n = 8 * force.size
+    padded = np.fft.rfftfreq(n, 1.0 / rate_hz)
+    inside = (padded >= BAND_HZ[0]) & (padded <= BAND_HZ[1])
+    ratio = np.abs(np.fft.rfft(velocity, n)[inside] / np.fft.rfft(pulse, n)[inside])
+    return float(np.abs(receptance).max()), float(padded[inside][np.argmax(ratio)])
 
 
 def analyzed(records, onsets_s, impulses_n_s, tmp_path, capsys, name: str) -> tuple[dict, list]:
@@ -124,12 +134,12 @@ def test_analyze_holds_on_worlds_whose_stiff_tips_barely_swing_the_rig(name, tmp
     charge-amplifier zero, floor vibration, 10 or 16.384 kHz) and `karnopp` (its first FRFs: a
     Hunt-Crossley hammer striking the moving rig, a 4th-order Bessel chain at 10 or 20.48 kHz,
     16 bits, a random walk on the velocity), both held out. A stiff tip's 450 N hit (0.30 N s)
-    swings the rig two or three half cycles before it sticks, too few reversals for f_n: it is
-    flagged `undetermined` and not accepted, never accepted without its number. Every accepted
-    hit agrees with the independent DFT; a session of three accepted hits has its R^2."""
+    swings the rig two or three half cycles before it sticks, too few reversals to time: its
+    f_n is read at its DFT peak (`frf.dft_peak_frequency`) and it is accepted. Every hit
+    agrees with the independent DFT; every session has its R^2."""
     world, field = HARD_TIP_WORLDS[name]
     world = dataclasses.replace(world, duration_s=RECORD_S)
-    failures, accepted = [], 0
+    failures = []
     for index in range(SESSIONS):
         rng = np.random.default_rng([24, index])
         records = world.session(
@@ -145,17 +155,14 @@ def test_analyze_holds_on_worlds_whose_stiff_tips_barely_swing_the_rig(name, tmp
             f'{name}{index}',
         )
         failures += wrong
-        taken = sum(impact['accepted'] for impact in report['impacts'])
-        accepted += taken
-        assert report['impacts'][1]['accepted'] and report['impacts'][2]['accepted']
-        if taken == len(records):
-            assert report['linearity']['r2'] is not None, report['linearity']
-    assert accepted >= 2 * SESSIONS
+        assert all(impact['accepted'] for impact in report['impacts']), report['impacts']
+        assert report['linearity']['r2'] is not None, report['linearity']
     assert failures == []
 
 
 def test_a_hit_without_a_headline_number_is_flagged_and_never_accepted():
-    """A response that never reverses has no f_n: the hit is flagged 'undetermined'."""
+    """A response that never reverses has no f_n (its spectrum peaks at DC, not in the band):
+    the hit is flagged 'undetermined'."""
     rate = 10_000.0
     t = np.arange(int(6 * rate)) / rate
     force = np.where((t > 1.0) & (t < 1.003), 1000.0 * np.sin(np.pi * (t - 1.0) / 0.003), 0.0)
