@@ -193,3 +193,39 @@ def test_a_hit_that_never_reverses_stays_undetermined():
     assert math.isnan(result.natural_frequency_hz)
     assert result.natural_frequency_method == ''
     assert result.flags == (UNDETERMINED,) and not result.accepted
+
+
+@pytest.mark.parametrize('cycles', [0.75, 1.25, 1.75, 2.25, 3.25])
+def test_a_decaying_tone_peaks_above_its_frequency_within_the_stated_bound(cycles):
+    """A cosine from its maximum whose amplitude falls linearly to 0.2 of it, ending at a
+    velocity zero (a Coulomb ring's shape): its spectrum's peak lies above the tone, by less
+    than the stated uncertainty; the tone alone (no decay) hardly moves it."""
+    rate, frequency = 1000.0, 2.2
+    t = np.arange(int(33 * rate)) / rate
+    duration = cycles / frequency
+    impulse = np.zeros(t.size)
+    impulse[0] = 1.0
+    axis = np.fft.rfftfreq(t.size, 1.0 / rate)
+    for fall in (0.8, 0.0):
+        envelope = np.where(t < duration, 1.0 - fall * t / duration, 0.0)
+        tone = envelope * np.cos(2 * np.pi * frequency * t)
+        value, uncertainty = frf.dft_peak_frequency(
+            np.fft.rfft(tone), np.fft.rfft(impulse), axis, BAND_HZ, 33.0
+        )
+        if fall:
+            assert 0 < value - frequency < uncertainty
+        else:
+            assert abs(value / frequency - 1) < 0.01 < uncertainty / frequency
+
+
+def test_a_spectrum_without_a_peak_in_the_band_gives_none():
+    """A one-signed swing peaks at DC; an undefined spectrum has no peak."""
+    rate = 1000.0
+    t = np.arange(int(10 * rate)) / rate
+    swing = np.where(t < 0.1, np.sin(np.pi * t / 0.1), 0.0)
+    axis = np.fft.rfftfreq(t.size, 1.0 / rate)
+    flat = np.ones(axis.size, dtype=complex)
+    assert np.isnan(frf.dft_peak_frequency(np.fft.rfft(swing), flat, axis, BAND_HZ, 10.0)).all()
+    spectrum = np.fft.rfft(np.cos(2 * np.pi * 2.2 * t) * (t < 0.6))
+    spectrum[100] = np.nan
+    assert np.isnan(frf.dft_peak_frequency(spectrum, flat, axis, BAND_HZ, 10.0)).all()

@@ -137,7 +137,9 @@ def analyze_impact(
     The DFT runs over the whole record zero-padded to `record.window_samples` (the paper's
     method). The impulse is the trapezoid over the pulse that fired the trigger, baseline
     removed (`frf.pulse_impulse`): the physical impulse, whatever the windows or the noise of
-    the rest of the record. The level is assigned later by `summarize`.
+    the rest of the record. f_n is timed by the velocity reversals, or read at the DFT peak of
+    a ring too short for them, with its uncertainty (`frf.natural_frequency_of_hit`); a record
+    with neither is `undetermined`. The level is assigned later by `summarize`.
     """
     record = with_trigger(record, capture)
     flags = quality_flags(record, capture)
