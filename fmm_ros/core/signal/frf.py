@@ -385,7 +385,8 @@ def dft_peak_frequency(
       negative-frequency image leans on it. For a tone of duration T the image moves the
       peak by at most 12 / (omega T^2) (its slope at the peak over the lobe's curvature),
       and the lobe's curvature measures T: M'' / M = (2 pi T)^2 / 12. So the bound is
-      M / (f |M''|), from the peak alone;
+      M / (f |M''|), from the peak alone. A friction ring's peak lies above f_n by about
+      a fifth of it (a tone whose amplitude falls linearly: 0.18-0.22 at 0.75-4 cycles);
     - the noise: the standard deviation of the parabola's vertex from the scatter of the top
       about the parabola (none with only three bins).
 
