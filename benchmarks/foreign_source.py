@@ -23,7 +23,9 @@ import os
 import random
 import sys
 import time
+from pathlib import Path
 
+import numpy as np
 import rclpy
 from rclpy.context import Context
 from rclpy.duration import Duration
@@ -31,8 +33,6 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from fmm_interfaces.msg import SampleBatch
-from fmm_ros.ros.graph import private_domain_ids
-from fmm_ros.sim.session import simulated_session
 
 
 def publisher_qos(history: str, depth: int) -> QoSProfile:
@@ -88,6 +88,12 @@ def main(argv: list[str] | None = None) -> int:
         help='NaN inside the first record (2 s after its hit) and, between records (7 s '
         'into the first 8 s slot), NaN, an infinite sample and a 500-sample stuck run',
     )
+    parser.add_argument(
+        '--samples',
+        type=Path,
+        help='an .npz (force_n, velocity_m_s, sample_rate_hz) to publish instead of simulating '
+        'the session here (the simulator takes seconds to import on a busy machine)',
+    )
     parser.add_argument('--namespace', default='/fmm')
     parser.add_argument('--subscribers', type=int, default=1)
     parser.add_argument('--linger-s', type=float, default=1.0)
@@ -99,18 +105,30 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     domain_id = None
     if args.quick:  # on a private domain of this host: nobody else's graph hears it
+        from fmm_ros.ros.graph import private_domain_ids
+
         args.subscribers, args.linger_s, args.rate_factor = 0, 0.0, 100.0
         os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
         domain_id = random.choice(private_domain_ids())
 
-    noise = {} if not args.quiet_zero else {'force_noise_std_n': 0.0, 'velocity_noise_std_m_s': 0.0}
-    session = simulated_session(
-        args.hits_per_level, spacing_s=args.spacing_s, seed=args.seed, **noise
-    )
-    rate = session.sample_rate_hz
+    if args.samples:
+        with np.load(args.samples) as saved:
+            force_n, velocity_m_s = saved['force_n'].copy(), saved['velocity_m_s'].copy()
+            rate = float(saved['sample_rate_hz'])
+    else:
+        from fmm_ros.sim.session import simulated_session
+
+        noise = {'force_noise_std_n': 0.0, 'velocity_noise_std_m_s': 0.0}
+        session = simulated_session(
+            args.hits_per_level,
+            spacing_s=args.spacing_s,
+            seed=args.seed,
+            **(noise if args.quiet_zero else {}),
+        )
+        force_n, velocity_m_s, rate = session.force_n, session.velocity_m_s, session.sample_rate_hz
     if args.damage:
-        damage(session.force_n, session.velocity_m_s, rate)
-    channels = (('force', 'N', session.force_n), ('velocity', 'm/s', session.velocity_m_s))
+        damage(force_n, velocity_m_s, rate)
+    channels = (('force', 'N', force_n), ('velocity', 'm/s', velocity_m_s))
     context = Context()
     rclpy.init(context=context, domain_id=domain_id)
     node = Node(args.node_name, context=context)
@@ -127,7 +145,7 @@ def main(argv: list[str] | None = None) -> int:
             time.sleep(0.01)
         time.sleep(0.5)  # both topics matched on the readers' side too
         origin_ns = time.time_ns()
-        total = session.force_n.size
+        total = force_n.size
         period_s = args.batch / (rate * args.rate_factor)
         start = time.monotonic()
         first = 0
