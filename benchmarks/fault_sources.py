@@ -117,6 +117,7 @@ class Outcome:
     received: dict[str, int] = field(default_factory=dict)
     said_missing: dict[str, int] = field(default_factory=dict)
     lost_batches: dict[str, int] = field(default_factory=dict)  # the message-lost event's
+    resyncs: dict[str, int] = field(default_factory=dict)  # new acquisitions the stream took
     hits_sent: int = 0
     hits_reported: int = 0
     named: list[str] = field(default_factory=list)
@@ -283,6 +284,8 @@ def run_series(
                     ):
                         name = f'{quantity} {key}'
                         into[quantity] = watch.count(name) - int(before.get(name, 0))
+                    name = f'{quantity} resyncs'
+                    outcome.resyncs[quantity] = watch.count(name) - int(before.get(name, 0))
                 outcome.hits_reported = len(watch.triggers)
                 outcome.named = sorted(f'{k}: {v}' for k, v in watch.named.items())
                 outcome.ever_named = sorted(watch.ever_named)
@@ -392,6 +395,22 @@ def _node_factory(name: str):
     return lambda **kwargs: Node(name, **kwargs)
 
 
+def jump_verdict(outcome: Outcome, jump: int, run: int) -> str:
+    """'counted' when a jump's samples are all missing and no new acquisition was taken.
+
+    Each run of a series is a new acquisition its source declares (a new frame_id, index 0
+    again): one resynchronisation each, the first run's excepted.
+    """
+    declared = 0 if run == 0 else 1
+    if outcome.said_missing != {'force': jump, 'velocity': jump}:
+        return f'MISCOUNTED (ledger says {outcome.said_missing} missing, {jump} skipped)'
+    if any(n != declared for n in outcome.resyncs.values()):
+        return f'NEW ACQUISITION GUESSED ({outcome.resyncs} resyncs, {declared} declared)'
+    if outcome.lost or outcome.hits_reported != outcome.hits_sent:
+        return f'counted, but {outcome.lost} samples lost, {outcome.hits_reported} hits'
+    return 'counted'
+
+
 def tally(verdicts: list[str]) -> str:
     """How often each verdict came, over the runs."""
     return ', '.join(f'{v} {verdicts.count(v)} of {len(verdicts)}' for v in sorted(set(verdicts)))
@@ -413,7 +432,10 @@ def arguments(argv: list[str] | None) -> argparse.Namespace:
         '--history', choices=('keep_all', 'keep_last'), nargs='+', default=['keep_all', 'keep_last']
     )
     parser.add_argument(
-        '--families', choices=('foreign', 'two', 'damage'), nargs='+', default=['foreign']
+        '--families',
+        choices=('foreign', 'jump', 'two', 'damage'),
+        nargs='+',
+        default=['foreign'],
     )
     return parser.parse_args(argv)
 
@@ -457,6 +479,25 @@ def main(argv: list[str] | None = None) -> int:
                         f'{load()}'
                     )
                     print('== ' + summary[-1], flush=True)
+        if 'jump' in args.families:
+            for jump in (500, 5000, 100_000):  # 1 batch, 10 batches, 10 s at 10 kHz
+                outcomes = run_series(
+                    root / f'jump_{jump}',
+                    10.0,
+                    500,
+                    'keep_all',
+                    args.runs,
+                    SHORT,
+                    extra=(f'--jump-samples={jump}',),
+                )
+                verdicts = [jump_verdict(o, jump, run) for run, o in enumerate(outcomes)]
+                for run, verdict in enumerate(verdicts):
+                    print(f'index jump {jump} run {run}: {verdict}', flush=True)
+                summary.append(
+                    f'index jump of {jump} samples within an acquisition (x10, 500-sample '
+                    f'batches): {tally(verdicts)}; {load()}'
+                )
+                print('== ' + summary[-1], flush=True)
         if 'two' in args.families:
             verdicts = []
             for run in range(args.runs):

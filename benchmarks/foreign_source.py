@@ -94,6 +94,13 @@ def main(argv: list[str] | None = None) -> int:
         help='an .npz (force_n, velocity_m_s, sample_rate_hz) to publish instead of simulating '
         'the session here (the simulator takes seconds to import on a busy machine)',
     )
+    parser.add_argument(
+        '--jump-samples',
+        type=int,
+        default=0,
+        help='from --jump-at-s on, the index runs this many samples ahead (samples skipped)',
+    )
+    parser.add_argument('--jump-at-s', type=float, default=2.5)
     parser.add_argument('--namespace', default='/fmm')
     parser.add_argument('--subscribers', type=int, default=1)
     parser.add_argument('--linger-s', type=float, default=1.0)
@@ -150,6 +157,7 @@ def main(argv: list[str] | None = None) -> int:
         start = time.monotonic()
         first = 0
         k = 0
+        jump_at = int(round(args.jump_at_s * rate))
         while first < total:
             wait = start + k * period_s - time.monotonic()
             if wait > 0:
@@ -159,7 +167,7 @@ def main(argv: list[str] | None = None) -> int:
                     quantity,
                     unit,
                     data[first : first + args.batch],
-                    first,
+                    first + (args.jump_samples if first >= jump_at else 0),
                     rate,
                     origin_ns,
                     args.frame_id,
