@@ -132,12 +132,15 @@ class Outcome:
         return sum(self.sent - got for got in self.received.values()) if self.received else -1
 
     def counted(self, quantity: str) -> int:
-        """Samples of a channel the analyzer says it lost, both of its counts.
+        """Samples of a channel the analyzer says it lost, the larger of its two counts.
 
-        Its ledger's missing samples and the batches the middleware reported lost (a lost
-        tail leaves no gap in the index for the ledger to see).
+        Its ledger's missing samples, and the batches the middleware reported lost (the same
+        samples where later batches came; alone for a lost tail, which leaves the index no
+        gap to show).
         """
-        return self.said_missing.get(quantity, 0) + self.lost_batches.get(quantity, 0) * self.batch
+        return max(
+            self.said_missing.get(quantity, 0), self.lost_batches.get(quantity, 0) * self.batch
+        )
 
     @property
     def undercounted(self) -> bool:
@@ -165,8 +168,7 @@ class Outcome:
             f'{sum(self.counted(q) for q in self.received)} (ledger '
             f'{sum(self.said_missing.values())} missing, '
             f'{sum(self.lost_batches.values())} batches lost in transport); hits '
-            f'{self.hits_reported} of {self.hits_sent}; named before its batches: '
-            f'{"yes" if self.warned_before_data else "no"}; source: {self.source_line}'
+            f'{self.hits_reported} of {self.hits_sent}; source: {self.source_line}'
             + (f'; named: {" | ".join(self.named)}' if self.named and not self.clean else '')
         )
 
@@ -218,12 +220,12 @@ def run_series(
     settle_s: float = 6.0,
     extra: tuple[str, ...] = (),
 ) -> list[Outcome]:
-    """`runs` foreign sources in turn (a new process each) into one analyzer process.
+    """`runs` sessions of one foreign source process in turn into one analyzer process.
 
     Each run is its own acquisition (index from 0, a frame_id of its own, so the source
-    declares it); its figures are the differences of the analyzer's /diagnostics counts
-    across it, its hits those reported during it. extra: more arguments for
-    foreign_source.py (`--damage`).
+    declares it: `foreign_source.py --repeat`); its figures are the differences of the
+    analyzer's /diagnostics counts across it, its hits those reported during it. extra:
+    more arguments for foreign_source.py (`--damage`).
     """
     fresh_domain()
     work.mkdir(parents=True)
@@ -240,25 +242,31 @@ def run_series(
             deadline = time.monotonic() + 120
             while not watch.values and time.monotonic() < deadline:  # the analyzer is up
                 time.sleep(0.1)
+            source = subprocess.Popen(
+                [
+                    sys.executable,
+                    str(HERE / 'foreign_source.py'),
+                    f'--rate-factor={rate}',
+                    f'--batch={batch}',
+                    f'--history={history}',
+                    '--frame-id=lab_daq',
+                    f'--repeat={runs}',
+                    '--linger-s=0.3',
+                    f'--samples={samples}',
+                    *extra,
+                ],
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                stderr=(work / 'source.log').open('w'),
+                text=True,
+            )
             for run in range(runs):
                 watch.new_run()
                 before = dict(watch.values)
-                source = subprocess.run(
-                    [
-                        sys.executable,
-                        str(HERE / 'foreign_source.py'),
-                        f'--rate-factor={rate}',
-                        f'--batch={batch}',
-                        f'--history={history}',
-                        f'--frame-id=lab_daq_{run}',
-                        '--linger-s=0.3',
-                        f'--samples={samples}',
-                        *extra,
-                    ],
-                    capture_output=True,
-                    text=True,
-                    timeout=600,
-                )
+                if run:
+                    source.stdin.write('next\n')
+                    source.stdin.flush()
+                line = source.stdout.readline().strip()
                 # The analyzer may still be working through its queue: wait until every
                 # sample is received or counted lost and every hit reported, or it is quiet.
                 watch.changed_at = time.monotonic()
@@ -275,7 +283,7 @@ def run_series(
                         break
                     time.sleep(0.1)
                 outcome = Outcome(rate, batch, sent, hits_sent=hits)
-                outcome.source_line = source.stdout.strip() or source.stderr.strip()[-300:]
+                outcome.source_line = line or (work / 'source.log').read_text()[-300:]
                 for quantity in ('force', 'velocity'):
                     for key, into in zip(
                         COUNTED_KEYS,
@@ -291,6 +299,8 @@ def run_series(
                 outcome.ever_named = sorted(watch.ever_named)
                 outcome.warned_before_data = bool(watch.warned_before_data)
                 outcomes.append(outcome)
+            source.stdin.close()
+            source.wait(timeout=60)
     finally:
         stop_processes(processes, nodes=['analyzer'])
     log = (work / 'analyzer.log').read_text(errors='replace')
@@ -471,11 +481,11 @@ def main(argv: list[str] | None = None) -> int:
                     verdicts = [o.verdict for o in outcomes]
                     lost = [o.lost for o in outcomes]
                     hits = sum(o.hits_reported for o in outcomes)
-                    warned = sum(o.warned_before_data for o in outcomes)
                     summary.append(
                         f'{case}: {tally(verdicts)}; samples lost per run max {max(lost)}, '
                         f'total {sum(lost)}; hits {hits} of {sum(o.hits_sent for o in outcomes)}; '
-                        f'unpaced source named before its batches {warned} of {len(outcomes)}; '
+                        'source named unpaced on /diagnostics before its first batch: '
+                        f'{"yes" if outcomes[0].warned_before_data else "NO"}; '
                         f'{load()}'
                     )
                     print('== ' + summary[-1], flush=True)
