@@ -1,24 +1,35 @@
 """Sources we did not write, into the analyzer as `ros2 run` starts it: what is lost.
 
-Each case starts the analyzer as its own process (the package's params file, 6 s records)
-and `benchmarks/foreign_source.py` as another: a plain rclpy publisher of a simulated
-session (hits 8 s apart) at x1, x10, x50 or x100 real time in batches of 100, 500 or 5,000
-samples, with no flow control. Per case it counts, from outside the analyzer:
+Each case starts the analyzer as its own process (the package's params file) and
+`benchmarks/foreign_source.py` as another: a plain rclpy publisher with no flow control, of
+a simulated session (3 hits 3 s apart, 2 s records: 9 s of signal) at x1, x10, x50 or x100
+real time in batches of 100, 500 or 5,000 samples, as a KEEP_ALL writer (it can be slowed)
+or a KEEP_LAST depth-10 one (it cannot). The source publishes the session `--runs` times,
+each a new acquisition it declares (index from 0, a new frame_id), into the same analyzer;
+each run's figures are the differences of the analyzer's /diagnostics counts across it:
 
-- samples sent per channel against those the analyzer's final ledger received, and what
-  that ledger calls missing (it must never say fewer than were lost);
+- samples sent per channel against those received, and what the analyzer counts lost (its
+  ledger's missing samples, or the batches the middleware reported lost: never fewer);
 - hits sent against hits reported on fmm/impacts (distinct trigger indices);
-- what the analyzer named on /diagnostics above OK (a loss must be named there).
+- what the analyzer named on /diagnostics above OK, and whether it named the source as one
+  the flow control cannot hold back before its first batch.
 
-A case passes when nothing was lost and every hit was reported, or when what was lost was
-named on /diagnostics. Over repeated runs it prints the rate of each outcome.
+A run is `clean` (nothing lost, every hit reported), `named` (what was lost is counted in
+full and named on /diagnostics) or `LOST`. The other families, `--families`:
 
-    .venv/bin/python benchmarks/fault_sources.py [--quick] [--runs N]
-        [--rates 1 10 50 100] [--batches 100 500 5000] [--history keep_last|keep_all]
+- `jump`: the index runs 1 batch, 10 batches or 10 s ahead within an acquisition (x10): the
+  ledger must count exactly those samples missing and take no new acquisition;
+- `two`: two sources (other node names and frame_ids) on the same topics, each run a new
+  analyzer: both named in the log and on /diagnostics before the stream counts their damage;
+- `damage`: NaN, an infinite sample and a stuck run, inside a record and between records
+  (the 24 s session, 6 s records): named on /diagnostics and in the log, rate-limited.
 
---quick: x50 and x100 in 500-sample batches, one run each. A run given --runs writes its
-printout into RESULTS.md (section fault_sources); others write nothing. x1 runs the 24 s
-session in real time, so the full grid takes a while.
+    .venv/bin/python benchmarks/fault_sources.py [--quick] [--runs N] [--rates 1 10 50 100]
+        [--batches 100 500 5000] [--history keep_all keep_last] [--families foreign jump two damage]
+
+--quick: x100 in 500-sample batches, KEEP_LAST, two runs. A run given --runs writes its
+printout into RESULTS.md, a section per family (and history: `fault_sources_keep_all`), so
+they can run at once; others write nothing.
 """
 
 from __future__ import annotations
