@@ -230,13 +230,15 @@ def run_series(
     session: Session = Session(),
     settle_s: float = 6.0,
     extra: tuple[str, ...] = (),
+    skipped: int = 0,
 ) -> list[Outcome]:
     """`runs` sessions of one foreign source process in turn into one analyzer process.
 
     Each run is its own acquisition (index from 0, a frame_id of its own, so the source
     declares it: `foreign_source.py --repeat`); its figures are the differences of the
     analyzer's /diagnostics counts across it, its hits those reported during it. extra:
-    more arguments for foreign_source.py (`--damage`).
+    more arguments for foreign_source.py (`--damage`); skipped: samples of each channel the
+    source skips (an index jump), which the analyzer counts missing besides what it lost.
     """
     fresh_domain()
     work.mkdir(parents=True)
@@ -286,7 +288,8 @@ def run_series(
                     time.monotonic() - watch.changed_at < settle_s
                 ):
                     done = len(watch.triggers) >= hits and all(
-                        accounted(watch.values, q, batch) - accounted(before, q, batch) >= sent
+                        accounted(watch.values, q, batch) - accounted(before, q, batch)
+                        >= sent + skipped
                         for q in ('force', 'velocity')
                     )
                     if done:
@@ -510,6 +513,7 @@ def main(argv: list[str] | None = None) -> int:
                     args.runs,
                     SHORT,
                     extra=(f'--jump-samples={jump}',),
+                    skipped=jump,
                 )
                 verdicts = [jump_verdict(o, jump, run) for run, o in enumerate(outcomes)]
                 for run, verdict in enumerate(verdicts):
