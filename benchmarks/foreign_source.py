@@ -13,6 +13,8 @@ It waits until both topics have `--subscribers` subscriptions, publishes the ses
 waits until the readers acknowledged everything (as a reliable source must before it quits:
 a reader whose queue was full waits for the writer to resend), and prints one line,
 `sent <n> samples per channel in <t> s (x<pace>), <k> publish calls failed, ...`.
+`--repeat N` publishes it N times from one process, each a new acquisition, the next when a
+line arrives on stdin (a benchmark's runs without a process start each).
 
     .venv/bin/python benchmarks/foreign_source.py --rate-factor 50 --batch 500
 """
@@ -23,7 +25,9 @@ import os
 import random
 import sys
 import time
+from pathlib import Path
 
+import numpy as np
 import rclpy
 from rclpy.context import Context
 from rclpy.duration import Duration
@@ -31,8 +35,6 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from fmm_interfaces.msg import SampleBatch
-from fmm_ros.ros.graph import private_domain_ids
-from fmm_ros.sim.session import simulated_session
 
 
 def publisher_qos(history: str, depth: int) -> QoSProfile:
@@ -70,6 +72,52 @@ def damage(force_n, velocity_m_s, rate_hz: float) -> None:
     force_n[quiet + 5000 : quiet + 5500] = force_n[quiet + 4999]
 
 
+def publish_session(
+    publishers: list, channels: tuple, rate: float, frame: str, args: argparse.Namespace
+) -> str:
+    """Publish the session once from index 0 at the asked pace; the line that says so."""
+    failed = 0
+    origin_ns = time.time_ns()
+    total = channels[0][2].size
+    period_s = args.batch / (rate * args.rate_factor)
+    start = time.monotonic()
+    first = 0
+    k = 0
+    jump_at = int(round(args.jump_at_s * rate))
+    while first < total:
+        wait = start + k * period_s - time.monotonic()
+        if wait > 0:
+            time.sleep(wait)
+        for publisher, (quantity, unit, data) in zip(publishers, channels, strict=True):
+            msg = batch_message(
+                quantity,
+                unit,
+                data[first : first + args.batch],
+                first + (args.jump_samples if first >= jump_at else 0),
+                rate,
+                origin_ns,
+                frame,
+            )
+            try:
+                publisher.publish(msg)
+            except Exception:  # a KEEP_ALL writer whose readers stayed full: it failed
+                failed += 1
+        first += args.batch
+        k += 1
+    elapsed = time.monotonic() - start
+    # A reliable writer resends until every reader acknowledged: quitting before loses
+    # the tail (a reader whose queue was full has refused it and waits for the resend).
+    unacked = sum(
+        not p.wait_for_all_acked(Duration(seconds=args.ack_timeout_s)) for p in publishers
+    )
+    time.sleep(args.linger_s)
+    pace = total / rate / elapsed if elapsed > 0 else float('inf')
+    return (
+        f'sent {total} samples per channel in {elapsed:.3f} s (x{pace:.1f}), '
+        f'{failed} publish calls failed, {unacked} writers not acknowledged'
+    )
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--rate-factor', type=float, default=50.0)
@@ -88,6 +136,26 @@ def main(argv: list[str] | None = None) -> int:
         help='NaN inside the first record (2 s after its hit) and, between records (7 s '
         'into the first 8 s slot), NaN, an infinite sample and a 500-sample stuck run',
     )
+    parser.add_argument(
+        '--samples',
+        type=Path,
+        help='an .npz (force_n, velocity_m_s, sample_rate_hz) to publish instead of simulating '
+        'the session here (the simulator takes seconds to import on a busy machine)',
+    )
+    parser.add_argument(
+        '--jump-samples',
+        type=int,
+        default=0,
+        help='from --jump-at-s on, the index runs this many samples ahead (samples skipped)',
+    )
+    parser.add_argument('--jump-at-s', type=float, default=2.5)
+    parser.add_argument(
+        '--repeat',
+        type=int,
+        default=1,
+        help='publish the session this many times, each a new acquisition (frame_id '
+        '<frame-id>_<k>, index from 0), the next when a line arrives on stdin',
+    )
     parser.add_argument('--namespace', default='/fmm')
     parser.add_argument('--subscribers', type=int, default=1)
     parser.add_argument('--linger-s', type=float, default=1.0)
@@ -99,25 +167,36 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     domain_id = None
     if args.quick:  # on a private domain of this host: nobody else's graph hears it
+        from fmm_ros.ros.graph import private_domain_ids
+
         args.subscribers, args.linger_s, args.rate_factor = 0, 0.0, 100.0
         os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
         domain_id = random.choice(private_domain_ids())
 
-    noise = {} if not args.quiet_zero else {'force_noise_std_n': 0.0, 'velocity_noise_std_m_s': 0.0}
-    session = simulated_session(
-        args.hits_per_level, spacing_s=args.spacing_s, seed=args.seed, **noise
-    )
-    rate = session.sample_rate_hz
+    if args.samples:
+        with np.load(args.samples) as saved:
+            force_n, velocity_m_s = saved['force_n'].copy(), saved['velocity_m_s'].copy()
+            rate = float(saved['sample_rate_hz'])
+    else:
+        from fmm_ros.sim.session import simulated_session
+
+        noise = {'force_noise_std_n': 0.0, 'velocity_noise_std_m_s': 0.0}
+        session = simulated_session(
+            args.hits_per_level,
+            spacing_s=args.spacing_s,
+            seed=args.seed,
+            **(noise if args.quiet_zero else {}),
+        )
+        force_n, velocity_m_s, rate = session.force_n, session.velocity_m_s, session.sample_rate_hz
     if args.damage:
-        damage(session.force_n, session.velocity_m_s, rate)
-    channels = (('force', 'N', session.force_n), ('velocity', 'm/s', session.velocity_m_s))
+        damage(force_n, velocity_m_s, rate)
+    channels = (('force', 'N', force_n), ('velocity', 'm/s', velocity_m_s))
     context = Context()
     rclpy.init(context=context, domain_id=domain_id)
     node = Node(args.node_name, context=context)
     qos = publisher_qos(args.history, args.depth)
     ns = args.namespace.rstrip('/')
     publishers = [node.create_publisher(SampleBatch, f'{ns}/{q}', qos) for q, _, _ in channels]
-    failed = 0
     try:
         deadline = time.monotonic() + args.discovery_timeout_s
         while any(p.get_subscription_count() < args.subscribers for p in publishers):
@@ -126,45 +205,11 @@ def main(argv: list[str] | None = None) -> int:
                 return 2
             time.sleep(0.01)
         time.sleep(0.5)  # both topics matched on the readers' side too
-        origin_ns = time.time_ns()
-        total = session.force_n.size
-        period_s = args.batch / (rate * args.rate_factor)
-        start = time.monotonic()
-        first = 0
-        k = 0
-        while first < total:
-            wait = start + k * period_s - time.monotonic()
-            if wait > 0:
-                time.sleep(wait)
-            for publisher, (quantity, unit, data) in zip(publishers, channels, strict=True):
-                msg = batch_message(
-                    quantity,
-                    unit,
-                    data[first : first + args.batch],
-                    first,
-                    rate,
-                    origin_ns,
-                    args.frame_id,
-                )
-                try:
-                    publisher.publish(msg)
-                except Exception:  # a KEEP_ALL writer whose readers stayed full: it failed
-                    failed += 1
-            first += args.batch
-            k += 1
-        elapsed = time.monotonic() - start
-        # A reliable writer resends until every reader acknowledged: quitting before loses
-        # the tail (a reader whose queue was full has refused it and waits for the resend).
-        unacked = sum(
-            not p.wait_for_all_acked(Duration(seconds=args.ack_timeout_s)) for p in publishers
-        )
-        time.sleep(args.linger_s)
-        pace = total / rate / elapsed if elapsed > 0 else float('inf')
-        print(
-            f'sent {total} samples per channel in {elapsed:.3f} s (x{pace:.1f}), '
-            f'{failed} publish calls failed, {unacked} writers not acknowledged',
-            flush=True,
-        )
+        for run in range(args.repeat):
+            if run and not sys.stdin.readline():  # the next acquisition when told; EOF: done
+                break
+            frame = args.frame_id if args.repeat == 1 else f'{args.frame_id}_{run}'
+            print(publish_session(publishers, channels, rate, frame, args), flush=True)
     finally:
         node.destroy_node()
         context.try_shutdown()

@@ -13,6 +13,7 @@ import threading
 import numpy as np
 import pytest
 from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rig_graph import FAST_ANALYZER, FAST_HAMMER, Listener, params, wait_for
 
 from fmm_interfaces.msg import SampleBatch
@@ -22,7 +23,7 @@ from fmm_ros.io.bags.reader import BagReader
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import SAMPLE_QOS
 from fmm_ros.ros.graph import InProcessGraph
-from fmm_ros.ros.health import ERROR
+from fmm_ros.ros.health import ERROR, WARN
 from fmm_ros.ros.nodes.analyzer import Analyzer
 from fmm_ros.ros.nodes.fitter import Fitter
 from fmm_ros.ros.nodes.hammer_sim import HammerSim
@@ -130,6 +131,46 @@ def test_two_sources_on_one_topic_are_named(ros_graph):
     problems = analyzer.inputs.sources.problems()
     assert any(p.startswith(f'two sources publish /{FORCE_TOPIC}: ') for p in problems), problems
     first.destroy_node(), second.destroy_node()
+
+
+class BestEffort(Node):
+    """Publishes force best-effort, as a sensor driver may: the reliable reader cannot match."""
+
+    def __init__(self, **kwargs):
+        super().__init__('lossy_daq', **kwargs)
+        self.create_publisher(SampleBatch, FORCE_TOPIC, 10)
+        qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+        self.create_publisher(SampleBatch, VELOCITY_TOPIC, qos)
+
+
+def test_a_source_the_flow_control_cannot_hold_back_is_named_before_its_first_batch(ros_graph):
+    """A plain publisher (no fmm/stream_progress) is WARN with the contract; a paced one is not."""
+    analyzer = ros_graph.add(Analyzer)
+    ros_graph.add(Scripted)
+    ros_graph.start()
+
+    def sources():
+        return statuses(analyzer)['sources']
+
+    assert wait_for(lambda: sources().level == WARN)
+    assert 'a KEEP_LAST writer loses what it sends faster than this node takes' in sources().message
+    assert analyzer.ledger['force'].received_samples == 0  # named before any batch came
+    held = params(**FAST_HAMMER, wait_for_consumers=['nobody'], start_timeout_s=0.0)
+    ros_graph.add(HammerSim, parameter_overrides=held)  # listens to fmm/stream_progress
+    assert wait_for(lambda: sources().level == ERROR)  # two sources publish force now
+    values = {v.key: v.value for v in sources().values}
+    assert values['unpaced publishers'] == '/scripted', values  # hammer_sim is not named
+    assert '/scripted publishes /fmm/force without flow control' in sources().message
+
+
+def test_a_best_effort_source_is_an_error_since_none_of_its_batches_arrive(ros_graph):
+    analyzer = ros_graph.add(Analyzer)
+    ros_graph.start()
+    ros_graph.add(BestEffort)  # after start: its velocity publisher never matches
+    assert wait_for(lambda: statuses(analyzer)['sources'].level == ERROR)
+    message = statuses(analyzer)['sources'].message
+    assert f'/lossy_daq publishes /{VELOCITY_TOPIC} best-effort' in message, message
+    assert f'/lossy_daq publishes /{FORCE_TOPIC} without flow control' in message, message
 
 
 def test_twenty_clients_at_once_are_answered_and_a_repeated_id_counts_once(ros_graph):

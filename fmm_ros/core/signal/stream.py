@@ -251,6 +251,9 @@ class _Channel:
         self.joined = False
         self.first_acquisition = True  # the very first: joins whatever its clock
         self.old_next: int | None = None  # watermark in the previous acquisition
+        # The index ranges it jumped over that another channel may not have passed yet: no
+        # signal, so they do not count towards how far this channel leads (skew).
+        self.gaps: list[tuple[int, int]] = []
 
     def follow(self, batch: Batch) -> None:
         """Adopt a taken batch's rate, clock, sender and range."""
@@ -478,6 +481,7 @@ class AlignedStream:
         self._max_gap = int(round(self.rules.max_gap_s * rate))
         self.sink.begin(rate, first)
         for other in self._channels.values():
+            other.gaps = []
             other.old_next = None if reason == '' else other.next
             other.next = first
             other.joined = False
@@ -532,16 +536,38 @@ class AlignedStream:
         channel.next = stop
         channel.ledger.missing_samples += stop - start
         channel.ledger._fault(kind)
+        if kind == 'gap':
+            channel.gaps.append((start, stop))
         if channel.joined:
             channel.ledger._reach(stop)
         self.sink.missing(channel.quantity, start, stop)
 
     def _bound_skew(self) -> None:
-        """Declare a lagging channel missing up to max_skew behind the leading one."""
-        lead = max(channel.next for channel in self._channels.values())
-        for channel in self._channels.values():
-            if lead - channel.next > self._max_skew:
-                self._missing(channel, lead - self._max_skew, 'skew')
+        """Declare a lagging channel missing up to max_skew of signal behind the leading one.
+
+        Signal the leader has: its gaps (an index jump) are not, so a jump of one channel
+        never makes the other's batches still in flight before the jump count as lagging.
+        """
+        channels = self._channels.values()
+        trailing = min(channel.next for channel in channels)
+        leader = max(channels, key=lambda channel: channel.next)
+        leader.gaps = [gap for gap in leader.gaps if gap[1] > trailing]
+        for channel in channels:
+            if leader.next - channel.next > self._max_skew:
+                stop = self._behind_signal(leader, self._max_skew)
+                if stop > channel.next:
+                    self._missing(channel, stop, 'skew')
+
+    @staticmethod
+    def _behind_signal(leader: _Channel, samples: int) -> int:
+        """The index `samples` of the leader's signal (its gaps not counted) behind its mark."""
+        stop = leader.next
+        for start, end in reversed(leader.gaps):
+            if stop - end >= samples:
+                break
+            samples -= stop - end
+            stop = start
+        return stop - samples
 
 
 class LedgerOnly:
