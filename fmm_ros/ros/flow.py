@@ -206,6 +206,9 @@ class FlowGate:
         self._heard: dict[str, float] = {}  # when each last reported
         self._skews: dict[str, float] = {}  # each consumer's max_skew_s (0: none)
         self._silent: dict[str, bool] = {}  # consumers not waited for while silent
+        # Consumers first heard with nothing taken after the source started (a respawned
+        # node, a late plot): the index the source had reached then, from which they count.
+        self._joined_at: dict[str, int] = {}
         self._graph_checked = 0.0
         self.first_index = 0  # where the source's current acquisition began
         self.published_end = 0  # index after the last sample published
@@ -227,6 +230,13 @@ class FlowGate:
             if topic in self._publishers
         }
         if mine:
+            before = self._progress.get(message.node)
+            if (
+                self.started
+                and all(index < self.first_index for index in mine.values())
+                and (before is None or any(i >= self.first_index for i in before.values()))
+            ):  # new, or back to nothing: a node (re)started under this name
+                self._joined_at[message.node] = self.published_end
             self._progress[message.node] = mine
             self._skews[message.node] = message.max_skew_s
             self._seen[message.node] = self._heard[message.node] = time.monotonic()
@@ -293,6 +303,7 @@ class FlowGate:
     def begin(self, first_index: int) -> None:
         """The source (re)starts its acquisition at first_index."""
         self.first_index = self.published_end = int(first_index)
+        self._joined_at.clear()
 
     def sent(self, end_index: int) -> None:
         """The source published samples up to end_index (exclusive)."""
@@ -309,7 +320,7 @@ class FlowGate:
         for name, topics in self._progress.items():
             behind = max(
                 (
-                    self.published_end - self._effective(index)
+                    self.published_end - self._effective(index, self._joined_at.get(name))
                     for candidate, index in topics.items()
                     if topic is None or candidate == topic
                 ),
@@ -355,8 +366,15 @@ class FlowGate:
         lags = self.lag(topic)
         return self.published_end - max(lags.values(), default=0)
 
-    def _effective(self, index: int) -> int:
-        """A reported index as progress in the current acquisition."""
+    def _effective(self, index: int, joined_at: int | None = None) -> int:
+        """A reported index as progress in the current acquisition.
+
+        joined_at: where a consumer that joined after the start, having taken nothing,
+        counts from until it takes a batch (it is sent nothing older: VOLATILE), so a
+        respawned consumer never holds the source for what it could not have received.
+        """
+        if joined_at is not None and index < joined_at:
+            return min(joined_at, self.published_end)
         if index < self.first_index:
             return self.first_index  # nothing yet (-1), or an earlier acquisition's
         return min(index, self.published_end)  # beyond: an earlier, longer acquisition's
@@ -376,6 +394,7 @@ class FlowGate:
                 self._seen[name] = now
             elif now - self._seen.get(name, now) > LEFT_AFTER_S:
                 del self._progress[name]
+                self._joined_at.pop(name, None)
                 self._node.get_logger().warning(
                     f'consumer {name} left the graph: no longer waited for'
                 )
