@@ -209,6 +209,7 @@ class FlowGate:
         # Consumers first heard with nothing taken after the source started (a respawned
         # node, a late plot): the index the source had reached then, from which they count.
         self._joined_at: dict[str, int] = {}
+        self._highest: dict[str, dict[str, int]] = {}  # each node's highest report this acquisition
         self._graph_checked = 0.0
         self.first_index = 0  # where the source's current acquisition began
         self.published_end = 0  # index after the last sample published
@@ -230,13 +231,17 @@ class FlowGate:
             if topic in self._publishers
         }
         if mine:
-            before = self._progress.get(message.node)
-            if (
-                self.started
-                and all(index < self.first_index for index in mine.values())
-                and (before is None or any(i >= self.first_index for i in before.values()))
-            ):  # new, or back to nothing: a node (re)started under this name
+            before = self._highest.setdefault(message.node, {})
+            late = not before and all(index < self.first_index for index in mine.values())
+            back = any(index < before.get(topic, -1) for topic, index in mine.items())
+            if self.started and (late or back):
+                # A node (re)started under this name (a respawn, a late plot): it is sent
+                # nothing older than now, whatever it reports (nothing, or where a killed
+                # recorder's bag ended).
                 self._joined_at[message.node] = self.published_end
+            for topic, index in mine.items():
+                if index <= self.published_end:  # not an earlier, longer acquisition's
+                    before[topic] = max(index, before.get(topic, -1))
             self._progress[message.node] = mine
             self._skews[message.node] = message.max_skew_s
             self._seen[message.node] = self._heard[message.node] = time.monotonic()
@@ -304,6 +309,7 @@ class FlowGate:
         """The source (re)starts its acquisition at first_index."""
         self.first_index = self.published_end = int(first_index)
         self._joined_at.clear()
+        self._highest.clear()
 
     def sent(self, end_index: int) -> None:
         """The source published samples up to end_index (exclusive)."""
@@ -395,6 +401,7 @@ class FlowGate:
             elif now - self._seen.get(name, now) > LEFT_AFTER_S:
                 del self._progress[name]
                 self._joined_at.pop(name, None)
+                self._highest.pop(name, None)
                 self._node.get_logger().warning(
                     f'consumer {name} left the graph: no longer waited for'
                 )

@@ -40,7 +40,7 @@ from fmm_ros.ros.common import RESULT_QOS, run_node, shared_params
 from fmm_ros.ros.health import OK, Health
 from fmm_ros.ros.inputs import SampleInputs
 from fmm_ros.ros.params import Param, declare_parameters, params_from
-from fmm_ros.ros.qos import DECISION_QOS
+from fmm_ros.ros.qos import DECISION_QOS, IMPACT_QOS
 
 # The capture's and the FRFs' settings as declared in the core (`core.signal.config`), then
 # the levels, which a params file gives as parallel lists.
@@ -116,7 +116,7 @@ class Analyzer(Node):
         self.results: deque[ImpactAnalysis] = deque(maxlen=self.config['keep_last_impacts'])
         self.impacts_reported = 0
         self.impacts_accepted = 0
-        self._impact_pub = self.create_publisher(ImpactResult, IMPACTS_TOPIC, RESULT_QOS)
+        self._impact_pub = self.create_publisher(ImpactResult, IMPACTS_TOPIC, IMPACT_QOS)
         self._frf_pub = self.create_publisher(FrfSummary, FRF_TOPIC, RESULT_QOS)
         self.decisions: dict[int, Decision] = {}
         self._last_stamp = Time()

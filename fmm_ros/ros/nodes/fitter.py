@@ -70,7 +70,7 @@ from fmm_ros.ros.cutting import ImpactCutter
 from fmm_ros.ros.health import OK, Health
 from fmm_ros.ros.inputs import SampleInputs
 from fmm_ros.ros.params import Param, declare_parameters, params_from
-from fmm_ros.ros.qos import DECISION_QOS, RESULT_QOS
+from fmm_ros.ros.qos import DECISION_QOS, IMPACT_QOS, RESULT_QOS
 from fmm_ros.workflows.results import FrictionResult
 
 PARAMS = (
@@ -145,7 +145,7 @@ class Fitter(Node):
         )
         health.add('fits', self._fits_status)
         self.create_subscription(
-            ImpactResult, IMPACTS_TOPIC, self._on_impact, RESULT_QOS, callback_group=streams
+            ImpactResult, IMPACTS_TOPIC, self._on_impact, IMPACT_QOS, callback_group=streams
         )
         self.decisions: dict[int, Decision] = {}
         self.create_subscription(
