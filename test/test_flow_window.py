@@ -14,7 +14,7 @@ from rig_graph import params, wait_for
 
 from fmm_interfaces.msg import SampleBatch, StreamProgress
 from fmm_ros.constants import STREAM_PROGRESS_TOPIC
-from fmm_ros.ros.flow import PacedSource
+from fmm_ros.ros.flow import FlowGate, PacedSource
 from fmm_ros.ros.nodes.analyzer import Analyzer
 from fmm_ros.ros.qos import PROGRESS_LISTEN_QOS, PROGRESS_QOS, SAMPLE_QOS
 
@@ -84,3 +84,39 @@ def test_a_consumer_reports_its_own_max_skew(ros_graph):
     ros_graph.start()
     assert wait_for(lambda: any(m.node == '/analyzer' for m in reports.heard), 10.0)
     assert {m.max_skew_s for m in reports.heard if m.node == '/analyzer'} == {3.0}
+
+
+def progress(node: str, topic: str, index: int) -> StreamProgress:
+    return StreamProgress(node=node, topics=[topic], next_sample_indices=[index])
+
+
+def test_a_consumer_that_comes_back_is_sent_again_what_the_source_kept(ros_graph):
+    """A respawn: the awaited consumer reports nothing again; it gets the last resend_s."""
+    source = ros_graph.add(Node, node_name='source')
+    publisher = source.create_publisher(SampleBatch, 'fmm/test_batches', SAMPLE_QOS)
+    reports = ros_graph.add(Reports)
+    heard: list[int] = []
+    listener = ros_graph.add(Node, node_name='consumer')
+    listener.create_subscription(
+        SampleBatch, 'fmm/test_batches', lambda m: heard.append(m.first_sample_index), SAMPLE_QOS
+    )
+    gate = FlowGate(source, [publisher], wait_for=['consumer'], start_timeout_s=0.0, resend_s=1.0)
+    ros_graph.start()
+    topic = publisher.topic_name
+    reports.publisher.publish(progress('/consumer', topic, -1))
+    assert wait_for(gate.ready)
+    for first in range(0, 30_000, BATCH):
+        message = SampleBatch(first_sample_index=first, sample_rate_hz=RATE_HZ)
+        publisher.publish(message)
+        gate.keep(topic, message, first, first + BATCH, RATE_HZ)
+        gate.sent(first + BATCH)
+    reports.publisher.publish(progress('/consumer', topic, 30_000))
+    assert wait_for(lambda: gate.lag() == {'/consumer': 0} and len(heard) == 60)
+    heard.clear()
+    reports.publisher.publish(progress('/consumer', topic, -1))  # killed and started again
+    assert wait_for(lambda: gate.lag() == {'/consumer': 10_000}), gate.lag()
+    assert wait_for(lambda: len(heard) == 20, timeout_s=10.0), heard
+    assert heard == list(range(20_000, 30_000, BATCH)) and gate.resent_batches == 20
+    # A node that was never awaited (a plot started late) counts from where the source is.
+    reports.publisher.publish(progress('/plot', topic, -1))
+    assert wait_for(lambda: gate.lag().get('/plot') == 0), gate.lag()
