@@ -68,7 +68,7 @@ RESPAWNED = ('analyzer', 'fitter', 'recorder', 'station', 'hammer_sim', 'rig_sim
 RATE = 4.0  # x real time: 6 hits 8 s apart in 12 s of streaming
 HITS_PER_LEVEL = 2
 SPACING_S = 8.0
-RESPAWN_SOURCE = ('silent_after_s=120.0', 'resend_s=30.0')
+RESPAWN_SOURCE = ('silent_after_s=120.0',)
 SESSION = (
     f'hammer_sim.hit_spacing_s={SPACING_S}',
     'hammer_sim.first_hit_s=1.0',
@@ -76,7 +76,7 @@ SESSION = (
     'analyzer.window_s=6.0',
     'station.port=0',
     # A rig that respawns its nodes: the sources wait for an awaited consumer that went
-    # silent (killed) until it is back, and send it again what it had not taken.
+    # silent (killed) until it is back.
     *(f'{source}.{name}' for source in ('hammer_sim', 'rig_sim') for name in RESPAWN_SOURCE),
 )
 IMPACT = re.compile(

@@ -29,7 +29,6 @@ holds its start; its device buffer absorbs what its consumers lag.
 import math
 import sys
 import time
-from collections import deque
 from collections.abc import Callable, Sequence
 
 from rclpy.duration import Duration
@@ -63,9 +62,6 @@ QUIET_SUBSCRIPTION = SubscriptionEventCallbacks(use_default_callbacks=False)
 GRAPH_CHECK_PERIOD_S = 1.0
 LEFT_AFTER_S = 3.0
 SILENT_AFTER_S = 5.0
-# How long a source waits after a consumer came back before it sends it again what it kept
-# [s]: the consumer's report can arrive before its sample subscription is matched here.
-RESEND_DELAY_S = 1.0
 
 
 # How far a source may fall behind its clock and still make the time up [s of wall time]:
@@ -193,22 +189,17 @@ class FlowGate:
         start_timeout_s: float,
         on_progress: Callable[[], None] | None = None,
         silent_after_s: float = SILENT_AFTER_S,
-        resend_s: float = 0.0,
     ) -> None:
         """Gate the source's SampleBatch publishers.
 
         wait_for: node names (relative to the source's namespace, or absolute) that must
         report before the first sample; a start_timeout_s of 0 waits for ever.
         silent_after_s: how long a consumer that lags may say nothing before it stops
-        counting (`lag`). resend_s: how much signal of each topic the gate keeps (`keep`)
-        to send again to an awaited consumer that comes back (a respawn) [s]; 0: none.
+        counting (`lag`), an awaited one also past its DDS lease (`_forget_departed`).
         """
         self._node = node
         self._silent_after_s = float(silent_after_s)
-        self._resend_s = float(resend_s)
-        self._kept: dict[str, deque] = {publisher.topic_name: deque() for publisher in publishers}
-        self._resends: dict[str, tuple[float, dict[str, int]]] = {}  # node -> (due, from)
-        self.resent_batches = 0
+
         self._publishers = {publisher.topic_name: publisher for publisher in publishers}
         namespace = node.get_namespace()
         self.wait_for = [resolve_name(name, namespace) for name in wait_for if name]
@@ -237,8 +228,6 @@ class FlowGate:
             PROGRESS_LISTEN_QOS,
             event_callbacks=QUIET_SUBSCRIPTION,
         )
-        self._resend_timer = node.create_timer(RESEND_DELAY_S / 4, self._resend_due)
-        self._resend_timer.cancel()
 
     def _on_progress(self, message: StreamProgress) -> None:
         mine = {
@@ -251,7 +240,10 @@ class FlowGate:
             late = not before and all(index < self.first_index for index in mine.values())
             back = any(index < before.get(topic, -1) for topic, index in mine.items())
             if self.started and (late or back):
-                self._came_back(message.node, mine, respawn=back)
+                # A node (re)started under this name (a respawn, a late plot): it is sent
+                # nothing older than now (VOLATILE), whatever it reports (nothing, or where
+                # a killed recorder's bag ended), so it counts from here.
+                self._joined_at[message.node] = self.published_end
                 before.clear()  # what it reports from now on is the new node's
             for topic, index in mine.items():
                 if index <= self.published_end:  # not an earlier, longer acquisition's
@@ -267,62 +259,6 @@ class FlowGate:
                 )
             if self._on_progress_hook:
                 self._on_progress_hook()
-
-    def _came_back(self, name: str, reported: dict[str, int], *, respawn: bool) -> None:
-        """A node (re)started under this name after the source started (a respawn, a plot).
-
-        VOLATILE batches are sent to no one twice, so by default it counts from where the
-        source is now. An awaited consumer that comes back (a respawn) is sent again, once
-        its subscription has had RESEND_DELAY_S to match, what the gate kept of each topic
-        from the index it reports (a recorder that copied its bag: where the copy ends), or
-        all that was kept when it reports nothing; it counts from there. The other
-        consumers refuse the repeats as past and count them.
-        """
-        if not (respawn and self._resend_s and name in self.wait_for):
-            self._joined_at[name] = self.published_end
-            return
-        start = {}
-        for topic, index in reported.items():
-            kept = self._kept.get(topic)
-            oldest = kept[0][0] if kept else self.published_end
-            start[topic] = max(index, oldest) if index >= self.first_index else oldest
-        self._joined_at[name] = min(start.values(), default=self.published_end)
-        self._resends[name] = (time.monotonic() + RESEND_DELAY_S, start)
-        self._resend_timer.reset()
-
-    def _resend_due(self) -> None:
-        """Send again what came-back consumers are owed, once their delay is up."""
-        now = time.monotonic()
-        for name, (due, start) in list(self._resends.items()):
-            if now < due:
-                continue
-            del self._resends[name]
-            sent = 0
-            for topic, first in start.items():
-                publisher = self._publishers[topic]
-                for _first, end, message in list(self._kept.get(topic, ())):
-                    if end > first:
-                        publisher.publish(message)
-                        sent += 1
-            self.resent_batches += sent
-            self._node.get_logger().warning(
-                f'consumer {name} came back (a respawn): {sent} batches sent again from '
-                + ', '.join(f'{topic} {first}' for topic, first in start.items())
-                + f' to {self.published_end} (the other consumers refuse them as repeats)'
-            )
-        if not self._resends:
-            self._resend_timer.cancel()
-
-    def keep(
-        self, topic: str, message: object, first_index: int, end_index: int, sample_rate_hz: float
-    ) -> None:
-        """A batch of topic went out: kept (the last resend_s) for a consumer that comes back."""
-        if not self._resend_s:
-            return
-        kept = self._kept[topic]
-        kept.append((int(first_index), int(end_index), message))
-        while kept and kept[0][1] <= end_index - self._resend_s * sample_rate_hz:
-            kept.popleft()
 
     # -- the start ---------------------------------------------------------------------------
 
@@ -380,9 +316,6 @@ class FlowGate:
         self.first_index = self.published_end = int(first_index)
         self._joined_at.clear()
         self._highest.clear()
-        self._resends.clear()
-        for kept in self._kept.values():
-            kept.clear()
 
     def sent(self, end_index: int) -> None:
         """The source published samples up to end_index (exclusive)."""
@@ -472,8 +405,7 @@ class FlowGate:
             if name in present:
                 self._seen[name] = now
             elif now - self._seen.get(name, now) > LEFT_AFTER_S and (
-                name not in self.wait_for
-                or now - self._heard.get(name, now) > self._silent_after_s
+                name not in self.wait_for or now - self._heard.get(name, now) > self._silent_after_s
             ):  # an awaited one is waited for silent_after_s (its respawn), not the DDS lease
                 del self._progress[name]
                 self._joined_at.pop(name, None)
@@ -507,15 +439,6 @@ SOURCE_PARAMS = (
         "[s] (a stall, or a node killed: DDS keeps a killed node's name 20 s); longer holds the "
         'source while a node respawns, so that it loses nothing',
         limits=(0.1, 3600.0),
-        read_only=True,
-    ),
-    Param(
-        'resend_s',
-        0.0,
-        'Signal of each topic kept to send again to an awaited consumer that comes back '
-        '(respawned): from the index it reports, or all kept when it reports nothing [s]; '
-        'the other consumers refuse the repeats and count them; 0: nothing kept',
-        limits=(0.0, 600.0),
         read_only=True,
     ),
     Param(
@@ -583,7 +506,6 @@ class PacedSource:
             start_timeout_s=config['start_timeout_s'],
             on_progress=self._on_progress,
             silent_after_s=config.get('silent_after_s', SILENT_AFTER_S),
-            resend_s=config.get('resend_s', 0.0),
         )
         self.pacer = BatchPacer(batches_per_s)
         self.window = int(window_samples)

@@ -152,7 +152,7 @@ PARAMS = (
         'File backend: start over at the end (the sample index runs on)',
         read_only=True,
     ),
-    *(param for param in SOURCE_PARAMS if param.name != 'resend_s'),  # sends once
+    *SOURCE_PARAMS,
     MAX_BATCHES_PARAM,
     CLOCK_PARAM,
 )

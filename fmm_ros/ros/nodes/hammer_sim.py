@@ -240,8 +240,7 @@ class HammerSim(Node):
             frame_id=self.config['frame_id'],
             full_scale=self.config['full_scale_n'],
         )
-        applied = msgs.sample_batch(self._applied, **common)
-        self._applied_pub.publish(applied)
+        self._applied_pub.publish(msgs.sample_batch(self._applied, **common))
         if self._per_unit != 1.0:  # as a DAQ set to another unit publishes it
             self._measured *= self._per_unit
             common['full_scale'] *= self._per_unit
@@ -249,8 +248,6 @@ class HammerSim(Node):
         measured.unit = self.config['force_unit']
         self._measured_pub.publish(measured)
         self.next_index = first + self._applied.size
-        for publisher, message in ((self._applied_pub, applied), (self._measured_pub, measured)):
-            self.source.gate.keep(publisher.topic_name, message, first, self.next_index, rate)
         self.source.sent(self.next_index)
         done = self.next_index >= self.stream.end_index > first
         self.clock.advance(

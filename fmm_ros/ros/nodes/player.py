@@ -44,7 +44,7 @@ PARAMS = (
     Param(
         'tick_s', 0.005, 'Timer period of the pacing loop [s]', limits=(1e-4, 1.0), read_only=True
     ),
-    *(param for param in SOURCE_PARAMS if param.name != 'resend_s'),  # sends once
+    *SOURCE_PARAMS,
     CLOCK_PARAM,
 )
 # The package's topics: played under their relative names, whatever namespace recorded them.

@@ -127,7 +127,6 @@ class RigSim(Node):
             start_timeout_s=cfg['start_timeout_s'],
             on_progress=self._report,
             silent_after_s=cfg['silent_after_s'],
-            resend_s=cfg['resend_s'],
         )
         subscription = self.create_subscription(
             SampleBatch, cfg['input_topic'], self._on_force, SAMPLE_QOS
@@ -194,7 +193,6 @@ class RigSim(Node):
             )
             out.unit = self.config['velocity_unit']
             self._publisher.publish(out)
-            self.gate.keep(self._output, out, first, first + velocity.size, msg.sample_rate_hz)
             self.gate.sent(first + velocity.size)
         self._runs = []
         self._report()
