@@ -199,7 +199,6 @@ class FlowGate:
         """
         self._node = node
         self._silent_after_s = float(silent_after_s)
-
         self._publishers = {publisher.topic_name: publisher for publisher in publishers}
         namespace = node.get_namespace()
         self.wait_for = [resolve_name(name, namespace) for name in wait_for if name]
@@ -211,8 +210,9 @@ class FlowGate:
         self._heard: dict[str, float] = {}  # when each last reported
         self._skews: dict[str, float] = {}  # each consumer's max_skew_s (0: none)
         self._silent: dict[str, bool] = {}  # consumers not waited for while silent
-        # Consumers first heard with nothing taken after the source started (a respawned
-        # node, a late plot): the index the source had reached then, from which they count.
+        # Consumers (re)started after the source started (a respawned node reporting less
+        # than before, a late plot reporting nothing): the index the source had reached
+        # then, from which they count.
         self._joined_at: dict[str, int] = {}
         self._highest: dict[str, dict[str, int]] = {}  # each node's highest report this acquisition
         self._graph_checked = 0.0
@@ -381,9 +381,9 @@ class FlowGate:
     def _effective(self, index: int, joined_at: int | None = None) -> int:
         """A reported index as progress in the current acquisition.
 
-        joined_at: where a consumer that joined after the start, having taken nothing,
-        counts from until it takes a batch (it is sent nothing older: VOLATILE), so a
-        respawned consumer never holds the source for what it could not have received.
+        joined_at: where a consumer (re)started after the start counts from until it
+        reports more (it is sent nothing older: VOLATILE), so a respawned consumer never
+        holds the source for what it could not receive.
         """
         if joined_at is not None and index < joined_at:
             return min(joined_at, self.published_end)
@@ -437,7 +437,7 @@ SOURCE_PARAMS = (
         SILENT_AFTER_S,
         'How long a consumer that lags may say nothing before the source goes on without it '
         "[s] (a stall, or a node killed: DDS keeps a killed node's name 20 s); longer holds the "
-        'source while a node respawns, so that it loses nothing',
+        'source while a node respawns, which then loses only what was in flight to it',
         limits=(0.1, 3600.0),
         read_only=True,
     ),
