@@ -199,7 +199,7 @@ def test_a_respawned_fitter_holds_again_what_it_held_with_its_live_mu(ros_graph,
     session(ros_graph)
     fitter = ros_graph.add(Fitter, parameter_overrides=state)
     ros_graph.start()
-    assert wait_for(lambda: len(fitter._own_fits) == 3, timeout_s=120.0), fitter.impacts
+    assert wait_for(lambda: 'over 3 impacts' in fitter.live_mu, timeout_s=120.0), fitter.impacts
     held = {i: h.record.trigger_sample_index for i, h in fitter.impacts.items()}
     mu = fitter.live_mu
     with InProcessGraph() as graph:  # the respawn: a new process would start the same way
