@@ -286,7 +286,7 @@ def respawn_run(
         line.split(']: ', 1)[-1][:160]
         for text in logs.values()
         for line in text.splitlines()
-        if 'joined an acquisition' in line or 'restored' in line or 'not reported' in line
+        if any(text in line for text in ('joined an acquisition', 'restored', 'cannot be held'))
     ]
     result.named = ' | '.join(named[:3])
     for ids in re.findall(

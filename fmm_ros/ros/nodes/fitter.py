@@ -67,7 +67,7 @@ from fmm_ros.io.held_impacts import (
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import RIG_PARAMS, rig_from_parameters, run_node, shared_params
 from fmm_ros.ros.cutting import ImpactCutter
-from fmm_ros.ros.health import OK, Health
+from fmm_ros.ros.health import OK, WARN, Health
 from fmm_ros.ros.inputs import SampleInputs
 from fmm_ros.ros.params import Param, declare_parameters, params_from
 from fmm_ros.ros.qos import DECISION_QOS, IMPACT_QOS, RESULT_QOS
@@ -208,14 +208,22 @@ class Fitter(Node):
     def _fits_status(self) -> tuple:
         with self._lock:
             held = list(self.impacts.values())
+        lost = self.cutter.not_held
         return (
-            OK,
+            WARN if lost else OK,
             f'{len(held)} impacts held ({sum(i.accepted for i in held)} accepted); '
+            + (
+                f'{len(lost)} reported but not held (their samples never reached this '
+                f'fitter, or were no longer held: ids {lost[-10:]}; the bag has them); '
+                if lost
+                else ''
+            )
             + (self.last_fit or 'no fit yet'),
             {
                 'impacts held': len(held),
                 'accepted held': sum(i.accepted for i in held),
                 'impacts waiting for samples': len(self.cutter.waiting),
+                'impacts not held': len(lost),
                 'history s': self.history.history_s,
                 'state dir': (
                     f'{self.state_dir} ({self._state_failed or "written"})'
