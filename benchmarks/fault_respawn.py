@@ -2,10 +2,12 @@
 
 The simulated rig as `launch_scripts/sim_rig.py --processes --station` starts it (one process
 per node, the package's params file), a short session (hits 8 s apart, 6 s records, at a few
-times real time). Once the analyzer has reported its first hit, one node (analyzer, fitter,
-recorder, station, hammer_sim or rig_sim) is killed with SIGKILL and started again at once,
-as a process manager respawns it. When the session is over and the graph quiet, from outside
-the nodes:
+times real time), set up as a rig that respawns its nodes: the fitter keeps its held impacts
+in a `state_dir`, and hammer_sim and rig_sim wait up to `silent_after_s` (120 s) for an
+awaited consumer that fell silent. Once the analyzer has reported its first hit, one node
+(analyzer, fitter, recorder, station, hammer_sim or rig_sim) is killed with SIGKILL and
+started again at once, as a process manager respawns it. When the session is over and the
+graph quiet, from outside the nodes:
 
 - **accepted live**: the ImpactResults the analyzer(s) published accepted, read from the
   bags (every bag the recorders wrote: a respawned recorder writes `<bag>_1` beside the
