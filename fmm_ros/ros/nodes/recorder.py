@@ -18,13 +18,14 @@ metadata too (key fmm.session), so a campaign reads a bag's conditions without d
 
 A `bag_path` that exists already (a respawned recorder) is never overwritten: the recording
 goes to the first free `<bag_path>_<n>` beside it. When the bag before it was never closed
-(its recorder was killed), everything it holds is copied into the new bag first, read by
-scanning (`_resume`), so the newest bag holds the whole session: `fmm bag-info` and
-`fmm replay` of it read every message either recorder stored, the killed one's bag stays as
-it was, and the new ledger counts the samples of the downtime missing. What the new
-recorder hears again from transient-local publishers (impacts, decisions) that the copy
-holds already is not stored twice. Storage that fails under the recorder
-(disk full, a read-only path, a vanished mount) ends the recording, not the node (`_fail`).
+(its recorder was killed) and was written in the last `RESUME_WITHIN_S`, everything it holds
+is copied into the new bag first, read by scanning (`_resume`), so the newest bag holds the
+whole session: `fmm bag-info` and `fmm replay` of it read every message either recorder
+stored, the killed one's bag stays as it was, and the new ledger counts the samples of the
+downtime missing. What the new recorder hears again from transient-local publishers
+(impacts, decisions) that the copy holds already is not stored twice. Storage that fails
+under the recorder (disk full, a read-only path, a vanished mount) ends the recording, not
+the node (`_fail`).
 """
 
 import hashlib
@@ -110,6 +111,11 @@ PARAMS = (
     ),
 )
 
+# A bag never closed and written this recently [s] was a killed recorder's of this session
+# (a respawn takes seconds to a minute): copied into the new bag. An older one is another
+# session's (a crash yesterday), left alone.
+RESUME_WITHIN_S = 600.0
+
 # Topics of this package: type and the QoS their publishers offer.
 KNOWN_TOPICS = {
     FORCE_TOPIC: ('fmm_interfaces/msg/SampleBatch', SAMPLE_QOS),
@@ -174,7 +180,16 @@ class Recorder(Node):
         self._copied: set[tuple[str, bytes]] = set()
         previous = _predecessor(asked, self.bag_path)
         if previous is not None and not (previous / 'metadata.yaml').exists() and not self.failed:
-            self._resume(previous)
+            written_s = time.time() - max(
+                (p.stat().st_mtime for p in previous.iterdir()), default=0.0
+            )
+            if written_s <= RESUME_WITHIN_S:
+                self._resume(previous)
+            else:
+                self.get_logger().warning(
+                    f'{previous} was never closed, but last written {written_s:.0f} s ago: '
+                    'another session, not copied into this bag'
+                )
         self._discover()
         self._timer = self.create_timer(self.config['discovery_period_s'], self._discover)
         recorded = [sub.topic_name for sub in self._raw_subscriptions]
