@@ -15,8 +15,8 @@ graph quiet, from outside the nodes:
 - **held**: the fitter's fmm/fit_friction over every impact it holds (the response names
   the impacts it fitted);
 - **counted**: the newest FrictionEstimate (the live mu) on fmm/friction, its impact_ids;
-- **replayed**: `replay_bag` of the recorded bags (as `fmm replay` runs it), its accepted
-  impact ids;
+- **replayed**: `replay_bag` of the newest bag alone (as `fmm replay` runs it), its
+  accepted impact ids;
 - hits sent by the hammer against hits reported, and whether a hit the kill cost was named
   (a log line: the analyzer's join, the fitter's samples it did not get).
 
@@ -86,6 +86,16 @@ IMPACT = re.compile(
 )
 LIVE_MU = re.compile(r'\[fitter\]: live mu (?:after|without) impact \d+', re.M)
 DONE = 'session complete'
+# What each node logs once it has started (a respawned one is waited for before the rig
+# stops: a SIGINT while it still imports is a KeyboardInterrupt traceback).
+STARTED = {
+    'analyzer': ']: trigger ',
+    'fitter': ' ready on ',
+    'recorder': ']: recording ',
+    'station': ']: station page on ',
+    'hammer_sim': ' hits at ',
+    'rig_sim': ']: plant m=',
+}
 REPLAY_CAPTURE = CaptureConfig(
     window_s=6.0
 )  # as the session's analyzer (`fmm replay --window-s 6`)
@@ -253,8 +263,10 @@ def read_bags(rig: Rig, result: Run) -> None:
                 for stamp, msg in reader.decoded(topic, 'fmm_interfaces/msg/FrictionEstimate'):
                     if stamp >= newest[0]:
                         newest = (stamp, set(int(i) for i in msg.impact_ids))
-        replay = replay_bag(path, REPLAY_CAPTURE, threads=1)
-        result.replayed |= {r.impact_id for r in replay.summary.impacts if r.accepted}
+    # The newest bag alone must replay the session: a respawned recorder copies the bag of
+    # the one killed into its own.
+    replay = replay_bag(bag_paths(rig)[-1], REPLAY_CAPTURE, threads=1)
+    result.replayed = {r.impact_id for r in replay.summary.impacts if r.accepted}
     result.counted = newest[1]
 
 
@@ -268,7 +280,11 @@ def respawn_run(
     try:
         rig.wait_for('hammer_sim', 'starting', 90.0)
         rig.wait_for('analyzer', '[analyzer]: impact ', 90.0)
+        started = rig.log(node).count(STARTED[node])
         rig.respawn(node)
+        deadline = time.monotonic() + 180.0
+        while rig.log(node).count(STARTED[node]) <= started and time.monotonic() < deadline:
+            time.sleep(0.2)
         rig.wait_for('hammer_sim', DONE, 120.0 + 4 * session_s)
         rig.wait_quiet(120.0)
         try:
