@@ -108,7 +108,7 @@ class Run:
 
     node: str
     hits_sent: int = 0
-    reported: set[int] = field(default_factory=set)  # trigger indices the analyzer(s) logged
+    reported: set[int] = field(default_factory=set)  # impact ids the analyzer(s) logged
     accepted_live: set[int] = field(default_factory=set)
     held: set[int] = field(default_factory=set)
     counted: set[int] = field(default_factory=set)
@@ -298,7 +298,7 @@ def respawn_run(
     logs = {path.stem: path.read_text(errors='replace') for path in rig.work.glob('*.log')}
     sent = re.findall(r'\((\d+) of (\d+) hits\)', logs.get('hammer_sim', ''))
     result.hits_sent = sum(int(hits) for hits, _ in sent)
-    result.reported = {int(trigger) for _, trigger, _ in IMPACT.findall(logs.get('analyzer', ''))}
+    result.reported = {int(i) for i, _, _ in IMPACT.findall(logs.get('analyzer', ''))}
     result.tracebacks = sum(text.count('Traceback') for text in logs.values())
     named = [
         line.split(']: ', 1)[-1][:160]
