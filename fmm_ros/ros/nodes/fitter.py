@@ -23,6 +23,12 @@ overrule the flags in both: a fit request takes the impacts `select_impacts` tak
 them, and the live mu drops a rejected impact (a new estimate, without its id) and takes an
 accepted one back.
 
+Given a `state_dir`, each held impact (its record, what the analyzer said about it, its live
+fit) is written there as it is held (`io.held_impacts`), and a fitter started on it (a
+respawn after SIGKILL) holds them again and publishes the live mu over them at once. A
+reported impact whose record cannot be cut (its samples never reached this fitter: a record
+open at a kill, or sent while it was down) is named in the log and WARN on /diagnostics.
+
 Service callbacks run in their own callback group, so under `ros2 run` (a multi-threaded
 executor) the streams keep flowing while a fit runs.
 """
