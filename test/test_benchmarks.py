@@ -32,9 +32,10 @@ ROS_SCRIPTS = (
     'bench_station',
     'fault_sources',
     'foreign_source',
+    'fault_respawn',
 )
 # Scripts whose quick run a test file of their own makes (and checks further): not run twice.
-QUICK_RUN_BY = {'fault_rig': 'test_fault_rig.py'}
+QUICK_RUN_BY = {'fault_rig': 'test_fault_rig.py', 'fault_respawn': 'test_fault_respawn.py'}
 QUICK_TIMEOUT_S = 600  # a busy shared machine runs them several times slower
 
 

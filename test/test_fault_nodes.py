@@ -20,6 +20,7 @@ from fmm_interfaces.msg import SampleBatch
 from fmm_interfaces.srv import FitFriction
 from fmm_ros.constants import FIT_SERVICE, FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC
 from fmm_ros.io.bags.reader import BagReader
+from fmm_ros.io.bags.writer import BagWriter
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import SAMPLE_QOS
 from fmm_ros.ros.graph import InProcessGraph
@@ -206,6 +207,52 @@ def test_a_respawned_recorder_records_beside_its_old_bag(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ['bag', 'bag_1']
     for bag in ('bag', 'bag_1'):
         assert (tmp_path / bag / 'metadata.yaml').is_file()
+
+
+def test_a_respawned_recorder_copies_the_unclosed_bag_of_the_one_killed(tmp_path):
+    """A killed recorder's bag (never closed) is read into the new one first: one bag whole."""
+    old = BagWriter(tmp_path / 'bag')
+    old.open()
+    for k in range(4):
+        old.write_sample_batch(
+            FORCE_TOPIC,
+            np.full(1000, float(k)),
+            quantity=(FORCE.quantity, FORCE.unit),
+            sample_rate_hz=10_000.0,
+            first_sample_index=1000 * k,
+        )
+    old.flush()  # as the recorder does every flush_interval_s
+    old.abandon()  # as SIGKILL leaves it: no summary, no metadata.yaml
+    before = {p.name: p.read_bytes() for p in (tmp_path / 'bag').iterdir()}
+    with InProcessGraph() as graph:
+        recorder = graph.add(Recorder, parameter_overrides=params(bag_path=str(tmp_path / 'bag')))
+        assert recorder.bag_path == tmp_path / 'bag_1'
+        assert recorder.ledger['/fmm/force'].received_samples == 4000
+    assert {p.name: p.read_bytes() for p in (tmp_path / 'bag').iterdir()} == before
+    with BagReader(tmp_path / 'bag_1') as reader:
+        firsts = [b.first_sample_index for b in reader.sample_batches([FORCE_TOPIC])]
+        assert firsts == [0, 1000, 2000, 3000]
+        assert reader.recorded_ledger['/fmm/force'].received_samples == 4000
+
+
+def test_a_respawned_fitter_holds_again_what_it_held_with_its_live_mu(ros_graph, tmp_path):
+    state = params(state_dir=str(tmp_path / 'state'))
+    session(ros_graph)
+    fitter = ros_graph.add(Fitter, parameter_overrides=state)
+    ros_graph.start()
+    assert wait_for(lambda: 'over 3 impacts' in fitter.live_mu, timeout_s=120.0), fitter.impacts
+    held = {i: h.record.trigger_sample_index for i, h in fitter.impacts.items()}
+    mu = fitter.live_mu
+    with InProcessGraph() as graph:  # the respawn: a new process would start the same way
+        again = graph.add(Fitter, parameter_overrides=state)
+        listener = graph.add(Listener)
+        client = graph.add(Node, node_name='client').create_client(FitFriction, FIT_SERVICE)
+        graph.start()
+        assert {i: h.record.trigger_sample_index for i, h in again.impacts.items()} == held
+        assert again.live_mu == mu  # the restored fits, not fitted again
+        assert wait_for(lambda: listener.friction and listener.friction[-1].count == 3)
+        response = graph.call(client, FitFriction.Request(), timeout_s=60.0)
+        assert response.success and sorted(response.impact_ids) == sorted(held), response.message
 
 
 @pytest.fixture

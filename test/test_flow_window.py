@@ -8,13 +8,15 @@ velocity samples and refused 36 batches. So each consumer reports its max_skew_s
 progress, and a source holds its window a batch under the smallest.
 """
 
+import time
+
 import pytest
 from rclpy.node import Node
 from rig_graph import params, wait_for
 
 from fmm_interfaces.msg import SampleBatch, StreamProgress
 from fmm_ros.constants import STREAM_PROGRESS_TOPIC
-from fmm_ros.ros.flow import PacedSource
+from fmm_ros.ros.flow import SILENT_AFTER_S, FlowGate, PacedSource
 from fmm_ros.ros.nodes.analyzer import Analyzer
 from fmm_ros.ros.qos import PROGRESS_LISTEN_QOS, PROGRESS_QOS, SAMPLE_QOS
 
@@ -84,3 +86,40 @@ def test_a_consumer_reports_its_own_max_skew(ros_graph):
     ros_graph.start()
     assert wait_for(lambda: any(m.node == '/analyzer' for m in reports.heard), 10.0)
     assert {m.max_skew_s for m in reports.heard if m.node == '/analyzer'} == {3.0}
+
+
+def progress(node: str, topic: str, index: int) -> StreamProgress:
+    return StreamProgress(node=node, topics=[topic], next_sample_indices=[index])
+
+
+def test_a_source_waits_for_a_killed_consumer_and_counts_it_from_where_it_comes_back(
+    ros_graph,
+):
+    """A respawn: the awaited consumer falls silent, then reports nothing again."""
+    source = ros_graph.add(Node, node_name='source')
+    publisher = source.create_publisher(SampleBatch, 'fmm/test_batches', SAMPLE_QOS)
+    reports = ros_graph.add(Reports)
+    consumer = ros_graph.add(Node, node_name='consumer')
+    consumer.create_subscription(SampleBatch, 'fmm/test_batches', lambda m: None, SAMPLE_QOS)
+    gate = FlowGate(
+        source, [publisher], wait_for=['consumer'], start_timeout_s=0.0, silent_after_s=60.0
+    )
+    ros_graph.start()
+    topic = publisher.topic_name
+    reports.publisher.publish(progress('/consumer', topic, -1))
+    assert wait_for(gate.ready)
+    gate.sent(30_000)
+    reports.publisher.publish(progress('/consumer', topic, 20_000))
+    assert wait_for(lambda: gate.lag() == {'/consumer': 10_000})
+    time.sleep(SILENT_AFTER_S + 0.5)  # silent past the default, within silent_after_s
+    assert gate.lag() == {'/consumer': 10_000}
+    assert not gate.allows(30_000 + BATCH, 10_000)  # the source holds for it
+    reports.publisher.publish(progress('/consumer', topic, -1))  # killed and started again
+    assert wait_for(lambda: gate.lag() == {'/consumer': 0}), gate.lag()
+    gate.sent(31_000)
+    assert gate.lag() == {'/consumer': 1000}  # counted from where it came back
+    reports.publisher.publish(progress('/consumer', topic, 31_000))
+    assert wait_for(lambda: gate.lag() == {'/consumer': 0}), gate.lag()
+    # A node that was never awaited (a plot started late) counts from where the source is.
+    reports.publisher.publish(progress('/plot', topic, -1))
+    assert wait_for(lambda: gate.lag().get('/plot') == 0), gate.lag()

@@ -27,6 +27,8 @@ class ImpactCutter:
     def __init__(self, history: SampleHistory, logger: RcutilsLogger) -> None:
         self.history = history
         self.waiting: list[ImpactResult] = []
+        self.not_held: list[int] = []
+        """Ids of reported impacts whose record could not be cut (named in the log)."""
         self._logger = logger
         self._acquisition = 0
 
@@ -84,6 +86,7 @@ class ImpactCutter:
                 )
             except ValueError as error:
                 self._logger.warning(f'impact {msg.impact_id} cannot be held: {error}')
+                self.not_held.append(msg.impact_id)
                 continue
             cuts.append((msg, record))
         return cuts

@@ -188,13 +188,17 @@ class FlowGate:
         wait_for: Sequence[str],
         start_timeout_s: float,
         on_progress: Callable[[], None] | None = None,
+        silent_after_s: float = SILENT_AFTER_S,
     ) -> None:
         """Gate the source's SampleBatch publishers.
 
         wait_for: node names (relative to the source's namespace, or absolute) that must
         report before the first sample; a start_timeout_s of 0 waits for ever.
+        silent_after_s: how long a consumer that lags may say nothing before it stops
+        counting (`lag`), an awaited one also past its DDS lease (`_forget_departed`).
         """
         self._node = node
+        self._silent_after_s = float(silent_after_s)
         self._publishers = {publisher.topic_name: publisher for publisher in publishers}
         namespace = node.get_namespace()
         self.wait_for = [resolve_name(name, namespace) for name in wait_for if name]
@@ -206,6 +210,11 @@ class FlowGate:
         self._heard: dict[str, float] = {}  # when each last reported
         self._skews: dict[str, float] = {}  # each consumer's max_skew_s (0: none)
         self._silent: dict[str, bool] = {}  # consumers not waited for while silent
+        # Consumers (re)started after the source started (a respawned node reporting less
+        # than before, a late plot reporting nothing): the index the source had reached
+        # then, from which they count.
+        self._joined_at: dict[str, int] = {}
+        self._highest: dict[str, dict[str, int]] = {}  # each node's highest report this acquisition
         self._graph_checked = 0.0
         self.first_index = 0  # where the source's current acquisition began
         self.published_end = 0  # index after the last sample published
@@ -227,6 +236,18 @@ class FlowGate:
             if topic in self._publishers
         }
         if mine:
+            before = self._highest.setdefault(message.node, {})
+            late = not before and all(index < self.first_index for index in mine.values())
+            back = any(index < before.get(topic, -1) for topic, index in mine.items())
+            if self.started and (late or back):
+                # A node (re)started under this name (a respawn, a late plot): it is sent
+                # nothing older than now (VOLATILE), whatever it reports (nothing, or where
+                # a killed recorder's bag ended), so it counts from here.
+                self._joined_at[message.node] = self.published_end
+                before.clear()  # what it reports from now on is the new node's
+            for topic, index in mine.items():
+                if index <= self.published_end:  # not an earlier, longer acquisition's
+                    before[topic] = max(index, before.get(topic, -1))
             self._progress[message.node] = mine
             self._skews[message.node] = message.max_skew_s
             self._seen[message.node] = self._heard[message.node] = time.monotonic()
@@ -293,6 +314,8 @@ class FlowGate:
     def begin(self, first_index: int) -> None:
         """The source (re)starts its acquisition at first_index."""
         self.first_index = self.published_end = int(first_index)
+        self._joined_at.clear()
+        self._highest.clear()
 
     def sent(self, end_index: int) -> None:
         """The source published samples up to end_index (exclusive)."""
@@ -309,7 +332,7 @@ class FlowGate:
         for name, topics in self._progress.items():
             behind = max(
                 (
-                    self.published_end - self._effective(index)
+                    self.published_end - self._effective(index, self._joined_at.get(name))
                     for candidate, index in topics.items()
                     if topic is None or candidate == topic
                 ),
@@ -317,11 +340,11 @@ class FlowGate:
             )
             if behind is None:
                 continue
-            if behind > 0 and now - self._heard.get(name, now) > SILENT_AFTER_S:
+            if behind > 0 and now - self._heard.get(name, now) > self._silent_after_s:
                 if not self._silent.get(name):
                     self._silent[name] = True
                     self._node.get_logger().warning(
-                        f'consumer {name} has said nothing for {SILENT_AFTER_S:g} s with '
+                        f'consumer {name} has said nothing for {self._silent_after_s:g} s with '
                         f'{behind} samples outstanding (from sample '
                         f'{self.published_end - behind} on, while the others go on): no '
                         'longer waited for; what it misses its own ledger names'
@@ -355,8 +378,15 @@ class FlowGate:
         lags = self.lag(topic)
         return self.published_end - max(lags.values(), default=0)
 
-    def _effective(self, index: int) -> int:
-        """A reported index as progress in the current acquisition."""
+    def _effective(self, index: int, joined_at: int | None = None) -> int:
+        """A reported index as progress in the current acquisition.
+
+        joined_at: where a consumer (re)started after the start counts from until it
+        reports more (it is sent nothing older: VOLATILE), so a respawned consumer never
+        holds the source for what it could not receive.
+        """
+        if joined_at is not None and index < joined_at:
+            return min(joined_at, self.published_end)
         if index < self.first_index:
             return self.first_index  # nothing yet (-1), or an earlier acquisition's
         return min(index, self.published_end)  # beyond: an earlier, longer acquisition's
@@ -374,8 +404,12 @@ class FlowGate:
         for name in list(self._progress):
             if name in present:
                 self._seen[name] = now
-            elif now - self._seen.get(name, now) > LEFT_AFTER_S:
+            elif now - self._seen.get(name, now) > LEFT_AFTER_S and (
+                name not in self.wait_for or now - self._heard.get(name, now) > self._silent_after_s
+            ):  # an awaited one is waited for silent_after_s (its respawn), not the DDS lease
                 del self._progress[name]
+                self._joined_at.pop(name, None)
+                self._highest.pop(name, None)
                 self._node.get_logger().warning(
                     f'consumer {name} left the graph: no longer waited for'
                 )
@@ -396,6 +430,15 @@ SOURCE_PARAMS = (
         60.0,
         'How long to wait for them before stopping with their names [s]; 0 waits for ever',
         limits=(0.0, 86_400.0),
+        read_only=True,
+    ),
+    Param(
+        'silent_after_s',
+        SILENT_AFTER_S,
+        'How long a consumer that lags may say nothing before the source goes on without it '
+        "[s] (a stall, or a node killed: DDS keeps a killed node's name 20 s); longer holds the "
+        'source while a node respawns, which then loses only what was in flight to it',
+        limits=(0.1, 3600.0),
         read_only=True,
     ),
     Param(
@@ -462,6 +505,7 @@ class PacedSource:
             wait_for=config['wait_for_consumers'],
             start_timeout_s=config['start_timeout_s'],
             on_progress=self._on_progress,
+            silent_after_s=config.get('silent_after_s', SILENT_AFTER_S),
         )
         self.pacer = BatchPacer(batches_per_s)
         self.window = int(window_samples)

@@ -61,6 +61,17 @@ RESULT_QOS = QoSProfile(
 )
 """Results (impacts, FRFs, mu): a late subscriber still gets the latest ones."""
 
+IMPACT_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=100,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+"""Impacts: the analyzer keeps its last 100 for late subscribers, so a fitter or a station
+killed and respawned hears every hit of a session again (and holds it again, or names it as
+one whose samples it never got). About 25 kB a message with its FRF: 2.5 MB at most per
+writer and reader. Compatible with RESULT_QOS readers (depth is not matched)."""
+
 PROGRESS_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=1,

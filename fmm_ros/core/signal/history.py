@@ -156,6 +156,11 @@ class SampleHistory:
         stop = start + length
         if not self.covers(start, stop):
             raise BadInputError(f'samples up to {stop} have not all arrived yet')
+        if start < self._first_index:
+            raise BadInputError(
+                f'samples from {start} never reached this history: it begins at sample '
+                f'{self._first_index} (the node started or restarted after them)'
+            )
         if not self.holds(start) or length > self.capacity:
             raise BadInputError(
                 f'samples from {start} are no longer held (the history keeps '

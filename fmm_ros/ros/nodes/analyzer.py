@@ -37,10 +37,10 @@ from fmm_ros.core.signal.stream import Batch
 from fmm_ros.errors import BadInputError, FmmError
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import RESULT_QOS, run_node, shared_params
-from fmm_ros.ros.health import OK, Health
+from fmm_ros.ros.health import OK, WARN, Health
 from fmm_ros.ros.inputs import SampleInputs
 from fmm_ros.ros.params import Param, declare_parameters, params_from
-from fmm_ros.ros.qos import DECISION_QOS
+from fmm_ros.ros.qos import DECISION_QOS, IMPACT_QOS
 
 # The capture's and the FRFs' settings as declared in the core (`core.signal.config`), then
 # the levels, which a params file gives as parallel lists.
@@ -116,7 +116,9 @@ class Analyzer(Node):
         self.results: deque[ImpactAnalysis] = deque(maxlen=self.config['keep_last_impacts'])
         self.impacts_reported = 0
         self.impacts_accepted = 0
-        self._impact_pub = self.create_publisher(ImpactResult, IMPACTS_TOPIC, RESULT_QOS)
+        self.joined_at_s = 0.0
+        """Signal time at which this analyzer joined an acquisition under way (0: at its start)."""
+        self._impact_pub = self.create_publisher(ImpactResult, IMPACTS_TOPIC, IMPACT_QOS)
         self._frf_pub = self.create_publisher(FrfSummary, FRF_TOPIC, RESULT_QOS)
         self.decisions: dict[int, Decision] = {}
         self._last_stamp = Time()
@@ -143,6 +145,7 @@ class Analyzer(Node):
 
     def _on_batch(self, quantity: str, batch: Batch) -> None:
         if not self.capture.stream.started and batch.first_sample_index > 0:
+            self.joined_at_s = batch.first_sample_index / batch.sample_rate_hz
             self.get_logger().warning(
                 f'joined an acquisition under way at sample {batch.first_sample_index} '
                 f'({batch.first_sample_index / batch.sample_rate_hz:.1f} s in, {quantity}): '
@@ -158,9 +161,15 @@ class Analyzer(Node):
 
     def _impacts_status(self) -> tuple:
         last = self.results[-1] if self.results else None
+        joined = (
+            f'; joined the acquisition {self.joined_at_s:.1f} s in (a respawn?): a hit before '
+            'that, or under way then, is not reported here (the bag has it)'
+            if self.joined_at_s
+            else ''
+        )
         return (
-            OK,
-            f'{self.impacts_reported} reported, {self.impacts_accepted} accepted',
+            WARN if joined else OK,
+            f'{self.impacts_reported} reported, {self.impacts_accepted} accepted{joined}',
             {
                 'impacts reported': self.impacts_reported,
                 'impacts accepted': self.impacts_accepted,

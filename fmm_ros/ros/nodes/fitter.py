@@ -23,6 +23,12 @@ overrule the flags in both: a fit request takes the impacts `select_impacts` tak
 them, and the live mu drops a rejected impact (a new estimate, without its id) and takes an
 accepted one back.
 
+Given a `state_dir`, each held impact (its record, what the analyzer said about it, its live
+fit) is written there as it is held (`io.held_impacts`), and a fitter started on it (a
+respawn after SIGKILL) holds them again and publishes the live mu over them at once. A
+reported impact whose record cannot be cut (its samples never reached this fitter: a record
+open at a kill, or sent while it was down) is named in the log and WARN on /diagnostics.
+
 Service callbacks run in their own callback group, so under `ros2 run` (a multi-threaded
 executor) the streams keep flowing while a fit runs.
 """
@@ -31,6 +37,7 @@ import queue
 import threading
 from collections import Counter, OrderedDict
 from dataclasses import dataclass
+from pathlib import Path
 
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
@@ -56,13 +63,20 @@ from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.core.signal.response import as_measured
 from fmm_ros.core.signal.stream import Batch
 from fmm_ros.errors import BadInputError, FitError
+from fmm_ros.io.held_impacts import (
+    StoredImpact,
+    forget_impact,
+    load_impacts,
+    save_impact,
+    save_live_fit,
+)
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import RIG_PARAMS, rig_from_parameters, run_node, shared_params
 from fmm_ros.ros.cutting import ImpactCutter
-from fmm_ros.ros.health import OK, Health
+from fmm_ros.ros.health import OK, WARN, Health
 from fmm_ros.ros.inputs import SampleInputs
 from fmm_ros.ros.params import Param, declare_parameters, params_from
-from fmm_ros.ros.qos import DECISION_QOS, RESULT_QOS
+from fmm_ros.ros.qos import DECISION_QOS, IMPACT_QOS, RESULT_QOS
 from fmm_ros.workflows.results import FrictionResult
 
 PARAMS = (
@@ -84,6 +98,13 @@ PARAMS = (
         read_only=True,
     ),
     *shared_params('history_s', history_s=120.0),
+    Param(
+        'state_dir',
+        '',
+        'Directory where each held impact is kept (its record and live fit, one file each), '
+        'so a fitter killed and respawned holds them again; "" keeps them in memory only',
+        read_only=True,
+    ),
 )
 
 
@@ -130,7 +151,7 @@ class Fitter(Node):
         )
         health.add('fits', self._fits_status)
         self.create_subscription(
-            ImpactResult, IMPACTS_TOPIC, self._on_impact, RESULT_QOS, callback_group=streams
+            ImpactResult, IMPACTS_TOPIC, self._on_impact, IMPACT_QOS, callback_group=streams
         )
         self.decisions: dict[int, Decision] = {}
         self.create_subscription(
@@ -145,10 +166,15 @@ class Fitter(Node):
         # Each live-fitted impact's own (level, mu, stderr): put back when accepted again.
         self._own_fits: dict[int, tuple[str, float, float]] = {}
         self._to_fit: queue.Queue[HeldImpact | None] = queue.Queue()
+        self.state_dir = Path(cfg['state_dir']) if cfg['state_dir'] else None
+        self._state_failed = ''
+        restored = self._restore() if self.state_dir else 0
         self._worker = None
         if cfg['live_mu']:
             self._worker = threading.Thread(target=self._fit_live, name='live_mu', daemon=True)
             self._worker.start()
+            if restored:
+                self._requeue_restored()
         services = MutuallyExclusiveCallbackGroup()
         self.create_service(
             FitFriction,
@@ -178,21 +204,38 @@ class Fitter(Node):
             self._hold(msg, record)
 
     def _on_impact(self, msg: ImpactResult) -> None:
+        with self._lock:
+            known = self.impacts.get(msg.impact_id)
+        if known is not None and known.record.trigger_sample_index == msg.trigger_sample_index:
+            return  # held already (restored, or heard again from a respawned analyzer)
         for cut, record in self.cutter.impact(msg):
             self._hold(cut, record)
 
     def _fits_status(self) -> tuple:
         with self._lock:
             held = list(self.impacts.values())
+        lost = self.cutter.not_held
         return (
-            OK,
+            WARN if lost else OK,
             f'{len(held)} impacts held ({sum(i.accepted for i in held)} accepted); '
+            + (
+                f'{len(lost)} reported but not held (their samples never reached this '
+                f'fitter, or were no longer held: ids {lost[-10:]}; the bag has them); '
+                if lost
+                else ''
+            )
             + (self.last_fit or 'no fit yet'),
             {
                 'impacts held': len(held),
                 'accepted held': sum(i.accepted for i in held),
                 'impacts waiting for samples': len(self.cutter.waiting),
+                'impacts not held': len(lost),
                 'history s': self.history.history_s,
+                'state dir': (
+                    f'{self.state_dir} ({self._state_failed or "written"})'
+                    if self.state_dir
+                    else 'none'
+                ),
                 'last fit': self.last_fit or 'none',
                 'live mu': self.live_mu or 'none',
             },
@@ -219,10 +262,89 @@ class Fitter(Node):
                     )
                 return
             self.impacts[msg.impact_id] = held
+            dropped = []
             while len(self.impacts) > self.config['keep_last_impacts']:
-                self.impacts.popitem(last=False)
+                dropped.append(self.impacts.popitem(last=False)[0])
+        self._keep(held, dropped)
         if self._worker is not None and self._taken(held):
             self._to_fit.put(held)
+
+    # -- state kept on disk (a respawn) ------------------------------------------------------
+
+    def _restore(self) -> int:
+        """Hold again the impacts a fitter before this one kept in state_dir; how many."""
+        try:
+            self.state_dir.mkdir(parents=True, exist_ok=True)
+            stored, refused = load_impacts(self.state_dir)
+        except OSError as error:
+            self._state_lost(error)
+            return 0
+        for text in refused:
+            self.get_logger().error(f'state_dir: {text}: not restored')
+        stored = stored[-self.config['keep_last_impacts'] :]
+        for impact in stored:
+            self.impacts[impact.impact_id] = HeldImpact(
+                impact.impact_id,
+                impact.level,
+                impact.accepted,
+                impact.flags,
+                impact.record,
+                impact.stamp_ns,
+            )
+            if impact.live_fit is not None:
+                self._own_fits[impact.impact_id] = impact.live_fit
+        if stored:
+            self.get_logger().warning(
+                f'restored {len(stored)} impacts held before this fitter started, from '
+                f'{self.state_dir} ({sum(i.accepted for i in stored)} accepted, '
+                f'{len(self._own_fits)} with their live fit): ids '
+                f'{[impact.impact_id for impact in stored]}'
+            )
+        return len(stored)
+
+    def _requeue_restored(self) -> None:
+        """The live mu over the restored impacts: their own fits, or fitted again."""
+        estimate = None
+        with self._lock:
+            held = list(self.impacts.values())
+            for impact in held:
+                own = self._own_fits.get(impact.impact_id)
+                if own is not None and self._taken(impact):
+                    estimate = self._running.add(impact.impact_id, *own)
+        if estimate is not None:
+            self._publish_estimate(estimate)
+        for impact in held:
+            if impact.impact_id not in self._own_fits and self._taken(impact):
+                self._to_fit.put(impact)
+
+    def _keep(self, held: HeldImpact, dropped: list[int]) -> None:
+        """Write a newly held impact to state_dir, and forget those no longer held."""
+        if self.state_dir is None or self._state_failed:
+            return
+        try:
+            save_impact(
+                self.state_dir,
+                StoredImpact(
+                    held.impact_id,
+                    held.level,
+                    held.accepted,
+                    held.flags,
+                    held.stamp_ns,
+                    held.record,
+                ),
+            )
+            for impact_id in dropped:
+                forget_impact(self.state_dir, impact_id)
+        except OSError as error:
+            self._state_lost(error)
+
+    def _state_lost(self, error: OSError) -> None:
+        """state_dir cannot be written (full, read-only, gone): said once, held in memory."""
+        self._state_failed = f'{type(error).__name__}: {error}'
+        self.get_logger().error(
+            f'state_dir {self.state_dir}: {self._state_failed}; impacts are held in memory '
+            'only from here on (a respawn would not hold them again)'
+        )
 
     # -- decisions --------------------------------------------------------------------------
 
@@ -276,6 +398,13 @@ class Fitter(Node):
                         continue  # fitted twice over, or rejected while it was fitted
                     estimate = self._running.add(held.impact_id, held.level, fit.mu, fit.mu_stderr)
                     self._own_fits[held.impact_id] = (held.level, fit.mu, fit.mu_stderr)
+                if self.state_dir is not None and not self._state_failed:
+                    try:
+                        save_live_fit(
+                            self.state_dir, held.impact_id, held.level, fit.mu, fit.mu_stderr
+                        )
+                    except OSError as error:
+                        self._state_lost(error)
             except ValueError as error:  # FitError included: the impact adds nothing
                 self.get_logger().warning(f'live mu: impact {held.impact_id} not used: {error}')
                 continue

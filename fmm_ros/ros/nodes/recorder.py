@@ -17,10 +17,18 @@ The newest session metadata the station published (fmm/session_info) goes into t
 metadata too (key fmm.session), so a campaign reads a bag's conditions without decoding it.
 
 A `bag_path` that exists already (a respawned recorder) is never overwritten: the recording
-goes to the first free `<bag_path>_<n>` beside it. Storage that fails under the recorder
-(disk full, a read-only path, a vanished mount) ends the recording, not the node (`_fail`).
+goes to the first free `<bag_path>_<n>` beside it. When the bag before it was never closed
+(its recorder was killed) and was written in the last `RESUME_WITHIN_S`, everything it holds
+is copied into the new bag first, read by scanning (`_resume`), so the newest bag holds the
+whole session: `fmm bag-info` and `fmm replay` of it read every message either recorder
+stored, the killed one's bag stays as it was, and the new ledger counts the samples of the
+downtime missing. What the new recorder hears again from transient-local publishers
+(impacts, decisions) that the copy holds already is not stored twice. Storage that fails
+under the recorder (disk full, a read-only path, a vanished mount) ends the recording, not
+the node (`_fail`).
 """
 
+import hashlib
 import json
 import time
 from datetime import datetime
@@ -51,6 +59,7 @@ from fmm_ros.errors import FmmError
 from fmm_ros.io.bags.definitions import SAMPLE_BATCH
 from fmm_ros.io.bags.errors import BagError
 from fmm_ros.io.bags.metadata import LEDGER_KEY, ledger_text
+from fmm_ros.io.bags.reader import BagReader
 from fmm_ros.io.bags.writer import WRITE_ERRORS, BagWriter, bag_qos, free_bag_path
 from fmm_ros.io.session_info import SESSION_KEY, from_message, to_json
 from fmm_ros.ros import msgs
@@ -101,6 +110,11 @@ PARAMS = (
         read_only=True,
     ),
 )
+
+# A bag never closed and written this recently [s] was a killed recorder's of this session
+# (a respawn takes seconds to a minute): copied into the new bag. An older one is another
+# session's (a crash yesterday), left alone.
+RESUME_WITHIN_S = 600.0
 
 # Topics of this package: type and the QoS their publishers offer.
 KNOWN_TOPICS = {
@@ -161,6 +175,21 @@ class Recorder(Node):
                 self._subscribe(topic, *KNOWN_TOPICS[topic])
             else:
                 self._pending.append(topic)
+        # Digests of transient-local messages copied from a killed recorder's bag: the same
+        # bytes heard again from their publisher are not stored twice.
+        self._copied: set[tuple[str, bytes]] = set()
+        previous = _predecessor(asked, self.bag_path)
+        if previous is not None and not (previous / 'metadata.yaml').exists() and not self.failed:
+            written_s = time.time() - max(
+                (p.stat().st_mtime for p in previous.iterdir()), default=0.0
+            )
+            if written_s <= RESUME_WITHIN_S:
+                self._resume(previous)
+            else:
+                self.get_logger().warning(
+                    f'{previous} was never closed, but last written {written_s:.0f} s ago: '
+                    'another session, not copied into this bag'
+                )
         self._discover()
         self._timer = self.create_timer(self.config['discovery_period_s'], self._discover)
         recorded = [sub.topic_name for sub in self._raw_subscriptions]
@@ -174,6 +203,36 @@ class Recorder(Node):
     def ledger(self):
         """Each SampleBatch topic's ledger, by resolved topic name."""
         return {topic: stream.ledger[topic] for topic, stream in self._streams.items()}
+
+    def _resume(self, previous: Path) -> None:
+        """Copy an unclosed bag (its recorder killed) into this one before recording on.
+
+        Read by scanning up to where the killed recorder got; sample batches go through the
+        ledger streams as if heard, so the ledger covers the whole session. A bag that cannot
+        be read is named and left; this recording goes on.
+        """
+        copied = 0
+        try:
+            with BagReader(previous, strict=False) as reader:
+                for message in reader.messages():
+                    data = bytes(message.data)
+                    if message.topic in self._streams:
+                        self._store_batch(message.topic, message.msgtype, data, message.log_time_ns)
+                    else:
+                        self._store(message.topic, message.msgtype, data, message.log_time_ns)
+                        self._copied.add((message.topic, hashlib.sha1(data).digest()))
+                    copied += 1
+        except (OSError, FmmError) as error:
+            self.get_logger().error(
+                f'{previous} was not closed and cannot be read ({error}): {copied} messages '
+                f'of it copied into {self.bag_path}; the rest is only in {previous}'
+            )
+            return
+        self.get_logger().warning(
+            f'{previous} was not closed (its recorder was killed): its {copied} messages '
+            f'copied into {self.bag_path}, which records on (the session whole in one bag; '
+            f'{previous} is left as it was)'
+        )
 
     def _fail(self, error: Exception) -> None:
         """The storage failed (disk full, read-only path, mount gone): close the bag as it is.
@@ -330,12 +389,17 @@ class Recorder(Node):
         except WRITE_ERRORS as error:
             self._fail(error)
 
-    def _store(self, topic: str, msgtype: str, data: bytes) -> None:
+    def _store(self, topic: str, msgtype: str, data: bytes, log_time_ns: int | None = None) -> None:
+        if self._copied and log_time_ns is None:
+            digest = (topic, hashlib.sha1(data).digest())
+            if digest in self._copied:  # a transient-local message the copy holds already
+                self._copied.discard(digest)
+                return
         if self.failed:
             self.messages_not_recorded += 1
             return
         try:
-            self.writer.write_raw(topic, msgtype, data, time.time_ns())
+            self.writer.write_raw(topic, msgtype, data, log_time_ns or time.time_ns())
         except WRITE_ERRORS as error:
             self.messages_not_recorded += 1
             self._fail(error)
@@ -344,10 +408,12 @@ class Recorder(Node):
         if msgtype == 'fmm_interfaces/msg/SessionInfo':
             self._session_info = data
 
-    def _store_batch(self, topic: str, msgtype: str, data: bytes) -> None:
+    def _store_batch(
+        self, topic: str, msgtype: str, data: bytes, log_time_ns: int | None = None
+    ) -> None:
         """Store a SampleBatch as it came; account for it by the stream rules."""
         self.last_batch_at = time.monotonic()
-        self._store(topic, msgtype, data)
+        self._store(topic, msgtype, data, log_time_ns)
         stream = self._streams[topic]
         batch = msgs.stream_batch(deserialize_message(data, SampleBatch))
         try:
@@ -398,6 +464,14 @@ class Recorder(Node):
                 }
             ),
         )
+
+
+def _predecessor(asked: Path, chosen: Path) -> Path | None:
+    """The bag a recorder before this one wrote at `asked` (None when chosen is asked)."""
+    if chosen == asked:
+        return None
+    number = int(chosen.name.rsplit('_', 1)[1])
+    return asked if number == 1 else asked.with_name(f'{asked.name}_{number - 1}')
 
 
 def main(args: list[str] | None = None) -> int:

@@ -126,6 +126,7 @@ class RigSim(Node):
             wait_for=cfg['wait_for_consumers'],
             start_timeout_s=cfg['start_timeout_s'],
             on_progress=self._report,
+            silent_after_s=cfg['silent_after_s'],
         )
         subscription = self.create_subscription(
             SampleBatch, cfg['input_topic'], self._on_force, SAMPLE_QOS

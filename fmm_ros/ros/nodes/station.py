@@ -66,6 +66,7 @@ from fmm_ros.ros.params import Param, declare_parameters
 from fmm_ros.ros.qos import (
     DECISION_QOS,
     DIAGNOSTICS_QOS,
+    IMPACT_QOS,
     RESULT_QOS,
     SESSION_INFO_QOS,
     VIEW_SAMPLE_QOS,
@@ -158,7 +159,7 @@ class Station(Node):
                 lambda msg, quantity=channel.quantity: self._on_batch(quantity, msg),
                 VIEW_SAMPLE_QOS,
             )
-        self.create_subscription(ImpactResult, IMPACTS_TOPIC, self._on_impact, RESULT_QOS)
+        self.create_subscription(ImpactResult, IMPACTS_TOPIC, self._on_impact, IMPACT_QOS)
         self.create_subscription(FrfSummary, FRF_TOPIC, self.state.on_level, RESULT_QOS)
         self.create_subscription(
             FrictionEstimate, FRICTION_TOPIC, self.state.on_friction, RESULT_QOS
