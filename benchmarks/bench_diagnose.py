@@ -786,6 +786,33 @@ def markdown(sweeps: list[Sweep]) -> str:
     return '\n'.join(parts)
 
 
+def limit_rates(
+    worlds: tuple[str, ...], cases: int, seed: int, multiples: tuple[float, ...], *, quick: bool
+) -> None:
+    """Per kind on the held-out worlds, how often an effect at `multiples` of a limit is named.
+
+    The limit is the one a clean session stated (`bench_limits.check`); the rates stand against
+    the targets, in a RESULTS.md section of their own. The limits' benchmark holds the sessions
+    and the counting; this reports its rates per kind beside the sweeps.
+    """
+    import bench_limits  # noqa: PLC0415 (it imports this script's tables: no cycle at load)
+
+    held_out = [name for name in HELDOUT_WORLDS if ROLES[name] == HELD_OUT]
+    chosen = [w for w in held_out if w in (worlds or held_out)][: 1 if quick else None]
+    effects = bench_limits.QUICK_EFFECTS[:1] if quick else None
+    checks = [
+        bench_limits.check(name, 1 if quick else cases, seed, effects, multiples) for name in chosen
+    ]
+    named = f' [{", ".join(worlds)}]' if worlds else ''
+    at = ', '.join(f'{m:g}x' for m in multiples)
+    write_section(
+        f'bench_diagnose, held out limits at {at}{named}'
+        + (f', seed {seed}' if seed != DEFAULT_SEED else ''),
+        bench_limits.markdown(checks, cases),
+        quick=quick,
+    )
+
+
 def lower_floors(text: str) -> tuple[float, ...]:
     """--floors' values: comma-separated numbers between 0 and MIN_WHOLE_EXCESS [noise RMS]."""
     try:
@@ -849,6 +876,17 @@ def main() -> None:
         'these lower values [noise RMS], every session it could change, and say what changed',
     )
     parser.add_argument(
+        '--limit-multiples',
+        type=lambda text: tuple(float(m) for m in text.split(',')),
+        default=(),
+        help='only report, per kind on the held-out worlds, how often an effect set at these '
+        'multiples of the limit its clean session states is named (e.g. 1.5,1.2; no sweeps, '
+        'no timing)',
+    )
+    parser.add_argument(
+        '--limit-cases', type=int, default=20, help='sessions a world for --limit-multiples'
+    )
+    parser.add_argument(
         '--role',
         choices=('all', 'tuning', 'held-out'),
         default='all',
@@ -865,6 +903,14 @@ def main() -> None:
             f'unknown world(s) {", ".join(unknown)}; known: '
             + ', '.join(source.name for source in SOURCES)
         )
+    if args.limit_multiples:
+        tuning = sorted(w for w in args.worlds if ROLES[w] != HELD_OUT)
+        if tuning:
+            parser.error(f'--limit-multiples reports held-out worlds only, not {", ".join(tuning)}')
+        limit_rates(
+            args.worlds, args.limit_cases, args.seed, args.limit_multiples, quick=args.quick
+        )
+        return
     counts = {'ours': args.cases, 'worlds': args.world_cases}
     for role in ('tuning', HELD_OUT) if args.role == 'all' else (args.role.replace('-', ' '),):
         sweeps = []
