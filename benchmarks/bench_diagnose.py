@@ -3,6 +3,7 @@
 Run: .venv/bin/python benchmarks/bench_diagnose.py [--quick] [--cases N] [--world-cases W]
      [--heldout-cases H] [--seed S] [--repeats R] [--session-hits K] [--skip-sweep]
      [--kinds K,...] [--worlds W,...] [--role all|tuning|held-out] [--floors F,...]
+     [--limit-multiples M,... [--limit-cases C]]
 
 Generators of sessions, each with its role declared once in `test/heldout` (`ROLES`):
 tuning worlds, which the diagnosis's thresholds were chosen on, and held-out worlds, never
@@ -62,6 +63,11 @@ sweeps only the worlds named, into a section of their own too); --quick (one
 session of a few kinds per world, three-hit timing) writes nothing. --floors measures what a
 lower whole-misfit floor (MIN_WHOLE_EXCESS) would answer: each session it could change is
 diagnosed again at each floor, and each world's summary says what was gained and lost.
+--limit-multiples 1.5,1.2 reports instead, per kind on each held-out world, how often an effect
+set at those multiples of the limit a clean session of C states is named (`bench_limits`: the
+same hits, chain and noise diagnosed clean, then with the effect), against at least 90 % per
+kind at 1.5x (1.2x aimed for) and at most 5 % clean sessions naming anything; a section each.
+Pairs are also counted with each effect under its session's stated limit excused (not a miss).
 """
 
 import argparse
