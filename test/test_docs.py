@@ -121,16 +121,16 @@ def test_the_readme_quotes_the_held_out_sweeps_results_md_holds():
 
 
 LIMIT_SECTIONS = tuple(
-    f'bench_diagnose, held out limits at 1.5x [{world}]'
-    for world in ('events', 'newmark', 'karnopp')
+    f'bench_diagnose, held out limits at 1.5x [{world}]' for world in ('events', 'newmark')
 )
-"""The RESULTS.md sections of the effects set at 1.5x their stated limit, a world each."""
+"""The RESULTS.md sections of the effects set at 1.5x their stated limit, a world each (the
+third held-out world, `karnopp`, generates too slowly for the run that measured these)."""
 PAIRS_SECTION = 'bench_diagnose, held out worlds [events, newmark, karnopp] (pair)'
 """The RESULTS.md section of the held-out pairs since the physical ranges."""
 
 
 def test_the_readme_quotes_the_limits_results_md_holds():
-    """Per kind over the three held-out worlds, the effects named at 1.5x the limit a clean
+    """Per kind over the held-out worlds swept, the effects named at 1.5x the limit a clean
     session stated, those clean sessions, and the pairs with effects under their limit excused."""
     readme = _readme()
     sections = [read_section(name) for name in LIMIT_SECTIONS]
