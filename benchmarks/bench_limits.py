@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from bench_diagnose import DEFAULT_SEED, HIDDEN_SIZE, SHORT
+from bench_diagnose import DEFAULT_SEED, HIDDEN_SIZE, SHORT, TARGET_FALSE_ALARMS
 from results_file import QUICK_HELP, write_section
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'test'))
@@ -55,6 +55,12 @@ MULTIPLES = (0.5, 2.0)
 CLEAN_FRACTION = 1e-9
 """A clean session's effect, as a fraction of its drawn size: nothing to see, but the world
 treats the session as one of that effect (it re-centres the hits for an asymmetry)."""
+TARGET_MULTIPLE = 1.5
+"""The multiple of a clean session's stated limit an effect is held to be named from."""
+AIM_MULTIPLE = 1.2
+"""The multiple aimed for: reported beside the target, judged the same way."""
+TARGET_NAMED = 0.9
+"""The share of sessions, per effect, that must name an effect drawn at TARGET_MULTIPLE."""
 LEVELS_N = (450.0, 1000.0, 1450.0)
 QUICK_EFFECTS = ('cubic_stiffness', 'mu_drift', 'second_mode')
 
@@ -74,6 +80,8 @@ class Check:
     false_alarms: int = 0
     """Clean sessions that named anything."""
     clean: int = 0
+    misses: list[str] = field(default_factory=list)
+    """Each effect not named at a multiple of at least TARGET_MULTIPLE, in words."""
 
     def table(self) -> list[str]:
         """The markdown table of this world."""
@@ -107,6 +115,40 @@ class Check:
             total = sum(c.get(multiple, [0, 0])[1] for c in self.named.values())
             lines.append(f'at {multiple:g}x the stated size: named {named} of {total}')
         lines.append(f'clean sessions that named anything: {self.false_alarms} of {self.clean}')
+        return lines
+
+    def targets(self) -> list[str]:
+        """Per effect, the share named at TARGET_MULTIPLE and AIM_MULTIPLE, each met or not.
+
+        The target asks at least TARGET_NAMED of every effect's sessions at TARGET_MULTIPLE; the
+        aim asks the same at AIM_MULTIPLE. Then the clean sessions' false alarms.
+        """
+        lines = []
+        for multiple, what in ((TARGET_MULTIPLE, 'target'), (AIM_MULTIPLE, 'aim')):
+            if multiple not in self.multiples:
+                continue
+            rates = {
+                effect: counts[multiple]
+                for effect, counts in self.named.items()
+                if counts.get(multiple, [0, 0])[1]
+            }
+            if not rates:
+                continue
+            worst = min(rates, key=lambda e: rates[e][0] / rates[e][1])
+            share = rates[worst][0] / rates[worst][1]
+            per_kind = ', '.join(f'{SHORT[e]} {n[0]} of {n[1]}' for e, n in rates.items())
+            lines.append(
+                f'named at {multiple:g}x the stated size, per kind: {per_kind}; worst '
+                f'{SHORT[worst]} {share:.2f} ({what} at least {TARGET_NAMED:.2f} per kind) '
+                f'{"met" if share >= TARGET_NAMED else "NOT met"}'
+            )
+        if self.clean:
+            alarms = self.false_alarms / self.clean
+            met = 'met' if alarms <= TARGET_FALSE_ALARMS else 'NOT met'
+            lines.append(
+                f'clean sessions that named anything: {alarms:.2f} (target at most '
+                f'{TARGET_FALSE_ALARMS:.2f}) {met}'
+            )
         return lines
 
 
@@ -162,9 +204,21 @@ def check(
                 tally = counts.setdefault(multiple, [0, 0])
                 tally[0] += effect in result.named_effects
                 tally[1] += 1
+                if effect not in result.named_effects and multiple >= min(
+                    TARGET_MULTIPLE, AIM_MULTIPLE
+                ):
+                    verdict = ' '.join(result.verdict.split())[:200]
+                    found.misses.append(
+                        f'{SHORT[effect]} at {multiple:g}x ({sign * size:.3g} '
+                        f'{found.units[effect]}), case {number}: named '
+                        f'{", ".join(result.named_effects) or "none"}; {verdict}'
+                    )
         print(f'  {name} case {number}: done', flush=True)
     print(f'\n{name} (held out world)')
-    print('\n'.join(found.table() + found.totals()), flush=True)
+    print('\n'.join(found.table() + found.totals() + found.targets()), flush=True)
+    print('misses:' if found.misses else 'misses: none')
+    for miss in found.misses:
+        print(f'  {miss}', flush=True)
     return found
 
 
@@ -191,7 +245,9 @@ def markdown(checks: list[Check], cases: int) -> str:
     for found in checks:
         parts.append(f'**{found.world}** ({cases} sessions)\n')
         parts.append('\n'.join(found.table()) + '\n')
-        parts.append('\n'.join(f'- {line}' for line in found.totals()) + '\n')
+        lines = found.totals() + found.targets()
+        lines += [f'missed: {miss}' for miss in found.misses]
+        parts.append('\n'.join(f'- {line}' for line in lines) + '\n')
     return '\n'.join(parts)
 
 

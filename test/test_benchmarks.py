@@ -154,6 +154,26 @@ def test_bench_diagnose_refuses_floors_it_cannot_lower_to(floors: str, tmp_path:
     assert f'argument --floors: {floors!r}: give comma-separated floors between 0 and' in run.stderr
 
 
+def test_bench_diagnose_reports_limits_on_held_out_worlds_only(tmp_path: Path):
+    """The rates at a multiple of the stated limit are a held-out measurement: a tuning world
+    is refused by name, before any session is drawn."""
+    run = _bench_diagnose(tmp_path, '--limit-multiples', '1.5', '--worlds', 'events,steps')
+    assert run.returncode == 2
+    assert '--limit-multiples reports held-out worlds only, not steps' in run.stderr
+
+
+@pytest.mark.slow
+def test_bench_diagnose_reports_the_rate_per_kind_at_a_multiple_of_the_limit(tmp_path: Path):
+    """One clean session and one effect at 1.5x its stated limit, judged against the target."""
+    results = BENCHMARKS / 'RESULTS.md'
+    before = results.read_bytes()
+    run = _bench_diagnose(tmp_path, '--quick', '--limit-multiples', '1.5', '--worlds', 'events')
+    assert run.returncode == 0, run.stderr[-3000:]
+    assert 'named at 1.5x the stated size, per kind: cubic 1 of 1; worst cubic' in run.stdout
+    assert 'clean sessions that named anything: 0.00 (target at most 0.05) met' in run.stdout
+    assert results.read_bytes() == before
+
+
 def _bench_diagnose(cwd: Path, *arguments: str) -> subprocess.CompletedProcess:
     """bench_diagnose.py run with some arguments, its output captured as text."""
     return subprocess.run(
