@@ -14,8 +14,12 @@ parts of the replay alone, on one thread (down to the three DFTs of each 33 s re
 the analysis cannot go below while its FRF is the whole record's). Also the replay with
 each faster analysis step swapped back for the numpy it replaced
 (`test/reference_analysis.py`: the same results, the analysis as it was before its kernels),
-and a campaign session's share of the same work (its bag read by `read_inputs`, its records
-analysed by `workflows.session.analyse`), on the threads and on one.
+a campaign session's share of the same work (its bag read by `read_inputs`, its records
+analysed by `workflows.session.analyse`), on the threads and on one. And the whole process a
+user waits for: fresh `fmm replay BAG` processes (start-up, imports, the numba cache load and
+exit included), against a fresh `python -c pass` and the in-process replay above, one of each
+per repeat; their bytecode is cached (in a temporary `PYTHONPYCACHEPREFIX`, warmed first) as
+an installed package has it, whatever PYTHONDONTWRITEBYTECODE says here (--quick: as it says).
 The process keeps freed memory for reuse as the `fmm` command does (`fmm_ros.core.memory`), so
 every row runs under the allocator `fmm replay` runs under.
 
@@ -23,8 +27,11 @@ every row runs under the allocator `fmm replay` runs under.
 """
 
 import argparse
+import os
+import resource
 import shutil
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -51,7 +58,9 @@ from fmm_ros.workflows.inputs import InputOptions, read_inputs
 from fmm_ros.workflows.replay import bag_impact_records, capture_records, replay_bag
 from fmm_ros.workflows.session import analyse
 
+ROOT = Path(__file__).resolve().parents[1]
 TARGET_X = 1500.0  # times real time
+TARGET_PROCESS_X = 1000.0  # times real time, the whole `fmm replay` process
 TARGET_OF_BARE = 1.5  # replay time over the bare read's
 ANALYSIS = AnalysisConfig(levels=paper_levels())
 THREADS = available_threads()
@@ -65,6 +74,22 @@ CAMPAIGN = f'campaign session: read_inputs + analyse, {THREADS} threads'
 CAMPAIGN_ONE = 'campaign session, one thread'
 DFTS_ONE = '    of which: their DFTs (3 a record)'
 DFTS_THREADED = f'    the same DFTs on {THREADS} threads (ceiling)'
+PROCESS = 'whole process: fresh `fmm replay BAG`'
+PASS = '  against: fresh `python -c pass`'
+FMM_SCRIPT = 'import sys; from fmm_ros.cli import main; sys.exit(main())'  # the console script
+
+
+def fresh_process(command: list[str], env: dict[str, str]) -> tuple[float, float]:
+    """Wall and processor time [s] of one fresh process running command (output discarded)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    subprocess.run(
+        command, env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
+    return wall, cpu
 
 
 def replay(bag: Path) -> int:
@@ -208,11 +233,30 @@ def main() -> int:
             CAMPAIGN: campaign,
             CAMPAIGN_ONE: campaign_session(1),
         }
+        # Fresh processes import this checkout's fmm_ros (the one timed here), bytecode cached.
+        env = dict(os.environ)
+        if not args.quick:  # (a quick run skips the warm-up, which compiles every module)
+            env.pop('PYTHONDONTWRITEBYTECODE', None)
+            env['PYTHONPYCACHEPREFIX'] = str(work / 'pycache')
+        env['PYTHONPATH'] = os.pathsep.join(filter(None, (str(ROOT), env.get('PYTHONPATH'))))
+        processes = {
+            PROCESS: [sys.executable, '-c', FMM_SCRIPT, 'replay', str(bag)],
+            PASS: [sys.executable, '-c', 'pass'],
+        }
+        for command in processes.values() if not args.quick else ():  # warm up: bytecode written
+            fresh_process(command, env)
         for run in rows.values() if not args.quick else ():  # warm up: compile, fault in
             run(bag)
-        times: dict[str, list[float]] = {name: [] for name in rows}
+        times: dict[str, list[float]] = {name: [] for name in (*rows, *processes)}
         replay_cpu: list[float] = []  # processor seconds of each threaded replay
-        for _ in range(repeats):  # interleaved: every row sees the same machine load
+        process_cpu: dict[str, list[float]] = {name: [] for name in processes}
+        for _ in range(max(repeats, 1 if args.quick else 5)):  # interleaved: the same load
+            for name, command in processes.items():
+                wall, cpu = fresh_process(command, env)
+                times[name].append(wall)
+                process_cpu[name].append(cpu)
+            if len(times[REPLAY]) == repeats:
+                continue  # more fresh processes than repeats: at least five of them
             for name, run in rows.items():
                 cpu = time.process_time()
                 start = time.perf_counter()
@@ -230,8 +274,32 @@ def main() -> int:
         print(f'{"":50s} {"s":>7s} {"x real time":>12s}')
         seconds = {name: statistics.median(values) for name, values in times.items()}
         for name, value in seconds.items():
-            print(f'{name:50s} {value:7.3f} {session.duration_s / value:12.0f}')
+            if name not in processes:
+                print(f'{name:50s} {value:7.3f} {session.duration_s / value:12.0f}')
+        print(
+            f'\n{"fresh processes (median of " + str(len(times[PASS])) + ")":50s} {"s":>7s} '
+            f'{"x real time":>12s} {"processor s":>12s}'
+        )
+        for name in processes:
+            print(
+                f'{name:50s} {seconds[name]:7.3f} {session.duration_s / seconds[name]:12.0f} '
+                f'{statistics.median(process_cpu[name]):12.3f}'
+            )
         ours = seconds[REPLAY]
+        whole = seconds[PROCESS]
+        whole_speed = session.duration_s / whole
+        cpu_of = {name: statistics.median(values) for name, values in process_cpu.items()}
+        print(
+            f'\nwhole process: {whole_speed:.0f}x real time, {whole:.3f} s (target >= '
+            f'{TARGET_PROCESS_X:.0f}x, <= {session.duration_s / TARGET_PROCESS_X:.2f} s: '
+            f'{"met" if whole_speed >= TARGET_PROCESS_X else "NOT met"}), '
+            f'{cpu_of[PROCESS]:.3f} s of processor time; the in-process replay '
+            f'{ours:.3f} s ({statistics.median(replay_cpu):.3f} s processor), so start-up and '
+            f'exit {whole - ours:.3f} s ({cpu_of[PROCESS] - statistics.median(replay_cpu):.3f} s '
+            'processor, the figure a loaded machine distorts least), '
+            f'{(whole - ours) / seconds[PASS]:.1f}x a bare '
+            f'`python -c pass` ({seconds[PASS]:.3f} s, {cpu_of[PASS]:.3f} s processor)'
+        )
         speed = session.duration_s / ours
         of_bare = ours / seconds[BARE]
         print(

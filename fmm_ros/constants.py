@@ -29,6 +29,23 @@ DISPLACEMENT = Channel('displacement', 'm')
 RESPONSE_CHANNELS: tuple[Channel, ...] = (VELOCITY, ACCELERATION, DISPLACEMENT)
 """What the response topic may carry; a SampleBatch's quantity says which."""
 
+
+class TopicQos(NamedTuple):
+    """A topic's QoS in ROS-free terms.
+
+    `fmm_ros.ros.qos` makes its rclpy profile of it, and a bag's metadata records it as the
+    topic's offered profile (`io.bags.writer.bag_qos`).
+    """
+
+    keep_all: bool
+    depth: int
+    reliable: bool
+    transient_local: bool
+
+
+SAMPLE_TOPIC_QOS = TopicQos(keep_all=True, depth=100, reliable=True, transient_local=False)
+"""The sample topics' QoS: `fmm_ros.ros.qos.SAMPLE_QOS` (its docstring says why)."""
+
 # -- acquisition (the paper's Sec. 4) -----------------------------------------------------------
 SAMPLE_RATE_HZ = 10_000.0
 """Sampling rate of both channels in the paper, and every source's default [Hz]."""

@@ -4,10 +4,12 @@ import time
 
 import numpy as np
 import pytest
+import yaml
 from rclpy.parameter import Parameter
 from rig_graph import FAST_ANALYZER, FAST_HAMMER, Listener, params, wait_for
 
 from fmm_ros.io.bags.reader import BagReader
+from fmm_ros.io.bags.writer import BagWriter
 from fmm_ros.ros import msgs
 from fmm_ros.ros.graph import InProcessGraph, private_domain_id
 from fmm_ros.ros.nodes.analyzer import Analyzer, configs_from_parameters
@@ -15,6 +17,7 @@ from fmm_ros.ros.nodes.hammer_sim import HammerSim
 from fmm_ros.ros.nodes.player import Player
 from fmm_ros.ros.nodes.recorder import Recorder
 from fmm_ros.ros.nodes.rig_sim import RigSim
+from fmm_ros.ros.qos import RESULT_QOS, SAMPLE_QOS
 from fmm_ros.workflows.replay import replay_bag
 
 pytestmark = pytest.mark.ros
@@ -72,6 +75,45 @@ def test_the_recorded_bag_holds_every_topic_and_is_closed(recorded_session):
         assert force.acquisitions == [[0, total]]
         assert force.received_samples == total
         assert (force.missing_samples, force.refused_batches, force.resyncs) == (0, 0, 0)
+
+
+def offered_profiles(bag) -> dict[str, list[dict]]:
+    """Each topic's offered QoS profiles, as the bag's metadata.yaml records them."""
+    info = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    return {
+        entry['topic_metadata']['name']: entry['topic_metadata']['offered_qos_profiles']
+        for entry in info['topics_with_message_count']
+    }
+
+
+def as_recorded(profile) -> dict:
+    """The fields of an rclpy profile a bag's metadata records, spelled as it spells them."""
+    return {
+        'history': profile.history.name.lower(),
+        'depth': profile.depth,
+        'reliability': profile.reliability.name.lower(),
+        'durability': profile.durability.name.lower(),
+    }
+
+
+def test_the_bags_record_the_qos_the_sample_topics_are_declared_with(recorded_session, tmp_path):
+    """The recorder's bag and an offline one (`fmm simulate`) both say what SAMPLE_QOS is."""
+    offline = tmp_path / 'offline'
+    with BagWriter(offline) as writer:
+        writer.write_signals(np.zeros(10), np.zeros(10), 10_000.0)
+    assert SAMPLE_QOS.history.name == 'KEEP_ALL'
+    fields = ('history', 'depth', 'reliability', 'durability')
+    for bag in (recorded_session[0], offline):
+        profiles = offered_profiles(bag)
+        for topic in ('/fmm/force', '/fmm/velocity'):
+            assert [{k: p[k] for k in fields} for p in profiles[topic]] == [
+                as_recorded(SAMPLE_QOS)
+            ], (bag, topic)
+    recorded = offered_profiles(recorded_session[0])['/fmm/impacts'][0]
+    assert (recorded['history'], recorded['durability']) == (
+        as_recorded(RESULT_QOS)['history'],
+        as_recorded(RESULT_QOS)['durability'],
+    )
 
 
 def test_every_stamp_in_the_bag_is_signal_time(recorded_session):

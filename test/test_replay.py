@@ -1,5 +1,6 @@
 """Replay and offline analysis of bags: the live capture's impacts, from the batches."""
 
+import dataclasses
 import json
 
 import numpy as np
@@ -7,7 +8,7 @@ import pytest
 
 from fmm_ros.cli import main
 from fmm_ros.constants import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC
-from fmm_ros.core.signal.analysis import AnalysisConfig, analyze_impact, paper_levels
+from fmm_ros.core.signal.analysis import AnalysisConfig, analyze_impact, paper_levels, summarize
 from fmm_ros.core.signal.capture import CaptureConfig, capture_impacts
 from fmm_ros.core.signal.records import write_impact_csv
 from fmm_ros.io.bags import BagWriter
@@ -192,3 +193,60 @@ def test_a_daq_restarted_inside_one_bag_gives_the_records_of_both_acquisitions(s
     firsts = [r.trigger_sample_index for r in records]
     assert firsts[:3] == sorted(firsts[:3]) and firsts[3] < firsts[2]  # index 0 again
     assert any('2 acquisitions' in problem for problem in problems)
+
+
+def same_to_rounding(ours, theirs) -> None:
+    """Every field of two impact analyses equal, floats and arrays to rounding (1e-12)."""
+    for field in dataclasses.fields(ours):
+        mine, other = getattr(ours, field.name), getattr(theirs, field.name)
+        if isinstance(mine, np.ndarray) or isinstance(mine, float):
+            np.testing.assert_allclose(mine, other, rtol=1e-12, atol=0.0, err_msg=field.name)
+        else:
+            assert mine == other, field.name
+
+
+def test_the_default_replay_gives_the_results_of_every_other_path(session_bag):
+    """The default (the bag read whole, records on threads, the numpy scans) against: one
+    thread, batch by batch through the stream rules, and each analysis step as the numpy
+    definition it replaced (`test/reference_analysis.py`)."""
+    from reference_analysis import numpy_steps
+
+    from fmm_ros.io.bags import BagReader
+    from fmm_ros.workflows.replay import capture_records
+
+    default = replay_bag(session_bag, CAPTURE, ANALYSIS).summary.impacts
+    one_thread = replay_bag(session_bag, CAPTURE, ANALYSIS, threads=1).summary.impacts
+    with numpy_steps():
+        as_defined = replay_bag(session_bag, CAPTURE, ANALYSIS).summary.impacts
+    with BagReader(session_bag, strict=False) as reader:  # on_batch: fed batch by batch
+        records = list(capture_records(reader, CAPTURE, on_batch=lambda _: None))
+    by_batch = summarize(
+        [
+            analyze_impact(record, CAPTURE, ANALYSIS, impact_id=result.impact_id)
+            for record, result in zip(records, default, strict=True)
+        ],
+        ANALYSIS,
+    ).impacts
+    assert len(default) == 6
+    for other in (one_thread, as_defined, by_batch):
+        for ours, theirs in zip(default, other, strict=True):
+            same_to_rounding(ours, theirs)
+
+
+@pytest.mark.slow  # a fresh interpreter replays a bag (a few seconds)
+def test_fmm_replay_imports_neither_numba_nor_scipy(session_bag):
+    """The default path starts at once: no numba import and cache load, no scipy stack."""
+    import subprocess
+    import sys
+
+    probe = (
+        'import sys; from fmm_ros.cli import main; '
+        f'status = main(["replay", "--quiet", {str(session_bag)!r}]); '
+        "print(' '.join(sorted({name.split('.')[0] for name in sys.modules}))); "
+        'sys.exit(status)'
+    )
+    run = subprocess.run([sys.executable, '-c', probe], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    imported = run.stdout.splitlines()[-1].split()
+    assert 'numpy' in imported and 'fmm_ros' in imported
+    assert [name for name in ('numba', 'scipy', 'matplotlib', 'rclpy') if name in imported] == []

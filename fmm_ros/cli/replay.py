@@ -37,7 +37,6 @@ def run(args: argparse.Namespace) -> int:
     from fmm_ros.cli.progress import progress_bar, report_problems
     from fmm_ros.io.frf_files import level_curves, write_frfs
     from fmm_ros.workflows.replay import replay_bag
-    from fmm_ros.workflows.results import analysis_dict
 
     capture, analysis = options.analysis_configs(args)
     start = time.perf_counter()
@@ -60,6 +59,8 @@ def run(args: argparse.Namespace) -> int:
         write_frfs(path, level_curves(replay.summary))
     speed = replay.signal_s / wall_s if wall_s > 0 else float('inf')
     if args.json:
+        from fmm_ros.workflows.results import analysis_dict  # scipy.signal: only for --json
+
         document = analysis_dict(replay.summary)
         document['replay'] = {
             'bag': str(args.bag),

@@ -15,6 +15,8 @@ strongest QoS every publisher of a topic can serve (`recording_qos`).
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from fmm_ros.constants import SAMPLE_TOPIC_QOS
+
 SAMPLE_QUEUE_BATCHES = 5000
 """Batches a KEEP_ALL sample reader (and writer) holds at most: Fast DDS's default resource
 limit (`max_samples`), which rclpy cannot set. Measured on this middleware: a reader that
@@ -23,12 +25,17 @@ takes nothing holds 5,000 batches, the writer 5,000 more, then `publish` blocks 
 5,000 x batch size x 8 bytes: 4 MB in 100-sample batches, 20 MB in 500, 200 MB in 5,000."""
 
 SAMPLE_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_ALL,
-    depth=100,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
+    history=HistoryPolicy.KEEP_ALL if SAMPLE_TOPIC_QOS.keep_all else HistoryPolicy.KEEP_LAST,
+    depth=SAMPLE_TOPIC_QOS.depth,
+    reliability=ReliabilityPolicy.RELIABLE
+    if SAMPLE_TOPIC_QOS.reliable
+    else ReliabilityPolicy.BEST_EFFORT,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL
+    if SAMPLE_TOPIC_QOS.transient_local
+    else DurabilityPolicy.VOLATILE,
 )
-"""Sample batches: every one matters, and a subscriber may lag a burst of them.
+"""Sample batches: every one matters, and a subscriber may lag a burst of them (declared
+ROS-free as `constants.SAMPLE_TOPIC_QOS`, so a bag's metadata records the same profile).
 
 KEEP_ALL ignores depth; the flow window (`flow.PacedSource.window_samples`) still counts
 half of it, so the graph's own sources never have more than 50 batches in flight."""

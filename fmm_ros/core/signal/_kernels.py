@@ -1,54 +1,41 @@
-"""Compiled scans of one record's analysis; use them through `quality` and `frf`.
+"""Two scans of one record's analysis in whole-array numpy steps (use them through `frf`).
 
-Each loop replaces a chain of whole-array numpy steps (a mask, a diff of it, the indices of
-its edges, a cumulative sum, ...) that a 33 s record paid at every replayed hit, with one
-pass giving the same numbers: comparisons and selections exactly as numpy makes them, and
-every floating-point operation in numpy's order (a cumulative sum left to right, each
-interpolation as `i + a / (a - b)`). `test/test_fast_analysis.py` holds each to the numpy
-steps it replaced. They release the GIL (`nogil`): a replay analyses its records in threads
-(`fmm_ros.core._threads`).
+They were numba loops once, a fraction of a millisecond faster a record; but a process that
+calls a numba function pays numba's import and the loading of its compiled code first
+(about half a second, more than a 30-hit replay's whole analysis gains), so the analysis
+path imports no numba and `fmm replay` starts at once. Comparisons and selections are
+numpy's, every floating-point operation in the order the loops had (a cumulative sum left
+to right, each interpolation as `i + a / (a - b)`); `test/test_fast_analysis.py` holds both to
+their definitions in `test/reference_analysis.py`. numpy releases the GIL in them, so a
+replay's records still analyse in threads (`fmm_ros.core._threads`).
 """
 
-import math
-
 import numpy as np
-from numba import njit
+
+_NO_RUNS = np.zeros(0, dtype=np.int64)
 
 
-@njit(cache=True, nogil=True)
-def equal_runs(values, min_length):
+def equal_runs(values: np.ndarray, min_length: int) -> tuple[int, np.ndarray, np.ndarray]:
     """Consecutive equal finite samples: how many pairs, and the long runs of them.
 
     Pair i is values[i + 1] == values[i] with values[i + 1] finite (NaN never equals; an
     infinity does, but is left out). Returns the count of such pairs and [start, stop) (pair
     indices) of every run of them at least min_length pairs long: `frf.runs` of the pair
-    mask, only its long runs.
+    mask, only its long runs (none looked for when there are fewer pairs than that).
     """
-    size = values.size - 1  # pairs
-    count = 0
-    for i in range(size):  # a vectorised count first: a noisy channel has few equal pairs
-        after = values[i + 1]
-        count += (after == values[i]) & (abs(after) < math.inf)
-    edges = np.empty(max(size, 0) + 1, np.int64)  # where runs start and stop, alternately
-    found = 0
-    previous = False
-    for i in range(size if count >= max(min_length, 1) else 0):  # else no run is long
-        after = values[i + 1]
-        equal = (after == values[i]) & (abs(after) < math.inf)
-        edges[found] = i  # branch-free: in a quantised channel equal pairs come at random
-        found += equal != previous
-        previous = equal
-    if previous:
-        edges[found] = size
-        found += 1
-    starts, stops = edges[0:found:2], edges[1:found:2]
+    after = values[1:]
+    equal = after == values[:-1]
+    equal &= np.abs(after) < np.inf
+    count = int(np.count_nonzero(equal))
+    if count < max(min_length, 1):
+        return count, _NO_RUNS, _NO_RUNS
+    edges = np.flatnonzero(np.diff(equal, prepend=False, append=False))
+    starts, stops = edges[0::2], edges[1::2]
     long = stops - starts >= min_length
     return count, starts[long], stops[long]
 
 
-# error_model: 0 / 0 between a -0.0 and a 0.0 gives NaN, as numpy.
-@njit(cache=True, nogil=True, error_model='numpy')
-def reversals(smooth, hysteresis):
+def reversals(smooth: np.ndarray, hysteresis: float) -> tuple[np.ndarray, ...]:
     """Velocity reversals in block means: their times, end blocks and half cycles' peaks.
 
     A reversal is the velocity passing from beyond -hysteresis to beyond +hysteresis or back
@@ -60,44 +47,22 @@ def reversals(smooth, hysteresis):
     old side to the first beyond it on the new: the one crossing of a clean reversal, the
     average of noise's several near a slow one. (Not a line through the band: the
     acceleration jumps by 2 mu N / m at the reversal.) The means are differences of the
-    crossings' running sum, left to right, as numpy's cumsum makes it. Also returned: the
-    first block past each reversal (the new side's), and the largest |smooth| from it up to
-    the next one's (to the end for the last): the peak speed of each half cycle.
+    crossings' running sum, left to right. Also returned: the first block past each
+    reversal (the new side's), and the largest |smooth| from it up to the next one's (to
+    the end for the last): the peak speed of each half cycle.
     """
-    n = smooth.size
-    bits = smooth.view(np.int64)  # a sign bit is the top bit: negative as an int64
-    crossings = np.empty(n, np.int64)  # blocks i whose sign bit differs from block i + 1's
-    seen = 0
-    for i in range(n - 1):  # branch-free: at rest the sign flips at random
-        crossings[seen] = i
-        seen += (bits[i] ^ bits[i + 1]) < 0
-    crossings = crossings[:seen]
-    sums = np.empty(seen + 1, np.float64)  # running sum of the crossing times, from 0
-    sums[0] = 0.0
-    for k in range(seen):
-        i = crossings[k]
-        before, after = smooth[i], smooth[i + 1]
-        sums[k + 1] = sums[k] + (i + before / (before - after))
-    times = np.empty(n, np.float64)
-    ends = np.empty(n, np.int64)
-    count = 0
-    last_beyond, last_side = -1, 0
-    for i in range(n):
-        side = 1 if smooth[i] > hysteresis else (-1 if smooth[i] < -hysteresis else 0)
-        if side == 0:
-            continue
-        if last_beyond >= 0 and side != last_side:
-            first = np.searchsorted(crossings, last_beyond)
-            last = np.searchsorted(crossings, i)
-            times[count] = (sums[last] - sums[first]) / max(last - first, 1)
-            ends[count] = i
-            count += 1
-        last_beyond, last_side = i, side
-    peaks = np.empty(count, np.float64)
-    for k in range(count):
-        stop = ends[k + 1] if k + 1 < count else n
-        peak = abs(smooth[ends[k]])
-        for i in range(ends[k] + 1, stop):
-            peak = max(peak, abs(smooth[i]))
-        peaks[k] = peak
-    return times[:count], ends[:count], peaks
+    side = np.where(smooth > hysteresis, 1, np.where(smooth < -hysteresis, -1, 0))
+    beyond = np.flatnonzero(side)
+    change = np.flatnonzero(side[beyond][1:] != side[beyond][:-1])
+    starts, ends = beyond[change], beyond[change + 1]
+    sign = np.signbit(smooth)
+    crossings = np.flatnonzero(sign[1:] != sign[:-1])
+    before, after = smooth[crossings], smooth[crossings + 1]
+    with np.errstate(invalid='ignore', divide='ignore'):  # 0 / 0 between -0.0 and 0.0: NaN
+        zeros = crossings + before / (before - after)
+    first = np.searchsorted(crossings, starts)
+    last = np.searchsorted(crossings, ends)
+    sums = np.concatenate(([0.0], np.cumsum(zeros)))
+    times = (sums[last] - sums[first]) / np.maximum(last - first, 1)
+    peaks = np.maximum.reduceat(np.abs(smooth), ends) if ends.size else np.zeros(0)
+    return times, ends, peaks

@@ -3,9 +3,10 @@
 Reading a session batch by batch costs a rosbags deserialization, a ChannelBatch and a trip
 through the stream rules per message (~40,000 for a 16-minute session): several times the
 time it takes to read the file. A bag recorded without a fault needs none of that. This
-reader walks the chunks of an intact, uncompressed MCAP file (the layout fmm writes) with a
-compiled loop, parses each SampleBatch's CDR header in place and copies its float64 samples
-straight into one preallocated array per channel.
+reader walks the chunks of an intact, uncompressed MCAP file (the layout fmm writes),
+parses every SampleBatch's CDR header in place (all at once, in numpy) and copies the float64
+samples straight into one preallocated array per channel. No numba: a replay process would
+pay its start-up (about half a second) for a loop that saves a few tens of milliseconds.
 
 It only answers for a recording the stream rules (`fmm_ros.core.signal.stream`) would take
 whole, in the order a batch-by-batch reader delivers it (by log time, ties in file order):
@@ -31,7 +32,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numba import njit
 
 from fmm_ros.constants import FORCE, VELOCITY
 from fmm_ros.core._threads import in_background
@@ -276,126 +276,104 @@ def _chunk_messages(
 ) -> tuple[np.ndarray, ...] | None:
     """(channel id, log time, CDR offset, CDR length) of every message in a chunk."""
     start, stop = records
-    table, others = _walk_chunk(buf, start, stop)
-    if table.shape[0] and table[-1, 0] == -1:
+    walked = _walk_chunk(buf, start, stop)
+    if walked is None:
         return None
+    table, others = walked
     for offset, length, opcode in others:
         if opcode == CHANNEL:
             _register(buf[offset : offset + length], topics, wanted)
     return table[:, 0], table[:, 1], table[:, 2], table[:, 3]
 
 
-@njit(cache=True, nogil=True)
-def _u32(buf, pos):
-    return (
-        np.int64(buf[pos])
-        | (np.int64(buf[pos + 1]) << 8)
-        | (np.int64(buf[pos + 2]) << 16)
-        | (np.int64(buf[pos + 3]) << 24)
-    )
+_MESSAGE_HEAD = struct.Struct('<HIQ')  # a message record's channel id, sequence, log time
+_MESSAGE_HEAD_SIZE = 22  # and its publish time (8 bytes) before the data
+_MAX_OTHERS = 64  # records in a chunk besides messages: more than a bag's channels and schemas
 
 
-@njit(cache=True, nogil=True)
-def _u64(buf, pos):
-    return _u32(buf, pos) | (_u32(buf, pos + 4) << 32)
-
-
-@njit(cache=True, nogil=True)
-def _walk_chunk(buf, start, stop):
+def _walk_chunk(
+    buf: np.ndarray, start: int, stop: int
+) -> tuple[np.ndarray, list[tuple[int, int, int]]] | None:
     """Messages (channel id, log time, CDR offset, CDR length) and other records of a chunk.
 
-    A record running past the chunk (or more other records than expected) ends the table
-    with a row of -1.
+    None when a record runs past the chunk, or there are more other records than a bag has.
+    A plain loop (a record's length says where the next one starts): a few microseconds a
+    message, where a compiled one would cost numba's start-up first.
     """
-    capacity = (stop - start) // 31 + 1  # a message record takes >= 9 + 22 bytes
-    table = np.empty((capacity, 4), dtype=np.int64)
-    others = np.empty((64, 3), dtype=np.int64)
-    rows = 0
-    other_rows = 0
+    rows: list[tuple[int, int, int, int]] = []
+    others: list[tuple[int, int, int]] = []
+    record_head, message_head = _RECORD_HEAD.unpack_from, _MESSAGE_HEAD.unpack_from
     pos = start
     while pos < stop:
-        if pos + 9 > stop:
-            table[rows] = -1
-            return table[: rows + 1], others[:other_rows]
-        opcode = buf[pos]
-        length = _u64(buf, pos + 1)
-        content = pos + 9
-        if length < 0 or content + length > stop:
-            table[rows] = -1
-            return table[: rows + 1], others[:other_rows]
-        if opcode == 0x05 and length >= 22:
-            table[rows, 0] = buf[content] | (np.int64(buf[content + 1]) << 8)
-            table[rows, 1] = _u64(buf, content + 6)
-            table[rows, 2] = content + 22
-            table[rows, 3] = length - 22
-            rows += 1
-        elif opcode != 0x05:
-            if other_rows == others.shape[0]:  # more than the channels and schemas of a bag
-                table[rows] = -1
-                return table[: rows + 1], others[:other_rows]
-            others[other_rows, 0] = content
-            others[other_rows, 1] = length
-            others[other_rows, 2] = opcode
-            other_rows += 1
+        if pos + _RECORD_HEAD.size > stop:
+            return None
+        opcode, length = record_head(buf, pos)
+        content = pos + _RECORD_HEAD.size
+        if content + length > stop:
+            return None
+        if opcode == MESSAGE:
+            if length >= _MESSAGE_HEAD_SIZE:
+                channel, _, log_time = message_head(buf, content)
+                at = content + _MESSAGE_HEAD_SIZE
+                rows.append((channel, log_time, at, length - _MESSAGE_HEAD_SIZE))
+        else:
+            if len(others) == _MAX_OTHERS:
+                return None
+            others.append((content, length, opcode))
         pos = content + length
-    return table[:rows], others[:other_rows]
+    return np.array(rows, dtype=np.int64).reshape(-1, 4), others
 
 
-@njit(cache=True, nogil=True)
-def _string_end(buf, origin, pos, end):
-    """Position after a CDR string at pos (aligned to 4), or -1 past end."""
-    pos = origin + ((pos - origin + 3) & ~3)
-    if pos + 4 > end:
-        return -1
-    return pos + 4 + _u32(buf, pos)
+def _ints(buf: np.ndarray, positions: np.ndarray, size: int) -> np.ndarray:
+    """The little-endian unsigned 4-byte (size 4) or signed 8-byte ints at each position."""
+    raw = buf[positions[:, None] + np.arange(size)]
+    return raw.view('<u4' if size == 4 else '<i8')[:, 0].astype(np.int64)
 
 
-@njit(cache=True, nogil=True)
-def _batch_layout(buf, offsets, lengths):
-    """Where each SampleBatch's fields are (see _FIRST..._BAD); _BAD 1 when it does not parse."""
+def _string_end(
+    buf: np.ndarray, origin: np.ndarray, pos: np.ndarray, end: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Where each CDR string at pos (aligned to 4 from origin) starts, and the end of it.
+
+    The end is -1 where pos is -1 already or the string's length runs past end.
+    """
+    aligned = origin + ((pos - origin + 3) & ~3)
+    fits = (pos >= 0) & (aligned + 4 <= end)
+    length = _ints(buf, np.where(fits, aligned, 0), 4)
+    return aligned, np.where(fits, aligned + 4 + length, -1)
+
+
+def _batch_layout(buf: np.ndarray, offsets: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """Where each SampleBatch's fields are (see _FIRST..._BAD); _BAD 1 when it does not parse.
+
+    Every message at once, field after field (a string's length says where the next field
+    is); a row already bad reads from a safe place and stays bad.
+    """
     out = np.zeros((offsets.shape[0], _COLUMNS), dtype=np.int64)
-    for row in range(offsets.shape[0]):
-        at = offsets[row]
-        end = at + lengths[row]
-        # Little-endian CDR only; offsets align from after the 4-byte encapsulation header.
-        if lengths[row] < 12 or buf[at] != 0 or buf[at + 1] != 1:
-            out[row, _BAD] = 1
-            continue
-        origin = at + 4
-        frame = origin + 8
-        pos = _string_end(buf, origin, frame, end)
-        if pos < 0:
-            out[row, _BAD] = 1
-            continue
-        out[row, _FRAME_AT] = frame + 4
-        out[row, _FRAME_LEN] = pos - frame - 4
-        quantity = origin + ((pos - origin + 3) & ~3)
-        pos = _string_end(buf, origin, pos, end)
-        out[row, _QUANTITY_AT] = quantity + 4
-        out[row, _QUANTITY_LEN] = pos - quantity - 4
-        if pos >= 0:
-            unit = origin + ((pos - origin + 3) & ~3)
-            pos = _string_end(buf, origin, pos, end)
-            out[row, _UNIT_AT] = unit + 4
-            out[row, _UNIT_LEN] = pos - unit - 4
-        if pos < 0:
-            out[row, _BAD] = 1
-            continue
-        pos = origin + ((pos - origin + 7) & ~7)
-        if pos + 28 > end:
-            out[row, _BAD] = 1
-            continue
-        out[row, _RATE_AT] = pos
-        first = _u64(buf, pos + 8)
-        out[row, _FIRST] = first
-        out[row, _SCALE_AT] = pos + 16
-        count = _u32(buf, pos + 24)
-        samples = origin + ((pos + 28 - origin + 7) & ~7)
-        if first < 0 or samples + 8 * count > end or (count and samples + 8 * count != end):
-            out[row, _BAD] = 1
-            continue
-        out[row, _COUNT] = count
-        out[row, _SAMPLES_AT] = samples
+    at, end = offsets, offsets + lengths
+    # Little-endian CDR only; offsets align from after the 4-byte encapsulation header.
+    long_enough = lengths >= 12
+    head = np.where(long_enough, at, 0)
+    bad = ~long_enough | (buf[head] != 0) | (buf[head + 1] != 1)
+    origin = at + 4
+    frame = origin + 8
+    _, pos = _string_end(buf, origin, np.where(bad, -1, frame), end)
+    out[:, _FRAME_AT], out[:, _FRAME_LEN] = frame + 4, pos - frame - 4
+    quantity, pos = _string_end(buf, origin, pos, end)
+    out[:, _QUANTITY_AT], out[:, _QUANTITY_LEN] = quantity + 4, pos - quantity - 4
+    unit, pos = _string_end(buf, origin, pos, end)
+    out[:, _UNIT_AT], out[:, _UNIT_LEN] = unit + 4, pos - unit - 4
+    pos = origin + ((pos - origin + 7) & ~7)
+    bad |= (out[:, _UNIT_LEN] < 0) | (pos + 28 > end)
+    pos = np.where(bad, 0, pos)
+    first = _ints(buf, pos + 8, 8)
+    count = _ints(buf, pos + 24, 4)
+    samples = origin + ((pos + 28 - origin + 7) & ~7)
+    stop = samples + 8 * count
+    bad |= (first < 0) | (stop > end) | ((count > 0) & (stop != end))
+    out[:, _RATE_AT], out[:, _FIRST], out[:, _SCALE_AT] = pos, first, pos + 16
+    out[:, _COUNT], out[:, _SAMPLES_AT] = count, samples
+    out[:, _BAD] = bad
     return out
 
 
@@ -410,29 +388,23 @@ def _gather(buf: np.ndarray, positions: np.ndarray, dtype: str) -> np.ndarray:
     return buf[positions[:, None] + np.arange(8)].copy().view(dtype)[:, 0]
 
 
-@njit(cache=True, nogil=True)
-def _same_strings(buf, spans):
+def _same_strings(buf: np.ndarray, spans: np.ndarray) -> bool:
     """Whether the strings at (offset, length) rows are all equal."""
-    at0, length = spans[0, 0], spans[0, 1]
-    for row in range(1, spans.shape[0]):
-        if spans[row, 1] != length:
-            return False
-        at = spans[row, 0]
-        for k in range(length):
-            if buf[at + k] != buf[at0 + k]:
-                return False
-    return True
+    length = int(spans[0, 1])
+    if (spans[:, 1] != length).any():
+        return False
+    text = buf[spans[:, :1] + np.arange(length)]
+    return bool((text == text[0]).all())
 
 
-@njit(cache=True, nogil=True)
-def _within_skew(channel, ends, start, max_skew):
-    """Whether, batch after batch, neither channel ran more than max_skew samples ahead."""
-    reached = np.array([start, start], dtype=np.int64)
-    for row in range(channel.shape[0]):
-        reached[channel[row]] = ends[row]
-        if abs(reached[0] - reached[1]) > max_skew:
-            return False
-    return True
+def _within_skew(channel: np.ndarray, ends: np.ndarray, start: int, max_skew: int) -> bool:
+    """Whether, batch after batch, neither channel ran more than max_skew samples ahead.
+
+    Each channel's batches are contiguous from start here, so the end a channel reached
+    after each batch is the running maximum of its batches' ends.
+    """
+    reached = [np.maximum.accumulate(np.where(channel == k, ends, start)) for k in (0, 1)]
+    return not (np.abs(reached[0] - reached[1]) > max_skew).any()
 
 
 def _copy_samples(
@@ -440,27 +412,42 @@ def _copy_samples(
 ) -> None:
     """Copy every batch's samples to its place in its channel's array (out: force, velocity).
 
-    A batch's float64s are 8-byte aligned within its CDR message, not within the file: they
-    are read through one float64 view of the file per byte offset modulo 8.
+    A batch's float64s are 8-byte aligned within its CDR message, not within the file, so
+    they are copied as bytes.
     """
-    residue = layout[:, _SAMPLES_AT] % 8
-    for offset in np.unique(residue):
-        rows = np.flatnonzero(residue == offset)
-        view = buf[offset : offset + 8 * ((len(buf) - offset) // 8)].view('<f8')
+    for index in (0, 1):
+        rows = np.flatnonzero(channel == index)
         _copy_rows(
-            view,
-            (layout[rows, _SAMPLES_AT] - offset) // 8,
+            buf,
+            layout[rows, _SAMPLES_AT],
             layout[rows, _FIRST] - start,
             layout[rows, _COUNT],
-            channel[rows],
-            out[0],
-            out[1],
+            out[index].view(np.uint8),
         )
 
 
-@njit(cache=True, nogil=True)
-def _copy_rows(view, sources, targets, counts, channel, force, velocity):
-    """Copy counts[k] float64s from view[sources[k]] to force or velocity [targets[k]]."""
-    for k in range(sources.shape[0]):
-        out = force if channel[k] == 0 else velocity
-        out[targets[k] : targets[k] + counts[k]] = view[sources[k] : sources[k] + counts[k]]
+def _copy_rows(
+    buf: np.ndarray, sources: np.ndarray, targets: np.ndarray, counts: np.ndarray, out: np.ndarray
+) -> None:
+    """Copy counts[k] float64s from byte sources[k] of buf to sample targets[k] of out (bytes).
+
+    Run by run: a run is batches of one size, evenly spaced in the file and back to back in
+    out (a chunk's batches of a channel, as a recorder writes them), copied in one strided
+    copy, so a session costs a few hundred copies, not one a batch.
+    """
+    if not sources.size:
+        return
+    stride = np.diff(sources)
+    joined = (counts[1:] == counts[:-1]) & (np.diff(targets) == counts[:-1])
+    joined[1:] &= stride[1:] == stride[:-1]
+    cuts = np.flatnonzero(~joined) + 1
+    for first, stop in zip((0, *cuts), (*cuts, sources.size), strict=True):
+        rows, size = stop - first, 8 * int(counts[first])
+        if not size:
+            continue
+        step = int(stride[first]) if rows > 1 else 0
+        source = np.lib.stride_tricks.as_strided(
+            buf[sources[first] :], shape=(rows, size), strides=(step, 1), writeable=False
+        )
+        target = out[8 * targets[first] : 8 * targets[first] + rows * size]
+        target.reshape(rows, size)[...] = source

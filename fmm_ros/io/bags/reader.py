@@ -47,7 +47,7 @@ from fmm_ros.io.bags.mcapscan import Damage, McapScan
 from fmm_ros.io.bags.metadata import custom_ledger, read_information
 from fmm_ros.io.bags.sqlitescan import SqliteScan
 
-if TYPE_CHECKING:  # arrays.py compiles with numba: imported only by a whole read
+if TYPE_CHECKING:  # arrays.py: imported by a whole read only
     from fmm_ros.io.bags.arrays import ChannelArrays
 
 # What rosbags raises on a damaged bag: its own ReaderError, or whatever its parsers meet on
@@ -480,7 +480,7 @@ class BagReader:
         single = not self.path.is_dir() or len(list(self.path.glob('*.mcap'))) == 1
         if self._reader is None or self.storage != 'mcap' or self.problems or not single:
             return None
-        from fmm_ros.io.bags.arrays import read_channel_arrays  # numba: on first use only
+        from fmm_ros.io.bags.arrays import read_channel_arrays
 
         return read_channel_arrays(self._storage_file, topics, self.typestore, rules)
 

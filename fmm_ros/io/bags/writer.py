@@ -29,6 +29,7 @@ from fmm_ros.constants import (
     BATCH_SIZE,
     FORCE,
     FORCE_TOPIC,
+    SAMPLE_TOPIC_QOS,
     VELOCITY,
     VELOCITY_TOPIC,
     Channel,
@@ -56,17 +57,19 @@ _NO_TIME = _QosTime(0, 0)
 def offered_qos(msgtype: str) -> Qos:
     """The QoS the fmm nodes offer for msgtype (ARCHITECTURE.md, Conventions).
 
-    Sample batches: reliable, volatile, depth 50 (gaps break FRFs). Results: reliable,
+    Sample batches: `SAMPLE_TOPIC_QOS`, the one declaration `fmm_ros.ros.qos.SAMPLE_QOS` is
+    made of (reliable, volatile, keep-all: gaps break FRFs). Results: reliable,
     transient-local, depth 10, so a player republishes them for late subscribers too.
     """
-    batches = msgtype == SAMPLE_BATCH
-    return bag_qos(depth=50 if batches else 10, reliable=True, transient_local=not batches)
+    if msgtype == SAMPLE_BATCH:
+        return bag_qos(**SAMPLE_TOPIC_QOS._asdict())
+    return bag_qos(keep_all=False, depth=10, reliable=True, transient_local=True)
 
 
-def bag_qos(*, depth: int, reliable: bool, transient_local: bool) -> Qos:
-    """A keep-last QoS profile as rosbag2 metadata stores it (the player restores it)."""
+def bag_qos(*, keep_all: bool, depth: int, reliable: bool, transient_local: bool) -> Qos:
+    """A QoS profile as rosbag2 metadata stores it (the player restores it)."""
     return Qos(
-        QosHistory.KEEP_LAST,
+        QosHistory.KEEP_ALL if keep_all else QosHistory.KEEP_LAST,
         depth,
         QosReliability.RELIABLE if reliable else QosReliability.BEST_EFFORT,
         QosDurability.TRANSIENT_LOCAL if transient_local else QosDurability.VOLATILE,

@@ -35,7 +35,7 @@ from datetime import datetime
 from pathlib import Path
 
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 
 from fmm_interfaces.msg import SampleBatch, SessionInfo
@@ -360,6 +360,7 @@ class Recorder(Node):
             resolved,
             msgtype,
             bag_qos(
+                keep_all=qos.history == HistoryPolicy.KEEP_ALL,
                 depth=qos.depth,
                 reliable=qos.reliability == ReliabilityPolicy.RELIABLE,
                 transient_local=qos.durability == DurabilityPolicy.TRANSIENT_LOCAL,
