@@ -71,7 +71,7 @@ def test_cli_service_and_report_carry_the_same_verdict(session_files, ros_graph,
     ]
 
     out = directory / 'report'
-    assert main(['report', *paths, '--out', str(out)]) == 0
+    assert main(['report', *paths, '--diagnose', '-o', str(out)]) == 0
     page = (out / 'index.html').read_text(encoding='utf-8')
     assert html.escape(f'Verdict: {cli["verdict"]}', quote=False) in page
     assert html.escape(unobservable['asymmetric_friction'], quote=False) in page
