@@ -161,11 +161,14 @@ def _closed_form(x, v, u0, du_dt, tau, m, c, k):
 
 
 @njit(cache=True)
-def _rk4(x, v, f0, df_dt, tau, sigma, p):
-    """One classical Runge-Kutta step of length tau at fixed sliding direction sigma."""
+def _rk4(x, v, a1, f0, df_dt, tau, sigma, p):
+    """One classical Runge-Kutta step of length tau at fixed sliding direction sigma.
+
+    a1: the acceleration at the start, `_accel(x, v, f0, sigma, p)`, which the caller has
+    (`_interval` judges the segment by it): one evaluation of the friction fewer a step.
+    """
     half = 0.5 * tau
     f_mid = f0 + df_dt * half
-    a1 = _accel(x, v, f0, sigma, p)
     v2 = v + half * a1
     a2 = _accel(x + half * v, v2, f_mid, sigma, p)
     v3 = v + half * a2
@@ -177,10 +180,11 @@ def _rk4(x, v, f0, df_dt, tau, sigma, p):
 
 
 @njit(cache=True)
-def _slide(x, v, f0, df_dt, tau, sigma, p):
+def _slide(x, v, a0, f0, df_dt, tau, sigma, p):
     """State after sliding for tau in direction sigma: closed form or RK4, per the path.
 
-    On NONLINEAR 2 the closed form where the speed stays above STRIBECK_FLAT_RATIO * vs.
+    a0: the acceleration at the start (`_rk4`'s a1). On NONLINEAR 2 the closed form where the
+    speed stays above STRIBECK_FLAT_RATIO * vs.
     """
     if p[NONLINEAR] == 2.0:
         flat = p[STRIBECK_FLAT_RATIO] * p[STRIBECK_V]
@@ -188,9 +192,9 @@ def _slide(x, v, f0, df_dt, tau, sigma, p):
             xe, ve = _kinetic_slide(x, v, f0, df_dt, tau, sigma, p)
             if sigma * ve >= flat:
                 return xe, ve
-        return _rk4(x, v, f0, df_dt, tau, sigma, p)
+        return _rk4(x, v, a0, f0, df_dt, tau, sigma, p)
     if p[NONLINEAR] != 0.0:
-        return _rk4(x, v, f0, df_dt, tau, sigma, p)
+        return _rk4(x, v, a0, f0, df_dt, tau, sigma, p)
     return _kinetic_slide(x, v, f0, df_dt, tau, sigma, p)
 
 
@@ -268,10 +272,13 @@ def _first_stop(p0, d0, p1, d1, length):
 
 
 @njit(cache=True)
-def _polish_stop(x, v, f0, df_dt, tau, length, sigma, p):
-    """Newton steps on the path's own trajectory for the instant its velocity is zero."""
+def _polish_stop(x, v, a0, f0, df_dt, tau, length, sigma, p):
+    """Newton steps on the path's own trajectory for the instant its velocity is zero.
+
+    a0: the acceleration at the start of the path (`_slide`).
+    """
     for _ in range(4):
-        xe, ve = _slide(x, v, f0, df_dt, tau, sigma, p)
+        xe, ve = _slide(x, v, a0, f0, df_dt, tau, sigma, p)
         ae = _accel(xe, ve, f0 + df_dt * tau, sigma, p)
         if ae == 0.0:
             break
@@ -321,7 +328,8 @@ def _interval(x, v, mode, f0, f1, t0, rest_time, p):
                 return x, v, mode, rest_time
             continue
         f_start = f0 + df_dt * s
-        d0 = mode * _accel(x, v, f_start, mode, p)
+        a0 = _accel(x, v, f_start, mode, p)
+        d0 = mode * a0
         end = min(h, s + segment)
         if p[STATIC_EXCESS] != 0.0 and abs(v) < p[STRIBECK_ZONE_RATIO] * p[STRIBECK_V]:
             # Near zero speed the Stribeck excess changes as fast as the speed crosses vs:
@@ -331,7 +339,7 @@ def _interval(x, v, mode, f0, f1, t0, rest_time, p):
             if speed_rate > 0.0:
                 end = min(end, s + max(STRIBECK_STEP * p[STRIBECK_V] / speed_rate, h / 1024.0))
         length = end - s
-        x1, v1 = _slide(x, v, f_start, df_dt, length, mode, p)
+        x1, v1 = _slide(x, v, a0, f_start, df_dt, length, mode, p)
         d1 = mode * _accel(x1, v1, f0 + df_dt * end, mode, p)
         p1 = mode * v1
         tau = -1.0
@@ -344,8 +352,8 @@ def _interval(x, v, mode, f0, f1, t0, rest_time, p):
             if s >= h:
                 return x, v, mode, rest_time
             continue
-        tau = _polish_stop(x, v, f_start, df_dt, tau, length, mode, p)
-        x, _ = _slide(x, v, f_start, df_dt, tau, mode, p)
+        tau = _polish_stop(x, v, a0, f_start, df_dt, tau, length, mode, p)
+        x, _ = _slide(x, v, a0, f_start, df_dt, tau, mode, p)
         v = 0.0
         s = s + tau
         mode = _break_direction(f0 + df_dt * s - _spring(x, p), p)
