@@ -293,10 +293,14 @@ def _polish_stop(x, v, a0, f0, df_dt, tau, length, sigma, p):
 
 
 @njit(cache=True)
-def _interval(x, v, mode, f0, f1, t0, rest_time, p):
+def _interval(x, v, mode, f0, f1, t0, rest_time, p, carried_a, carried_f):
     """Advance one sample interval [t0, t0 + h] with all events located inside it.
 
-    Returns the end state (x, v, mode, rest_time). The force is f0 + (f1 - f0) s / h.
+    Returns the end state (x, v, mode, rest_time) and (a, f): the acceleration at that state
+    under force f, as the last segment computed it (f NaN where it computed none). The force
+    is f0 + (f1 - f0) s / h. carried_a, carried_f: the (a, f) the previous interval returned,
+    its state this one's: a segment starting under the very same force takes that a instead
+    of evaluating it again (the same numbers, one friction evaluation fewer a sample).
     """
     h = p[STEP]
     df_dt = (f1 - f0) / h
@@ -308,7 +312,7 @@ def _interval(x, v, mode, f0, f1, t0, rest_time, p):
             g_end = f1 - spring
             direction = _break_direction(g_end, p)
             if direction == 0:
-                return x, 0.0, 0, rest_time
+                return x, 0.0, 0, rest_time, 0.0, np.nan
             # g is linear in time at rest: it leaves the band where it crosses the edge.
             g_now = f0 + df_dt * s - spring
             edge = (
@@ -324,11 +328,15 @@ def _interval(x, v, mode, f0, f1, t0, rest_time, p):
             mode = direction
             v = 0.0
             rest_time = np.nan
+            carried_f = np.nan
             if s >= h:
-                return x, v, mode, rest_time
+                return x, v, mode, rest_time, 0.0, np.nan
             continue
         f_start = f0 + df_dt * s
-        a0 = _accel(x, v, f_start, mode, p)
+        if f_start == carried_f and math.copysign(1.0, f_start) == math.copysign(1.0, carried_f):
+            a0 = carried_a
+        else:
+            a0 = _accel(x, v, f_start, mode, p)
         d0 = mode * a0
         end = min(h, s + segment)
         if p[STATIC_EXCESS] != 0.0 and abs(v) < p[STRIBECK_ZONE_RATIO] * p[STRIBECK_V]:
@@ -340,7 +348,9 @@ def _interval(x, v, mode, f0, f1, t0, rest_time, p):
                 end = min(end, s + max(STRIBECK_STEP * p[STRIBECK_V] / speed_rate, h / 1024.0))
         length = end - s
         x1, v1 = _slide(x, v, a0, f_start, df_dt, length, mode, p)
-        d1 = mode * _accel(x1, v1, f0 + df_dt * end, mode, p)
+        f_end = f0 + df_dt * end
+        a1 = _accel(x1, v1, f_end, mode, p)
+        d1 = mode * a1
         p1 = mode * v1
         tau = -1.0
         if p1 <= 0.0 or d0 < 0.0 < d1:
@@ -349,19 +359,22 @@ def _interval(x, v, mode, f0, f1, t0, rest_time, p):
             x = x1
             v = v1
             s = end
+            carried_a = a1
+            carried_f = f_end
             if s >= h:
-                return x, v, mode, rest_time
+                return x, v, mode, rest_time, a1, f_end
             continue
         tau = _polish_stop(x, v, a0, f_start, df_dt, tau, length, mode, p)
         x, _ = _slide(x, v, a0, f_start, df_dt, tau, mode, p)
         v = 0.0
         s = s + tau
         mode = _break_direction(f0 + df_dt * s - _spring(x, p), p)
+        carried_f = np.nan
         if mode == 0:
             rest_time = t0 + s
         if s >= h:
-            return x, v, mode, rest_time
-    return x, 0.0, 0, (t0 + s if mode != 0 else rest_time)
+            return x, v, mode, rest_time, 0.0, np.nan
+    return x, 0.0, 0, (t0 + s if mode != 0 else rest_time), 0.0, np.nan
 
 
 @njit(cache=True)
@@ -473,6 +486,10 @@ def oscillator_exact(force, x_out, v_out, state, p):
     gb0, gb1 = p[GAMMA_DU], p[GAMMA_DU + 1]
     i = first
     zeroed = first  # v_out[i:zeroed] is zero already: written ahead while sliding
+    # The acceleration the last interval ended with, and the force it is under (`_interval`;
+    # NaN: none carried, since the state has moved on since).
+    carried_a = 0.0
+    carried_f = np.nan
     while i < n:
         f1 = force[i]
         suspect |= not abs(f1) <= limit
@@ -494,6 +511,7 @@ def oscillator_exact(force, x_out, v_out, state, p):
             sigma = float(mode)
             friction = sigma * (p[FRICTION_POS] if mode > 0 else p[FRICTION_NEG])
             zeroed = max(zeroed, i + 1)
+            carried_f = np.nan
             while True:
                 u0 = f0 - friction
                 du = f1 - f0
@@ -526,7 +544,9 @@ def oscillator_exact(force, x_out, v_out, state, p):
             if i == n:
                 break
         t0 = (index0 + i - 1) * h
-        x, v, mode, rest_time = _interval(x, v, mode, f0, f1, t0, rest_time, p)
+        x, v, mode, rest_time, carried_a, carried_f = _interval(
+            x, v, mode, f0, f1, t0, rest_time, p, carried_a, carried_f
+        )
         x_out[i] = x
         v_out[i] = v
         f0 = f1
