@@ -597,7 +597,7 @@ def test_a_rest_at_the_band_edge_under_a_constant_force_breaks_away_at_once():
     """
     mu, force_n = 0.14389866247302455, 4.484282481692489e-05
     plan = model._plan(25600.0, FMM_RIG, mu, (), 'exact')
-    x, v, mode, rest_time = _kernels._interval(
+    x, v, mode, rest_time, _, _ = _kernels._interval(
         -0.0004842975817639637,
         0.0,
         0,
@@ -606,6 +606,8 @@ def test_a_rest_at_the_band_edge_under_a_constant_force_breaks_away_at_once():
         0.1198046875,
         0.11980468661864734,
         plan.params,
+        0.0,
+        math.nan,
     )
     assert mode == 1 and 0.0 < v < 1e-10 and math.isnan(rest_time)
     assert x == pytest.approx(-0.0004842975817639637, abs=1e-15)

@@ -183,10 +183,18 @@ def test_the_service_carries_the_list_the_trend_and_the_map(cases, name):
         msgs.fill_diagnose_response(DiagnoseModel.Response(), result)
     )
     json.dumps(received, allow_nan=False)  # what `fmm ros call diagnose --json` prints
-    for key in ('missing_effect', 'selection', 'verdict'):
+    for key in ('missing_effect', 'selection', 'verdict', 'parameter_at_bound'):
         assert received[key] == sent[key]
     for got, want in zip(received['missing_effects'], sent['missing_effects'], strict=True):
-        for key in ('effect', 'score', 'drop_score', 'partial', 'parameters', 'parameter_units'):
+        for key in (
+            'effect',
+            'score',
+            'drop_score',
+            'partial',
+            'parameters',
+            'parameter_units',
+            'parameter_at_bound',
+        ):
             assert got[key] == want[key]
         if 'where' in want:
             assert got['where']['summary'] == want['where']['summary']
@@ -199,5 +207,6 @@ def test_the_service_carries_the_list_the_trend_and_the_map(cases, name):
     for got, want in zip(received['candidates'], sent['candidates'], strict=True):
         assert got['detection_limit'] == want['detection_limit']
         assert got['parameters'] == want['parameters']
+        assert got.get('unobservable') == want.get('unobservable')
     assert any(candidate['detection_limit'] for candidate in sent['candidates'])
     assert diagnosis_text(received, 8).splitlines()[1] == diagnosis_text(sent, 8).splitlines()[1]

@@ -619,5 +619,26 @@ DIAGNOSIS: dict[str, ResultField] = _group(
         'required score',
         '.3g',
     ),
+    ResultField(
+        'parameter_at_bound',
+        '',
+        'Whether a fitted parameter ended on a bound of its fitting range (a limit, not an '
+        'estimate), by parameter name',
+        'at its bound',
+        messages=(
+            'DiagnoseModel.parameter_at_bound',
+            'DiagnoseModel.missing_effect_parameter_at_bound',
+        ),
+    ),
+    ResultField(
+        'unobservable',
+        '',
+        "A candidate's 'these records cannot show ...' and what would, when its detection "
+        'limit lies outside its physical range; empty when the records can show it',
+        'unobservable',
+        's',
+        messages=('DiagnoseModel.candidate_unobservable',),
+    ),
 )
-"""The scalar fields of a diagnosis (`Diagnosis`, DiagnoseModel.srv), by key."""
+"""The fields of a diagnosis (`Diagnosis`, DiagnoseModel.srv), by key: its scalars, and the
+flags its parameters and candidates carry."""

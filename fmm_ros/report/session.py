@@ -499,6 +499,11 @@ def _frf_section(
     )
 
 
+AT_BOUND = ' (at its bound)'
+"""What a parameter's value cell adds when its fit ended on a bound of its range (a limit,
+not an estimate), as `fmm diagnose`'s table does."""
+
+
 def _diagnosis_section(
     page: Page,
     session: SessionResult,
@@ -529,7 +534,11 @@ def _diagnosis_section(
     page.table(
         ['parameter of the named model', 'value ± 1σ', 'unit'],
         [
-            [p.name, format_with_uncertainty(p.value, p.stderr), '-' if p.unit == '1' else p.unit]
+            [
+                p.name,
+                format_with_uncertainty(p.value, p.stderr) + (AT_BOUND if p.at_bound else ''),
+                '-' if p.unit == '1' else p.unit,
+            ]
             for p in result.parameters
         ],
         text_columns=(0, 2),
@@ -554,7 +563,9 @@ def _diagnosis_section(
                         c.effect, c.detection_limit, c.detection_limit_by_frequency
                     )
                 ),
-                'named' if c.effect in result.named_effects else c.message or '-',
+                'named'
+                if c.effect in result.named_effects
+                else '; '.join(n for n in (c.message, c.unobservable) if n) or '-',
             ]
             for c in result.candidates
         ],

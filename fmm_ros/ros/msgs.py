@@ -262,6 +262,7 @@ def fill_diagnose_response(response: object, result: diagnose.Diagnosis) -> obje
     response.parameter_values = float64_field([p.value for p in result.parameters])
     response.parameter_units = [p.unit for p in result.parameters]
     response.parameter_stderr = float64_field([p.stderr for p in result.parameters])
+    response.parameter_at_bound = [p.at_bound for p in result.parameters]
     response.mu, response.mu_stderr = result.mu, result.mu_stderr
     response.gap_before, response.gap_after = result.gap_before, result.gap_after
     response.frf_gap_before, response.frf_gap_after = (result.frf_gap_before, result.frf_gap_after)
@@ -283,6 +284,7 @@ def fill_diagnose_response(response: object, result: diagnose.Diagnosis) -> obje
         [f for curve in curves for f, _ in curve]
     )
     response.candidate_limit_curve_values = float64_field([v for curve in curves for _, v in curve])
+    response.candidate_unobservable = [c.unobservable for c in result.candidates]
     response.noise_std_m_s = result.noise_std_m_s
     response.residual_noise_std_m_s = result.residual_noise_std_m_s
     response.starts = result.starts
@@ -300,6 +302,7 @@ def fill_diagnose_response(response: object, result: diagnose.Diagnosis) -> obje
     response.missing_effect_parameter_stderr = float64_field(
         [p.stderr for n in named for p in n.parameters]
     )
+    response.missing_effect_parameter_at_bound = [p.at_bound for n in named for p in n.parameters]
     unexplained = [n for n in named if n.where is not None]
     response.unexplained = bool(unexplained)
     response.unexplained_where = unexplained[0].where.summary if unexplained else ''
@@ -433,6 +436,13 @@ def diagnose_response_dict(response: object) -> dict:
                     strict=True,
                 )
             ),
+            'parameter_at_bound': dict(
+                zip(
+                    response.parameter_names,
+                    (bool(flag) for flag in response.parameter_at_bound),
+                    strict=True,
+                )
+            ),
             'mu': response.mu,
             'mu_stderr': response.mu_stderr,
             'gap_before': response.gap_before,
@@ -447,14 +457,16 @@ def diagnose_response_dict(response: object) -> dict:
                     'gap_after': gap_after,
                     'parameters': dict(zip(names[span], values[span].tolist(), strict=True)),
                     'detection_limit': detection_limit_dict(effect, limit, curve),
+                    **({'unobservable': unobservable} if unobservable else {}),
                 }
-                for effect, score, gap_after, limit, curve, span in zip(
+                for effect, score, gap_after, limit, curve, span, unobservable in zip(
                     response.candidate_effects,
                     field_array(response.candidate_scores).tolist(),
                     field_array(response.candidate_gap_after).tolist(),
                     field_array(response.candidate_detection_limits).tolist(),
                     curves,
                     _spans(response.candidate_parameter_counts),
+                    response.candidate_unobservable,
                     strict=True,
                 )
             ],
@@ -484,6 +496,7 @@ def _open_world_dict(response: object) -> dict:
     names = list(response.missing_effect_parameter_names)
     values = field_array(response.missing_effect_parameter_values).tolist()
     errors = field_array(response.missing_effect_parameter_stderr).tolist()
+    bounded = [bool(flag) for flag in response.missing_effect_parameter_at_bound]
     units = dict(zip(response.parameter_names, response.parameter_units, strict=True))
     trend = {
         'mu_per_hit': field_array(response.mu_per_hit).tolist(),
@@ -509,6 +522,7 @@ def _open_world_dict(response: object) -> dict:
             'parameters': dict(zip(names[span], values[span], strict=True)),
             'parameter_stderr': dict(zip(names[span], errors[span], strict=True)),
             'parameter_units': {name: units.get(name, '') for name in names[span]},
+            'parameter_at_bound': dict(zip(names[span], bounded[span], strict=True)),
         }
         if effect == diagnose.MU_DRIFT:
             entry.update(trend)

@@ -1167,12 +1167,23 @@ def _size_at_bound(candidate: Candidate) -> bool:
 
 
 def _at_bound_note(named: Sequence[NamedEffect]) -> str:
-    """'; stribeck.mu_static_excess = 0.5 at its bound' for each named parameter on a bound."""
+    """'; stribeck.mu_static_excess = 0.5 at its bound' for each named effect sized on a bound.
+
+    Only the parameter that sizes the effect (`EFFECT_SIZE`): a size on the edge of its
+    physical range is a limit, not an estimate, and may stand in for another effect. A shape
+    parameter on its bound (a Gaussian contact's Stribeck exponent at 2, most of them) is no
+    finding; the JSON's `parameter_at_bound` and the table's '(at its bound)' still say it.
+    """
+    sizes = {
+        f'{effect.effect}.{EFFECT_SIZE[effect.effect][0]}'
+        for effect in named
+        if effect.effect in EFFECT_SIZE
+    }
     ends = [
         f'{p.name} = {p.value:.4g} at its bound'
         for effect in named
         for p in effect.parameters
-        if p.at_bound
+        if p.at_bound and p.name in sizes
     ]
     return ''.join(f'; {end}' for end in ends)
 

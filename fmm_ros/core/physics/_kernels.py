@@ -161,11 +161,14 @@ def _closed_form(x, v, u0, du_dt, tau, m, c, k):
 
 
 @njit(cache=True)
-def _rk4(x, v, f0, df_dt, tau, sigma, p):
-    """One classical Runge-Kutta step of length tau at fixed sliding direction sigma."""
+def _rk4(x, v, a1, f0, df_dt, tau, sigma, p):
+    """One classical Runge-Kutta step of length tau at fixed sliding direction sigma.
+
+    a1: the acceleration at the start, `_accel(x, v, f0, sigma, p)`, which the caller has
+    (`_interval` judges the segment by it): one evaluation of the friction fewer a step.
+    """
     half = 0.5 * tau
     f_mid = f0 + df_dt * half
-    a1 = _accel(x, v, f0, sigma, p)
     v2 = v + half * a1
     a2 = _accel(x + half * v, v2, f_mid, sigma, p)
     v3 = v + half * a2
@@ -177,10 +180,11 @@ def _rk4(x, v, f0, df_dt, tau, sigma, p):
 
 
 @njit(cache=True)
-def _slide(x, v, f0, df_dt, tau, sigma, p):
+def _slide(x, v, a0, f0, df_dt, tau, sigma, p):
     """State after sliding for tau in direction sigma: closed form or RK4, per the path.
 
-    On NONLINEAR 2 the closed form where the speed stays above STRIBECK_FLAT_RATIO * vs.
+    a0: the acceleration at the start (`_rk4`'s a1). On NONLINEAR 2 the closed form where the
+    speed stays above STRIBECK_FLAT_RATIO * vs.
     """
     if p[NONLINEAR] == 2.0:
         flat = p[STRIBECK_FLAT_RATIO] * p[STRIBECK_V]
@@ -188,9 +192,9 @@ def _slide(x, v, f0, df_dt, tau, sigma, p):
             xe, ve = _kinetic_slide(x, v, f0, df_dt, tau, sigma, p)
             if sigma * ve >= flat:
                 return xe, ve
-        return _rk4(x, v, f0, df_dt, tau, sigma, p)
+        return _rk4(x, v, a0, f0, df_dt, tau, sigma, p)
     if p[NONLINEAR] != 0.0:
-        return _rk4(x, v, f0, df_dt, tau, sigma, p)
+        return _rk4(x, v, a0, f0, df_dt, tau, sigma, p)
     return _kinetic_slide(x, v, f0, df_dt, tau, sigma, p)
 
 
@@ -268,10 +272,13 @@ def _first_stop(p0, d0, p1, d1, length):
 
 
 @njit(cache=True)
-def _polish_stop(x, v, f0, df_dt, tau, length, sigma, p):
-    """Newton steps on the path's own trajectory for the instant its velocity is zero."""
+def _polish_stop(x, v, a0, f0, df_dt, tau, length, sigma, p):
+    """Newton steps on the path's own trajectory for the instant its velocity is zero.
+
+    a0: the acceleration at the start of the path (`_slide`).
+    """
     for _ in range(4):
-        xe, ve = _slide(x, v, f0, df_dt, tau, sigma, p)
+        xe, ve = _slide(x, v, a0, f0, df_dt, tau, sigma, p)
         ae = _accel(xe, ve, f0 + df_dt * tau, sigma, p)
         if ae == 0.0:
             break
@@ -286,10 +293,14 @@ def _polish_stop(x, v, f0, df_dt, tau, length, sigma, p):
 
 
 @njit(cache=True)
-def _interval(x, v, mode, f0, f1, t0, rest_time, p):
+def _interval(x, v, mode, f0, f1, t0, rest_time, p, carried_a, carried_f):
     """Advance one sample interval [t0, t0 + h] with all events located inside it.
 
-    Returns the end state (x, v, mode, rest_time). The force is f0 + (f1 - f0) s / h.
+    Returns the end state (x, v, mode, rest_time) and (a, f): the acceleration at that state
+    under force f, as the last segment computed it (f NaN where it computed none). The force
+    is f0 + (f1 - f0) s / h. carried_a, carried_f: the (a, f) the previous interval returned,
+    its state this one's: a segment starting under the very same force takes that a instead
+    of evaluating it again (the same numbers, one friction evaluation fewer a sample).
     """
     h = p[STEP]
     df_dt = (f1 - f0) / h
@@ -301,7 +312,7 @@ def _interval(x, v, mode, f0, f1, t0, rest_time, p):
             g_end = f1 - spring
             direction = _break_direction(g_end, p)
             if direction == 0:
-                return x, 0.0, 0, rest_time
+                return x, 0.0, 0, rest_time, 0.0, np.nan
             # g is linear in time at rest: it leaves the band where it crosses the edge.
             g_now = f0 + df_dt * s - spring
             edge = (
@@ -317,11 +328,16 @@ def _interval(x, v, mode, f0, f1, t0, rest_time, p):
             mode = direction
             v = 0.0
             rest_time = np.nan
+            carried_f = np.nan
             if s >= h:
-                return x, v, mode, rest_time
+                return x, v, mode, rest_time, 0.0, np.nan
             continue
         f_start = f0 + df_dt * s
-        d0 = mode * _accel(x, v, f_start, mode, p)
+        if f_start == carried_f and math.copysign(1.0, f_start) == math.copysign(1.0, carried_f):
+            a0 = carried_a
+        else:
+            a0 = _accel(x, v, f_start, mode, p)
+        d0 = mode * a0
         end = min(h, s + segment)
         if p[STATIC_EXCESS] != 0.0 and abs(v) < p[STRIBECK_ZONE_RATIO] * p[STRIBECK_V]:
             # Near zero speed the Stribeck excess changes as fast as the speed crosses vs:
@@ -331,8 +347,10 @@ def _interval(x, v, mode, f0, f1, t0, rest_time, p):
             if speed_rate > 0.0:
                 end = min(end, s + max(STRIBECK_STEP * p[STRIBECK_V] / speed_rate, h / 1024.0))
         length = end - s
-        x1, v1 = _slide(x, v, f_start, df_dt, length, mode, p)
-        d1 = mode * _accel(x1, v1, f0 + df_dt * end, mode, p)
+        x1, v1 = _slide(x, v, a0, f_start, df_dt, length, mode, p)
+        f_end = f0 + df_dt * end
+        a1 = _accel(x1, v1, f_end, mode, p)
+        d1 = mode * a1
         p1 = mode * v1
         tau = -1.0
         if p1 <= 0.0 or d0 < 0.0 < d1:
@@ -341,19 +359,22 @@ def _interval(x, v, mode, f0, f1, t0, rest_time, p):
             x = x1
             v = v1
             s = end
+            carried_a = a1
+            carried_f = f_end
             if s >= h:
-                return x, v, mode, rest_time
+                return x, v, mode, rest_time, a1, f_end
             continue
-        tau = _polish_stop(x, v, f_start, df_dt, tau, length, mode, p)
-        x, _ = _slide(x, v, f_start, df_dt, tau, mode, p)
+        tau = _polish_stop(x, v, a0, f_start, df_dt, tau, length, mode, p)
+        x, _ = _slide(x, v, a0, f_start, df_dt, tau, mode, p)
         v = 0.0
         s = s + tau
         mode = _break_direction(f0 + df_dt * s - _spring(x, p), p)
+        carried_f = np.nan
         if mode == 0:
             rest_time = t0 + s
         if s >= h:
-            return x, v, mode, rest_time
-    return x, 0.0, 0, (t0 + s if mode != 0 else rest_time)
+            return x, v, mode, rest_time, 0.0, np.nan
+    return x, 0.0, 0, (t0 + s if mode != 0 else rest_time), 0.0, np.nan
 
 
 @njit(cache=True)
@@ -465,6 +486,10 @@ def oscillator_exact(force, x_out, v_out, state, p):
     gb0, gb1 = p[GAMMA_DU], p[GAMMA_DU + 1]
     i = first
     zeroed = first  # v_out[i:zeroed] is zero already: written ahead while sliding
+    # The acceleration the last interval ended with, and the force it is under (`_interval`;
+    # NaN: none carried, since the state has moved on since).
+    carried_a = 0.0
+    carried_f = np.nan
     while i < n:
         f1 = force[i]
         suspect |= not abs(f1) <= limit
@@ -486,6 +511,7 @@ def oscillator_exact(force, x_out, v_out, state, p):
             sigma = float(mode)
             friction = sigma * (p[FRICTION_POS] if mode > 0 else p[FRICTION_NEG])
             zeroed = max(zeroed, i + 1)
+            carried_f = np.nan
             while True:
                 u0 = f0 - friction
                 du = f1 - f0
@@ -518,7 +544,9 @@ def oscillator_exact(force, x_out, v_out, state, p):
             if i == n:
                 break
         t0 = (index0 + i - 1) * h
-        x, v, mode, rest_time = _interval(x, v, mode, f0, f1, t0, rest_time, p)
+        x, v, mode, rest_time, carried_a, carried_f = _interval(
+            x, v, mode, f0, f1, t0, rest_time, p, carried_a, carried_f
+        )
         x_out[i] = x
         v_out[i] = v
         f0 = f1
