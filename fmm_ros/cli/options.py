@@ -123,6 +123,24 @@ def add_setting(
     )
 
 
+def add_range_setting(
+    group, cls: type, name: str, flags: tuple[str, str], *, default: tuple | None = None
+) -> None:
+    """The two options of a declared (low, high) setting, one an end (`--mu-min`, `--mu-max`).
+
+    default: other ends than the declared ones (a client's 0, 0 for "the server's").
+    """
+    item = setting_of(cls, name)
+    ends = item.default if default is None else default
+    for end, flag, value in zip(('lower', 'upper'), flags, ends, strict=True):
+        group.add_argument(
+            flag,
+            type=type(value),
+            default=value,
+            help=setting_help(item, f'{end} end: {item.help[:1].lower()}{item.help[1:]}', value),
+        )
+
+
 def setting_help(item: Setting, help: str | None, default: Any) -> str:
     """'Force that starts an impact [N] (default 20)': a setting's help as --help shows it."""
     text = help or item.help[:1].lower() + item.help[1:]
@@ -447,18 +465,9 @@ def add_model(parser: argparse.ArgumentParser, *, damping: bool = True) -> None:
     add_rig(parser)
     group = parser.add_argument_group('what the fit frees besides mu')
     if damping:
-        group.add_argument(
-            '--fit-damping',
-            action='store_true',
-            help='fit the viscous damping c too (otherwise c is the rig constant)',
-        )
-    group.add_argument(
-        '--fit-initial-position',
-        action=argparse.BooleanOptionalAction,
-        default=True,
-        help='fit where the rig rested before each hit (default: friction leaves it off '
-        'centre after the previous one); --no-fit-initial-position starts each at x = 0',
-    )
+        add_setting(group, FitSpec, 'fit_damping')
+    # A session's hits find the rig where friction left it after the one before: on by default.
+    add_setting(group, FitSpec, 'fit_initial_position', default=True)
     add_setting(group, FitSpec, 'chain_starts')
 
 
