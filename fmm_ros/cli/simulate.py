@@ -16,7 +16,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from fmm_ros.cli import options
-from fmm_ros.constants import PAPER_MU, SAMPLE_RATE_HZ
+from fmm_ros.constants import SAMPLE_RATE_HZ
+from fmm_ros.core.physics.rig import PlantRun
 from fmm_ros.errors import BadInputError
 
 if TYPE_CHECKING:
@@ -36,9 +37,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         'from an initial displacement/velocity and/or a measured force record '
         '(linear between samples). Rig flags default to the FMM.',
     )
-    parser.add_argument('--x0-m', type=float, default=0.0, help='initial displacement [m]')
+    options.add_setting(parser, PlantRun, 'x0_m')
     options.add_alias(parser, '--x0-mm', 'x0_m', '--x0-m (in m)', type=float, scale=1e-3)
-    parser.add_argument('--v0-m-s', type=float, default=0.0, help='initial velocity [m/s]')
+    options.add_setting(parser, PlantRun, 'v0_m_s')
     parser.add_argument(
         '--force-csv',
         type=Path,
@@ -46,12 +47,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help='force record with columns time_s,force_n (uniform time step); '
         'without it there is no applied force',
     )
-    parser.add_argument(
-        '--mu',
-        type=float,
-        default=PAPER_MU,
-        help=f'Coulomb friction coefficient (default {PAPER_MU})',
-    )
+    options.add_setting(parser, PlantRun, 'mu')
     options.add_rig(parser)
     parser.add_argument(
         '--duration-s',
@@ -65,13 +61,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help=f'sample rate [Hz] (default {SAMPLE_RATE_HZ:g}, or the '
         "force record's, which it must then match)",
     )
-    parser.add_argument(
-        '--integrator',
-        choices=('euler', 'exact'),
-        default='exact',
-        help='exact (default): exact between located stick/slip events; '
-        "euler: the paper's fixed-step reference",
-    )
+    options.add_setting(parser, PlantRun, 'integrator')
     options.add_json(parser, 'the summary')
     options.add_output(
         parser,

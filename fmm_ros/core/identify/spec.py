@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ
+from fmm_ros.core.physics.rig import INTEGRATORS
 from fmm_ros.core.settings import setting
 from fmm_ros.errors import BadInputError
 
@@ -98,7 +99,7 @@ class FitSpec:
         limits=(0.1, 1e6),
     )
     integrator: str = setting(
-        'exact', help='How the model is integrated', choices=('exact', 'rk4', 'euler')
+        'exact', help='How the model is integrated', choices=INTEGRATORS
     )
     jacobian: str = setting('blocks', help='How the Jacobian is built', choices=JACOBIANS)
     judge_hit: bool = setting(

@@ -21,7 +21,6 @@ from fmm_ros.constants import (
     APPLIED_FORCE_TOPIC,
     FORCE,
     FORCE_TOPIC,
-    PAPER_LEVELS,
     SAMPLE_RATE_HZ,
 )
 from fmm_ros.errors import BadInputError
@@ -46,20 +45,7 @@ PARAMS = (
     ),
     *shared_params('batch_size'),
     *shared_params('rate_factor', read_only=False),
-    Param(
-        'level_names',
-        [level.name for level in PAPER_LEVELS],
-        'Names of the force levels, in order',
-        read_only=True,
-    ),
-    Param(
-        'level_peak_forces_n',
-        [level.peak_force_n for level in PAPER_LEVELS],
-        'Nominal peak force per level [N]',
-        limits=(1.0, 50_000.0),
-        read_only=True,
-    ),
-    Param('hits_per_level', 10, 'Hits at each level [-]', limits=(1, 10_000), read_only=True),
+    *shared_params('level_names', 'level_peak_forces_n', 'hits_per_level'),
     Param(
         'hit_spacing_s',
         40.0,
