@@ -6,8 +6,8 @@ import argparse
 from datetime import datetime
 
 from fmm_ros.cli import options
-from fmm_ros.constants import BATCH_SIZE
 from fmm_ros.errors import BadInputError
+from fmm_ros.ros.settings import NodeSettings
 from fmm_ros.units import FORCE_UNITS, VELOCITY_UNITS
 
 EPILOG = f"""\
@@ -57,8 +57,8 @@ def register(subparsers) -> None:
             f'{options.FULL_SCALE_FLAGS[quantity]} (in {unit}; this one is in file units)',
             type=float,
         )
-    parser.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap')
-    parser.add_argument('--batch-size', type=int, default=BATCH_SIZE, metavar='SAMPLES')
+    options.add_setting(parser, NodeSettings, 'storage')
+    options.add_setting(parser, NodeSettings, 'batch_size', metavar='SAMPLES')
     parser.add_argument(
         '--start-time',
         metavar='ISO8601',

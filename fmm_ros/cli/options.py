@@ -39,7 +39,7 @@ from fmm_ros.core.signal.config import (
     NominalLevel,
     paper_levels,
 )
-from fmm_ros.io.textformat import DECIMALS, TextFormat, delimiter_from_name
+from fmm_ros.io.textformat import TextFormat, delimiter_from_name
 
 if TYPE_CHECKING:
     from fmm_ros.workflows.inputs import InputOptions
@@ -108,18 +108,19 @@ def add_setting(
 
     help replaces the declared help (the unit and default are still added); flag another
     spelling than the declared one (the dest follows it); kwargs go to add_argument (a
-    different default, a metavar).
+    different default, a metavar, a type that parses the text).
     """
     item = setting_of(cls, name)
     default = kwargs.pop('default', item.default)
-    kind = type(item.default) if item.default is not None else float
+    kind = type(item.default) if item.default is not None else str if item.choices else float
     options: dict[str, Any] = {'type': kind, 'default': default}
     if kind is bool:
         options = {'action': argparse.BooleanOptionalAction, 'default': default}
     elif kind is str and item.choices:
         options['choices'] = item.choices
+    options.update(kwargs)
     return group.add_argument(
-        flag or item.option, **options, help=setting_help(item, help, default), **kwargs
+        flag or item.option, **options, help=setting_help(item, help, default)
     )
 
 
@@ -143,10 +144,12 @@ def add_range_setting(
 
 def setting_help(item: Setting, help: str | None, default: Any) -> str:
     """'Force that starts an impact [N] (default 20)': a setting's help as --help shows it."""
-    text = help or item.help[:1].lower() + item.help[1:]
+    initial = item.help[:1] if item.help[1:2].isupper() else item.help[:1].lower()  # PNG stays
+    text = help or initial + item.help[1:]
     if item.unit:
         text += f' [{item.unit}]'
     shown = 'none' if default is None else f'{default:g}' if isinstance(default, float) else default
+    shown = "''" if shown == '' else shown
     return f'{text} (default {shown})'
 
 
@@ -211,23 +214,10 @@ def add_mapping_flags(group) -> None:
         help='sample rate, or the name of the variable holding it (default: from a time '
         'channel, a sample_rate_hz variable or the TDMS increments)',
     )
-    group.add_argument(
-        '--delimiter',
-        type=_delimiter,
-        help='text column delimiter: , ; | tab space (default: detected)',
-    )
-    group.add_argument(
-        '--decimal', choices=DECIMALS, help='decimal separator of text files (default: detected)'
-    )
-    group.add_argument(
-        '--skip-rows',
-        type=int,
-        default=0,
-        metavar='N',
-        help='lines before the header of a text file (default: found from the first row of '
-        'numbers)',
-    )
-    group.add_argument('--encoding', help='text encoding (default: BOM, UTF-8, else detected)')
+    add_setting(group, TextFormat, 'delimiter', type=_delimiter)
+    add_setting(group, TextFormat, 'decimal')
+    add_setting(group, TextFormat, 'skip_rows', metavar='N')
+    add_setting(group, TextFormat, 'encoding', type=str)
 
 
 def add_full_scale_flags(group) -> None:
@@ -340,12 +330,15 @@ def add_hit_selection(parser: argparse.ArgumentParser, *, fits: bool = False) ->
         'the paper)',
     )
     add_setting(group, CaptureConfig, 'rest_velocity_m_s')
-    group.add_argument(
-        '--reject',
+    add_setting(
+        group,
+        AnalysisConfig,
+        'reject_flags',
+        flag='--reject',
         type=_flag_list,
         default=None,
         metavar='FLAG,...',
-        help=f'flags that reject an impact, or "none" (default: all of {",".join(FLAGS)})',
+        help=f'flags that reject an impact, or "none" (none given: all of {",".join(FLAGS)})',
     )
     if fits:
         group.add_argument(

@@ -6,7 +6,7 @@ rclpy; `fmm_ros.ros.common.shared_params` makes a node's parameters of them.
 
 from dataclasses import dataclass
 
-from fmm_ros.constants import BATCH_SIZE, PAPER_LEVELS
+from fmm_ros.constants import BAG_STORAGES, BATCH_SIZE, PAPER_LEVELS
 from fmm_ros.core.settings import setting
 
 
@@ -57,6 +57,9 @@ class NodeSettings:
     )
     hits_per_level: int = setting(
         10, unit='-', help='Hits at each level of a simulated session', limits=(1, 10_000)
+    )
+    storage: str = setting(
+        'mcap', help='rosbag2 storage plugin of a bag written', choices=BAG_STORAGES
     )
     history_s: float = setting(
         60.0,

@@ -48,7 +48,6 @@ MIN_SAMPLES_PER_PERIOD = 20
 """Sampling must resolve the rig's natural period this finely (event location, FRFs)."""
 
 
-
 # RK4 segments are chosen so that (fastest rate) x (segment) stays below this.
 _RK4_RATE_STEP = 0.02
 
