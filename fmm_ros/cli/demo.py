@@ -100,6 +100,7 @@ def run(args: argparse.Namespace) -> int:
 def _text(result, out: Path) -> str:
     """The ten-second summary."""
     from fmm_ros.core import results_schema as schema
+    from fmm_ros.core.results_schema import format_with_uncertainty as pm
 
     impulse, spread, receptance, natural = (
         schema.IMPULSE,
@@ -124,7 +125,7 @@ def _text(result, out: Path) -> str:
         f'hits: {result.hits_sent} sent, {result.hits_reported} reported, '
         f'{result.hits_accepted} accepted',
         (
-            f'mu: {result.mu:.4f} +- {result.friction.mu_stderr:.2g} fitted, '
+            f'mu: {pm(result.mu, result.friction.mu_stderr, schema.ASCII_PM)} fitted, '
             f'{result.plant_mu:.4f} in the plant ({error:+.2f} %)'
             if result.friction
             else f'mu: not fitted ({result.fit_message})'
@@ -153,5 +154,10 @@ def _live_mu(running: list[dict]) -> str:
     if not running:
         return 'live mu: none published'
     shown = [running[0]] + [e for e in running[1:] if e['count'] % 10 == 0 or e is running[-1]]
-    steps = ', '.join(f'{e["mu"]:.5f} +- {e["mu_stderr"]:.1g} ({e["count"]})' for e in shown)
+    from fmm_ros.core.results_schema import ASCII_PM, format_with_uncertainty
+
+    steps = ', '.join(
+        f'{format_with_uncertainty(e["mu"], e["mu_stderr"], ASCII_PM)} ({e["count"]})'
+        for e in shown
+    )
     return f'live mu (after n hits): {steps}; one mu: p = {running[-1]["consistency_p_value"]:.2g}'
