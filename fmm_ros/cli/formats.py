@@ -121,7 +121,7 @@ def friction_text(result: FrictionResult) -> str:
     ]
     for entry in result.per_impact():
         lines.append(
-            f'{Path(entry["file"]).name:<28.28} {entry["impulse_n_s"]:>13.4f} '
+            f'{Path(entry["file"]).name:<28.28} {entry[schema.IMPULSE.name]:>13.4f} '
             f'{entry["mu"]:>9.5f} {entry["mu_stderr"]:>8.2g} {entry["residual_rms_m_s"]:>14.3e}'
         )
     return '\n'.join(lines)
