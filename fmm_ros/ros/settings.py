@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 from fmm_ros.constants import BAG_STORAGES, BATCH_SIZE, PAPER_LEVELS
 from fmm_ros.core.settings import setting
+from fmm_ros.core.signal.judging import MODES
 
 
 @dataclass(frozen=True)
@@ -59,11 +60,28 @@ class NodeSettings:
         10, unit='-', help='Hits at each level of a simulated session', limits=(1, 10_000)
     )
     storage: str = setting(
-        'mcap', help='rosbag2 storage plugin of a bag written', choices=BAG_STORAGES
+        'mcap', help='Storage plugin (rosbag2) of a bag written', choices=BAG_STORAGES
     )
     history_s: float = setting(
         60.0,
         unit='s',
         help='Stream history kept to cut hits from (>= the analyzer window + latency)',
         limits=(1.0, 3600.0),
+    )
+
+
+@dataclass(frozen=True)
+class StationSettings:
+    """How the station judges a new hit: the station node's parameters and `fmm station`'s."""
+
+    judge_mode: str = setting(
+        'flags',
+        help='Who judges a new hit: flags (the analyzer), manual (the operator: held pending '
+        'until decided) or function (judge_function)',
+        choices=MODES,
+    )
+    judge_function: str = setting(
+        '',
+        help='Module:function called with (ImpactRecord, ImpactResult) in function mode; '
+        'returns a bool or (bool, reason)',
     )
