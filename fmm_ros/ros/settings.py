@@ -6,7 +6,7 @@ rclpy; `fmm_ros.ros.common.shared_params` makes a node's parameters of them.
 
 from dataclasses import dataclass
 
-from fmm_ros.constants import BAG_STORAGES, BATCH_SIZE, PAPER_LEVELS
+from fmm_ros.constants import BAG_STORAGES, BATCH_SIZE, PAPER_LEVELS, SAMPLE_RATE_HZ
 from fmm_ros.core.settings import setting
 from fmm_ros.core.signal.judging import MODES
 
@@ -25,6 +25,12 @@ class NodeSettings:
         unit='-',
         help="Speed against real time (a player's: against the recorded pace); 1 is real time",
         limits=(0.01, 1000.0),
+    )
+    sample_rate_hz: float = setting(
+        SAMPLE_RATE_HZ,
+        unit='Hz',
+        help="Sample rate of a source's channels (a device's sample clock)",
+        limits=(100.0, 1e7),
     )
     batch_size: int = setting(
         BATCH_SIZE,

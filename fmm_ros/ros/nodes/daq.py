@@ -37,7 +37,6 @@ from fmm_ros.constants import (
     FORCE,
     FORCE_TOPIC,
     RESPONSE_CHANNELS,
-    SAMPLE_RATE_HZ,
     VELOCITY,
     VELOCITY_TOPIC,
 )
@@ -67,14 +66,7 @@ RESPONSE_FRAMES = {
 
 PARAMS = (
     Param('backend', 'nidaqmx', 'Acquisition backend', choices=('nidaqmx', 'file'), read_only=True),
-    Param(
-        'sample_rate_hz',
-        SAMPLE_RATE_HZ,
-        'Sample clock of the device (nidaqmx) [Hz]',
-        limits=(1.0, 1e7),
-        read_only=True,
-    ),
-    *shared_params('batch_size'),
+    *shared_params('sample_rate_hz', 'batch_size'),
     Param('force_channel', 'Dev1/ai0', 'Physical channel of the hammer (IEPE)', read_only=True),
     Param(
         'hammer_sensitivity_mv_per_n',

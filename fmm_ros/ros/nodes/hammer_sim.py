@@ -21,7 +21,6 @@ from fmm_ros.constants import (
     APPLIED_FORCE_TOPIC,
     FORCE,
     FORCE_TOPIC,
-    SAMPLE_RATE_HZ,
 )
 from fmm_ros.errors import BadInputError
 from fmm_ros.ros import msgs
@@ -36,14 +35,7 @@ from fmm_ros.sim.hammer import HammerStream, session_schedule
 from fmm_ros.units import si_factor
 
 PARAMS = (
-    Param(
-        'sample_rate_hz',
-        SAMPLE_RATE_HZ,
-        'Sampling rate of the force channel [Hz]',
-        limits=(100.0, 1e6),
-        read_only=True,
-    ),
-    *shared_params('batch_size'),
+    *shared_params('sample_rate_hz', 'batch_size'),
     *shared_params('rate_factor', read_only=False),
     *shared_params('level_names', 'level_peak_forces_n', 'hits_per_level'),
     Param(
