@@ -35,7 +35,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         parser,
         'output folder (default runs/demo_<date>_<time>)',
         metavar='DIR',
-        aliases=('--out',),
     )
     options.add_json(parser, 'one object')
     options.add_setting(parser, PlantRun, 'mu', flag='--plant-mu')

@@ -40,9 +40,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help='time: velocity residual; frf: mobility residual up to --misfit-band-limit-hz',
     )
     options.add_setting(group, FitSpec, 'band_limit_hz', flag='--misfit-band-limit-hz')
-    options.add_alias(
-        parser, '--band-limit-hz', 'misfit_band_limit_hz', '--misfit-band-limit-hz', type=float
-    )
     options.add_range_setting(group, FitSpec, 'mu_bounds', ('--mu-min', '--mu-max'))
     options.add_hit_selection(parser, fits=True)
     options.add_quiet(parser)

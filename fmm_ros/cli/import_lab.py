@@ -49,14 +49,6 @@ def register(subparsers) -> None:
     group = parser.add_argument_group('the channels (flags override the mapping file)')
     options.add_mapping_flags(group)
     options.add_full_scale_flags(group)
-    for quantity, unit in (('force', 'N'), ('velocity', 'm/s')):
-        options.add_alias(
-            parser,
-            f'--{quantity}-full-scale',
-            f'{quantity}_full_scale',
-            f'{options.FULL_SCALE_FLAGS[quantity]} (in {unit}; this one is in file units)',
-            type=float,
-        )
     options.add_setting(parser, NodeSettings, 'storage')
     options.add_setting(parser, NodeSettings, 'batch_size', metavar='SAMPLES')
     parser.add_argument(

@@ -14,9 +14,7 @@ default, unit, help and limits in `fmm_ros.core.settings`), so they say what the
 parameters and the docs say. This module imports no numerics: `fmm --help` answers at once;
 the readers and workflows are imported by the functions that build their options.
 
-Units are SI and named in every flag (`--force-full-scale-n`). Spellings that an earlier
-release used stay for one release as hidden aliases (`argparse.SUPPRESS`) that still work and
-say, on stderr, what replaces them.
+Units are SI and named in every flag (`--force-full-scale-n`); each option has one spelling.
 """
 
 from __future__ import annotations
@@ -24,7 +22,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
-import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -61,38 +58,6 @@ FULL_SCALE_HELP = {
     'acceleration': 'accelerometer range [m/s^2]',
     'displacement': 'displacement sensor range [m]',
 }
-
-
-class DeprecatedAlias(argparse.Action):
-    """An old spelling: hidden from --help, still works, and says what replaces it.
-
-    scale converts the old unit to the new one (`--x0-mm 3` -> x0_m = 0.003).
-    """
-
-    def __init__(self, option_strings, dest, *, use: str, scale: float | None = None, **kwargs):
-        self.use, self.scale = use, scale
-        super().__init__(option_strings, dest, help=argparse.SUPPRESS, **kwargs)
-
-    def __call__(self, parser, namespace, values, option_string=None) -> None:
-        """Warn on stderr, then store the value (converted) where the new spelling does."""
-        print(
-            f'{parser.prog}: warning: {option_string} is deprecated and will be removed; '
-            f'use {self.use}',
-            file=sys.stderr,
-        )
-        if self.nargs == 0:
-            values = self.const
-        elif self.scale is not None:
-            values = values * self.scale
-        if isinstance(getattr(namespace, self.dest, None), list) and not isinstance(values, list):
-            getattr(namespace, self.dest).append(values)
-        else:
-            setattr(namespace, self.dest, values)
-
-
-def add_alias(parser, old: str, dest: str, use: str, **kwargs) -> None:
-    """A hidden old spelling of the option stored in dest (see DeprecatedAlias)."""
-    parser.add_argument(old, dest=dest, action=DeprecatedAlias, use=use, **kwargs)
 
 
 def add_setting(
@@ -245,7 +210,6 @@ def mapping_spec(args: argparse.Namespace) -> dict:
             'name': getattr(args, quantity, None),
             'unit': getattr(args, f'{quantity}_unit', None),
             'scale': getattr(args, f'{quantity}_scale', None),
-            'full_scale': getattr(args, f'{quantity}_full_scale', None),
             'full_scale_si': getattr(args, FULL_SCALE_DESTS.get(quantity, ''), None) or None,
         }
         entry.update({key: value for key, value in flags.items() if value is not None})
@@ -363,7 +327,6 @@ def add_analysis(parser: argparse.ArgumentParser) -> None:
         parser,
         'write the level FRFs to PATH: .uff/.unv (UFF 58), .csv or .json (repeatable)',
         repeat=True,
-        aliases=('--export',),
     )
     add_hit_selection(parser)
     add_frf_options(parser)
@@ -503,16 +466,13 @@ def add_output(
     *,
     metavar: str = 'PATH',
     repeat: bool = False,
-    aliases: tuple[str, ...] = (),
     **kwargs,
 ) -> None:
-    """-o/--output (repeatable if repeat), with hidden old spellings in aliases."""
+    """-o/--output (repeatable if repeat)."""
     options = {'action': 'append', 'default': []} if repeat else {'default': None}
     parser.add_argument(
         '-o', '--output', type=Path, metavar=metavar, help=help, **options, **kwargs
     )
-    for alias in aliases:
-        add_alias(parser, alias, 'output', '-o/--output', type=Path, metavar=metavar)
 
 
 def add_whole_record(parser: argparse.ArgumentParser, *, fit_rig: bool = True) -> None:

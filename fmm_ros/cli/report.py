@@ -36,7 +36,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         parser,
         'directory for index.html and the PNG files (created)',
         metavar='DIR',
-        aliases=('--out',),
     )
     parser.add_argument(
         '--paper',

@@ -38,7 +38,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         '(linear between samples). Rig flags default to the FMM.',
     )
     options.add_setting(parser, PlantRun, 'x0_m')
-    options.add_alias(parser, '--x0-mm', 'x0_m', '--x0-m (in m)', type=float, scale=1e-3)
     options.add_setting(parser, PlantRun, 'v0_m_s')
     parser.add_argument(
         '--force-csv',
@@ -67,7 +66,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         parser,
         'write time_s,force_n,displacement_m,velocity_m_s to this CSV file',
         metavar='CSV',
-        aliases=('--out',),
     )
     parser.set_defaults(func=run)
 
