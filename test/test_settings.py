@@ -108,7 +108,9 @@ def test_the_command_s_options_are_the_declared_settings():
         assert fit['--' + field.name.replace('_', '-')] == getattr(FMM_RIG, field.name)
     assert fit['--misfit-band-limit-hz'] == FitSpec().band_limit_hz
     assert (fit['--mu-min'], fit['--mu-max']) == FitSpec().mu_bounds
-    assert option_defaults('simulate')['--integrator'] == PlantRun().integrator
+    simulate = option_defaults('simulate')
+    for option in ('--integrator', '--x0-m', '--duration-s', '--sample-rate-hz'):
+        assert simulate[option] == getattr(PlantRun(), option[2:].replace('-', '_')), option
     assert option_defaults('demo')['--plant-mu'] == PlantRun().mu
     assert option_defaults('demo')['--hits-per-level'] == NodeSettings().hits_per_level
     assert option_defaults('import')['--batch-size'] == NodeSettings().batch_size

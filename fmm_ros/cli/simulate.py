@@ -17,13 +17,12 @@ from typing import TYPE_CHECKING
 
 from fmm_ros.cli import options
 from fmm_ros.constants import SAMPLE_RATE_HZ
-from fmm_ros.core.physics.rig import PlantRun
+from fmm_ros.core.physics.rig import SIMULATED_DURATION_S, PlantRun
 from fmm_ros.errors import BadInputError
 
 if TYPE_CHECKING:
     import numpy as np
 
-DEFAULT_DURATION_S = 33.0
 FORCE_COLUMNS = ('time_s', 'force_n')
 OUT_COLUMNS = ('time_s', 'force_n', 'displacement_m', 'velocity_m_s')
 
@@ -48,18 +47,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     options.add_setting(parser, PlantRun, 'mu')
     options.add_rig(parser)
-    parser.add_argument(
-        '--duration-s',
-        type=float,
-        help=f'record length [s] (default {DEFAULT_DURATION_S:g}, or the force '
-        "record's; a longer one continues with zero force)",
-    )
-    parser.add_argument(
-        '--sample-rate-hz',
-        type=float,
-        help=f'sample rate [Hz] (default {SAMPLE_RATE_HZ:g}, or the '
-        "force record's, which it must then match)",
-    )
+    options.add_setting(parser, PlantRun, 'duration_s')
+    options.add_setting(parser, PlantRun, 'sample_rate_hz')
     options.add_setting(parser, PlantRun, 'integrator')
     options.add_json(parser, 'the summary')
     options.add_output(
@@ -114,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
             force = np.concatenate((force[:n], np.zeros(max(0, n - force.size))))
     else:
         rate = SAMPLE_RATE_HZ if args.sample_rate_hz is None else args.sample_rate_hz
-        duration = DEFAULT_DURATION_S if args.duration_s is None else args.duration_s
+        duration = SIMULATED_DURATION_S if args.duration_s is None else args.duration_s
         force = np.zeros(record_length(duration, rate))
     sim = simulate(
         force,
