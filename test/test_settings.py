@@ -12,7 +12,13 @@ from fmm_ros.core.identify.spec import FRICTION_FIT, AxisSpec, FitSpec
 from fmm_ros.core.physics.rig import FMM_RIG, PlantRun, Rig
 from fmm_ros.core.settings import settings_of
 from fmm_ros.core.signal.analysis import ImpactAnalysis, LevelSummary
-from fmm_ros.core.signal.config import AnalysisConfig, CaptureConfig, NominalLevel, StreamRules
+from fmm_ros.core.signal.config import (
+    AnalysisConfig,
+    CaptureConfig,
+    NominalLevel,
+    SensorRanges,
+    StreamRules,
+)
 from fmm_ros.io.textformat import TextFormat
 from fmm_ros.report.settings import PageSettings
 from fmm_ros.ros.settings import NodeSettings
@@ -21,6 +27,7 @@ SETTINGS = (
     CaptureConfig,
     StreamRules,
     AnalysisConfig,
+    SensorRanges,
     Rig,
     PlantRun,
     FitSpec,
@@ -103,6 +110,9 @@ def test_the_command_s_options_are_the_declared_settings():
     assert analyze['--rearm-n'] == CaptureConfig().rearm_level_n
     assert analyze['--window-s'] == CaptureConfig().window_s
     assert analyze['--band-limit-hz'] == AnalysisConfig().band_limit_hz
+    for command in ('analyze', 'import'):
+        for item in settings_of(SensorRanges):
+            assert option_defaults(command)[item.option] == item.default, (command, item.name)
     fit = option_defaults('fit')
     for field in dataclasses.fields(Rig):
         assert fit['--' + field.name.replace('_', '-')] == getattr(FMM_RIG, field.name)

@@ -28,12 +28,13 @@ from typing import TYPE_CHECKING, Any
 from fmm_ros.constants import RESPONSE_CHANNELS
 from fmm_ros.core.identify.spec import FitSpec
 from fmm_ros.core.physics.rig import Rig
-from fmm_ros.core.settings import Setting, setting_of
+from fmm_ros.core.settings import Setting, setting_of, settings_of
 from fmm_ros.core.signal.config import (
     FLAGS,
     AnalysisConfig,
     CaptureConfig,
     NominalLevel,
+    SensorRanges,
     paper_levels,
 )
 from fmm_ros.io.textformat import TextFormat, delimiter_from_name
@@ -43,20 +44,12 @@ if TYPE_CHECKING:
     from fmm_ros.workflows.session import FitOptions
 
 QUANTITIES = ('force', *(channel.quantity for channel in RESPONSE_CHANNELS))
-FULL_SCALE_FLAGS = {
-    'force': '--force-full-scale-n',
-    'velocity': '--velocity-full-scale-m-s',
-    'acceleration': '--acceleration-full-scale-m-s2',
-    'displacement': '--displacement-full-scale-m',
-}
+# The SensorRanges field of each quantity's range: `force_full_scale_n`.
 FULL_SCALE_DESTS = {
-    quantity: flag[2:].replace('-', '_') for quantity, flag in FULL_SCALE_FLAGS.items()
-}
-FULL_SCALE_HELP = {
-    'force': 'force sensor range [N]',
-    'velocity': 'vibrometer range [m/s]',
-    'acceleration': 'accelerometer range [m/s^2]',
-    'displacement': 'displacement sensor range [m]',
+    quantity: next(
+        item.name for item in settings_of(SensorRanges) if item.name.startswith(quantity)
+    )
+    for quantity in QUANTITIES
 }
 
 
@@ -187,15 +180,8 @@ def add_mapping_flags(group) -> None:
 
 def add_full_scale_flags(group) -> None:
     """--force-full-scale-n and the response sensors' ranges (SI), for the clipped flags."""
-    for quantity, flag in FULL_SCALE_FLAGS.items():
-        group.add_argument(
-            flag,
-            type=float,
-            default=0.0,
-            metavar=flag.rsplit('-scale-', 1)[1].upper().replace('-', '_'),
-            help=f'{FULL_SCALE_HELP[quantity]}, for the clipped/saturated flag (default: as '
-            'recorded, or unknown)',
-        )
+    for name in FULL_SCALE_DESTS.values():
+        add_setting(group, SensorRanges, name, metavar=name.rsplit('_scale_', 1)[1].upper())
 
 
 def mapping_spec(args: argparse.Namespace) -> dict:
