@@ -1,6 +1,6 @@
 """Session report: the time of build_report for a 30-hit session, and of each figure type.
 
-Run: .venv/bin/python benchmarks/bench_report.py [--repeats R] [--dpi D] [--out DIR]
+Run: .venv/bin/python benchmarks/bench_report.py [--repeats R] [--dpi D] [-o DIR]
 
 A simulated session of ten hits at each of the paper's three levels, one every 33 s as
 `fmm demo` records them, is cut into impact records; process_records analyses them and runs the
@@ -136,7 +136,9 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--repeats', type=int, default=3)
     parser.add_argument('--dpi', type=float, default=REPORT_DPI)
-    parser.add_argument('--out', type=Path, help='keep the report here (default: a temp dir)')
+    parser.add_argument(
+        '-o', '--output', type=Path, help='keep the report here (default: a temp dir)'
+    )
     parser.add_argument('--quick', action='store_true', help=QUICK_HELP)
     args = parser.parse_args()
     if args.quick:
@@ -145,7 +147,7 @@ def main() -> int:
     session = simulated_session(1 if args.quick else 10)
     records = capture_impacts(session.force_n, session.velocity_m_s, session.sample_rate_hz)
     work = Path(tempfile.mkdtemp(prefix='bench_report_'))
-    out = args.out or work / 'report'
+    out = args.output or work / 'report'
     try:
         run(records[:3], work / 'warm', args.dpi, naive=False)  # imports, font cache
         runs = {

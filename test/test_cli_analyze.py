@@ -81,7 +81,7 @@ def test_json_report_has_exactly_the_documented_keys(series, capsys):
 
 def test_clustering_text_report_and_exports(series, capsys, tmp_path):
     uff, csv = tmp_path / 'levels.uff', tmp_path / 'levels.csv'
-    code, out, _ = run_cli(capsys, *series, '--export', uff, '--export', csv)
+    code, out, _ = run_cli(capsys, *series, '-o', uff, '-o', csv)
     assert code == 0
     assert 'hit_5.csv' in out and 'level_4' in out  # 1900 N is a level of its own
     assert 'linearity:' in out
@@ -147,7 +147,7 @@ def test_mismatched_rates_and_missing_files(tmp_path, capsys, series):
     assert code == 2 and 'mismatched sample rates' in err and 'fast.csv' in err
     code, _, err = run_cli(capsys, tmp_path / 'absent.csv')
     assert code == 2 and 'absent.csv' in err
-    code, _, err = run_cli(capsys, series[0], '--export', tmp_path / 'x.xlsx')
+    code, _, err = run_cli(capsys, series[0], '-o', tmp_path / 'x.xlsx')
     assert code == 2 and 'unknown export format' in err
 
 

@@ -31,7 +31,7 @@ def offset_files(tmp_path_factory):
 
 def test_json_names_the_effect_with_the_issues_keys(offset_files, capsys, tmp_path):
     case, paths = offset_files
-    assert main(['diagnose', *paths, '--json', '--plot', str(tmp_path)]) == 0
+    assert main(['diagnose', *paths, '--json', '-o', str(tmp_path)]) == 0
     payload = json.loads(capsys.readouterr().out)
     for key in (
         'missing_effect',

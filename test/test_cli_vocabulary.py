@@ -1,6 +1,6 @@
 """One vocabulary across `fmm`: -o/--output for results, SI units in
-every flag name, the same hit selection on analyze/fit/diagnose/report, old spellings kept
-as hidden aliases that still work and warn, -q on every long job and progress only on a
+every flag name, the same hit selection on analyze/fit/diagnose/report, one spelling per
+option (the old ones and prefixes refused), -q on every long job and progress only on a
 terminal, a quiet end on a closed pipe. And the CLI's shape: subcommands import
 no other subcommand, the report computes nothing."""
 
@@ -110,24 +110,21 @@ def levels_csv(tmp_path_factory):
     return paths
 
 
-def test_old_spellings_still_work_and_say_what_replaces_them(levels_csv, tmp_path, capsys):
-    assert main(['analyze', str(levels_csv[0]), '--export', str(tmp_path / 'a.csv')]) == 0
-    assert (tmp_path / 'a.csv').is_file()
-    assert 'fmm analyze: warning: --export is deprecated' in capsys.readouterr().err
-    assert main(['simulate', '--x0-mm', '3', '--duration-s', '1', '--json']) == 0
-    old = capsys.readouterr()
-    assert main(['simulate', '--x0-m', '0.003', '--duration-s', '1', '--json']) == 0
-    assert json.loads(old.out) == json.loads(capsys.readouterr().out)
-    assert '--x0-mm is deprecated' in old.err and 'use --x0-m' in old.err
-    args = build_parser().parse_args(['report', str(levels_csv[0]), '--out', 'dir'])
-    assert args.output == Path('dir')
-    capsys.readouterr()
-    args = build_parser().parse_args(['fit', str(levels_csv[0]), '--band-limit-hz', '15'])
-    assert args.misfit_band_limit_hz == 15.0
-    assert '--misfit-band-limit-hz' in capsys.readouterr().err
+def test_old_spellings_are_refused(levels_csv, capsys):
+    for argv in (
+        ['analyze', str(levels_csv[0]), '--export', 'a.csv'],
+        ['diagnose', str(levels_csv[0]), '--plot', 'dir'],
+        ['simulate', '--x0-mm', '3'],
+        ['fit', str(levels_csv[0]), '--band-limit-hz', '15'],
+        ['import', str(levels_csv[0]), '--force-full-scale', '1000'],
+        ['report', str(levels_csv[0]), '--out', 'dir'],
+    ):
+        with pytest.raises(SystemExit):
+            build_parser().parse_args(argv)
+        assert 'unrecognized arguments' in capsys.readouterr().err, argv
 
 
-def test_import_full_scale_flags_are_in_si_and_the_old_one_keeps_file_units(tmp_path):
+def test_import_full_scale_flag_is_in_si_and_the_mapping_one_in_file_units(tmp_path):
     path = tmp_path / 'hit.csv'
     np.savetxt(
         path,
@@ -136,15 +133,17 @@ def test_import_full_scale_flags_are_in_si_and_the_old_one_keeps_file_units(tmp_
         header='Time,Hammer,Vibrometer\ns,lbf,mm/s',
         comments='',
     )
+    mapping = tmp_path / 'mapping.yaml'
+    mapping.write_text('force: {name: Hammer, unit: lbf, full_scale: 1000}\n')
     from fmm_ros.io.bags import BagReader
 
     full_scales = []
-    for flag, value in (
-        ('--force-full-scale-n', '4448.2216152605'),
-        ('--force-full-scale', '1000'),
+    for name, flags in (
+        ('si', ['--force-full-scale-n', '4448.2216152605']),
+        ('file_units', ['-m', str(mapping)]),
     ):
-        bag = tmp_path / flag.strip('-')
-        assert main(['import', str(path), '-o', str(bag), flag, value]) == 0
+        bag = tmp_path / name
+        assert main(['import', str(path), '-o', str(bag), *flags]) == 0
         with BagReader(bag) as reader:
             full_scales.append(next(reader.batches()).full_scale_force)
     assert full_scales == pytest.approx([4448.2216152605, 4448.2216152605])

@@ -68,7 +68,10 @@ def test_the_params_file_shows_ranges_choices_and_replaced_defaults():
         '    batch_size: 500  # Samples per channel per published message (>= 500 keeps '
         'rclpy cheap) [-]; 1 to 1000000\n' in text
     )
-    assert '# Physics integrator; one of exact, rk4, euler\n' in text
+    assert (
+        "# Physics integrator (euler: the paper's fixed-step reference); one of exact, rk4, euler\n"
+        in text
+    )
     # In a rig the sources wait for the rig's consumers; the nodes alone wait for none.
     assert "wait_for_consumers: ['rig_sim', 'analyzer', 'fitter', 'recorder']  #" in text
     assert text.count("node default ['']") == 3

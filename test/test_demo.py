@@ -13,9 +13,7 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 def test_demo_json_reports_the_session_and_fits_the_plant_mu(tmp_path, capsys):
     out = tmp_path / 'demo'
-    code = main(
-        ['demo', '--hits-per-level', '1', '--rate-factor', '100', '--json', '--out', str(out)]
-    )
+    code = main(['demo', '--hits-per-level', '1', '--rate-factor', '100', '--json', '-o', str(out)])
     summary = json.loads(capsys.readouterr().out)
     assert code == 0
     assert summary['hits_sent'] == summary['hits_reported'] == summary['hits_accepted'] == 3
@@ -49,5 +47,5 @@ def test_demo_json_reports_the_session_and_fits_the_plant_mu(tmp_path, capsys):
 
 def test_demo_refuses_to_overwrite_a_bag(tmp_path, capsys):
     (tmp_path / 'bag').mkdir()
-    assert main(['demo', '--out', str(tmp_path)]) == 2
-    assert 'exists: choose another --out' in capsys.readouterr().err
+    assert main(['demo', '-o', str(tmp_path)]) == 2
+    assert 'exists: choose another --output' in capsys.readouterr().err

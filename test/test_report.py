@@ -113,7 +113,7 @@ def write_csv_session(folder):
             [
                 'report',
                 *inputs,
-                '--out',
+                '-o',
                 str(out),
                 '--paper-levels',
                 '--force-full-scale-n',
@@ -315,7 +315,7 @@ def test_report_from_a_recorded_session_bag_shows_the_hit_over_a_lost_batch(tmp_
                 [
                     'report',
                     str(bag),
-                    '--out',
+                    '-o',
                     str(out),
                     '--paper-levels',
                     '--window-s',
@@ -382,7 +382,7 @@ def test_diagnosis_names_the_hidden_effect_and_shows_the_gap_shrink(tmp_path):
                 [
                     'report',
                     *inputs,
-                    '--out',
+                    '-o',
                     str(out),
                     '--no-fit',
                     '--diagnose',
@@ -418,7 +418,7 @@ def test_all_rejected_session_still_reports_and_says_why_mu_is_not_fitted(tmp_pa
             [
                 'report',
                 str(tmp_path / 'clipped.csv'),
-                '--out',
+                '-o',
                 str(out),
                 '--force-full-scale-n',
                 '900',
@@ -514,8 +514,8 @@ def test_paper_report_reproduces_figs_2_to_10(tmp_path):
 
 
 def test_cli_refuses_paper_with_inputs_and_nothing_to_report(tmp_path, capsys):
-    assert main(['report', '--paper', str(tmp_path / 'a.csv'), '--out', str(tmp_path)]) == 2
-    assert main(['report', '--out', str(tmp_path)]) == 2
+    assert main(['report', '--paper', str(tmp_path / 'a.csv'), '-o', str(tmp_path)]) == 2
+    assert main(['report', '-o', str(tmp_path)]) == 2
     errors = capsys.readouterr().err
     assert 'takes no INPUT' in errors and 'or --paper' in errors
 

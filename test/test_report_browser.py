@@ -113,7 +113,7 @@ def test_a_hostile_title_and_file_name_are_shown_as_text_never_run(tmp_path):
             [
                 'report',
                 str(source),
-                '--out',
+                '-o',
                 str(out),
                 '--paper-levels',
                 '--title',

@@ -8,13 +8,34 @@ import pytest
 
 from fmm_ros.cli import build_parser
 from fmm_ros.constants import LEVEL_TOLERANCE_N
-from fmm_ros.core.identify.spec import FRICTION_FIT, FitSpec
-from fmm_ros.core.physics.rig import FMM_RIG, Rig
+from fmm_ros.core.identify.spec import FRICTION_FIT, AxisSpec, FitSpec
+from fmm_ros.core.physics.rig import FMM_RIG, PlantRun, Rig
 from fmm_ros.core.settings import settings_of
 from fmm_ros.core.signal.analysis import ImpactAnalysis, LevelSummary
-from fmm_ros.core.signal.config import AnalysisConfig, CaptureConfig, NominalLevel, StreamRules
+from fmm_ros.core.signal.config import (
+    AnalysisConfig,
+    CaptureConfig,
+    NominalLevel,
+    SensorRanges,
+    StreamRules,
+)
+from fmm_ros.io.textformat import TextFormat
+from fmm_ros.report.settings import PageSettings
+from fmm_ros.ros.settings import NodeSettings
 
-SETTINGS = (CaptureConfig, StreamRules, AnalysisConfig, Rig, FitSpec)
+SETTINGS = (
+    CaptureConfig,
+    StreamRules,
+    AnalysisConfig,
+    SensorRanges,
+    Rig,
+    PlantRun,
+    FitSpec,
+    AxisSpec,
+    TextFormat,
+    NodeSettings,
+    PageSettings,
+)
 RESULTS = (ImpactAnalysis, LevelSummary)
 # The unit a field's name promises (SI, the unit in the name: `impulse_n_s`).
 SUFFIX_UNITS = {
@@ -53,7 +74,7 @@ def test_defaults_lie_within_their_limits_and_choices(cls):
         for value in values:
             if item.limits and isinstance(value, int | float):
                 assert item.limits[0] <= value <= item.limits[1], item.name
-            if item.choices:
+            if item.choices and value is not None:  # None: detected or found, not chosen
                 assert value in item.choices, item.name
 
 
@@ -89,10 +110,21 @@ def test_the_command_s_options_are_the_declared_settings():
     assert analyze['--rearm-n'] == CaptureConfig().rearm_level_n
     assert analyze['--window-s'] == CaptureConfig().window_s
     assert analyze['--band-limit-hz'] == AnalysisConfig().band_limit_hz
+    for command in ('analyze', 'import'):
+        for item in settings_of(SensorRanges):
+            assert option_defaults(command)[item.option] == item.default, (command, item.name)
     fit = option_defaults('fit')
     for field in dataclasses.fields(Rig):
         assert fit['--' + field.name.replace('_', '-')] == getattr(FMM_RIG, field.name)
     assert fit['--misfit-band-limit-hz'] == FitSpec().band_limit_hz
+    assert (fit['--mu-min'], fit['--mu-max']) == FitSpec().mu_bounds
+    simulate = option_defaults('simulate')
+    for option in ('--integrator', '--x0-m', '--duration-s', '--sample-rate-hz'):
+        assert simulate[option] == getattr(PlantRun(), option[2:].replace('-', '_')), option
+    assert option_defaults('demo')['--plant-mu'] == PlantRun().mu
+    assert option_defaults('demo')['--hits-per-level'] == NodeSettings().hits_per_level
+    assert option_defaults('import')['--batch-size'] == NodeSettings().batch_size
+    assert option_defaults('identify-friction')['--stiffness-n-per-m'] == 0.0
 
 
 def test_a_fit_spec_is_changed_by_name_and_refuses_an_unknown_one():

@@ -35,9 +35,23 @@ SUBCOMMANDS: tuple[str, ...] = (
 )
 
 
+class Parser(argparse.ArgumentParser):
+    """An ArgumentParser that takes each option only as spelled in full.
+
+    argparse otherwise takes any unambiguous prefix (`--out` for `--output`), so a removed
+    spelling that is a prefix of a current one would be taken silently as that one, in its
+    unit (`--force-full-scale` in file units as `--force-full-scale-n` in N). The subcommands'
+    parsers are of this class too (add_subparsers makes them of the parent's).
+    """
+
+    def __init__(self, *args, **kwargs) -> None:
+        kwargs.setdefault('allow_abbrev', False)
+        super().__init__(*args, **kwargs)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The full `fmm` argument parser with every subcommand registered."""
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog='fmm',
         description='Impact-hammer FRF testing and friction identification on the friction '
         'measuring machine (Kossack, Ziegert, Schmitz, NAMRC 2019).',

@@ -22,8 +22,8 @@ import sys
 from pathlib import Path
 
 from fmm_ros.cli import options
-from fmm_ros.constants import REPORT_DPI
 from fmm_ros.errors import BadInputError
+from fmm_ros.report.settings import PageSettings
 
 EPILOG = """\
 table (CSV; YAML takes the same columns as a list under `sessions:`, plus by/trend/mapping):
@@ -107,13 +107,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "drift, the friction map (default; it adds to each session's time)",
     )
     options.add_model(parser)
-    parser.add_argument('--title', default='', help="report title (default: the table's)")
-    parser.add_argument(
-        '--dpi',
-        type=float,
-        default=REPORT_DPI,
-        help=f'PNG resolution [dots per inch] (default {REPORT_DPI:g})',
+    options.add_setting(
+        parser, PageSettings, 'title', default='', help="report title ('': the table's)"
     )
+    options.add_setting(parser, PageSettings, 'dpi')
     options.add_json(parser, 'the campaign (also written as DIR/campaign.json)')
     options.add_quiet(parser)
     options.add_hit_selection(parser, fits=True)

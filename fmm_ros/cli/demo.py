@@ -7,8 +7,10 @@ from datetime import datetime
 from pathlib import Path
 
 from fmm_ros.cli import options
-from fmm_ros.constants import PAPER_MU
+from fmm_ros.core.physics.rig import PlantRun
+from fmm_ros.core.settings import setting_of
 from fmm_ros.errors import BadInputError
+from fmm_ros.ros.settings import NodeSettings
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -21,26 +23,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         'service. Prints per-level impulse and peak receptance, R^2 of magnitude '
         'against impulse, and the fitted mu against the plant mu.',
     )
-    parser.add_argument('--hits-per-level', type=int, default=10, help='hits at each level')
-    parser.add_argument(
-        '--rate-factor',
-        type=float,
+    options.add_setting(parser, NodeSettings, 'hits_per_level')
+    options.add_setting(
+        parser,
+        NodeSettings,
+        'rate_factor',
         default=100.0,
-        help='speed-up against real time (default 100; the graph runs x500 if asked)',
+        help='speed-up against real time (the graph runs x500 if asked)',
     )
     options.add_output(
         parser,
         'output folder (default runs/demo_<date>_<time>)',
         metavar='DIR',
-        aliases=('--out',),
     )
     options.add_json(parser, 'one object')
-    parser.add_argument(
-        '--plant-mu',
-        type=float,
-        default=PAPER_MU,
-        help=f'friction coefficient of the simulated plant (default {PAPER_MU})',
-    )
+    options.add_setting(parser, PlantRun, 'mu', flag='--plant-mu')
     parser.add_argument(
         '--plant-effect',
         action='append',
@@ -48,7 +45,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar='TERM',
         help='hide a model term in the plant, e.g. stribeck:mu_static_excess=0.02 (repeatable)',
     )
-    parser.add_argument('--seed', type=int, default=0, help='seed of the session draw')
+    options.add_setting(parser, NodeSettings, 'seed')
     parser.add_argument(
         '--no-report',
         action='store_true',
@@ -67,10 +64,12 @@ def run(args: argparse.Namespace) -> int:
     """Run the session, write summary.json next to the bag, print the summary."""
     from fmm_ros.ros.demo import SessionConfig, run_demo_session  # imports rclpy: only when run
 
-    if args.hits_per_level < 1:
-        raise BadInputError(f'--hits-per-level must be at least 1, got {args.hits_per_level}')
-    if not 0.01 <= args.rate_factor <= 1000:
-        raise BadInputError(f'--rate-factor must be in [0.01, 1000], got {args.rate_factor}')
+    for name in ('hits_per_level', 'rate_factor'):
+        item, value = setting_of(NodeSettings, name), getattr(args, name)
+        if not item.limits[0] <= value <= item.limits[1]:
+            raise BadInputError(
+                f'{item.option} must be in [{item.limits[0]:g}, {item.limits[1]:g}], got {value}'
+            )
     out = args.output or Path('runs') / datetime.now().strftime('demo_%Y%m%d_%H%M%S')
     if (out / 'bag').exists():
         raise BadInputError(
@@ -100,6 +99,7 @@ def run(args: argparse.Namespace) -> int:
 def _text(result, out: Path) -> str:
     """The ten-second summary."""
     from fmm_ros.core import results_schema as schema
+    from fmm_ros.core.results_schema import format_with_uncertainty as pm
 
     impulse, spread, receptance, natural = (
         schema.IMPULSE,
@@ -124,7 +124,7 @@ def _text(result, out: Path) -> str:
         f'hits: {result.hits_sent} sent, {result.hits_reported} reported, '
         f'{result.hits_accepted} accepted',
         (
-            f'mu: {result.mu:.4f} +- {result.friction.mu_stderr:.2g} fitted, '
+            f'mu: {pm(result.mu, result.friction.mu_stderr, schema.ASCII_PM)} fitted, '
             f'{result.plant_mu:.4f} in the plant ({error:+.2f} %)'
             if result.friction
             else f'mu: not fitted ({result.fit_message})'
@@ -153,5 +153,10 @@ def _live_mu(running: list[dict]) -> str:
     if not running:
         return 'live mu: none published'
     shown = [running[0]] + [e for e in running[1:] if e['count'] % 10 == 0 or e is running[-1]]
-    steps = ', '.join(f'{e["mu"]:.5f} +- {e["mu_stderr"]:.1g} ({e["count"]})' for e in shown)
+    from fmm_ros.core.results_schema import ASCII_PM, format_with_uncertainty
+
+    steps = ', '.join(
+        f'{format_with_uncertainty(e["mu"], e["mu_stderr"], ASCII_PM)} ({e["count"]})'
+        for e in shown
+    )
     return f'live mu (after n hits): {steps}; one mu: p = {running[-1]["consistency_p_value"]:.2g}'

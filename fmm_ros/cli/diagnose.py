@@ -28,7 +28,7 @@ from fmm_ros.core.physics.rig import Rig
 if TYPE_CHECKING:
     from fmm_ros.core.diagnose.result import Diagnosis
 
-# Resolution of the --plot figures [dots per inch].
+# Resolution of the figures written into -o DIR [dots per inch].
 PLOT_DPI = 120
 
 
@@ -52,7 +52,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         'write the figures residual_before_after.png, frf_overlay.png and friction_map.png '
         'into DIR',
         metavar='DIR',
-        aliases=('--plot',),
     )
     options.add_model(parser, damping=False)
     options.add_hit_selection(parser, fits=True)

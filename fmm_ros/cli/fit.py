@@ -15,7 +15,7 @@ from __future__ import annotations
 import argparse
 
 from fmm_ros.cli import options
-from fmm_ros.core.identify.spec import MU_BOUNDS, FitSpec
+from fmm_ros.core.identify.spec import FitSpec
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -40,21 +40,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help='time: velocity residual; frf: mobility residual up to --misfit-band-limit-hz',
     )
     options.add_setting(group, FitSpec, 'band_limit_hz', flag='--misfit-band-limit-hz')
-    options.add_alias(
-        parser, '--band-limit-hz', 'misfit_band_limit_hz', '--misfit-band-limit-hz', type=float
-    )
-    group.add_argument(
-        '--mu-min',
-        type=float,
-        default=MU_BOUNDS[0],
-        help=f'lower end of the mu search (default {MU_BOUNDS[0]:g})',
-    )
-    group.add_argument(
-        '--mu-max',
-        type=float,
-        default=MU_BOUNDS[1],
-        help=f'upper end of the mu search (default {MU_BOUNDS[1]:g})',
-    )
+    options.add_range_setting(group, FitSpec, 'mu_bounds', ('--mu-min', '--mu-max'))
     options.add_hit_selection(parser, fits=True)
     options.add_quiet(parser)
     options.add_whole_record(parser)

@@ -16,7 +16,8 @@ from typing import TYPE_CHECKING
 from fmm_ros.constants import MM_PER_M, RECEPTANCE_DISPLAY_UNIT
 from fmm_ros.core import results_schema as schema
 from fmm_ros.core.diagnose.vocabulary import NONE
-from fmm_ros.core.results_schema import label
+from fmm_ros.core.results_schema import ASCII_PM, label
+from fmm_ros.core.results_schema import format_with_uncertainty as pm
 
 if TYPE_CHECKING:
     from fmm_ros.core.signal.analysis import Summary
@@ -93,13 +94,13 @@ def friction_text(result: FrictionResult) -> str:
     """A few lines for a person: the common mu, c, the residual, then one line per impact."""
     count = len(result.impact_ids)
     lines = [
-        f'mu = {result.mu:.5f} +- {result.mu_stderr:.2g}  (one mu for {count} '
+        f'mu = {pm(result.mu, result.mu_stderr, ASCII_PM)}  (one mu for {count} '
         f'impact{"s" if count > 1 else ""}, {result.misfit} misfit)'
     ]
     if result.damping_fitted:
         lines.append(
-            f'c  = {result.damping_n_s_per_m:.4f} +- '
-            f'{result.damping_stderr_n_s_per_m:.2g} N*s/m (fitted)'
+            f'c  = {pm(result.damping_n_s_per_m, result.damping_stderr_n_s_per_m, ASCII_PM)} '
+            'N*s/m (fitted)'
         )
     else:
         lines.append(f'c  = {result.damping_n_s_per_m:.4f} N*s/m (rig constant)')
@@ -139,7 +140,7 @@ def friction_text(result: FrictionResult) -> str:
     ]
     for entry in result.per_impact():
         lines.append(
-            f'{Path(entry["file"]).name:<28.28} {entry["impulse_n_s"]:>13.4f} '
+            f'{Path(entry["file"]).name:<28.28} {entry[schema.IMPULSE.name]:>13.4f} '
             f'{entry["mu"]:>9.5f} {entry["mu_stderr"]:>8.2g} {entry["residual_rms_m_s"]:>14.3e}'
         )
     return '\n'.join(lines)
@@ -232,9 +233,7 @@ def _finite(value: float | None) -> float:
 
 
 def _value(value: float, error: float | None, unit: str) -> str:
-    """Value +- error unit, the error left out when unknown."""
+    """Value +- error unit by the one rule (`format_with_uncertainty`); unknown error: none."""
     error = _finite(error)
     unit = '' if unit == '1' else f' {unit}'
-    if math.isfinite(error) and error > 0.0:
-        return f'{value:.4g} +- {error:.2g}{unit}'
-    return f'{value:.4g}{unit}'
+    return f'{pm(value, error, ASCII_PM)}{unit}'

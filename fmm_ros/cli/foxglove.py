@@ -8,7 +8,9 @@ ws://127.0.0.1:8765; then Layouts, Import from file, config/foxglove/fmm_rig_lay
 
 import argparse
 
+from fmm_ros.cli import options
 from fmm_ros.errors import BadInputError
+from fmm_ros.ros.settings import NodeSettings
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -18,12 +20,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help='serve the live topics to Foxglove over WebSocket (needs a running ROS graph)',
         description=__doc__.split('\n\n', 1)[1],
     )
-    parser.add_argument(
-        '--host',
-        default='127.0.0.1',
-        help='address to bind (default 127.0.0.1: this PC only; 0.0.0.0 serves the lab network)',
-    )
-    parser.add_argument('--port', type=int, default=8765, help='TCP port (default 8765)')
+    options.add_setting(parser, NodeSettings, 'host')
+    options.add_setting(parser, NodeSettings, 'port', default=8765)
     parser.add_argument(
         '--no-live',
         action='store_true',

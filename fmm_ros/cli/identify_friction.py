@@ -16,6 +16,7 @@ import json
 import sys
 
 from fmm_ros.cli import options
+from fmm_ros.core.identify.spec import AxisSpec
 
 MOTION_FLAGS = (
     ('position', 'position channel (encoder) [m unless --motion-unit]'),
@@ -53,22 +54,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument('--time', metavar='NAME', help='time channel [s] (default: t, time)')
     parser.add_argument('--sample-rate-hz', type=float, help='sample rate, when no time channel')
-    parser.add_argument(
-        '--stiffness-n-per-m',
-        type=float,
-        default=0.0,
-        help='known spring to the frame [N/m]; 0 for a free axis (default)',
-    )
-    parser.add_argument(
-        '--cutoff-hz', type=float, help='position low-pass cut-off (default: rate / 10)'
-    )
+    options.add_setting(parser, AxisSpec, 'stiffness_n_per_m')
+    options.add_setting(parser, AxisSpec, 'cutoff_hz')
     options.add_json(parser)
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Read the record, identify the axis, print JSON or a short text."""
-    from fmm_ros.core.identify.axis import AxisSpec
     from fmm_ros.workflows.axis import axis_json, identify_axis_file, read_axis_record
 
     kind = next(k for k, _ in MOTION_FLAGS if getattr(args, k))

@@ -14,7 +14,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from fmm_ros.cli import options
-from fmm_ros.core.physics.rig import FMM_RIG
+from fmm_ros.core.physics.rig import Rig
+from fmm_ros.core.results_schema import ASCII_PM
+from fmm_ros.core.results_schema import format_with_uncertainty as pm
 
 if TYPE_CHECKING:
     from fmm_ros.core.identify.rig import RigIdentification
@@ -33,12 +35,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     options.add_inputs(parser, what='record')
     options.add_json(parser)
     options.add_quiet(parser)
-    parser.add_argument(
-        '--mass-kg',
-        type=float,
-        default=FMM_RIG.mass_kg,
-        help='moving mass m [kg] for free decays, which cannot tell it '
-        f'(default {FMM_RIG.mass_kg}); impacts measure it',
+    options.add_setting(
+        parser,
+        Rig,
+        'mass_kg',
+        help='moving mass m for free decays, which cannot tell it; impacts measure it',
     )
     options.add_whole_record(parser)
     parser.set_defaults(func=run)
@@ -71,17 +72,15 @@ def report(result: RigIdentification) -> dict:
 def text_report(result: RigIdentification) -> str:
     """The constants with their errors, how they were found, and any free-decay check."""
     given = result.method == 'free_decay'
-    mass = (
-        '(given: a free decay cannot tell the mass)'
-        if given
-        else f'+- {result.mass_stderr_kg:.4g} kg'
-    )
+    mass = '(given: a free decay cannot tell the mass)' if given else ''
+    mass_kg = result.mass_kg if given else pm(result.mass_kg, result.mass_stderr_kg, ASCII_PM)
     lines = [
-        f'm   = {result.mass_kg:.5g} kg {mass}',
-        f'k   = {result.stiffness_n_per_m:.6g} +- {result.stiffness_stderr_n_per_m:.3g} N/m',
-        f'c   = {result.damping_n_s_per_m:.4g} +- {result.damping_stderr_n_s_per_m:.2g} N*s/m',
-        f'f_n = {result.natural_frequency_hz:.6g} +- {result.natural_frequency_stderr_hz:.2g} Hz,'
-        f' zeta = {100 * result.damping_ratio:.4f} +- {100 * result.damping_ratio_stderr:.2g} %',
+        f'm   = {mass_kg:.5g} kg {mass}' if given else f'm   = {mass_kg} kg',
+        f'k   = {pm(result.stiffness_n_per_m, result.stiffness_stderr_n_per_m, ASCII_PM)} N/m',
+        f'c   = {pm(result.damping_n_s_per_m, result.damping_stderr_n_s_per_m, ASCII_PM)} N*s/m',
+        f'f_n = '
+        f'{pm(result.natural_frequency_hz, result.natural_frequency_stderr_hz, ASCII_PM)} Hz, '
+        f'zeta = {pm(100 * result.damping_ratio, 100 * result.damping_ratio_stderr, ASCII_PM)} %',
         f'from {len(result.sources)} '
         f'{"free decay" if given else "impact"}{"s" if len(result.sources) > 1 else ""}; '
         f'residual {result.residual_rms_m_s:.3e} m/s RMS = '

@@ -6,8 +6,8 @@ import argparse
 from datetime import datetime
 
 from fmm_ros.cli import options
-from fmm_ros.constants import BATCH_SIZE
 from fmm_ros.errors import BadInputError
+from fmm_ros.ros.settings import NodeSettings
 from fmm_ros.units import FORCE_UNITS, VELOCITY_UNITS
 
 EPILOG = f"""\
@@ -49,16 +49,8 @@ def register(subparsers) -> None:
     group = parser.add_argument_group('the channels (flags override the mapping file)')
     options.add_mapping_flags(group)
     options.add_full_scale_flags(group)
-    for quantity, unit in (('force', 'N'), ('velocity', 'm/s')):
-        options.add_alias(
-            parser,
-            f'--{quantity}-full-scale',
-            f'{quantity}_full_scale',
-            f'{options.FULL_SCALE_FLAGS[quantity]} (in {unit}; this one is in file units)',
-            type=float,
-        )
-    parser.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap')
-    parser.add_argument('--batch-size', type=int, default=BATCH_SIZE, metavar='SAMPLES')
+    options.add_setting(parser, NodeSettings, 'storage')
+    options.add_setting(parser, NodeSettings, 'batch_size', metavar='SAMPLES')
     parser.add_argument(
         '--start-time',
         metavar='ISO8601',

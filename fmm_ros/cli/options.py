@@ -14,9 +14,7 @@ default, unit, help and limits in `fmm_ros.core.settings`), so they say what the
 parameters and the docs say. This module imports no numerics: `fmm --help` answers at once;
 the readers and workflows are imported by the functions that build their options.
 
-Units are SI and named in every flag (`--force-full-scale-n`). Spellings that an earlier
-release used stay for one release as hidden aliases (`argparse.SUPPRESS`) that still work and
-say, on stderr, what replaces them.
+Units are SI and named in every flag (`--force-full-scale-n`); each option has one spelling.
 """
 
 from __future__ import annotations
@@ -24,75 +22,35 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
-import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from fmm_ros.constants import RESPONSE_CHANNELS
 from fmm_ros.core.identify.spec import FitSpec
 from fmm_ros.core.physics.rig import Rig
-from fmm_ros.core.settings import Setting, setting_of
+from fmm_ros.core.settings import Setting, setting_of, settings_of
 from fmm_ros.core.signal.config import (
     FLAGS,
     AnalysisConfig,
     CaptureConfig,
     NominalLevel,
+    SensorRanges,
     paper_levels,
 )
-from fmm_ros.io.textformat import DECIMALS, TextFormat, delimiter_from_name
+from fmm_ros.io.textformat import TextFormat, delimiter_from_name
 
 if TYPE_CHECKING:
     from fmm_ros.workflows.inputs import InputOptions
     from fmm_ros.workflows.session import FitOptions
 
 QUANTITIES = ('force', *(channel.quantity for channel in RESPONSE_CHANNELS))
-FULL_SCALE_FLAGS = {
-    'force': '--force-full-scale-n',
-    'velocity': '--velocity-full-scale-m-s',
-    'acceleration': '--acceleration-full-scale-m-s2',
-    'displacement': '--displacement-full-scale-m',
-}
+# The SensorRanges field of each quantity's range: `force_full_scale_n`.
 FULL_SCALE_DESTS = {
-    quantity: flag[2:].replace('-', '_') for quantity, flag in FULL_SCALE_FLAGS.items()
+    quantity: next(
+        item.name for item in settings_of(SensorRanges) if item.name.startswith(quantity)
+    )
+    for quantity in QUANTITIES
 }
-FULL_SCALE_HELP = {
-    'force': 'force sensor range [N]',
-    'velocity': 'vibrometer range [m/s]',
-    'acceleration': 'accelerometer range [m/s^2]',
-    'displacement': 'displacement sensor range [m]',
-}
-
-
-class DeprecatedAlias(argparse.Action):
-    """An old spelling: hidden from --help, still works, and says what replaces it.
-
-    scale converts the old unit to the new one (`--x0-mm 3` -> x0_m = 0.003).
-    """
-
-    def __init__(self, option_strings, dest, *, use: str, scale: float | None = None, **kwargs):
-        self.use, self.scale = use, scale
-        super().__init__(option_strings, dest, help=argparse.SUPPRESS, **kwargs)
-
-    def __call__(self, parser, namespace, values, option_string=None) -> None:
-        """Warn on stderr, then store the value (converted) where the new spelling does."""
-        print(
-            f'{parser.prog}: warning: {option_string} is deprecated and will be removed; '
-            f'use {self.use}',
-            file=sys.stderr,
-        )
-        if self.nargs == 0:
-            values = self.const
-        elif self.scale is not None:
-            values = values * self.scale
-        if isinstance(getattr(namespace, self.dest, None), list) and not isinstance(values, list):
-            getattr(namespace, self.dest).append(values)
-        else:
-            setattr(namespace, self.dest, values)
-
-
-def add_alias(parser, old: str, dest: str, use: str, **kwargs) -> None:
-    """A hidden old spelling of the option stored in dest (see DeprecatedAlias)."""
-    parser.add_argument(old, dest=dest, action=DeprecatedAlias, use=use, **kwargs)
 
 
 def add_setting(
@@ -108,27 +66,48 @@ def add_setting(
 
     help replaces the declared help (the unit and default are still added); flag another
     spelling than the declared one (the dest follows it); kwargs go to add_argument (a
-    different default, a metavar).
+    different default, a metavar, a type that parses the text).
     """
     item = setting_of(cls, name)
     default = kwargs.pop('default', item.default)
-    kind = type(item.default) if item.default is not None else float
+    kind = type(item.default) if item.default is not None else str if item.choices else float
     options: dict[str, Any] = {'type': kind, 'default': default}
     if kind is bool:
         options = {'action': argparse.BooleanOptionalAction, 'default': default}
     elif kind is str and item.choices:
         options['choices'] = item.choices
+    options.update(kwargs)
     return group.add_argument(
-        flag or item.option, **options, help=setting_help(item, help, default), **kwargs
+        flag or item.option, **options, help=setting_help(item, help, default)
     )
+
+
+def add_range_setting(
+    group, cls: type, name: str, flags: tuple[str, str], *, default: tuple | None = None
+) -> None:
+    """The two options of a declared (low, high) setting, one an end (`--mu-min`, `--mu-max`).
+
+    default: other ends than the declared ones (a client's 0, 0 for "the server's").
+    """
+    item = setting_of(cls, name)
+    ends = item.default if default is None else default
+    for end, flag, value in zip(('lower', 'upper'), flags, ends, strict=True):
+        group.add_argument(
+            flag,
+            type=type(value),
+            default=value,
+            help=setting_help(item, f'{end} end: {item.help[:1].lower()}{item.help[1:]}', value),
+        )
 
 
 def setting_help(item: Setting, help: str | None, default: Any) -> str:
     """'Force that starts an impact [N] (default 20)': a setting's help as --help shows it."""
-    text = help or item.help[:1].lower() + item.help[1:]
+    initial = item.help[:1] if item.help[1:2].isupper() else item.help[:1].lower()  # PNG stays
+    text = help or initial + item.help[1:]
     if item.unit:
         text += f' [{item.unit}]'
     shown = 'none' if default is None else f'{default:g}' if isinstance(default, float) else default
+    shown = "''" if shown == '' else shown
     return f'{text} (default {shown})'
 
 
@@ -193,36 +172,16 @@ def add_mapping_flags(group) -> None:
         help='sample rate, or the name of the variable holding it (default: from a time '
         'channel, a sample_rate_hz variable or the TDMS increments)',
     )
-    group.add_argument(
-        '--delimiter',
-        type=_delimiter,
-        help='text column delimiter: , ; | tab space (default: detected)',
-    )
-    group.add_argument(
-        '--decimal', choices=DECIMALS, help='decimal separator of text files (default: detected)'
-    )
-    group.add_argument(
-        '--skip-rows',
-        type=int,
-        default=0,
-        metavar='N',
-        help='lines before the header of a text file (default: found from the first row of '
-        'numbers)',
-    )
-    group.add_argument('--encoding', help='text encoding (default: BOM, UTF-8, else detected)')
+    add_setting(group, TextFormat, 'delimiter', type=_delimiter)
+    add_setting(group, TextFormat, 'decimal')
+    add_setting(group, TextFormat, 'skip_rows', metavar='N')
+    add_setting(group, TextFormat, 'encoding', type=str)
 
 
 def add_full_scale_flags(group) -> None:
     """--force-full-scale-n and the response sensors' ranges (SI), for the clipped flags."""
-    for quantity, flag in FULL_SCALE_FLAGS.items():
-        group.add_argument(
-            flag,
-            type=float,
-            default=0.0,
-            metavar=flag.rsplit('-scale-', 1)[1].upper().replace('-', '_'),
-            help=f'{FULL_SCALE_HELP[quantity]}, for the clipped/saturated flag (default: as '
-            'recorded, or unknown)',
-        )
+    for name in FULL_SCALE_DESTS.values():
+        add_setting(group, SensorRanges, name, metavar=name.rsplit('_scale_', 1)[1].upper())
 
 
 def mapping_spec(args: argparse.Namespace) -> dict:
@@ -237,7 +196,6 @@ def mapping_spec(args: argparse.Namespace) -> dict:
             'name': getattr(args, quantity, None),
             'unit': getattr(args, f'{quantity}_unit', None),
             'scale': getattr(args, f'{quantity}_scale', None),
-            'full_scale': getattr(args, f'{quantity}_full_scale', None),
             'full_scale_si': getattr(args, FULL_SCALE_DESTS.get(quantity, ''), None) or None,
         }
         entry.update({key: value for key, value in flags.items() if value is not None})
@@ -322,12 +280,15 @@ def add_hit_selection(parser: argparse.ArgumentParser, *, fits: bool = False) ->
         'the paper)',
     )
     add_setting(group, CaptureConfig, 'rest_velocity_m_s')
-    group.add_argument(
-        '--reject',
+    add_setting(
+        group,
+        AnalysisConfig,
+        'reject_flags',
+        flag='--reject',
         type=_flag_list,
         default=None,
         metavar='FLAG,...',
-        help=f'flags that reject an impact, or "none" (default: all of {",".join(FLAGS)})',
+        help=f'flags that reject an impact, or "none" (none given: all of {",".join(FLAGS)})',
     )
     if fits:
         group.add_argument(
@@ -352,7 +313,6 @@ def add_analysis(parser: argparse.ArgumentParser) -> None:
         parser,
         'write the level FRFs to PATH: .uff/.unv (UFF 58), .csv or .json (repeatable)',
         repeat=True,
-        aliases=('--export',),
     )
     add_hit_selection(parser)
     add_frf_options(parser)
@@ -447,18 +407,9 @@ def add_model(parser: argparse.ArgumentParser, *, damping: bool = True) -> None:
     add_rig(parser)
     group = parser.add_argument_group('what the fit frees besides mu')
     if damping:
-        group.add_argument(
-            '--fit-damping',
-            action='store_true',
-            help='fit the viscous damping c too (otherwise c is the rig constant)',
-        )
-    group.add_argument(
-        '--fit-initial-position',
-        action=argparse.BooleanOptionalAction,
-        default=True,
-        help='fit where the rig rested before each hit (default: friction leaves it off '
-        'centre after the previous one); --no-fit-initial-position starts each at x = 0',
-    )
+        add_setting(group, FitSpec, 'fit_damping')
+    # A session's hits find the rig where friction left it after the one before: on by default.
+    add_setting(group, FitSpec, 'fit_initial_position', default=True)
     add_setting(group, FitSpec, 'chain_starts')
 
 
@@ -501,16 +452,13 @@ def add_output(
     *,
     metavar: str = 'PATH',
     repeat: bool = False,
-    aliases: tuple[str, ...] = (),
     **kwargs,
 ) -> None:
-    """-o/--output (repeatable if repeat), with hidden old spellings in aliases."""
+    """-o/--output (repeatable if repeat)."""
     options = {'action': 'append', 'default': []} if repeat else {'default': None}
     parser.add_argument(
         '-o', '--output', type=Path, metavar=metavar, help=help, **options, **kwargs
     )
-    for alias in aliases:
-        add_alias(parser, alias, 'output', '-o/--output', type=Path, metavar=metavar)
 
 
 def add_whole_record(parser: argparse.ArgumentParser, *, fit_rig: bool = True) -> None:

@@ -3,8 +3,10 @@
 import argparse
 from pathlib import Path
 
-from fmm_ros.constants import BAG_STORAGES, RECORDED_TOPICS
+from fmm_ros.cli import options
+from fmm_ros.constants import RECORDED_TOPICS
 from fmm_ros.errors import BadInputError
+from fmm_ros.ros.settings import NodeSettings
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -24,7 +26,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=list(RECORDED_TOPICS),
         help='topics to record (default: the fmm topics)',
     )
-    parser.add_argument('--storage', choices=BAG_STORAGES, default='mcap')
+    options.add_setting(parser, NodeSettings, 'storage')
     parser.set_defaults(func=run)
 
 

@@ -13,8 +13,8 @@ import argparse
 import sys
 
 from fmm_ros.cli import options
-from fmm_ros.constants import REPORT_DPI
 from fmm_ros.errors import BadInputError
+from fmm_ros.report.settings import PageSettings
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -36,7 +36,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         parser,
         'directory for index.html and the PNG files (created)',
         metavar='DIR',
-        aliases=('--out',),
     )
     parser.add_argument(
         '--paper',
@@ -57,13 +56,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help='also run the discrepancy workflow (fmm diagnose) over the '
         'accepted hits: the missing effect, the gap before and after',
     )
-    parser.add_argument('--title', default='Impact session report', help='page title')
-    parser.add_argument(
-        '--dpi',
-        type=float,
-        default=REPORT_DPI,
-        help=f'PNG resolution [dots per inch] (default {REPORT_DPI:g})',
-    )
+    options.add_setting(parser, PageSettings, 'title')
+    options.add_setting(parser, PageSettings, 'dpi')
     options.add_model(parser)
     options.add_hit_selection(parser, fits=True)
     options.add_frf_options(parser)

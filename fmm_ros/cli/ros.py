@@ -23,7 +23,7 @@ from pathlib import Path
 
 from fmm_ros.cli import options
 from fmm_ros.constants import DIAGNOSE_SERVICE, FIT_SERVICE
-from fmm_ros.core.identify.spec import MISFITS, MU_BOUNDS
+from fmm_ros.core.identify.spec import FitSpec
 from fmm_ros.errors import BadInputError
 
 
@@ -60,15 +60,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         dest='impact_ids',
         help='an impact to use (repeatable; default: every accepted impact the fitter holds)',
     )
-    call.add_argument('--fit-damping', action='store_true', help='fit: also fit c')
-    call.add_argument('--mu-min', type=float, default=0.0, help='fit: lower end of the mu search')
-    call.add_argument(
-        '--mu-max',
-        type=float,
-        default=0.0,
-        help=f"fit: upper end of the mu search (both 0: the fitter's {MU_BOUNDS})",
+    fit = call.add_argument_group("fit (both mu ends 0: the fitter's own search range)")
+    options.add_setting(fit, FitSpec, 'fit_damping')
+    options.add_range_setting(
+        fit, FitSpec, 'mu_bounds', ('--mu-min', '--mu-max'), default=(0.0, 0.0)
     )
-    call.add_argument('--misfit', choices=MISFITS, default='time', help='fit: the misfit')
+    options.add_setting(fit, FitSpec, 'misfit')
     call.add_argument('--name', help='the service name (default: /fmm/fit_friction, ...)')
     call.add_argument(
         '--timeout-s', type=float, default=600.0, help='longest wait for the answer [s]'

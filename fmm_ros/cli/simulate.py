@@ -16,13 +16,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from fmm_ros.cli import options
-from fmm_ros.constants import PAPER_MU, SAMPLE_RATE_HZ
+from fmm_ros.constants import SAMPLE_RATE_HZ
+from fmm_ros.core.physics.rig import SIMULATED_DURATION_S, PlantRun
 from fmm_ros.errors import BadInputError
 
 if TYPE_CHECKING:
     import numpy as np
 
-DEFAULT_DURATION_S = 33.0
 FORCE_COLUMNS = ('time_s', 'force_n')
 OUT_COLUMNS = ('time_s', 'force_n', 'displacement_m', 'velocity_m_s')
 
@@ -36,9 +36,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         'from an initial displacement/velocity and/or a measured force record '
         '(linear between samples). Rig flags default to the FMM.',
     )
-    parser.add_argument('--x0-m', type=float, default=0.0, help='initial displacement [m]')
-    options.add_alias(parser, '--x0-mm', 'x0_m', '--x0-m (in m)', type=float, scale=1e-3)
-    parser.add_argument('--v0-m-s', type=float, default=0.0, help='initial velocity [m/s]')
+    options.add_setting(parser, PlantRun, 'x0_m')
+    options.add_setting(parser, PlantRun, 'v0_m_s')
     parser.add_argument(
         '--force-csv',
         type=Path,
@@ -46,38 +45,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help='force record with columns time_s,force_n (uniform time step); '
         'without it there is no applied force',
     )
-    parser.add_argument(
-        '--mu',
-        type=float,
-        default=PAPER_MU,
-        help=f'Coulomb friction coefficient (default {PAPER_MU})',
-    )
+    options.add_setting(parser, PlantRun, 'mu')
     options.add_rig(parser)
-    parser.add_argument(
-        '--duration-s',
-        type=float,
-        help=f'record length [s] (default {DEFAULT_DURATION_S:g}, or the force '
-        "record's; a longer one continues with zero force)",
-    )
-    parser.add_argument(
-        '--sample-rate-hz',
-        type=float,
-        help=f'sample rate [Hz] (default {SAMPLE_RATE_HZ:g}, or the '
-        "force record's, which it must then match)",
-    )
-    parser.add_argument(
-        '--integrator',
-        choices=('euler', 'exact'),
-        default='exact',
-        help='exact (default): exact between located stick/slip events; '
-        "euler: the paper's fixed-step reference",
-    )
+    options.add_setting(parser, PlantRun, 'duration_s')
+    options.add_setting(parser, PlantRun, 'sample_rate_hz')
+    options.add_setting(parser, PlantRun, 'integrator')
     options.add_json(parser, 'the summary')
     options.add_output(
         parser,
         'write time_s,force_n,displacement_m,velocity_m_s to this CSV file',
         metavar='CSV',
-        aliases=('--out',),
     )
     parser.set_defaults(func=run)
 
@@ -126,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
             force = np.concatenate((force[:n], np.zeros(max(0, n - force.size))))
     else:
         rate = SAMPLE_RATE_HZ if args.sample_rate_hz is None else args.sample_rate_hz
-        duration = DEFAULT_DURATION_S if args.duration_s is None else args.duration_s
+        duration = SIMULATED_DURATION_S if args.duration_s is None else args.duration_s
         force = np.zeros(record_length(duration, rate))
     sim = simulate(
         force,

@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import argparse
 
-from fmm_ros.core.signal.judging import MODES
+from fmm_ros.cli import options
+from fmm_ros.ros.settings import NodeSettings, StationSettings
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -20,18 +21,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help='the live page of a running rig: hits as they land, judged by the operator',
         description=__doc__.split('\n\n', 1)[1],
     )
-    parser.add_argument('--host', default=None, help="address to serve on (parameter 'host')")
-    parser.add_argument(
-        '--port', type=int, default=None, help="TCP port, 0: any free one (parameter 'port')"
-    )
-    parser.add_argument(
-        '--judge-mode', choices=MODES, default=None, help="who judges a new hit ('judge_mode')"
-    )
-    parser.add_argument(
-        '--judge-function',
-        default=None,
-        metavar='MODULE:FUNCTION',
-        help='with --judge-mode function: called with (ImpactRecord, ImpactResult)',
+    # Unset, each keeps the node's default (or the params file's).
+    unset = {'default': None}
+    options.add_setting(parser, NodeSettings, 'host', **unset)
+    options.add_setting(parser, NodeSettings, 'port', **unset)
+    options.add_setting(parser, StationSettings, 'judge_mode', **unset)
+    options.add_setting(
+        parser, StationSettings, 'judge_function', metavar='MODULE:FUNCTION', **unset
     )
     parser.add_argument(
         '--params-file', default=None, help='ROS parameter YAML (its station: section)'

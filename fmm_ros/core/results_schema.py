@@ -112,12 +112,16 @@ def keys(fields: tuple[ResultField, ...]) -> tuple[str, ...]:
     return tuple(field.name for field in fields)
 
 
+ASCII_PM = ' +- '
+"""The separator of a value and its uncertainty in terminal text and logs (pages use ' ± ')."""
+
+
 def format_with_uncertainty(value: float, std: float, sep: str = ' ± ') -> str:
     """'0.1130004 ± 0.0000014': the value to the second significant digit of its uncertainty.
 
     Both are printed with the same number of decimals, so the last digit shown of the value
     is the uncertainty's second significant one. Without a finite positive uncertainty the
-    value alone, to 5 significant digits. sep: ' +- ' for terminal text.
+    value alone, to 5 significant digits. sep: ASCII_PM for terminal text and logs.
     """
     if not (math.isfinite(value) and math.isfinite(std) and std > 0):
         return f'{value:.5g}'

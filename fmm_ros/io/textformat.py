@@ -10,6 +10,7 @@ from __future__ import annotations
 import codecs
 from dataclasses import dataclass
 
+from fmm_ros.core.settings import setting
 from fmm_ros.errors import BadInputError
 
 DELIMITERS = (',', ';', '\t', ' ', '|')
@@ -33,10 +34,21 @@ class TextFormat:
     skip_rows: lines to skip before the header (or the data). encoding: a Python codec name.
     """
 
-    delimiter: str | None = None
-    decimal: str | None = None
-    skip_rows: int = 0
-    encoding: str | None = None
+    delimiter: str | None = setting(
+        None, help='Text column delimiter: , ; | tab space; detected where none is given'
+    )
+    decimal: str | None = setting(
+        None, help='Decimal separator of text files; detected where none is given', choices=DECIMALS
+    )
+    skip_rows: int = setting(
+        0,
+        unit='lines',
+        help='Lines before the header of a text file (0: found from the first row of numbers)',
+        limits=(0, 1_000_000),
+    )
+    encoding: str | None = setting(
+        None, help='Text encoding; where none is given: the BOM, UTF-8, else detected'
+    )
 
     def __post_init__(self) -> None:
         if self.delimiter is not None and self.delimiter not in DELIMITERS:

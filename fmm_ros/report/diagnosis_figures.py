@@ -5,7 +5,7 @@ for the base model (Eq. 3) and for the model with the named effects; the mobilit
 shows |mobility| of the measurement and both models to 20 Hz, and beside it |measured -
 model|, where the gap shows, with f_n and its odd harmonics marked. The friction map shows
 mu against sliding speed and against position, with its standard errors. Used by the
-report's diagnosis section and by `fmm diagnose --plot`.
+report's diagnosis section and by `fmm diagnose -o DIR`.
 """
 
 from __future__ import annotations

@@ -16,6 +16,7 @@ import numpy as np
 
 from fmm_ros.constants import MM_PER_M, REPORT_DPI
 from fmm_ros.core import results_schema as schema
+from fmm_ros.core.diagnose.result import Diagnosis
 from fmm_ros.core.results_schema import format_with_uncertainty, label
 from fmm_ros.core.signal import frf
 from fmm_ros.core.signal.analysis import ImpactAnalysis, Summary
@@ -531,6 +532,12 @@ def _diagnosis_section(
     if session.selection is not None and session.selection.note:
         page.text(session.selection.note, note=True)
     page.text(f'Where the base model misses: {result.where.summary}.')
+    _candidate_tables(page, result)
+    _diagnosis_figures(page, session, found)
+
+
+def _candidate_tables(page: Page, result: Diagnosis) -> None:
+    """The named model's parameters, every candidate's score and gap, and how to read them."""
     page.table(
         ['parameter of the named model', 'value ± 1σ', 'unit'],
         [
@@ -580,6 +587,11 @@ def _diagnosis_section(
         'what mu and the starts take up reaching half the noise RMS); a smaller one can hide '
         'here, so "none" does not rule it out.'
     )
+
+
+def _diagnosis_figures(page: Page, session: SessionResult, found: SessionDiagnosis) -> None:
+    """Residuals and mobility gaps of the first hit of each level, and the friction map."""
+    result = found.diagnosis
     summary = session.summary
     records = [session.records[i] for i in found.impact_ids]
     rows = _one_per_level(summary, found.impact_ids)

@@ -9,7 +9,6 @@ import signal
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import rclpy
 from rclpy.executors import (
@@ -20,58 +19,16 @@ from rclpy.executors import (
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
-from fmm_ros.constants import BATCH_SIZE
 from fmm_ros.core.physics.rig import Rig
-from fmm_ros.core.settings import setting
 from fmm_ros.errors import SourceStartTimeout
 from fmm_ros.ros.params import Param, ParamValue, params_from
 from fmm_ros.ros.qos import RESULT_QOS, SAMPLE_QOS  # noqa: F401 (re-exported)
+from fmm_ros.ros.settings import NodeSettings
 from fmm_ros.sim.daq import ChannelChain
 
 # The rig constants of Eq. 3, as parameters (rig_sim simulates with them, the fitter fits
 # with them): the Rig's declared settings; defaults are the paper's FMM.
 RIG_PARAMS = params_from(Rig)
-
-
-@dataclass(frozen=True)
-class NodeSettings:
-    """The parameters several nodes take, each declared once (`shared_params`).
-
-    A node that takes one states only its own default where its role asks for another (the
-    hammer's frame_id, the station's port) and whether it can be set live.
-    """
-
-    rate_factor: float = setting(
-        1.0,
-        unit='-',
-        help="Speed against real time (a player's: against the recorded pace); 1 is real time",
-        limits=(0.01, 1000.0),
-    )
-    batch_size: int = setting(
-        BATCH_SIZE,
-        unit='-',
-        help='Samples per channel per published message (>= 500 keeps rclpy cheap)',
-        limits=(1, 1_000_000),
-    )
-    seed: int = setting(
-        0, unit='-', help="Seed of the node's random draws (session, noise)", limits=(0, 2**31 - 1)
-    )
-    frame_id: str = setting(
-        'fmm', help='Frame id in the header of what the node publishes (a sensor: its name)'
-    )
-    host: str = setting(
-        '127.0.0.1',
-        help='Address the server binds (127.0.0.1: this PC only; 0.0.0.0: the lab network)',
-    )
-    port: int = setting(
-        8080, unit='-', help='TCP port of the server (0: any free port)', limits=(0, 65535)
-    )
-    history_s: float = setting(
-        60.0,
-        unit='s',
-        help='Stream history kept to cut hits from (>= the analyzer window + latency)',
-        limits=(1.0, 3600.0),
-    )
 
 
 def shared_params(*names: str, read_only: bool = True, **defaults: ParamValue) -> tuple[Param, ...]:

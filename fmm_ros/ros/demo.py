@@ -35,6 +35,7 @@ from fmm_ros.constants import (
 )
 from fmm_ros.core import results_schema as schema
 from fmm_ros.core.identify.running import RunningEstimate
+from fmm_ros.core.results_schema import ASCII_PM, format_with_uncertainty
 from fmm_ros.core.signal.capture import CaptureConfig
 from fmm_ros.core.signal.config import AnalysisConfig
 from fmm_ros.io.bags.reader import BagReader
@@ -341,8 +342,9 @@ def _add_results(graph: InProcessGraph, total: int, progress: Callable[[str], No
             + ('accepted' if msg.accepted else f'rejected ({", ".join(msg.flags)})')
         ),
         on_estimate=lambda estimate: progress(
-            f'live mu after {estimate.count} accepted: {estimate.mu:.5f} +- '
-            f'{estimate.mu_stderr:.2g} (one mu: p = {estimate.consistency_p_value:.3g})'
+            f'live mu after {estimate.count} accepted: '
+            f'{format_with_uncertainty(estimate.mu, estimate.mu_stderr, ASCII_PM)} '
+            f'(one mu: p = {estimate.consistency_p_value:.3g})'
         ),
     )
 

@@ -24,6 +24,7 @@ from fmm_ros.constants import Channel
 from fmm_ros.core import diagnose
 from fmm_ros.core.identify.running import LevelEstimate, RunningEstimate
 from fmm_ros.core.physics.rig import Rig
+from fmm_ros.core.results_schema import ASCII_PM, format_with_uncertainty
 from fmm_ros.core.signal import analysis, frf, judging
 from fmm_ros.core.signal.stream import Batch
 from fmm_ros.errors import BadInputError
@@ -327,7 +328,8 @@ def fill_fit_response(response: object, result: FrictionResult) -> object:
     """Copy a FrictionResult into a FitFriction response (success = True); returns it."""
     response.success = True
     response.message = (
-        f'mu = {result.mu:.5f} +- {result.mu_stderr:.2g} over {len(result.impact_ids)} '
+        f'mu = {format_with_uncertainty(result.mu, result.mu_stderr, ASCII_PM)} over '
+        f'{len(result.impact_ids)} '
         f'impacts; one mu serves all: p = {result.consistency_p_value:.3g}'
     )
     response.mu, response.mu_stderr = result.mu, result.mu_stderr

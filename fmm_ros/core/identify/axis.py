@@ -61,6 +61,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import signal
 
+from fmm_ros.core.identify.spec import AxisSpec
 from fmm_ros.errors import BadInputError
 
 DEFAULT_CUTOFF_FRACTION = 0.1
@@ -88,30 +89,8 @@ LOOP_POINTS = 1000
 """At most this many points of the friction loop are reported (the last whole cycle)."""
 
 
-@dataclass(frozen=True)
-class AxisSpec:
-    """How to identify an axis: known spring, filters, and what to fit (all SI units).
-
-    stiffness_n_per_m: a known spring between the axis and the frame (0: none).
-    cutoff_hz: position low-pass cut-off (None: a tenth of the sample rate).
-    decimation: keep one sample in this many after the parallel filter (None: from the band).
-    per_direction: also fit viscous and Coulomb friction for each direction of motion.
-    """
-
-    stiffness_n_per_m: float = 0.0
-    cutoff_hz: float | None = None
-    decimation: int | None = None
-    per_direction: bool = True
-
-    def __post_init__(self) -> None:
-        if not math.isfinite(self.stiffness_n_per_m) or self.stiffness_n_per_m < 0.0:
-            raise BadInputError(
-                f'stiffness_n_per_m must be finite and >= 0, got {self.stiffness_n_per_m}'
-            )
-        if self.cutoff_hz is not None and not (self.cutoff_hz > 0.0):
-            raise BadInputError(f'cutoff_hz must be positive, got {self.cutoff_hz}')
-        if self.decimation is not None and self.decimation < 1:
-            raise BadInputError(f'decimation must be at least 1, got {self.decimation}')
+_PLAIN_AXIS = AxisSpec()
+"""The default identification: a free axis, the default filters, per-direction terms."""
 
 
 @dataclass(frozen=True)
@@ -483,7 +462,7 @@ def identify_axis_friction(
     sample_rate_hz: float,
     *,
     motion_kind: str = 'position',
-    spec: AxisSpec = AxisSpec(),
+    spec: AxisSpec = _PLAIN_AXIS,
 ) -> AxisFriction:
     """Identify M, Fv, Fc and offset of a drive from its force [N] and motion (SI units).
 

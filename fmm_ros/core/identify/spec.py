@@ -9,10 +9,12 @@ these without importing the fit.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Any
 
 from fmm_ros.constants import MISFIT_BAND_LIMIT_HZ
+from fmm_ros.core.physics.rig import INTEGRATORS
 from fmm_ros.core.settings import setting
 from fmm_ros.errors import BadInputError
 
@@ -97,9 +99,7 @@ class FitSpec:
         help="Top of the mobility band of the 'frf' misfit",
         limits=(0.1, 1e6),
     )
-    integrator: str = setting(
-        'exact', help='How the model is integrated', choices=('exact', 'rk4', 'euler')
-    )
+    integrator: str = setting('exact', help='How the model is integrated', choices=INTEGRATORS)
     jacobian: str = setting('blocks', help='How the Jacobian is built', choices=JACOBIANS)
     judge_hit: bool = setting(
         False, help='Judge the velocity inside each hit window too (the diagnosis does)'
@@ -123,3 +123,43 @@ class FitSpec:
 FRICTION_FIT = FitSpec(fit_impulse_scale=True, remove_mains_hum=True, fit_velocity_drift=True)
 """`fit_friction`'s default: each hit's impulse scale fitted, mains hum, velocity offset and
 drift taken off (the records as a data acquisition delivers them)."""
+
+
+@dataclass(frozen=True)
+class AxisSpec:
+    """How a driven axis's friction is identified: known spring, filters, what to fit (SI).
+
+    The settings of `identify_axis_friction` and `fmm identify-friction`.
+    """
+
+    stiffness_n_per_m: float = setting(
+        0.0,
+        unit='N/m',
+        help='Known spring between the axis and the frame; 0 for a free axis',
+        limits=(0.0, 1e9),
+    )
+    cutoff_hz: float | None = setting(
+        None,
+        unit='Hz',
+        help='Position low-pass cut-off (none: a tenth of the sample rate)',
+        limits=(1e-3, 1e7),
+    )
+    decimation: int | None = setting(
+        None,
+        unit='-',
+        help='Keep one sample in this many after the parallel filter (none: from the band)',
+        limits=(1, 1_000_000),
+    )
+    per_direction: bool = setting(
+        True, help='Also fit viscous and Coulomb friction for each direction of motion'
+    )
+
+    def __post_init__(self) -> None:
+        if not math.isfinite(self.stiffness_n_per_m) or self.stiffness_n_per_m < 0.0:
+            raise BadInputError(
+                f'stiffness_n_per_m must be finite and >= 0, got {self.stiffness_n_per_m}'
+            )
+        if self.cutoff_hz is not None and not (self.cutoff_hz > 0.0):
+            raise BadInputError(f'cutoff_hz must be positive, got {self.cutoff_hz}')
+        if self.decimation is not None and self.decimation < 1:
+            raise BadInputError(f'decimation must be at least 1, got {self.decimation}')

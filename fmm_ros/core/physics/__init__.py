@@ -5,7 +5,7 @@ from fmm_ros._lazy import lazy_exports
 _EXPORTS = {
     'EFFECT_SIZE': 'terms',
     'FMM_RIG': 'rig',
-    'INTEGRATORS': 'model',
+    'INTEGRATORS': 'rig',
     'MODEL_TERMS': 'terms',
     'ModelTerm': 'terms',
     'OscillatorStream': 'model',

@@ -40,15 +40,12 @@ from fmm_ros.core._checks import (
     require_positive,
 )
 from fmm_ros.core.physics import _kernels as kernels
-from fmm_ros.core.physics.rig import FMM_RIG, Rig
+from fmm_ros.core.physics.rig import FMM_RIG, INTEGRATORS, Rig
 from fmm_ros.core.physics.terms import ModelSpec, ModelTerm, SecondMode, model_spec
 from fmm_ros.errors import BadInputError
 
 MIN_SAMPLES_PER_PERIOD = 20
 """Sampling must resolve the rig's natural period this finely (event location, FRFs)."""
-
-
-INTEGRATORS = ('exact', 'rk4', 'euler')
 
 
 # RK4 segments are chosen so that (fastest rate) x (segment) stays below this.

@@ -1,13 +1,15 @@
-"""The rig constants of Eq. 3: moving mass, flexure stiffness, viscous damping, normal force.
+"""The rig constants of Eq. 3, and what a simulated run of the oscillator takes besides them.
 
 `Rig` is what every model run, fit and node parameter table takes; `FMM_RIG` is the paper's
 machine (Kossack, Ziegert, Schmitz 2019, Sec. 4): m = 10.391 kg, k = 1982 N/m,
-c = 0.275 N*s/m and N = 0.680 kg x g.
+c = 0.275 N*s/m and N = 0.680 kg x g. `PlantRun` declares a simulated plant's friction,
+start and integrator, the settings of `fmm simulate`, `fmm demo` and the rig_sim node.
 """
 
 import math
 from dataclasses import dataclass
 
+from fmm_ros.constants import PAPER_MU, SAMPLE_RATE_HZ
 from fmm_ros.core.settings import require_non_negative, require_positive, setting
 
 STANDARD_GRAVITY_M_S2 = 9.81
@@ -61,3 +63,45 @@ class Rig:
 
 
 FMM_RIG = Rig()
+
+INTEGRATORS = ('exact', 'rk4', 'euler')
+"""How the oscillator is stepped: exactly between located stick/slip events, by RK4, or by the
+paper's fixed-step Euler reference."""
+
+# Length of a simulated run without a force record [s].
+SIMULATED_DURATION_S = 33.0
+
+
+@dataclass(frozen=True)
+class PlantRun:
+    """A simulated run of the oscillator besides its rig: friction, start, integrator, length.
+
+    duration_s, sample_rate_hz: None takes the force record's (without one,
+    SIMULATED_DURATION_S at SAMPLE_RATE_HZ); given with a record, a longer duration continues
+    it with zero force and the rate must match the record's.
+    """
+
+    mu: float = setting(
+        PAPER_MU, unit='-', help='Coulomb friction coefficient of the plant', limits=(0.0, 2.0)
+    )
+    x0_m: float = setting(0.0, unit='m', help='Initial displacement', limits=(-1.0, 1.0))
+    v0_m_s: float = setting(0.0, unit='m/s', help='Initial velocity', limits=(-100.0, 100.0))
+    integrator: str = setting(
+        'exact',
+        help="Physics integrator (euler: the paper's fixed-step reference)",
+        choices=INTEGRATORS,
+    )
+    duration_s: float | None = setting(
+        None,
+        unit='s',
+        help=f"Record length (none: the force record's, else {SIMULATED_DURATION_S:g} s; a "
+        'longer one continues with zero force)',
+        limits=(0.0, 1e5),
+    )
+    sample_rate_hz: float | None = setting(
+        None,
+        unit='Hz',
+        help=f"Sample rate (none: the force record's, else {SAMPLE_RATE_HZ:g} Hz; with a "
+        'record it must match)',
+        limits=(1.0, 1e7),
+    )

@@ -125,6 +125,36 @@ class Summary:
     linearity: frf.LinearFit
 
 
+def _windowed(
+    force: np.ndarray,
+    measured: np.ndarray,
+    rate: float,
+    trigger: int,
+    contact_start: int,
+    analysis: AnalysisConfig,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The force and response the DFT sees: the analysis's force and exponential windows on.
+
+    The force window is laid on the force less its pre-contact mean; the exponential window
+    on both channels, from the trigger.
+    """
+    if analysis.force_window_s is not None:
+        offset = float(np.mean(force[:contact_start])) if contact_start else 0.0
+        force = (force - offset) * frf.force_window(
+            force.size,
+            rate,
+            start_index=trigger,
+            width_s=analysis.force_window_s,
+            taper_s=analysis.force_window_taper_s,
+        )
+    if analysis.exponential_decay_s is not None:
+        weight = frf.exponential_window(
+            force.size, rate, decay_time_s=analysis.exponential_decay_s, start_index=trigger
+        )
+        force, measured = force * weight, measured * weight
+    return force, measured
+
+
 def analyze_impact(
     record: ImpactRecord,
     capture: CaptureConfig = DEFAULT_CAPTURE,
@@ -152,21 +182,9 @@ def analyze_impact(
 
     impulse = frf.pulse_impulse(raw_force, rate, capture.rearm_level_n, contact_start)
     # The DFT of what the sensor measured, turned into velocity bin by bin (exact).
-    force, velocity = raw_force, record.measured[0]
-    if analysis.force_window_s is not None:
-        offset = float(np.mean(force[:contact_start])) if contact_start else 0.0
-        force = (force - offset) * frf.force_window(
-            force.size,
-            rate,
-            start_index=trigger,
-            width_s=analysis.force_window_s,
-            taper_s=analysis.force_window_taper_s,
-        )
-    if analysis.exponential_decay_s is not None:
-        weight = frf.exponential_window(
-            force.size, rate, decay_time_s=analysis.exponential_decay_s, start_index=trigger
-        )
-        force, velocity = force * weight, velocity * weight
+    force, velocity = _windowed(
+        raw_force, record.measured[0], rate, trigger, contact_start, analysis
+    )
 
     n_fft = record.window_samples
     bins = frf.band_bins(n_fft, rate, analysis.band_limit_hz)

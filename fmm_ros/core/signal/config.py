@@ -206,6 +206,33 @@ def paper_levels(tolerance_n: float = LEVEL_TOLERANCE_N) -> tuple[NominalLevel, 
 
 
 @dataclass(frozen=True)
+class SensorRanges:
+    """The sensors' full scales in SI, which the clipped/saturated flags compare peaks with.
+
+    0 for a range not given: as the recording states it, else unknown (nothing is flagged).
+    """
+
+    force_full_scale_n: float = setting(
+        0.0, unit='N', help='Force sensor range (0: as recorded, or unknown)', limits=(0.0, 1e7)
+    )
+    velocity_full_scale_m_s: float = setting(
+        0.0, unit='m/s', help='Vibrometer range (0: as recorded, or unknown)', limits=(0.0, 1e4)
+    )
+    acceleration_full_scale_m_s2: float = setting(
+        0.0,
+        unit='m/s^2',
+        help='Accelerometer range (0: as recorded, or unknown)',
+        limits=(0.0, 1e7),
+    )
+    displacement_full_scale_m: float = setting(
+        0.0,
+        unit='m',
+        help='Displacement sensor range (0: as recorded, or unknown)',
+        limits=(0.0, 1e3),
+    )
+
+
+@dataclass(frozen=True)
 class AnalysisConfig:
     """How records become FRFs and how results are grouped and judged.
 

@@ -3,7 +3,7 @@
 The scalar tables' columns are the message fields, taken from the fmm_interfaces
 definitions (a field added to ImpactResult.msg appears without a code change): one row per
 impact or level. The FRFs of each impact and level are written by the signal core's
-exporters (`fmm_ros.io.frf_files`), so a bag's FRFs and `fmm analyze --export` files match.
+exporters (`fmm_ros.io.frf_files`), so a bag's FRFs and `fmm analyze -o` files match.
 """
 
 import csv

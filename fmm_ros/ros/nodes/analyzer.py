@@ -19,7 +19,7 @@ from builtin_interfaces.msg import Time
 from rclpy.node import Node
 
 from fmm_interfaces.msg import FrfSummary, ImpactDecision, ImpactResult
-from fmm_ros.constants import DECISIONS_TOPIC, FRF_TOPIC, IMPACTS_TOPIC, PAPER_LEVELS
+from fmm_ros.constants import DECISIONS_TOPIC, FRF_TOPIC, IMPACTS_TOPIC
 from fmm_ros.core.settings import settings_of
 from fmm_ros.core.signal.analysis import (
     AnalysisConfig,
@@ -50,19 +50,7 @@ PARAMS = (
         AnalysisConfig,
         ('band_limit_hz', 'peak_band_hz', 'force_window_s', 'exponential_decay_s'),
     ),
-    Param(
-        'level_names',
-        [level.name for level in PAPER_LEVELS],
-        'Nominal force level names; [""] to cluster peak forces instead',
-        read_only=True,
-    ),
-    Param(
-        'level_peak_forces_n',
-        [level.peak_force_n for level in PAPER_LEVELS],
-        'Nominal peak force per level [N]',
-        limits=(0.0, 1e6),
-        read_only=True,
-    ),
+    *shared_params('level_names', 'level_peak_forces_n'),
     dataclasses.replace(params_from(NominalLevel, ('tolerance_n',))[0], name='level_tolerance_n'),
     *params_from(AnalysisConfig, ('reject_flags',)),
     Param(

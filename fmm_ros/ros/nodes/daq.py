@@ -24,6 +24,7 @@ there the device buffer (`buffer_s`) absorbs what the consumers lag.
 
 from collections.abc import Callable
 from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 from rclpy.duration import Duration
@@ -36,7 +37,6 @@ from fmm_ros.constants import (
     FORCE,
     FORCE_TOPIC,
     RESPONSE_CHANNELS,
-    SAMPLE_RATE_HZ,
     VELOCITY,
     VELOCITY_TOPIC,
 )
@@ -66,14 +66,7 @@ RESPONSE_FRAMES = {
 
 PARAMS = (
     Param('backend', 'nidaqmx', 'Acquisition backend', choices=('nidaqmx', 'file'), read_only=True),
-    Param(
-        'sample_rate_hz',
-        SAMPLE_RATE_HZ,
-        'Sample clock of the device (nidaqmx) [Hz]',
-        limits=(1.0, 1e7),
-        read_only=True,
-    ),
-    *shared_params('batch_size'),
+    *shared_params('sample_rate_hz', 'batch_size'),
     Param('force_channel', 'Dev1/ai0', 'Physical channel of the hammer (IEPE)', read_only=True),
     Param(
         'hammer_sensitivity_mv_per_n',
@@ -259,36 +252,7 @@ class NidaqmxBackend:
         except nidaqmx.errors.DaqNotFoundError as error:
             raise RuntimeError(f'NI-DAQmx driver not found ({error}); {INSTALL_HINT}') from error
         try:
-            self.task.ai_channels.add_ai_force_iepe_chan(
-                cfg['force_channel'],
-                min_val=-cfg['force_range_n'],
-                max_val=cfg['force_range_n'],
-                units=constants.ForceUnits.NEWTONS,
-                sensitivity=cfg['hammer_sensitivity_mv_per_n'],
-                sensitivity_units=constants.ForceIEPESensorSensitivityUnits.MILLIVOLTS_PER_NEWTON,
-                current_excit_source=constants.ExcitationSource.INTERNAL,
-                current_excit_val=cfg['iepe_current_a'],
-            )
-            if accelerometer:
-                sensitivity_units = constants.AccelSensitivityUnits
-                self.task.ai_channels.add_ai_accel_chan(
-                    cfg['accelerometer_channel'],
-                    min_val=-cfg['acceleration_range_m_s2'],
-                    max_val=cfg['acceleration_range_m_s2'],
-                    units=constants.AccelUnits.METERS_PER_SECOND_SQUARED,
-                    sensitivity=cfg['accelerometer_sensitivity_mv_per_g'],
-                    # nidaqmx >= 0.8 spells it MILLIVOLTS_PER_G, older releases M_VOLTS_PER_G.
-                    sensitivity_units=getattr(sensitivity_units, 'MILLIVOLTS_PER_G', None)
-                    or sensitivity_units.M_VOLTS_PER_G,
-                    current_excit_source=constants.ExcitationSource.INTERNAL,
-                    current_excit_val=cfg['iepe_current_a'],
-                )
-            else:
-                self.task.ai_channels.add_ai_voltage_chan(
-                    cfg['velocity_channel'],
-                    min_val=-cfg['velocity_range_v'],
-                    max_val=cfg['velocity_range_v'],
-                )
+            self._add_channels(cfg, constants, accelerometer)
             self.task.timing.cfg_samp_clk_timing(
                 self.sample_rate_hz,
                 sample_mode=constants.AcquisitionType.CONTINUOUS,
@@ -325,6 +289,43 @@ class NidaqmxBackend:
         self._daq_error = nidaqmx.errors.DaqError
         self._starting = node.create_timer(0.1, self._start_when_ready)
         self._node = node
+
+    def _add_channels(self, cfg: dict, constants: ModuleType, accelerometer: bool) -> None:
+        """The hammer's IEPE force channel, then the response channel.
+
+        The response is an IEPE accelerometer or the vibrometer's voltage; constants is
+        nidaqmx's module, imported by `__init__` only (the package runs without nidaqmx).
+        """
+        self.task.ai_channels.add_ai_force_iepe_chan(
+            cfg['force_channel'],
+            min_val=-cfg['force_range_n'],
+            max_val=cfg['force_range_n'],
+            units=constants.ForceUnits.NEWTONS,
+            sensitivity=cfg['hammer_sensitivity_mv_per_n'],
+            sensitivity_units=constants.ForceIEPESensorSensitivityUnits.MILLIVOLTS_PER_NEWTON,
+            current_excit_source=constants.ExcitationSource.INTERNAL,
+            current_excit_val=cfg['iepe_current_a'],
+        )
+        if accelerometer:
+            sensitivity_units = constants.AccelSensitivityUnits
+            self.task.ai_channels.add_ai_accel_chan(
+                cfg['accelerometer_channel'],
+                min_val=-cfg['acceleration_range_m_s2'],
+                max_val=cfg['acceleration_range_m_s2'],
+                units=constants.AccelUnits.METERS_PER_SECOND_SQUARED,
+                sensitivity=cfg['accelerometer_sensitivity_mv_per_g'],
+                # nidaqmx >= 0.8 spells it MILLIVOLTS_PER_G, older releases M_VOLTS_PER_G.
+                sensitivity_units=getattr(sensitivity_units, 'MILLIVOLTS_PER_G', None)
+                or sensitivity_units.M_VOLTS_PER_G,
+                current_excit_source=constants.ExcitationSource.INTERNAL,
+                current_excit_val=cfg['iepe_current_a'],
+            )
+        else:
+            self.task.ai_channels.add_ai_voltage_chan(
+                cfg['velocity_channel'],
+                min_val=-cfg['velocity_range_v'],
+                max_val=cfg['velocity_range_v'],
+            )
 
     def _start_when_ready(self) -> None:
         if not self._source.ready():

@@ -56,6 +56,7 @@ from fmm_ros.core.diagnose.workflow import diagnose
 from fmm_ros.core.identify.friction import fit_friction
 from fmm_ros.core.identify.running import RunningEstimate, RunningFriction
 from fmm_ros.core.identify.spec import MU_BOUNDS, FitSpec
+from fmm_ros.core.results_schema import ASCII_PM, format_with_uncertainty
 from fmm_ros.core.signal.analysis import ImpactSelection, select_impacts
 from fmm_ros.core.signal.history import SampleHistory
 from fmm_ros.core.signal.judging import Decision, is_taken
@@ -423,7 +424,8 @@ class Fitter(Node):
         )
         self._friction_pub.publish(msgs.friction_estimate_msg(estimate, stamp=stamp))
         self.live_mu = (
-            f'{estimate.mu:.5f} +- {estimate.mu_stderr:.2g} over {estimate.count} impacts '
+            f'{format_with_uncertainty(estimate.mu, estimate.mu_stderr, ASCII_PM)} over '
+            f'{estimate.count} impacts '
             f'(one mu: p = {estimate.consistency_p_value:.3g})'
         )
         change = 'after' if estimate.impact_id in estimate.impact_ids else 'without'

@@ -21,8 +21,6 @@ from fmm_ros.constants import (
     APPLIED_FORCE_TOPIC,
     FORCE,
     FORCE_TOPIC,
-    PAPER_LEVELS,
-    SAMPLE_RATE_HZ,
 )
 from fmm_ros.errors import BadInputError
 from fmm_ros.ros import msgs
@@ -37,29 +35,9 @@ from fmm_ros.sim.hammer import HammerStream, session_schedule
 from fmm_ros.units import si_factor
 
 PARAMS = (
-    Param(
-        'sample_rate_hz',
-        SAMPLE_RATE_HZ,
-        'Sampling rate of the force channel [Hz]',
-        limits=(100.0, 1e6),
-        read_only=True,
-    ),
-    *shared_params('batch_size'),
+    *shared_params('sample_rate_hz', 'batch_size'),
     *shared_params('rate_factor', read_only=False),
-    Param(
-        'level_names',
-        [level.name for level in PAPER_LEVELS],
-        'Names of the force levels, in order',
-        read_only=True,
-    ),
-    Param(
-        'level_peak_forces_n',
-        [level.peak_force_n for level in PAPER_LEVELS],
-        'Nominal peak force per level [N]',
-        limits=(1.0, 50_000.0),
-        read_only=True,
-    ),
-    Param('hits_per_level', 10, 'Hits at each level [-]', limits=(1, 10_000), read_only=True),
+    *shared_params('level_names', 'level_peak_forces_n', 'hits_per_level'),
     Param(
         'hit_spacing_s',
         40.0,

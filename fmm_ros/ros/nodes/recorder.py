@@ -41,7 +41,6 @@ from rclpy.serialization import deserialize_message
 from fmm_interfaces.msg import SampleBatch, SessionInfo
 from fmm_ros.constants import (
     APPLIED_FORCE_TOPIC,
-    BAG_STORAGES,
     CLOCK_TOPIC,
     DECISIONS_TOPIC,
     DIAGNOSTICS_TOPIC,
@@ -63,7 +62,7 @@ from fmm_ros.io.bags.reader import BagReader
 from fmm_ros.io.bags.writer import WRITE_ERRORS, BagWriter, bag_qos, free_bag_path
 from fmm_ros.io.session_info import SESSION_KEY, from_message, to_json
 from fmm_ros.ros import msgs
-from fmm_ros.ros.common import message_class, run_node
+from fmm_ros.ros.common import message_class, run_node, shared_params
 from fmm_ros.ros.flow import ProgressReporter
 from fmm_ros.ros.health import (
     ERROR,
@@ -94,7 +93,7 @@ PARAMS = (
         read_only=True,
     ),
     Param('bag_path', '', 'Bag directory to create; "" for fmm_<date>_<time> here', read_only=True),
-    Param('storage', 'mcap', 'rosbag2 storage plugin', choices=tuple(BAG_STORAGES), read_only=True),
+    *shared_params('storage'),
     Param(
         'flush_interval_s',
         1.0,

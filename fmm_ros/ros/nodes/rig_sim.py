@@ -22,8 +22,9 @@ import numpy as np
 from rclpy.node import Node
 
 from fmm_interfaces.msg import SampleBatch
-from fmm_ros.constants import APPLIED_FORCE_TOPIC, FORCE, PAPER_MU, VELOCITY, VELOCITY_TOPIC
-from fmm_ros.core.physics.model import INTEGRATORS, OscillatorStream
+from fmm_ros.constants import APPLIED_FORCE_TOPIC, FORCE, VELOCITY, VELOCITY_TOPIC
+from fmm_ros.core.physics.model import OscillatorStream
+from fmm_ros.core.physics.rig import PlantRun
 from fmm_ros.core.physics.terms import parse_model_term
 from fmm_ros.core.signal.stream import AlignedStream
 from fmm_ros.errors import UnitError
@@ -38,7 +39,7 @@ from fmm_ros.ros.common import (
 )
 from fmm_ros.ros.flow import SOURCE_PARAMS, FlowGate, ProgressReporter, deliver_last_batches
 from fmm_ros.ros.health import ChannelRate, FaultLog, Health, stream_status
-from fmm_ros.ros.params import Param, declare_parameters
+from fmm_ros.ros.params import Param, declare_parameters, params_from
 from fmm_ros.ros.qos import SAMPLE_QOS
 from fmm_ros.ros.sources import SourceCheck
 from fmm_ros.sim.daq import ChainStream
@@ -56,13 +57,7 @@ PARAMS = (
         'output_topic', VELOCITY_TOPIC, 'Where the vibrometer velocity goes [m/s]', read_only=True
     ),
     *RIG_PARAMS,
-    Param(
-        'mu',
-        PAPER_MU,
-        'Coulomb friction coefficient of the plant [-]',
-        limits=(0.0, 2.0),
-        read_only=True,
-    ),
+    *params_from(PlantRun, ('mu',)),
     Param(
         'effects',
         [''],
@@ -70,7 +65,7 @@ PARAMS = (
         '(see fmm_ros.core.physics.MODEL_TERMS); [""] for none',
         read_only=True,
     ),
-    Param('integrator', 'exact', 'Physics integrator', choices=INTEGRATORS, read_only=True),
+    *params_from(PlantRun, ('integrator',)),
     Param(
         'noise_std_m_s',
         1e-4,

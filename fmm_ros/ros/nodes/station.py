@@ -53,7 +53,7 @@ from fmm_ros.constants import (
     VELOCITY_TOPIC,
 )
 from fmm_ros.core.signal.history import SampleHistory
-from fmm_ros.core.signal.judging import MODES, Decision, judge_with, load_judge
+from fmm_ros.core.signal.judging import Decision, judge_with, load_judge
 from fmm_ros.core.signal.records import ImpactRecord
 from fmm_ros.errors import BadInputError, FmmError
 from fmm_ros.io import session_info
@@ -62,7 +62,7 @@ from fmm_ros.ros.common import RIG_PARAMS, rig_from_parameters, run_node, shared
 from fmm_ros.ros.cutting import ImpactCutter
 from fmm_ros.ros.health import LEVEL_NAMES, OK, WARN, Health
 from fmm_ros.ros.nodes.analyzer import PARAMS as ANALYZER_PARAMS
-from fmm_ros.ros.params import Param, declare_parameters
+from fmm_ros.ros.params import Param, declare_parameters, params_from
 from fmm_ros.ros.qos import (
     DECISION_QOS,
     DIAGNOSTICS_QOS,
@@ -71,6 +71,7 @@ from fmm_ros.ros.qos import (
     SESSION_INFO_QOS,
     VIEW_SAMPLE_QOS,
 )
+from fmm_ros.ros.settings import StationSettings
 from fmm_ros.station.server import StationServer
 from fmm_ros.station.state import Level, StationState
 
@@ -82,21 +83,7 @@ PARAMS = (
     *RIG_PARAMS,
     *(param for param in ANALYZER_PARAMS if param.name in _SHARED),
     *shared_params('host', 'port'),
-    Param(
-        'judge_mode',
-        'flags',
-        'Who judges a new hit: flags (the analyzer), manual (the operator: held pending '
-        'until decided) or function (judge_function)',
-        choices=MODES,
-        read_only=True,
-    ),
-    Param(
-        'judge_function',
-        '',
-        'module:function called with (ImpactRecord, ImpactResult) in function mode; returns '
-        'a bool or (bool, reason)',
-        read_only=True,
-    ),
+    *params_from(StationSettings),
     Param(
         'target_hits_per_level',
         10,
