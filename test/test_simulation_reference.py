@@ -87,8 +87,8 @@ def _oscillator(force, stream):
             if sliding:
                 x, v = x1, v1
             else:
-                x, v, mode, rest_time = kernels._interval(
-                    x, v, mode, f0, f1, (i - 1) / RATE_HZ, rest_time, p
+                x, v, mode, rest_time, _, _ = kernels._interval(
+                    x, v, mode, f0, f1, (i - 1) / RATE_HZ, rest_time, p, 0.0, math.nan
                 )
         displacement[i], velocity[i] = x, v
     return displacement, velocity
