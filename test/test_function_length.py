@@ -14,7 +14,6 @@ WAITING = {
     ('core/identify/friction.py', '_fit'): 101,
     ('io/bags/summary.py', 'summarize_bag'): 84,
     ('report/paper.py', 'build_paper_report'): 87,
-    ('workflows/session.py', 'process_records'): 82,
 }
 
 
