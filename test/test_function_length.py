@@ -12,7 +12,6 @@ WAITING = {
     ('core/diagnose/workflow.py', 'conclude'): 101,
     ('core/identify/axis.py', 'identify_axis_friction'): 107,
     ('core/identify/friction.py', '_fit'): 101,
-    ('report/paper.py', 'build_paper_report'): 87,
 }
 
 
