@@ -1,22 +1,11 @@
 """No function of fmm_ros runs past 80 lines, numba kernels apart (a kernel is one loop the
-compiler sees whole). The few longer ones still waiting to be split are named with the length
-they have now: they may shrink, never grow, and no other may join them."""
+compiler sees whole)."""
 
 import ast
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1] / 'fmm_ros'
 MAX_LINES = 80
-# Still to split: (module, function) -> its length today, which it may not pass.
-WAITING = {
-    ('core/diagnose/calibration.py', 'without_impulse_error'): 81,
-    ('core/diagnose/workflow.py', 'conclude'): 101,
-    ('core/identify/axis.py', 'identify_axis_friction'): 107,
-    ('core/identify/friction.py', '_fit'): 101,
-    ('io/bags/summary.py', 'summarize_bag'): 84,
-    ('report/paper.py', 'build_paper_report'): 87,
-    ('workflows/session.py', 'process_records'): 82,
-}
 
 
 def is_numba_kernel(node: ast.FunctionDef) -> bool:
@@ -36,11 +25,8 @@ def function_lengths() -> dict[tuple[str, str], int]:
     return lengths
 
 
-def test_no_function_runs_past_80_lines_but_the_named_ones_which_may_not_grow():
-    lengths = function_lengths()
-    too_long = {
-        key: length for key, length in lengths.items() if length > WAITING.get(key, MAX_LINES)
-    }
+def test_no_function_runs_past_80_lines():
+    too_long = {key: length for key, length in function_lengths().items() if length > MAX_LINES}
     assert too_long == {}, f'split these (at most {MAX_LINES} lines): {too_long}'
 
 

@@ -312,11 +312,12 @@ def pulse_receptance_figure(responses: Sequence[PulseResponse], *, zoom: bool = 
     return figure
 
 
-def build_paper_report(out_dir: str | Path, *, dpi: float = REPORT_DPI) -> Path:
-    """Write the paper's Figs. 2-10, reproduced by the physics core, as a report page."""
-    rig, mu = PAPER_OSCILLATOR, PAPER_OSCILLATOR_MU
+def _free_vibration_section(page: Page, rig: Rig, mu: float) -> None:
+    """Figs. 2-4: two releases from rest coming to rest, and rest against release position.
+
+    The free vibration shows friction's dead band: the mass stops anywhere within +-x_lim.
+    """
     limit_m = rig.friction_limit_m(mu)
-    page = Page(out_dir, 'Kossack, Ziegert, Schmitz (2019), Figs. 2-10 reproduced', dpi=dpi)
     page.section('Free vibration (Figs. 2-4)', 'free')
     page.text(
         f'm = {rig.mass_kg:g} kg, k = {rig.stiffness_n_per_m:g} N/m, μ = {mu:g}, '
@@ -341,6 +342,12 @@ def build_paper_report(out_dir: str | Path, *, dpi: float = REPORT_DPI) -> Path:
         f'{4 * limit_m * MM_PER_M:.3f} mm and amplitude x_lim.',
     )
 
+
+def _pulse_section(page: Page, rig: Rig) -> None:
+    """Figs. 5-7: one force for three pulse durations, in time, spectrum and receptance.
+
+    The receptance changing with the impulse is what shows the system is not linear.
+    """
     page.section('Rectangular pulse of three durations (Figs. 5-7)', 'pulse')
     widths = [
         pulse_response(width, label=f'Δt = {width * MS_PER_S:g} ms ({PULSE_FORCE_N * width:g} N·s)')
@@ -370,6 +377,12 @@ def build_paper_report(out_dir: str | Path, *, dpi: float = REPORT_DPI) -> Path:
         "put in, unlike a linear system's.",
     )
 
+
+def _friction_section(page: Page) -> None:
+    """Figs. 8-10: the longest pulse for three friction coefficients, as Figs. 5-7 show it.
+
+    How the response changes with mu is what a fit of mu to a measured hit relies on.
+    """
     page.section('Three friction coefficients (Figs. 8-10)', 'friction')
     width = PULSE_DURATIONS_S[-1]
     frictions = [
@@ -398,4 +411,13 @@ def build_paper_report(out_dir: str | Path, *, dpi: float = REPORT_DPI) -> Path:
         'Fig. 10: real and imaginary receptance for three μ, and the imaginary part near '
         'f_n (bottom).',
     )
+
+
+def build_paper_report(out_dir: str | Path, *, dpi: float = REPORT_DPI) -> Path:
+    """Write the paper's Figs. 2-10, reproduced by the physics core, as a report page."""
+    rig, mu = PAPER_OSCILLATOR, PAPER_OSCILLATOR_MU
+    page = Page(out_dir, 'Kossack, Ziegert, Schmitz (2019), Figs. 2-10 reproduced', dpi=dpi)
+    _free_vibration_section(page, rig, mu)
+    _pulse_section(page, rig)
+    _friction_section(page)
     return page.write()

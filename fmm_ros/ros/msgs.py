@@ -398,14 +398,12 @@ def friction_result(response: object) -> FrictionResult:
     )
 
 
-def diagnose_response_dict(response: object) -> dict:
-    """A DiagnoseModel response as the JSON keys of `fmm diagnose --json` it carries.
+def _candidates_list(response: object) -> list[dict]:
+    """A DiagnoseModel response's candidate effects, as `fmm diagnose --json` lists them.
 
-    JSON-ready as `diagnosis_dict` is: undefined numbers (an 'unexplained' entry's score, the
-    trend of fewer than four hits) are None.
+    The message carries each candidate's parameters and limit curve flattened, with counts
+    per candidate: they are cut back into one entry per candidate here.
     """
-    if not response.success:
-        raise BadInputError(f'the diagnosis was refused: {response.message}')
     names, values = (
         response.candidate_parameter_names,
         field_array(response.candidate_parameter_values),
@@ -418,6 +416,36 @@ def diagnose_response_dict(response: object) -> dict:
         tuple(zip(frequencies[span], masses[span], strict=True))
         for span in _spans(response.candidate_limit_curve_counts)
     ]
+    return [
+        {
+            'effect': effect,
+            'score': score,
+            'gap_after': gap_after,
+            'parameters': dict(zip(names[span], values[span].tolist(), strict=True)),
+            'detection_limit': detection_limit_dict(effect, limit, curve),
+            **({'unobservable': unobservable} if unobservable else {}),
+        }
+        for effect, score, gap_after, limit, curve, span, unobservable in zip(
+            response.candidate_effects,
+            field_array(response.candidate_scores).tolist(),
+            field_array(response.candidate_gap_after).tolist(),
+            field_array(response.candidate_detection_limits).tolist(),
+            curves,
+            _spans(response.candidate_parameter_counts),
+            response.candidate_unobservable,
+            strict=True,
+        )
+    ]
+
+
+def diagnose_response_dict(response: object) -> dict:
+    """A DiagnoseModel response as the JSON keys of `fmm diagnose --json` it carries.
+
+    JSON-ready as `diagnosis_dict` is: undefined numbers (an 'unexplained' entry's score, the
+    trend of fewer than four hits) are None.
+    """
+    if not response.success:
+        raise BadInputError(f'the diagnosis was refused: {response.message}')
     return json_safe(
         {
             'missing_effect': response.missing_effect,
@@ -452,26 +480,7 @@ def diagnose_response_dict(response: object) -> dict:
             'frf_gap_before': response.frf_gap_before,
             'frf_gap_after': response.frf_gap_after,
             'where': {'summary': response.where},
-            'candidates': [
-                {
-                    'effect': effect,
-                    'score': score,
-                    'gap_after': gap_after,
-                    'parameters': dict(zip(names[span], values[span].tolist(), strict=True)),
-                    'detection_limit': detection_limit_dict(effect, limit, curve),
-                    **({'unobservable': unobservable} if unobservable else {}),
-                }
-                for effect, score, gap_after, limit, curve, span, unobservable in zip(
-                    response.candidate_effects,
-                    field_array(response.candidate_scores).tolist(),
-                    field_array(response.candidate_gap_after).tolist(),
-                    field_array(response.candidate_detection_limits).tolist(),
-                    curves,
-                    _spans(response.candidate_parameter_counts),
-                    response.candidate_unobservable,
-                    strict=True,
-                )
-            ],
+            'candidates': _candidates_list(response),
             'noise_std_m_s': response.noise_std_m_s,
             'residual_noise_std_m_s': response.residual_noise_std_m_s,
             'starts': response.starts,

@@ -324,18 +324,7 @@ def process_records(
         raise BadInputError('a session needs at least one impact record')
     capture = options.inputs.capture
     summary = analyse(records, capture, options.analysis, decisions=decisions, progress=progress)
-    try:
-        selection = select_impacts(
-            summary, include_flagged=options.include_flagged, decisions=decisions
-        )
-        refusal = ''
-    except SelectionError as error:  # the result says why there is no fit, naming the hits
-        selection, refusal = error.selection, str(error)
-    if not refusal:
-        try:
-            selection.chained(options.model.chain_starts)
-        except BadInputError as error:  # the result says why the chain cannot be fitted
-            refusal = str(error)
+    selection, refusal = _selection_and_refusal(summary, options, decisions)
     if friction is None and not fit_failure and options.mu is None and options.fit:
         try:
             friction = fit_impacts(
@@ -398,6 +387,29 @@ def process_session(
         session_info=read.session_info,
         progress=progress,
     )
+
+
+def _selection_and_refusal(
+    summary: Summary, options: SessionOptions, decisions: Mapping[int, Decision] | None
+) -> tuple[ImpactSelection, str]:
+    """The impacts `select_impacts` takes, and why none can be fitted ('' when they can).
+
+    A refusal (no clean impact, or a chain the model cannot start) is kept rather than
+    raised so the session result still shows the analysis and says why there is no fit.
+    """
+    try:
+        selection = select_impacts(
+            summary, include_flagged=options.include_flagged, decisions=decisions
+        )
+        refusal = ''
+    except SelectionError as error:  # the result says why there is no fit, naming the hits
+        selection, refusal = error.selection, str(error)
+    if not refusal:
+        try:
+            selection.chained(options.model.chain_starts)
+        except BadInputError as error:  # the result says why the chain cannot be fitted
+            refusal = str(error)
+    return selection, refusal
 
 
 def _chosen(selection: ImpactSelection, refusal: str) -> tuple[int, ...]:

@@ -76,6 +76,31 @@ def rest_noise_std(
     return math.sqrt(squares / count)
 
 
+def _solve_with_impulse_bounds(normal: np.ndarray, projected: np.ndarray, count: int) -> np.ndarray:
+    """The least-squares step of the normal equations, each impulse error held to the tolerance.
+
+    The first `count` columns are the hits' relative impulse errors, the rest mu shifts. An
+    impulse error past +-IMPULSE_SCALE_TOLERANCE is clipped to the bound and fixed there, and
+    the other columns solved again given it, until none is past (at most one pass per hit and
+    one more): a calibration cannot be off by more than the tolerance, so a larger error must
+    not be used to explain a residual away.
+    """
+    columns = len(projected)
+    values = np.zeros(columns)
+    free = np.ones(columns, dtype=bool)
+    for _ in range(count + 1):
+        rest = projected[free] - normal[np.ix_(free, ~free)] @ values[~free]
+        values[free] = np.linalg.lstsq(normal[np.ix_(free, free)], rest, rcond=None)[0]
+        beyond = free.copy()
+        beyond[count:] = False
+        beyond &= np.abs(values) > IMPULSE_SCALE_TOLERANCE
+        if not beyond.any():
+            break
+        values[beyond] = np.clip(values[beyond], -IMPULSE_SCALE_TOLERANCE, IMPULSE_SCALE_TOLERANCE)
+        free &= ~beyond
+    return values
+
+
 def without_impulse_error(
     impacts: Sequence[ConditionedImpact],
     model: SessionModel,
@@ -139,18 +164,7 @@ def without_impulse_error(
         normal[np.ix_(where, where)] += inner(pair, pair)
         projected[where] += inner(pair, residual[window])
         blocks.append((where, pair))
-    values = np.zeros(columns)
-    free = np.ones(columns, dtype=bool)
-    for _ in range(count + 1):
-        rest = projected[free] - normal[np.ix_(free, ~free)] @ values[~free]
-        values[free] = np.linalg.lstsq(normal[np.ix_(free, free)], rest, rcond=None)[0]
-        beyond = free.copy()
-        beyond[count:] = False
-        beyond &= np.abs(values) > IMPULSE_SCALE_TOLERANCE
-        if not beyond.any():
-            break
-        values[beyond] = np.clip(values[beyond], -IMPULSE_SCALE_TOLERANCE, IMPULSE_SCALE_TOLERANCE)
-        free &= ~beyond
+    values = _solve_with_impulse_bounds(normal, projected, count)
     out = []
     for residual, window, (where, pair) in zip(residuals, windows, blocks, strict=True):
         corrected = residual.copy()

@@ -70,6 +70,7 @@ from fmm_ros.core.diagnose.result import (
     Diagnosis,
     NamedEffect,
     ParameterEstimate,
+    ResidualLocation,
     Where,
 )
 from fmm_ros.core.diagnose.screen import (
@@ -853,35 +854,7 @@ class _Session:
             self.rig,
             self.rest_noise,
         )
-        unexplained = location.excess_to_noise >= MIN_EXCESS
-        named = []
-        if unexplained:
-            named.append(
-                NamedEffect(
-                    UNEXPLAINED,
-                    math.nan,
-                    math.nan,
-                    self.gap(explained.residuals_m_s),
-                    (),
-                    where=location,
-                )
-            )
-        for step in selection.steps if explained is final else ():
-            drop = math.nan
-            reduced = self._without(final, step.effect) if len(final.effects) > 1 else self.base
-            if reduced is not None:
-                drop = self.score(reduced, final)[0]
-            named.append(
-                NamedEffect(
-                    step.effect,
-                    step.score,
-                    drop,
-                    step.gap_after,
-                    _own_parameters(final, step.effect),
-                    _trend(final) if step.effect == MU_DRIFT else None,
-                    partial=unexplained,
-                )
-            )
+        named = self._named_effects(selection, explained, location)
         verdict = self._verdict(named, selection, explained, location)
         verdict += _at_bound_note(named)
         candidates = tuple(
@@ -926,6 +899,48 @@ class _Session:
             base_residuals_m_s=base_full,
             named_residuals_m_s=final_full,
         )
+
+    def _named_effects(
+        self, selection: _Selection, explained: SessionModel, location: ResidualLocation
+    ) -> list[NamedEffect]:
+        """The effects the diagnosis names, in the order they were taken.
+
+        An unexplained residual (its excess over the noise at least MIN_EXCESS) comes first,
+        with where it is; then, when the selected model halved the gap (`explained` is it),
+        each selected effect with its score, how much the fit loses without it (the drop) and
+        its parameters, marked partial if a residual is still unexplained.
+        """
+        final = selection.model
+        unexplained = location.excess_to_noise >= MIN_EXCESS
+        named = []
+        if unexplained:
+            named.append(
+                NamedEffect(
+                    UNEXPLAINED,
+                    math.nan,
+                    math.nan,
+                    self.gap(explained.residuals_m_s),
+                    (),
+                    where=location,
+                )
+            )
+        for step in selection.steps if explained is final else ():
+            drop = math.nan
+            reduced = self._without(final, step.effect) if len(final.effects) > 1 else self.base
+            if reduced is not None:
+                drop = self.score(reduced, final)[0]
+            named.append(
+                NamedEffect(
+                    step.effect,
+                    step.score,
+                    drop,
+                    step.gap_after,
+                    _own_parameters(final, step.effect),
+                    _trend(final) if step.effect == MU_DRIFT else None,
+                    partial=unexplained,
+                )
+            )
+        return named
 
     def _verdict(self, named, selection, explained, location) -> str:
         if not named and selection.best_partial:

@@ -474,7 +474,6 @@ def identify_axis_friction(
     motion = np.asarray(motion, dtype=float)
     _check_record(force_n, motion, sample_rate_hz)
     cutoff, band, decimation, border = _filter_plan(force_n.size, sample_rate_hz, spec)
-
     x, v, a = motion_states(motion, motion_kind, sample_rate_hz, cutoff)
     target = force_n - spec.stiffness_n_per_m * x
     sign = np.sign(v)
@@ -484,14 +483,9 @@ def identify_axis_friction(
     a_d, v_d, sign_d, ones_d, target_d = filtered.T
 
     step = encoder_step(motion) if motion_kind == 'position' else math.nan
-    gain_v, gain_a = _derivative_gains(sample_rate_hz, cutoff, decimation, band)
-    quantisation = step / math.sqrt(12.0) if math.isfinite(step) else 0.0
-    noise_v, noise_a = quantisation * gain_v, quantisation * gain_a
-    rms_speed = float(np.sqrt(np.mean(v_d**2)))
+    noise_v, noise_a = _quantisation_noise(step, sample_rate_hz, cutoff, decimation, band)
     drifting = motion_kind == 'acceleration'
-    fraction = DRIFT_STANDSTILL_SPEED_FRACTION if drifting else MIN_STANDSTILL_SPEED_FRACTION
-    standstill_speed = max(STANDSTILL_NOISE_FACTOR * noise_v, fraction * rms_speed)
-    moving = _moving_both_ways(v_d, standstill_speed)
+    moving = _moving_both_ways(v_d, _standstill_speed(v_d, noise_v, drifting))
 
     # From an acceleration, the velocity is known up to a constant, which Fv turns into a
     # force indistinguishable from the offset, and up to a ramp (an accelerometer offset),
@@ -499,16 +493,8 @@ def identify_axis_friction(
     time_d = np.linspace(-1.0, 1.0, v_d.size)
     nuisance = (time_d,) if drifting else ()
     regressors = np.column_stack((a_d, v_d, sign_d, ones_d, *nuisance))[moving]
-    theta, residual, hac, classic = _least_squares(regressors, target_d[moving])
-    estimates = [
-        Estimate(float(t), float(h), float(c))
-        for t, h, c in zip(theta[:4], hac[:4], classic[:4], strict=True)
-    ]
-    if drifting:
-        estimates[3] = Estimate(math.nan, math.nan, math.nan)
-
+    estimates, residual = _inertial_estimates(regressors, target_d[moving], drifting)
     directions = _per_direction(a_d, v_d, nuisance, target_d, moving) if spec.per_direction else {}
-
     mass, viscous, coulomb, offset = estimates
     relative_error = float(np.linalg.norm(residual) / np.linalg.norm(target_d[moving]))
     faults = _inertial_faults(mass, relative_error)
@@ -517,27 +503,13 @@ def identify_axis_friction(
     if faults:
         (x_d,) = _parallel_filter(x[core][:, None], sample_rate_hz, band, decimation).T
         fitted = _imposed_motion(x_d, v_d, target_d, moving, x[core], target[core], decimation)
-        why = 'the inertial model does not describe this record: ' + '; '.join(faults) + '. '
-        if isinstance(fitted, str):
-            why += f'No other model was fitted: {fitted}.'
-        else:
-            imposed = fitted
-            why += (
-                'Fitted as an imposed-motion friction test instead (no inertia, Coulomb and '
-                'viscous friction per direction) on the sliding part of each stroke, relative '
-                f'error {100.0 * fitted.relative_error_sliding:.1f} % there. Left unexplained: '
-                'hysteresis near reversals (pre-sliding or backlash), residual '
-                f'{fitted.residual_rms_reversals_n:.3g} RMS within the first '
-                f'{100.0 * PRESLIDING_STROKE_FRACTION:.0f} % of each stroke against '
-                f'{fitted.residual_rms_sliding_n:.3g} when sliding.'
-            )
+        imposed = None if isinstance(fitted, str) else fitted
+        why = _why_not_inertial(faults, fitted)
     friction = (
         target_d - mass.value * a_d - (0.0 if drifting else offset.value)
         if not faults
         else target_d
     )
-    var_a = float(np.var(a_d[moving]))
-    var_v = float(np.var(v_d[moving]))
     return AxisFriction(
         mass_kg=mass,
         viscous_n_s_per_m=viscous,
@@ -555,13 +527,84 @@ def identify_axis_friction(
         encoder_step_m=step,
         velocity_noise_m_s=noise_v,
         acceleration_noise_m_s2=noise_a,
-        attenuation_mass=noise_a**2 / var_a if var_a > 0 else math.nan,
-        attenuation_viscous=noise_v**2 / var_v if var_v > 0 else math.nan,
+        attenuation_mass=_attenuation(noise_a, a_d[moving]),
+        attenuation_viscous=_attenuation(noise_v, v_d[moving]),
         condition_number=float(np.linalg.cond(regressors)),
         friction_map=_friction_map(v_d[moving], friction[moving]),
         fits_record=not faults,
         why=why,
         imposed_motion=imposed,
+    )
+
+
+def _inertial_estimates(
+    regressors: np.ndarray, target: np.ndarray, drifting: bool
+) -> tuple[list[Estimate], np.ndarray]:
+    """M, Fv, Fc and offset with their errors from the moving samples, and the fit's residual.
+
+    regressors: a, v, sign(v), 1 and any nuisance columns, whose values are not reported.
+    drifting (motion from an acceleration): the offset is not identifiable, so it is NaN.
+    """
+    theta, residual, hac, classic = _least_squares(regressors, target)
+    estimates = [
+        Estimate(float(t), float(h), float(c))
+        for t, h, c in zip(theta[:4], hac[:4], classic[:4], strict=True)
+    ]
+    if drifting:
+        estimates[3] = Estimate(math.nan, math.nan, math.nan)
+    return estimates, residual
+
+
+def _attenuation(noise: float, state: np.ndarray) -> float:
+    """The fraction of a regressor's variance that is its noise (NaN if it does not vary).
+
+    It says how much errors-in-variables could shrink the state's coefficient (M or Fv).
+    """
+    variance = float(np.var(state))
+    return noise**2 / variance if variance > 0 else math.nan
+
+
+def _standstill_speed(v_d: np.ndarray, noise_v: float, drifting: bool) -> float:
+    """The speed [m/s] below which a sample counts as standing still, left out of the fit.
+
+    Above the velocity noise and a fraction of the record's RMS speed (a larger fraction for
+    a velocity integrated from an acceleration, which is known only up to a drift).
+    """
+    fraction = DRIFT_STANDSTILL_SPEED_FRACTION if drifting else MIN_STANDSTILL_SPEED_FRACTION
+    rms_speed = float(np.sqrt(np.mean(v_d**2)))
+    return max(STANDSTILL_NOISE_FACTOR * noise_v, fraction * rms_speed)
+
+
+def _quantisation_noise(
+    step: float, sample_rate_hz: float, cutoff: float, decimation: int, band: float
+) -> tuple[float, float]:
+    """The velocity [m/s] and acceleration [m/s^2] noise an encoder's step puts in the states.
+
+    A step's quantisation (step / sqrt(12) RMS, none without a step) through the filters'
+    derivative gains: the standstill threshold and the attenuation of M and Fv rest on it.
+    """
+    gain_v, gain_a = _derivative_gains(sample_rate_hz, cutoff, decimation, band)
+    quantisation = step / math.sqrt(12.0) if math.isfinite(step) else 0.0
+    return quantisation * gain_v, quantisation * gain_a
+
+
+def _why_not_inertial(faults: list[str], fitted: ImposedMotionFriction | str) -> str:
+    """Why the inertial model was refused, and what the imposed-motion fit made of the record.
+
+    fitted: the imposed-motion fit, or why it could not be made. The text goes in
+    `AxisFriction.why`, so a reader sees what is left unexplained (reversal hysteresis).
+    """
+    why = 'the inertial model does not describe this record: ' + '; '.join(faults) + '. '
+    if isinstance(fitted, str):
+        return why + f'No other model was fitted: {fitted}.'
+    return why + (
+        'Fitted as an imposed-motion friction test instead (no inertia, Coulomb and '
+        'viscous friction per direction) on the sliding part of each stroke, relative '
+        f'error {100.0 * fitted.relative_error_sliding:.1f} % there. Left unexplained: '
+        'hysteresis near reversals (pre-sliding or backlash), residual '
+        f'{fitted.residual_rms_reversals_n:.3g} RMS within the first '
+        f'{100.0 * PRESLIDING_STROKE_FRACTION:.0f} % of each stroke against '
+        f'{fitted.residual_rms_sliding_n:.3g} when sliding.'
     )
 
 

@@ -412,32 +412,15 @@ def _fit(
     drift_estimated: the velocities' drift was taken off by an earlier fit (its degrees of
     freedom count in the errors, as with fit_velocity_drift).
     """
-    _check_options(rig, spec.misfit, spec.band_limit_hz, spec.integrator, spec.jacobian)
-    uncertainty, mains_hz, mu_bounds = spec.uncertainty, spec.mains_hz, spec.mu_bounds
-    if uncertainty not in UNCERTAINTIES:
-        raise BadInputError(
-            f'unknown uncertainty {uncertainty!r}; choose one of {", ".join(UNCERTAINTIES)}'
-        )
-    if mains_hz is not None and not mains_hz > 0:
-        raise BadInputError(f'mains_hz must be > 0 (or None to find it), got {mains_hz}')
-    low, high = (float(bound) for bound in mu_bounds)
-    if not 0.0 <= low < high or not math.isfinite(high):
-        raise BadInputError(f'mu_bounds must be 0 <= lower < upper, finite; got {mu_bounds}')
-    require_positive('normal_force_n (to fit mu)', rig.normal_force_n)
-    _check_durations(conditioned, rig)
+    low, high = _checked_mu_bounds(conditioned, spec, rig)
     if spec.chain_starts:
         conditioned = chained_starts(conditioned)
     if any(impact.follows_previous for impact in conditioned):
         # A hit's own parameters (its impulse scale) move every later hit's start too.
         spec, start = spec.but(jacobian='dense'), None
-    if mu0 is None:
-        mu0 = energy_balance_mu(conditioned, rig)
-        if not math.isfinite(mu0):
-            mu0 = PAPER_MU
-    mu0 = min(max(float(mu0), low + 0.01 * (high - low)), high - 0.01 * (high - low))
     space = _space(
         rig,
-        mu0,
+        _start_mu(conditioned, rig, mu0, low, high),
         (low, high),
         spec.fit_damping,
         terms,
@@ -446,11 +429,7 @@ def _fit(
         len(conditioned) if spec.fit_impulse_scale else 0,
         term_bounds,
     )
-    for name, value in (start_values or {}).items():
-        if name not in space.names:
-            raise BadInputError(f'start value for {name!r}, which is not fitted: {space.names}')
-        at = space.names.index(name)
-        space.start[at] = min(max(float(value), space.lower[at]), space.upper[at])
+    _set_start_values(space, start_values)
     problem = OutputError(
         conditioned,
         space.build,
@@ -459,7 +438,7 @@ def _fit(
         spec.integrator,
         rig.natural_frequency_hz,
         judge_hit=spec.judge_hit,
-        uncertainty=uncertainty,
+        uncertainty=spec.uncertainty,
     )
     blocks = space.blocks(problem.segments, spec.jacobian)
     residual0, jacobian0 = None, None
@@ -477,13 +456,71 @@ def _fit(
         jacobian0=jacobian0,
         threads=available_threads(),
     )
-    chain = _VelocityChain(spec.remove_mains_hum, spec.fit_velocity_drift, mains_hz)
+    chain = _VelocityChain(spec.remove_mains_hum, spec.fit_velocity_drift, spec.mains_hz)
     problem, solution, nuisances, projected = chain.fit(problem, solution, space, spec.jacobian)
     # Or rows handed in from a fit that took its drift off them, still the last Jacobian.
     projected = projected or (jacobian0 is not None and solution.jacobian is jacobian0)
     drift = spec.fit_velocity_drift or drift_estimated
     fit = _model_fit(space, problem, solution, nuisances, drift, projected)
     _require_explained(fit, solution, conditioned)
+    _require_mu_inside_bounds(fit, low, high, conditioned)
+    return _Fitted(fit, space, problem, solution)
+
+
+def _checked_mu_bounds(
+    conditioned: Sequence[ConditionedImpact], spec: FitSpec, rig: Rig
+) -> tuple[float, float]:
+    """The fit's mu search bounds, once the spec, the rig and the records are found fit to fit.
+
+    Every option is checked before a model run is spent, so bad input fails at once with an
+    error naming it rather than deep in the solver.
+    """
+    _check_options(rig, spec.misfit, spec.band_limit_hz, spec.integrator, spec.jacobian)
+    uncertainty, mains_hz, mu_bounds = spec.uncertainty, spec.mains_hz, spec.mu_bounds
+    if uncertainty not in UNCERTAINTIES:
+        raise BadInputError(
+            f'unknown uncertainty {uncertainty!r}; choose one of {", ".join(UNCERTAINTIES)}'
+        )
+    if mains_hz is not None and not mains_hz > 0:
+        raise BadInputError(f'mains_hz must be > 0 (or None to find it), got {mains_hz}')
+    low, high = (float(bound) for bound in mu_bounds)
+    if not 0.0 <= low < high or not math.isfinite(high):
+        raise BadInputError(f'mu_bounds must be 0 <= lower < upper, finite; got {mu_bounds}')
+    require_positive('normal_force_n (to fit mu)', rig.normal_force_n)
+    _check_durations(conditioned, rig)
+    return low, high
+
+
+def _start_mu(
+    conditioned: Sequence[ConditionedImpact], rig: Rig, mu0: float | None, low: float, high: float
+) -> float:
+    """Where the mu search starts: mu0, else the energy balance's mu, else the paper's.
+
+    It is kept 1 % of the bound span inside the bounds, so the search never starts on a bound.
+    """
+    if mu0 is None:
+        mu0 = energy_balance_mu(conditioned, rig)
+        if not math.isfinite(mu0):
+            mu0 = PAPER_MU
+    return min(max(float(mu0), low + 0.01 * (high - low)), high - 0.01 * (high - low))
+
+
+def _set_start_values(space: _Space, start_values: Mapping[str, float] | None) -> None:
+    """Start the named parameters at the values given, each clipped into its bounds.
+
+    A name that is not fitted is refused rather than ignored, so a misspelt one is seen.
+    """
+    for name, value in (start_values or {}).items():
+        if name not in space.names:
+            raise BadInputError(f'start value for {name!r}, which is not fitted: {space.names}')
+        at = space.names.index(name)
+        space.start[at] = min(max(float(value), space.lower[at]), space.upper[at])
+
+
+def _require_mu_inside_bounds(
+    fit: ModelFit, low: float, high: float, conditioned: Sequence[ConditionedImpact]
+) -> None:
+    """Refuse a fit whose mu lies on its search bound: friction then does not explain the hits."""
     if 'mu' in fit.at_bounds:
         raise FitError(
             'mu_at_bound',
@@ -492,7 +529,6 @@ def _fit(
             'record(s) (no friction, or far more than the rig can show)',
             joined_sources(conditioned),
         )
-    return _Fitted(fit, space, problem, solution)
 
 
 @dataclass(frozen=True)

@@ -155,6 +155,36 @@ def _windowed(
     return force, measured
 
 
+def _band_spectra(
+    record: ImpactRecord,
+    raw_force: np.ndarray,
+    force: np.ndarray,
+    velocity: np.ndarray,
+    contact_start: int,
+    capture: CaptureConfig,
+    analysis: AnalysisConfig,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Frequency [Hz], force, velocity and excitation spectra of a hit, up to the band limit.
+
+    force and velocity: the windowed records, DFT'd zero-padded to `record.window_samples`;
+    the measured response is turned into velocity bin by bin; the excitation is the spectrum
+    of the triggering pulse alone (raw_force, baseline removed).
+    """
+    n_fft, rate = record.window_samples, record.sample_rate_hz
+    bins = frf.band_bins(n_fft, rate, analysis.band_limit_hz)
+    force_spectrum, velocity_spectrum = frf.spectra(force, velocity, n_fft)
+    # Copies, so the full-length spectra are freed rather than kept alive by the slices.
+    force_spectrum = force_spectrum[:bins].copy()
+    frequency = frf.frequency_axis(n_fft, rate, bins)
+    velocity_spectrum = response.convert_spectrum(
+        velocity_spectrum[:bins], frequency, record.response_quantity, response.VELOCITY
+    ).copy()
+    excitation_spectrum = frf.pulse_spectrum(
+        raw_force, capture.rearm_level_n, n_fft, contact_start
+    )[:bins].copy()
+    return frequency, force_spectrum, velocity_spectrum, excitation_spectrum
+
+
 def analyze_impact(
     record: ImpactRecord,
     capture: CaptureConfig = DEFAULT_CAPTURE,
@@ -187,17 +217,9 @@ def analyze_impact(
     )
 
     n_fft = record.window_samples
-    bins = frf.band_bins(n_fft, rate, analysis.band_limit_hz)
-    force_spectrum, velocity_spectrum = frf.spectra(force, velocity, n_fft)
-    # Copies, so the full-length spectra are freed rather than kept alive by the slices.
-    force_spectrum = force_spectrum[:bins].copy()
-    frequency = frf.frequency_axis(n_fft, rate, bins)
-    velocity_spectrum = response.convert_spectrum(
-        velocity_spectrum[:bins], frequency, record.response_quantity, response.VELOCITY
-    ).copy()
-    excitation_spectrum = frf.pulse_spectrum(
-        raw_force, capture.rearm_level_n, n_fft, contact_start
-    )[:bins].copy()
+    frequency, force_spectrum, velocity_spectrum, excitation_spectrum = _band_spectra(
+        record, raw_force, force, velocity, contact_start, capture, analysis
+    )
     mobility = frf.mobility(force_spectrum, velocity_spectrum)
     receptance = frf.receptance_from_mobility(mobility, frequency)
     peak_band = _peak_band(excitation_spectrum, frequency, analysis)

@@ -10,6 +10,7 @@ health status of every node recorded on /diagnostics.
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -101,6 +102,45 @@ class BagSummary:
         return data
 
 
+def _health_of(decoded: Any) -> dict[str, dict]:
+    """Each status of a decoded DiagnosticArray by name: its level's word and its message.
+
+    The level is a byte in the message; some decoders give it as bytes, others as an int.
+    """
+    health = {}
+    for status in decoded.status:
+        level = (
+            int.from_bytes(status.level, 'little')
+            if isinstance(status.level, bytes)
+            else int(status.level)
+        )
+        health[status.name] = {
+            'level': _LEVELS.get(level, str(level)),
+            'message': status.message,
+        }
+    return health
+
+
+def _topic_rates(
+    reader: BagReader, counts: Counter, start: int | None, end: int | None
+) -> dict[str, dict]:
+    """Each topic of the bag, sorted: its type, messages read and mean rate over the bag.
+
+    The rate is over the whole bag's span (first to last message of any topic), 0 when the
+    topic has a single message or the bag no span.
+    """
+    return {
+        name: {
+            'type': info.msgtype,
+            'count': counts[name],
+            'rate_hz': (counts[name] - 1) / ((end - start) / 1e9)
+            if end and end > start and counts[name] > 1
+            else 0.0,
+        }
+        for name, info in sorted(reader.topics.items())
+    }
+
+
 def summarize_bag(
     reader: BagReader, *, on_progress: Callable[[int], None] | None = None
 ) -> BagSummary:
@@ -139,16 +179,7 @@ def summarize_bag(
                 batch.first_sample_index, batch.samples, batch.sample_rate_hz, batch.full_scale
             )
         elif message.msgtype == DIAGNOSTIC_ARRAY:
-            for status in decoded.status:
-                level = (
-                    int.from_bytes(status.level, 'little')
-                    if isinstance(status.level, bytes)
-                    else int(status.level)
-                )
-                health[status.name] = {
-                    'level': _LEVELS.get(level, str(level)),
-                    'message': status.message,
-                }
+            health.update(_health_of(decoded))
         elif message.msgtype == IMPACT_RESULT:
             impacts['count'] += 1
             impacts['accepted'] += bool(decoded.accepted)
@@ -156,16 +187,7 @@ def summarize_bag(
             impacts['levels'][decoded.level or '(none)'] += 1
         else:
             frf_levels[decoded.level] = int(decoded.count)
-    topics = {
-        name: {
-            'type': info.msgtype,
-            'count': counts[name],
-            'rate_hz': (counts[name] - 1) / ((end - start) / 1e9)
-            if end and end > start and counts[name] > 1
-            else 0.0,
-        }
-        for name, info in sorted(reader.topics.items())
-    }
+    topics = _topic_rates(reader, counts, start, end)
     impacts = {
         key: dict(value) if isinstance(value, Counter) else value for key, value in impacts.items()
     }
