@@ -34,8 +34,9 @@ def options(**values):
 
 
 def test_a_fit_made_elsewhere_is_drawn_as_given_and_not_made_again(records, monkeypatch):
+    a, b, c = workflow.impact_ids(records)
     given = FrictionResult(
-        0.1234, 1e-5, FMM_RIG, (0, 1, 2), (0.1234,) * 3, (1e-5,) * 3, (0.0, 1e-4, -1e-4)
+        0.1234, 1e-5, FMM_RIG, (a, b, c), (0.1234,) * 3, (1e-5,) * 3, (0.0, 1e-4, -1e-4)
     )
 
     def refit(*_, **__):
@@ -45,8 +46,8 @@ def test_a_fit_made_elsewhere_is_drawn_as_given_and_not_made_again(records, monk
     session = workflow.process_records(records, options(), friction=given)
     assert session.friction is given
     assert session.model.mu == 0.1234 and session.model.source == 'fitted'
-    assert session.model.initial_positions_m == {0: 0.0, 1: 1e-4, 2: -1e-4}
-    assert set(session.comparison.hits) == {0, 1, 2}
+    assert session.model.initial_positions_m == {a: 0.0, b: 1e-4, c: -1e-4}
+    assert set(session.comparison.hits) == {a, b, c}
     with pytest.raises(ValueError, match=r'names impact\(s\) \[5\] the session lacks'):
         workflow.process_records(
             records,

@@ -28,7 +28,6 @@ to end in the order given, each starting on the next ms after the previous one e
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,7 +37,7 @@ import numpy as np
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, capture_impacts
 from fmm_ros.core.signal.config import AnalysisConfig, NominalLevel
 from fmm_ros.core.signal.judging import Decision, by_trigger
-from fmm_ros.core.signal.records import ImpactRecord, stable_impact_id
+from fmm_ros.core.signal.records import ImpactRecord, duration_ms, stable_impact_id
 from fmm_ros.core.signal.response import as_measured
 from fmm_ros.errors import BadInputError, FmmError
 from fmm_ros.io import sniff
@@ -171,22 +170,18 @@ def _on_session_axis(records: list[ImpactRecord], start_ms: int) -> tuple[list[I
     """One input's records with those lacking an acquisition clock started at start_ms.
 
     Returns them and where the next such input starts: the ms after this one's last sample
-    (start_ms again when all its records have a clock of their own).
+    (`duration_ms`; start_ms again when all its records have a clock of their own).
     """
-    clockless = [record for record in records if not record.acquisition_origin_s]
+    clockless = [record for record in records if record.acquisition_origin_s is None]
     if not clockless:
         return records, start_ms
-    end_s = max(
-        (record.record_start_sample_index + record.force_n.size) / record.sample_rate_hz
-        for record in clockless
-    )
     placed = [
         record
-        if record.acquisition_origin_s
+        if record.acquisition_origin_s is not None
         else dataclasses.replace(record, acquisition_origin_s=start_ms / 1000)
         for record in records
     ]
-    return placed, start_ms + math.ceil(end_s * 1000) + 1
+    return placed, start_ms + duration_ms(clockless)
 
 
 def _bag_decisions(

@@ -40,7 +40,7 @@ from fmm_ros.core.signal.analysis import (
 )
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, with_trigger
 from fmm_ros.core.signal.judging import Decision
-from fmm_ros.core.signal.records import ImpactRecord, stable_impact_id
+from fmm_ros.core.signal.records import ImpactRecord, duration_ms, stable_impact_id
 from fmm_ros.errors import BadInputError, FitError, SelectionError
 from fmm_ros.io.session_info import SessionInfo
 from fmm_ros.workflows.inputs import DEFAULT_INPUTS, InputOptions, Progress, read_inputs
@@ -239,12 +239,18 @@ def impact_ids(
 ) -> list[int]:
     """Each record's impact id: its trigger's time on its session's axis (`stable_impact_id`).
 
+    A record still without an acquisition clock (records in hand, not from `read_inputs`) is
+    an input of its own, laid on the axis after the one before, as a lab file would be.
     Raises BadInputError naming both inputs when two hits would share an id: merged, one
-    would overwrite the other's decisions, fit and report entries.
+    would take the other's decisions, fit and report entries.
     """
     ids: list[int] = []
     seen: dict[int, str] = {}
+    axis_ms = 0
     for record in records:
+        if record.acquisition_origin_s is None:
+            record = dataclasses.replace(record, acquisition_origin_s=axis_ms / 1000)
+            axis_ms += duration_ms([record])
         impact_id = stable_impact_id(with_trigger(record, capture))
         if impact_id in seen:
             raise BadInputError(
@@ -345,10 +351,9 @@ def process_records(
     """Analyse records, fit mu over the accepted ones (or take the fit given), diagnose.
 
     decisions: the newest decision about each hit, by impact id (recorded by the station): they
-    overrule the flags in `select_impacts`. session_info: each bag's metadata, shown.
-
-    friction: a fit made elsewhere (the fitter service's answer), drawn as it is instead of
-    fitting; fit_failure: why that fit was refused. options.mu draws a given mu instead;
+    overrule the flags in `select_impacts`. session_info: each bag's metadata, shown. friction:
+    a fit made elsewhere (the fitter service's answer, under the same ids), drawn as it is
+    instead of fitting; fit_failure: why that fit was refused. options.mu draws a given mu instead;
     options.fit = False draws no model. Fit and diagnosis take the impacts `select_impacts`
     takes (options.include_flagged), and the result's selection names those left out.
     """
