@@ -129,8 +129,9 @@ def test_fmm_fit_leaves_a_clipped_csv_out_and_refuses_when_all_are_clipped(tmp_p
     assert [entry['file'] for entry in result['left_out']] == [files[1]]
     assert result['left_out'][0]['flags'] == ['clipped']
     assert [entry['file'] for entry in result['per_file']] == [files[0], files[2]]
+    clipped_id = result['left_out'][0]['impact_id']
     code, out, _ = run(capsys, 'fit', *files)
-    assert code == 0 and 'left out 1 flagged impact(s): impact 1 (' in out
+    assert code == 0 and f'left out 1 flagged impact(s): impact {clipped_id} (' in out
     # Taken on request, with a warning in the output.
     code, out, _ = run(capsys, 'fit', *files, '--include-flagged')
     assert code == 0 and 'WARNING: 1 flagged impact(s) included on request' in out
@@ -141,7 +142,8 @@ def test_fmm_fit_leaves_a_clipped_csv_out_and_refuses_when_all_are_clipped(tmp_p
     refusal = json.loads(out)
     assert code == 1 and err == ''
     assert refusal['error'] == 'no_clean_impact'
-    assert refusal['message'].startswith('no clean impact to fit: impact 0 (')
+    first_id = refusal['left_out'][0]['impact_id']
+    assert refusal['message'].startswith(f'no clean impact to fit: impact {first_id} (')
     assert [entry['flags'] for entry in refusal['left_out']] == [['clipped']] * 3
     code, out, err = run(capsys, 'diagnose', *files)
     assert code == 1 and err.startswith('fmm diagnose: cannot fit (no_clean_impact): ')
