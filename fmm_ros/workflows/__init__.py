@@ -26,7 +26,6 @@ _EXPORTS = {
     'diagnose_impacts': 'session',
     'diagnosis_dict': 'results',
     'fit_impacts': 'session',
-    'impact_ids': 'session',
     'overlay_of': 'session',
     'process_session': 'session',
     'read_inputs': 'inputs',

@@ -118,9 +118,10 @@ def compare_model(
 ) -> ModelComparison:
     """The model driven by every hit of the summary (record i is impact i), analysed."""
     hits = {}
-    for position, (impact, record) in enumerate(zip(summary.impacts, records, strict=True)):
+    for impact in summary.impacts:
         if progress:
-            progress(f'model of hit {position + 1}/{len(summary.impacts)}')
+            progress(f'model of hit {impact.impact_id + 1}/{len(summary.impacts)}')
+        record = records[impact.impact_id]
         velocity = model.velocity_m_s(record, impact.impact_id)
         if velocity is None:
             continue
