@@ -37,7 +37,6 @@ import argparse
 import os
 import re
 import shutil
-import signal
 import sys
 import tempfile
 import time
@@ -46,8 +45,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+import fault_rig  # noqa: E402
 from results_file import recorded  # noqa: E402
-from stress_rig import fresh_domain  # noqa: E402
 
 from fmm_interfaces.srv import FitFriction  # noqa: E402
 from fmm_ros.constants import FIT_SERVICE, FRICTION_TOPIC  # noqa: E402
@@ -57,11 +56,6 @@ from fmm_ros.ros.graph import InProcessGraph  # noqa: E402
 from fmm_ros.ros.launch import (  # noqa: E402
     SIMULATED_RIG,
     STATION,
-    default_params_file,
-    parse_overrides,
-    start_processes,
-    stop_processes,
-    with_consumers,
 )
 from fmm_ros.workflows.replay import replay_bag  # noqa: E402
 
@@ -157,53 +151,18 @@ class Run:
         )
 
 
-class Rig:
+class Rig(fault_rig.Rig):
     """The six processes, one of them respawned, with their logs in one directory."""
 
     def __init__(self, work: Path, rate: float, hits_per_level: int) -> None:
-        fresh_domain()
-        work.mkdir(parents=True)
-        self.work = work
-        self.bag = work / 'bag'
-        options = [
-            *SESSION,
-            f'hammer_sim.rate_factor={rate}',
-            f'hammer_sim.hits_per_level={hits_per_level}',
-            f'recorder.bag_path={self.bag}',
-            f'fitter.state_dir={work / "fitter_state"}',
-        ]
-        self.overrides = with_consumers(NODES, parse_overrides(options, NODES))
-        self.params = default_params_file()
-        self.processes = dict(
-            zip(
-                NODES,
-                start_processes(NODES, self.params, self.overrides, log_dir=work),
-                strict=True,
-            )
+        super().__init__(
+            work,
+            rate,
+            hits_per_level,
+            (f'fitter.state_dir={work / "fitter_state"}',),
+            nodes=NODES,
+            session=SESSION,
         )
-
-    def log(self, node: str) -> str:
-        """What a node has logged so far (all its processes)."""
-        path = self.work / f'{node}.log'
-        return path.read_text(errors='replace') if path.exists() else ''
-
-    def wait_for(self, node: str, text: str, timeout_s: float) -> bool:
-        """Wait until a node logged text; whether it did within timeout_s."""
-        deadline = time.monotonic() + timeout_s
-        while text not in self.log(node):
-            if time.monotonic() > deadline:
-                return False
-            time.sleep(0.1)
-        return True
-
-    def respawn(self, node: str) -> None:
-        """SIGKILL, then the node started again, as a process manager respawns it."""
-        process = self.processes[node]
-        process.send_signal(signal.SIGKILL)
-        process.wait()
-        self.processes[node] = start_processes(
-            [node], self.params, self.overrides, log_dir=self.work
-        )[0]
 
     def wait_quiet(self, timeout_s: float) -> None:
         """Until no impact and no live mu has come for QUIET_S (or timeout_s passed)."""
@@ -217,11 +176,6 @@ class Rig:
             elif time.monotonic() - since > QUIET_S:
                 return
             time.sleep(0.2)
-
-    def stop(self) -> None:
-        """Stop the rig in order (sources first)."""
-        order = list(self.processes)
-        stop_processes([self.processes[n] for n in order], nodes=order)
 
 
 def fitted_ids(timeout_s: float = 60.0) -> tuple[set[int], str]:

@@ -111,26 +111,34 @@ HEADER = (
 
 
 class Rig:
-    """The five processes of the simulated rig, with their logs in one directory."""
+    """The simulated rig's processes (its five nodes unless told), logs in one directory."""
 
-    def __init__(self, work: Path, rate: float, hits_per_level: int, extra: tuple[str, ...]):
+    def __init__(
+        self,
+        work: Path,
+        rate: float,
+        hits_per_level: int,
+        extra: tuple[str, ...],
+        nodes: tuple[str, ...] = SIMULATED_RIG,
+        session: tuple[str, ...] = SESSION,
+    ):
         fresh_domain()
         work.mkdir(parents=True)
         self.work = work
         self.bag = work / 'bag'
         options = [
-            *SESSION,
+            *session,
             f'hammer_sim.rate_factor={rate}',
             f'hammer_sim.hits_per_level={hits_per_level}',
             f'recorder.bag_path={self.bag}',
             *extra,
         ]
-        self.overrides = with_consumers(SIMULATED_RIG, parse_overrides(options, SIMULATED_RIG))
+        self.overrides = with_consumers(nodes, parse_overrides(options, nodes))
         self.params = default_params_file()
         self.processes = dict(
             zip(
-                SIMULATED_RIG,
-                start_processes(SIMULATED_RIG, self.params, self.overrides, log_dir=work),
+                nodes,
+                start_processes(nodes, self.params, self.overrides, log_dir=work),
                 strict=True,
             )
         )
