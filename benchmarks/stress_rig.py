@@ -201,6 +201,10 @@ def recorded(bag: Path) -> dict:
 # -- throughput and loss ------------------------------------------------------------------
 
 
+SOURCE_START_TIMEOUT_S = 180.0
+"""How long a rate run waits for its source to start before it times its seconds anyway."""
+
+
 def rate_run(work: Path, rate: float, seconds: float, extra: tuple[str, ...] = ()) -> dict:
     """The rig at rate for seconds; what went out, what was recorded, lost and refused."""
     fresh_domain()
@@ -211,6 +215,14 @@ def rate_run(work: Path, rate: float, seconds: float, extra: tuple[str, ...] = (
     memory: dict[str, list[tuple[float, float]]] = {name: [] for name in SIMULATED_RIG}
     started = time.monotonic()
     try:
+        # The run's seconds count from the source's start: on a loaded machine the nodes can
+        # take longer to come up than a quick run lasts.
+        source_log = work / 'hammer_sim.log'
+        while time.monotonic() - started < SOURCE_START_TIMEOUT_S and not (
+            source_log.exists() and any('starting' in t for _, _, t in log_lines(source_log))
+        ):
+            time.sleep(0.5)
+        started = time.monotonic()
         while time.monotonic() - started < seconds:
             time.sleep(5.0 if seconds > 60 else 1.0)
             now = time.monotonic() - started
