@@ -328,6 +328,19 @@ def units(work: Path, force_units, velocity_units, rate: float) -> list[Outcome]
     ]
 
 
+def both_units(work: Path, force_unit: str, velocity_unit: str, rate: float) -> Outcome:
+    """Force and velocity each in a foreign unit in one run: either misread fails its hits."""
+    return run(
+        work / 'units',
+        f'force in {force_unit}, velocity in {velocity_unit}',
+        lambda rig: None,
+        named='',
+        rate=rate,
+        hits_per_level=1,
+        extra=(f'hammer_sim.force_unit={force_unit}', f'rig_sim.velocity_unit={velocity_unit}'),
+    )
+
+
 def two_sources(work: Path, rate: float) -> Outcome:
     def second(rig: Rig) -> None:
         logs = rig.work / 'second'
@@ -392,7 +405,7 @@ def quick_rows(work: Path, rate: float = RATE) -> list[Outcome]:
         *stalls(work, ['rig_sim'], [3.0], rate),
         *restarts(work, ['analyzer'], rate),
         early_trigger(work, rate),
-        *units(work, ['kN'], ['in/s'], rate),
+        both_units(work, 'kN', 'in/s', rate),
     ]
 
 
