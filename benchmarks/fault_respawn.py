@@ -90,6 +90,9 @@ STARTED = {
     'hammer_sim': ' hits at ',
     'rig_sim': ']: plant m=',
 }
+TOOK_A_HIT = {'fitter': ']: live mu '}
+"""What a node logs once it holds a hit: its kill waits for it, so the respawned node has
+something to restore (a hit in flight at the kill is counted apart, as the known loss)."""
 REPLAY_CAPTURE = CaptureConfig(
     window_s=6.0
 )  # as the session's analyzer (`fmm replay --window-s 6`)
@@ -234,6 +237,8 @@ def respawn_run(
     try:
         rig.wait_for('hammer_sim', 'starting', 90.0)
         rig.wait_for('analyzer', '[analyzer]: impact ', 90.0)
+        if node in TOOK_A_HIT:
+            rig.wait_for(node, TOOK_A_HIT[node], 90.0)
         started = rig.log(node).count(STARTED[node])
         rig.respawn(node)
         deadline = time.monotonic() + 180.0
