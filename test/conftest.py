@@ -28,7 +28,8 @@ SHARED_SCOPES = ('package', 'module', 'class')
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """Group each test that uses a fixture shared beyond one test with its file's other such
-    tests (xdist_group, read by `--dist loadgroup`; without xdist the mark does nothing).
+    tests (xdist_group, read by `--dist loadgroup`; without xdist the mark does nothing), and
+    put the slow tests first.
 
     tryfirst: xdist reads the groups in its own hook of the same name.
     """
@@ -42,6 +43,9 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
         )
         if shared:
             item.add_marker(pytest.mark.xdist_group(item.path.name))
+    # The slow tests first (stable: each file's order kept), so that on two workers the
+    # quick ones fill the end rather than one long quick-run benchmark starting last.
+    items.sort(key=lambda item: item.get_closest_marker('slow') is None)
 
 
 @pytest.fixture
