@@ -4,7 +4,7 @@ The records come from `heldout` (event-located motion, half-sine and Hertzian hi
 sub-sample onset, a force channel with a 0.22 N zero offset, drift and hum, an 8th-order
 anti-alias filter, a 16-bit ADC): a world the analysis was never tuned on. Every accepted
 hit must carry its headline numbers, every session its linearity R^2, and the peak |X/F| and
-f_n must agree with an independent computation written here with numpy alone: the DFT of
+f_n must agree with an independent computation with numpy alone (test/dft_reference.py): the DFT of
 each whole record, offsets taken off, the receptance V / (F i omega) and its peak. The same
 on `newmark` (held out too), whose quietest hits ring too briefly to time and are read at
 their DFT peak, and on
@@ -18,6 +18,7 @@ import math
 
 import numpy as np
 import pytest
+from dft_reference import independent_peak
 from heldout.karnopp import KARNOPP
 from heldout.lab import EVENTS, Effects, session
 from heldout.newmark import NEWMARK
@@ -30,39 +31,6 @@ from fmm_ros.report.session import FLAG_MEANINGS
 
 SESSIONS = 2
 RECORD_S = 33.0
-BAND_HZ = (1.0, 50.0)
-
-
-def independent_peak(force_n: np.ndarray, velocity_m_s: np.ndarray, rate_hz: float, onset_s: float):
-    """(peak |X/F| [m/N], frequency of the peak |V/P| [Hz]) from the whole record's DFT.
-
-    Offsets off: the mean of each channel before the hit. Receptance = V / (F i omega) bin
-    by bin on the record's own grid; its peak is searched over BAND_HZ. f_n is where
-    |V/P| peaks there, P the force pulse alone (1 ms either side of where the force exceeds
-    5 % of its peak, zero elsewhere), the records zero-padded eightfold (a short Coulomb
-    decay's peak is broad: the 1/33 Hz grid alone can miss it by 6 %). Not |V/F| of the
-    whole force: its 0.2 N of noise over 33 s ripples V/F by a few % from bin to bin, which
-    moved the top of a 1.2-cycle ring's broad peak by -0.6 to +11 % (`newmark`, `karnopp`).
-    """
-    before = int(onset_s * rate_hz) - 5
-    force = force_n - force_n[:before].mean()
-    velocity = velocity_m_s - velocity_m_s[:before].mean()
-    frequency = np.fft.rfftfreq(force.size, 1.0 / rate_hz)
-    band = (frequency >= BAND_HZ[0]) & (frequency <= BAND_HZ[1])
-    receptance = np.fft.rfft(velocity)[band] / (
-        np.fft.rfft(force)[band] * 2j * math.pi * frequency[band]
-    )
-    above = np.flatnonzero(force > 0.05 * force.max())
-    margin = int(1e-3 * rate_hz)
-    pulse = np.zeros_like(force)
-    pulse[above[0] - margin : above[-1] + margin + 1] = force[
-        above[0] - margin : above[-1] + margin + 1
-    ]
-    n = 8 * force.size
-    padded = np.fft.rfftfreq(n, 1.0 / rate_hz)
-    inside = (padded >= BAND_HZ[0]) & (padded <= BAND_HZ[1])
-    ratio = np.abs(np.fft.rfft(velocity, n)[inside] / np.fft.rfft(pulse, n)[inside])
-    return float(np.abs(receptance).max()), float(padded[inside][np.argmax(ratio)])
 
 
 def analyzed(records, onsets_s, impulses_n_s, tmp_path, capsys, name: str) -> tuple[dict, list]:

@@ -21,6 +21,7 @@ import math
 
 import numpy as np
 import pytest
+from dft_reference import BAND_HZ, independent_peak
 from heldout.karnopp import (
     KARNOPP,
     MASS_KG,
@@ -46,7 +47,6 @@ OMEGA_RAD_S = math.sqrt(STIFFNESS_N_PER_M / MASS_KG)
 """The world's undamped natural frequency [rad/s] (its damping moves it by 1e-6)."""
 F_N_HZ = OMEGA_RAD_S / (2 * math.pi)
 LEVELS_N = (450.0, 1000.0, 1450.0)
-BAND_HZ = (1.0, 50.0)
 
 # (seed, the reversals of the session's weakest hit before it sticks)
 SESSIONS = [(1, 3), (2, 4), (3, 5), (4, 3), (5, 4)]
@@ -83,36 +83,6 @@ def karnopp_session(seed: int, reversals: int):
         for k, hammer in enumerate(hammers)
     ]
     return records, weakest
-
-
-def independent_dft(record) -> tuple[float, float]:
-    """(peak |X/F| [m/N], f_n [Hz]) of one record from numpy's DFT alone.
-
-    Offsets off (each channel's mean before the hit). |X/F|: V / (F i omega) of the whole
-    records on their own grid, its largest value over BAND_HZ. f_n: where |V / P| peaks over
-    BAND_HZ, P the force pulse alone (the force from 1 ms before the first sample above 5 % of
-    its peak to 1 ms after the last, zero elsewhere), both zero-padded fourfold (a grid of
-    0.02 Hz on 12 s records).
-    """
-    rate = record.sample_rate_hz
-    before = int(record.strike.onset_s * rate) - 5
-    force = record.force_n - record.force_n[:before].mean()
-    velocity = record.velocity_m_s - record.velocity_m_s[:before].mean()
-    frequency = np.fft.rfftfreq(force.size, 1.0 / rate)
-    band = (frequency >= BAND_HZ[0]) & (frequency <= BAND_HZ[1])
-    receptance = np.fft.rfft(velocity)[band] / (
-        np.fft.rfft(force)[band] * 2j * math.pi * frequency[band]
-    )
-    above = np.flatnonzero(force > 0.05 * force.max())
-    margin = int(1e-3 * rate)
-    pulse = np.zeros_like(force)
-    low, high = above[0] - margin, above[-1] + margin + 1
-    pulse[low:high] = force[low:high]
-    n = 4 * force.size
-    padded = np.fft.rfftfreq(n, 1.0 / rate)
-    inside = (padded >= BAND_HZ[0]) & (padded <= BAND_HZ[1])
-    ratio = np.abs(np.fft.rfft(velocity, n)[inside] / np.fft.rfft(pulse, n)[inside])
-    return float(np.abs(receptance).max()), float(padded[inside][np.argmax(ratio)])
 
 
 def as_record(record, source: str = '') -> ImpactRecord:
@@ -157,7 +127,13 @@ def test_short_rings_are_accepted_and_agree_with_an_independent_dft(sessions):
         if reversals == 3:
             assert summary.impacts[ringing].natural_frequency_method == frf.DFT_PEAK
         for record, impact in zip(records, summary.impacts, strict=True):
-            peak, natural = independent_dft(record)
+            peak, natural = independent_peak(
+                record.force_n,
+                record.velocity_m_s,
+                record.sample_rate_hz,
+                record.strike.onset_s,
+                padding=4,
+            )
             f_n = impact.natural_frequency_hz
             if abs(impact.peak_receptance_m_per_n / peak - 1) > 0.05:
                 failures.append(('|X/F|', impact.source, impact.peak_receptance_m_per_n, peak))
