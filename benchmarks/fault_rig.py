@@ -57,6 +57,7 @@ from fmm_ros.ros.launch import (  # noqa: E402
     parse_overrides,
     start_processes,
     stop_processes,
+    wait_for_log,
     with_consumers,
 )
 from fmm_ros.units import FORCE_UNITS, VELOCITY_UNITS  # noqa: E402
@@ -151,12 +152,7 @@ class Rig:
 
     def wait_for(self, node: str, text: str, timeout_s: float) -> bool:
         """Wait until a node logged text; whether it did within timeout_s."""
-        deadline = time.monotonic() + timeout_s
-        while text not in self.log(node):
-            if time.monotonic() > deadline:
-                return False
-            time.sleep(0.1)
-        return True
+        return wait_for_log(self.work, node, text, timeout_s)
 
     def respawn(self, node: str) -> None:
         """The node killed outright and started again, as a process manager respawns it."""
@@ -309,36 +305,31 @@ def early_trigger(work: Path, rate: float) -> Outcome:
     )
 
 
-def units(work: Path, force_units, velocity_units, rate: float) -> list[Outcome]:
-    return [
-        run(
-            work / f'{quantity}_{unit.replace("/", "_")}',
-            f'{quantity} in {unit}',
-            lambda rig: None,
-            named='',
-            rate=rate,
-            hits_per_level=1,
-            extra=(f'{node}.{quantity}_unit={unit}',),
-        )
-        for node, quantity, unit_list in (
-            ('hammer_sim', 'force', force_units),
-            ('rig_sim', 'velocity', velocity_units),
-        )
-        for unit in unit_list
-    ]
+UNIT_SOURCES = {'force': 'hammer_sim', 'velocity': 'rig_sim'}
+"""The node that publishes each quantity, and so takes its `<quantity>_unit` parameter."""
 
 
-def both_units(work: Path, force_unit: str, velocity_unit: str, rate: float) -> Outcome:
-    """Force and velocity each in a foreign unit in one run: either misread fails its hits."""
+def unit_run(work: Path, units: dict[str, str], rate: float) -> Outcome:
+    """One run with each quantity given published in its unit: a misread fails its hits."""
+    named = [f'{quantity} in {unit}' for quantity, unit in units.items()]
     return run(
-        work / 'units',
-        f'force in {force_unit}, velocity in {velocity_unit}',
+        work / '_'.join(name.replace(' ', '_').replace('/', '_') for name in named),
+        ', '.join(named),
         lambda rig: None,
         named='',
         rate=rate,
         hits_per_level=1,
-        extra=(f'hammer_sim.force_unit={force_unit}', f'rig_sim.velocity_unit={velocity_unit}'),
+        extra=tuple(f'{UNIT_SOURCES[q]}.{q}_unit={unit}' for q, unit in units.items()),
     )
+
+
+def units(work: Path, force_units, velocity_units, rate: float) -> list[Outcome]:
+    """A run for each foreign unit of each quantity, one quantity at a time."""
+    return [
+        unit_run(work, {quantity: unit}, rate)
+        for quantity, unit_list in (('force', force_units), ('velocity', velocity_units))
+        for unit in unit_list
+    ]
 
 
 def two_sources(work: Path, rate: float) -> Outcome:
@@ -348,11 +339,7 @@ def two_sources(work: Path, rate: float) -> Outcome:
         rig.extra += start_processes(
             ['hammer_sim'], rig.params, {'hammer_sim': rig.overrides['hammer_sim']}, logs
         )
-        deadline = time.monotonic() + 60.0
-        while 'starting' not in (logs / 'hammer_sim.log').read_text(errors='replace'):
-            if time.monotonic() > deadline:
-                break
-            time.sleep(0.1)
+        wait_for_log(logs, 'hammer_sim', 'starting', 60.0)
         time.sleep(3.0)
         rig.extra[-1].send_signal(signal.SIGINT)
         rig.extra[-1].wait(10)
@@ -405,7 +392,7 @@ def quick_rows(work: Path, rate: float = RATE) -> list[Outcome]:
         *stalls(work, ['rig_sim'], [3.0], rate),
         *restarts(work, ['analyzer'], rate),
         early_trigger(work, rate),
-        both_units(work, 'kN', 'in/s', rate),
+        unit_run(work, {'force': 'kN', 'velocity': 'in/s'}, rate),
     ]
 
 

@@ -53,6 +53,7 @@ from fmm_ros.ros.launch import (
     parse_overrides,
     start_processes,
     stop_processes,
+    wait_for_log,
     with_consumers,
 )
 from fmm_ros.ros.qos import RESULT_QOS, SAMPLE_QOS
@@ -217,11 +218,7 @@ def rate_run(work: Path, rate: float, seconds: float, extra: tuple[str, ...] = (
     try:
         # The run's seconds count from the source's start: on a loaded machine the nodes can
         # take longer to come up than a quick run lasts.
-        source_log = work / 'hammer_sim.log'
-        while time.monotonic() - started < SOURCE_START_TIMEOUT_S and not (
-            source_log.exists() and any('starting' in t for _, _, t in log_lines(source_log))
-        ):
-            time.sleep(0.5)
+        wait_for_log(work, 'hammer_sim', 'starting', SOURCE_START_TIMEOUT_S)
         started = time.monotonic()
         while time.monotonic() - started < seconds:
             time.sleep(5.0 if seconds > 60 else 1.0)

@@ -1,5 +1,7 @@
 """Launch scripts: the simulated rig as separate `ros2 run`-style processes, and overrides."""
 
+import threading
+
 import pytest
 from rig_graph import Listener, wait_for
 
@@ -12,6 +14,7 @@ from fmm_ros.ros.launch import (
     parse_overrides,
     start_processes,
     stop_processes,
+    wait_for_log,
     with_consumers,
 )
 
@@ -72,3 +75,19 @@ def _impacts_in(bag):
             return sum(1 for _ in reader.messages(['/fmm/impacts']))
     except (ValueError, OSError):  # not created or not flushed yet
         return 0
+
+
+def test_wait_for_log_sees_a_line_written_later_and_times_out_on_one_never_written(tmp_path):
+    """The log may not exist yet when the wait begins (the node has not opened it)."""
+
+    def write() -> None:
+        (tmp_path / 'hammer_sim.log').write_text('[INFO] [1.0] [hammer_sim]: ... starting\n')
+
+    timer = threading.Timer(0.3, write)
+    timer.start()
+    try:
+        assert wait_for_log(tmp_path, 'hammer_sim', 'starting', 10.0)
+    finally:
+        timer.join()
+    assert not wait_for_log(tmp_path, 'hammer_sim', 'stopped', 0.3)
+    assert not wait_for_log(tmp_path, 'rig_sim', 'starting', 0.3)

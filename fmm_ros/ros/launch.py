@@ -205,6 +205,21 @@ def start_processes(
     return processes
 
 
+def wait_for_log(log_dir: Path, node: str, text: str, timeout_s: float) -> bool:
+    """Wait until a node started with `log_dir` has logged text; whether it did in timeout_s.
+
+    For scripts that drive a rig of processes by what its nodes say (a source's start, a
+    first report), polling <log_dir>/<node>.log every 0.1 s.
+    """
+    log = log_dir / f'{node}.log'
+    deadline = time.monotonic() + timeout_s
+    while not (log.exists() and text in log.read_text(errors='replace')):
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.1)
+    return True
+
+
 def stop_order(nodes: Sequence[str]) -> list[list[int]]:
     """Positions of nodes in the order they stop: sources first, then what they feed.
 
