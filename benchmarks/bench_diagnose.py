@@ -60,11 +60,11 @@ three hits <= 0.5 s; each line with its CPU time and the load average it was tak
 A full run writes its sections of RESULTS.md (`results_file`: tuning worlds, held-out worlds
 and time, each replaced only by a run that made it; --role sweeps one role; --kinds sweeps
 only those kinds of every world that makes them, into a section of their own; --worlds
-sweeps only the worlds named, into a section of their own too); --quick (one
-session of a few kinds on the first world of each role, three-hit timing) writes nothing.
---floors measures what a
-lower whole-misfit floor (MIN_WHOLE_EXCESS) would answer: each session it could change is
-diagnosed again at each floor, and each world's summary says what was gained and lost.
+sweeps only the worlds named, into a section of their own too); --quick (one session of a
+few kinds on the first world of each role, three-hit timing) writes nothing. --floors
+measures what a lower whole-misfit floor (MIN_WHOLE_EXCESS) would answer: each session it
+could change is diagnosed again at each floor, and each world's summary says what was
+gained and lost.
 --limit-multiples 1.5,1.2 reports instead, per kind on each held-out world, how often an effect
 set at those multiples of the limit a clean session of C states is named (`bench_limits`: the
 same hits, chain and noise diagnosed clean, then with the effect), against at least 90 % per
