@@ -33,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
 from damaged_records import FAULTS, session, worlds_session  # noqa: E402
 from results_file import QUICK_HELP, recorded
 
-from fmm_ros.workflows.session import analyse, fit_impacts, select_records  # noqa: E402
+from fmm_ros.workflows.session import analyse, fit_impacts, impact_ids, select_records  # noqa: E402
 
 # Flags that say the samples are damaged (the others judge the record, not its samples).
 RECORD_FLAGS = ('unsettled', 'overlap', 'out_of_tolerance')
@@ -45,7 +45,8 @@ def fit_session(records, include_flagged=False):
     """('refused', reason) or ('mu', mu, stderr, selection) as `fmm fit` would end."""
     try:
         selection = select_records(records, include_flagged=include_flagged)
-        fit = fit_impacts(records, selection.chosen)  # fmm fit's defaults: each start fitted
+        by_id = dict(zip(impact_ids(records), records, strict=True))
+        fit = fit_impacts(by_id, selection.chosen)  # fmm fit's defaults: each start fitted
     except ValueError as error:  # SelectionError, FitError, or samples the fit cannot take
         return ('refused', getattr(error, 'reason', type(error).__name__))
     return ('mu', fit.mu, fit.mu_stderr, selection)

@@ -162,6 +162,15 @@ def test_offline_analysis_of_the_bag_equals_the_live_run(recorded_session):
             on.peak_receptance_m_per_n,
         )
         assert off.mobility.tobytes() == msgs.complex_field(on, 'mobility').tobytes()
+    # The offline tools (fmm analyze, fit, report) read the bag's hits under the live ids.
+    from fmm_ros.workflows.inputs import InputOptions, read_inputs
+    from fmm_ros.workflows.session import analyse
+
+    read = read_inputs([bag], InputOptions(capture=capture))
+    offline_ids = [impact.impact_id for impact in analyse(read.records, capture, analysis).impacts]
+    live_ids = [on.impact_id for on in live]
+    assert offline_ids == [off.impact_id for off in judged] == live_ids
+    assert len(set(live_ids)) == len(live_ids)
 
 
 def test_the_player_replays_the_session_into_a_live_analyzer(recorded_session):

@@ -38,6 +38,31 @@ def run_cli(capsys, *args):
     return code, out, err
 
 
+def test_a_series_of_lab_files_gets_one_id_per_hit_laid_end_to_end(series, capsys):
+    """Each file triggers near its own t = 0.5 s: on one session axis the ids still differ."""
+    code, out, _ = run_cli(capsys, *series, '--json')
+    assert code == 0
+    ids = [impact['impact_id'] for impact in json.loads(out)['impacts']]
+    assert len(set(ids)) == len(series)
+    # file k starts on the ms after file k-1 ended (4 s each), and triggers near 500 ms into it
+    file_ms = int(SECONDS * 1000) + 1
+    assert all(480 <= impact_id - k * file_ms <= 520 for k, impact_id in enumerate(ids)), ids
+
+
+def test_two_hits_at_one_time_of_the_session_are_refused_naming_both():
+    from fmm_ros.core.signal.records import ImpactRecord
+    from fmm_ros.errors import BadInputError
+    from fmm_ros.workflows.session import analyse
+
+    force, velocity = hits(4000, RATE_HZ, [(500, 800.0)], zeta=0.3, duration_s=0.02)
+    first, second = (
+        ImpactRecord(force, velocity, RATE_HZ, source=name, acquisition_origin_s=1.7e9)
+        for name in ('first.mcap', 'second.mcap')
+    )
+    with pytest.raises(BadInputError, match=r'first\.mcap and second\.mcap .*impact id'):
+        analyse([first, second])
+
+
 def test_json_report_has_exactly_the_documented_keys(series, capsys):
     code, out, _ = run_cli(capsys, *series, '--json', '--paper-levels')
     assert code == 0
@@ -45,6 +70,7 @@ def test_json_report_has_exactly_the_documented_keys(series, capsys):
     assert list(report) == ['impacts', 'levels', 'linearity']
     assert list(report['impacts'][0]) == [
         'file',
+        'impact_id',
         'accepted',
         'flags',
         'impulse_n_s',

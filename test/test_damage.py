@@ -23,7 +23,7 @@ from fmm_ros.core.signal.analysis import (
 from fmm_ros.core.signal.capture import ImpactCapture
 from fmm_ros.core.signal.records import ImpactRecord, write_impact_csv
 from fmm_ros.errors import SelectionError
-from fmm_ros.workflows.session import select_records
+from fmm_ros.workflows.session import impact_ids, select_records
 
 # The flag each fault must raise.
 EXPECTED_FLAG = {
@@ -54,8 +54,9 @@ def test_every_fault_of_the_independent_generator_is_flagged_and_left_out(fault)
     flags = [analyze_impact(hit.record).flags for hit in hits]
     assert WORLDS_FLAG[fault] in flags[0] and WORLDS_FLAG[fault] in flags[2], flags
     assert not set(flags[1]) & DAMAGE_FLAGS
-    selection = select_records([hit.record for hit in hits])
-    assert selection.chosen == (1,)
+    records = [hit.record for hit in hits]
+    selection = select_records(records)
+    assert selection.chosen == (impact_ids(records)[1],)
     assert fit_friction([hits[1].record]).mu == pytest.approx(mu, rel=0.02)
 
 
@@ -84,21 +85,26 @@ def test_a_damaged_hit_is_left_out_by_name_and_mu_comes_from_the_clean_ones(faul
     hits, mu = session(fault, seed=77, damaged=(1,))
     records = [hit.record for hit in hits]
     selection = select_records(records)
-    chosen = [records[i] for i in selection.chosen]
-    assert selection.chosen == (0, 2)
+    ids = impact_ids(records)
+    chosen = [records[ids.index(i)] for i in selection.chosen]
+    assert selection.chosen == (ids[0], ids[2])
     ((impact_id, flags, source),) = selection.excluded
-    assert (impact_id, source) == (1, hits[1].record.source)
+    assert (impact_id, source) == (ids[1], hits[1].record.source)
     assert EXPECTED_FLAG[fault] in flags
-    assert f'impact 1 ({source}: ' in selection.note
+    assert f'impact {ids[1]} ({source}: ' in selection.note
     assert fit_friction(chosen).mu == pytest.approx(mu, rel=0.02)
 
 
 @pytest.mark.parametrize('fault', FAULTS)
 def test_a_session_of_damaged_hits_is_refused_with_the_reason(fault):
     hits, _ = session(fault, seed=78)
-    with pytest.raises(SelectionError, match='no clean impact to fit: impact 0 ') as refused:
-        select_records([hit.record for hit in hits])
-    assert [entry[0] for entry in refused.value.selection.excluded] == [0, 1, 2]
+    records = [hit.record for hit in hits]
+    ids = impact_ids(records)
+    with pytest.raises(
+        SelectionError, match=f'no clean impact to fit: impact {ids[0]} '
+    ) as refused:
+        select_records(records)
+    assert [entry[0] for entry in refused.value.selection.excluded] == ids
 
 
 def write_csv(path, record):

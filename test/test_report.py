@@ -39,6 +39,7 @@ from fmm_ros.workflows import (
     FrictionResult,
     ModelOverlay,
     SessionOptions,
+    impact_ids,
     overlay_of,
     process_records,
 )
@@ -427,12 +428,15 @@ def test_all_rejected_session_still_reports_and_says_why_mu_is_not_fitted(tmp_pa
             ]
         )
     assert code == 1  # the page is written, but mu could not be fitted
-    assert 'cannot fit mu: no clean impact to fit: impact 0 (' in capsys.readouterr().err
+    # The hit's id is its trigger's time on the session's axis: the file's first, at 0 ms.
+    record = ImpactRecord(hit.force_n, hit.velocity_m_s, RATE_HZ)
+    refusal = f'no clean impact to fit: impact {impact_ids([record])[0]} ('
+    assert f'cannot fit mu: {refusal}' in capsys.readouterr().err
     text = (out / 'index.html').read_text(encoding='utf-8')
     _, rows = hit_rows(text)
     assert [(css, row['flags']) for css, row in rows] == [('rejected', 'clipped')]
     assert 'No level has an accepted hit' in text
-    assert 'No friction fit: no clean impact to fit: impact 0 (' in text
+    assert f'No friction fit: {refusal}' in text
     check_figures(out, text, {'hit_000'})
     assert clipped_figures == []
 

@@ -34,8 +34,9 @@ def options(**values):
 
 
 def test_a_fit_made_elsewhere_is_drawn_as_given_and_not_made_again(records, monkeypatch):
+    a, b, c = workflow.impact_ids(records)
     given = FrictionResult(
-        0.1234, 1e-5, FMM_RIG, (0, 1, 2), (0.1234,) * 3, (1e-5,) * 3, (0.0, 1e-4, -1e-4)
+        0.1234, 1e-5, FMM_RIG, (a, b, c), (0.1234,) * 3, (1e-5,) * 3, (0.0, 1e-4, -1e-4)
     )
 
     def refit(*_, **__):
@@ -45,8 +46,8 @@ def test_a_fit_made_elsewhere_is_drawn_as_given_and_not_made_again(records, monk
     session = workflow.process_records(records, options(), friction=given)
     assert session.friction is given
     assert session.model.mu == 0.1234 and session.model.source == 'fitted'
-    assert session.model.initial_positions_m == {0: 0.0, 1: 1e-4, 2: -1e-4}
-    assert set(session.comparison.hits) == {0, 1, 2}
+    assert session.model.initial_positions_m == {a: 0.0, b: 1e-4, c: -1e-4}
+    assert set(session.comparison.hits) == {a, b, c}
     with pytest.raises(ValueError, match=r'names impact\(s\) \[5\] the session lacks'):
         workflow.process_records(
             records,
@@ -68,7 +69,9 @@ def test_one_session_from_files_to_a_json_summary(records, tmp_path):
     assert summary['inputs'] == [str(path) for path in paths]
     assert [impact['accepted'] for impact in summary['impacts']] == [True] * 3
     assert summary['fit']['mu'] == pytest.approx(0.113, rel=0.01)
-    assert [entry['impact_id'] for entry in summary['fit']['per_file']] == [0, 1, 2]
+    ids = [impact.impact_id for impact in session.summary.impacts]
+    assert len(set(ids)) == 3  # the files laid end to end on one axis: one id each
+    assert [entry['impact_id'] for entry in summary['fit']['per_file']] == ids
     assert summary['diagnosis'] is None and summary['fit_failure'] is None
     assert all(rms < 2e-4 for rms in summary['residual_rms_m_s'].values())
     assert 'analysing hit 3/3' in steps and 'fitting mu of impact 3/3 alone' in steps

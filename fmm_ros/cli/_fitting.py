@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     from fmm_ros.core.signal.records import ImpactRecord
     from fmm_ros.workflows.inputs import InputOptions
 
-Fit = Callable[[list['ImpactRecord'], Sequence[int], Callable[[str], None]], Any]
+Fit = Callable[[Mapping[int, 'ImpactRecord'], Sequence[int], Callable[[str], None]], Any]
 
 
 @dataclass(frozen=True)
@@ -79,14 +79,15 @@ def fit_and_report(
 
     fit(records, impact_ids, progress) fits records[i] for i in impact_ids. A command with
     the hit-selection options (fit, diagnose) takes the hits `select_impacts` takes (the
-    accepted ones; all with --include-flagged) and names the others after the result; one
-    without (identify-rig: free decays hold no hit) takes every record.
+    accepted ones; all with --include-flagged), records by impact id, and names the others
+    after the result; one without (identify-rig: free decays hold no hit, so no impact id)
+    takes every record, by position.
     """
     from fmm_ros.cli.progress import StatusLine, report_problems
     from fmm_ros.errors import FitError, SelectionError
     from fmm_ros.workflows.inputs import read_inputs
     from fmm_ros.workflows.results import selection_dict
-    from fmm_ros.workflows.session import select_records
+    from fmm_ros.workflows.session import impact_ids, select_records
 
     command = request.command
     selection = None
@@ -105,8 +106,12 @@ def fit_and_report(
                 )
             if selection:
                 selection.chained(request.chain_starts)
-            ids = selection.chosen if selection else tuple(range(len(records)))
-            result = fit(records, ids, progress)
+            if selection:
+                ids = selection.chosen
+                chosen = dict(zip(impact_ids(records, request.capture), records, strict=True))
+            else:
+                ids, chosen = tuple(range(len(records))), dict(enumerate(records))
+            result = fit(chosen, ids, progress)
         except (FitError, SelectionError) as failure:
             result = failure
     if isinstance(result, FitError | SelectionError):

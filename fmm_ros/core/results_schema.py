@@ -19,14 +19,15 @@ and help from here (`ResultField.field()`), so the reference docs say what the J
 messages and the tables hold. `test/test_results_schema.py` holds the .msg/.srv comments to
 the units declared here and names any drift.
 
-`impact_id` (`IMPACT_ID`) is the trigger's acquisition time in ms modulo 2^32, made by
-`core.signal.records.stable_impact_id` alone, wherever hits have an acquisition clock: the
-analyzer, `fmm replay`, the fitter's selections, the recorder's bags and the station, so a hit
-keeps its id across a respawn and a replay. The offline workflows (`fmm analyze`, `fit`,
-`report`, `campaign`) number the records they read from 0 in input order instead: lab files
-of one impact each share no clock (every trigger lies near its own file's t = 0, so a time
-would repeat), and they index records by that position; a bag's recorded decisions are
-matched to them by trigger sample (`workflows.inputs`).
+`impact_id` (`IMPACT_ID`) means one thing everywhere: the hit's trigger time in ms modulo
+2^32 on its session's time axis, made by `core.signal.records.stable_impact_id` alone (the
+analyzer, `fmm replay`, the fitter's selections, the recorder's bags, the station, and the
+offline `fmm analyze`, `fit`, `report`, `campaign`), so a hit keeps its id across a respawn,
+a replay and an offline read. A bag with an acquisition clock uses its clock. Inputs without
+one (lab files, bags written without a clock) are laid end to end in the order given on one
+session axis (`workflows.inputs`), so their ids depend on that order; two hits of a session
+that would share an id are refused, naming both inputs (`workflows.session.impact_ids`).
+Code that indexes records uses a position, named as one.
 
 Standard library only: `fmm --help`, the station page and the docs read it without numpy.
 """
@@ -138,9 +139,10 @@ def _group(*fields: ResultField) -> dict[str, ResultField]:
 IMPACT_ID = ResultField(
     'impact_id',
     '-',
-    "The impact's id: its trigger's acquisition time in ms modulo 2^32 (stable across restarts,"
-    ' `records.stable_impact_id`) on the graph; offline (`fmm analyze`, fit, report, campaign)'
-    ' the position of its record, from 0 in input order',
+    "The impact's id: its trigger's acquisition time in ms modulo 2^32"
+    " (`records.stable_impact_id`) on its session's time axis: the acquisition clock where the"
+    ' hit has one (live and offline alike); inputs without a clock laid end to end in the order'
+    ' given, so there the id depends on that order',
     'hit',
     fmt='d',
     messages=('ImpactResult.impact_id', 'FitFriction.impact_ids', 'FrictionEstimate.impact_id'),
@@ -321,6 +323,7 @@ HIT_RECORD: tuple[ResultField, ...] = (
 """A hit's record: the scalars `fmm analyze --json`, the demo and the campaign show."""
 
 ANALYSIS_IMPACT: tuple[ResultField, ...] = (
+    IMPACT_ID,
     ACCEPTED,
     FLAGS,
     IMPULSE,

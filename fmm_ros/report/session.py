@@ -183,9 +183,9 @@ def _hit_table(page: Page, summary: Summary, comparison: ModelComparison | None)
     if comparison:
         headers.append('rms(measured − model) [mm/s]')
     rows, classes = [], []
-    for impact in summary.impacts:
+    for position, impact in enumerate(summary.impacts):
         row = [
-            link(f'#fig-{_hit_name(impact)}', impact.impact_id),
+            link(f'#fig-{_hit_name(position)}', impact.impact_id),
             figures.source_name(impact.source) or '-',
             impact.level or '-',
             'accepted' if impact.accepted else 'rejected',
@@ -331,12 +331,13 @@ def _friction(page: Page, summary: Summary, friction: FrictionResult) -> None:
         f'{len(friction.impact_ids)} impacts at once ({damping}){consistency}.'
     )
     impacts = {impact.impact_id: impact for impact in summary.impacts}
+    positions = {impact.impact_id: k for k, impact in enumerate(summary.impacts)}
     starts = friction.initial_positions_m or (0.0,) * len(friction.impact_ids)
     page.table(
         ['hit', 'level', label(schema.IMPULSE), 'μ alone ± 1σ', label(schema.INITIAL_POSITION)],
         [
             [
-                link(f'#fig-{_hit_name(impacts[i])}', i),
+                link(f'#fig-{_hit_name(positions[i])}', i),
                 impacts[i].level or '-',
                 _number(impacts[i].impulse_n_s, '.4g'),
                 format_with_uncertainty(mu, error),
@@ -384,7 +385,7 @@ def _friction(page: Page, summary: Summary, friction: FrictionResult) -> None:
 def _time_section(page: Page, session: SessionResult, colours: dict[str, str]) -> None:
     summary, records, model, capture = (
         session.summary,
-        session.records,
+        session.records_by_id,
         session.model,
         session.capture,
     )
@@ -408,7 +409,7 @@ def _time_section(page: Page, session: SessionResult, colours: dict[str, str]) -
     page.subsection('Every hit')
     page.text('Each hit is folded: open one to see its force, decay and model.', note=True)
     hit_figures = figures.HitFigures()
-    for impact in summary.impacts:
+    for position, impact in enumerate(summary.impacts):
         record = records[impact.impact_id]
         velocity = model.velocity_m_s(record, impact.impact_id) if model is not None else None
         verdict = 'accepted' if impact.accepted else f'rejected: {", ".join(impact.flags)}'
@@ -417,7 +418,7 @@ def _time_section(page: Page, session: SessionResult, colours: dict[str, str]) -
             f'{impact.peak_force_n:.4g} N, impulse {impact.impulse_n_s:.4g} N·s'
         ):
             page.figure(
-                _hit_name(impact),
+                _hit_name(position),
                 hit_figures.draw(
                     record,
                     impact,
@@ -593,7 +594,8 @@ def _diagnosis_figures(page: Page, session: SessionResult, found: SessionDiagnos
     """Residuals and mobility gaps of the first hit of each level, and the friction map."""
     result = found.diagnosis
     summary = session.summary
-    records = [session.records[i] for i in found.impact_ids]
+    by_id = session.records_by_id
+    records = [by_id[i] for i in found.impact_ids]
     rows = _one_per_level(summary, found.impact_ids)
     shown = ', '.join(str(found.impact_ids[row]) for row in rows)
     if len(rows) < len(found.impact_ids):
@@ -633,8 +635,9 @@ def _one_per_level(summary: Summary, impact_ids: Sequence[int]) -> list[int]:
     return sorted(first.values())
 
 
-def _hit_name(impact: ImpactAnalysis) -> str:
-    return f'hit_{impact.impact_id:03d}'
+def _hit_name(position: int) -> str:
+    """A hit's figure (and anchor) by its position in the session: short, and the same each run."""
+    return f'hit_{position:03d}'
 
 
 def _safe(name: str) -> str:

@@ -8,7 +8,6 @@ are taken from what the graph publishes (/fmm/impacts, /fmm/frf, the live mu on
 (`msgs.friction_result`), not a second fit. `fmm demo` and launch_scripts/sim_rig.py run it.
 """
 
-import dataclasses
 import itertools
 import math
 import time
@@ -421,18 +420,12 @@ def _report(
     fit: FitFriction.Response,
 ) -> Path:
     """The session report from the bag: analysed as the analyzer did, the fit service's mu."""
-    from fmm_ros.core.signal.records import stable_impact_id
     from fmm_ros.report import build_report  # matplotlib: only when a report is asked for
     from fmm_ros.workflows.inputs import InputOptions
     from fmm_ros.workflows.replay import bag_impact_records
     from fmm_ros.workflows.session import SessionOptions, process_records
 
-    records, problems = bag_impact_records(bag, capture)
-    if friction is not None:  # the service names impacts by their stable ids; a session by position
-        position = {stable_impact_id(record): k for k, record in enumerate(records)}
-        friction = dataclasses.replace(
-            friction, impact_ids=tuple(position[i] for i in friction.impact_ids)
-        )
+    records, problems = bag_impact_records(bag, capture)  # ids as the service's: one clock
     session = process_records(
         records,
         SessionOptions(inputs=InputOptions(capture=capture), analysis=analysis),

@@ -26,6 +26,7 @@ _EXPORTS = {
     'diagnose_impacts': 'session',
     'diagnosis_dict': 'results',
     'fit_impacts': 'session',
+    'impact_ids': 'session',
     'overlay_of': 'session',
     'process_session': 'session',
     'read_inputs': 'inputs',

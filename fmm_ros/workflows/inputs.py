@@ -18,6 +18,11 @@ INPUTs here, and only here. Each path is told apart by its content (`fmm_ros.io.
 
 All records share one sample rate (their FRFs are averaged on one grid) and are zero-padded to
 the longest window. A full scale given here replaces a recorded one.
+
+Impact ids are trigger times on one session axis (`schema.IMPACT_ID`): a bag's hits keep its
+acquisition clock; inputs without one (lab files, bags written without a clock) are laid end
+to end in the order given, each starting on the next ms after the previous one ended
+(`_on_session_axis`), so their hits' ids differ, and depend on that order.
 """
 
 from __future__ import annotations
@@ -32,7 +37,7 @@ import numpy as np
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, capture_impacts
 from fmm_ros.core.signal.config import AnalysisConfig, NominalLevel
 from fmm_ros.core.signal.judging import Decision, by_trigger
-from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.core.signal.records import ImpactRecord, duration_ms, stable_impact_id
 from fmm_ros.core.signal.response import as_measured
 from fmm_ros.errors import BadInputError, FmmError
 from fmm_ros.io import sniff
@@ -86,7 +91,7 @@ class SessionInputs:
     """How each lab file was read: format, channels, units, rate (the import report)."""
     paths: list[str]
     decisions: dict[int, Decision] = field(default_factory=dict)
-    """The newest recorded decision about records[i], by i (bags only)."""
+    """The newest recorded decision about each hit, by impact id (bags only)."""
     session_info: dict[str, SessionInfo] = field(default_factory=dict)
     """Each bag's session metadata, by path (bags that hold some)."""
     levels: tuple[NominalLevel, ...] = ()
@@ -119,6 +124,7 @@ def read_inputs(
     decisions: dict[int, Decision] = {}
     infos: dict[str, SessionInfo] = {}
     levels: dict[str, float] = {}
+    axis_ms = 0  # where the next input without an acquisition clock starts
     for number, path in enumerate(map(Path, paths), 1):
         if progress:
             progress(f'reading {path.name} ({number}/{len(paths)})')
@@ -126,9 +132,9 @@ def read_inputs(
             with BagReader(path, strict=False) as reader:
                 found, damage = reader_impact_records(reader, options.capture)
                 problems += [f'{path}: {problem}' for problem in damage]
-                first = len(records)
-                records += _some(found, path, options.capture)
-                judged, lost = _bag_decisions(reader, found, first)
+                found, axis_ms = _on_session_axis(_some(found, path, options.capture), axis_ms)
+                records += found
+                judged, lost = _bag_decisions(reader, found)
                 decisions.update(judged)
                 problems += [f'{path}: {problem}' for problem in lost]
                 try:
@@ -144,9 +150,11 @@ def read_inputs(
         recording = read_lab_file(path, options.mapping, options.text_format)
         notes += recording.report
         if options.continuous:
-            records += _some(_cut(recording, options.capture), path, options.capture)
+            found = _some(_cut(recording, options.capture), path, options.capture)
         else:
-            records.append(_one_impact(recording, options.capture))
+            found = [_one_impact(recording, options.capture)]
+        found, axis_ms = _on_session_axis(found, axis_ms)
+        records += found
     return SessionInputs(
         _on_one_grid(records, options),
         problems,
@@ -158,15 +166,33 @@ def read_inputs(
     )
 
 
+def _on_session_axis(records: list[ImpactRecord], start_ms: int) -> tuple[list[ImpactRecord], int]:
+    """One input's records with those lacking an acquisition clock started at start_ms.
+
+    Returns them and where the next such input starts: the ms after this one's last sample
+    (`duration_ms`; start_ms again when all its records have a clock of their own).
+    """
+    clockless = [record for record in records if record.acquisition_origin_s is None]
+    if not clockless:
+        return records, start_ms
+    placed = [
+        record
+        if record.acquisition_origin_s is not None
+        else dataclasses.replace(record, acquisition_origin_s=start_ms / 1000)
+        for record in records
+    ]
+    return placed, start_ms + duration_ms(clockless)
+
+
 def _bag_decisions(
-    reader: BagReader, records: list[ImpactRecord], first: int
+    reader: BagReader, records: list[ImpactRecord]
 ) -> tuple[dict[int, Decision], list[str]]:
-    """A bag's recorded decisions under the positions its records take (from `first`).
+    """A bag's recorded decisions under the impact ids of its records.
 
     Also a problem for each decision that found no hit (or was malformed).
     """
     recorded, problems = bag_decisions(reader)
-    triggers = {record.trigger_sample_index: first + i for i, record in enumerate(records)}
+    triggers = {record.trigger_sample_index: stable_impact_id(record) for record in records}
     judged, lost = by_trigger(recorded, triggers)
     problems += [
         f'{decision.describe()} names trigger sample {decision.trigger_sample_index}, where '

@@ -118,10 +118,9 @@ def compare_model(
 ) -> ModelComparison:
     """The model driven by every hit of the summary (record i is impact i), analysed."""
     hits = {}
-    for impact in summary.impacts:
+    for position, (impact, record) in enumerate(zip(summary.impacts, records, strict=True)):
         if progress:
-            progress(f'model of hit {impact.impact_id + 1}/{len(summary.impacts)}')
-        record = records[impact.impact_id]
+            progress(f'model of hit {position + 1}/{len(summary.impacts)}')
         velocity = model.velocity_m_s(record, impact.impact_id)
         if velocity is None:
             continue

@@ -40,7 +40,7 @@ from fmm_ros.core.signal.analysis import (
 )
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, with_trigger
 from fmm_ros.core.signal.judging import Decision
-from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.core.signal.records import ImpactRecord, duration_ms, stable_impact_id
 from fmm_ros.errors import BadInputError, FitError, SelectionError
 from fmm_ros.io.session_info import SessionInfo
 from fmm_ros.workflows.inputs import DEFAULT_INPUTS, InputOptions, Progress, read_inputs
@@ -128,7 +128,8 @@ class SessionDiagnosis:
 class SessionResult:
     """A session processed: its records and everything computed from them.
 
-    records[i] is impact i of summary. friction/diagnosis are None when not tried or refused
+    records[i] is impact i of summary (its position; `impact_id` is the hit's trigger time,
+    `records_by_id` maps one to the other). friction/diagnosis are None when not tried or refused
     (then fit_failure/diagnosis_failure say why). comparison: the model (fitted or given) run
     for every hit, None without a model.
     """
@@ -153,21 +154,24 @@ class SessionResult:
     """Each bag's session metadata (who, pin, counterface, lubricant, load...), by path."""
 
     def __post_init__(self) -> None:
-        missing = [
-            impact.impact_id
-            for impact in self.summary.impacts
-            if not 0 <= impact.impact_id < len(self.records)
-        ]
-        if missing:
+        if len(self.summary.impacts) != len(self.records):
             raise BadInputError(
-                f'the summary names impact(s) {missing} but only {len(self.records)} '
-                'record(s) were given (impact_id must be the record position)'
+                f'the summary names {len(self.summary.impacts)} impact(s) but '
+                f'{len(self.records)} record(s) were given (impact i of it is record i)'
             )
         known = {impact.impact_id for impact in self.summary.impacts}
         for name, result in (('friction fit', self.friction), ('diagnosis', self.diagnosis)):
             unknown = sorted(set(result.impact_ids) - known) if result is not None else []
             if unknown:
                 raise BadInputError(f'the {name} names impact(s) {unknown} the session lacks')
+
+    @property
+    def records_by_id(self) -> dict[int, ImpactRecord]:
+        """Each record under its impact's id."""
+        return {
+            impact.impact_id: record
+            for impact, record in zip(self.summary.impacts, self.records, strict=True)
+        }
 
     @property
     def model(self) -> ModelOverlay | None:
@@ -208,23 +212,55 @@ def analyse(
 ) -> Summary:
     """The signal core's verdict on every record, impact i being record i.
 
-    decisions (by record position) decide which hits the level averages take (`summarize`).
+    Each impact's id is its trigger time (`impact_ids`). decisions (by impact id) decide
+    which hits the level averages take (`summarize`).
     The records are analysed side by side in threads, as a replay analyses them (`threads`,
     default the cores there are: `thread_imap`); each alone, so the results are the same
     whatever the count.
     """
     analysis = analysis or AnalysisConfig()
 
+    ids = impact_ids(records, capture)
+
     def numbered() -> Iterator[tuple[int, ImpactRecord]]:
         for number, record in enumerate(records):
             if progress:  # on this thread, as the hit goes to be analysed
                 progress(f'analysing hit {number + 1}/{len(records)}')
-            yield number, record
+            yield ids[number], record
 
     def analysed(item: tuple[int, ImpactRecord]) -> ImpactAnalysis:
         return analyze_impact(item[1], capture, analysis, impact_id=item[0])
 
     return summarize(list(thread_imap(analysed, numbered(), threads)), analysis, decisions)
+
+
+def impact_ids(
+    records: Sequence[ImpactRecord], capture: CaptureConfig = DEFAULT_CAPTURE
+) -> list[int]:
+    """Each record's impact id: its trigger's time on its session's axis (`stable_impact_id`).
+
+    A record still without an acquisition clock (records in hand, not from `read_inputs`) is
+    an input of its own, laid on the axis after the one before, as a lab file would be.
+    Raises BadInputError naming both inputs when two hits would share an id: merged, one
+    would take the other's decisions, fit and report entries.
+    """
+    ids: list[int] = []
+    seen: dict[int, str] = {}
+    axis_ms = 0
+    for record in records:
+        if record.acquisition_origin_s is None:
+            record = dataclasses.replace(record, acquisition_origin_s=axis_ms / 1000)
+            axis_ms += duration_ms([record])
+        impact_id = stable_impact_id(with_trigger(record, capture))
+        if impact_id in seen:
+            raise BadInputError(
+                f'{seen[impact_id] or "a record"} and {record.source or "a record"} trigger at '
+                f"one time on the session's axis (impact id {impact_id}): give each input once "
+                '(inputs without an acquisition clock are laid end to end in one session)'
+            )
+        seen[impact_id] = record.source
+        ids.append(impact_id)
+    return ids
 
 
 def select_records(
@@ -238,7 +274,7 @@ def select_records(
 ) -> ImpactSelection:
     """The impacts of records a fit takes: `select_impacts` over their analysis.
 
-    decisions: the newest recorded decision about records[i], by i (`read_inputs`).
+    decisions: the newest recorded decision about each hit, by impact id (`read_inputs`).
     Raises FitError (reason 'no_hit') for a record without a hit, which has nothing to judge
     or fit, and `SelectionError` (a ValueError) naming the flagged records when none is clean.
     """
@@ -252,13 +288,15 @@ def select_records(
 
 
 def fit_impacts(
-    records: Sequence[ImpactRecord],
+    records: Mapping[int, ImpactRecord],
     impact_ids: Sequence[int],
     options: FitOptions = DEFAULT_FIT,
     *,
     progress: Progress | None = None,
 ) -> FrictionResult:
     """One mu (and each impact's own) over records[i] for i in impact_ids, as the fitter does.
+
+    records: the session's records by impact id (`SessionResult.records_by_id`).
 
     Raises FitError (a ValueError) when friction cannot explain them.
     """
@@ -269,13 +307,15 @@ def fit_impacts(
 
 
 def diagnose_impacts(
-    records: Sequence[ImpactRecord],
+    records: Mapping[int, ImpactRecord],
     impact_ids: Sequence[int],
     options: FitOptions = DEFAULT_FIT,
     *,
     progress: Progress | None = None,
 ) -> SessionDiagnosis:
     """The diagnose workflow over records[i] for i in impact_ids, as the fitter node runs it.
+
+    records: the session's records by impact id (`SessionResult.records_by_id`).
 
     Raises FitError (a ValueError) when the base model cannot be fitted at all.
     """
@@ -310,11 +350,10 @@ def process_records(
 ) -> SessionResult:
     """Analyse records, fit mu over the accepted ones (or take the fit given), diagnose.
 
-    decisions: the newest decision about records[i], by i (recorded by the station): they
-    overrule the flags in `select_impacts`. session_info: each bag's metadata, shown.
-
-    friction: a fit made elsewhere (the fitter service's answer), drawn as it is instead of
-    fitting; fit_failure: why that fit was refused. options.mu draws a given mu instead;
+    decisions: the newest decision about each hit, by impact id (recorded by the station): they
+    overrule the flags in `select_impacts`. session_info: each bag's metadata, shown. friction:
+    a fit made elsewhere (the fitter service's answer, under the same ids), drawn as it is
+    instead of fitting; fit_failure: why that fit was refused. options.mu draws a given mu instead;
     options.fit = False draws no model. Fit and diagnosis take the impacts `select_impacts`
     takes (options.include_flagged), and the result's selection names those left out.
     """
@@ -324,11 +363,12 @@ def process_records(
         raise BadInputError('a session needs at least one impact record')
     capture = options.inputs.capture
     summary = analyse(records, capture, options.analysis, decisions=decisions, progress=progress)
+    by_id = dict(zip((impact.impact_id for impact in summary.impacts), records, strict=True))
     selection, refusal = _selection_and_refusal(summary, options, decisions)
     if friction is None and not fit_failure and options.mu is None and options.fit:
         try:
             friction = fit_impacts(
-                records, _chosen(selection, refusal), options.model, progress=progress
+                by_id, _chosen(selection, refusal), options.model, progress=progress
             )
         except ValueError as error:  # FitError is one: the result says why there is no fit
             fit_failure = str(error)
@@ -336,7 +376,7 @@ def process_records(
     if options.diagnose:
         try:
             diagnosis = diagnose_impacts(
-                records, _chosen(selection, refusal), options.model, progress=progress
+                by_id, _chosen(selection, refusal), options.model, progress=progress
             )
         except ValueError as error:
             diagnosis_failure = str(error)

@@ -10,6 +10,8 @@ diagnosis tools all take.
 from __future__ import annotations
 
 import csv
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -142,6 +144,19 @@ def stable_impact_id(record: ImpactRecord) -> int:
     trigger_ms = round(record.trigger_sample_index * 1000 / record.sample_rate_hz)
     origin_ms = round(record.acquisition_origin_s * 1000) if record.acquisition_origin_s else 0
     return (origin_ms + trigger_ms) % IMPACT_ID_MODULUS
+
+
+def duration_ms(records: Sequence[ImpactRecord]) -> int:
+    """How long an input of these records lasts on a session's axis, to its last sample [ms].
+
+    The next input without a clock starts this long after this one (on the ms after its
+    last sample), so their triggers' ids (`stable_impact_id`) differ.
+    """
+    end_s = max(
+        (record.record_start_sample_index + record.force_n.size) / record.sample_rate_hz
+        for record in records
+    )
+    return math.ceil(end_s * 1000) + 1
 
 
 def read_impact_csv(path: str | Path) -> ImpactRecord:
