@@ -162,7 +162,12 @@ def test_fit_selects_the_accepted_hits_when_asked(levels_csv, tmp_path, capsys):
     assert main(['fit', *inputs, '--json', '--paper-levels']) == 0
     fitted = json.loads(capsys.readouterr().out)['per_file']
     assert [entry['file'] for entry in fitted] == [str(path) for path in levels_csv]
-    assert [entry['impact_id'] for entry in fitted] == [0, 1, 2]
+    # Each hit is fitted under the id `fmm analyze` gives it: its time on the session's axis.
+    assert main(['analyze', *inputs, '--json']) == 0
+    analyzed = {
+        hit['file']: hit['impact_id'] for hit in json.loads(capsys.readouterr().out)['impacts']
+    }
+    assert [entry['impact_id'] for entry in fitted] == [analyzed[str(p)] for p in levels_csv]
 
 
 class Terminal(io.StringIO):

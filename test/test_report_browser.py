@@ -3,6 +3,9 @@ no console message, script error or failed load, every figure decodes, every fig
 says what it shows, and text from the inputs (title, file names, level names, a damaged bag's
 problems) is shown, never run."""
 
+import contextlib
+import io
+import json
 import re
 
 import pytest
@@ -18,7 +21,7 @@ from fmm_ros.sim.excitation import impact_record
 pytestmark = pytest.mark.slow
 
 # Words each figure's alt text must hold, by figure name (a level's name is added for the
-# figures of one level, the hit's number for a hit's).
+# figures of one level, the hit's impact id for a hit's).
 ALT_WORDS = {
     'impulses': ('peak force [N]', 'impulse [N·s]'),
     'linearity': ('peak |receptance|', 'against impulse'),
@@ -37,12 +40,26 @@ HOSTILE_TITLE = '<script>alert(1)</script>'
 HOSTILE_NAME = '"><img src=x onerror=alert(1)>'
 
 
-def expected_alt_words(name):
-    """The words figure `name` (e.g. hit_003, mobility_low) must name in its alt text."""
+def expected_alt_words(name, impact_ids):
+    """The words figure `name` (e.g. hit_003, mobility_low) must name in its alt text.
+
+    A hit's figure is named by its position in the session and titled by its impact id,
+    impact_ids[position].
+    """
     if name in ALT_WORDS:
         return ALT_WORDS[name]
     kind, _, which = name.rpartition('_')
-    return (*ALT_WORDS[kind], f'hit {int(which)}' if kind == 'hit' else f'level {which}')
+    if kind == 'hit':
+        return (*ALT_WORDS[kind], f'hit {impact_ids[int(which)]} ')
+    return (*ALT_WORDS[kind], f'level {which}')
+
+
+def analyzed_ids(inputs):
+    """The impact ids `fmm analyze --json` gives the hits of inputs, in session order."""
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert main(['analyze', *inputs, '--json', '--paper-levels']) == 0
+    return [impact['impact_id'] for impact in json.loads(out.getvalue())['impacts']]
 
 
 def assert_nothing_complained(seen):
@@ -91,12 +108,13 @@ def test_every_figure_loads_at_the_size_of_its_png_file(session):
 
 
 def test_every_figure_has_an_alt_text_saying_what_it_shows(session):
-    _, seen = session
+    report, seen = session
+    ids = analyzed_ids(report['inputs'])
     for image in seen.images:
         name = image.figure_id.removeprefix('fig-')
         alt = image.alt or ''
         assert len(alt.split()) >= 8 and '.png' not in alt, (name, alt)
-        missing = [word for word in expected_alt_words(name) if word not in alt]
+        missing = [word for word in expected_alt_words(name, ids) if word not in alt]
         assert missing == [], f'{name}: alt text {alt!r} lacks {missing}'
 
 
@@ -143,11 +161,12 @@ def test_a_hostile_title_and_file_name_are_shown_as_text_never_run(tmp_path):
 
 def test_each_hit_is_folded_under_a_line_and_opens_to_its_figure(session):
     """The per-hit figures made the page 45,000 pixels long: each is now a <details>."""
-    _, seen = session
+    report, seen = session
     hits = [image for image in seen.images if image.figure_id.startswith('fig-hit_')]
     assert len(hits) >= 7
     assert seen.tag_counts['details'] == seen.tag_counts['summary'] == len(hits)
-    assert re.search(r'hit 0 · \w+ · accepted · peak [0-9.]+ N, impulse', seen.body_text)
+    first = analyzed_ids(report['inputs'])[0]
+    assert re.search(rf'hit {first} · \w+ · accepted · peak [0-9.]+ N, impulse', seen.body_text)
     assert 'rejected: double_hit' in seen.body_text
     opened = seen.height_open_px - seen.height_px
     assert opened > 0.5 * sum(image.natural_height for image in hits), (seen.height_px, opened)

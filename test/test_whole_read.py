@@ -22,7 +22,7 @@ from fmm_ros.core.signal.records import stable_impact_id
 from fmm_ros.io.bags import BagReader, BagWriter
 from fmm_ros.sim.session import simulated_session, write_session_bag
 from fmm_ros.workflows.replay import Fed, bag_impact_records, capture_records, replay_bag
-from fmm_ros.workflows.session import analyse
+from fmm_ros.workflows.session import analyse, impact_ids
 
 CAPTURE = CaptureConfig(window_s=5.0)
 ANALYSIS = AnalysisConfig(levels=paper_levels())
@@ -134,13 +134,20 @@ def test_replay_analyses_in_threads_with_the_results_of_one_record_at_a_time(ses
     assert_same_results(replay.results, results)
     assert handed == replay.results
     # A campaign session (or `fmm report`) reads the same records and analyses them in
-    # threads too, numbered by position rather than by the recording's clock.
+    # threads too, each under its id on the session's axis, as the replay names them.
     records, _ = bag_impact_records(session_bag, CAPTURE)
     summary = analyse(records, CAPTURE, ANALYSIS)
+    ids = impact_ids(records, CAPTURE)
     serial = summarize(
-        [analyze_impact(r, CAPTURE, ANALYSIS, impact_id=k) for k, r in enumerate(records)],
+        [
+            analyze_impact(r, CAPTURE, ANALYSIS, impact_id=i)
+            for i, r in zip(ids, records, strict=True)
+        ],
         ANALYSIS,
     )
+    assert [impact.impact_id for impact in summary.impacts] == [
+        result.impact_id for result in replay.results
+    ]
     assert_same_results(summary.impacts, serial.impacts)
     assert_same_results(summary.levels, serial.levels)
 

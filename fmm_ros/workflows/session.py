@@ -239,18 +239,26 @@ def impact_ids(
 ) -> list[int]:
     """Each record's impact id: its trigger's time on its session's axis (`stable_impact_id`).
 
-    A record still without an acquisition clock (records in hand, not from `read_inputs`) is
-    an input of its own, laid on the axis after the one before, as a lab file would be.
+    Records still without an acquisition clock (records in hand, not from `read_inputs`) are
+    laid on the axis as inputs, each after the one before, as lab files would be. Records that
+    follow each other on one sample axis (each starting after the last one ended) are one
+    input, as a capture of one stream gives them, so they keep the ids the analyzer gave them
+    live; a record starting before the last one ended (a file's, at sample 0) is another.
     Raises BadInputError naming both inputs when two hits would share an id: merged, one
     would take the other's decisions, fit and report entries.
     """
     ids: list[int] = []
     seen: dict[int, str] = {}
-    axis_ms = 0
+    axis_ms = 0  # where the next clockless input starts
+    input_ms = 0  # where the current clockless input started
+    last: ImpactRecord | None = None  # the current clockless input's last record
     for record in records:
         if record.acquisition_origin_s is None:
-            record = dataclasses.replace(record, acquisition_origin_s=axis_ms / 1000)
-            axis_ms += duration_ms([record])
+            if last is None or not _follows(record, last):
+                input_ms = axis_ms
+            last = record
+            record = dataclasses.replace(record, acquisition_origin_s=input_ms / 1000)
+            axis_ms = max(axis_ms, input_ms + duration_ms([record]))
         impact_id = stable_impact_id(with_trigger(record, capture))
         if impact_id in seen:
             raise BadInputError(
@@ -261,6 +269,14 @@ def impact_ids(
         seen[impact_id] = record.source
         ids.append(impact_id)
     return ids
+
+
+def _follows(record: ImpactRecord, last: ImpactRecord) -> bool:
+    """Whether record lies after last on one sample axis (one stream's capture)."""
+    return (
+        record.sample_rate_hz == last.sample_rate_hz
+        and record.record_start_sample_index >= last.record_start_sample_index + last.force_n.size
+    )
 
 
 def select_records(
