@@ -1,15 +1,17 @@
 """The session pipeline: workflows compute, the report draws, and a fit made
 elsewhere (the fitter service's answer, in the demo) is drawn as it is, never refitted."""
 
+import dataclasses
 import json
+import math
 
 import pytest
 from fit_records import lab_levels
 
 from fmm_ros.core.physics.rig import FMM_RIG
 from fmm_ros.core.signal.analysis import AnalysisConfig, paper_levels
-from fmm_ros.core.signal.capture import CaptureConfig
-from fmm_ros.core.signal.records import ImpactRecord, write_impact_csv
+from fmm_ros.core.signal.capture import CaptureConfig, with_trigger
+from fmm_ros.core.signal.records import ImpactRecord, stable_impact_id, write_impact_csv
 from fmm_ros.workflows import session as workflow
 from fmm_ros.workflows.inputs import InputOptions
 from fmm_ros.workflows.results import FrictionResult
@@ -79,3 +81,23 @@ def test_one_session_from_files_to_a_json_summary(records, tmp_path):
     assert refused.friction is not None  # one accepted impact is enough to fit
     none = workflow.process_records(records, options(fit=False))
     assert none.friction is None and none.comparison is None and none.fit_failure == ''
+
+
+def test_records_in_hand_of_one_stream_keep_their_ids_and_files_are_laid_end_to_end(records):
+    """Clockless records that follow each other on one sample axis (a bag's capture) are one
+    input, with the ids the analyzer gave them live (trigger ms since sample 0); records that
+    each start at sample 0 (lab files) are laid end to end, one input after another."""
+    rate = records[0].sample_rate_hz
+    length = max(record.force_n.size for record in records)
+    on_one_axis = [
+        dataclasses.replace(record, record_start_sample_index=k * (length + 1000))
+        for k, record in enumerate(records)
+    ]
+    live = [stable_impact_id(with_trigger(record, CAPTURE)) for record in on_one_axis]
+    assert workflow.impact_ids(on_one_axis, CAPTURE) == live
+    files = workflow.impact_ids(records, CAPTURE)
+    starts_ms = [0]
+    for record in records[:-1]:
+        starts_ms.append(starts_ms[-1] + math.ceil(record.force_n.size / rate * 1000) + 1)
+    alone = [stable_impact_id(with_trigger(record, CAPTURE)) for record in records]
+    assert files == [start + own for start, own in zip(starts_ms, alone, strict=True)]
