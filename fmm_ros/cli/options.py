@@ -228,8 +228,7 @@ def input_options(args: argparse.Namespace, capture: CaptureConfig | None = None
         mapping=mapping_spec(args),
         text_format=text_format(args),
         capture=capture or CaptureConfig(),
-        force_full_scale_n=args.force_full_scale_n,
-        velocity_full_scale_m_s=args.velocity_full_scale_m_s,
+        ranges=SensorRanges(**{name: getattr(args, name) for name in FULL_SCALE_DESTS.values()}),
         continuous=args.continuous,
         level_tolerance_n=recorded_level_tolerance(args) if getattr(args, 'inputs', None) else None,
     )

@@ -64,7 +64,7 @@ def read_hammer_hits(
                 'impacts with their flags)'
             )
         recording = read_lab_file(path, options.mapping, options.text_format, force_only=True)
-        full_scale = options.force_full_scale_n or recording.full_scale_force_n
+        full_scale = options.ranges.force_full_scale_n or recording.full_scale_force_n
         force = recording.force_n
         found.append(
             FileHits(

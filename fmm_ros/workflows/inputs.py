@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, capture_impacts
-from fmm_ros.core.signal.config import AnalysisConfig, NominalLevel
+from fmm_ros.core.signal.config import AnalysisConfig, NominalLevel, SensorRanges
 from fmm_ros.core.signal.judging import Decision, by_trigger
 from fmm_ros.core.signal.records import ImpactRecord, duration_ms, stable_impact_id
 from fmm_ros.core.signal.response import as_measured
@@ -62,8 +62,9 @@ class InputOptions:
     mapping: the channel mapping in its YAML form (`fmm_ros.io.labfiles`), any part left out
     that the files state themselves. text_format: delimiter, decimal, rows to skip, encoding
     of text files (detected when not given). capture: how impacts are cut from bags (and from
-    continuous lab files). force_full_scale_n, velocity_full_scale_m_s: sensor ranges in SI
-    (0: as recorded, or unknown). continuous: each lab file is one recording of several hits.
+    continuous lab files). ranges: the sensors' ranges (`SensorRanges`, 0: as recorded),
+    laid over every record's force and velocity ranges, a bag's too (a lab file's mapping
+    also carries each quantity's own). continuous: each lab file is one recording of hits.
     level_tolerance_n: the tolerance [N] of the levels the bags' analyzer named, which are
     then read (`SessionInputs.levels`); None: they are not.
     """
@@ -71,8 +72,7 @@ class InputOptions:
     mapping: dict = field(default_factory=dict)
     text_format: TextFormat = DETECT
     capture: CaptureConfig = DEFAULT_CAPTURE
-    force_full_scale_n: float = 0.0
-    velocity_full_scale_m_s: float = 0.0
+    ranges: SensorRanges = field(default_factory=SensorRanges)
     continuous: bool = False
     level_tolerance_n: float | None = None
 
@@ -279,9 +279,9 @@ def _on_one_grid(records: list[ImpactRecord], options: InputOptions) -> list[Imp
         dataclasses.replace(
             record,
             window_samples=window,
-            force_full_scale_n=options.force_full_scale_n or record.force_full_scale_n,
+            force_full_scale_n=options.ranges.force_full_scale_n or record.force_full_scale_n,
             velocity_full_scale_m_s=(
-                options.velocity_full_scale_m_s or record.velocity_full_scale_m_s
+                options.ranges.velocity_full_scale_m_s or record.velocity_full_scale_m_s
             ),
         )
         for record in records
