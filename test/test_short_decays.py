@@ -159,6 +159,23 @@ def test_the_method_and_uncertainty_reach_the_json(sessions):
     assert summary.levels[ringing].natural_frequency_method == frf.DFT_PEAK
 
 
+def test_the_method_and_uncertainty_reach_the_messages(sessions):
+    """/fmm/impacts and /fmm/frf_summary say how f_n was found, as the JSON does."""
+    from fmm_ros.ros import msgs  # the message layer (rclpy types), as the analyzer uses it
+
+    _, ringing, _, _, summary = sessions[0]
+    impact = summary.impacts[ringing]
+    message = msgs.impact_result_msg(impact, stamp=msgs.time_msg(0))
+    assert message.natural_frequency_method == frf.DFT_PEAK
+    assert message.natural_frequency_uncertainty_hz == impact.natural_frequency_uncertainty_hz > 0
+    timed = next(i for i in summary.impacts if i.natural_frequency_method == frf.REVERSALS)
+    timed_message = msgs.impact_result_msg(timed, stamp=msgs.time_msg(0))
+    assert timed_message.natural_frequency_method == frf.REVERSALS
+    assert math.isnan(timed_message.natural_frequency_uncertainty_hz)
+    level = msgs.frf_summary_msg(summary.levels[ringing], summary.linearity, stamp=msgs.time_msg(0))
+    assert level.natural_frequency_method == frf.DFT_PEAK
+
+
 def test_a_hit_that_never_reverses_stays_undetermined():
     """Friction so strong that the rig stops before its first reversal: one half swing,
     whose spectrum peaks at DC, not in the band. No f_n, `undetermined`, not accepted."""

@@ -245,6 +245,7 @@ NATURAL_FREQUENCY_METHOD = ResultField(
     " peak of a short ring's spectrum, `frf.dft_peak_frequency`); empty when it was not",
     'f_n from',
     fmt='s',
+    messages=('ImpactResult.natural_frequency_method', 'FrfSummary.natural_frequency_method'),
 )
 NATURAL_FREQUENCY_UNCERTAINTY = ResultField(
     'natural_frequency_uncertainty_hz',
@@ -254,6 +255,7 @@ NATURAL_FREQUENCY_UNCERTAINTY = ResultField(
     ' (`frf.dft_peak_frequency`); NaN for f_n timed by reversals (good to about 1e-3)',
     'f_n uncertainty',
     fmt='.2g',
+    messages=('ImpactResult.natural_frequency_uncertainty_hz',),
 )
 PEAK_RECEPTANCE = ResultField(
     'peak_receptance_m_per_n',
