@@ -51,9 +51,9 @@ def test_a_subcommand_alone_parses_as_in_the_full_parser():
         assert alone[command].format_help() == full[command].format_help()
 
 
-# What `fmm replay` of a clean bag must not import: ROS, the fitting and model numerics, the
-# report, and what only writing a bag or decoding a message needs (a typestore's standard
-# types, the mcap writer).
+# What `fmm replay` of a clean bag must not import: ROS, the fitting and model numerics (the
+# model terms among them), the report, and what only writing a bag or decoding a message needs
+# (a typestore's standard types, the mcap writer).
 NOT_FOR_REPLAY = (
     'rclpy',
     'fmm_interfaces',
@@ -61,6 +61,7 @@ NOT_FOR_REPLAY = (
     'numba',
     'matplotlib',
     'fmm_ros.core.identify.friction',
+    'fmm_ros.core.physics.terms',
     'fmm_ros.report',
     'rosbags.typesys.stores.ros2_jazzy',
     'mcap.writer',
