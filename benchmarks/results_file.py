@@ -71,8 +71,10 @@ def recorded(name: str, *, quick: bool) -> Iterator[None]:
     """Print as usual; a full run that ends without error writes what it printed.
 
     The printout becomes benchmark `name`'s section of RESULTS.md (its tables hold each
-    figure beside its baseline from the same run); quick runs write nothing.
+    figure beside its baseline from the same run); quick runs write nothing, and nor does
+    `--help` (argparse's exit status 0, a usage text and no figures).
     """
+    quick = quick or not {'-h', '--help'}.isdisjoint(sys.argv[1:])
     printed = io.StringIO()
     try:
         with contextlib.redirect_stdout(_Tee(sys.stdout, printed)):

@@ -21,6 +21,7 @@ from fmm_ros.io.bags import (
     fmm_typestore,
     new_message,
 )
+from fmm_ros.io.bags.arrays import layout_types
 from fmm_ros.io.bags.metadata import load_yaml
 
 # A bag holds the names a node in the root namespace resolves the relative topics to.
@@ -169,14 +170,26 @@ def test_bags_with_the_same_definitions_share_a_typestore_and_each_hears_of_a_ba
     with BagReader(bag) as first, BagReader(bag) as second:
         assert first.typestore is second.typestore  # parsed once for every bag a recorder wrote
         assert SAMPLE_BATCH in first.typestore.fielddefs and first.problems == []
-        bad = {SAMPLE_BATCH: 'float64[ samples'}
-        stores = [reader._typestore(bad) for reader in (first, second)]
-        assert stores[0] is stores[1] is fmm_typestore()  # this installation's, as before
-        for reader in (first, second):  # the cached store's problem told to every reader
+        for reader in (first, second):
+            reader._read_definitions({SAMPLE_BATCH: 'float64[ samples'})
+        assert first.typestore is second.typestore is fmm_typestore()  # this installation's
+        for reader in (first, second):  # the cached parse's problem told to every reader
             assert [
                 f'the definition of {SAMPLE_BATCH} in the bag cannot be' in p
                 for p in reader.problems
             ] == [True]
         for reader in (first, second):  # a standard type redefined is refused every time
+            reader._read_definitions({'std_msgs/msg/Header': 'int32 seq'})
             with pytest.raises(BagError, match='defines a standard type differently'):
-                reader._typestore({'std_msgs/msg/Header': 'int32 seq'})
+                reader.decode(next(reader.messages()))
+
+
+def test_the_whole_read_parses_the_layout_of_this_installations_sample_batch():
+    """The layout a clean recording is read whole by (arrays.LAYOUT_MSG, declared there so
+    replay builds no typestore) is fmm_interfaces' SampleBatch and ROS 2's Header and Time."""
+    own = fmm_typestore().fielddefs
+    layout = layout_types()
+    assert sorted(layout) == sorted(
+        [SAMPLE_BATCH, 'std_msgs/msg/Header', 'builtin_interfaces/msg/Time']
+    )
+    assert {name: own[name] for name in layout} == layout

@@ -1,4 +1,5 @@
-"""`fmm --help` answers at once: the parsers import no numerics.
+"""`fmm --help` answers at once: the parsers import no numerics, and a command builds only its
+own parser.
 
 A structural test, not a timed one (benchmarks/bench_cli.py times it): a fresh interpreter
 builds every subcommand's help and the modules it imported are listed.
@@ -9,7 +10,7 @@ import sys
 
 import pytest
 
-from fmm_ros.cli import build_parser
+from fmm_ros.cli import SUBCOMMANDS, build_parser
 
 HEAVY = ('numpy', 'scipy', 'numba', 'matplotlib', 'rclpy', 'dask', 'rosbags', 'pandas')
 
@@ -36,3 +37,13 @@ def test_no_help_imports_numerics():
     ).stdout.split()
     assert 'fmm_ros' in imported
     assert [name for name in HEAVY if name in imported] == []
+
+
+def test_a_subcommand_alone_parses_as_in_the_full_parser():
+    """`fmm COMMAND ...` builds only COMMAND's parser: the same parser as the full one has."""
+    full = build_parser()._subparsers._group_actions[0].choices
+    assert sorted(full) == sorted(SUBCOMMANDS)
+    for command in SUBCOMMANDS:
+        alone = build_parser(command)._subparsers._group_actions[0].choices
+        assert list(alone) == [command]
+        assert alone[command].format_help() == full[command].format_help()

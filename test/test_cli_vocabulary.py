@@ -236,8 +236,8 @@ def _imports(path: Path) -> set[str]:
 
 
 def test_no_subcommand_imports_another():
-    commands = {f'fmm_ros.cli.{name}' for name in SUBCOMMANDS}
-    for name in SUBCOMMANDS:
+    commands = {f'fmm_ros.cli.{name}' for name in SUBCOMMANDS.values()}
+    for name in SUBCOMMANDS.values():
         path = REPO / 'fmm_ros' / 'cli' / f'{name}.py'
         others = _imports(path) & (commands - {f'fmm_ros.cli.{name}'})
         assert others == set(), f'cli/{name}.py imports {others}'

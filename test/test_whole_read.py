@@ -19,7 +19,8 @@ from fmm_ros.constants import FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC
 from fmm_ros.core.signal.analysis import AnalysisConfig, analyze_impact, paper_levels, summarize
 from fmm_ros.core.signal.capture import CaptureConfig, ImpactCapture
 from fmm_ros.core.signal.records import stable_impact_id
-from fmm_ros.io.bags import BagReader, BagWriter
+from fmm_ros.io.bags import SAMPLE_BATCH, BagReader, BagWriter
+from fmm_ros.io.bags.arrays import LAYOUT_MSG
 from fmm_ros.sim.session import simulated_session, write_session_bag
 from fmm_ros.workflows.replay import Fed, bag_impact_records, capture_records, replay_bag
 from fmm_ros.workflows.session import analyse, impact_ids
@@ -200,6 +201,16 @@ def test_a_bag_that_is_not_clean_is_read_batch_by_batch(session, tmp_path, case)
     assert {q: v.to_dict() for q, v in replay.ledger.items()} == {
         q: v.to_dict() for q, v in ledger.items()
     }
+
+
+def test_a_bag_that_defines_the_layout_otherwise_is_read_batch_by_batch(session_bag):
+    """A SampleBatch the bag defines with other fields is not parsed by the whole read, and
+    the clean bag's own definitions build no typestore on the way (replay's start-up)."""
+    with BagReader(session_bag) as reader:
+        assert reader.channel_arrays() is not None and reader._typestore is None
+        narrower = LAYOUT_MSG.replace('float64 full_scale', 'float32 full_scale')
+        reader._read_definitions({SAMPLE_BATCH: narrower})
+        assert reader.problems == [] and reader.channel_arrays() is None
 
 
 def test_a_sqlite3_bag_is_read_batch_by_batch(session, tmp_path):

@@ -15,7 +15,6 @@ from typing import TYPE_CHECKING
 
 from fmm_ros.constants import MM_PER_M, RECEPTANCE_DISPLAY_UNIT
 from fmm_ros.core import results_schema as schema
-from fmm_ros.core.diagnose.vocabulary import NONE
 from fmm_ros.core.results_schema import ASCII_PM, label
 from fmm_ros.core.results_schema import format_with_uncertainty as pm
 
@@ -148,6 +147,7 @@ def friction_text(result: FrictionResult) -> str:
 
 def diagnosis_text(payload: dict, impacts: int, figures: Sequence[Path] = ()) -> str:
     """The short tables a person reads in half a minute, from `diagnosis_dict` (or a service's)."""
+    from fmm_ros.core.diagnose.vocabulary import NONE  # the model terms: not for a replay
     from fmm_ros.workflows.results import detection_limit_text  # numpy: not at CLI start-up
 
     result = payload

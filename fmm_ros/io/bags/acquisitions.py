@@ -9,15 +9,20 @@ sample index, sample count, source) as JSON, and replay ends the capture's acqui
 each boundary (`ImpactCapture.end_acquisition`). A bag without the key is one acquisition.
 """
 
+from __future__ import annotations
+
 import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import yaml
 
 from fmm_ros.errors import BadInputError
 from fmm_ros.io.bags.metadata import load_yaml
-from fmm_ros.io.bags.writer import BagWriter
+
+if TYPE_CHECKING:  # the writer (and the mcap library's) only where a joined bag is written
+    from fmm_ros.io.bags.writer import BagWriter
 
 ACQUISITIONS_KEY = 'fmm.acquisitions'
 

@@ -25,27 +25,48 @@ sample_rate_hz, uint64 first_sample_index, float64 full_scale, uint32 count, flo
 
 from __future__ import annotations
 
+import functools
 import mmap
 import struct
 import zlib
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from rosbags.typesys import get_types_from_msg
 
 from fmm_ros.constants import FORCE, VELOCITY
 from fmm_ros.core._threads import in_background
 from fmm_ros.core.signal.stream import StreamRules
-from fmm_ros.io.bags.definitions import SAMPLE_BATCH, fmm_typestore
+from fmm_ros.io.bags.definitions import SAMPLE_BATCH
 from fmm_ros.io.bags.mcapscan import CHANNEL, CHUNK, DATA_END, MAGIC, MESSAGE, _parse_channel
 from fmm_ros.units import sample_si_factor
 
 _RECORD_HEAD = struct.Struct('<BQ')
 _CHUNK_HEAD = struct.Struct('<QQQI')  # start time, end time, uncompressed size, crc32
-# Types whose definitions fix the CDR layout parsed here.
 # The `quantity` each channel's batches carry (what replay counts signal seconds by).
 QUANTITIES = (FORCE.quantity, VELOCITY.quantity)
-_LAYOUT_TYPES = (SAMPLE_BATCH, 'std_msgs/msg/Header', 'builtin_interfaces/msg/Time')
+# The layout parsed here, as a bag embeds it (SampleBatch, then the standard types in it).
+# Declared, not taken from a typestore, which would cost a replay a quarter of a second of
+# start-up to build; test_bagio holds it to fmm_interfaces' SampleBatch and ROS 2's types.
+LAYOUT_MSG = """\
+std_msgs/Header header
+string quantity
+string unit
+float64 sample_rate_hz
+uint64 first_sample_index
+float64 full_scale
+float64[] samples
+================================================================================
+MSG: std_msgs/Header
+builtin_interfaces/Time stamp
+string frame_id
+================================================================================
+MSG: builtin_interfaces/Time
+int32 sec
+uint32 nanosec
+"""
 # What `_batch_layout` reports per message (int64 columns).
 _FIRST, _COUNT, _SAMPLES_AT, _FRAME_AT, _FRAME_LEN, _QUANTITY_AT, _QUANTITY_LEN = range(7)
 _RATE_AT, _SCALE_AT, _BAD, _UNIT_AT, _UNIT_LEN = range(7, 12)
@@ -84,16 +105,22 @@ class ChannelArrays:
         return float(np.cumsum(counts / self.sample_rate_hz)[-1]) if counts.size else 0.0
 
 
+@functools.cache
+def layout_types() -> dict:
+    """The rosbags field definitions of the layout parsed here (`LAYOUT_MSG`), by type name."""
+    return get_types_from_msg(LAYOUT_MSG, SAMPLE_BATCH)
+
+
 def read_channel_arrays(
-    storage_file: Path, topics: tuple[str, str], typestore, rules: StreamRules
+    storage_file: Path, topics: tuple[str, str], embedded: Mapping, rules: StreamRules
 ) -> ChannelArrays | None:
     """Both channels of an intact MCAP file read whole, or None if it is not a clean recording.
 
-    topics: the force and the velocity topic, as stored. typestore: the definitions the bag
-    is decoded with (its own, else ours): another SampleBatch layout is not parsed here.
+    topics: the force and the velocity topic, as stored. embedded: the field definitions the
+    bag carries (a type it does not define is decoded with this installation's, which are
+    the layout's): another SampleBatch layout is not parsed here.
     """
-    own = fmm_typestore().fielddefs
-    if any(typestore.fielddefs.get(name) != own[name] for name in _LAYOUT_TYPES):
+    if any(embedded.get(name, fields) != fields for name, fields in layout_types().items()):
         return None
     if storage_file.stat().st_size <= len(MAGIC):
         return None

@@ -122,15 +122,14 @@ class AlignedBatch:
         return self.first_sample_index + len(self.force)
 
 
-@functools.lru_cache(maxsize=16)
-def _embedded_typestore(
-    definitions: tuple[tuple[str, str], ...],
-) -> tuple[Typestore, tuple[str, ...]]:
-    """The typestore of a bag's embedded definitions ((msgtype, text) pairs), and the problems.
+Definitions = tuple[tuple[str, str], ...]  # a bag's embedded (msgtype, .msg text) pairs
 
-    Parsing and registering the definitions took ~20 ms a bag opened, the same for every bag
-    a recorder wrote: bags with the same definitions share one store (only read from).
-    Raises TypesysError for a standard type defined differently (never kept).
+
+@functools.lru_cache(maxsize=16)
+def _embedded_types(definitions: Definitions) -> tuple[dict, tuple[str, ...]]:
+    """The rosbags field definitions a bag embeds (its (msgtype, text) pairs), and the problems.
+
+    Parsed only, no typestore: a few milliseconds, cached for every bag a recorder wrote.
     """
     embedded: dict = {}
     problems = []
@@ -143,13 +142,25 @@ def _embedded_typestore(
                     f'the definition of {msgtype} in the bag cannot be '
                     f"parsed ({error}); using this installation's"
                 )
+    return embedded, tuple(problems)
+
+
+@functools.lru_cache(maxsize=16)
+def _embedded_typestore(definitions: Definitions) -> Typestore:
+    """The typestore of a bag's embedded definitions, this installation's for the rest.
+
+    Registering the definitions took ~20 ms a bag opened, the same for every bag a recorder
+    wrote: bags with the same definitions share one store (only read from).
+    Raises TypesysError for a standard type defined differently (never kept).
+    """
+    embedded, _ = _embedded_types(definitions)
     if not embedded:
-        return fmm_typestore(), tuple(problems)
+        return fmm_typestore()
     store = get_typestore(BASE_STORE)
     own = fmm_typestore().fielddefs
     store.register(embedded)
     store.register({name: own[name] for name in own.keys() - store.fielddefs.keys()})
-    return store, tuple(problems)
+    return store
 
 
 class BagReader:
@@ -169,7 +180,8 @@ class BagReader:
         self._scan: McapScan | SqliteScan | None = None
         self._topics: dict[str, TopicInfo] = {}
         self._messages_read = 0
-        self.typestore = fmm_typestore()
+        self._definitions: Definitions = ()  # the bag's embedded ones (none: this installation's)
+        self._typestore: Typestore | None = None
         # What batches() counted per channel (taken, missing, refused): filled as it reads.
         self.ledger: dict[str, ChannelLedger] = {}
         # From metadata.yaml: rosbag2's custom_data, the ROS distribution, and the ledger the
@@ -215,7 +227,7 @@ class BagReader:
                 conn.topic: TopicInfo(conn.topic, conn.msgtype, conn.msgcount)
                 for conn in self._reader.connections
             }
-            self.typestore = self._typestore(
+            self._read_definitions(
                 {
                     conn.msgtype: (
                         conn.msgdef.data
@@ -279,18 +291,35 @@ class BagReader:
             msgtype = schema.name if schema else ''
             msgtypes[msgtype] = schema.data if schema and schema.encoding == 'ros2msg' else ''
             self._topics[channel.topic] = TopicInfo(channel.topic, msgtype, counts[channel.topic])
-        self.typestore = self._typestore(msgtypes)
+        self._read_definitions(msgtypes)
 
-    def _typestore(self, definitions: dict[str, str]):
-        """A typestore from the bag's embedded definitions, else this installation's."""
-        try:
-            store, problems = _embedded_typestore(tuple(sorted(definitions.items())))
-        except TypesysError as error:
-            raise BagError(
-                f'bag {self.path} defines a standard type differently: {error}'
-            ) from None
-        self.problems += problems
-        return store
+    def _read_definitions(self, definitions: dict[str, str]) -> None:
+        """Take the bag's embedded definitions (msgtype -> .msg text, '' for none) to decode by.
+
+        A definition that cannot be parsed is a problem now; the typestore waits for the
+        first message decoded (`typestore`).
+        """
+        self._definitions = tuple(sorted(definitions.items()))
+        self._typestore = None
+        self.problems += _embedded_types(self._definitions)[1]
+
+    @property
+    def typestore(self) -> Typestore:
+        """What messages are decoded with: the bag's embedded definitions, else this installation's.
+
+        Built on first use, not on opening: a typestore imports and registers rosbags' ROS 2
+        standard types (a quarter of a second), which a clean recording read whole
+        (`channel_arrays`) never needs. BagError when the bag defines a standard type
+        differently.
+        """
+        if self._typestore is None:
+            try:
+                self._typestore = _embedded_typestore(self._definitions)
+            except TypesysError as error:
+                raise BagError(
+                    f'bag {self.path} defines a standard type differently: {error}'
+                ) from None
+        return self._typestore
 
     def close(self) -> None:
         """Release the storage file."""
@@ -482,7 +511,8 @@ class BagReader:
             return None
         from fmm_ros.io.bags.arrays import read_channel_arrays
 
-        return read_channel_arrays(self._storage_file, topics, self.typestore, rules)
+        embedded, _ = _embedded_types(self._definitions)
+        return read_channel_arrays(self._storage_file, topics, embedded, rules)
 
     def channel(self, topic: str) -> Iterator[ChannelBatch]:
         """Every SampleBatch of one channel topic, in storage order."""
