@@ -22,7 +22,7 @@ the longest window. A full scale given here replaces a recorded one.
 Impact ids are trigger times on one session axis (`schema.IMPACT_ID`): a bag's hits keep its
 acquisition clock; inputs without one (lab files, bags written without a clock) are laid end
 to end in the order given, each starting on the next ms after the previous one ended
-(`_on_session_axis`), so their hits' ids differ, and depend on that order.
+(`on_session_axis`), so their hits' ids differ, and depend on that order.
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ import numpy as np
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, capture_impacts
 from fmm_ros.core.signal.config import AnalysisConfig, NominalLevel, SensorRanges
 from fmm_ros.core.signal.judging import Decision, by_trigger
-from fmm_ros.core.signal.records import ImpactRecord, duration_ms, stable_impact_id
+from fmm_ros.core.signal.records import ImpactRecord, on_session_axis, stable_impact_id
 from fmm_ros.core.signal.response import as_measured
 from fmm_ros.errors import BadInputError, FmmError
 from fmm_ros.io import sniff
@@ -132,7 +132,7 @@ def read_inputs(
             with BagReader(path, strict=False) as reader:
                 found, damage = reader_impact_records(reader, options.capture)
                 problems += [f'{path}: {problem}' for problem in damage]
-                found, axis_ms = _on_session_axis(_some(found, path, options.capture), axis_ms)
+                found, axis_ms = on_session_axis(_some(found, path, options.capture), axis_ms)
                 records += found
                 judged, lost = _bag_decisions(reader, found)
                 decisions.update(judged)
@@ -153,7 +153,7 @@ def read_inputs(
             found = _some(_cut(recording, options.capture), path, options.capture)
         else:
             found = [_one_impact(recording, options.capture)]
-        found, axis_ms = _on_session_axis(found, axis_ms)
+        found, axis_ms = on_session_axis(found, axis_ms)
         records += found
     return SessionInputs(
         _on_one_grid(records, options),
@@ -164,24 +164,6 @@ def read_inputs(
         infos,
         nominal_levels(levels, options.level_tolerance_n) if levels else (),
     )
-
-
-def _on_session_axis(records: list[ImpactRecord], start_ms: int) -> tuple[list[ImpactRecord], int]:
-    """One input's records with those lacking an acquisition clock started at start_ms.
-
-    Returns them and where the next such input starts: the ms after this one's last sample
-    (`duration_ms`; start_ms again when all its records have a clock of their own).
-    """
-    clockless = [record for record in records if record.acquisition_origin_s is None]
-    if not clockless:
-        return records, start_ms
-    placed = [
-        record
-        if record.acquisition_origin_s is not None
-        else dataclasses.replace(record, acquisition_origin_s=start_ms / 1000)
-        for record in records
-    ]
-    return placed, start_ms + duration_ms(clockless)
 
 
 def _bag_decisions(

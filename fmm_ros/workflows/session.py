@@ -40,7 +40,7 @@ from fmm_ros.core.signal.analysis import (
 )
 from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, CaptureConfig, with_trigger
 from fmm_ros.core.signal.judging import Decision
-from fmm_ros.core.signal.records import ImpactRecord, duration_ms, stable_impact_id
+from fmm_ros.core.signal.records import ImpactRecord, on_session_axis, stable_impact_id
 from fmm_ros.errors import BadInputError, FitError, SelectionError
 from fmm_ros.io.session_info import SessionInfo
 from fmm_ros.workflows.inputs import DEFAULT_INPUTS, InputOptions, Progress, read_inputs
@@ -168,10 +168,7 @@ class SessionResult:
     @property
     def records_by_id(self) -> dict[int, ImpactRecord]:
         """Each record under its impact's id."""
-        return {
-            impact.impact_id: record
-            for impact, record in zip(self.summary.impacts, self.records, strict=True)
-        }
+        return _by_id(self.summary, self.records)
 
     @property
     def model(self) -> ModelOverlay | None:
@@ -234,6 +231,13 @@ def analyse(
     return summarize(list(thread_imap(analysed, numbered(), threads)), analysis, decisions)
 
 
+def _by_id(summary: Summary, records: Sequence[ImpactRecord]) -> dict[int, ImpactRecord]:
+    """records[i], impact i of summary, under that impact's id."""
+    return {
+        impact.impact_id: record for impact, record in zip(summary.impacts, records, strict=True)
+    }
+
+
 def impact_ids(
     records: Sequence[ImpactRecord], capture: CaptureConfig = DEFAULT_CAPTURE
 ) -> list[int]:
@@ -247,18 +251,14 @@ def impact_ids(
     Raises BadInputError naming both inputs when two hits would share an id: merged, one
     would take the other's decisions, fit and report entries.
     """
+    placed: list[ImpactRecord] = []
+    axis_ms = 0  # where the next clockless input starts
+    for one_input in _inputs_in_hand(records):
+        one_input, axis_ms = on_session_axis(one_input, axis_ms)
+        placed += one_input
     ids: list[int] = []
     seen: dict[int, str] = {}
-    axis_ms = 0  # where the next clockless input starts
-    input_ms = 0  # where the current clockless input started
-    last: ImpactRecord | None = None  # the current clockless input's last record
-    for record in records:
-        if record.acquisition_origin_s is None:
-            if last is None or not _follows(record, last):
-                input_ms = axis_ms
-            last = record
-            record = dataclasses.replace(record, acquisition_origin_s=input_ms / 1000)
-            axis_ms = max(axis_ms, input_ms + duration_ms([record]))
+    for record in placed:
         impact_id = stable_impact_id(with_trigger(record, capture))
         if impact_id in seen:
             raise BadInputError(
@@ -269,6 +269,23 @@ def impact_ids(
         seen[impact_id] = record.source
         ids.append(impact_id)
     return ids
+
+
+def _inputs_in_hand(records: Sequence[ImpactRecord]) -> list[list[ImpactRecord]]:
+    """Records in hand cut into the inputs `on_session_axis` places one after another.
+
+    A new input starts at each clockless record that does not follow the last clockless one
+    (`_follows`); a record with a clock joins the current input, which leaves it as it is.
+    """
+    inputs: list[list[ImpactRecord]] = [[]]
+    last: ImpactRecord | None = None  # the last clockless record
+    for record in records:
+        if record.acquisition_origin_s is None:
+            if last is not None and not _follows(record, last):
+                inputs.append([])
+            last = record
+        inputs[-1].append(record)
+    return inputs
 
 
 def _follows(record: ImpactRecord, last: ImpactRecord) -> bool:
@@ -379,7 +396,7 @@ def process_records(
         raise BadInputError('a session needs at least one impact record')
     capture = options.inputs.capture
     summary = analyse(records, capture, options.analysis, decisions=decisions, progress=progress)
-    by_id = dict(zip((impact.impact_id for impact in summary.impacts), records, strict=True))
+    by_id = _by_id(summary, records)
     selection, refusal = _selection_and_refusal(summary, options, decisions)
     if friction is None and not fit_failure and options.mu is None and options.fit:
         try:

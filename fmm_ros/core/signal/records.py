@@ -10,6 +10,7 @@ diagnosis tools all take.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -157,6 +158,26 @@ def duration_ms(records: Sequence[ImpactRecord]) -> int:
         for record in records
     )
     return math.ceil(end_s * 1000) + 1
+
+
+def on_session_axis(
+    records: Sequence[ImpactRecord], start_ms: int
+) -> tuple[list[ImpactRecord], int]:
+    """One input's records with those lacking an acquisition clock started at start_ms.
+
+    Returns them and where the next such input starts: the ms after this one's last sample
+    (`duration_ms`; start_ms again when all its records have a clock of their own).
+    """
+    clockless = [record for record in records if record.acquisition_origin_s is None]
+    if not clockless:
+        return list(records), start_ms
+    placed = [
+        record
+        if record.acquisition_origin_s is not None
+        else dataclasses.replace(record, acquisition_origin_s=start_ms / 1000)
+        for record in records
+    ]
+    return placed, start_ms + duration_ms(clockless)
 
 
 def read_impact_csv(path: str | Path) -> ImpactRecord:
