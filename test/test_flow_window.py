@@ -16,7 +16,7 @@ from rig_graph import params, wait_for
 
 from fmm_interfaces.msg import SampleBatch, StreamProgress
 from fmm_ros.constants import STREAM_PROGRESS_TOPIC
-from fmm_ros.ros.flow import SILENT_AFTER_S, FlowGate, PacedSource
+from fmm_ros.ros.flow import SILENT_AFTER_S, FlowGate, PacedSource, ProgressReporter
 from fmm_ros.ros.nodes.analyzer import Analyzer
 from fmm_ros.ros.qos import PROGRESS_LISTEN_QOS, PROGRESS_QOS, SAMPLE_QOS
 
@@ -86,6 +86,36 @@ def test_a_consumer_reports_its_own_max_skew(ros_graph):
     ros_graph.start()
     assert wait_for(lambda: any(m.node == '/analyzer' for m in reports.heard), 10.0)
     assert {m.max_skew_s for m in reports.heard if m.node == '/analyzer'} == {3.0}
+
+
+def test_a_consumer_that_pairs_its_channels_reports_both_at_the_slower_one(ros_graph):
+    """Force straight from the hammer, velocity through rig_sim: the hammer holds for the pair.
+
+    Reported per channel, the force could run the hammer's window ahead of the velocity and
+    rig_sim's window more, past the consumer's max_skew_s (it then declares samples missing).
+    """
+    pairing = ros_graph.add(Node, node_name='pairing')
+    single = ros_graph.add(Node, node_name='single')
+    reports = ros_graph.add(Reports)
+    topics = ['/fmm/force', '/fmm/velocity']
+    paired = ProgressReporter(pairing, topics, max_skew_s=5.0)
+    unpaired = ProgressReporter(single, topics)
+    ros_graph.start()
+
+    def last(node: str) -> dict[str, int]:
+        heard = [m for m in reports.heard if m.node == node]
+        if not heard:
+            return {}
+        return dict(zip(heard[-1].topics, heard[-1].next_sample_indices, strict=True))
+
+    for reporter in (paired, unpaired):
+        reporter.update('/fmm/force', 68_000)
+    # A channel not begun yet holds nothing back (a force-only rig still runs).
+    assert wait_for(lambda: last('/pairing') == {'/fmm/force': 68_000, '/fmm/velocity': -1})
+    for reporter in (paired, unpaired):
+        reporter.update('/fmm/velocity', 20_000)
+    assert wait_for(lambda: last('/pairing') == {'/fmm/force': 20_000, '/fmm/velocity': 20_000})
+    assert wait_for(lambda: last('/single') == {'/fmm/force': 68_000, '/fmm/velocity': 20_000})
 
 
 def progress(node: str, topic: str, index: int) -> StreamProgress:

@@ -103,6 +103,9 @@ def test_a_rig_started_in_any_order_records_every_sample_it_sent(tmp_path, domai
         entry = ledger[topic]
         assert entry.acquisitions == [[0, sent]], (topic, entry.summary())
         assert (entry.missing_samples, entry.refused_batches, entry.resyncs) == (0, 0, 0)
+    for name in ('rig_sim', 'analyzer', 'fitter'):  # each consumer took every sample too
+        stopped = re.findall(r'stopped: .*', (tmp_path / f'{name}.log').read_text())
+        assert stopped and all(', 0 missing, 0 batches' in line for line in stopped), stopped
     if first == 'sources':
         assert 'holding the first sample' in (tmp_path / 'hammer_sim.log').read_text()
 

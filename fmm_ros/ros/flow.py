@@ -101,6 +101,14 @@ class ProgressReporter:
         consumers). max_skew_s: how far its channels may part before it counts samples
         missing (its `StreamRules.max_skew_s`; 0 when it pairs none), which caps the
         sources' flow window (`PacedSource.window_now`).
+
+        A node that pairs its channels (max_skew_s > 0) reports every channel it has begun
+        at the slowest one's index. Each source then runs at most its window ahead of the
+        pair, not of its own channel: hammer_sim's force reaches the fitter directly while
+        the velocity comes through rig_sim, and per-channel reports let the force run two
+        windows ahead of the velocity (hammer_sim's and rig_sim's). Measured on a loaded
+        machine, rig started consumers first: the fitter declared 10,000 velocity samples
+        missing past its 5 s skew and refused them when they came.
         """
         self._node = node
         self._name = node.get_fully_qualified_name()
@@ -169,12 +177,21 @@ class ProgressReporter:
         message = StreamProgress()
         message.node = self._name
         message.topics = list(self._next)
-        message.next_sample_indices = list(self._next.values())
+        message.next_sample_indices = self._reported_indices()
         message.max_skew_s = self._max_skew_s
         self._publisher.publish(message)
         self._reported = dict(self._next)
         self._last_report = time.monotonic()
         self._changed = False
+
+    def _reported_indices(self) -> list[int]:
+        """Each topic's next index as reported: the slowest begun one's, when channels pair."""
+        indices = list(self._next.values())
+        begun = [index for index in indices if index >= 0]
+        if self._max_skew_s <= 0 or not begun:
+            return indices
+        slowest = min(begun)
+        return [slowest if index >= 0 else index for index in indices]
 
 
 class FlowGate:
