@@ -22,7 +22,13 @@ import numpy as np
 from rclpy.node import Node
 
 from fmm_interfaces.msg import SampleBatch
-from fmm_ros.constants import APPLIED_FORCE_TOPIC, FORCE, VELOCITY, VELOCITY_TOPIC
+from fmm_ros.constants import (
+    APPLIED_FORCE_TOPIC,
+    FORCE,
+    SAMPLE_RATE_HZ,
+    VELOCITY,
+    VELOCITY_TOPIC,
+)
 from fmm_ros.core.physics.model import OscillatorStream
 from fmm_ros.core.physics.rig import PlantRun
 from fmm_ros.core.physics.terms import parse_model_term
@@ -107,6 +113,11 @@ class RigSim(Node):
         self.rig = rig_from_parameters(cfg)
         self.effects = tuple(parse_model_term(text) for text in cfg['effects'] if text.strip())
         self._plant: OscillatorStream | None = None
+        # The plant's kernels compile (or load from numba's cache) here, before any consumer
+        # hears of the node. Compiled on the first batch instead, on a fresh install with both
+        # cores busy, the plant fell silent for 20 s mid-stream: the hammer stopped waiting
+        # for it and the analyzer and fitter declared the late velocity missing.
+        self._new_plant(SAMPLE_RATE_HZ).step(np.zeros(2))
         self.next_index = 0
         self._velocity = np.empty(0)
         self._chain = chain_from_parameters(cfg, 'm_s')
@@ -204,16 +215,20 @@ class RigSim(Node):
 
     def begin(self, sample_rate_hz: float, first_index: int) -> None:
         """An acquisition begins: the plant starts at rest at its first index."""
-        self._plant = OscillatorStream(
+        self._plant = self._new_plant(sample_rate_hz)
+        self.next_index = first_index
+        self._chain_stream = ChainStream(self._chain, sample_rate_hz, seed=self.config['seed'])
+        self.gate.begin(first_index)
+
+    def _new_plant(self, sample_rate_hz: float) -> OscillatorStream:
+        """The configured plant at rest."""
+        return OscillatorStream(
             sample_rate_hz,
             rig=self.rig,
             mu=self.config['mu'],
             effects=self.effects,
             integrator=self.config['integrator'],
         )
-        self.next_index = first_index
-        self._chain_stream = ChainStream(self._chain, sample_rate_hz, seed=self.config['seed'])
-        self.gate.begin(first_index)
 
     def end(self, reason: str) -> None:
         """The acquisition the plant follows has ended (a new one began)."""
