@@ -1,5 +1,8 @@
 """Launch scripts: the simulated rig as separate `ros2 run`-style processes, and overrides."""
 
+import signal
+import subprocess
+import sys
 import threading
 
 import pytest
@@ -91,3 +94,34 @@ def test_wait_for_log_sees_a_line_written_later_and_times_out_on_one_never_writt
         timer.join()
     assert not wait_for_log(tmp_path, 'hammer_sim', 'stopped', 0.3)
     assert not wait_for_log(tmp_path, 'rig_sim', 'starting', 0.3)
+
+
+SLOW_STOP = """
+import signal, sys, time
+def stop(*_):
+    time.sleep(float(sys.argv[1]))
+    sys.exit(0)
+signal.signal(signal.SIGINT, stop)
+print('up', flush=True)
+time.sleep(60)
+"""
+
+
+def test_each_node_escalates_on_its_own_clock_so_the_last_stage_keeps_its_grace():
+    """Three stages, each slow to stop: the last node still gets the whole SIGTERM timeout.
+
+    Counted from the first signal, the fitter (signalled 2.8 s in, 4 s to stop) was killed.
+    """
+    nodes = ['hammer_sim', 'rig_sim', 'analyzer', 'fitter']
+    stop_s = [1.4, 1.4, 1.4, 4.0]  # the last stage: analyzer, fitter
+    processes = [
+        subprocess.Popen([sys.executable, '-c', SLOW_STOP, str(s)], stdout=subprocess.PIPE)
+        for s in stop_s
+    ]
+    for process in processes:
+        assert process.stdout.readline() == b'up\n'
+    assert stop_processes(processes, nodes=nodes) == [0, 0, 0, 0]
+    # One that never stops on SIGINT still gets SIGTERM (default action: it dies).
+    stubborn = subprocess.Popen([sys.executable, '-c', SLOW_STOP, '60'], stdout=subprocess.PIPE)
+    assert stubborn.stdout.readline() == b'up\n'
+    assert stop_processes([stubborn], sigterm_timeout_s=0.5) == [-signal.SIGTERM]

@@ -11,11 +11,11 @@ sample until they are there.
 Signals, as a process manager sends them: SIGINT (Ctrl-C), SIGTERM (systemd, docker stop,
 ros2 launch's escalation) and SIGHUP (a closed terminal) are handled explicitly, also when
 the launcher was started with SIGINT ignored (a script's background job inherits SIG_IGN).
-The signal is forwarded to every node; a node still running after `SIGTERM_TIMEOUT_S` gets
-SIGTERM, after `SIGKILL_TIMEOUT_S` more SIGKILL, as ros2 launch escalates. Each node runs in
-a session of its own (a Ctrl-C reaches it once, through the launcher) with the parent-death
-signal set to SIGTERM (Linux prctl), so even a launcher killed with SIGKILL takes its nodes
-with it: they close their bags and exit.
+The signal is forwarded to every node; a node still running `SIGTERM_TIMEOUT_S` after its
+signal gets SIGTERM, after `SIGKILL_TIMEOUT_S` more SIGKILL, as ros2 launch escalates.
+Each node runs in a session of its own (a Ctrl-C reaches it once, through the launcher)
+with the parent-death signal set to SIGTERM (Linux prctl), so even a launcher killed with
+SIGKILL takes its nodes with it: they close their bags and exit.
 """
 
 import ctypes
@@ -38,9 +38,9 @@ SIMULATED_RIG = ('hammer_sim', 'rig_sim', 'analyzer', 'fitter', 'recorder')
 REAL_RIG = ('daq', 'analyzer', 'fitter', 'recorder')
 STATION = 'station'
 """The operator's page: added to a rig by the launch scripts' --station."""
-# Escalation after the forwarded signal, as ros2 launch's defaults [s] (kept under 10 s in
-# all: what a process manager waits before it kills); each stage of the ordered stop may
-# take STAGE_TIMEOUT_S of the first.
+# Escalation after the forwarded signal, each node's counted from its own, as ros2 launch's
+# defaults [s]; each stage of the ordered stop waits at most STAGE_TIMEOUT_S before the next
+# is signalled (the simulated rig: three stages, at most 3 + 5 + 4 s in all).
 SIGTERM_TIMEOUT_S = 5.0
 SIGKILL_TIMEOUT_S = 4.0
 STAGE_TIMEOUT_S = 1.5
@@ -246,25 +246,31 @@ def stop_processes(
     """Stop the nodes; their exit codes.
 
     signum goes to the sources first, then (each stage given up to STAGE_TIMEOUT_S) to what
-    they feed, when the node names are known; SIGTERM then goes to those still running after
-    sigterm_timeout_s, SIGKILL after sigkill_timeout_s more, as ros2 launch escalates.
+    they feed, when the node names are known. A node still running sigterm_timeout_s after
+    its own signal gets SIGTERM, and SIGKILL sigkill_timeout_s after that, as ros2 launch
+    escalates each process on its own clock. Counted from the first signal instead, the
+    last stage (analyzer, fitter and recorder, after hammer_sim's and rig_sim's) kept as
+    little as 2 s of the 5: a loaded fitter finishing its live fits was killed.
     """
     stages = stop_order(nodes) if nodes else [list(range(len(processes)))]
+    signalled: dict[int, float] = {}  # position: when it was last signalled [monotonic s]
     for stage in stages:
-        running = [processes[k] for k in stage if processes[k].poll() is None]
-        for process in running:
-            process.send_signal(signum)
-        _wait_all(running, STAGE_TIMEOUT_S if len(stages) > 1 else sigterm_timeout_s)
-    for escalation, timeout_s in ((signal.SIGTERM, sigkill_timeout_s), (signal.SIGKILL, 10.0)):
-        running = [process for process in processes if process.poll() is None]
-        if not running:
-            break
-        if escalation == signal.SIGTERM and len(stages) > 1:
-            _wait_all(running, sigterm_timeout_s - STAGE_TIMEOUT_S * (len(stages) - 1))
-            running = [process for process in running if process.poll() is None]
-        for process in running:
-            process.send_signal(escalation)
-        _wait_all(running, timeout_s)
+        running = [k for k in stage if processes[k].poll() is None]
+        for k in running:
+            processes[k].send_signal(signum)
+            signalled[k] = time.monotonic()
+        if len(stages) > 1:
+            _wait_all([processes[k] for k in running], STAGE_TIMEOUT_S)
+    for escalation, after_s in (
+        (signal.SIGTERM, sigterm_timeout_s),
+        (signal.SIGKILL, sigkill_timeout_s),
+    ):
+        for k in sorted(signalled, key=signalled.get):
+            try:
+                processes[k].wait(max(0.01, signalled[k] + after_s - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                processes[k].send_signal(escalation)
+                signalled[k] = time.monotonic()
     return [process.wait() for process in processes]
 
 
