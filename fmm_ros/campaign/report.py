@@ -15,7 +15,6 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
-import scipy.stats
 from matplotlib.figure import Figure
 
 from fmm_ros.campaign.compare import (
@@ -33,6 +32,7 @@ from fmm_ros.campaign.stats import CONFIDENCE
 from fmm_ros.campaign.table import DATE, format_value
 from fmm_ros.constants import MM_PER_M, REPORT_DPI
 from fmm_ros.core import results_schema as schema
+from fmm_ros.core.distributions import t_ppf
 from fmm_ros.core.identify.spec import CENTRE, CHAINED, FITTED
 from fmm_ros.core.results_schema import format_with_uncertainty
 from fmm_ros.report.html import Page
@@ -320,7 +320,7 @@ def trend_figure(campaign: CampaignResult, column: str, trends: Sequence[Trend])
         line = trend.intercept.estimate + trend.slope.estimate * offset
         cov = trend.line_covariance
         spread = np.sqrt(np.maximum(cov[0, 0] + 2 * offset * cov[0, 1] + offset**2 * cov[1, 1], 0))
-        half = scipy.stats.t.ppf(0.5 + CONFIDENCE / 2, max(trend.slope.dof, 1)) * spread
+        half = t_ppf(0.5 + CONFIDENCE / 2, max(trend.slope.dof, 1)) * spread
         ax.plot(line_x, line, color=colour, linewidth=1.2)
         ax.fill_between(line_x, line - half, line + half, color=colour, alpha=0.15, linewidth=0)
     ax.set_xlabel(

@@ -27,8 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.optimize
-import scipy.stats
 
+from fmm_ros.core.distributions import chi2_sf, t_ppf, t_sf
 from fmm_ros.errors import BadInputError
 
 TAU2_METHODS = ('reml', 'dl')
@@ -97,13 +97,13 @@ class MetaRegression:
         if self.dof < 1 or not stderr > 0:
             return Contrast(estimate, stderr, self.dof, math.nan, math.nan, math.nan, math.nan)
         t_value = estimate / stderr
-        half = float(scipy.stats.t.ppf(0.5 + confidence / 2, self.dof)) * stderr
+        half = float(t_ppf(0.5 + confidence / 2, self.dof)) * stderr
         return Contrast(
             estimate,
             stderr,
             self.dof,
             t_value,
-            float(2 * scipy.stats.t.sf(abs(t_value), self.dof)),
+            float(2 * t_sf(abs(t_value), self.dof)),
             estimate - half,
             estimate + half,
         )
@@ -175,7 +175,7 @@ def meta_regression(
         tau2_method=tau2_method,
         dof=dof,
         heterogeneity_q=fixed_q,
-        heterogeneity_p=float(scipy.stats.chi2.sf(fixed_q, dof)) if dof > 0 else math.nan,
+        heterogeneity_p=float(chi2_sf(fixed_q, dof)) if dof > 0 else math.nan,
         i2=tau2 / (tau2 + typical_v) if dof > 0 else math.nan,
         count=k,
     )

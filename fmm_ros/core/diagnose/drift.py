@@ -18,8 +18,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.stats
 
+from fmm_ros.core.distributions import chi2_sf, t_sf
 from fmm_ros.errors import BadInputError
 
 MIN_DRIFT_HITS = 3
@@ -92,9 +92,9 @@ def mu_trend(mu: Sequence[float], mu_stderr: Sequence[float], *, refitted: bool)
         mu_stderr=tuple(float(e) for e in errors),
         refitted=refitted,
         consistency_chi2=consistency,
-        consistency_p_value=float(scipy.stats.chi2.sf(consistency, n - 1)),
+        consistency_p_value=float(chi2_sf(consistency, n - 1)),
         slope_per_hit=float(slope),
         slope_stderr=slope_error,
         intercept=float(intercept),
-        p_value=float(2.0 * scipy.stats.t.sf(abs(t), n - 2)),
+        p_value=float(2.0 * t_sf(abs(t), n - 2)),
     )

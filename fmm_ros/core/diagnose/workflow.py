@@ -44,7 +44,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.optimize
-import scipy.stats
 
 from fmm_ros.constants import MU_DRIFT
 from fmm_ros.core._threads import thread_map
@@ -96,6 +95,7 @@ from fmm_ros.core.diagnose.vocabulary import (  # noqa: F401 (VOCABULARY re-expo
     VOCABULARY,
 )
 from fmm_ros.core.diagnose.where import locate_misfit, locate_residual
+from fmm_ros.core.distributions import chi2_isf, chi2_sf, t_isf
 from fmm_ros.core.identify.chain import DRIFT_KNOT_S
 from fmm_ros.core.identify.conditioning import (
     ConditionedImpact,
@@ -1064,7 +1064,7 @@ def _flatness_p_value(curve: FrictionCurve) -> float:
     chi2, _, usable = _spread_about_means(np.asarray(curve.mu), np.asarray(curve.mu_stderr))
     if usable < 2:
         return 1.0
-    return float(scipy.stats.chi2.sf(chi2, usable - 1))
+    return float(chi2_sf(chi2, usable - 1))
 
 
 def _drift_and_speed_law_aic(mu: np.ndarray, error: np.ndarray) -> tuple[float, float]:
@@ -1117,9 +1117,9 @@ def _detectable_drift(mus: np.ndarray, mu_stderrs: np.ndarray) -> float:
 
     if n >= MIN_TREND_HITS:
         trend = mu_trend(steady(1e-3), errors, refitted=False)
-        needed = float(scipy.stats.t.isf(DRIFT_P_VALUE / 2.0, n - 2))
+        needed = float(t_isf(DRIFT_P_VALUE / 2.0, n - 2))
         return 1e-3 * needed * trend.slope_stderr / abs(trend.slope_per_hit)
-    needed = float(scipy.stats.chi2.isf(DRIFT_P_VALUE, n - 1))
+    needed = float(chi2_isf(DRIFT_P_VALUE, n - 1))
 
     def beyond(change: float) -> float:
         mu = steady(change)

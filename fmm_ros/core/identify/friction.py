@@ -15,12 +15,11 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
-import scipy.fft
-import scipy.stats
 
 from fmm_ros.constants import PAPER_MU
 from fmm_ros.core._checks import require_positive
 from fmm_ros.core._threads import available_threads
+from fmm_ros.core.distributions import chi2_sf
 from fmm_ros.core.identify.chain import DriftBasis, VelocityNuisance, estimate_nuisance
 from fmm_ros.core.identify.conditioning import (
     ConditionedImpact,
@@ -946,7 +945,7 @@ def fit_friction(
     errors = np.array([fit.mu_stderr for fit in per_impact])
     chi2 = float(np.sum(((mus - joint.mu) / errors) ** 2))
     dof = len(per_impact) - 1
-    p_value = float(scipy.stats.chi2.sf(chi2, dof)) if dof > 0 else math.nan
+    p_value = float(chi2_sf(chi2, dof)) if dof > 0 else math.nan
     return FrictionFit(
         joint=joint,
         per_impact=per_impact,

@@ -13,8 +13,7 @@ whether the levels agree while the session runs.
 import math
 from dataclasses import dataclass, field
 
-import scipy.stats
-
+from fmm_ros.core.distributions import chi2_sf
 from fmm_ros.errors import BadInputError
 
 
@@ -121,7 +120,7 @@ class RunningFriction:
             mu=mean,
             mu_stderr=stderr,
             consistency_chi2=chi2,
-            consistency_p_value=float(scipy.stats.chi2.sf(chi2, dof)) if dof > 0 else math.nan,
+            consistency_p_value=float(chi2_sf(chi2, dof)) if dof > 0 else math.nan,
             levels=tuple(levels),
             impact_ids=tuple(self._impacts),
         )
