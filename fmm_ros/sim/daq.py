@@ -14,11 +14,13 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.signal
 
+from fmm_ros._lazy import LazyModule
 from fmm_ros.core._checks import require_non_negative, require_positive
 from fmm_ros.errors import BadInputError
 from fmm_ros.sim.hammer import NOISE_BLOCK_SAMPLES
+
+signal = LazyModule('scipy.signal')
 
 HUM_HARMONICS = (1, 2, 3, 5)
 """Mains harmonics a channel picks up: the fundamental at `hum_amplitude`, the others at a
@@ -73,7 +75,7 @@ class ChainStream:
                     f'the anti-alias cutoff {chain.anti_alias_cutoff_hz:g} Hz is not below '
                     f'the Nyquist frequency {0.5 * sample_rate_hz:g} Hz'
                 )
-            self._sos = scipy.signal.butter(
+            self._sos = signal.butter(
                 chain.anti_alias_order,
                 chain.anti_alias_cutoff_hz,
                 fs=sample_rate_hz,
@@ -105,7 +107,7 @@ class ChainStream:
                 'the chain runs on consecutive samples'
             )
         if self._sos is not None:
-            samples[:], self._state = scipy.signal.sosfilt(self._sos, samples, zi=self._state)
+            samples[:], self._state = signal.sosfilt(self._sos, samples, zi=self._state)
         self._next_index = first_index + samples.size
         chain = self.chain
         if chain.offset:

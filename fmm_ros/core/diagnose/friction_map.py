@@ -33,9 +33,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.signal
 
+from fmm_ros._lazy import LazyModule
 from fmm_ros.core.physics.rig import Rig
+
+signal = LazyModule('scipy.signal')
 
 CLASSIFY_BAND_FN = 50.0
 """The velocity that sorts samples into directions and bins is low-passed at this many f_n."""
@@ -178,8 +180,8 @@ def _prepare(record: MapRecord, rate: float, noise: float, rig: Rig) -> _Prepare
     velocity = record.velocity_m_s
     displacement = record.start_position_m + _running_integral(velocity, rate)
     cutoff = min(CLASSIFY_BAND_FN * rig.natural_frequency_hz, 0.4 * rate)
-    sos = scipy.signal.butter(2, cutoff, fs=rate, output='sos')
-    smooth = scipy.signal.sosfiltfilt(sos, velocity)
+    sos = signal.butter(2, cutoff, fs=rate, output='sos')
+    smooth = signal.sosfiltfilt(sos, velocity)
     # The low-pass keeps a bandwidth of about its cutoff of the white noise's rate / 2.
     floor = FLOOR_SIGMAS * noise * math.sqrt(2.0 * cutoff / rate)
     speed = np.abs(smooth)

@@ -20,7 +20,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.signal
+
+from fmm_ros._lazy import LazyModule
+
+signal = LazyModule('scipy.signal')
 
 HARMONIC_HALF_WIDTH = 0.25
 """Bands around f_n and its odd harmonics are this fraction of f_n wide on each side."""
@@ -300,8 +303,8 @@ def decay_signatures(
     if velocity.size - start < 4 * sample_rate_hz / natural_frequency_hz:
         return _EMPTY_DECAY
     cutoff = min(8.0 * natural_frequency_hz, 0.4 * sample_rate_hz)
-    sos = scipy.signal.butter(4, cutoff, fs=sample_rate_hz, output='sos')
-    smooth = scipy.signal.sosfiltfilt(sos, velocity[start:])
+    sos = signal.butter(4, cutoff, fs=sample_rate_hz, output='sos')
+    smooth = signal.sosfiltfilt(sos, velocity[start:])
     displacement = np.concatenate(([0.0], np.cumsum(0.5 * (smooth[1:] + smooth[:-1]))))
     displacement /= sample_rate_hz
     extrema = _extrema(smooth, displacement, sample_rate_hz, natural_frequency_hz)
@@ -483,7 +486,7 @@ def non_harmonic_peaks(
         allowed &= band_labels(grid, natural_frequency_hz) == BANDS.index('elsewhere')
     # Local maxima of the whole curve that stand out of it by half their height at least, so
     # a ripple on the skirt of a strong peak (at f_n, at a harmonic) is no peak of its own.
-    peaks, properties = scipy.signal.find_peaks(significance, distance=width, prominence=0.0)
+    peaks, properties = signal.find_peaks(significance, distance=width, prominence=0.0)
     keep = (
         allowed[peaks]
         & (significance[peaks] >= threshold)

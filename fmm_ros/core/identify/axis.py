@@ -59,10 +59,12 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import signal
 
+from fmm_ros._lazy import LazyModule
 from fmm_ros.core.identify.spec import AxisSpec
 from fmm_ros.errors import BadInputError
+
+signal = LazyModule('scipy.signal')
 
 DEFAULT_CUTOFF_FRACTION = 0.1
 """Position low-pass cut-off as a fraction of the sample rate (100 Hz at 1 kHz, as EMPS)."""

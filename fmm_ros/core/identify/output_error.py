@@ -27,9 +27,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.fft
-import scipy.signal
-import scipy.stats
 
+from fmm_ros._lazy import LazyModule
 from fmm_ros.core.identify.chain import DriftBasis
 from fmm_ros.core.identify.conditioning import ConditionedImpact, source_prefix
 from fmm_ros.core.identify.lsq import (
@@ -43,7 +42,7 @@ from fmm_ros.core.physics.terms import ModelTerm
 from fmm_ros.core.signal.frf import band_bins, mobility, spectra
 from fmm_ros.errors import BadInputError, Infeasible
 
-"""Upper end of the mobility misfit band: f_n and its odd harmonics to the 9th (paper Fig. 24)."""
+signal = LazyModule('scipy.signal')
 
 
 @dataclass(frozen=True)
@@ -427,7 +426,7 @@ def spectral_score(
     weights = np.full(factor, 1.0 / factor)
     means = np.einsum('pmf,f->pm', rows[:, : m * factor].reshape(p, m, factor), weights)
     residual_means = np.einsum('mf,f->m', residual[: m * factor].reshape(m, factor), weights)
-    frequency, one_sided = scipy.signal.welch(residual_means, nperseg=segment)
+    frequency, one_sided = signal.welch(residual_means, nperseg=segment)
     density = 0.5 * one_sided  # two-sided; welch doubles all but DC and Nyquist
     density[0] = one_sided[0]
     density[-1] = one_sided[-1]
