@@ -153,3 +153,29 @@ def test_a_source_waits_for_a_killed_consumer_and_counts_it_from_where_it_comes_
     # A node that was never awaited (a plot started late) counts from where the source is.
     reports.publisher.publish(progress('/plot', topic, -1))
     assert wait_for(lambda: gate.lag().get('/plot') == 0), gate.lag()
+
+
+def test_a_consumer_known_before_the_acquisition_begins_counts_from_its_first_sample(ros_graph):
+    """A relay begins on its first input batch, after its consumers reported nothing taken.
+
+    Their next report of nothing taken (-1) is not a node started late: read as one, rig_sim
+    counted the fitter's velocity caught up while the fitter had taken none, the hammer ran on
+    and the fitter declared 22,000 velocity samples missing past its max_skew_s.
+    """
+    source = ros_graph.add(Node, node_name='source')
+    publisher = source.create_publisher(SampleBatch, 'fmm/test_batches', SAMPLE_QOS)
+    reports = ros_graph.add(Reports)
+    consumer = ros_graph.add(Node, node_name='consumer')
+    consumer.create_subscription(SampleBatch, 'fmm/test_batches', lambda m: None, SAMPLE_QOS)
+    gate = FlowGate(source, [publisher], wait_for=['consumer'], start_timeout_s=0.0)
+    ros_graph.start()
+    topic = publisher.topic_name
+    reports.publisher.publish(progress('/consumer', topic, -1))
+    assert wait_for(gate.ready)
+    gate.begin(0)
+    gate.sent(4_000)
+    reports.publisher.publish(progress('/consumer', topic, -1))  # still nothing taken
+    time.sleep(0.5)
+    assert gate.lag() == {'/consumer': 4_000}
+    reports.publisher.publish(progress('/consumer', topic, 4_000))
+    assert wait_for(lambda: gate.lag() == {'/consumer': 0}), gate.lag()

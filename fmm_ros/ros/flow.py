@@ -329,10 +329,17 @@ class FlowGate:
     # -- the pace ----------------------------------------------------------------------------
 
     def begin(self, first_index: int) -> None:
-        """The source (re)starts its acquisition at first_index."""
+        """The source (re)starts its acquisition at first_index.
+
+        The consumers it knows stay known, at nothing taken yet: forgotten, the next report
+        of one that has taken nothing (-1) read as a node started late, counted from where
+        the source was. rig_sim begins on its first force batch, after its consumers
+        reported, and so counted the fitter's velocity caught up while the fitter had not
+        taken any: the hammer ran on and the fitter declared 22,000 velocity samples missing.
+        """
         self.first_index = self.published_end = int(first_index)
         self._joined_at.clear()
-        self._highest.clear()
+        self._highest = {name: dict.fromkeys(topics, -1) for name, topics in self._progress.items()}
 
     def sent(self, end_index: int) -> None:
         """The source published samples up to end_index (exclusive)."""
