@@ -155,6 +155,29 @@ def test_a_source_waits_for_a_killed_consumer_and_counts_it_from_where_it_comes_
     assert wait_for(lambda: gate.lag().get('/plot') == 0), gate.lag()
 
 
+def test_a_consumer_idle_before_the_source_starts_is_not_silent_when_it_starts(ros_graph):
+    """Silence counts from when the samples a consumer lags on went out, not its last report.
+
+    Consumers started before the sources report once and then have nothing to say. Counted
+    from that report, all of them were left out at the hammer's first batch, and the force
+    ran ahead of the velocity in the fitter past its max_skew_s (measured: 10,000 velocity
+    samples declared missing, the first impact lost from the live mu).
+    """
+    source = ros_graph.add(Node, node_name='source')
+    publisher = source.create_publisher(SampleBatch, 'fmm/test_batches', SAMPLE_QOS)
+    reports = ros_graph.add(Reports)
+    gate = FlowGate(source, [publisher], wait_for=[], start_timeout_s=0.0, silent_after_s=1.0)
+    ros_graph.start()
+    topic = publisher.topic_name
+    reports.publisher.publish(progress('/consumer', topic, -1))
+    assert wait_for(lambda: gate.consumers == ['/consumer'])
+    time.sleep(1.5)  # idle past silent_after_s: nothing was sent
+    gate.sent(5_000)
+    assert gate.lag() == {'/consumer': 5_000}  # waited for
+    time.sleep(1.5)  # now silent with samples outstanding
+    assert gate.lag() == {}
+
+
 def test_a_consumer_known_before_the_acquisition_begins_counts_from_its_first_sample(ros_graph):
     """A relay begins on its first input batch, after its consumers reported nothing taken.
 

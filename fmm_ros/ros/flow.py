@@ -58,7 +58,8 @@ QUIET_SUBSCRIPTION = SubscriptionEventCallbacks(use_default_callbacks=False)
 # How often a source looks which consumers are still in the graph [s], and how long one may
 # be missing from it before it stops counting [s] (discovery can blink). A consumer killed
 # outright stays in the graph until its DDS lease runs out (20 s for Fast DDS): one that holds
-# the source back and has not reported for SILENT_AFTER_S stops counting too, until it reports.
+# the source back and has not reported for SILENT_AFTER_S (counted from when it was sent what it
+# lags on) stops counting too, until it reports.
 GRAPH_CHECK_PERIOD_S = 1.0
 LEFT_AFTER_S = 3.0
 SILENT_AFTER_S = 5.0
@@ -225,6 +226,9 @@ class FlowGate:
         self._progress: dict[str, dict[str, int]] = {}
         self._seen: dict[str, float] = {}
         self._heard: dict[str, float] = {}  # when each last reported
+        # When each consumer, caught up, was last sent samples: its silence counts from the
+        # later of that and its last report, not from a report made while it had nothing.
+        self._owed_since: dict[str, float] = {}
         self._skews: dict[str, float] = {}  # each consumer's max_skew_s (0: none)
         self._silent: dict[str, bool] = {}  # consumers not waited for while silent
         # Consumers (re)started after the source started (a respawned node reporting less
@@ -342,29 +346,49 @@ class FlowGate:
         self._highest = {name: dict.fromkeys(topics, -1) for name, topics in self._progress.items()}
 
     def sent(self, end_index: int) -> None:
-        """The source published samples up to end_index (exclusive)."""
-        self.published_end = max(self.published_end, int(end_index))
+        """The source published samples up to end_index (exclusive).
+
+        A consumer that had taken everything before owes these samples from now: one that
+        reported long ago because nothing came (started before the source, or the source
+        idle) is not silent the moment the source goes on. Counted from its last report,
+        every consumer started silent_after_s before the hammer would be left out at its first
+        batch (the any-order rig test starts them 4 s early), and nothing would hold the force
+        back from running past a consumer's max_skew_s ahead of the velocity.
+        """
+        end_index = int(end_index)
+        if end_index > self.published_end:
+            now = time.monotonic()
+            for name in self._progress:
+                if self._behind(name) == 0:
+                    self._owed_since[name] = now
+        self.published_end = max(self.published_end, end_index)
+
+    def _behind(self, name: str, topic: str | None = None) -> int | None:
+        """Samples consumer name is behind on topic (or its slowest); None: not its topic."""
+        return max(
+            (
+                self.published_end - self._effective(index, self._joined_at.get(name))
+                for candidate, index in self._progress[name].items()
+                if topic is None or candidate == topic
+            ),
+            default=None,
+        )
 
     def lag(self, topic: str | None = None) -> dict[str, int]:
         """Samples each consumer (of topic, or any) is behind what was published.
 
-        A consumer that lags and has been silent for SILENT_AFTER_S is left out (logged once).
+        A consumer that lags and has been silent for SILENT_AFTER_S since it was sent what it
+        lags on is left out (logged once).
         """
         self._forget_departed()
         now = time.monotonic()
         lags = {}
-        for name, topics in self._progress.items():
-            behind = max(
-                (
-                    self.published_end - self._effective(index, self._joined_at.get(name))
-                    for candidate, index in topics.items()
-                    if topic is None or candidate == topic
-                ),
-                default=None,
-            )
+        for name in self._progress:
+            behind = self._behind(name, topic)
             if behind is None:
                 continue
-            if behind > 0 and now - self._heard.get(name, now) > self._silent_after_s:
+            since = max(self._heard.get(name, now), self._owed_since.get(name, 0.0))
+            if behind > 0 and now - since > self._silent_after_s:
                 if not self._silent.get(name):
                     self._silent[name] = True
                     self._node.get_logger().warning(
@@ -433,6 +457,7 @@ class FlowGate:
             ):  # an awaited one is waited for silent_after_s (its respawn), not the DDS lease
                 del self._progress[name]
                 self._joined_at.pop(name, None)
+                self._owed_since.pop(name, None)
                 self._highest.pop(name, None)
                 self._node.get_logger().warning(
                     f'consumer {name} left the graph: no longer waited for'
