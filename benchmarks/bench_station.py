@@ -45,7 +45,7 @@ from results_file import write_section  # noqa: E402
 from fmm_interfaces.msg import ImpactResult  # noqa: E402
 from fmm_ros.constants import IMPACTS_TOPIC  # noqa: E402
 from fmm_ros.ros.graph import InProcessGraph, private_domain_id  # noqa: E402
-from fmm_ros.ros.launch import start_processes, stop_processes, with_consumers  # noqa: E402
+from fmm_ros.ros.launch import start_processes, stop_processes, with_wiring  # noqa: E402
 from fmm_ros.ros.qos import RESULT_QOS  # noqa: E402
 from fmm_ros.sim.session import simulated_session, write_session_bag  # noqa: E402
 
@@ -103,7 +103,7 @@ class Bench:
             'analyzer': {'window_s': 6.0},
             'station': {'port': self.port, 'target_hits_per_level': 1000},
         }
-        return with_consumers(
+        return with_wiring(
             ('player', *NODES),
             {n: [Parameter(k, value=v) for k, v in p.items()] for n, p in values.items()},
         )

@@ -58,7 +58,7 @@ from fmm_ros.ros.launch import (  # noqa: E402
     start_processes,
     stop_processes,
     wait_for_log,
-    with_consumers,
+    with_wiring,
 )
 from fmm_ros.units import FORCE_UNITS, VELOCITY_UNITS  # noqa: E402
 
@@ -134,7 +134,7 @@ class Rig:
             f'recorder.bag_path={self.bag}',
             *extra,
         ]
-        self.overrides = with_consumers(nodes, parse_overrides(options, nodes))
+        self.overrides = with_wiring(nodes, parse_overrides(options, nodes))
         self.params = default_params_file()
         self.processes = dict(
             zip(

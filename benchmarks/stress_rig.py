@@ -54,7 +54,7 @@ from fmm_ros.ros.launch import (
     start_processes,
     stop_processes,
     wait_for_log,
-    with_consumers,
+    with_wiring,
 )
 from fmm_ros.ros.qos import RESULT_QOS, SAMPLE_QOS
 from fmm_ros.sim.session import simulated_session
@@ -150,7 +150,7 @@ def fresh_domain() -> None:
 
 
 def rig_overrides(work: Path, rate: float, extra: tuple[str, ...] = ()) -> dict:
-    return with_consumers(
+    return with_wiring(
         SIMULATED_RIG,
         parse_overrides(
             [

@@ -18,7 +18,7 @@ from fmm_ros.ros.launch import (
     start_processes,
     stop_processes,
     wait_for_log,
-    with_consumers,
+    with_wiring,
 )
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -45,7 +45,7 @@ def test_the_simulated_rig_runs_as_separate_processes(tmp_path, monkeypatch):
         listener = graph.add(Listener)
         graph.start()
         processes = start_processes(
-            SIMULATED_RIG, default_params_file(), with_consumers(SIMULATED_RIG, overrides)
+            SIMULATED_RIG, default_params_file(), with_wiring(SIMULATED_RIG, overrides)
         )
         try:
             assert wait_for(lambda: len(listener.impacts) == 3, timeout_s=90.0), (
@@ -70,6 +70,18 @@ def test_overrides_name_what_is_wrong():
     (parameter,) = parse_overrides(['rig_sim.effects=[stribeck]'], SIMULATED_RIG)['rig_sim']
     assert (parameter.name, parameter.value) == ('effects', ['stribeck'])
     assert default_params_file().name == 'fmm_rig.yaml' and default_params_file().is_file()
+
+
+def test_the_wiring_points_the_fitter_at_the_recorders_bag_and_a_set_still_wins():
+    def fitter_bag(items, nodes=SIMULATED_RIG):
+        wired = with_wiring(nodes, parse_overrides(items, nodes))
+        return [p.value for p in wired.get('fitter', []) if p.name == 'recorder_bag']
+
+    assert fitter_bag(['recorder.bag_path=/data/s1']) == ['/data/s1']
+    assert fitter_bag([]) == []  # the recorder names its bag by the time: unknown here
+    assert fitter_bag(['recorder.bag_path=/data/s1', 'fitter.recorder_bag=/x'])[-1] == '/x'
+    assert fitter_bag(['recorder.bag_path=/data/s1'], ('fitter', 'recorder'))[-1] == '/data/s1'
+    assert fitter_bag(['recorder.bag_path=/data/s1'], ('analyzer', 'recorder')) == []
 
 
 def _impacts_in(bag):

@@ -29,7 +29,7 @@ from fmm_ros.ros.launch import (
     parse_overrides,
     start_processes,
     stop_processes,
-    with_consumers,
+    with_wiring,
 )
 from fmm_ros.ros.nodes import CONSUMERS
 from fmm_ros.ros.nodes.analyzer import Analyzer
@@ -81,7 +81,7 @@ def impacts_in(bag: Path) -> int:
 @pytest.mark.parametrize('first', ['sources', 'consumers'])
 def test_a_rig_started_in_any_order_records_every_sample_it_sent(tmp_path, domain, first):
     bag = tmp_path / 'bag'
-    overrides = with_consumers(
+    overrides = with_wiring(
         SIMULATED_RIG, parse_overrides([*SESSION, f'recorder.bag_path={bag}'], SIMULATED_RIG)
     )
     sources, consumers = ['hammer_sim', 'rig_sim'], ['analyzer', 'fitter', 'recorder']

@@ -35,7 +35,7 @@ from fmm_ros.ros.launch import (
     parse_overrides,
     start_processes,
     stop_processes,
-    with_consumers,
+    with_wiring,
 )
 from fmm_ros.ros.qos import RESULT_QOS
 
@@ -76,7 +76,7 @@ class Rig:
     def __init__(self, tmp_path: Path, hits_per_level: int):
         self.port = free_port()
         self.bag = tmp_path / 'bag'
-        self.overrides = with_consumers(
+        self.overrides = with_wiring(
             RIG,
             parse_overrides(
                 [

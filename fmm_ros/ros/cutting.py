@@ -9,26 +9,45 @@ between) is not cut from this one's samples, and impacts of another clock still 
 when a new acquisition begins can no longer be cut: both are said in the log. An impact heard
 before any sample (a station started while results were held for late joiners) waits for
 its acquisition's first batch and is judged by its clock then.
+
+Given the recorder's bags (`from_bags`), an impact whose samples the stream never held (sent
+while the node was down, or no longer held) is cut from them instead: tried again every
+`BAG_RETRY_S` until the bags hold its record (the recorder flushes about once a second), for
+at most `BAG_WAIT_S`, and named as not held only then.
 """
+
+import time
+from collections.abc import Sequence
+from pathlib import Path
 
 from rclpy.impl.rcutils_logger import RcutilsLogger
 
 from fmm_interfaces.msg import ImpactResult
 from fmm_ros.core.signal.history import SampleHistory
 from fmm_ros.core.signal.records import ImpactRecord
+from fmm_ros.io.bags.backfill import bag_family, record_from_bags
 from fmm_ros.ros import msgs
 
 Cut = tuple[ImpactResult, ImpactRecord]
+# How often an impact waiting for the bags is tried again, and for how long [s of wall time].
+BAG_RETRY_S = 1.0
+BAG_WAIT_S = 30.0
 
 
 class ImpactCutter:
     """Reported impacts waiting for their samples, and their records once complete."""
 
-    def __init__(self, history: SampleHistory, logger: RcutilsLogger) -> None:
+    def __init__(
+        self, history: SampleHistory, logger: RcutilsLogger, from_bags: Path | None = None
+    ) -> None:
+        """Cut from history; from_bags: the recorder's bag_path, for what history missed."""
         self.history = history
         self.waiting: list[ImpactResult] = []
         self.not_held: list[int] = []
         """Ids of reported impacts whose record could not be cut (named in the log)."""
+        self.from_bags = from_bags
+        self.for_bags: list[tuple[ImpactResult, float, str]] = []
+        """Impacts waiting for the bags: each with its deadline and why the stream missed it."""
         self._logger = logger
         self._acquisition = 0
 
@@ -60,12 +79,9 @@ class ImpactCutter:
 
     def _same_clock(self, msg: ImpactResult) -> bool:
         """Whether the impact's clock is the held acquisition's (true while none is held)."""
-        origin = self.history.origin_s
-        if origin is None or msg.sample_rate_hz <= 0:
+        origin, impact_origin = self.history.origin_s, _origin_s(msg)
+        if origin is None or impact_origin is None:
             return True
-        impact_origin = msgs.stamp_ns(msg.header.stamp) / 1e9 - (
-            msg.trigger_sample_index / msg.sample_rate_hz
-        )
         return abs(impact_origin - origin) <= self.history.stream.rules.clock_tolerance_s
 
     def _cut(self) -> list[Cut]:
@@ -85,8 +101,50 @@ class ImpactCutter:
                     source=f'impact {msg.impact_id}',
                 )
             except ValueError as error:
-                self._logger.warning(f'impact {msg.impact_id} cannot be held: {error}')
-                self.not_held.append(msg.impact_id)
+                if self.from_bags is not None:
+                    self.for_bags.append((msg, time.monotonic() + BAG_WAIT_S, str(error)))
+                    cuts.extend(self.cut_from_bags())
+                else:
+                    self._not_held(msg, str(error))
                 continue
             cuts.append((msg, record))
         return cuts
+
+    def cut_from_bags(self) -> list[Cut]:
+        """The records of impacts waiting for the bags that the bags now hold."""
+        if not self.for_bags:
+            return []
+        cuts, still = [], []
+        paths: Sequence[Path] = bag_family(self.from_bags)
+        for msg, deadline, why in self.for_bags:
+            record = record_from_bags(
+                paths,
+                msg.record_start_sample_index,
+                round(msg.record_duration_s * msg.sample_rate_hz),
+                origin_s=_origin_s(msg),
+                trigger_sample_index=msg.trigger_sample_index,
+                rules=self.history.stream.rules,
+                source=f'impact {msg.impact_id}',
+            )
+            if record is not None:
+                self._logger.info(f"impact {msg.impact_id} cut from the recorder's bag ({why})")
+                cuts.append((msg, record))
+            elif time.monotonic() > deadline:
+                self._not_held(
+                    msg, f'{why}; nor is it in {", ".join(map(str, paths)) or self.from_bags}'
+                )
+            else:
+                still.append((msg, deadline, why))
+        self.for_bags = still
+        return cuts
+
+    def _not_held(self, msg: ImpactResult, why: str) -> None:
+        self._logger.warning(f'impact {msg.impact_id} cannot be held: {why}')
+        self.not_held.append(msg.impact_id)
+
+
+def _origin_s(msg: ImpactResult) -> float | None:
+    """When sample 0 of the impact's acquisition was taken by its clock [s] (None: unknown)."""
+    if msg.sample_rate_hz <= 0:
+        return None
+    return msgs.stamp_ns(msg.header.stamp) / 1e9 - msg.trigger_sample_index / msg.sample_rate_hz

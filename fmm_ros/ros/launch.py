@@ -61,11 +61,19 @@ def consumer_overrides(nodes: Sequence[str]) -> dict[str, list[Parameter]]:
     }
 
 
-def with_consumers(
+def with_wiring(
     nodes: Sequence[str], overrides: dict[str, list[Parameter]]
 ) -> dict[str, list[Parameter]]:
-    """The given overrides after the rig's consumer lists (so a `--set` still wins)."""
+    """The given overrides after the rig's wiring between its nodes (so a `--set` still wins).
+
+    The wiring: each source's consumer list (`consumer_overrides`), and a fitter's
+    `recorder_bag` set to the recorder's `bag_path` when the overrides give one (a respawned
+    fitter cuts from that bag the hits it missed while down).
+    """
     merged = {name: list(params) for name, params in consumer_overrides(nodes).items()}
+    bag = [p.value for p in overrides.get('recorder', []) if p.name == 'bag_path']
+    if 'fitter' in nodes and bag and bag[-1]:
+        merged.setdefault('fitter', []).append(Parameter('recorder_bag', value=str(bag[-1])))
     for name, params in overrides.items():
         merged.setdefault(name, []).extend(params)
     return merged
@@ -363,7 +371,7 @@ def launch_main(nodes: Sequence[str], description: str, argv: Sequence[str] | No
         + f' with {args.params_file or "node defaults"}; Ctrl-C, SIGTERM or SIGHUP stops',
         file=sys.stderr,
     )
-    overrides = with_consumers(nodes, overrides)
+    overrides = with_wiring(nodes, overrides)
     if args.processes:
         return run_processes(nodes, args.params_file, overrides)
     run_in_process(nodes, args.params_file, overrides)

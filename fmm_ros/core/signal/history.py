@@ -48,6 +48,11 @@ class SampleHistory:
         return self.stream.acquisitions
 
     @property
+    def first_index(self) -> int:
+        """The first sample index of the acquisition held (samples before it never came)."""
+        return self._first_index
+
+    @property
     def origin_s(self) -> float | None:
         """Time of sample 0 of the acquisition held [s] by its clock (None: no clock)."""
         return self.stream.origin_s

@@ -26,8 +26,10 @@ accepted one back.
 Given a `state_dir`, each held impact (its record, what the analyzer said about it, its live
 fit) is written there as it is held (`io.held_impacts`), and a fitter started on it (a
 respawn after SIGKILL) holds them again and publishes the live mu over them at once. A
-reported impact whose record cannot be cut (its samples never reached this fitter: a record
-open at a kill, or sent while it was down) is named in the log and WARN on /diagnostics.
+reported impact whose samples never reached this fitter (a record open at a kill, or sent
+while it was down) is cut from the recorder's bag when `recorder_bag` names it (the launcher
+sets it from the recorder's bag_path; `cutting.ImpactCutter`); one that cannot be cut from
+either is named in the log and WARN on /diagnostics.
 
 Service callbacks run in their own callback group, so under `ros2 run` (a multi-threaded
 executor) the streams keep flowing while a fit runs.
@@ -73,7 +75,7 @@ from fmm_ros.io.held_impacts import (
 )
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import RIG_PARAMS, rig_from_parameters, run_node, shared_params
-from fmm_ros.ros.cutting import ImpactCutter
+from fmm_ros.ros.cutting import BAG_RETRY_S, ImpactCutter
 from fmm_ros.ros.health import OK, WARN, Health
 from fmm_ros.ros.inputs import SampleInputs
 from fmm_ros.ros.params import Param, declare_parameters, params_from
@@ -104,6 +106,13 @@ PARAMS = (
         '',
         'Directory where each held impact is kept (its record and live fit, one file each), '
         'so a fitter killed and respawned holds them again; "" keeps them in memory only',
+        read_only=True,
+    ),
+    Param(
+        'recorder_bag',
+        '',
+        "The recorder's bag_path: an impact whose samples this fitter never got (sent while "
+        'it was down) is cut from that bag, or a <bag_path>_<n> beside it; "" for none',
         read_only=True,
     ),
 )
@@ -140,7 +149,11 @@ class Fitter(Node):
         cfg = self.config
         self.rig = rig_from_parameters(cfg)
         self.history = SampleHistory(cfg['history_s'])
-        self.cutter = ImpactCutter(self.history, self.get_logger())
+        self.cutter = ImpactCutter(
+            self.history,
+            self.get_logger(),
+            from_bags=Path(cfg['recorder_bag']) if cfg['recorder_bag'] else None,
+        )
         self.impacts: OrderedDict[int, HeldImpact] = OrderedDict()
         self.last_fit = ''
         self.live_mu = ''
@@ -151,6 +164,8 @@ class Fitter(Node):
             self, self.history.stream, self._on_batch, health, callback_group=streams
         )
         health.add('fits', self._fits_status)
+        if self.cutter.from_bags is not None:
+            self.create_timer(BAG_RETRY_S, self._cut_from_bags, callback_group=streams)
         self.create_subscription(
             ImpactResult, IMPACTS_TOPIC, self._on_impact, IMPACT_QOS, callback_group=streams
         )
@@ -204,6 +219,10 @@ class Fitter(Node):
         for msg, record in self.cutter.batch_fed():
             self._hold(msg, record)
 
+    def _cut_from_bags(self) -> None:
+        for msg, record in self.cutter.cut_from_bags():
+            self._hold(msg, record)
+
     def _on_impact(self, msg: ImpactResult) -> None:
         with self._lock:
             known = self.impacts.get(msg.impact_id)
@@ -221,7 +240,8 @@ class Fitter(Node):
             f'{len(held)} impacts held ({sum(i.accepted for i in held)} accepted); '
             + (
                 f'{len(lost)} reported but not held (their samples never reached this '
-                f'fitter, or were no longer held: ids {lost[-10:]}; the bag has them); '
+                f'fitter, or were no longer held: ids {lost[-10:]}; '
+                + ('the bag has them); ' if self.cutter.from_bags is None else 'nor the bag); ')
                 if lost
                 else ''
             )
@@ -230,6 +250,7 @@ class Fitter(Node):
                 'impacts held': len(held),
                 'accepted held': sum(i.accepted for i in held),
                 'impacts waiting for samples': len(self.cutter.waiting),
+                'impacts waiting for the bag': len(self.cutter.for_bags),
                 'impacts not held': len(lost),
                 'history s': self.history.history_s,
                 'state dir': (
