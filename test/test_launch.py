@@ -72,16 +72,18 @@ def test_overrides_name_what_is_wrong():
     assert default_params_file().name == 'fmm_rig.yaml' and default_params_file().is_file()
 
 
-def test_the_wiring_points_the_fitter_at_the_recorders_bag_and_a_set_still_wins():
-    def fitter_bag(items, nodes=SIMULATED_RIG):
+def test_the_wiring_points_analyzer_and_fitter_at_the_recorders_bag_and_a_set_still_wins():
+    def fitter_bag(items, nodes=SIMULATED_RIG, node='fitter'):
         wired = with_wiring(nodes, parse_overrides(items, nodes))
-        return [p.value for p in wired.get('fitter', []) if p.name == 'recorder_bag']
+        return [p.value for p in wired.get(node, []) if p.name == 'recorder_bag']
 
     assert fitter_bag(['recorder.bag_path=/data/s1']) == ['/data/s1']
     assert fitter_bag([]) == []  # the recorder names its bag by the time: unknown here
     assert fitter_bag(['recorder.bag_path=/data/s1', 'fitter.recorder_bag=/x'])[-1] == '/x'
     assert fitter_bag(['recorder.bag_path=/data/s1'], ('fitter', 'recorder'))[-1] == '/data/s1'
     assert fitter_bag(['recorder.bag_path=/data/s1'], ('analyzer', 'recorder')) == []
+    assert fitter_bag(['recorder.bag_path=/data/s1'], node='analyzer') == ['/data/s1']
+    assert fitter_bag(['recorder.bag_path=/data/s1'], node='rig_sim') == []
 
 
 def _impacts_in(bag):

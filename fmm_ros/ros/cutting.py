@@ -25,7 +25,6 @@ from rclpy.impl.rcutils_logger import RcutilsLogger
 from fmm_interfaces.msg import ImpactResult
 from fmm_ros.core.signal.history import SampleHistory
 from fmm_ros.core.signal.records import ImpactRecord
-from fmm_ros.io.bags.backfill import bag_family, record_from_bags
 from fmm_ros.ros import msgs
 
 Cut = tuple[ImpactResult, ImpactRecord]
@@ -114,6 +113,9 @@ class ImpactCutter:
         """The records of impacts waiting for the bags that the bags now hold."""
         if not self.for_bags:
             return []
+        # Imported here: rosbags costs a node's start-up nothing unless a hit is missed.
+        from fmm_ros.io.bags.backfill import bag_family, record_from_bags
+
         cuts, still = [], []
         paths: Sequence[Path] = bag_family(self.from_bags)
         for msg, deadline, why in self.for_bags:

@@ -66,14 +66,15 @@ def with_wiring(
 ) -> dict[str, list[Parameter]]:
     """The given overrides after the rig's wiring between its nodes (so a `--set` still wins).
 
-    The wiring: each source's consumer list (`consumer_overrides`), and a fitter's
-    `recorder_bag` set to the recorder's `bag_path` when the overrides give one (a respawned
-    fitter cuts from that bag the hits it missed while down).
+    The wiring: each source's consumer list (`consumer_overrides`), and the analyzer's and
+    the fitter's `recorder_bag` set to the recorder's `bag_path` when the overrides give one
+    (respawned, they take from that bag the hits they missed while down).
     """
     merged = {name: list(params) for name, params in consumer_overrides(nodes).items()}
     bag = [p.value for p in overrides.get('recorder', []) if p.name == 'bag_path']
-    if 'fitter' in nodes and bag and bag[-1]:
-        merged.setdefault('fitter', []).append(Parameter('recorder_bag', value=str(bag[-1])))
+    for reader in ('analyzer', 'fitter'):
+        if reader in nodes and bag and bag[-1]:
+            merged.setdefault(reader, []).append(Parameter('recorder_bag', value=str(bag[-1])))
     for name, params in overrides.items():
         merged.setdefault(name, []).extend(params)
     return merged

@@ -74,6 +74,11 @@ class NodeSettings:
         help='Stream history kept to cut hits from (>= the analyzer window + latency)',
         limits=(1.0, 3600.0),
     )
+    recorder_bag: str = setting(
+        '',
+        help="The recorder's bag_path, read for what this node's stream never got (it was "
+        'down): that bag, or a <bag_path>_<n> beside it; "" for none',
+    )
 
 
 @dataclass(frozen=True)

@@ -43,6 +43,7 @@ from fmm_ros.core.signal.response import RESPONSE_QUANTITIES, as_measured
 from fmm_ros.core.signal.stream import ChannelLedger
 from fmm_ros.io.bags.acquisitions import read_acquisitions
 from fmm_ros.io.bags.definitions import SAMPLE_BATCH
+from fmm_ros.io.bags.errors import MissingTopicError
 from fmm_ros.io.bags.reader import BagReader, ChannelBatch
 from fmm_ros.units import sample_si_factor
 
@@ -369,3 +370,69 @@ def nominal_levels(
     """Recorded levels (`recorded_levels`, of one bag or several) in ascending force."""
     ordered = sorted(levels.items(), key=lambda item: item[1])
     return tuple(NominalLevel(name, peak, tolerance_n) for name, peak in ordered)
+
+
+@dataclass(frozen=True)
+class Missed:
+    """What a recorder's bag holds that an analyzer which joined late never captured."""
+
+    records: list[ImpactRecord]
+    """The bag's records of other acquisitions, and of the joined one triggered before the join."""
+    reported_ids: frozenset[int]
+    """Ids of the impacts the bag recorded as reported (by the analyzer before this one)."""
+    reached: int
+    """Index after the last sample the bag holds of the joined acquisition (0: none)."""
+
+
+def records_missed(
+    path: Path,
+    capture: CaptureConfig,
+    *,
+    joined_at: int,
+    origin_s: float | None,
+) -> Missed:
+    """The records of a bag being recorded that a capture joining at sample joined_at missed.
+
+    origin_s: when sample 0 of the joined acquisition was taken by its clock [s] (None:
+    every acquisition of the bag is the joined one). Records of other acquisitions are
+    missed whole; of the joined one, those triggered before joined_at (under way, or over,
+    when the capture joined). A record still open at the bag's end is left out: `reached`
+    says how far the bag got, so the caller can read it again once it holds more.
+    """
+    tolerance_s = capture.rules.clock_tolerance_s
+    reached = 0
+
+    def joined(record_origin_s: float | None) -> bool:
+        return (
+            origin_s is None
+            or record_origin_s is None
+            or abs(record_origin_s - origin_s) <= tolerance_s
+        )
+
+    def on_batch(batch: ChannelBatch) -> None:
+        nonlocal reached
+        batch_origin_s = (
+            batch.stamp_ns / 1e9 - batch.first_sample_index / batch.sample_rate_hz
+            if batch.stamp_ns
+            else None
+        )
+        if joined(batch_origin_s):
+            reached = max(reached, batch.first_sample_index + len(batch.samples))
+
+    with BagReader(path, strict=False) as reader:
+        try:
+            reported = frozenset(int(msg.impact_id) for msg in reader.impacts())
+        except MissingTopicError:  # no analyzer reported anything into it
+            reported = frozenset()
+        records = []
+        for record in capture_records(reader, capture, on_batch=on_batch):
+            if not joined(record.acquisition_origin_s):
+                records.append(record)
+            elif (
+                record.trigger_sample_index < joined_at
+                and record.record_start_sample_index
+                + (record.window_samples or record.force_n.size)
+                <= reached
+            ):
+                records.append(record)
+    return Missed(records, reported, reached)

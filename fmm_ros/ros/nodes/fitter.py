@@ -108,13 +108,7 @@ PARAMS = (
         'so a fitter killed and respawned holds them again; "" keeps them in memory only',
         read_only=True,
     ),
-    Param(
-        'recorder_bag',
-        '',
-        "The recorder's bag_path: an impact whose samples this fitter never got (sent while "
-        'it was down) is cut from that bag, or a <bag_path>_<n> beside it; "" for none',
-        read_only=True,
-    ),
+    *shared_params('recorder_bag'),
 )
 
 
