@@ -23,6 +23,7 @@ from fmm_ros.io.bags import (
     fmm_typestore,
     new_message,
 )
+from fmm_ros.io.bags.mcapscan import Damage, McapScan, ScannedMessage
 
 FS = 10_000.0
 BATCH = 500
@@ -236,3 +237,27 @@ def test_a_killed_recording_is_read_up_to_its_last_flush(tmp_path, storage):
     np.testing.assert_array_equal(force, np.arange(len(force)))
     assert set(gaps) == {0}
     assert any('not closed' in p for p in problems)
+
+
+def test_a_recording_that_grows_while_it_is_scanned_is_read_to_its_new_end(tmp_path):
+    """The recorder writes on while a respawned node reads its bag (`io.bags.backfill`).
+
+    The scan took the file's size once: records written after it put the position past that
+    size, and the next read asked for a negative length (ValueError), so a respawned
+    analyzer could not read the bag it was meant to recover from (fault_respawn, 1 of 1).
+    """
+    bag = tmp_path / 'grown'
+    chunks = write_chunked(bag)
+    file = bag / 'grown.mcap'
+    whole = file.read_bytes()
+    cut, grown = chunks[1].chunk_start_offset, chunks[3].chunk_start_offset
+    file.write_bytes(whole[:cut])  # schemas, channels and the first chunk: flushed so far
+    items = McapScan(file).records()
+    first = next(items)
+    with file.open('ab') as stream:  # the writer flushes two chunks more meanwhile
+        stream.write(whole[cut:grown])
+    scanned = [first, *items]
+    messages = [item for item in scanned if isinstance(item, ScannedMessage)]
+    assert len(messages) == 3 * 3 * 2  # three chunks of three batch pairs
+    (end,) = [item for item in scanned if isinstance(item, Damage)]
+    assert end.unfinished and end.offset == grown

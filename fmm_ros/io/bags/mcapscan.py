@@ -11,6 +11,7 @@ Record layout from the MCAP specification (https://mcap.dev/spec): magic, then r
 opcode (uint8), content length (uint64 little endian) and content.
 """
 
+import os
 import struct
 import zlib
 from collections.abc import Iterator
@@ -167,7 +168,9 @@ class McapScan:
                     yield Damage(pos, f'corrupt record at byte {pos}: opcode 0x00 is invalid')
                     return
                 content_pos = pos + _RECORD_HEAD.size
-                available = size - content_pos
+                if content_pos + length > size:  # a file still being written grows meanwhile
+                    size = os.fstat(stream.fileno()).st_size
+                available = max(0, size - content_pos)
                 if opcode == DATA_END:
                     self.closed = True
                     return
