@@ -94,6 +94,8 @@ def test_the_hits_before_the_join_come_from_the_bag_with_the_replays_ids(ros_gra
     assert got == sorted(hits)
     assert analyzer.restored_from_bag == 2 and len(analyzer.results) == 3
     assert all(m.accepted for m in listener.impacts)
+    (impacts,) = [s for s in analyzer.health.statuses() if s.name.endswith(': impacts')]
+    assert "2 hits before it read from the recorder's bag" in impacts.message, impacts.message
     # The level averages take every hit of the session again.
     assert wait_for(lambda: {s.level for s in listener.summaries} >= {'low', 'medium', 'high'})
 

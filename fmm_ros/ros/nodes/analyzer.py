@@ -135,6 +135,7 @@ class Analyzer(Node):
         self._bag_missed: queue.Queue[Missed | BaseException] = queue.Queue()
         self._bag_timer = None
         self._bag_deadline = 0.0
+        self._bag_read = False  # the bag's hits are in (restored_from_bag says how many)
         self._impact_pub = self.create_publisher(ImpactResult, IMPACTS_TOPIC, IMPACT_QOS)
         self._frf_pub = self.create_publisher(FrfSummary, FRF_TOPIC, RESULT_QOS)
         self.decisions: dict[int, Decision] = {}
@@ -216,6 +217,7 @@ class Analyzer(Node):
             return  # the recorder has not written that far yet: read again
         self.destroy_timer(self._bag_timer)
         self._take_missed(missed)
+        self._bag_read = True
 
     def _bag_reading(self) -> bool:
         thread = getattr(self, '_bag_thread', None)
@@ -289,7 +291,7 @@ class Analyzer(Node):
     def _impacts_status(self) -> tuple:
         last = self.results[-1] if self.results else None
         joined = ''
-        if self.joined_at_s and self._bag_timer is not None and self._bag_timer.is_canceled():
+        if self.joined_at_s and self._bag_read:
             joined = (
                 f'; joined the acquisition {self.joined_at_s:.1f} s in (a respawn?): '
                 f"{self.restored_from_bag} hits before it read from the recorder's bag"
