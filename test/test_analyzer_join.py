@@ -21,6 +21,7 @@ from fmm_ros.io.bags import BagWriter, fmm_typestore, new_message
 from fmm_ros.io.bags.definitions import IMPACT_RESULT
 from fmm_ros.ros import msgs
 from fmm_ros.ros.common import SAMPLE_QOS
+from fmm_ros.ros.nodes import analyzer as analyzer_node
 from fmm_ros.ros.nodes.analyzer import Analyzer
 from fmm_ros.sim.session import simulated_session
 from fmm_ros.workflows.replay import replay_bag
@@ -42,8 +43,8 @@ class Player(Node):
         self.force = self.create_publisher(SampleBatch, FORCE_TOPIC, SAMPLE_QOS)
         self.velocity = self.create_publisher(SampleBatch, VELOCITY_TOPIC, SAMPLE_QOS)
 
-    def play(self, session, first: int) -> None:
-        for start in range(first, session.force_n.size, BATCH):
+    def play(self, session, first: int, stop: int | None = None) -> None:
+        for start in range(first, stop or session.force_n.size, BATCH):
             stamp = msgs.time_msg(T0_NS + round(start / RATE_HZ * 1e9))
             for channel, samples, publisher in (
                 (FORCE, session.force_n, self.force),
@@ -74,7 +75,7 @@ def recorded(tmp_path_factory):
     return session, bag, hits
 
 
-def joined(ros_graph, session, bag):
+def joined(ros_graph, session, bag, stop=None):
     analyzer = ros_graph.add(
         Analyzer, parameter_overrides=params(window_s=WINDOW_S, recorder_bag=str(bag))
     )
@@ -82,7 +83,7 @@ def joined(ros_graph, session, bag):
     player = ros_graph.add(Player)
     ros_graph.start()
     assert wait_for(lambda: player.force.get_subscription_count() > 0, 10.0)
-    player.play(session, JOIN)
+    player.play(session, JOIN, stop)
     return analyzer, listener
 
 
@@ -116,3 +117,15 @@ def test_a_hit_the_bag_says_was_reported_is_not_reported_again(ros_graph, record
     assert sorted(m.impact_id for m in listener.impacts) == sorted(i for i, _ in hits[1:])
     assert len(analyzer.results) == 3  # the first is in the averages all the same
     assert np.isfinite([r.impulse_n_s for r in analyzer.results]).all()
+
+
+def test_a_stream_that_stops_soon_after_the_join_still_gets_the_bags_hits(
+    ros_graph, recorded, monkeypatch
+):
+    """Respawned near a session's end: the stream never gets a record past the join."""
+    session, bag, hits = recorded
+    monkeypatch.setattr(analyzer_node, 'BAG_WAIT_S', 1.0)
+    analyzer, listener = joined(ros_graph, session, bag, stop=JOIN + 3 * BATCH)
+    assert wait_for(lambda: len(listener.impacts) == 2, 30.0), listener.impacts
+    assert sorted(m.impact_id for m in listener.impacts) == sorted(i for i, _ in hits[:2])
+    assert analyzer.restored_from_bag == 2

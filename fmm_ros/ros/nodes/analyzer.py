@@ -202,7 +202,7 @@ class Analyzer(Node):
             if not self._bag_reading():
                 stream = self.capture.stream.next_index(FORCE.quantity) or 0
                 after = self._joined_at + self._record_samples()
-                if stream >= after:
+                if stream >= after or time.monotonic() > self._bag_deadline:  # or it stopped
                     self._bag_thread = threading.Thread(
                         target=self._bag_worker, name='recorder_bag', daemon=True
                     )
@@ -211,10 +211,10 @@ class Analyzer(Node):
         if isinstance(missed, BaseException):
             self._bag_gave_up(f'{type(missed).__name__}: {missed}')
             return
-        if missed.reached < self._joined_at + self._record_samples():
-            if time.monotonic() > self._bag_deadline:
-                self._bag_gave_up(f'it holds samples up to {missed.reached} only')
+        short = missed.reached < self._joined_at + self._record_samples()
+        if short and time.monotonic() <= self._bag_deadline:
             return  # the recorder has not written that far yet: read again
+        # Past the wait (the stream may have stopped), what the bag holds whole is taken.
         self.destroy_timer(self._bag_timer)
         self._take_missed(missed)
         self._bag_read = True
@@ -248,6 +248,7 @@ class Analyzer(Node):
             self._bag_missed.put(error)
 
     def _bag_gave_up(self, why: str) -> None:
+        """The bag cannot be read: said once, and the node goes on with what it has."""
         self.destroy_timer(self._bag_timer)
         self.get_logger().error(
             f"the recorder's bag {self.config['recorder_bag']} cannot give the hits before "
