@@ -78,10 +78,8 @@ class ImpactCutter:
 
     def _same_clock(self, msg: ImpactResult) -> bool:
         """Whether the impact's clock is the held acquisition's (true while none is held)."""
-        origin, impact_origin = self.history.origin_s, _origin_s(msg)
-        if origin is None or impact_origin is None:
-            return True
-        return abs(impact_origin - origin) <= self.history.stream.rules.clock_tolerance_s
+        rules = self.history.stream.rules
+        return rules.same_clock(self.history.origin_s, _origin_s(msg)) is not False
 
     def _cut(self) -> list[Cut]:
         """The records of reported impacts whose samples have all arrived."""

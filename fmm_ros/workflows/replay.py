@@ -399,15 +399,10 @@ def records_missed(
     when the capture joined). A record still open at the bag's end is left out: `reached`
     says how far the bag got, so the caller can read it again once it holds more.
     """
-    tolerance_s = capture.rules.clock_tolerance_s
     reached = 0
 
     def joined(record_origin_s: float | None) -> bool:
-        return (
-            origin_s is None
-            or record_origin_s is None
-            or abs(record_origin_s - origin_s) <= tolerance_s
-        )
+        return capture.rules.same_clock(record_origin_s, origin_s) is not False
 
     def on_batch(batch: ChannelBatch) -> None:
         nonlocal reached

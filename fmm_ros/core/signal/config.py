@@ -70,6 +70,12 @@ class StreamRules:
             if not (math.isfinite(value) and value >= 0):
                 raise BadInputError(f'{name} must be a finite number >= 0, got {value}')
 
+    def same_clock(self, a: float | None, b: float | None) -> bool | None:
+        """Whether two acquisition origins [s] are one acquisition's (None: either unknown)."""
+        if a is None or b is None:
+            return None
+        return abs(a - b) <= self.clock_tolerance_s
+
 
 DEFAULT_RULES = StreamRules()
 

@@ -412,14 +412,8 @@ class AlignedStream:
             return 'next' if step <= self._max_gap else 'jump'
         if -step > self._max_gap:
             return 'reset'
-        same = self._same_clock(batch.origin_s, channel.origin_s)
+        same = self.rules.same_clock(batch.origin_s, channel.origin_s)
         return 'clock' if same is False else 'past'
-
-    def _same_clock(self, a: float | None, b: float | None) -> bool | None:
-        """Whether two origins are one acquisition's (None when either is unknown)."""
-        if a is None or b is None:
-            return None
-        return abs(a - b) <= self.rules.clock_tolerance_s
 
     def _resolve_held(self, channel: _Channel, batch: Batch) -> None:
         """The batch after a held one decides: new acquisition, or the held one was a stray."""
@@ -429,7 +423,7 @@ class AlignedStream:
             batch.first_sample_index == held.end_index
             and batch.sample_rate_hz == held.sample_rate_hz
             and batch.sender == held.sender
-            and self._same_clock(batch.origin_s, held.origin_s) is not False
+            and self.rules.same_clock(batch.origin_s, held.origin_s) is not False
         )
         if not confirmed:
             channel.ledger._refuse('stray', len(held.samples))
@@ -456,8 +450,8 @@ class AlignedStream:
                 'mismatch' if channel.first_acquisition else 'stale', len(batch.samples)
             )
             return
-        new = self._same_clock(batch.origin_s, acquisition.origin_s)
-        old = self._same_clock(batch.origin_s, channel.origin_s)
+        new = self.rules.same_clock(batch.origin_s, acquisition.origin_s)
+        old = self.rules.same_clock(batch.origin_s, channel.origin_s)
         continues_old = (
             batch.first_sample_index == channel.old_next and batch.sample_rate_hz == channel.rate
         )

@@ -101,11 +101,7 @@ def _record_from_bag(
             )
             if not history.covers(start, stop):
                 continue
-            same_clock = (
-                origin_s is None
-                or history.origin_s is None
-                or abs(history.origin_s - origin_s) <= rules.clock_tolerance_s
-            )
+            same_clock = rules.same_clock(history.origin_s, origin_s) is not False
             if same_clock and history.holds(start) and start >= history.first_index:
                 return history.record(start, length, **cut)
     return None

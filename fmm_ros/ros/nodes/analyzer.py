@@ -175,8 +175,7 @@ class Analyzer(Node):
         """The first batch is one of an acquisition under way: say so, and read the bag."""
         self.joined_at_s = batch.first_sample_index / batch.sample_rate_hz
         self._joined_at = batch.first_sample_index
-        if batch.stamp_ns:
-            self._joined_origin_s = batch.stamp_ns / 1e9 - self.joined_at_s
+        self._joined_origin_s = batch.origin_s
         bag = self.config['recorder_bag']
         self.get_logger().warning(
             f'joined an acquisition under way at sample {batch.first_sample_index} '
