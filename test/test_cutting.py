@@ -9,7 +9,7 @@ import numpy as np
 from fmm_interfaces.msg import ImpactResult
 from fmm_ros.constants import FORCE, VELOCITY
 from fmm_ros.core.signal.history import SampleHistory
-from fmm_ros.io.bags import BagWriter
+from fmm_ros.io.bags import BagWriter, backfill
 from fmm_ros.io.bags.backfill import bag_family
 from fmm_ros.ros import cutting, msgs
 from fmm_ros.ros.cutting import ImpactCutter
@@ -127,6 +127,25 @@ def test_an_impact_the_stream_missed_is_cut_from_the_recorders_open_bag(tmp_path
         "impact 9 cut from the recorder's bag (samples from 0 never reached this history: "
         'it begins at sample 1500 (the node started or restarted after them))'
     ]
+
+
+def test_impacts_missed_together_are_cut_in_one_read_of_the_bag(tmp_path, monkeypatch):
+    force = np.arange(3000.0)
+    recording(tmp_path / 'bag', force, -force, T0_NS).__exit__(None, None, None)
+    history, log = SampleHistory(10.0), Log()
+    cutter = ImpactCutter(history, log, from_bags=tmp_path / 'bag')
+    reads = []
+    real = backfill.BagReader
+    monkeypatch.setattr(backfill, 'BagReader', lambda *a, **k: reads.append(a) or real(*a, **k))
+    later = impact(11, T0_NS)
+    later.record_start_sample_index, later.trigger_sample_index = 500, 600
+    later.header.stamp = msgs.time_msg(T0_NS + round(600 / RATE_HZ * 1e9))
+    cutter.impact(impact(10, T0_NS)), cutter.impact(later)
+    cuts = respawned(history, cutter, T0_NS)
+    assert sorted(msg.impact_id for msg, _ in cuts) == [10, 11] and len(reads) == 1
+    np.testing.assert_array_equal(
+        dict((m.impact_id, r) for m, r in cuts)[11].force_n, force[500:1500]
+    )
 
 
 def test_an_impact_the_bags_do_not_hold_waits_for_them_then_is_named(tmp_path, monkeypatch):

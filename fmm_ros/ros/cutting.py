@@ -17,7 +17,6 @@ at most `BAG_WAIT_S`, and named as not held only then.
 """
 
 import time
-from collections.abc import Sequence
 from pathlib import Path
 
 from rclpy.impl.rcutils_logger import RcutilsLogger
@@ -83,7 +82,7 @@ class ImpactCutter:
 
     def _cut(self) -> list[Cut]:
         """The records of reported impacts whose samples have all arrived."""
-        cuts = []
+        cuts, queued = [], False
         for msg in list(self.waiting):
             start = msg.record_start_sample_index
             length = round(msg.record_duration_s * msg.sample_rate_hz)
@@ -100,35 +99,39 @@ class ImpactCutter:
             except ValueError as error:
                 if self.from_bags is not None:
                     self.for_bags.append((msg, time.monotonic() + BAG_WAIT_S, str(error)))
-                    cuts.extend(self.cut_from_bags())
+                    queued = True
                 else:
                     self._not_held(msg, str(error))
                 continue
             cuts.append((msg, record))
-        return cuts
+        # A record the stream missed goes to the bags at once (one read for all of them), later
+        # every BAG_RETRY_S from the node's timer: never on every batch.
+        return cuts + self.cut_from_bags() if queued else cuts
 
     def cut_from_bags(self) -> list[Cut]:
         """The records of impacts waiting for the bags that the bags now hold."""
         if not self.for_bags:
             return []
         # Imported here: rosbags costs a node's start-up nothing unless a hit is missed.
-        from fmm_ros.io.bags.backfill import bag_family, record_from_bags
+        from fmm_ros.io.bags.backfill import RecordSpan, bag_family, records_from_bags
 
-        cuts, still = [], []
-        paths: Sequence[Path] = bag_family(self.from_bags)
-        for msg, deadline, why in self.for_bags:
-            record = record_from_bags(
-                paths,
+        paths = bag_family(self.from_bags)
+        spans = [
+            RecordSpan(
                 msg.record_start_sample_index,
                 round(msg.record_duration_s * msg.sample_rate_hz),
-                origin_s=_origin_s(msg),
-                trigger_sample_index=msg.trigger_sample_index,
-                rules=self.history.stream.rules,
-                source=f'impact {msg.impact_id}',
+                _origin_s(msg),
+                msg.trigger_sample_index,
+                f'impact {msg.impact_id}',
             )
-            if record is not None:
+            for msg, _, _ in self.for_bags
+        ]
+        found = records_from_bags(paths, spans, self.history.stream.rules)
+        cuts, still = [], []
+        for k, (msg, deadline, why) in enumerate(self.for_bags):
+            if k in found:
                 self._logger.info(f"impact {msg.impact_id} cut from the recorder's bag ({why})")
-                cuts.append((msg, record))
+                cuts.append((msg, found[k]))
             elif time.monotonic() > deadline:
                 self._not_held(
                     msg, f'{why}; nor is it in {", ".join(map(str, paths)) or self.from_bags}'

@@ -8,11 +8,12 @@ before this (`benchmarks/fault_respawn.py`, 3 runs): the respawned fitter held 5
 impacts every time, the one in flight at the kill named but never fitted.
 
 The bag's batches go through a `SampleHistory`, as the fitter's own stream does, so the record
-is cut by the same stream rules (gaps NaN, a new acquisition restarts the history) and is the
-record the live fitter would have cut, bit for bit.
+is cut by the same stream rules (gaps NaN, a new acquisition restarts the history): the record
+the live fitter would have cut from the same samples.
 """
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 from fmm_ros.constants import FORCE, VELOCITY, VELOCITY_TOPIC
@@ -33,58 +34,52 @@ def bag_family(path: Path) -> list[Path]:
     return found
 
 
-def record_from_bags(
-    paths: Sequence[Path],
-    start: int,
-    length: int,
-    *,
-    origin_s: float | None,
-    trigger_sample_index: int | None = None,
-    rules: StreamRules = DEFAULT_RULES,
-    source: str = '',
-) -> ImpactRecord | None:
-    """Samples [start, start + length) of force and the response as an ImpactRecord.
+@dataclass(frozen=True)
+class RecordSpan:
+    """A record to cut: samples [start, start + length) of the acquisition at origin_s [s]."""
 
-    From the first bag of paths that holds all of them in an acquisition whose clock puts
-    sample 0 at origin_s [s] (within rules.clock_tolerance_s; None: any acquisition). None
-    when no bag does (yet: the recorder flushes about once a second). A bag that cannot be
-    read is skipped: the caller names the impact it could not hold.
+    start: int
+    length: int
+    origin_s: float | None  # None: any acquisition
+    trigger_sample_index: int | None = None
+    source: str = ''
+
+
+def records_from_bags(
+    paths: Sequence[Path], spans: Sequence[RecordSpan], rules: StreamRules = DEFAULT_RULES
+) -> dict[int, ImpactRecord]:
+    """The records of spans (by their position in spans) that the bags hold whole.
+
+    Each from the first bag of paths that holds all its samples in an acquisition whose clock
+    puts sample 0 at its origin_s (`StreamRules.same_clock`); one read of each bag serves
+    every span. A span no bag holds (yet: the recorder flushes about once a second) is left
+    out. A bag that cannot be read is skipped: the caller names the impacts it could not hold.
     """
+    found: dict[int, ImpactRecord] = {}
     for path in paths:
+        wanted = {k: span for k, span in enumerate(spans) if k not in found}
+        if not wanted:
+            break
         try:
-            record = _record_from_bag(
-                path,
-                start,
-                length,
-                origin_s,
-                rules,
-                trigger_sample_index=trigger_sample_index,
-                source=source,
-            )
+            found.update(_records_from_bag(path, wanted, rules))
         except (OSError, ValueError):
             continue
-        if record is not None:
-            return record
-    return None
+    return found
 
 
-def _record_from_bag(
-    path: Path,
-    start: int,
-    length: int,
-    origin_s: float | None,
-    rules: StreamRules,
-    **cut,
-) -> ImpactRecord | None:
-    stop = start + length
+def _records_from_bag(
+    path: Path, wanted: dict[int, RecordSpan], rules: StreamRules
+) -> dict[int, ImpactRecord]:
+    found: dict[int, ImpactRecord] = {}
+    longest = max(span.length for span in wanted.values())
     with BagReader(path, strict=False) as reader:
         velocity_topic = reader.find(VELOCITY_TOPIC, 'fmm_interfaces/msg/SampleBatch')
         history: SampleHistory | None = None
         for batch in reader.sample_batches():
             if history is None:
-                # The record, and as far as one channel may run ahead of the other.
+                # The longest record, and as far as one channel may run ahead of the other.
                 history = SampleHistory(
-                    length / batch.sample_rate_hz + rules.max_skew_s + 1.0, rules
+                    longest / batch.sample_rate_hz + rules.max_skew_s + 1.0, rules
                 )
             quantity = VELOCITY.quantity if batch.topic == velocity_topic else FORCE.quantity
             factor = sample_si_factor(batch.quantity, batch.unit)
@@ -99,9 +94,20 @@ def _record_from_bag(
                     batch.stamp_ns,
                 ),
             )
-            if not history.covers(start, stop):
-                continue
-            same_clock = rules.same_clock(history.origin_s, origin_s) is not False
-            if same_clock and history.holds(start) and start >= history.first_index:
-                return history.record(start, length, **cut)
-    return None
+            for k, span in list(wanted.items()):
+                if (
+                    history.covers(span.start, span.start + span.length)
+                    and rules.same_clock(history.origin_s, span.origin_s) is not False
+                    and history.holds(span.start)
+                    and span.start >= history.first_index
+                ):
+                    found[k] = history.record(
+                        span.start,
+                        span.length,
+                        trigger_sample_index=span.trigger_sample_index,
+                        source=span.source,
+                    )
+                    del wanted[k]
+            if not wanted:
+                break
+    return found
