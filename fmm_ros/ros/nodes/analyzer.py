@@ -134,6 +134,7 @@ class Analyzer(Node):
         self._joined_origin_s: float | None = None
         self._bag_missed: queue.Queue[Missed | BaseException] = queue.Queue()
         self._bag_timer = None
+        self._bag_thread: threading.Thread | None = None
         self._bag_deadline = 0.0
         self._bag_read = False  # the bag's hits are in (restored_from_bag says how many)
         self._impact_pub = self.create_publisher(ImpactResult, IMPACTS_TOPIC, IMPACT_QOS)
@@ -198,7 +199,7 @@ class Analyzer(Node):
         except queue.Empty:
             missed = None
         if missed is None:
-            if not self._bag_reading():
+            if self._bag_thread is None or not self._bag_thread.is_alive():
                 stream = self.capture.stream.next_index(FORCE.quantity) or 0
                 after = self._joined_at + self._record_samples()
                 if stream >= after or time.monotonic() > self._bag_deadline:  # or it stopped
@@ -217,10 +218,6 @@ class Analyzer(Node):
         self.destroy_timer(self._bag_timer)
         self._take_missed(missed)
         self._bag_read = True
-
-    def _bag_reading(self) -> bool:
-        thread = getattr(self, '_bag_thread', None)
-        return thread is not None and thread.is_alive()
 
     def _record_samples(self) -> int:
         rate = self.capture.stream.sample_rate_hz or 0.0
