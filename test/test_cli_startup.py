@@ -5,22 +5,19 @@ A structural test, not a timed one (benchmarks/bench_cli.py times it): a fresh i
 builds every subcommand's help and the modules it imported are listed.
 """
 
-import subprocess
-import sys
-
 import pytest
+from import_probe import modules_after
 
 from fmm_ros.cli import SUBCOMMANDS, build_parser
 
 HEAVY = ('numpy', 'scipy', 'numba', 'matplotlib', 'rclpy', 'dask', 'rosbags', 'pandas')
 
 PROBE = """
-import contextlib, io, sys
+import contextlib, io
 from fmm_ros.cli import main
 for argv in {argvs!r}:
     with contextlib.redirect_stdout(io.StringIO()), contextlib.suppress(SystemExit):
         main(argv)
-print(' '.join(sorted({{name.split('.')[0] for name in sys.modules}})))
 """
 
 
@@ -29,12 +26,7 @@ def test_no_help_imports_numerics():
     subcommands = build_parser()._subparsers._group_actions[0].choices
     argvs = [['--help'], *([name, '--help'] for name in subcommands)]
     assert len(argvs) > 10
-    imported = subprocess.run(
-        [sys.executable, '-c', PROBE.format(argvs=argvs)],
-        check=True,
-        capture_output=True,
-        text=True,
-    ).stdout.split()
+    imported = {name.split('.')[0] for name in modules_after(PROBE.format(argvs=argvs))}
     assert 'fmm_ros' in imported
     assert [name for name in HEAVY if name in imported] == []
 

@@ -7,33 +7,20 @@ the p-values and quantiles that came from scipy.stats come from the special func
 scipy.stats itself calls (`fmm_ros.core.distributions`), to the bit.
 """
 
-import subprocess
-import sys
-
 import numpy as np
 import pytest
 import scipy.stats
+from import_probe import modules_after
 
 from fmm_ros.core import distributions
 from fmm_ros.ros.nodes import NODES
 
 DEFERRED = ('scipy.signal', 'scipy.stats', 'matplotlib')
 
-PROBE = """
-import sys
-import fmm_ros.ros.nodes.{node}
-print(' '.join(sorted(sys.modules)))
-"""
-
 
 @pytest.mark.parametrize('node', sorted(NODES))
 def test_a_node_module_imports_no_library_it_uses_only_on_demand(node):
-    imported = subprocess.run(
-        [sys.executable, '-c', PROBE.format(node=node)],
-        check=True,
-        capture_output=True,
-        text=True,
-    ).stdout.split()
+    imported = modules_after(f'import fmm_ros.ros.nodes.{node}')
     assert f'fmm_ros.ros.nodes.{node}' in imported
     assert [name for name in DEFERRED if name in imported] == []
 
