@@ -120,6 +120,9 @@ JUDGE_SERVICE = 'fmm/judge_impact'
 """The station's service: decide about one hit (JudgeImpact)."""
 FIT_SERVICE = 'fmm/fit_friction'
 DIAGNOSE_SERVICE = 'fmm/diagnose_model'
+RECALL_SERVICE = 'fmm/recall_samples'
+"""The fitter's service: the samples its history still holds (RecallSamples), for a respawned
+recorder to fill the stretch it was down."""
 RECORDED_TOPICS = (
     FORCE_TOPIC,
     VELOCITY_TOPIC,

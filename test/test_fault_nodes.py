@@ -9,6 +9,7 @@ force. The multi-process rig under SIGSTOP / SIGKILL is test_fault_rig.py.
 
 import subprocess
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -233,6 +234,112 @@ def test_a_respawned_recorder_copies_the_unclosed_bag_of_the_one_killed(tmp_path
         firsts = [b.first_sample_index for b in reader.sample_batches([FORCE_TOPIC])]
         assert firsts == [0, 1000, 2000, 3000]
         assert reader.recorded_ledger['/fmm/force'].received_samples == 4000
+
+
+RATE_HZ = 10_000.0
+
+
+def _signal(quantity, first, count=1000):
+    """Distinct samples per channel and index, so a misplaced sample shows."""
+    index = np.arange(first, first + count, dtype=float)
+    return index * (1.0 if quantity is FORCE else -1e-6)
+
+
+def _unclosed_bag(path, batches):
+    """A killed recorder's bag: force and velocity batches 0..batches, flushed, never closed."""
+    old = BagWriter(path, time_origin_ns=time.time_ns() - 100 * 10**9)  # 100 s ago
+    old.open()
+    for k in range(batches):
+        for topic, channel in ((FORCE_TOPIC, FORCE), (VELOCITY_TOPIC, VELOCITY)):
+            old.write_sample_batch(
+                topic,
+                _signal(channel, 1000 * k),
+                quantity=(channel.quantity, channel.unit),
+                sample_rate_hz=RATE_HZ,
+                first_sample_index=1000 * k,
+                frame_id='scripted',
+            )
+    old.flush()
+    old.abandon()
+    return old.time_origin_ns
+
+
+class Clocked(Node):
+    """Publishes force and velocity batches of `_signal`, stamped from one acquisition origin."""
+
+    def __init__(self, origin_ns, **kwargs):
+        super().__init__('clocked', **kwargs)
+        self.origin_ns = origin_ns
+        self.topics = {
+            FORCE: self.create_publisher(SampleBatch, FORCE_TOPIC, SAMPLE_QOS),
+            VELOCITY: self.create_publisher(SampleBatch, VELOCITY_TOPIC, SAMPLE_QOS),
+        }
+
+    def send(self, k):
+        for channel, publisher in self.topics.items():
+            first = 1000 * k
+            publisher.publish(
+                msgs.sample_batch(
+                    _signal(channel, first),
+                    quantity=channel,
+                    sample_rate_hz=RATE_HZ,
+                    first_sample_index=first,
+                    stamp=msgs.time_msg(self.origin_ns + round(first / RATE_HZ * 1e9)),
+                    frame_id='scripted',
+                )
+            )
+
+
+@pytest.mark.parametrize(('history_s', 'down'), [(120.0, 10), (1.0, 25)])
+def test_a_respawned_recorder_stores_what_it_missed_from_the_fitters_history(
+    tmp_path, history_s, down
+):
+    """The killed recorder's bag ends at 4,000; batches 4 to `down` went out while none ran.
+
+    A fitter that still holds them (120 s of history): the new bag holds every sample whole,
+    in order, as sent, its ledger 0 missing. One whose history is shorter than the downtime
+    (1 s: 10,000 samples) fills what it still holds; the ledger counts the rest missing.
+    """
+    origin_ns = _unclosed_bag(tmp_path / 'bag', 4)
+    end = 1000 * (down + 6)
+    with InProcessGraph() as graph:
+        fitter = graph.add(Fitter, parameter_overrides=params(history_s=history_s))
+        source = graph.add(Clocked, origin_ns=origin_ns)
+        graph.start()
+        for k in range(down):
+            source.send(k)
+        assert wait_for(
+            lambda: (
+                fitter.history.next_index('force')
+                == fitter.history.next_index('velocity')
+                == 1000 * down
+            )
+        )
+        recorder = graph.add(Recorder, parameter_overrides=params(bag_path=str(tmp_path / 'bag')))
+        graph.wait_for_discovery(10.0)
+        for k in range(down, down + 6):
+            source.send(k)
+        assert wait_for(
+            lambda: all(
+                recorder.ledger[t].span == (0, end) for t in ('/fmm/force', '/fmm/velocity')
+            )
+        ), recorder.ledger
+        assert not recorder._recall.waiting
+    with BagReader(tmp_path / 'bag_1') as reader:
+        ledger = reader.recorded_ledger
+        for topic, channel in ((FORCE_TOPIC, FORCE), (VELOCITY_TOPIC, VELOCITY)):
+            batches = list(reader.sample_batches([topic]))
+            firsts = [b.first_sample_index for b in batches]
+            assert firsts == sorted(firsts), f'{topic} out of order: {firsts}'
+            index = np.concatenate([np.arange(b.first_sample_index, b.end_index) for b in batches])
+            values = np.concatenate([b.samples for b in batches])
+            # Where the bag goes on after 4,000: at once, or where the short history began.
+            resumed = int(index[index >= 4000][0])
+            held_from = 1000 * down - round(history_s * RATE_HZ)
+            assert resumed == max(4000, held_from) or 4000 < held_from < resumed, resumed
+            assert np.array_equal(index, np.r_[0:4000, resumed:end]), topic
+            assert np.array_equal(values, _signal(channel, 0, end)[index]), topic
+            assert ledger['/' + topic].missing_samples == resumed - 4000, ledger
 
 
 def test_a_respawned_fitter_holds_again_what_it_held_with_its_live_mu(ros_graph, tmp_path):

@@ -66,3 +66,16 @@ def test_a_new_acquisition_at_another_rate_resizes_the_history():
     assert (history.capacity, history.sample_rate_hz, history.acquisitions) == (1_000, 2_000.0, 2)
     assert history.record(0, 1_000).force_n.tolist() == [1.0] * 1_000
     assert history.ledger['force'].resyncs == 1 and history.ledger['force'].faults == {'rate': 1}
+
+
+def test_held_spans_are_what_arrived_of_what_the_ring_still_holds():
+    """For a recorder's recall: clipped to the ring, across its wrap, split where nothing came."""
+    rng = np.random.default_rng(1)
+    force, velocity = rng.normal(size=(2, 25_000))
+    history = fed(SampleHistory(0.7), force, velocity, 500, skip={22_000})
+    runs = history.held('velocity', 10_000, 30_000)  # the ring holds 18,000..25,000
+    assert [(first, len(values)) for first, values in runs] == [(18_000, 4_000), (22_500, 2_500)]
+    for first, values in runs:
+        assert values.tobytes() == velocity[first : first + len(values)].tobytes()
+    assert [(f, len(v)) for f, v in history.held('force', 20_000, 21_000)] == [(20_000, 1_000)]
+    assert history.held('force', 25_000, 26_000) == [] == history.held('force', 1_000, 2_000)

@@ -129,11 +129,31 @@ class SampleHistory:
         if stop is None or not self.capacity:
             return 0, np.empty(0)
         start = max(stop - length, stop - self.capacity, self._first_index)
+        return start, self._copy(quantity, start, stop - start)
+
+    def held(self, quantity: str, start: int, stop: int) -> list[tuple[int, np.ndarray]]:
+        """The samples of [start, stop) of a channel still held, as (first index, copy) runs.
+
+        Clipped to what the ring holds of the acquisition followed; samples that never
+        arrived (NaN here, as are NaN samples a source sent) split the runs and are left out.
+        For a recorder filling the stretch it was down: what it stores is what came.
+        """
+        end = self.stream.next_index(quantity)
+        if end is None or not self.capacity:
+            return []
+        start = max(start, end - self.capacity, self._first_index)
+        stop = min(stop, end)
+        if stop <= start:
+            return []
+        values = self._copy(quantity, start, stop - start)
+        return [(start + first, values[first:last]) for first, last in _runs(~np.isnan(values))]
+
+    def _copy(self, quantity: str, start: int, count: int) -> np.ndarray:
+        """A copy of samples [start, start + count) of a channel's ring (count <= capacity)."""
         position = start % self.capacity
-        count = stop - start
         head = min(count, self.capacity - position)
         ring = self._rings[quantity]
-        return start, np.concatenate((ring[position : position + head], ring[: count - head]))
+        return np.concatenate((ring[position : position + head], ring[: count - head]))
 
     # -- records ----------------------------------------------------------------------------------
 
@@ -171,12 +191,7 @@ class SampleHistory:
                 f'samples from {start} are no longer held (the history keeps '
                 f'{self.capacity} samples)'
             )
-        position = start % self.capacity
-        head = min(length, self.capacity - position)
-        channels = {
-            name: np.concatenate((ring[position : position + head], ring[: length - head]))
-            for name, ring in self._rings.items()
-        }
+        channels = {name: self._copy(name, start, length) for name in self._rings}
         force, velocity = channels[FORCE.quantity], channels[VELOCITY.quantity]
         return ImpactRecord(
             force,
@@ -195,7 +210,12 @@ class SampleHistory:
 
 def _nan_runs(values: np.ndarray) -> tuple[tuple[int, int], ...]:
     """[start, stop) runs of NaN in values."""
-    edges = np.diff(np.concatenate(([0], np.isnan(values).view(np.int8), [0])))
-    return tuple(
+    return tuple(_runs(np.isnan(values)))
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) runs of True in a boolean mask."""
+    edges = np.diff(np.concatenate(([0], mask.view(np.int8), [0])))
+    return list(
         zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist(), strict=True)
     )

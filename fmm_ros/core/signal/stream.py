@@ -321,6 +321,10 @@ class AlignedStream:
         """The sensor range of a channel's latest batch taken (0: unknown)."""
         return self._channels[quantity].full_scale
 
+    def sender(self, quantity: str) -> str:
+        """Who sent a channel's latest batch taken (its header.frame_id; '' unknown)."""
+        return self._channels[quantity].sender
+
     # -- input -----------------------------------------------------------------------------------
 
     def feed(self, quantity: str, batch: Batch) -> None:

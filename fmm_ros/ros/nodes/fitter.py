@@ -29,7 +29,9 @@ respawn after SIGKILL) holds them again and publishes the live mu over them at o
 reported impact whose samples never reached this fitter (a record open at a kill, or sent
 while it was down) is cut from the recorder's bag when `recorder_bag` names it (the launcher
 sets it from the recorder's bag_path; `cutting.ImpactCutter`); one that cannot be cut from
-either is named in the log and WARN on /diagnostics.
+either is named in the log and WARN on /diagnostics. The history also serves fmm/recall_samples
+(`fmm_ros.ros.recall`): a recorder respawned after a kill stores from it what was sent while
+it was down.
 
 Service callbacks run in their own callback group, so under `ros2 run` (a multi-threaded
 executor) the streams keep flowing while a fit runs.
@@ -80,6 +82,7 @@ from fmm_ros.ros.health import OK, WARN, Health
 from fmm_ros.ros.inputs import SampleInputs
 from fmm_ros.ros.params import Param, declare_parameters, params_from
 from fmm_ros.ros.qos import DECISION_QOS, IMPACT_QOS, RESULT_QOS
+from fmm_ros.ros.recall import RecallServer
 from fmm_ros.workflows.results import FrictionResult
 
 PARAMS = (
@@ -156,6 +159,14 @@ class Fitter(Node):
         health = Health(self)
         self.inputs = SampleInputs(
             self, self.history.stream, self._on_batch, health, callback_group=streams
+        )
+        # A respawned recorder fills the stretch it was down from this history.
+        self.recall = RecallServer(
+            self,
+            self.history,
+            self.inputs.topics,
+            lambda: self.inputs.response_quantity,
+            callback_group=streams,
         )
         health.add('fits', self._fits_status)
         if self.cutter.from_bags is not None:

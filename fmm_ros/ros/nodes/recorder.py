@@ -22,7 +22,9 @@ goes to the first free `<bag_path>_<n>` beside it. When the bag before it was ne
 is copied into the new bag first, read by scanning (`_resume`), so the newest bag holds the
 whole session: `fmm bag-info` and `fmm replay` of it read every message either recorder
 stored, the killed one's bag stays as it was, and the new ledger counts the samples of the
-downtime missing. What the new recorder hears again from transient-local publishers
+downtime missing, unless the fitter still holds them: the stretch each channel lacks is
+recalled from its history (`fmm_ros.ros.recall`) and stored before the live batches after it.
+What the new recorder hears again from transient-local publishers
 (impacts, decisions) that the copy holds already is not stored twice. Storage that fails
 under the recorder (disk full, a read-only path, a vanished mount) ends the recording, not
 the node (`_fail`).
@@ -84,6 +86,7 @@ from fmm_ros.ros.qos import (
     SESSION_INFO_QOS,
     recording_qos,
 )
+from fmm_ros.ros.recall import GapRecall
 
 PARAMS = (
     Param(
@@ -177,6 +180,7 @@ class Recorder(Node):
         # Digests of transient-local messages copied from a killed recorder's bag: the same
         # bytes heard again from their publisher are not stored twice.
         self._copied: set[tuple[str, bytes]] = set()
+        self._recall = GapRecall(self, self._store_sample_batch)
         previous = _predecessor(asked, self.bag_path)
         if previous is not None and not (previous / 'metadata.yaml').exists() and not self.failed:
             written_s = time.time() - max(
@@ -227,6 +231,9 @@ class Recorder(Node):
                 f'of it copied into {self.bag_path}; the rest is only in {previous}'
             )
             return
+        for topic, stream in self._streams.items():
+            if stream.started:
+                self._recall.expect(topic, stream.next_index(topic))
         self.get_logger().warning(
             f'{previous} was not closed (its recorder was killed): its {copied} messages '
             f'copied into {self.bag_path}, which records on (the session whole in one bag; '
@@ -331,6 +338,7 @@ class Recorder(Node):
 
     def _discover(self) -> None:
         """Subscribe to every pending topic that now has a publisher; flush what waited."""
+        self._recall.poll()
         self._bound_silence()
         if not self.failed:
             try:
@@ -411,11 +419,25 @@ class Recorder(Node):
     def _store_batch(
         self, topic: str, msgtype: str, data: bytes, log_time_ns: int | None = None
     ) -> None:
-        """Store a SampleBatch as it came; account for it by the stream rules."""
+        """Store a SampleBatch as it came; account for it by the stream rules.
+
+        A live batch past the stretch a resumed copy lacks waits in `_recall` (reported
+        taken) until that stretch is recalled from the fitter, so the bag stays in order.
+        """
         self.last_batch_at = time.monotonic()
+        msg = deserialize_message(data, SampleBatch)
+        if log_time_ns is None and self._recall.take(topic, msgtype, data, msg):
+            end = msg.first_sample_index + len(msg.samples)
+            self.reporter.update(topic, end, msg.sample_rate_hz)
+            return
+        self._store_sample_batch(topic, msgtype, data, msg, log_time_ns)
+
+    def _store_sample_batch(
+        self, topic: str, msgtype: str, data: bytes, msg: SampleBatch, log_time_ns: int | None
+    ) -> None:
         self._store(topic, msgtype, data, log_time_ns)
         stream = self._streams[topic]
-        batch = msgs.stream_batch(deserialize_message(data, SampleBatch))
+        batch = msgs.stream_batch(msg)
         try:
             stream.feed(topic, batch)
         except ValueError:
@@ -442,6 +464,7 @@ class Recorder(Node):
 
     def _write_closing_metadata(self) -> None:
         """The ledger, the session's metadata and the recorder's own line, for metadata.yaml."""
+        self._recall.flush()
         for stream in self._streams.values():
             stream.finish()
         self._bound_silence(final=True)
