@@ -327,6 +327,12 @@ def test_a_respawned_recorder_stores_what_it_missed_from_the_fitters_history(
         assert not recorder._recall.waiting
     with BagReader(tmp_path / 'bag_1') as reader:
         ledger = reader.recorded_ledger
+        # Stored with the channels together, as they were sent: never a batch apart.
+        reached = {FORCE_TOPIC: 0, VELOCITY_TOPIC: 0}
+        for batch in reader.sample_batches([FORCE_TOPIC, VELOCITY_TOPIC]):
+            reached[batch.topic.lstrip('/')] = batch.end_index
+            if history_s > 1:
+                assert abs(reached[FORCE_TOPIC] - reached[VELOCITY_TOPIC]) <= 1000, reached
         for topic, channel in ((FORCE_TOPIC, FORCE), (VELOCITY_TOPIC, VELOCITY)):
             batches = list(reader.sample_batches([topic]))
             firsts = [b.first_sample_index for b in batches]

@@ -113,13 +113,14 @@ class RecallServer:
 
 @dataclass
 class _Gap:
-    """A channel's stretch the copy lacks, and the live batches held while it is asked for."""
+    """A channel's stretch the copy lacks, and what the recall brought of it."""
 
     first: int
     end: int
     deadline: float
-    held: list[tuple[str, bytes, SampleBatch]] = field(default_factory=list)
     asked: bool = False
+    resolved: bool = False
+    batches: list[SampleBatch] = field(default_factory=list)
 
 
 Store = Callable[[str, str, bytes, SampleBatch, int | None], None]
@@ -127,7 +128,14 @@ Store = Callable[[str, str, bytes, SampleBatch, int | None], None]
 
 
 class GapRecall:
-    """A respawned recorder's side: asks for what each channel's copy lacks before it goes on."""
+    """A respawned recorder's side: asks for what each channel's copy lacks before it goes on.
+
+    While a channel's gap is asked for, every live sample batch (of every channel) is held,
+    in arrival order; once every gap is answered or given up, the recalled batches of all
+    channels are stored first, interleaved by sample index, then the held ones. Storing one
+    channel's whole gap before the other's would part the channels by the downtime in the
+    bag, which a reader following the channels together takes for a skew past its bound.
+    """
 
     def __init__(self, node: Node, store: Store, wait_s: float = RECALL_WAIT_S) -> None:
         self._node = node
@@ -136,6 +144,7 @@ class GapRecall:
         self._client = node.create_client(RecallSamples, RECALL_SERVICE)
         self._joins: dict[str, int] = {}  # topic -> the first index the copy lacks
         self._gaps: dict[str, _Gap] = {}
+        self._held: list[tuple[str, str, bytes, SampleBatch]] = []
         self.recalled = 0
         """Samples stored from the recall (for the recorder's diagnostics)."""
 
@@ -146,26 +155,24 @@ class GapRecall:
     @property
     def waiting(self) -> dict[str, tuple[int, int]]:
         """The spans still asked for, by topic."""
-        return {topic: (gap.first, gap.end) for topic, gap in self._gaps.items()}
+        return {t: (gap.first, gap.end) for t, gap in self._gaps.items() if not gap.resolved}
 
     def take(self, topic: str, msgtype: str, data: bytes, msg: SampleBatch) -> bool:
-        """True when a live batch is held here (its channel's gap is being asked for)."""
-        gap = self._gaps.get(topic)
-        if gap is not None:
-            gap.held.append((msgtype, data, msg))
-            return True
+        """True when a live batch is held here (a gap is being asked for)."""
         join = self._joins.pop(topic, None)
-        if join is None or msg.first_sample_index <= join:
+        if join is not None and msg.first_sample_index > join:
+            self._gaps[topic] = _Gap(join, msg.first_sample_index, time.monotonic() + self._wait_s)
+        if not self._gaps:
             return False
-        gap = _Gap(join, msg.first_sample_index, time.monotonic() + self._wait_s)
-        gap.held.append((msgtype, data, msg))
-        self._gaps[topic] = gap
+        self._held.append((topic, msgtype, data, msg))
         self.poll()
         return True
 
     def poll(self) -> None:
         """Ask once the service is there; give a gap up at its deadline (on the node's timer)."""
-        for topic, gap in list(self._gaps.items()):
+        for topic, gap in self._gaps.items():
+            if gap.resolved:
+                continue
             if not gap.asked and self._client.service_is_ready():
                 gap.asked = True
                 request = RecallSamples.Request(
@@ -177,60 +184,75 @@ class GapRecall:
             elif time.monotonic() > gap.deadline:
                 self._give_up(
                     topic,
+                    gap,
                     f'no answer on {RECALL_SERVICE} within {self._wait_s:g} s'
                     + ('' if gap.asked else ' (no node serves it: is the fitter running?)'),
                 )
+        self._release_if_done()
 
     def flush(self) -> None:
-        """Store every held batch now (the recorder closes): its gaps stay missing."""
-        for topic in list(self._gaps):
-            self._give_up(topic, 'the recorder stopped before the recall was answered')
+        """Store every held batch now (the recorder closes): the gaps not answered stay missing."""
+        for topic, gap in self._gaps.items():
+            if not gap.resolved:
+                self._give_up(topic, gap, 'the recorder stopped before the recall was answered')
+        self._release_if_done()
 
     def _answered(self, topic: str, gap: _Gap, future) -> None:
-        if self._gaps.get(topic) is not gap:
-            return  # given up at its deadline: the held batches are stored already
+        if gap.resolved:
+            return  # given up at its deadline
         error = future.exception()
-        if error is not None:
-            self._give_up(topic, f'{RECALL_SERVICE} failed: {error}')
-            return
-        response = future.result()
-        if not response.success:
-            self._give_up(topic, response.message)
-            return
-        live_origin = msgs.stream_batch(gap.held[0][2]).origin_s
-        batches = [
-            batch
-            for batch in response.batches
-            if gap.first <= batch.first_sample_index
-            and batch.first_sample_index + len(batch.samples) <= gap.end
-        ]
-        if (
-            batches
-            and DEFAULT_RULES.same_clock(msgs.stream_batch(batches[0]).origin_s, live_origin)
-            is False
-        ):
-            self._give_up(topic, 'the history held is of another acquisition (its clock differs)')
-            return
-        for batch in batches:
-            self._store(topic, SAMPLE_BATCH_TYPE, serialize_message(batch), batch, None)
-        recalled = sum(len(batch.samples) for batch in batches)
-        self.recalled += recalled
-        self._node.get_logger().warning(
-            f'{topic}: samples {gap.first}..{gap.end} were sent while no recorder ran; '
-            f'{recalled} of them recalled from {RECALL_SERVICE} ({response.message}) and stored'
-        )
-        self._release(topic, gap)
+        response = None if error is not None else future.result()
+        if response is None or not response.success:
+            self._give_up(
+                topic, gap, f'{RECALL_SERVICE} failed: {error}' if error else response.message
+            )
+        else:
+            batches = [
+                batch
+                for batch in response.batches
+                if gap.first <= batch.first_sample_index
+                and batch.first_sample_index + len(batch.samples) <= gap.end
+            ]
+            live = next(msg for held_topic, _, _, msg in self._held if held_topic == topic)
+            if (
+                batches
+                and DEFAULT_RULES.same_clock(
+                    msgs.stream_batch(batches[0]).origin_s, msgs.stream_batch(live).origin_s
+                )
+                is False
+            ):
+                self._give_up(topic, gap, 'the history held is of another acquisition')
+            else:
+                gap.batches, gap.resolved = batches, True
+                recalled = sum(len(batch.samples) for batch in batches)
+                self.recalled += recalled
+                self._node.get_logger().warning(
+                    f'{topic}: samples {gap.first}..{gap.end} were sent while no recorder ran; '
+                    f'{recalled} of them recalled from {RECALL_SERVICE} ({response.message})'
+                )
+        self._release_if_done()
 
-    def _give_up(self, topic: str, why: str) -> None:
-        gap = self._gaps[topic]
+    def _give_up(self, topic: str, gap: _Gap, why: str) -> None:
+        gap.resolved = True
         self._node.get_logger().error(
             f'{topic}: samples {gap.first}..{gap.end} were sent while no recorder ran and are '
             f'not in the bag: {why}'
         )
-        self._release(topic, gap)
 
-    def _release(self, topic: str, gap: _Gap) -> None:
-        """Store the live batches held for a gap, in order; the channel records on."""
-        del self._gaps[topic]
-        for msgtype, data, msg in gap.held:
+    def _release_if_done(self) -> None:
+        """Once every gap is resolved: the recalled batches by index, then the held ones."""
+        if not self._gaps or not all(gap.resolved for gap in self._gaps.values()):
+            return
+        recalled = sorted(
+            (
+                (batch.first_sample_index, order, topic, batch)
+                for order, (topic, gap) in enumerate(self._gaps.items())
+                for batch in gap.batches
+            ),
+            key=lambda item: item[:2],
+        )
+        held, self._held, self._gaps = self._held, [], {}
+        for _, _, topic, batch in recalled:
+            self._store(topic, SAMPLE_BATCH_TYPE, serialize_message(batch), batch, None)
+        for topic, msgtype, data, msg in held:
             self._store(topic, msgtype, data, msg, None)
