@@ -17,9 +17,16 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rig_graph import FAST_ANALYZER, FAST_HAMMER, Listener, params, wait_for
 
-from fmm_interfaces.msg import SampleBatch
+from fmm_interfaces.msg import SampleBatch, StreamProgress
 from fmm_interfaces.srv import FitFriction
-from fmm_ros.constants import FIT_SERVICE, FORCE, FORCE_TOPIC, VELOCITY, VELOCITY_TOPIC
+from fmm_ros.constants import (
+    FIT_SERVICE,
+    FORCE,
+    FORCE_TOPIC,
+    STREAM_PROGRESS_TOPIC,
+    VELOCITY,
+    VELOCITY_TOPIC,
+)
 from fmm_ros.io.bags.reader import BagReader
 from fmm_ros.io.bags.writer import BagWriter
 from fmm_ros.ros import msgs
@@ -31,6 +38,7 @@ from fmm_ros.ros.nodes.fitter import Fitter
 from fmm_ros.ros.nodes.hammer_sim import HammerSim
 from fmm_ros.ros.nodes.recorder import Recorder
 from fmm_ros.ros.nodes.rig_sim import RigSim
+from fmm_ros.ros.qos import PROGRESS_QOS
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -275,6 +283,18 @@ class Clocked(Node):
             VELOCITY: self.create_publisher(SampleBatch, VELOCITY_TOPIC, SAMPLE_QOS),
         }
 
+        self.progress = []  # the recorder's reports on /fmm/force: (node, next index)
+        self.create_subscription(
+            StreamProgress,
+            STREAM_PROGRESS_TOPIC,
+            lambda msg: self.progress.extend(
+                (msg.node, index)
+                for topic, index in zip(msg.topics, msg.next_sample_indices, strict=True)
+                if topic == '/fmm/force'
+            ),
+            PROGRESS_QOS,
+        )
+
     def send(self, k):
         for channel, publisher in self.topics.items():
             first = 1000 * k
@@ -325,6 +345,10 @@ def test_a_respawned_recorder_stores_what_it_missed_from_the_fitters_history(
             )
         ), recorder.ledger
         assert not recorder._recall.waiting
+        # Held batches are reported taken, and the report never goes back as they are stored
+        # (a consumer reporting backwards is taken for one restarted).
+        reports = [index for node, index in source.progress if node == '/recorder']
+        assert reports and reports == sorted(reports), reports
     with BagReader(tmp_path / 'bag_1') as reader:
         ledger = reader.recorded_ledger
         # Stored with the channels together, as they were sent: never a batch apart.

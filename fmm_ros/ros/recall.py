@@ -145,6 +145,9 @@ class GapRecall:
         self._joins: dict[str, int] = {}  # topic -> the first index the copy lacks
         self._gaps: dict[str, _Gap] = {}
         self._held: list[tuple[str, str, bytes, SampleBatch]] = []
+        self.ahead: dict[str, int] = {}
+        """Per topic, the end of the live batches held: the recorder reports it taken (the
+        sources go on) and never reports less while the held batches are stored."""
         self.recalled = 0
         """Samples stored from the recall (for the recorder's diagnostics)."""
 
@@ -165,6 +168,7 @@ class GapRecall:
         if not self._gaps:
             return False
         self._held.append((topic, msgtype, data, msg))
+        self.ahead[topic] = msg.first_sample_index + len(msg.samples)
         self.poll()
         return True
 
@@ -256,3 +260,4 @@ class GapRecall:
             self._store(topic, SAMPLE_BATCH_TYPE, serialize_message(batch), batch, None)
         for topic, msgtype, data, msg in held:
             self._store(topic, msgtype, data, msg, None)
+        self.ahead.clear()

@@ -427,8 +427,7 @@ class Recorder(Node):
         self.last_batch_at = time.monotonic()
         msg = deserialize_message(data, SampleBatch)
         if log_time_ns is None and self._recall.take(topic, msgtype, data, msg):
-            end = msg.first_sample_index + len(msg.samples)
-            self.reporter.update(topic, end, msg.sample_rate_hz)
+            self.reporter.update(topic, self._recall.ahead[topic], msg.sample_rate_hz)
             return
         self._store_sample_batch(topic, msgtype, data, msg, log_time_ns)
 
@@ -443,7 +442,8 @@ class Recorder(Node):
         except ValueError:
             stream.refuse_malformed(topic, len(batch.samples))
         self._rates.setdefault(topic, ChannelRate()).newest_stamp_ns = batch.stamp_ns
-        self.reporter.update(topic, stream.next_index(topic), stream.sample_rate_hz)
+        taken = max(stream.next_index(topic), self._recall.ahead.get(topic, 0))
+        self.reporter.update(topic, taken, stream.sample_rate_hz)
         self._faults.check(stream.ledger, f'at {batch.first_sample_index}')
 
     def destroy_node(self) -> None:
