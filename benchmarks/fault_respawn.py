@@ -27,7 +27,8 @@ prints the rate of runs held / counted / replayed over the runs, with the load a
         [--rate X]
 
 --quick: one run of the fitter's respawn (CI, through test/test_fault_respawn.py); writes
-nothing. A run given --runs writes its printout into RESULTS.md (section fault_respawn). The
+nothing. A run given --runs writes its printout into RESULTS.md (section fault_respawn, or
+fault_respawn_<nodes> for the nodes given). The
 exit status is 1 only when a node printed a traceback: an impact missing is a figure.
 """
 
@@ -314,6 +315,16 @@ def main(argv: list[str] | None = None) -> int:
     return 1 if failed else 0
 
 
+def section(argv: list[str]) -> str:
+    """The RESULTS.md section of a run: `fault_respawn`, or one per set of nodes named."""
+    nodes = []
+    for arg in argv[argv.index('--nodes') + 1 :] if '--nodes' in argv else []:
+        if arg.startswith('-'):
+            break
+        nodes.append(arg)
+    return '_'.join(['fault_respawn', *nodes])
+
+
 if __name__ == '__main__':
-    with recorded('fault_respawn', quick='--quick' in sys.argv or '--runs' not in sys.argv):
+    with recorded(section(sys.argv[1:]), quick='--quick' in sys.argv or '--runs' not in sys.argv):
         raise SystemExit(main())
