@@ -131,8 +131,9 @@ class GapRecall:
     """A respawned recorder's side: asks for what each channel's copy lacks before it goes on.
 
     While a channel's gap is asked for, every live sample batch (of every channel) is held,
-    in arrival order; once every gap is answered or given up, the recalled batches of all
-    channels are stored first, interleaved by sample index, then the held ones. Storing one
+    in arrival order; once every channel the copy holds has shown its gap (or the wait is
+    over) and every gap is answered or given up, the recalled batches of all channels are
+    stored first, interleaved by sample index, then the held ones. Storing one
     channel's whole gap before the other's would part the channels by the downtime in the
     bag, which a reader following the channels together takes for a skew past its bound.
     """
@@ -244,8 +245,14 @@ class GapRecall:
         )
 
     def _release_if_done(self) -> None:
-        """Once every gap is resolved: the recalled batches by index, then the held ones."""
+        """Once every gap is resolved: the recalled batches by index, then the held ones.
+
+        A channel the copy holds that has not shown its first live batch yet may still open
+        a gap of its own: it is waited for until the first gap's deadline.
+        """
         if not self._gaps or not all(gap.resolved for gap in self._gaps.values()):
+            return
+        if self._joins and time.monotonic() <= min(g.deadline for g in self._gaps.values()):
             return
         recalled = sorted(
             (
