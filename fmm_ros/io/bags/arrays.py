@@ -134,6 +134,8 @@ class ChannelArrays:
         The batches over the span are copied whole (`_copy_rows`) and the span's part of
         them returned: a view, the few samples of its two edge batches beyond it aside.
         """
+        if high <= low:  # (a recording of empty batches only)
+            return np.empty(0)
         rows = self.rows[channel]
         targets = rows[:, 1]
         first = max(int(np.searchsorted(targets, low, side='right')) - 1, 0)
