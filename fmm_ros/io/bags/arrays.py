@@ -362,43 +362,95 @@ _MESSAGE_HEAD_SIZE = 22  # and its publish time (8 bytes) before the data
 _MAX_OTHERS = 64  # records in a chunk besides messages: more than a bag's channels and schemas
 
 
+_PATTERN = 2  # message records after which a chunk's next ones are taken as repeating them
+
+
 def _walk_chunk(
     buf: np.ndarray, start: int, stop: int
 ) -> tuple[np.ndarray, list[tuple[int, int, int]]] | None:
     """Messages (channel id, log time, CDR offset, CDR length) and other records of a chunk.
 
     None when a record runs past the chunk, or there are more other records than a bag has.
-    A plain loop (a record's length says where the next one starts): a few microseconds a
-    message, where a compiled one would cost numba's start-up first.
+    A record's length says where the next one starts, so records are walked one by one;
+    but once two messages are walked, the rest of the chunk is tried as repeating their
+    lengths (a recorder's force and velocity batches alternate, each the same size): the
+    records where the pattern puts them are checked all at once (`_message_run`), and those
+    up to the first that breaks it are taken as the walk would take them. So a chunk costs
+    a few numpy calls, not a few microseconds a message, and no compiled loop (numba's
+    start-up would cost a replay more than it saves).
     """
-    rows: list[tuple[int, int, int, int]] = []
+    parts: list[np.ndarray] = []
+    rows: list[tuple[int, int, int, int]] = []  # walked one by one, since the last part
     others: list[tuple[int, int, int]] = []
+    recent: list[int] = []  # lengths of the messages walked one by one just before pos
     record_head, message_head = _RECORD_HEAD.unpack_from, _MESSAGE_HEAD.unpack_from
     pos = start
     while pos < stop:
+        if len(recent) == _PATTERN:
+            recent, run = [], _message_run(buf, pos, stop, recent)
+            if run is not None:
+                parts += [np.array(rows, dtype=np.int64).reshape(-1, 4), run[0]]
+                rows, pos = [], run[1]
+                continue
         if pos + _RECORD_HEAD.size > stop:
             return None
         opcode, length = record_head(buf, pos)
         content = pos + _RECORD_HEAD.size
         if content + length > stop:
             return None
-        if opcode == MESSAGE:
-            if length >= _MESSAGE_HEAD_SIZE:
-                channel, _, log_time = message_head(buf, content)
-                at = content + _MESSAGE_HEAD_SIZE
-                rows.append((channel, log_time, at, length - _MESSAGE_HEAD_SIZE))
+        if opcode == MESSAGE and length >= _MESSAGE_HEAD_SIZE:
+            channel, _, log_time = message_head(buf, content)
+            at = content + _MESSAGE_HEAD_SIZE
+            rows.append((channel, log_time, at, length - _MESSAGE_HEAD_SIZE))
+            recent.append(length)
         else:
-            if len(others) == _MAX_OTHERS:
-                return None
-            others.append((content, length, opcode))
+            recent = []
+            if opcode != MESSAGE:
+                if len(others) == _MAX_OTHERS:
+                    return None
+                others.append((content, length, opcode))
         pos = content + length
-    return np.array(rows, dtype=np.int64).reshape(-1, 4), others
+    parts.append(np.array(rows, dtype=np.int64).reshape(-1, 4))
+    return np.concatenate(parts), others
+
+
+def _message_run(
+    buf: np.ndarray, pos: int, stop: int, lengths: list[int]
+) -> tuple[np.ndarray, int] | None:
+    """The messages from pos on that repeat the record lengths given, and where they end.
+
+    Rows as `_walk_chunk` makes them, of every record up to the first (in whole repeats
+    before stop) that is not a message of its length or whose log time would not fit an
+    int64 (left to the walk, which fails on it as before); None when the first is not.
+    """
+    sizes = np.array(lengths) + _RECORD_HEAD.size
+    period = int(sizes.sum())
+    repeats = (stop - pos) // period
+    offsets = np.concatenate(([0], np.cumsum(sizes)[:-1]))
+    at = (pos + period * np.arange(repeats)[:, None] + offsets).ravel()
+    expected = np.tile(np.array(lengths), repeats)
+    fits = (buf[at] == MESSAGE) & (_ints(buf, at + 1, 8) == expected)
+    fits &= buf[at + _RECORD_HEAD.size + 13] < 0x80  # the log time's top byte
+    taken = int(np.argmin(fits)) if not fits.all() else fits.size
+    if not taken:
+        return None
+    at, length = at[:taken], expected[:taken]
+    content = at + _RECORD_HEAD.size
+    table = np.column_stack(
+        (
+            _ints(buf, content, 2),
+            _ints(buf, content + 6, 8),
+            content + _MESSAGE_HEAD_SIZE,
+            length - _MESSAGE_HEAD_SIZE,
+        )
+    )
+    return table, int(content[-1] + length[-1])
 
 
 def _ints(buf: np.ndarray, positions: np.ndarray, size: int) -> np.ndarray:
-    """The little-endian unsigned 4-byte (size 4) or signed 8-byte ints at each position."""
+    """The little-endian ints of size bytes at each position (2, 4: unsigned; 8: signed)."""
     raw = buf[positions[:, None] + np.arange(size)]
-    return raw.view('<u4' if size == 4 else '<i8')[:, 0].astype(np.int64)
+    return raw.view({2: '<u2', 4: '<u4', 8: '<i8'}[size])[:, 0].astype(np.int64)
 
 
 def _string_end(
