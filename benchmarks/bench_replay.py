@@ -1,10 +1,11 @@
 """Offline analysis of a 30-hit session bag: 16.5 min of two 10 kHz channels.
 
 The session (10 hits at each of the paper's levels, 33 s apart, simulated by the physics
-core and written as the recorder would) is replayed as `fmm replay` does: a clean bag read
-whole into channel arrays (its chunks' checksums verified on a second thread meanwhile),
-captured in blocks, each record analysed as it completes, on as many threads as there are
-cores (`available_threads`, printed) while the capture goes on, levels summarized.
+core and written as the recorder would) is replayed as `fmm replay` does: a clean bag's
+channels found in the file (its chunks' checksums verified on a second thread meanwhile),
+copied out and captured in blocks, each record analysed as it completes, on as many
+threads as there are cores (`available_threads`, printed) while the capture goes on,
+levels summarized.
 Against it, in the same run and interleaved (each repeat runs every row once, medians
 reported): the same replay on one thread, the replay batch by batch (every batch
 decoded and fed to the capture one by one), the bare read of the same file (the mcap
@@ -55,7 +56,12 @@ from fmm_ros.core.signal.capture import DEFAULT_CAPTURE, capture_impacts
 from fmm_ros.io.bags import SAMPLE_BATCH, BagReader, fmm_typestore
 from fmm_ros.sim.session import simulated_session, write_session_bag
 from fmm_ros.workflows.inputs import InputOptions, read_inputs
-from fmm_ros.workflows.replay import bag_impact_records, capture_records, replay_bag
+from fmm_ros.workflows.replay import (
+    WHOLE_BLOCK_SAMPLES,
+    bag_impact_records,
+    capture_records,
+    replay_bag,
+)
 from fmm_ros.workflows.session import analyse
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -119,7 +125,7 @@ def replay_numpy_steps(bag: Path) -> int:
 def read_whole(bag: Path) -> int:
     with BagReader(bag) as reader:
         whole = reader.channel_arrays()
-        return len(whole.force) + len(whole.velocity)
+        return sum(f.size + v.size for _, f, v in whole.blocks(WHOLE_BLOCK_SAMPLES))
 
 
 def capture_only(bag: Path) -> int:
@@ -220,8 +226,8 @@ def main() -> int:
         rows: dict[str, Callable[[Path], int]] = {
             REPLAY: replay,
             ONE_THREAD: replay_one_thread,
-            '  of which: read whole (channel arrays)': read_whole,
-            '  of which: read whole and capture': capture_only,
+            '  of which: read (channel blocks)': read_whole,
+            '  of which: read and capture': capture_only,
             '  of which: analyse the records': analysis_only(records),
             DFTS_ONE: dfts_only(records),
             DFTS_THREADED: dfts_only(records, THREADS),

@@ -39,3 +39,19 @@ def test_a_subcommand_alone_parses_as_in_the_full_parser():
         alone = build_parser(command)._subparsers._group_actions[0].choices
         assert list(alone) == [command]
         assert alone[command].format_help() == full[command].format_help()
+
+
+@pytest.mark.slow
+def test_a_replay_that_shows_no_progress_bar_imports_none(tmp_path):
+    """`fmm replay BAG` with stderr not a terminal draws no bar, and imports no tqdm (nor the
+    multiprocessing its lock would) to draw none."""
+    import numpy as np
+
+    from fmm_ros.io.bags import BagWriter
+
+    bag = tmp_path / 'bag'
+    with BagWriter(bag) as writer:
+        writer.write_signals(np.zeros(20_000), np.zeros(20_000), 10_000.0)
+    imported = modules_after(PROBE.format(argvs=[['replay', str(bag)]]))
+    assert 'fmm_ros.workflows.replay' in imported
+    assert [name for name in imported if name.split('.')[0] in ('tqdm', 'multiprocessing')] == []

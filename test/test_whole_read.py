@@ -1,7 +1,7 @@
 """A clean recording read whole: the same records and results as batch by batch.
 
-`BagReader.channel_arrays` reads both channels of a clean MCAP bag straight into two arrays,
-and replay feeds them to the capture in blocks. These tests hold that road to the old one
+`BagReader.channel_arrays` finds both channels of a clean MCAP bag in the file, and replay
+copies them out and feeds them to the capture in blocks. These tests hold that road to the old one
 (every batch decoded and fed in delivery order): equal results field by field, equal ledgers
 and counts, and no whole read at all where a bag is not clean (a gap, a skew, damage,
 another storage), so every fault keeps its rule.
@@ -102,6 +102,50 @@ def test_a_clean_bag_is_read_whole_into_the_recorded_samples(session, session_ba
     np.testing.assert_array_equal(whole.velocity, session.velocity_m_s)
     assert whole.first_sample_index == 0 and whole.sample_rate_hz == session.sample_rate_hz
     assert whole.batches == 2 * -(-len(session.force_n) // BATCH)
+
+
+@pytest.mark.parametrize('size', [777, BATCH, 65536])
+def test_a_clean_bag_is_copied_out_block_by_block_into_the_recorded_samples(
+    session, session_bag, size
+):
+    """Blocks of any size, their edges inside a batch or on one, join into the recording."""
+    with BagReader(session_bag) as reader:
+        blocks = list(reader.channel_arrays().blocks(size))
+    assert [low for low, *_ in blocks] == list(range(0, len(session.force_n), size))
+    np.testing.assert_array_equal(np.concatenate([f for _, f, _ in blocks]), session.force_n)
+    np.testing.assert_array_equal(np.concatenate([v for *_, v in blocks]), session.velocity_m_s)
+
+
+@pytest.mark.parametrize('case', ['clean', 'dropped velocity batch', 'short batches'])
+def test_the_chunks_are_walked_to_every_message_the_mcap_library_finds(
+    session, session_bag, tmp_path, case
+):
+    """The walk takes repeating records in runs (`_message_run`): where the pattern breaks (a
+    dropped batch, batches of other sizes) it finds the same messages, in the same order."""
+    from mcap.reader import make_reader
+
+    from fmm_ros.io.bags.arrays import _messages
+
+    if case == 'clean':
+        bag = session_bag
+    elif case == 'dropped velocity batch':
+        hit = int(session.hit_start_indices[1]) // BATCH * BATCH
+        bag = write_batches(tmp_path / 'bag', session, skip={(VELOCITY_TOPIC, hit)})
+    else:
+        bag = tmp_path / 'bag'
+        with BagWriter(bag, time_origin_ns=0) as writer:
+            writer.write_signals(session.force_n, session.velocity_m_s, 10_000.0, batch_size=333)
+    mcap = next(bag.glob('*.mcap'))
+    with mcap.open('rb') as stream:
+        reader = make_reader(stream)
+        topics = {c.id: c.topic for c in reader.get_summary().channels.values()}
+        stored = [(topics[c.id], m.log_time, len(m.data)) for _, c, m in reader.iter_messages()]
+    stored.sort(key=lambda row: row[1])  # delivery order: by log time, ties in file order
+    names = ('/' + FORCE_TOPIC, '/' + VELOCITY_TOPIC)
+    channel, _, lengths, _ = _messages(np.fromfile(mcap, dtype=np.uint8), names)
+    assert [(names[c], n) for c, n in zip(channel, lengths, strict=True)] == [
+        (topic, n) for topic, _, n in stored if topic in names
+    ]
 
 
 @pytest.mark.slow

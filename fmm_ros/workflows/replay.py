@@ -9,8 +9,8 @@ stream rules as live (`fmm_ros.core.signal.stream`), never a reason to refuse th
 the stream refused or resynchronised on is returned as a problem, from its ledger.
 
 A clean recording (no gap, restart or damage: `BagReader.channel_arrays`) takes a faster
-road to the same records: its channels are read whole into two arrays and fed to the capture
-in aligned blocks, each record analysed as it completes. The stream rules take such a
+road to the same records: its channels are copied straight from the file in aligned blocks
+and fed to the capture, each record analysed as it completes. The stream rules take such a
 recording whole either way, so the capture sees the same samples at the same indices.
 """
 
@@ -47,7 +47,7 @@ from fmm_ros.io.bags.errors import MissingTopicError
 from fmm_ros.io.bags.reader import BagReader, ChannelBatch
 from fmm_ros.units import sample_si_factor
 
-if TYPE_CHECKING:  # numba: read only where a clean recording is read whole
+if TYPE_CHECKING:  # arrays.py: imported only where a clean recording is read whole
     from fmm_ros.io.bags.arrays import ChannelArrays
 
 # Samples of each channel fed to the capture at once when a recording is read whole: large
@@ -197,13 +197,12 @@ class _BagFeed:
         """A clean recording read whole, fed to the capture in aligned blocks."""
         fed.batches, fed.signal_s = whole.batches, whole.force_signal_s
         rate, (force_scale, velocity_scale) = whole.sample_rate_hz, whole.full_scale
-        for low in range(0, len(whole.force), WHOLE_BLOCK_SAMPLES):
-            high = low + WHOLE_BLOCK_SAMPLES
+        for low, force, velocity in whole.blocks(WHOLE_BLOCK_SAMPLES):
             yield from self.tagged(
                 self.impacts.feed_both(
                     whole.first_sample_index + low,
-                    whole.force[low:high],
-                    whole.velocity[low:high],
+                    force,
+                    velocity,
                     rate,
                     force_scale,
                     velocity_scale,

@@ -5,8 +5,8 @@ through the stream rules per message (~40,000 for a 16-minute session): several 
 time it takes to read the file. A bag recorded without a fault needs none of that. This
 reader walks the chunks of an intact, uncompressed MCAP file (the layout fmm writes),
 parses every SampleBatch's CDR header in place (all at once, in numpy) and copies the float64
-samples straight into one preallocated array per channel. No numba: a replay process would
-pay its start-up (about half a second) for a loop that saves a few tens of milliseconds.
+samples straight out of the mapped file, a block of both channels at a time. No numba: a
+replay process would pay its start-up (half a second) for a loop saving a few milliseconds.
 
 It only answers for a recording the stream rules (`fmm_ros.core.signal.stream`) would take
 whole, in the order a batch-by-batch reader delivers it (by log time, ties in file order):
@@ -29,7 +29,7 @@ import functools
 import mmap
 import struct
 import zlib
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -75,9 +75,13 @@ _COLUMNS = 12
 
 @dataclass(frozen=True)
 class ChannelArrays:
-    """Force and velocity of a clean recording, whole, with the batches they came in.
+    """Force and velocity of a clean recording, found in its file, with the batches they came in.
 
-    force / velocity: samples from `first_sample_index` on (force [N], velocity [m/s]).
+    The samples stay in the mapped file until asked for: `blocks` copies them out a block at
+    a time (what replay feeds its capture), `force` / `velocity` whole (once, on first use).
+    A 16-minute session's two whole channels are 160 MB of fresh memory, whose first touch
+    cost a fresh `fmm replay` process more than copying the samples does; blocks reuse a
+    few hundred kB. Samples from `first_sample_index` on (force [N], velocity [m/s]).
     stamp_ns: header stamp of the first force batch, the time of sample first_sample_index
     (0: none), so the acquisition's clock, and the impact ids it gives, match a batch read.
     fed: the batches in the order a batch-by-batch reader delivers them, as rows of
@@ -86,12 +90,16 @@ class ChannelArrays:
 
     topics: tuple[str, str]
     first_sample_index: int
-    force: np.ndarray
-    velocity: np.ndarray
+    samples: int
     sample_rate_hz: float
     full_scale: tuple[float, float]
     fed: np.ndarray
-    stamp_ns: int = 0
+    stamp_ns: int
+    buf: np.ndarray
+    """The mapped file (its bytes): every chunk's checksum held."""
+    rows: tuple[np.ndarray, np.ndarray]
+    """Of each channel's batches in index order, (byte offset of the samples, first sample
+    counted from first_sample_index, count) as rows."""
 
     @property
     def batches(self) -> int:
@@ -103,6 +111,41 @@ class ChannelArrays:
         """Seconds of force signal, summed batch by batch in delivery order (as replay counts)."""
         counts = self.fed[self.fed[:, 0] == 0, 1]
         return float(np.cumsum(counts / self.sample_rate_hz)[-1]) if counts.size else 0.0
+
+    @functools.cached_property
+    def force(self) -> np.ndarray:
+        """The whole force channel [N]."""
+        return self.span(0, 0, self.samples)
+
+    @functools.cached_property
+    def velocity(self) -> np.ndarray:
+        """The whole velocity channel [m/s]."""
+        return self.span(1, 0, self.samples)
+
+    def blocks(self, size: int) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:
+        """(low, force, velocity) of samples [low, low + size) for each low from 0 on, copied."""
+        for low in range(0, self.samples, size):
+            high = min(low + size, self.samples)
+            yield low, self.span(0, low, high), self.span(1, low, high)
+
+    def span(self, channel: int, low: int, high: int) -> np.ndarray:
+        """Samples [low, high) of channel 0 (force) or 1 (velocity), copied from the file.
+
+        The batches over the span are copied whole (`_copy_rows`) and the span's part of
+        them returned: a view, the few samples of its two edge batches beyond it aside.
+        """
+        if high <= low:  # (a recording of empty batches only)
+            return np.empty(0)
+        rows = self.rows[channel]
+        targets = rows[:, 1]
+        first = max(int(np.searchsorted(targets, low, side='right')) - 1, 0)
+        stop = int(np.searchsorted(targets, high, side='left'))
+        origin = int(targets[first])
+        last = rows[stop - 1]
+        out = np.empty(int(last[1] + last[2]) - origin)
+        part = rows[first:stop]
+        _copy_rows(self.buf, part[:, 0], part[:, 1] - origin, part[:, 2], out.view(np.uint8))
+        return out[low - origin : high - origin]
 
 
 @functools.cache
@@ -133,15 +176,15 @@ def read_channel_arrays(
             flags=mmap.MAP_SHARED | getattr(mmap, 'MAP_POPULATE', 0),
             prot=mmap.PROT_READ,
         )
-    # The map is released with the last view of it (when reading is done).
+    # The map is released with the last view of it (the arrays' `buf`).
     return _read(np.frombuffer(mapped, dtype=np.uint8), topics, rules)
 
 
 def _read(buf: np.ndarray, topics: tuple[str, str], rules: StreamRules) -> ChannelArrays | None:
     """The channel arrays, or None; given only once every chunk's checksum held.
 
-    The layout is parsed and the samples copied while another thread checks the chunks'
-    CRCs (zlib releases the GIL): reading costs the longer of the two, not their sum.
+    The layout is parsed and checked while another thread checks the chunks' CRCs (zlib
+    releases the GIL): reading costs the longer of the two, not their sum.
     """
     messages = _messages(buf, topics)
     if messages is None:
@@ -207,21 +250,22 @@ def _arrays(
         return None
     if not _within_skew(channel, first + count, start, int(round(rules.max_skew_s * rate))):
         return None
-    force = np.empty(force_end - start)
-    velocity = np.empty(velocity_end - start)
-    _copy_samples(buf, layout, channel, start, [force, velocity])
     head = int(offsets[np.flatnonzero(channel == 0)[0]]) + 4  # CDR header.stamp: sec, nanosec
     seconds = int.from_bytes(bytes(buf[head : head + 4]), 'little', signed=True)
     nanoseconds = int.from_bytes(bytes(buf[head + 4 : head + 8]), 'little')
     return ChannelArrays(
         topics,
         start,
-        force,
-        velocity,
+        force_end - start,
         rate,
         (force_scale, velocity_scale),
         np.column_stack((channel, count)),
         seconds * 1_000_000_000 + nanoseconds,
+        buf,
+        tuple(  # a channel's batches are in index order already (contiguous, checked above)
+            layout[channel == index][:, (_SAMPLES_AT, _FIRST, _COUNT)] - (0, start, 0)
+            for index in (0, 1)
+        ),
     )
 
 
@@ -318,43 +362,95 @@ _MESSAGE_HEAD_SIZE = 22  # and its publish time (8 bytes) before the data
 _MAX_OTHERS = 64  # records in a chunk besides messages: more than a bag's channels and schemas
 
 
+_PATTERN = 2  # message records after which a chunk's next ones are taken as repeating them
+
+
 def _walk_chunk(
     buf: np.ndarray, start: int, stop: int
 ) -> tuple[np.ndarray, list[tuple[int, int, int]]] | None:
     """Messages (channel id, log time, CDR offset, CDR length) and other records of a chunk.
 
     None when a record runs past the chunk, or there are more other records than a bag has.
-    A plain loop (a record's length says where the next one starts): a few microseconds a
-    message, where a compiled one would cost numba's start-up first.
+    A record's length says where the next one starts, so records are walked one by one;
+    but once two messages are walked, the rest of the chunk is tried as repeating their
+    lengths (a recorder's force and velocity batches alternate, each the same size): the
+    records where the pattern puts them are checked all at once (`_message_run`), and those
+    up to the first that breaks it are taken as the walk would take them. So a chunk costs
+    a few numpy calls, not a few microseconds a message, and no compiled loop (numba's
+    start-up would cost a replay more than it saves).
     """
-    rows: list[tuple[int, int, int, int]] = []
+    parts: list[np.ndarray] = []
+    rows: list[tuple[int, int, int, int]] = []  # walked one by one, since the last part
     others: list[tuple[int, int, int]] = []
+    recent: list[int] = []  # lengths of the messages walked one by one just before pos
     record_head, message_head = _RECORD_HEAD.unpack_from, _MESSAGE_HEAD.unpack_from
     pos = start
     while pos < stop:
+        if len(recent) == _PATTERN:
+            recent, run = [], _message_run(buf, pos, stop, recent)
+            if run is not None:
+                parts += [np.array(rows, dtype=np.int64).reshape(-1, 4), run[0]]
+                rows, pos = [], run[1]
+                continue
         if pos + _RECORD_HEAD.size > stop:
             return None
         opcode, length = record_head(buf, pos)
         content = pos + _RECORD_HEAD.size
         if content + length > stop:
             return None
-        if opcode == MESSAGE:
-            if length >= _MESSAGE_HEAD_SIZE:
-                channel, _, log_time = message_head(buf, content)
-                at = content + _MESSAGE_HEAD_SIZE
-                rows.append((channel, log_time, at, length - _MESSAGE_HEAD_SIZE))
+        if opcode == MESSAGE and length >= _MESSAGE_HEAD_SIZE:
+            channel, _, log_time = message_head(buf, content)
+            at = content + _MESSAGE_HEAD_SIZE
+            rows.append((channel, log_time, at, length - _MESSAGE_HEAD_SIZE))
+            recent.append(length)
         else:
-            if len(others) == _MAX_OTHERS:
-                return None
-            others.append((content, length, opcode))
+            recent = []
+            if opcode != MESSAGE:
+                if len(others) == _MAX_OTHERS:
+                    return None
+                others.append((content, length, opcode))
         pos = content + length
-    return np.array(rows, dtype=np.int64).reshape(-1, 4), others
+    parts.append(np.array(rows, dtype=np.int64).reshape(-1, 4))
+    return np.concatenate(parts), others
+
+
+def _message_run(
+    buf: np.ndarray, pos: int, stop: int, lengths: list[int]
+) -> tuple[np.ndarray, int] | None:
+    """The messages from pos on that repeat the record lengths given, and where they end.
+
+    Rows as `_walk_chunk` makes them, of every record up to the first (in whole repeats
+    before stop) that is not a message of its length or whose log time would not fit an
+    int64 (left to the walk, which fails on it as before); None when the first is not.
+    """
+    sizes = np.array(lengths) + _RECORD_HEAD.size
+    period = int(sizes.sum())
+    repeats = (stop - pos) // period
+    offsets = np.concatenate(([0], np.cumsum(sizes)[:-1]))
+    at = (pos + period * np.arange(repeats)[:, None] + offsets).ravel()
+    expected = np.tile(np.array(lengths), repeats)
+    fits = (buf[at] == MESSAGE) & (_ints(buf, at + 1, 8) == expected)
+    fits &= buf[at + _RECORD_HEAD.size + 13] < 0x80  # the log time's top byte
+    taken = int(np.argmin(fits)) if not fits.all() else fits.size
+    if not taken:
+        return None
+    at, length = at[:taken], expected[:taken]
+    content = at + _RECORD_HEAD.size
+    table = np.column_stack(
+        (
+            _ints(buf, content, 2),
+            _ints(buf, content + 6, 8),
+            content + _MESSAGE_HEAD_SIZE,
+            length - _MESSAGE_HEAD_SIZE,
+        )
+    )
+    return table, int(content[-1] + length[-1])
 
 
 def _ints(buf: np.ndarray, positions: np.ndarray, size: int) -> np.ndarray:
-    """The little-endian unsigned 4-byte (size 4) or signed 8-byte ints at each position."""
+    """The little-endian ints of size bytes at each position (2, 4: unsigned; 8: signed)."""
     raw = buf[positions[:, None] + np.arange(size)]
-    return raw.view('<u4' if size == 4 else '<i8')[:, 0].astype(np.int64)
+    return raw.view({2: '<u2', 4: '<u4', 8: '<i8'}[size])[:, 0].astype(np.int64)
 
 
 def _string_end(
@@ -432,25 +528,6 @@ def _within_skew(channel: np.ndarray, ends: np.ndarray, start: int, max_skew: in
     """
     reached = [np.maximum.accumulate(np.where(channel == k, ends, start)) for k in (0, 1)]
     return not (np.abs(reached[0] - reached[1]) > max_skew).any()
-
-
-def _copy_samples(
-    buf: np.ndarray, layout: np.ndarray, channel: np.ndarray, start: int, out: list[np.ndarray]
-) -> None:
-    """Copy every batch's samples to its place in its channel's array (out: force, velocity).
-
-    A batch's float64s are 8-byte aligned within its CDR message, not within the file, so
-    they are copied as bytes.
-    """
-    for index in (0, 1):
-        rows = np.flatnonzero(channel == index)
-        _copy_rows(
-            buf,
-            layout[rows, _SAMPLES_AT],
-            layout[rows, _FIRST] - start,
-            layout[rows, _COUNT],
-            out[index].view(np.uint8),
-        )
 
 
 def _copy_rows(
