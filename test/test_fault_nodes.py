@@ -18,11 +18,12 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rig_graph import FAST_ANALYZER, FAST_HAMMER, Listener, params, wait_for
 
 from fmm_interfaces.msg import SampleBatch, StreamProgress
-from fmm_interfaces.srv import FitFriction
+from fmm_interfaces.srv import FitFriction, RecallSamples
 from fmm_ros.constants import (
     FIT_SERVICE,
     FORCE,
     FORCE_TOPIC,
+    RECALL_SERVICE,
     STREAM_PROGRESS_TOPIC,
     VELOCITY,
     VELOCITY_TOPIC,
@@ -355,6 +356,18 @@ def test_a_respawned_recorder_stores_what_it_missed_from_the_fitters_history(
         # (a consumer reporting backwards is taken for one restarted).
         reports = [index for node, index in source.progress if node == '/recorder']
         assert reports and reports == sorted(reports), reports
+        # A request the history cannot answer is refused by name, never an empty success.
+        client = graph.add(Node, node_name='asks').create_client(RecallSamples, RECALL_SERVICE)
+        for topic, span, why in (
+            ('/fmm/force', (9000, 8000), 'end_sample_index 8000 must be above first_sample_index'),
+            ('/fmm/other', (0, 1000), '/fmm/other is not held here'),
+            ('/fmm/force', (end, end + 1000), f'samples {end}..{end + 1000} of /fmm/force are not'),
+        ):
+            request = RecallSamples.Request(
+                topic=topic, first_sample_index=span[0], end_sample_index=span[1]
+            )
+            answer = graph.call(client, request)
+            assert not answer.success and why in answer.message, answer.message
     with BagReader(tmp_path / 'bag_1') as reader:
         ledger = reader.recorded_ledger
         # Stored with the channels together, as they came: never the downtime (6,000) apart,

@@ -33,7 +33,6 @@ takes seconds, and the sources run on meanwhile (the held batches are in memory,
 taken)."""
 RECALL_BATCH = 1000
 """Samples in a recalled batch at most (100 ms at 10 kHz: the size of a live one)."""
-SAMPLE_BATCH_TYPE = 'fmm_interfaces/msg/SampleBatch'
 
 
 class RecallServer:
@@ -69,6 +68,12 @@ class RecallServer:
             response.message = (
                 f'{request.topic} is not held here: this node takes '
                 f'{", ".join(sorted(self._quantities))}'
+            )
+            return response
+        if end <= first:
+            response.message = (
+                f'end_sample_index {end} must be above first_sample_index {first} '
+                '(the span is [first, end))'
             )
             return response
         history = self._history
@@ -118,6 +123,7 @@ class _Gap:
     first: int
     end: int
     deadline: float
+    msgtype: str  # the topic's type, as its live batches came
     asked: bool = False
     resolved: bool = False
     batches: list[SampleBatch] = field(default_factory=list)
@@ -149,8 +155,6 @@ class GapRecall:
         self.ahead: dict[str, int] = {}
         """Per topic, the end of the live batches held: the recorder reports it taken (the
         sources go on) and never reports less while the held batches are stored."""
-        self.recalled = 0
-        """Samples stored from the recall (for the recorder's diagnostics)."""
 
     def expect(self, topic: str, next_index: int) -> None:
         """The copy of topic ends before next_index: a later live batch shows the gap."""
@@ -165,7 +169,8 @@ class GapRecall:
         """True when a live batch is held here (a gap is being asked for)."""
         join = self._joins.pop(topic, None)
         if join is not None and msg.first_sample_index > join:
-            self._gaps[topic] = _Gap(join, msg.first_sample_index, time.monotonic() + self._wait_s)
+            deadline = time.monotonic() + self._wait_s
+            self._gaps[topic] = _Gap(join, msg.first_sample_index, deadline, msgtype)
         if not self._gaps:
             return False
         self._held.append((topic, msgtype, data, msg))
@@ -230,7 +235,6 @@ class GapRecall:
             else:
                 gap.batches, gap.resolved = batches, True
                 recalled = sum(len(batch.samples) for batch in batches)
-                self.recalled += recalled
                 self._node.get_logger().warning(
                     f'{topic}: samples {gap.first}..{gap.end} were sent while no recorder ran; '
                     f'{recalled} of them recalled from {RECALL_SERVICE} ({response.message})'
@@ -256,15 +260,15 @@ class GapRecall:
             return
         recalled = sorted(
             (
-                (batch.first_sample_index, order, topic, batch)
+                (batch.first_sample_index, order, topic, gap.msgtype, batch)
                 for order, (topic, gap) in enumerate(self._gaps.items())
                 for batch in gap.batches
             ),
             key=lambda item: item[:2],
         )
         held, self._held, self._gaps = self._held, [], {}
-        for _, _, topic, batch in recalled:
-            self._store(topic, SAMPLE_BATCH_TYPE, serialize_message(batch), batch, None)
+        for _, _, topic, msgtype, batch in recalled:
+            self._store(topic, msgtype, serialize_message(batch), batch, None)
         for topic, msgtype, data, msg in held:
             self._store(topic, msgtype, data, msg, None)
         self.ahead.clear()
